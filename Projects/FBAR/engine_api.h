@@ -1,0 +1,47 @@
+// What the front end (cli.cpp) needs from the engines: scene summary for --check, and a run.
+#pragma once
+
+#include <cstddef>
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include "scene.h"
+
+namespace fbar {
+
+/// Per-body facts printed by `fbar --check` and logged at the start of a run.
+struct BodySummary {
+  long long particles = 0;        ///< particles after sampling and partition clipping
+  double particle_volume = 0.0;   ///< [m^3] dx^3 / ppc
+  double particle_mass = 0.0;     ///< [kg] rho * particle_volume
+  double wave_speed = 0.0;        ///< [m/s] p-wave speed at rest (VALIDATION.md formulas)
+  double dt_bound = 0.0;          ///< [s] CFL * dx / (wave_speed + |initial velocity|)
+};
+
+struct SceneSummary {
+  std::vector<BodySummary> bodies;
+  double dt = 0.0;                          ///< [s] min(default_dt, every body's dt_bound)
+  std::size_t cpu_bytes = 0;                ///< estimated host memory of the CPU engine
+  std::vector<std::size_t> gpu_bytes;       ///< estimated device memory per GPU (index = gpu id)
+};
+
+/// Samples every body (deterministically) and computes the time step and memory estimates.
+SceneSummary summarize_scene(const Scene& scene);
+
+struct RunOptions {
+  bool quiet = false;              ///< no progress lines
+  std::ostream* log = nullptr;     ///< progress and failure reports; nullptr = std::cout
+};
+
+struct RunResult {
+  int exit_code = 0;               ///< 0 success, 2 run-time failure (SCHEMA.md)
+  std::string message;             ///< failure report: body, step, time, what happened
+  long long steps = 0;
+  double end_time = 0.0;           ///< [s]
+};
+
+/// Runs the scene on the CPU reference engine, writing frames to scene.simulation.save_path.
+RunResult run_cpu(const Scene& scene, const RunOptions& options);
+
+}  // namespace fbar

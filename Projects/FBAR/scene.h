@@ -1,0 +1,171 @@
+// The resolved scene: what the JSON front end produces and every engine consumes (SI units).
+//
+// scene_parse.cpp fills these structs from a scene file (SCHEMA.md), applying defaults,
+// validation and Froude scaling; engines never look at JSON. Every field documents its unit.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace fbar {
+
+using Real3 = std::array<double, 3>;
+using Int3 = std::array<int, 3>;
+
+enum class Precision { Single, Double, Mixed };
+enum class OnFailure { Stop, ReduceDt };
+enum class Backend { Auto, Gpu, Cpu };
+
+struct SimulationSpec {
+  Real3 domain{1.0, 1.0, 1.0};          ///< [m] extent of the simulated box, origin at (0,0,0)
+  double dx = 0.1;                      ///< [m] grid spacing (default_dx)
+  double default_dt = 0.0;              ///< [s] upper bound of the step; dx/100 when absent
+  Real3 gravity{0.0, -9.81, 0.0};       ///< [m/s^2]
+  double time = 0.0;                    ///< [s] start time
+  double fps = 60.0;                    ///< [1/s] frames per simulated second
+  int frames = 60;                      ///< number of frames written after the initial one
+  std::string save_path = "./";         ///< output directory
+  std::string save_suffix = ".bgeo";    ///< ".bgeo", ".geo", ".csv", ".h5"
+  bool particles_output_exterior_only = false;
+  double froude_scaling = 1.0;          ///< length scale factor s (1: none)
+  int info_rate = 0;                    ///< log every N steps (0: once per frame)
+  Precision precision = Precision::Single;
+  OnFailure on_failure = OnFailure::Stop;
+  std::uint64_t seed = 0;               ///< seed for jittered particle sampling
+};
+
+enum class Constitutive { JFluid, FixedCorotated, NeoHookean, DruckerPrager, NACC };
+
+struct MaterialSpec {
+  Constitutive law = Constitutive::JFluid;
+  std::string type = "particles";       ///< "particles" | "mesh"
+  double ppc = 8.0;                     ///< particles per cell at start
+  double cfl = 0.5;                     ///< CFL number of this body, (0, 1]
+  double rho = 1000.0;                  ///< [kg/m^3] initial density
+  // JFluid (Tait-Murnaghan)
+  double bulk_modulus = 2e7;            ///< [Pa]
+  double gamma = 7.1;                   ///< [-]
+  double viscosity = 1e-3;              ///< [Pa s] dynamic viscosity
+  // Elastic solids
+  double youngs_modulus = 1e7;          ///< [Pa]
+  double poisson_ratio = 0.2;           ///< [-], in [0, 0.5) (negative allowed down to -1)
+  // Plasticity (DruckerPrager, NACC)
+  double friction_angle = 30.0;         ///< [deg]
+  double cohesion = 0.0;                ///< [-] (log-strain cohesion, ClaymoreUW's meaning)
+  double logJp0 = 0.0;                  ///< [-]
+  double beta = 0.5;                    ///< [-]
+  bool vol_correction = true;           ///< DruckerPrager SandVolCorrection
+  double xi = 0.8;                      ///< [-] NACC hardening
+  bool hardening = true;                ///< NACC hardeningOn
+};
+
+struct AlgorithmSpec {
+  std::string type = "particles";
+  bool use_asflip = true;
+  double asflip_alpha = 0.0;
+  double asflip_beta_min = 0.0;
+  double asflip_beta_max = 0.0;
+  bool use_fbar = true;
+  double fbar_psi = 0.0;
+  bool fbar_fused_kernel = false;
+  bool use_fem = false;
+};
+
+enum class GeometryObject { Box, Sphere, Cylinder, File };
+enum class GeometryOperation { Add, Subtract, Union, Intersection, Difference };
+
+struct GeometrySpec {
+  GeometryObject object = GeometryObject::Box;
+  GeometryOperation operation = GeometryOperation::Add;
+  Real3 span{1.0, 1.0, 1.0};            ///< [m] box extent; cylinder length along its axis
+  Real3 offset{0.0, 0.0, 0.0};          ///< [m] min corner of the box / of the bounding box
+  double radius = 0.0;                  ///< [m] sphere and cylinder radius
+  int axis = 0;                         ///< cylinder axis: 0 = X, 1 = Y, 2 = Z
+  Real3 rotate{0.0, 0.0, 0.0};          ///< [deg] Euler angles (X, then Y, then Z) about fulcrum
+  Real3 fulcrum{0.0, 0.0, 0.0};         ///< [m]
+  Int3 array{1, 1, 1};                  ///< copies along X, Y, Z
+  Real3 spacing{0.0, 0.0, 0.0};         ///< [m] distance between copies
+  std::string file;                     ///< resolved path for object File
+  int padding = 1;
+  double scaling_factor = 1.0;
+  bool use_froude_scaling = true;
+  bool has_attributes = false;
+  std::vector<std::string> input_attribs;
+};
+
+struct BodySpec {
+  int gpu = 0;
+  int model = 0;
+  Real3 velocity{0.0, 0.0, 0.0};        ///< [m/s] initial velocity
+  /// [m] particles outside [partition_start, partition_end] are removed at start.
+  Real3 partition_start{-std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity(),
+                        -std::numeric_limits<double>::infinity()};
+  Real3 partition_end{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
+                      std::numeric_limits<double>::infinity()};
+  std::vector<long long> track_particle_id;
+  std::vector<std::string> output_attribs{"ID"};  ///< canonical attribute names (see attributes.h)
+  std::vector<std::string> track_attribs;
+  std::vector<std::string> target_attribs;
+  MaterialSpec material;
+  AlgorithmSpec algorithm;
+  std::vector<GeometrySpec> geometry;
+};
+
+enum class BoundaryObject {
+  Walls, Box, Sphere, Cylinder, Plane, Floor, Bathymetry, Velocity,
+  OSU_LWF_RAMP, OSU_LWF_PADDLE, OSU_TWB_RAMP, OSU_TWB_PADDLE, USGS_RAMP, USGS_GATE, WASIRF_PUMP, TOKYO_HARBOR
+};
+enum class Contact { Sticky, Slip, Separable };
+
+struct BoundarySpec {
+  BoundaryObject object = BoundaryObject::Walls;
+  Contact contact = Contact::Sticky;
+  Real3 domain_start{0.0, 0.0, 0.0};    ///< [m]
+  Real3 domain_end{0.0, 0.0, 0.0};      ///< [m]
+  std::array<double, 2> time{0.0, std::numeric_limits<double>::infinity()};  ///< [s] active window
+  double friction_static = 0.0;
+  double friction_dynamic = 0.0;
+  Real3 velocity{0.0, 0.0, 0.0};        ///< [m/s]
+  std::string file;
+  double output_frequency = 0.0;        ///< [Hz]
+  Int3 array{1, 1, 1};
+  Real3 spacing{0.0, 0.0, 0.0};
+  std::vector<std::array<double, 2>> bathymetry;
+  bool use_custom_bathymetry = false;
+};
+
+enum class SensorOperation { Sum, Max, Min, Count, Average, STDEV, Variance };
+
+struct GridSensorSpec {
+  std::string attribute;                ///< Force, Acceleration, Momentum, Velocity, Mass, Volume, JBar
+  SensorOperation operation = SensorOperation::Sum;
+  Real3 direction{1.0, 0.0, 0.0};       ///< unit projection direction
+  int direction_sign = 0;               ///< +1: only positive projections, -1: only negative, 0: both
+  double output_frequency = 60.0;       ///< [Hz]
+  Real3 domain_start{0.0, 0.0, 0.0};
+  Real3 domain_end{0.0, 0.0, 0.0};
+};
+
+struct ParticleSensorSpec {
+  std::string attribute;
+  SensorOperation operation = SensorOperation::Sum;
+  double output_frequency = 60.0;
+  Real3 domain_start{0.0, 0.0, 0.0};
+  Real3 domain_end{0.0, 0.0, 0.0};
+};
+
+struct Scene {
+  std::string source_path;              ///< the scene file it came from ("" when built in code)
+  std::string data_dir;                 ///< where geometry files are looked up
+  SimulationSpec simulation;
+  std::vector<BodySpec> bodies;
+  std::vector<BoundarySpec> boundaries;
+  std::vector<GridSensorSpec> grid_sensors;
+  std::vector<ParticleSensorSpec> particle_sensors;
+};
+
+}  // namespace fbar
