@@ -1,0 +1,538 @@
+// Particle frame files: classic Houdini .bgeo (binary, partio-compatible) and .geo (ASCII), CSV, a .bgeo reader.
+//
+// A ParticleFrame is N positions [m] plus named per-particle attributes (float or int32, `width` components each,
+// stored particle-major: values[p * width + c]). Writers pick the format from the file suffix; every writer
+// writes to "<file>.part" and renames it onto <file> only after a successful close, so a reader never sees a
+// half-written frame, and every I/O failure throws std::runtime_error naming the file.
+//
+// Classic binary geometry ("bgeo", Houdini's pre-12 format, version 5), as partio's BGEO writer emits it
+// (wdas/partio src/lib/io/BGEO.cpp). Everything big-endian, ints are int32, floats IEEE-754 binary32:
+//   header (41 bytes)   'B' 'g' 'e' 'o'  'V'  int version = 5
+//                       int nPoints, nPrims = 0, nPointGroups = 0, nPrimGroups = 0,
+//                       int nPointAttrib, nVertexAttrib = 0, nPrimAttrib = 0, nAttrib (detail) = 0
+//   per point attribute int16 name length, name bytes (no terminator), uint16 size (components),
+//                       int type (0 float, 1 int, 5 vector), size x int default value (0)
+//   per point           float x, y, z, w = 1 (P is implicit, never in the dictionary), then every attribute's
+//                       components in dictionary order (4 bytes each)
+//   (no primitives, no detail attributes)
+//   extra section       byte 0x00 (begin extra), byte 0xff (end extra)
+// Width-3 float attributes are written as type 5 ("vector": Houdini transforms them with the geometry), other
+// floats as type 0, ints as type 1.
+//
+// Classic ASCII geometry ("PGEOMETRY V5"), as partio's GEO writer emits it: counts, a PointAttrib dictionary
+// ("name size type defaults..."), one line per point "x y z 1 (a0 a1\tb0 ...)", one particle-system primitive
+// ("Part N 0 1 ... N-1 [0]") and the "beginExtra"/"endExtra" markers. Numbers use the shortest text that reads
+// back to the same float/double (std::to_chars), so ASCII output loses nothing.
+//
+// CSV: a header row "Position_X [m],Position_Y [m],Position_Z [m],<attributes>" (an attribute column is
+// "Name [unit]", or "Name" without a unit; width-3 attributes get _X/_Y/_Z, other widths _0.._w-1), then one
+// particle per row.
+#pragma once
+
+#include <cerrno>
+#include <charconv>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <system_error>
+#include <type_traits>
+#include <utility>
+#include <variant>
+#include <vector>
+
+#include "MnBase/Math/vec.h"
+
+namespace fbar::io {
+
+enum class AttributeType { Float, Int };
+
+/// One per-particle attribute of a frame.
+struct FrameAttribute {
+  std::string name;   ///< Houdini-safe identifier: [A-Za-z_][A-Za-z0-9_]*, not "P"
+  int width = 1;      ///< components per particle (1 or 3 in fbar's output; any >= 1 is accepted)
+  std::string unit;   ///< unit for CSV headers, e.g. "m/s"; empty: none
+  std::variant<std::vector<float>, std::vector<std::int32_t>> values;  ///< values[p * width + c]
+
+  AttributeType type() const { return values.index() == 0 ? AttributeType::Float : AttributeType::Int; }
+  std::size_t value_count() const {
+    return std::visit([](const auto& v) { return v.size(); }, values);
+  }
+  const std::vector<float>& floats() const { return std::get<0>(values); }
+  const std::vector<std::int32_t>& ints() const { return std::get<1>(values); }
+};
+
+/// N particles: positions [m] in single or double precision, plus attributes.
+struct ParticleFrame {
+  std::variant<std::vector<Vec3f>, std::vector<Vec3d>> positions;
+  std::vector<FrameAttribute> attributes;
+
+  std::size_t size() const {
+    return std::visit([](const auto& v) { return v.size(); }, positions);
+  }
+  bool double_precision() const { return positions.index() == 1; }
+  Vec3d position(std::size_t i) const {
+    return std::visit([i](const auto& v) { return v[i].template cast<double>(); }, positions);
+  }
+  FrameAttribute& add(std::string name, int width, std::vector<float> values, std::string unit = {}) {
+    attributes.push_back(FrameAttribute{std::move(name), width, std::move(unit), std::move(values)});
+    return attributes.back();
+  }
+  FrameAttribute& add(std::string name, int width, std::vector<std::int32_t> values, std::string unit = {}) {
+    attributes.push_back(FrameAttribute{std::move(name), width, std::move(unit), std::move(values)});
+    return attributes.back();
+  }
+  /// The attribute called `name`, or nullptr.
+  const FrameAttribute* find(std::string_view name) const {
+    for (const auto& a : attributes)
+      if (a.name == name) return &a;
+    return nullptr;
+  }
+};
+
+// ---------------------------------------------------------------------------------------------
+// Validation and file names
+
+inline bool valid_attribute_name(std::string_view name) {
+  if (name.empty() || name.size() > 32767 || name == "P") return false;
+  auto alpha = [](char c) { return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || c == '_'; };
+  if (!alpha(name[0])) return false;
+  for (char c : name)
+    if (!alpha(c) && !(c >= '0' && c <= '9')) return false;
+  return true;
+}
+
+/// Throws std::invalid_argument when a name is not a valid unique identifier, a width is < 1 or an attribute does
+/// not hold size() * width values.
+inline void validate_frame(const ParticleFrame& frame) {
+  const std::size_t n = frame.size();
+  for (std::size_t i = 0; i < frame.attributes.size(); ++i) {
+    const FrameAttribute& a = frame.attributes[i];
+    if (!valid_attribute_name(a.name))
+      throw std::invalid_argument("particle attribute name \"" + a.name +
+                                  "\" is not an identifier ([A-Za-z_][A-Za-z0-9_]*, not \"P\")");
+    if (a.width < 1 || a.width > 65535)
+      throw std::invalid_argument("particle attribute " + a.name + ": width " + std::to_string(a.width) +
+                                  " (expected 1..65535)");
+    if (a.value_count() != n * static_cast<std::size_t>(a.width))
+      throw std::invalid_argument("particle attribute " + a.name + ": " + std::to_string(a.value_count()) +
+                                  " values for " + std::to_string(n) + " particles of width " +
+                                  std::to_string(a.width));
+    for (std::size_t j = 0; j < i; ++j)
+      if (frame.attributes[j].name == a.name)
+        throw std::invalid_argument("particle attribute " + a.name + " appears twice");
+  }
+}
+
+enum class FrameFormat { Bgeo, Geo, Csv };
+
+/// ".bgeo", ".geo" or ".csv" (case-sensitive, as ClaymoreUW's save_suffix); anything else throws
+/// std::invalid_argument.
+inline FrameFormat frame_format(std::string_view suffix) {
+  if (suffix == ".bgeo") return FrameFormat::Bgeo;
+  if (suffix == ".geo") return FrameFormat::Geo;
+  if (suffix == ".csv") return FrameFormat::Csv;
+  throw std::invalid_argument("no particle frame writer for suffix \"" + std::string(suffix) +
+                              "\" (expected .bgeo, .geo or .csv)");
+}
+
+/// ClaymoreUW's frame file name: "model<m>_dev<d>_frame<f><suffix>", e.g. model0_dev0_frame12.bgeo (SCHEMA.md).
+inline std::string frame_file_name(int model, int device, int frame, std::string_view suffix) {
+  return "model" + std::to_string(model) + "_dev" + std::to_string(device) + "_frame" + std::to_string(frame) +
+         std::string(suffix);
+}
+
+/// save_path / frame_file_name(...).
+inline std::filesystem::path frame_file_path(const std::filesystem::path& save_path, int model, int device, int frame,
+                                             std::string_view suffix) {
+  return save_path / frame_file_name(model, device, frame, suffix);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Implementation details
+
+namespace detail {
+
+inline std::string errno_text(int err) { return std::error_code(err, std::generic_category()).message(); }
+
+/// A file written through "<path>.part" and renamed onto <path> by commit(); removed again if never committed.
+class AtomicFile {
+ public:
+  explicit AtomicFile(std::filesystem::path path) : path_(std::move(path)), temp_(path_) {
+    temp_ += ".part";
+    file_ = std::fopen(temp_.c_str(), "wb");
+    if (!file_) throw std::runtime_error("cannot open " + temp_.string() + " for writing: " + errno_text(errno));
+    buffer_.reserve(kChunk + 4096);
+  }
+  AtomicFile(const AtomicFile&) = delete;
+  AtomicFile& operator=(const AtomicFile&) = delete;
+  ~AtomicFile() {
+    if (file_) std::fclose(file_);
+    if (!committed_) {
+      std::error_code ec;
+      std::filesystem::remove(temp_, ec);
+    }
+  }
+
+  /// Bytes are staged in a 1 MiB buffer and written in large blocks.
+  std::string& buffer() { return buffer_; }
+  void maybe_flush() {
+    if (buffer_.size() >= kChunk) flush();
+  }
+  void flush() {
+    if (!buffer_.empty() && std::fwrite(buffer_.data(), 1, buffer_.size(), file_) != buffer_.size())
+      throw std::runtime_error("cannot write " + temp_.string() + ": " + errno_text(errno));
+    buffer_.clear();
+  }
+  void commit() {
+    flush();
+    // fclose reports deferred write errors (a full disk): check it before the rename makes the file visible.
+    const int rc = std::fclose(file_);
+    file_ = nullptr;
+    if (rc != 0) throw std::runtime_error("cannot write " + temp_.string() + ": " + errno_text(errno));
+    std::error_code ec;
+    std::filesystem::rename(temp_, path_, ec);
+    if (ec) throw std::runtime_error("cannot rename " + temp_.string() + " to " + path_.string() + ": " + ec.message());
+    committed_ = true;
+  }
+
+ private:
+  static constexpr std::size_t kChunk = std::size_t(1) << 20;
+  std::filesystem::path path_, temp_;
+  std::FILE* file_ = nullptr;
+  std::string buffer_;
+  bool committed_ = false;
+};
+
+inline void put_be32(std::string& out, std::uint32_t v) {
+  const char b[4] = {static_cast<char>(v >> 24), static_cast<char>(v >> 16), static_cast<char>(v >> 8),
+                     static_cast<char>(v)};
+  out.append(b, 4);
+}
+inline void put_be16(std::string& out, std::uint16_t v) {
+  const char b[2] = {static_cast<char>(v >> 8), static_cast<char>(v)};
+  out.append(b, 2);
+}
+inline std::uint32_t bits_of(float f) {
+  std::uint32_t u;
+  std::memcpy(&u, &f, 4);
+  return u;
+}
+inline void put_be_float(std::string& out, float f) { put_be32(out, bits_of(f)); }
+
+/// Shortest text that reads back to the same value (locale-independent).
+template <typename T>
+void put_text(std::string& out, T v) {
+  char buf[64];
+  const auto r = std::to_chars(buf, buf + sizeof(buf), v);
+  out.append(buf, r.ptr);
+}
+
+/// Cursor over a whole file in memory; every read is bounds-checked.
+class ByteReader {
+ public:
+  ByteReader(std::string data, std::string name) : data_(std::move(data)), name_(std::move(name)) {}
+  std::uint32_t be32() {
+    need(4);
+    const auto* p = reinterpret_cast<const unsigned char*>(data_.data() + pos_);
+    pos_ += 4;
+    return (std::uint32_t(p[0]) << 24) | (std::uint32_t(p[1]) << 16) | (std::uint32_t(p[2]) << 8) | p[3];
+  }
+  std::uint16_t be16() {
+    need(2);
+    const auto* p = reinterpret_cast<const unsigned char*>(data_.data() + pos_);
+    pos_ += 2;
+    return static_cast<std::uint16_t>((p[0] << 8) | p[1]);
+  }
+  unsigned char byte() {
+    need(1);
+    return static_cast<unsigned char>(data_[pos_++]);
+  }
+  std::string bytes(std::size_t n) {
+    need(n);
+    std::string s = data_.substr(pos_, n);
+    pos_ += n;
+    return s;
+  }
+  float be_float() {
+    const std::uint32_t u = be32();
+    float f;
+    std::memcpy(&f, &u, 4);
+    return f;
+  }
+  std::size_t remaining() const { return data_.size() - pos_; }
+  [[noreturn]] void fail(const std::string& what) const {
+    throw std::runtime_error(name_ + ": " + what + " (at byte " + std::to_string(pos_) + ")");
+  }
+
+ private:
+  void need(std::size_t n) const {
+    if (data_.size() - pos_ < n) fail("file ends early");
+  }
+  std::string data_, name_;
+  std::size_t pos_ = 0;
+};
+
+inline std::string read_whole_file(const std::filesystem::path& path) {
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) throw std::runtime_error("cannot open " + path.string() + ": " + errno_text(errno));
+  std::string data;
+  char chunk[1 << 16];
+  std::size_t got;
+  while ((got = std::fread(chunk, 1, sizeof(chunk), f)) > 0) data.append(chunk, got);
+  const bool failed = std::ferror(f) != 0;
+  std::fclose(f);
+  if (failed) throw std::runtime_error("cannot read " + path.string());
+  return data;
+}
+
+/// Classic bgeo/geo attribute type codes (partio BGEO.cpp / GEO.cpp).
+constexpr int kHoudiniFloat = 0;
+constexpr int kHoudiniInt = 1;
+constexpr int kHoudiniVector = 5;
+inline int houdini_type(const FrameAttribute& a) {
+  if (a.type() == AttributeType::Int) return kHoudiniInt;
+  return a.width == 3 ? kHoudiniVector : kHoudiniFloat;
+}
+
+inline std::vector<std::string> column_names(const FrameAttribute& a) {
+  const std::string unit = a.unit.empty() ? std::string() : " [" + a.unit + "]";
+  if (a.width == 1) return {a.name + unit};
+  std::vector<std::string> names;
+  static constexpr const char* kXyz[3] = {"_X", "_Y", "_Z"};
+  for (int c = 0; c < a.width; ++c)
+    names.push_back(a.name + (a.width == 3 ? std::string(kXyz[c]) : "_" + std::to_string(c)) + unit);
+  return names;
+}
+
+}  // namespace detail
+
+// ---------------------------------------------------------------------------------------------
+// Writers
+
+/// Classic binary Houdini geometry, byte for byte what partio's writeBGEO produces for the same data
+/// (positions are stored as float). Throws std::invalid_argument (bad frame, > 2^31-1 points) or
+/// std::runtime_error (I/O).
+inline void write_bgeo(const std::filesystem::path& path, const ParticleFrame& frame) {
+  validate_frame(frame);
+  const std::size_t n = frame.size();
+  if (n > 0x7fffffffu) throw std::invalid_argument(path.string() + ": bgeo holds at most 2^31-1 points");
+  detail::AtomicFile file(path);
+  std::string& out = file.buffer();
+  out.append("Bgeo", 4);
+  out.push_back('V');
+  detail::put_be32(out, 5);                                                 // version
+  detail::put_be32(out, static_cast<std::uint32_t>(n));                     // nPoints
+  for (int i = 0; i < 3; ++i) detail::put_be32(out, 0);                     // nPrims, nPointGroups, nPrimGroups
+  detail::put_be32(out, static_cast<std::uint32_t>(frame.attributes.size()));  // nPointAttrib
+  for (int i = 0; i < 3; ++i) detail::put_be32(out, 0);                     // nVertexAttrib, nPrimAttrib, nAttrib
+  for (const FrameAttribute& a : frame.attributes) {
+    detail::put_be16(out, static_cast<std::uint16_t>(a.name.size()));
+    out.append(a.name);
+    detail::put_be16(out, static_cast<std::uint16_t>(a.width));
+    detail::put_be32(out, static_cast<std::uint32_t>(detail::houdini_type(a)));
+    for (int c = 0; c < a.width; ++c) detail::put_be32(out, 0);           // default value
+  }
+  for (std::size_t p = 0; p < n; ++p) {
+    const Vec3f x = std::visit([p](const auto& v) { return v[p].template cast<float>(); }, frame.positions);
+    detail::put_be_float(out, x[0]);
+    detail::put_be_float(out, x[1]);
+    detail::put_be_float(out, x[2]);
+    detail::put_be_float(out, 1.0f);  // homogeneous w
+    for (const FrameAttribute& a : frame.attributes) {
+      const std::size_t base = p * static_cast<std::size_t>(a.width);
+      if (a.type() == AttributeType::Float) {
+        const float* v = a.floats().data() + base;
+        for (int c = 0; c < a.width; ++c) detail::put_be_float(out, v[c]);
+      } else {
+        const std::int32_t* v = a.ints().data() + base;
+        for (int c = 0; c < a.width; ++c) detail::put_be32(out, static_cast<std::uint32_t>(v[c]));
+      }
+    }
+    file.maybe_flush();
+  }
+  out.push_back(static_cast<char>(0x00));  // begin extra
+  out.push_back(static_cast<char>(0xff));  // end extra
+  file.commit();
+}
+
+/// Classic ASCII Houdini geometry (PGEOMETRY V5), the layout of partio's writeGEO.
+inline void write_geo(const std::filesystem::path& path, const ParticleFrame& frame) {
+  validate_frame(frame);
+  const std::size_t n = frame.size();
+  detail::AtomicFile file(path);
+  std::string& out = file.buffer();
+  const bool has_prim = n > 0;  // an empty particle primitive is not written
+  out += "PGEOMETRY V5\n";
+  out += "NPoints " + std::to_string(n) + " NPrims " + (has_prim ? "1" : "0") + "\n";
+  out += "NPointGroups 0 NPrimGroups 0\n";
+  out += "NPointAttrib " + std::to_string(frame.attributes.size()) + " NVertexAttrib 0 NPrimAttrib " +
+         (has_prim ? "1" : "0") + " NAttrib 0\n";
+  if (!frame.attributes.empty()) {
+    out += "PointAttrib\n";
+    for (const FrameAttribute& a : frame.attributes) {
+      const int t = detail::houdini_type(a);
+      out += a.name + " " + std::to_string(a.width) + " " +
+             (t == detail::kHoudiniInt ? "int" : t == detail::kHoudiniVector ? "vector" : "float");
+      for (int c = 0; c < a.width; ++c) out += " 0";
+      out += "\n";
+    }
+  }
+  for (std::size_t p = 0; p < n; ++p) {
+    std::visit(
+        [&](const auto& v) {
+          for (int d = 0; d < 3; ++d) {
+            detail::put_text(out, v[p][d]);
+            out.push_back(' ');
+          }
+        },
+        frame.positions);
+    out.push_back('1');
+    if (!frame.attributes.empty()) out += " (";
+    for (std::size_t i = 0; i < frame.attributes.size(); ++i) {
+      const FrameAttribute& a = frame.attributes[i];
+      if (i > 0) out.push_back('\t');
+      const std::size_t base = p * static_cast<std::size_t>(a.width);
+      for (int c = 0; c < a.width; ++c) {
+        if (c > 0) out.push_back(' ');
+        if (a.type() == AttributeType::Float)
+          detail::put_text(out, a.floats()[base + c]);
+        else
+          detail::put_text(out, a.ints()[base + c]);
+      }
+    }
+    if (!frame.attributes.empty()) out.push_back(')');
+    out.push_back('\n');
+    file.maybe_flush();
+  }
+  if (has_prim) {
+    out += "PrimitiveAttrib\ngenerator 1 index 1 papi\nPart " + std::to_string(n);
+    for (std::size_t p = 0; p < n; ++p) {
+      out.push_back(' ');
+      detail::put_text(out, p);
+      file.maybe_flush();
+    }
+    out += " [0]\n";
+  }
+  out += "beginExtra\nendExtra\n";
+  file.commit();
+}
+
+/// CSV with a header row of names and units; one particle per row.
+inline void write_csv(const std::filesystem::path& path, const ParticleFrame& frame) {
+  validate_frame(frame);
+  const std::size_t n = frame.size();
+  detail::AtomicFile file(path);
+  std::string& out = file.buffer();
+  out += "Position_X [m],Position_Y [m],Position_Z [m]";
+  for (const FrameAttribute& a : frame.attributes)
+    for (const std::string& col : detail::column_names(a)) out += "," + col;
+  out.push_back('\n');
+  for (std::size_t p = 0; p < n; ++p) {
+    std::visit(
+        [&](const auto& v) {
+          for (int d = 0; d < 3; ++d) {
+            if (d > 0) out.push_back(',');
+            detail::put_text(out, v[p][d]);
+          }
+        },
+        frame.positions);
+    for (const FrameAttribute& a : frame.attributes) {
+      const std::size_t base = p * static_cast<std::size_t>(a.width);
+      for (int c = 0; c < a.width; ++c) {
+        out.push_back(',');
+        if (a.type() == AttributeType::Float)
+          detail::put_text(out, a.floats()[base + c]);
+        else
+          detail::put_text(out, a.ints()[base + c]);
+      }
+    }
+    out.push_back('\n');
+    file.maybe_flush();
+  }
+  file.commit();
+}
+
+/// Writes `frame` in the format named by path's extension (.bgeo, .geo, .csv).
+inline void write_frame(const std::filesystem::path& path, const ParticleFrame& frame) {
+  switch (frame_format(path.extension().string())) {
+    case FrameFormat::Bgeo: write_bgeo(path, frame); break;
+    case FrameFormat::Geo: write_geo(path, frame); break;
+    case FrameFormat::Csv: write_csv(path, frame); break;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Reader
+
+/// Reads a classic (version 5) bgeo: the points and their float / int / vector attributes (positions as float).
+/// Primitives, groups and detail attributes after the points are not read. Throws std::runtime_error naming the
+/// file for anything else (new-style JSON bgeo, indexed-string attributes, truncation, trailing garbage in a
+/// file without primitives).
+inline ParticleFrame read_bgeo(const std::filesystem::path& path) {
+  detail::ByteReader in(detail::read_whole_file(path), path.string());
+  const std::string magic = in.bytes(4);
+  if (magic != "Bgeo") {
+    if (magic == std::string("\x7fNSJ", 4)) in.fail("new-style (JSON) bgeo; only classic bgeo is supported");
+    in.fail("not a classic bgeo file (magic is not \"Bgeo\")");
+  }
+  if (in.byte() != 'V') in.fail("missing 'V' after the magic");
+  const std::uint32_t version = in.be32();
+  if (version != 5) in.fail("bgeo version " + std::to_string(version) + " (expected 5)");
+  // nPoints, nPrims, nPointGroups, nPrimGroups, nPointAttrib, nVertexAttrib, nPrimAttrib, nAttrib
+  std::uint32_t counts[8];
+  for (auto& c : counts) c = in.be32();
+  const std::uint32_t n_points = counts[0], n_prims = counts[1], n_point_groups = counts[2],
+                      n_prim_groups = counts[3], n_point_attrib = counts[4], n_detail_attrib = counts[7];
+  if (n_points > 0x7fffffffu) in.fail("negative point count");
+  if (in.remaining() / 16 < n_points) in.fail("file ends early");  // each point holds at least P and w
+
+  ParticleFrame frame;
+  struct Layout {
+    int width;
+    bool is_int;
+  };
+  std::vector<Layout> layout;
+  for (std::uint32_t i = 0; i < n_point_attrib; ++i) {
+    const std::uint16_t len = in.be16();
+    std::string name = in.bytes(len);
+    const int width = in.be16();
+    const int type = static_cast<int>(in.be32());
+    if (type != detail::kHoudiniFloat && type != detail::kHoudiniInt && type != detail::kHoudiniVector)
+      in.fail("attribute " + name + " has type " + std::to_string(type) + " (supported: 0 float, 1 int, 5 vector)");
+    for (int c = 0; c < width; ++c) in.be32();  // default values
+    const bool is_int = type == detail::kHoudiniInt;
+    if (in.remaining() / 4 < std::size_t(n_points) * width) in.fail("file ends early");
+    if (is_int)
+      frame.add(std::move(name), width, std::vector<std::int32_t>(std::size_t(n_points) * width));
+    else
+      frame.add(std::move(name), width, std::vector<float>(std::size_t(n_points) * width));
+    layout.push_back({width, is_int});
+  }
+  std::vector<Vec3f> x(n_points);
+  for (std::uint32_t p = 0; p < n_points; ++p) {
+    x[p] = Vec3f{{in.be_float(), in.be_float(), in.be_float()}};
+    in.be_float();  // w
+    for (std::size_t i = 0; i < layout.size(); ++i) {
+      const std::size_t base = std::size_t(p) * layout[i].width;
+      auto& values = frame.attributes[i].values;
+      for (int c = 0; c < layout[i].width; ++c) {
+        if (layout[i].is_int)
+          std::get<1>(values)[base + c] = static_cast<std::int32_t>(in.be32());
+        else
+          std::get<0>(values)[base + c] = in.be_float();
+      }
+    }
+  }
+  frame.positions = std::move(x);
+  if (n_prims == 0 && n_point_groups == 0 && n_prim_groups == 0 && n_detail_attrib == 0) {
+    if (in.byte() != 0x00 || in.byte() != 0xff) in.fail("missing extra-section markers 0x00 0xff");
+    if (in.remaining() != 0) in.fail("unexpected bytes after the end of the geometry");
+  }
+  return frame;
+}
+
+}  // namespace fbar::io

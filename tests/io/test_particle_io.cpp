@@ -1,0 +1,393 @@
+// Tests of particle frame files: bgeo bytes against the classic format, round trips, geo/csv text, async writer.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <future>
+#include <limits>
+#include <random>
+#include <sstream>
+#include <thread>
+
+#include "MnSystem/IO/async_writer.h"
+#include "MnSystem/IO/particle_io.h"
+
+namespace fbar::io {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// A fresh directory per test, removed afterwards.
+class IoTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = fs::temp_directory_path() /
+           ("fbar_io_" + std::to_string(::getpid()) + "_" + info->test_suite_name() + "_" + info->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path dir_;
+};
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+std::uint32_t bits(float f) {
+  std::uint32_t u;
+  std::memcpy(&u, &f, 4);
+  return u;
+}
+
+/// Two particles with an int, a vector and a float attribute; values chosen with short exact binary forms.
+ParticleFrame small_frame() {
+  ParticleFrame f;
+  f.positions = std::vector<Vec3f>{Vec3f{{0.5f, 0.25f, 0.125f}}, Vec3f{{1.0f, 2.0f, 3.0f}}};
+  f.add("ID", 1, std::vector<std::int32_t>{7, 8});
+  f.add("Velocity", 3, std::vector<float>{1.0f, -2.5f, 3.0f, 0.1f, 0.0f, 0.0f}, "m/s");
+  f.add("J", 1, std::vector<float>{1.0f, 0.5f});
+  return f;
+}
+
+void append_be32(std::string& s, std::uint32_t v) {
+  for (int shift = 24; shift >= 0; shift -= 8) s.push_back(static_cast<char>((v >> shift) & 0xff));
+}
+void append_be16(std::string& s, std::uint16_t v) {
+  s.push_back(static_cast<char>(v >> 8));
+  s.push_back(static_cast<char>(v & 0xff));
+}
+
+TEST(FrameNames, ClaymoreUwPattern) {
+  EXPECT_EQ(frame_file_name(0, 0, 12, ".bgeo"), "model0_dev0_frame12.bgeo");
+  EXPECT_EQ(frame_file_name(3, 1, 0, ".csv"), "model3_dev1_frame0.csv");
+  EXPECT_EQ(frame_file_path("out/run", 1, 2, 345, ".geo"), fs::path("out/run/model1_dev2_frame345.geo"));
+  EXPECT_EQ(frame_format(".bgeo"), FrameFormat::Bgeo);
+  EXPECT_EQ(frame_format(".geo"), FrameFormat::Geo);
+  EXPECT_EQ(frame_format(".csv"), FrameFormat::Csv);
+  EXPECT_THROW(frame_format(".h5"), std::invalid_argument);
+}
+
+// The expected file is assembled here byte by byte from the classic bgeo description (partio BGEO.cpp), with
+// IEEE-754 bit patterns written out by hand: 1.0f = 0x3f800000, 0.5f = 0x3f000000, -2.5f = 0xc0200000, ...
+TEST_F(IoTest, BgeoBytesFollowTheClassicFormat) {
+  const fs::path path = dir_ / "small.bgeo";
+  write_bgeo(path, small_frame());
+  std::string want;
+  want += "BgeoV";
+  append_be32(want, 5);  // version
+  append_be32(want, 2);  // nPoints
+  append_be32(want, 0);  // nPrims
+  append_be32(want, 0);  // nPointGroups
+  append_be32(want, 0);  // nPrimGroups
+  append_be32(want, 3);  // nPointAttrib
+  append_be32(want, 0);  // nVertexAttrib
+  append_be32(want, 0);  // nPrimAttrib
+  append_be32(want, 0);  // nAttrib
+  ASSERT_EQ(want.size(), 41u);
+  append_be16(want, 2), want += "ID", append_be16(want, 1), append_be32(want, 1), append_be32(want, 0);
+  append_be16(want, 8), want += "Velocity", append_be16(want, 3), append_be32(want, 5);
+  for (int i = 0; i < 3; ++i) append_be32(want, 0);
+  append_be16(want, 1), want += "J", append_be16(want, 1), append_be32(want, 0), append_be32(want, 0);
+  // point 0: P = (0.5, 0.25, 0.125, 1), ID 7, v = (1, -2.5, 3), J = 1
+  for (std::uint32_t u : {0x3f000000u, 0x3e800000u, 0x3e000000u, 0x3f800000u, 7u, 0x3f800000u, 0xc0200000u,
+                          0x40400000u, 0x3f800000u})
+    append_be32(want, u);
+  // point 1: P = (1, 2, 3, 1), ID 8, v = (0.1f, 0, 0), J = 0.5
+  for (std::uint32_t u : {0x3f800000u, 0x40000000u, 0x40400000u, 0x3f800000u, 8u, 0x3dcccccdu, 0u, 0u, 0x3f000000u})
+    append_be32(want, u);
+  want.push_back('\x00');
+  want.push_back('\xff');
+  const std::string got = slurp(path);
+  ASSERT_EQ(got.size(), want.size());
+  for (std::size_t i = 0; i < want.size(); ++i) ASSERT_EQ(got[i], want[i]) << "byte " << i;
+  EXPECT_FALSE(fs::exists(dir_ / "small.bgeo.part"));
+}
+
+TEST_F(IoTest, BgeoRoundTripIsBitExact) {
+  std::mt19937 rng(1234);
+  std::uniform_real_distribution<float> u(-1e3f, 1e3f);
+  const std::size_t n = 5000;
+  ParticleFrame f;
+  std::vector<Vec3d> x(n);
+  std::vector<float> vel(3 * n), mass(n);
+  std::vector<std::int32_t> id(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    x[i] = Vec3d{{std::ldexp(double(u(rng)), -3), double(u(rng)), 1.0 + 1e-9 * i}};  // doubles: rounded to float
+    for (int c = 0; c < 3; ++c) vel[3 * i + c] = u(rng);
+    mass[i] = u(rng);
+    id[i] = static_cast<std::int32_t>(i) - 17;
+  }
+  // Awkward values survive too: signed zero, denormal, infinity, extremes.
+  vel[0] = -0.0f;
+  vel[1] = std::numeric_limits<float>::denorm_min();
+  vel[2] = std::numeric_limits<float>::infinity();
+  mass[0] = std::numeric_limits<float>::max();
+  id[1] = std::numeric_limits<std::int32_t>::min();
+  id[2] = std::numeric_limits<std::int32_t>::max();
+  f.positions = x;
+  f.add("Velocity", 3, vel, "m/s");
+  f.add("ID", 1, id);
+  f.add("Mass", 1, mass, "kg");
+  const fs::path path = dir_ / "round.bgeo";
+  write_bgeo(path, f);
+  const ParticleFrame r = read_bgeo(path);
+  ASSERT_EQ(r.size(), n);
+  ASSERT_FALSE(r.double_precision());
+  ASSERT_EQ(r.attributes.size(), 3u);
+  EXPECT_EQ(r.attributes[0].name, "Velocity");
+  EXPECT_EQ(r.attributes[0].width, 3);
+  EXPECT_EQ(r.attributes[0].type(), AttributeType::Float);
+  EXPECT_EQ(r.attributes[1].name, "ID");
+  EXPECT_EQ(r.attributes[1].type(), AttributeType::Int);
+  EXPECT_EQ(r.attributes[2].name, "Mass");
+  const auto& rx = std::get<0>(r.positions);
+  for (std::size_t i = 0; i < n; ++i)
+    for (int d = 0; d < 3; ++d) ASSERT_EQ(bits(rx[i][d]), bits(static_cast<float>(x[i][d]))) << i;
+  for (std::size_t i = 0; i < 3 * n; ++i) ASSERT_EQ(bits(r.attributes[0].floats()[i]), bits(vel[i])) << i;
+  EXPECT_EQ(r.attributes[1].ints(), id);
+  for (std::size_t i = 0; i < n; ++i) ASSERT_EQ(bits(r.attributes[2].floats()[i]), bits(mass[i])) << i;
+  // Size: 41-byte header + dictionary + n * (4 + 3 + 1 + 1) words + 2 extra markers.
+  const std::size_t dict = (2 + 8 + 2 + 4 + 12) + (2 + 2 + 2 + 4 + 4) + (2 + 4 + 2 + 4 + 4);
+  EXPECT_EQ(fs::file_size(path), 41 + dict + n * 9 * 4 + 2);
+}
+
+TEST_F(IoTest, BgeoEmptyFrame) {
+  ParticleFrame f;
+  f.positions = std::vector<Vec3f>{};
+  f.add("ID", 1, std::vector<std::int32_t>{});
+  write_bgeo(dir_ / "empty.bgeo", f);
+  const ParticleFrame r = read_bgeo(dir_ / "empty.bgeo");
+  EXPECT_EQ(r.size(), 0u);
+  ASSERT_EQ(r.attributes.size(), 1u);
+  EXPECT_EQ(r.attributes[0].name, "ID");
+}
+
+TEST_F(IoTest, BgeoReaderRejectsBadFiles) {
+  const fs::path good = dir_ / "good.bgeo";
+  write_bgeo(good, small_frame());
+  const std::string bytes = slurp(good);
+  auto write_raw = [&](const std::string& name, const std::string& data) {
+    std::ofstream(dir_ / name, std::ios::binary) << data;
+    return dir_ / name;
+  };
+  auto message = [](const fs::path& p) {
+    try {
+      read_bgeo(p);
+    } catch (const std::runtime_error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  std::string bad_magic = bytes;
+  bad_magic[0] = 'X';
+  EXPECT_NE(message(write_raw("magic.bgeo", bad_magic)).find("magic.bgeo: not a classic bgeo"), std::string::npos);
+  std::string v4 = bytes;
+  v4[8] = 4;
+  EXPECT_NE(message(write_raw("v4.bgeo", v4)).find("version 4"), std::string::npos);
+  EXPECT_NE(message(write_raw("short.bgeo", bytes.substr(0, bytes.size() - 7))).find("ends early"),
+            std::string::npos);
+  EXPECT_NE(message(write_raw("tail.bgeo", bytes + "x")).find("unexpected bytes"), std::string::npos);
+  EXPECT_NE(message(write_raw("new.bgeo", std::string("\x7fNSJ", 4) + bytes.substr(4))).find("new-style"),
+            std::string::npos);
+  EXPECT_NE(message(dir_ / "missing.bgeo").find("cannot open"), std::string::npos);
+}
+
+TEST_F(IoTest, GeoTextMatchesTheClassicLayout) {
+  write_geo(dir_ / "small.geo", small_frame());
+  EXPECT_EQ(slurp(dir_ / "small.geo"),
+            "PGEOMETRY V5\n"
+            "NPoints 2 NPrims 1\n"
+            "NPointGroups 0 NPrimGroups 0\n"
+            "NPointAttrib 3 NVertexAttrib 0 NPrimAttrib 1 NAttrib 0\n"
+            "PointAttrib\n"
+            "ID 1 int 0\n"
+            "Velocity 3 vector 0 0 0\n"
+            "J 1 float 0\n"
+            "0.5 0.25 0.125 1 (7\t1 -2.5 3\t1)\n"
+            "1 2 3 1 (8\t0.1 0 0\t0.5)\n"
+            "PrimitiveAttrib\n"
+            "generator 1 index 1 papi\n"
+            "Part 2 0 1 [0]\n"
+            "beginExtra\n"
+            "endExtra\n");
+}
+
+// Text output uses the shortest representation that parses back to the same value: no precision is lost.
+TEST_F(IoTest, TextNumbersRoundTrip) {
+  ParticleFrame f;
+  const double xd = 0.1 + 1e-17 * 3;  // needs 17 significant digits
+  const float vf = std::nextafter(0.1f, 1.0f);
+  f.positions = std::vector<Vec3d>{Vec3d{{xd, 1.0 / 3.0, -2e-300}}};
+  f.add("V", 1, std::vector<float>{vf});
+  write_csv(dir_ / "p.csv", f);
+  std::istringstream in(slurp(dir_ / "p.csv"));
+  std::string header, row;
+  std::getline(in, header);
+  std::getline(in, row);
+  EXPECT_EQ(header, "Position_X [m],Position_Y [m],Position_Z [m],V");
+  std::vector<std::string> cells;
+  std::stringstream rs(row);
+  for (std::string c; std::getline(rs, c, ',');) cells.push_back(c);
+  ASSERT_EQ(cells.size(), 4u);
+  EXPECT_EQ(std::strtod(cells[0].c_str(), nullptr), xd);
+  EXPECT_EQ(std::strtod(cells[1].c_str(), nullptr), 1.0 / 3.0);
+  EXPECT_EQ(std::strtod(cells[2].c_str(), nullptr), -2e-300);
+  EXPECT_EQ(std::strtof(cells[3].c_str(), nullptr), vf);
+}
+
+TEST_F(IoTest, CsvHeaderNamesAndUnits) {
+  write_csv(dir_ / "small.csv", small_frame());
+  EXPECT_EQ(slurp(dir_ / "small.csv"),
+            "Position_X [m],Position_Y [m],Position_Z [m],ID,Velocity_X [m/s],Velocity_Y [m/s],Velocity_Z [m/s],J\n"
+            "0.5,0.25,0.125,7,1,-2.5,3,1\n"
+            "1,2,3,8,0.1,0,0,0.5\n");
+}
+
+TEST_F(IoTest, WriteFrameDispatchesOnSuffix) {
+  const ParticleFrame f = small_frame();
+  write_frame(dir_ / "a.bgeo", f);
+  write_frame(dir_ / "a.geo", f);
+  write_frame(dir_ / "a.csv", f);
+  EXPECT_EQ(slurp(dir_ / "a.bgeo").substr(0, 5), "BgeoV");
+  EXPECT_EQ(slurp(dir_ / "a.geo").substr(0, 12), "PGEOMETRY V5");
+  EXPECT_EQ(slurp(dir_ / "a.csv").substr(0, 14), "Position_X [m]");
+  EXPECT_THROW(write_frame(dir_ / "a.h5", f), std::invalid_argument);
+  EXPECT_FALSE(fs::exists(dir_ / "a.h5"));
+}
+
+TEST_F(IoTest, InvalidFramesAreRefused) {
+  auto refused = [&](ParticleFrame f) {
+    EXPECT_THROW(write_bgeo(dir_ / "bad.bgeo", f), std::invalid_argument);
+    EXPECT_FALSE(fs::exists(dir_ / "bad.bgeo"));
+    EXPECT_FALSE(fs::exists(dir_ / "bad.bgeo.part"));
+  };
+  ParticleFrame f = small_frame();
+  f.attributes[0].name = "Velocity X";  // space: Houdini cannot name it
+  refused(f);
+  f = small_frame();
+  f.attributes[0].name = "P";
+  refused(f);
+  f = small_frame();
+  f.attributes[2].name = "ID";  // duplicate
+  refused(f);
+  f = small_frame();
+  std::get<0>(f.attributes[1].values).pop_back();  // 5 values for 2 particles of width 3
+  refused(f);
+}
+
+TEST_F(IoTest, IoFailuresThrowWithThePath) {
+  const fs::path path = dir_ / "no_such_dir" / "x.bgeo";
+  try {
+    write_bgeo(path, small_frame());
+    FAIL() << "no exception";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("no_such_dir/x.bgeo.part"), std::string::npos) << e.what();
+  }
+}
+
+// Every frame is written, in submission order: a job queued right after frame k runs after frame k is on disk
+// and before frame k+1 is.
+TEST_F(IoTest, AsyncWriterWritesAllFramesInOrder) {
+  const int frames = 20;
+  std::vector<int> order;  // touched only by the writer thread until flush() returns
+  bool in_order = true;
+  {
+    AsyncWriter writer(3);
+    for (int k = 0; k < frames; ++k) {
+      ParticleFrame f;
+      f.positions = std::vector<Vec3f>(100, Vec3f{{float(k), 0.0f, 0.0f}});
+      f.add("ID", 1, std::vector<std::int32_t>(100, k));
+      writer.submit(frame_file_path(dir_, 0, 0, k, ".bgeo"), std::move(f));
+      writer.submit_job([&, k] {
+        order.push_back(k);
+        in_order = in_order && fs::exists(frame_file_path(dir_, 0, 0, k, ".bgeo")) &&
+                   !fs::exists(frame_file_path(dir_, 0, 0, k + 1, ".bgeo"));
+      });
+    }
+    writer.flush();
+    EXPECT_EQ(writer.completed(), std::size_t(2 * frames));
+    writer.close();
+  }
+  ASSERT_EQ(order.size(), std::size_t(frames));
+  for (int k = 0; k < frames; ++k) EXPECT_EQ(order[k], k);
+  EXPECT_TRUE(in_order);
+  for (int k = 0; k < frames; ++k) {
+    const ParticleFrame r = read_bgeo(frame_file_path(dir_, 0, 0, k, ".bgeo"));
+    ASSERT_EQ(r.size(), 100u);
+    EXPECT_EQ(r.find("ID")->ints()[99], k);
+  }
+}
+
+TEST_F(IoTest, AsyncWriterDestructorDrainsTheQueue) {
+  {
+    AsyncWriter writer(8);
+    for (int k = 0; k < 5; ++k) writer.submit(frame_file_path(dir_, 1, 0, k, ".csv"), small_frame());
+  }
+  for (int k = 0; k < 5; ++k) EXPECT_TRUE(fs::exists(frame_file_path(dir_, 1, 0, k, ".csv"))) << k;
+}
+
+TEST_F(IoTest, AsyncWriterReportsErrors) {
+  AsyncWriter writer(4);
+  const fs::path bad = dir_ / "missing" / "model0_dev0_frame0.bgeo";
+  writer.submit(bad, small_frame());
+  std::atomic<bool> later_job_ran{false};
+  try {
+    writer.submit_job([&] { later_job_ran = true; });
+  } catch (const std::runtime_error&) {
+    // the failure may already be known: then the job is refused, which is fine too
+  }
+  try {
+    writer.flush();
+    FAIL() << "flush() did not report the failed write";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("missing/model0_dev0_frame0.bgeo"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(later_job_ran);  // jobs after a failure are skipped
+  // The writer stays failed: later calls keep saying so, with the original message.
+  try {
+    writer.submit(dir_ / "ok.bgeo", small_frame());
+    FAIL() << "submit() after a failure was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("earlier output job failed"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(writer.close(), std::runtime_error);
+  EXPECT_FALSE(fs::exists(dir_ / "ok.bgeo"));
+}
+
+// With max_pending = 1, a second waiting job makes submit() block until the worker takes one.
+TEST_F(IoTest, AsyncWriterBoundsTheQueue) {
+  AsyncWriter writer(1);
+  std::promise<void> release;
+  std::shared_future<void> gate = release.get_future().share();
+  std::promise<void> started;
+  writer.submit_job([gate, &started] {
+    started.set_value();
+    gate.wait();
+  });
+  started.get_future().wait();     // the worker holds job 1
+  writer.submit_job([] {});        // job 2 waits in the queue (1 slot)
+  std::atomic<bool> third_accepted{false};
+  std::thread producer([&] {
+    writer.submit_job([] {});      // must block: the queue is full
+    third_accepted = true;
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_FALSE(third_accepted);    // cannot pass early; on a slow machine it still holds
+  release.set_value();
+  producer.join();
+  EXPECT_TRUE(third_accepted);
+  writer.close();
+  EXPECT_EQ(writer.completed(), 3u);
+}
+
+}  // namespace
+}  // namespace fbar::io
