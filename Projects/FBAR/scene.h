@@ -32,6 +32,9 @@ struct SimulationSpec {
   std::string save_suffix = ".bgeo";    ///< ".bgeo", ".geo", ".csv", ".h5"
   bool particles_output_exterior_only = false;
   double froude_scaling = 1.0;          ///< length scale factor s (1: none)
+  /// True once froude_scaling has been applied to every field (the parser does it; a scene written by
+  /// write_scene_json carries `"froude_scaling_applied": true` so that re-reading it does not scale twice).
+  bool froude_scaling_applied = false;
   int info_rate = 0;                    ///< log every N steps (0: once per frame)
   Precision precision = Precision::Single;
   OnFailure on_failure = OnFailure::Stop;
@@ -95,6 +98,7 @@ struct GeometrySpec {
   bool use_froude_scaling = true;
   bool has_attributes = false;
   std::vector<std::string> input_attribs;
+  std::vector<long long> track_particle_id;  ///< ClaymoreUW: ids (local to this entry) appended to the body's list
 };
 
 struct BodySpec {
@@ -166,6 +170,7 @@ struct Scene {
   std::vector<BoundarySpec> boundaries;
   std::vector<GridSensorSpec> grid_sensors;
   std::vector<ParticleSensorSpec> particle_sensors;
+  int mesh_count = 0;                   ///< entries of the top-level "meshes" array (FEM bodies, a later release)
 };
 
 }  // namespace fbar

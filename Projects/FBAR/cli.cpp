@@ -1,0 +1,289 @@
+// The fbar command line: options, scene loading and validation, --check report, and a run with its run.json.
+#include "cli.h"
+
+#include <rapidjson/document.h>
+#include <rapidjson/writer.h>
+#include <rapidjson/stringbuffer.h>
+
+#include <chrono>
+#include <ctime>
+#include <exception>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "engine_api.h"
+#include "scene_parse.h"
+#include "scene_print.h"
+
+#ifndef FBAR_VERSION
+#define FBAR_VERSION "unknown"
+#endif
+
+namespace fbar {
+
+namespace {
+
+namespace fs = std::filesystem;
+namespace rj = rapidjson;
+
+constexpr int kExitOk = 0;
+constexpr int kExitInput = 1;    ///< invalid scene, input file or command line
+constexpr int kExitRuntime = 2;  ///< run-time failure (NaN, CFL, capacity, device, output)
+
+/// A command-line mistake (exit 1).
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct CliOptions {
+  std::string file = "scene.json";
+  bool check = false;
+  Backend backend = Backend::Auto;
+  std::optional<std::string> output;
+  std::optional<int> frames;
+  bool quiet = false;
+  bool allow_unknown_keys = false;
+  std::string data_dir;
+  bool version = false;
+  bool help = false;
+};
+
+const char* kHelp =
+    "usage: fbar [options] [scene.json]\n"
+    "\n"
+    "Runs a material point method scene (SCHEMA.md). Without a file, runs ./scene.json.\n"
+    "\n"
+    "options:\n"
+    "  -f FILE, --file=FILE    scene file (also the first positional argument; default: scene.json)\n"
+    "  --check                 validate the scene, print it resolved with units, particle counts per body,\n"
+    "                          the time step and memory estimates (CPU and per GPU); do not simulate\n"
+    "  --backend=auto|gpu|cpu  engine: auto (default) uses the GPU engine when the build has one, otherwise the\n"
+    "                          CPU reference engine; this build has only the CPU reference engine\n"
+    "  --output=DIR            write frames and run.json to DIR (overrides simulation.save_path; created if missing)\n"
+    "  --frames=N              number of frames to simulate (overrides simulation.frames; N >= 1)\n"
+    "  --quiet                 no progress lines (warnings and errors are still printed)\n"
+    "  --allow-unknown-keys    unknown keys (and parameters the chosen law does not use) are warnings, not errors\n"
+    "  --data-dir=DIR          where geometry and motion files are looked up first (then $AssetDirPath, the\n"
+    "                          scene's folder and the source tree's Data/)\n"
+    "  --version               print the version and exit\n"
+    "  -h, --help              print this help and exit\n"
+    "\n"
+    "exit codes: 0 success, 1 invalid scene, input file or option, 2 run-time failure (NaN, CFL violation,\n"
+    "capacity, device or output error); messages go to stderr as `fbar: error: ...`.\n";
+
+const std::vector<std::string_view> kLongOptions = {"--file",   "--check",  "--backend",           "--output",
+                                                    "--frames", "--quiet",  "--allow-unknown-keys", "--data-dir",
+                                                    "--version", "--help"};
+
+CliOptions parse_arguments(int argc, char** argv) {
+  CliOptions o;
+  bool file_given = false;
+  auto set_file = [&](const std::string& f) {
+    if (file_given) throw UsageError("more than one scene file given ('" + o.file + "' and '" + f + "')");
+    if (f.empty()) throw UsageError("empty scene file name");
+    o.file = f;
+    file_given = true;
+  };
+  bool options_done = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (options_done || arg.empty() || arg[0] != '-' || arg == "-") {
+      set_file(arg);
+      continue;
+    }
+    if (arg == "--") {
+      options_done = true;
+      continue;
+    }
+    // --name=value or --name value (for options that take one).
+    std::string name = arg, value;
+    bool has_value = false;
+    if (const auto eq = arg.find('='); eq != std::string::npos && arg.rfind("--", 0) == 0) {
+      name = arg.substr(0, eq);
+      value = arg.substr(eq + 1);
+      has_value = true;
+    }
+    auto take_value = [&]() -> std::string {
+      if (has_value) return value;
+      if (i + 1 >= argc) throw UsageError("option " + name + " needs a value");
+      return argv[++i];
+    };
+    auto no_value = [&]() {
+      if (has_value) throw UsageError("option " + name + " takes no value");
+    };
+    if (name == "-f" || name == "--file") {
+      set_file(take_value());
+    } else if (name == "--check") {
+      no_value();
+      o.check = true;
+    } else if (name == "--backend") {
+      const std::string b = take_value();
+      if (b == "auto") o.backend = Backend::Auto;
+      else if (b == "gpu") o.backend = Backend::Gpu;
+      else if (b == "cpu") o.backend = Backend::Cpu;
+      else throw UsageError("--backend: got '" + b + "'; expected auto, gpu or cpu");
+    } else if (name == "--output") {
+      o.output = take_value();
+      if (o.output->empty()) throw UsageError("--output: expected a directory");
+    } else if (name == "--frames") {
+      const std::string v = take_value();
+      std::size_t used = 0;
+      long long n = 0;
+      try {
+        n = std::stoll(v, &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (used != v.size() || v.empty() || n < 1 || n > 2147483647)
+        throw UsageError("--frames: got '" + v + "'; expected an integer >= 1");
+      o.frames = static_cast<int>(n);
+    } else if (name == "--quiet") {
+      no_value();
+      o.quiet = true;
+    } else if (name == "--allow-unknown-keys") {
+      no_value();
+      o.allow_unknown_keys = true;
+    } else if (name == "--data-dir") {
+      o.data_dir = take_value();
+    } else if (name == "--version") {
+      no_value();
+      o.version = true;
+    } else if (name == "-h" || name == "--help") {
+      no_value();
+      o.help = true;
+    } else {
+      std::string message = "unknown option '" + name + "'";
+      const std::string near = closest_key(name, kLongOptions);
+      if (!near.empty()) message += "; did you mean '" + near + "'?";
+      throw UsageError(message);
+    }
+  }
+  return o;
+}
+
+std::string utc_now() {
+  const std::time_t t = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+/// run.json: the resolved scene and how the run went, next to the frames.
+void write_run_json(const fs::path& path, const Scene& scene, const std::vector<std::string>& command_line,
+                    const std::string& started, double wall_s, const RunResult& result) {
+  rj::Document doc(rj::kObjectType);
+  auto& a = doc.GetAllocator();
+  auto str = [&](const std::string& s) { return rj::Value(s.c_str(), static_cast<rj::SizeType>(s.size()), a); };
+  doc.AddMember("fbar_version", str(FBAR_VERSION), a);
+  doc.AddMember("backend", str("cpu"), a);
+  doc.AddMember("engine", str("CPU reference engine"), a);
+  doc.AddMember("precision", str(to_string(scene.simulation.precision)), a);
+  rj::Value cmd(rj::kArrayType);
+  for (const auto& c : command_line) cmd.PushBack(str(c), a);
+  doc.AddMember("command_line", cmd, a);
+  std::error_code ec;
+  doc.AddMember("scene_file", str(scene.source_path.empty() ? "" : fs::absolute(scene.source_path, ec).string()), a);
+  doc.AddMember("started_utc", str(started), a);
+  doc.AddMember("wall_time_s", wall_s, a);
+  doc.AddMember("steps", static_cast<int64_t>(result.steps), a);
+  doc.AddMember("end_time_s", result.end_time, a);
+  doc.AddMember("exit_code", result.exit_code, a);
+  doc.AddMember("message", str(result.message), a);
+  rj::Document resolved(&a);
+  resolved.Parse<rj::kParseNanAndInfFlag | rj::kParseFullPrecisionFlag>(write_scene_json(scene, false).c_str());
+  doc.AddMember("scene", rj::Value(resolved, a), a);
+
+  rj::StringBuffer sb;
+  rj::Writer<rj::StringBuffer, rj::UTF8<>, rj::UTF8<>, rj::CrtAllocator, rj::kWriteNanAndInfFlag> w(sb);
+  doc.Accept(w);
+  std::ofstream out(path);
+  out << indent_json(std::string_view(sb.GetString(), sb.GetSize()));
+  if (!out) throw std::runtime_error("cannot write " + path.string());
+}
+
+int run(const CliOptions& o, const std::vector<std::string>& command_line) {
+  std::vector<std::string> warnings;
+  ParseOptions parse;
+  parse.allow_unknown_keys = o.allow_unknown_keys;
+  parse.data_dir = o.data_dir;
+  parse.warnings = &warnings;
+  Scene scene = parse_scene_file(o.file, parse);
+  for (const auto& w : warnings) std::cerr << "fbar: warning: " << w << '\n';
+  if (o.frames) scene.simulation.frames = *o.frames;
+  if (o.output) scene.simulation.save_path = *o.output;
+
+  if (o.check) {
+    const SceneSummary summary = summarize_scene(scene);
+    std::cout << "fbar " << FBAR_VERSION << ": scene " << o.file << " is valid\n";
+    print_scene_report(std::cout, scene, summary);
+    return kExitOk;
+  }
+
+  if (o.backend == Backend::Gpu) {
+    std::cerr << "fbar: error: --backend=gpu: the GPU engine is not available in this build (fbar " << FBAR_VERSION
+              << " has the CPU reference engine only; use --backend=cpu or auto)\n";
+    return kExitRuntime;
+  }
+  if (o.backend == Backend::Auto)
+    std::cerr << "fbar: warning: no GPU engine in this build; running on the CPU reference engine (--backend=cpu "
+                 "silences this)\n";
+
+  const fs::path out_dir(scene.simulation.save_path);
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  if (ec || !fs::is_directory(out_dir)) {
+    std::cerr << "fbar: error: cannot create output directory '" << out_dir.string() << "': " << ec.message() << '\n';
+    return kExitRuntime;
+  }
+
+  const std::string started = utc_now();
+  const auto t0 = std::chrono::steady_clock::now();
+  RunOptions ro;
+  ro.quiet = o.quiet;
+  ro.log = &std::cout;
+  const RunResult result = run_cpu(scene, ro);
+  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  write_run_json(out_dir / "run.json", scene, command_line, started, wall_s, result);
+  if (result.exit_code != kExitOk)
+    std::cerr << "fbar: error: " << (result.message.empty() ? "the run failed" : result.message) << '\n';
+  return result.exit_code;
+}
+
+}  // namespace
+
+int cli_main(int argc, char** argv) {
+  std::vector<std::string> command_line(argv, argv + argc);
+  CliOptions options;
+  try {
+    options = parse_arguments(argc, argv);
+  } catch (const UsageError& e) {
+    std::cerr << "fbar: error: " << e.what() << " (see fbar --help)\n";
+    return kExitInput;
+  }
+  if (options.help) {
+    std::cout << kHelp;
+    return kExitOk;
+  }
+  if (options.version) {
+    std::cout << "fbar " << FBAR_VERSION << " (CPU reference engine; the GPU engine is not available in this build)\n";
+    return kExitOk;
+  }
+  try {
+    return run(options, command_line);
+  } catch (const SceneError& e) {
+    std::cerr << "fbar: error: " << e.what() << '\n';
+    return kExitInput;
+  } catch (const std::exception& e) {
+    std::cerr << "fbar: error: " << e.what() << '\n';
+    return kExitRuntime;
+  }
+}
+
+}  // namespace fbar

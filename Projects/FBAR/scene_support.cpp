@@ -1,0 +1,130 @@
+// The release policy, in one place: which parsed and validated scene features this build's engine can run.
+//
+// Release 0.1 runs the CPU reference engine: JFluid and FixedCorotated; APIC/MLS transfers (ASFLIP and F-bar
+// switched on only with zero ratios, which is APIC); Box / Sphere / Cylinder geometry with every operation,
+// rotation and arrays; Walls and Box boundaries (Sticky / Slip / Separable, frictionless, static, any time window);
+// .bgeo / .geo / .csv frames with the attributes in kSupportedOutput. Everything else SCHEMA.md lists is parsed
+// and range-checked by scene_parse.cpp, then refused here. A later release enables a feature by deleting its line.
+#include <algorithm>
+#include <array>
+#include <iomanip>
+#include <sstream>
+#include <string>
+#include <string_view>
+
+#include "scene_parse.h"
+
+namespace fbar {
+
+namespace {
+
+/// Output attributes the CPU reference engine writes.
+constexpr std::array<std::string_view, 31> kSupportedOutput = {
+    "ID",          "Mass",        "Volume",      "Position_X",  "Position_Y",  "Position_Z",
+    "Velocity_X",  "Velocity_Y",  "Velocity_Z",  "Velocity_Magnitude",
+    "DefGrad_XX",  "DefGrad_XY",  "DefGrad_XZ",  "DefGrad_YX",  "DefGrad_YY",  "DefGrad_YZ",
+    "DefGrad_ZX",  "DefGrad_ZY",  "DefGrad_ZZ",  "J",           "Pressure",
+    "StressCauchy_XX", "StressCauchy_XY", "StressCauchy_XZ", "StressCauchy_YX", "StressCauchy_YY",
+    "StressCauchy_YZ", "StressCauchy_ZX", "StressCauchy_ZY", "StressCauchy_ZZ", "VonMisesStress"};
+
+std::string q(std::string_view s) { return "\"" + std::string(s) + "\""; }
+std::string n(double x) {
+  std::ostringstream os;
+  os << std::setprecision(15) << x;
+  return os.str();
+}
+std::string idx(const char* array, std::size_t i) { return std::string(array) + "[" + std::to_string(i) + "]"; }
+
+/// Throws the "not supported yet" error: `expected` says what this release runs, `key` names the feature.
+[[noreturn]] void refuse(const std::string& path, const std::string& value, const std::string& expected,
+                         const std::string& key, const char* unit = "") {
+  throw SceneError(path, value, expected + "; " + key + " is not supported yet in this release", unit);
+}
+
+}  // namespace
+
+void check_supported(const Scene& scene) {
+  const SimulationSpec& sim = scene.simulation;
+  if (sim.save_suffix == ".h5")
+    refuse("simulation.save_suffix", q(sim.save_suffix), "one of .bgeo, .geo, .csv", "save_suffix .h5 (HDF5 output)");
+  if (sim.particles_output_exterior_only)
+    refuse("simulation.particles_output_exterior_only", "true", "false", "particles_output_exterior_only");
+  if (scene.mesh_count > 0)
+    refuse("meshes", std::to_string(scene.mesh_count) + " mesh(es)", "no meshes", "meshes (FEM bodies)");
+
+  for (std::size_t i = 0; i < scene.bodies.size(); ++i) {
+    const BodySpec& b = scene.bodies[i];
+    const std::string p = idx("bodies", i);
+    const MaterialSpec& m = b.material;
+    const AlgorithmSpec& a = b.algorithm;
+    if (m.type != "particles") refuse(p + ".material.type", q(m.type), "\"particles\"", "material type mesh");
+    if (m.law != Constitutive::JFluid && m.law != Constitutive::FixedCorotated)
+      refuse(p + ".material.constitutive", q(to_string(m.law)), "JFluid or FixedCorotated",
+             std::string("constitutive ") + to_string(m.law));
+    if (a.type != "particles") refuse(p + ".algorithm.type", q(a.type), "\"particles\"", "algorithm type mesh");
+    if (a.use_fem) refuse(p + ".algorithm.use_FEM", "true", "false", "use_FEM");
+    // use_ASFLIP with alpha = beta_min = beta_max = 0 is APIC, which this release runs.
+    if (a.use_asflip && a.asflip_alpha != 0.0)
+      refuse(p + ".algorithm.ASFLIP_alpha", n(a.asflip_alpha), "0 (APIC) or use_ASFLIP false",
+             "ASFLIP/FLIP velocity blending (ASFLIP_alpha > 0)", "-");
+    if (a.use_asflip && a.asflip_beta_min != 0.0)
+      refuse(p + ".algorithm.ASFLIP_beta_min", n(a.asflip_beta_min), "0 or use_ASFLIP false",
+             "ASFLIP position correction (ASFLIP_beta_min > 0)", "-");
+    if (a.use_asflip && a.asflip_beta_max != 0.0)
+      refuse(p + ".algorithm.ASFLIP_beta_max", n(a.asflip_beta_max), "0 or use_ASFLIP false",
+             "ASFLIP position correction (ASFLIP_beta_max > 0)", "-");
+    // use_FBAR with FBAR_psi = 0 is plain MLS-MPM.
+    if (a.use_fbar && a.fbar_psi != 0.0)
+      refuse(p + ".algorithm.FBAR_psi", n(a.fbar_psi), "0 or use_FBAR false", "F-bar anti-locking (FBAR_psi > 0)", "-");
+    for (std::size_t j = 0; j < b.geometry.size(); ++j) {
+      const GeometrySpec& g = b.geometry[j];
+      const std::string gp = p + "." + idx("geometry", j);
+      if (g.object == GeometryObject::File)
+        refuse(gp + ".object", q("File"), "Box, Sphere or Cylinder", "geometry object File");
+      if (!g.track_particle_id.empty())
+        refuse(gp + ".track_particle_id", std::to_string(g.track_particle_id.size()) + " id(s)", "an empty list",
+               "track_particle_id (particle tracking)");
+    }
+    if (!b.track_particle_id.empty())
+      refuse(p + ".track_particle_id", std::to_string(b.track_particle_id.size()) + " id(s)", "an empty list",
+             "track_particle_id (particle tracking)");
+    if (!b.track_attribs.empty())
+      refuse(p + ".track_attribs", q(b.track_attribs.front()), "an empty list", "track_attribs (particle tracking)");
+    if (!b.target_attribs.empty())
+      refuse(p + ".target_attribs", q(b.target_attribs.front()), "an empty list", "target_attribs (particle sensors)");
+    for (std::size_t k = 0; k < b.output_attribs.size(); ++k) {
+      const std::string& name = b.output_attribs[k];
+      if (std::find(kSupportedOutput.begin(), kSupportedOutput.end(), name) == kSupportedOutput.end())
+        refuse(p + "." + idx("output_attribs", k), q(name),
+               "one of ID, Mass, Volume, Position_*, Velocity_*, Velocity_Magnitude, DefGrad_* (9), J, Pressure, "
+               "StressCauchy_* (9), VonMisesStress",
+               "output attribute " + name);
+    }
+  }
+
+  for (std::size_t i = 0; i < scene.boundaries.size(); ++i) {
+    const BoundarySpec& b = scene.boundaries[i];
+    const std::string p = idx("boundaries", i);
+    if (b.object != BoundaryObject::Walls && b.object != BoundaryObject::Box)
+      refuse(p + ".object", q(to_string(b.object)), "Walls or Box", std::string("boundary object ") + to_string(b.object));
+    if (b.friction_static != 0.0)
+      refuse(p + ".friction_static", n(b.friction_static), "0", "boundary friction (friction_static)", "-");
+    if (b.friction_dynamic != 0.0)
+      refuse(p + ".friction_dynamic", n(b.friction_dynamic), "0", "boundary friction (friction_dynamic)", "-");
+    if (b.velocity != Real3{0.0, 0.0, 0.0})
+      refuse(p + ".velocity", "[" + n(b.velocity[0]) + ", " + n(b.velocity[1]) + ", " + n(b.velocity[2]) + "]",
+             "[0, 0, 0] (a static boundary)", "moving boundaries (velocity)", "m/s");
+    if (!b.file.empty()) refuse(p + ".file", q(b.file), "no motion file", "moving boundaries (file)");
+    if (b.array != Int3{1, 1, 1})
+      refuse(p + ".array",
+             "[" + std::to_string(b.array[0]) + ", " + std::to_string(b.array[1]) + ", " + std::to_string(b.array[2]) + "]",
+             "[1, 1, 1]", "boundary arrays (array)");
+  }
+  if (!scene.grid_sensors.empty())
+    refuse("grid-sensors", std::to_string(scene.grid_sensors.size()) + " sensor(s)", "no grid-sensors", "grid-sensors");
+  if (!scene.particle_sensors.empty())
+    refuse("particle-sensors", std::to_string(scene.particle_sensors.size()) + " sensor(s)", "no particle-sensors",
+           "particle-sensors");
+}
+
+}  // namespace fbar

@@ -1,0 +1,250 @@
+// The fbar command line in-process: bad-scene corpus, good scenes, options, exit codes, a short run and run.json.
+#include <gtest/gtest.h>
+#include <rapidjson/document.h>
+#include <rapidjson/stringbuffer.h>
+#include <rapidjson/writer.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cli.h"
+#include "scene_parse.h"
+
+namespace fbar {
+namespace {
+
+namespace fs = std::filesystem;
+
+const fs::path kScenes = FBAR_SCENES_DIR;
+
+struct CliResult {
+  int code = -1;
+  std::string out, err;
+};
+
+/// Runs cli_main with `args` (argv[0] = "fbar"), capturing std::cout and std::cerr.
+CliResult run_cli(std::vector<std::string> args) {
+  args.insert(args.begin(), "fbar");
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  std::ostringstream out, err;
+  struct Redirect {
+    std::ostream& s;
+    std::streambuf* old;
+    Redirect(std::ostream& stream, std::streambuf* to) : s(stream), old(stream.rdbuf(to)) {}
+    ~Redirect() { s.rdbuf(old); }
+  } r1(std::cout, out.rdbuf()), r2(std::cerr, err.rdbuf());
+  CliResult r;
+  r.code = cli_main(static_cast<int>(args.size()), argv.data());
+  r.out = out.str();
+  r.err = err.str();
+  return r;
+}
+
+/// This process's scratch root; removed after the last test.
+fs::path scratch_root() { return fs::temp_directory_path() / ("fbar_test_cli_" + std::to_string(::getpid())); }
+
+struct RemoveScratch : ::testing::Environment {
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(scratch_root(), ec);
+  }
+};
+[[maybe_unused]] const auto* const kRemoveScratch = ::testing::AddGlobalTestEnvironment(new RemoveScratch);
+
+/// A fresh scratch directory for this test (removed first if it exists).
+fs::path scratch(const std::string& name) {
+  const fs::path p = scratch_root() / name;
+  fs::remove_all(p);
+  fs::create_directories(p);
+  return p;
+}
+
+void write_text(const fs::path& p, const std::string& text) {
+  std::ofstream out(p);
+  out << text;
+}
+
+std::vector<std::string> split(const std::string& line, char sep) {
+  std::vector<std::string> parts;
+  std::stringstream ss(line);
+  std::string item;
+  while (std::getline(ss, item, sep)) parts.push_back(item);
+  return parts;
+}
+
+// Every file of tests/scenes/bad is listed in expectations.txt as `file|exit code|JSON path|message substring`;
+// `fbar --check` must exit with that code, print `fbar: error: <path>: ...` on stderr and contain the substring.
+TEST(CliCorpus, BadScenesFailWithPathAndMessage) {
+  std::ifstream in(kScenes / "bad" / "expectations.txt");
+  ASSERT_TRUE(in) << "missing " << (kScenes / "bad" / "expectations.txt");
+  std::set<std::string> listed;
+  std::string line;
+  int cases = 0;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    const auto f = split(line, '|');
+    ASSERT_EQ(f.size(), 4u) << "malformed expectation line: " << line;
+    const std::string& file = f[0];
+    const int code = std::stoi(f[1]);
+    const std::string& path = f[2];
+    const std::string& text = f[3];
+    listed.insert(file);
+    SCOPED_TRACE(file);
+    const CliResult r = run_cli({"--check", "--file=" + (kScenes / "bad" / file).string()});
+    EXPECT_EQ(r.code, code) << r.err;
+    EXPECT_EQ(r.err.rfind("fbar: error: ", 0), 0u) << r.err;
+    EXPECT_NE(r.err.find(path + ": got "), std::string::npos) << "path '" << path << "' not named in: " << r.err;
+    EXPECT_NE(r.err.find(text), std::string::npos) << "'" << text << "' not in: " << r.err;
+    EXPECT_EQ(r.out.find("particles"), std::string::npos) << "a failing check printed a report";
+    ++cases;
+  }
+  EXPECT_GE(cases, 25);
+  for (const auto& e : fs::directory_iterator(kScenes / "bad")) {
+    if (e.path().extension() != ".json") continue;
+    EXPECT_TRUE(listed.count(e.path().filename().string())) << e.path() << " has no line in expectations.txt";
+  }
+}
+
+TEST(CliCorpus, GoodScenesPassCheck) {
+  int n = 0;
+  for (const auto& e : fs::directory_iterator(kScenes / "good")) {
+    if (e.path().extension() != ".json") continue;
+    SCOPED_TRACE(e.path().string());
+    const CliResult r = run_cli({"--check", e.path().string()});
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(r.err.find("error"), std::string::npos) << r.err;
+    EXPECT_NE(r.out.find("particles"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("time step"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("memory (GPU 0)"), std::string::npos) << r.out;
+    ++n;
+  }
+  EXPECT_GE(n, 5);
+}
+
+TEST(Cli, CheckPrintsTheResolvedSceneWithUnits) {
+  const CliResult r = run_cli({"--check", "--file=" + (kScenes / "good" / "froude_scaled_block.json").string()});
+  ASSERT_EQ(r.code, 0) << r.err;
+  for (const char* s : {"default_dx", "default_dt", "gravity", "fps", "frames", "save_suffix", "froude_scaling",
+                        "precision", "on_failure", "FixedCorotated", "youngs_modulus", " Pa", " m/s", "geometry[0]",
+                        "boundaries[0]", "p-wave speed", "time step bound", "memory (CPU engine)"})
+    EXPECT_NE(r.out.find(s), std::string::npos) << "'" << s << "' missing from\n" << r.out;
+  // froude_scaling 2 doubles the 0.02 m grid.
+  EXPECT_NE(r.out.find("0.04 m"), std::string::npos) << r.out;
+}
+
+TEST(Cli, HelpListsEveryOption) {
+  const CliResult r = run_cli({"--help"});
+  EXPECT_EQ(r.code, 0);
+  for (const char* o : {"--file", "-f FILE", "--check", "--backend=auto|gpu|cpu", "--output", "--frames", "--quiet",
+                        "--allow-unknown-keys", "--data-dir", "--version", "--help"})
+    EXPECT_NE(r.out.find(o), std::string::npos) << o;
+}
+
+TEST(Cli, Version) {
+  const CliResult r = run_cli({"--version"});
+  EXPECT_EQ(r.code, 0);
+  EXPECT_EQ(r.out.rfind(std::string("fbar ") + FBAR_VERSION, 0), 0u) << r.out;
+}
+
+TEST(Cli, BadOptionsExitOne) {
+  CliResult r = run_cli({"--frame=3"});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("fbar: error: unknown option '--frame'; did you mean '--frames'?"), std::string::npos) << r.err;
+  r = run_cli({"--frames=0", "x.json"});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--frames: got '0'; expected an integer >= 1"), std::string::npos) << r.err;
+  r = run_cli({"--backend=tpu"});
+  EXPECT_EQ(r.code, 1);
+  r = run_cli({"a.json", "b.json"});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("more than one scene file"), std::string::npos) << r.err;
+  r = run_cli({"--check=yes"});
+  EXPECT_EQ(r.code, 1);
+}
+
+TEST(Cli, GpuBackendIsNotInThisBuild) {
+  const CliResult r = run_cli({"--backend=gpu", "--file", (kScenes / "good" / "tiny_fluid.json").string()});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("fbar: error: --backend=gpu: the GPU engine is not available in this build"), std::string::npos)
+      << r.err;
+}
+
+TEST(Cli, DefaultSceneIsSceneJsonInTheWorkingDirectory) {
+  const fs::path dir = scratch("default_scene");
+  const fs::path old = fs::current_path();
+  fs::current_path(dir);
+  const CliResult missing = run_cli({"--check"});
+  fs::copy_file(kScenes / "good" / "tiny_fluid.json", dir / "scene.json");
+  const CliResult present = run_cli({"--check"});
+  fs::current_path(old);
+  EXPECT_EQ(missing.code, 1);
+  EXPECT_NE(missing.err.find("fbar: error: --file: got \"scene.json\"; expected an existing scene file"),
+            std::string::npos)
+      << missing.err;
+  EXPECT_EQ(present.code, 0) << present.err;
+}
+
+TEST(Cli, AllowUnknownKeysTurnsTheErrorIntoAWarning) {
+  const fs::path dir = scratch("unknown_keys");
+  std::ifstream in(kScenes / "good" / "tiny_fluid.json");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  std::string text = ss.str();
+  text.replace(text.find("\"simulation\": {"), 15, "\"simulation\": {\"colour\": \"blue\", ");
+  write_text(dir / "scene.json", text);
+  const CliResult strict = run_cli({"--check", (dir / "scene.json").string()});
+  EXPECT_EQ(strict.code, 1);
+  EXPECT_NE(strict.err.find("simulation.colour: got unknown key \"colour\""), std::string::npos) << strict.err;
+  const CliResult lenient = run_cli({"--check", "--allow-unknown-keys", (dir / "scene.json").string()});
+  EXPECT_EQ(lenient.code, 0) << lenient.err;
+  EXPECT_NE(lenient.err.find("fbar: warning: simulation.colour: ignored"), std::string::npos) << lenient.err;
+}
+
+// One frame of a 64-particle water box on the CPU reference engine: exit 0, frames and run.json in --output,
+// and run.json's "scene" reads back to the scene that ran.
+TEST(Cli, RunWritesRunJsonWithTheResolvedScene) {
+  const fs::path out = scratch("run") / "frames";  // created by fbar
+  const fs::path scene_file = kScenes / "good" / "tiny_fluid.json";
+  const CliResult r = run_cli({"--backend=auto", "--quiet", "--frames=1", "--output=" + out.string(),
+                               "--file=" + scene_file.string()});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("fbar: warning: no GPU engine in this build; running on the CPU reference engine"),
+            std::string::npos)
+      << r.err;
+  ASSERT_TRUE(fs::is_regular_file(out / "run.json"));
+
+  std::ifstream in(out / "run.json");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  rapidjson::Document doc;
+  doc.Parse<rapidjson::kParseNanAndInfFlag | rapidjson::kParseFullPrecisionFlag>(ss.str().c_str());
+  ASSERT_FALSE(doc.HasParseError()) << ss.str();
+  EXPECT_STREQ(doc["fbar_version"].GetString(), FBAR_VERSION);
+  EXPECT_STREQ(doc["backend"].GetString(), "cpu");
+  EXPECT_STREQ(doc["precision"].GetString(), "single");
+  EXPECT_EQ(doc["exit_code"].GetInt(), 0);
+  EXPECT_GT(doc["steps"].GetInt64(), 0);
+  EXPECT_GE(doc["wall_time_s"].GetDouble(), 0.0);
+  ASSERT_TRUE(doc.HasMember("scene"));
+
+  rapidjson::StringBuffer sb;
+  rapidjson::Writer<rapidjson::StringBuffer> w(sb);
+  doc["scene"].Accept(w);
+  const Scene ran = parse_scene_string(sb.GetString(), ParseOptions{});
+  Scene expected = parse_scene_file(scene_file.string(), ParseOptions{});
+  expected.simulation.frames = 1;
+  expected.simulation.save_path = out.string();
+  EXPECT_TRUE(ran == expected) << sb.GetString();
+}
+
+}  // namespace
+}  // namespace fbar
