@@ -694,14 +694,14 @@ GeometrySpec parse_geometry(const rj::Value& v, const std::string& path, const C
     g.track_particle_id = read_integer_array(*x, o.sub("track_particle_id"), kNonNegative);
 
   // Shape keys.
+  Real3 sphere_span{};  // checked against the radius only: a sphere is offset + radius
   if (g.object == GeometryObject::Box) {
     if (auto* x = o.get("span")) g.span = read_real3(*x, o.sub("span"), kPositive, "m");
   }
   if (g.object == GeometryObject::Sphere) {
-    if (auto* x = o.get("span")) {  // ClaymoreUW passes span to spheres; it has no effect (offset + radius define it)
-      read_real3(*x, o.sub("span"), kAny, "m");
-      ctx.warn(o.sub("span") + ": ignored for object Sphere (offset and radius define it)");
-    }
+    // ClaymoreUW clips a sphere to the box [offset, offset + span]; fbar samples the whole sphere. Both agree when
+    // span >= 2 radius; a smaller span (a clipped sphere) is refused below rather than silently sampled whole.
+    if (auto* x = o.get("span")) sphere_span = read_real3(*x, o.sub("span"), kAny, "m");
   }
   if (g.object == GeometryObject::Cylinder) {
     if (auto* x = o.get("axis")) g.axis = read_enum(*x, o.sub("axis"), kAxes);
@@ -717,6 +717,22 @@ GeometrySpec parse_geometry(const rj::Value& v, const std::string& path, const C
     const rj::Value* x = o.get("radius");
     if (!x) o.missing("radius", std::string("a number > 0 for object ") + to_string(g.object), "m");
     g.radius = read_number(*x, o.sub("radius"), kPositive, "m");
+    if (o.get("span")) {
+      // The cross-section axes of a cylinder (all three for a sphere) must hold the whole circle: ClaymoreUW would
+      // clip the shape to [offset, offset + span], which fbar expresses as an Intersection with a Box instead.
+      for (int d = 0; d < 3; ++d) {
+        if (g.object == GeometryObject::Cylinder && d == g.axis) continue;
+        const double span_d = g.object == GeometryObject::Sphere ? sphere_span[d] : g.span[d];
+        // A cylinder's cross-section span of 0 means "not given" (fbar writes it so); only a clip is refused.
+        if (g.object == GeometryObject::Cylinder && span_d == 0.0) continue;
+        if (span_d < 2.0 * g.radius * (1.0 - 1e-12))
+          throw SceneError(index_path(o.sub("span"), d), num_text(span_d),
+                           "a number >= 2 * radius = " + num_text(2.0 * g.radius) +
+                               " (ClaymoreUW clips the shape to [offset, offset + span]; in fbar add an Intersection "
+                               "with a Box for a clipped " + to_string(g.object) + ")",
+                           "m");
+      }
+    }
   }
   if (is_file) {
     const rj::Value* x = o.get("file");
