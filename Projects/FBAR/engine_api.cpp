@@ -1,0 +1,270 @@
+// summarize_scene() (particle counts, wave speeds, dt, memory estimates) and run_cpu() (the CPU engine's run loop).
+#include "engine_api.h"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <stdexcept>
+#include <string>
+#include <type_traits>
+#include <unordered_map>
+#include <unordered_set>
+
+#include "MnBase/Math/bspline.h"
+#include "MnSystem/IO/async_writer.h"
+#include "constitutive_models.cuh"
+#include "cpu_engine.h"
+#include "geometry.h"
+#include "scene_error.h"
+#include "settings.h"
+#include "time_step.cuh"
+
+namespace fbar {
+namespace {
+
+/// Material facts the summary needs, also for laws no engine implements yet (so `--check` still answers).
+struct MaterialFacts {
+  double wave_speed;   ///< [m/s] at rest
+  int stored_scalars;  ///< per particle in a GPU bin (position + state)
+};
+
+MaterialFacts material_facts(const MaterialSpec& m) {
+  MaterialFacts facts{0.0, 0};
+  const bool known = visit_material(m.law, [&](auto mt) {
+    using M = decltype(mt);
+    facts.wave_speed = M::wave_speed(M::template make_params<double>(m), M::template reference_state<double>());
+    facts.stored_scalars = M::kStoredScalars;
+  });
+  if (!known) {
+    // Elastic-plastic solids: p-wave speed sqrt((lambda + 2 mu) / rho) (VALIDATION.md); bins store position + F,
+    // plus log Jp for the plastic laws.
+    const double E = m.youngs_modulus, nu = m.poisson_ratio;
+    const double mu = E / (2.0 * (1.0 + nu));
+    const double lambda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
+    facts.wave_speed = std::sqrt((lambda + 2.0 * mu) / m.rho);
+    facts.stored_scalars = m.law == Constitutive::NeoHookean ? 12 : 13;
+  }
+  return facts;
+}
+
+/// Bytes of one particle scalar and one grid scalar on the GPU for a precision: single stores and accumulates
+/// in float; double in double; mixed keeps particles in float and accumulates the grid in double (the fp32-atomics
+/// limit of VALIDATION.md).
+std::size_t gpu_particle_scalar_bytes(Precision p) { return p == Precision::Double ? 8 : 4; }
+std::size_t gpu_grid_scalar_bytes(Precision p) { return p == Precision::Single ? 4 : 8; }
+
+std::uint64_t pack(int x, int y, int z) {
+  constexpr int bias = 1 << 20;
+  return (static_cast<std::uint64_t>(x + bias) << 42) | (static_cast<std::uint64_t>(y + bias) << 21) |
+         static_cast<std::uint64_t>(z + bias);
+}
+
+std::string format_duration(double seconds) {
+  if (!std::isfinite(seconds) || seconds < 0) return "--:--:--";
+  const long long s = static_cast<long long>(seconds + 0.5);
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%02lld:%02lld:%02lld", s / 3600, (s / 60) % 60, s % 60);
+  return buf;
+}
+
+const char* precision_name(Precision p) {
+  switch (p) {
+    case Precision::Single:
+      return "single";
+    case Precision::Double:
+      return "double";
+    case Precision::Mixed:
+      return "mixed";
+  }
+  return "?";
+}
+
+template <typename T>
+RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& log) {
+  RunResult result;
+  const SimulationSpec& sim = scene.simulation;
+  if (sim.particles_output_exterior_only)
+    throw std::invalid_argument("simulation.particles_output_exterior_only: not implemented by the CPU engine");
+  // Sensors and trackers are not produced by this engine yet: refuse rather than run without them.
+  if (!scene.grid_sensors.empty()) throw std::invalid_argument("grid-sensors: not implemented by the CPU engine yet");
+  if (!scene.particle_sensors.empty())
+    throw std::invalid_argument("particle-sensors: not implemented by the CPU engine yet");
+  for (std::size_t b = 0; b < scene.bodies.size(); ++b)
+    if (!scene.bodies[b].track_particle_id.empty() || !scene.bodies[b].track_attribs.empty() ||
+        !scene.bodies[b].target_attribs.empty())
+      throw std::invalid_argument("bodies[" + std::to_string(b) +
+                                  "]: particle tracking / target attributes are not implemented by the CPU engine yet");
+  CpuEngine<T> engine(scene);
+  engine.set_log(&log);
+
+  std::filesystem::create_directories(sim.save_path);
+  const std::string suffix = sim.save_suffix;
+  io::frame_format(suffix);  // throws for a suffix without a writer before anything runs
+  io::AsyncWriter writer(2);
+  auto write_frame = [&](int frame) {
+    for (int b = 0; b < engine.body_count(); ++b) {
+      const BodySpec& spec = scene.bodies[b];
+      writer.submit(io::frame_file_path(sim.save_path, spec.model, spec.gpu, frame, suffix), engine.frame(b));
+    }
+  };
+
+  const double t0 = engine.time();
+  const double t_end = t0 + sim.frames / sim.fps;
+  if (!options.quiet)
+    log << "fbar: CPU reference engine (" << precision_name(sim.precision) << " -> "
+        << (std::is_same_v<T, double> ? "double" : "float") << "), " << engine.particle_count() << " particles, "
+        << engine.body_count() << " bodies, " << omp_get_max_threads() << " threads\n";
+  write_frame(0);
+
+  const auto wall_start = std::chrono::steady_clock::now();
+  auto seconds_since = [](std::chrono::steady_clock::time_point t) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+  };
+  long long steps_logged = 0;
+  auto progress = [&](int frame) {
+    const double elapsed = seconds_since(wall_start);
+    const double done = engine.time() - t0;
+    const double eta = done > 0 ? elapsed * (t_end - engine.time()) / done : -1.0;
+    const double ms_per_step = engine.steps() > 0 ? 1e3 * elapsed / static_cast<double>(engine.steps()) : 0.0;
+    char line[256];
+    std::snprintf(line, sizeof(line),
+                  "frame %d/%d  t = %.6g s  dt = %.3g s  particles = %zu  steps = %lld  %.3g ms/step  ETA %s\n", frame,
+                  sim.frames, engine.time(), engine.next_dt(), engine.particle_count(), engine.steps(), ms_per_step,
+                  format_duration(eta).c_str());
+    log << line << std::flush;
+  };
+
+  for (int frame = 1; frame <= sim.frames; ++frame) {
+    const double target = t0 + frame / sim.fps;
+    StepReport report;
+    if (sim.info_rate > 0 && !options.quiet) {
+      while (engine.time() < target && report.ok) {
+        const StepReport r = engine.advance_to(std::min(target, engine.time() + engine.next_dt()));
+        report.ok = r.ok;
+        report.failures = r.failures;
+        if (r.ok && engine.steps() - steps_logged >= sim.info_rate) {
+          steps_logged = engine.steps();
+          progress(frame - 1);
+        }
+      }
+    } else {
+      report = engine.advance_to(target);
+    }
+    result.steps = engine.steps();
+    result.end_time = engine.time();
+    if (!report.ok) {
+      result.exit_code = 2;
+      result.message = report.message();  // the caller reports it (cli.cpp prints it to stderr)
+      writer.close();
+      return result;
+    }
+    write_frame(frame);
+    if (!options.quiet) progress(frame);
+  }
+  writer.close();
+  result.steps = engine.steps();
+  result.end_time = engine.time();
+  return result;
+}
+
+}  // namespace
+
+SceneSummary summarize_scene(const Scene& scene) {
+  const SimulationSpec& sim = scene.simulation;
+  SceneSummary summary;
+  summary.dt = resolved_default_dt(sim);
+  const double dx = sim.dx;
+  const double inv_dx = 1.0 / dx;
+
+  std::unordered_set<std::uint64_t> cpu_blocks;
+  int max_gpu = -1;
+  for (const BodySpec& b : scene.bodies) max_gpu = std::max(max_gpu, b.gpu);
+  std::vector<std::unordered_set<std::uint64_t>> gpu_blocks(max_gpu + 1);
+  std::vector<std::size_t> gpu_bins_bytes(max_gpu + 1, 0), gpu_particles(max_gpu + 1, 0);
+  std::size_t cpu_particle_bytes = 0;
+
+  for (std::size_t i = 0; i < scene.bodies.size(); ++i) {
+    const BodySpec& body = scene.bodies[i];
+    const MaterialSpec& m = body.material;
+    const std::vector<Vec3d> x = sample_body(body, sim, static_cast<int>(i));
+    const MaterialFacts facts = material_facts(m);
+    BodySummary s;
+    s.particles = static_cast<long long>(x.size());
+    s.particle_volume = dx * dx * dx / m.ppc;
+    s.particle_mass = m.rho * s.particle_volume;
+    s.wave_speed = facts.wave_speed;
+    const double v0 = std::sqrt(body.velocity[0] * body.velocity[0] + body.velocity[1] * body.velocity[1] +
+                                body.velocity[2] * body.velocity[2]);
+    s.dt_bound = cfl_time_step(m.cfl, dx, facts.wave_speed, v0);
+    summary.dt = min_time_step(summary.dt, s.dt_bound);
+    summary.bodies.push_back(s);
+
+    // Particle blocks (block of the stencil base node) and their 2x2x2 grid footprints; bins of 32 per block.
+    std::unordered_map<std::uint64_t, long long> per_block;
+    for (const Vec3d& p : x) {
+      const Vec3i base = quadratic_bspline_inv(p, inv_dx).base;
+      const int bx = base[0] >> 2, by = base[1] >> 2, bz = base[2] >> 2;
+      if (per_block[pack(bx, by, bz)]++ > 0) continue;
+      for (int di = 0; di < 2; ++di)
+        for (int dj = 0; dj < 2; ++dj)
+          for (int dk = 0; dk < 2; ++dk) {
+            cpu_blocks.insert(pack(bx + di, by + dj, bz + dk));
+            gpu_blocks[body.gpu].insert(pack(bx + di, by + dj, bz + dk));
+          }
+    }
+    std::size_t bins = 0;
+    for (const auto& kv : per_block)
+      bins += static_cast<std::size_t>((kv.second + settings::kBinSize - 1) / settings::kBinSize);
+    // Two particle buffers (the fused G2P2G reads one and writes the other).
+    gpu_bins_bytes[body.gpu] += 2 * bins * settings::kBinSize * static_cast<std::size_t>(facts.stored_scalars) *
+                                gpu_particle_scalar_bytes(sim.precision);
+    gpu_particles[body.gpu] += x.size();
+
+    // CPU engine, double: x, v, their next copies (4 x 3), C and its next copy (2 x 9), mass, volume (2), state
+    // twice, plus order / block index / key scratch (16 bytes).
+    const std::size_t state_scalars = static_cast<std::size_t>(facts.stored_scalars - 3);
+    cpu_particle_bytes += x.size() * ((12 + 18 + 2 + 2 * state_scalars) * sizeof(double) + 16);
+  }
+
+  // CPU grid: 4 double channels x 64 nodes per block, coordinates and a hash-map entry.
+  summary.cpu_bytes = cpu_particle_bytes + cpu_blocks.size() * (4 * 64 * sizeof(double) + 12 + 48);
+
+  // GPU: grid blocks (4 channels x 64 nodes x 2 buffers) for the covered blocks x 1.5 (capacity for growth), and a
+  // partition of the same capacity: hash table at load factor 1/2 (key 3 ints + value, 16 B, x 2), per-block
+  // bookkeeping (counts, bin offsets, 4 ints) and per-cell particle counts (64 ints), plus two particle index
+  // buckets (block bucket and advection source, 4 B each) per particle.
+  summary.gpu_bytes.assign(max_gpu + 1, 0);
+  for (int g = 0; g <= max_gpu; ++g) {
+    const double capacity = 1.5 * static_cast<double>(gpu_blocks[g].size());
+    const double grid = capacity * 4.0 * 64.0 * static_cast<double>(gpu_grid_scalar_bytes(sim.precision)) * 2.0;
+    const double partition = capacity * (2.0 * 16.0 + 16.0 + 64.0 * 4.0) + static_cast<double>(gpu_particles[g]) * 8.0;
+    summary.gpu_bytes[g] = gpu_bins_bytes[g] + static_cast<std::size_t>(grid + partition);
+  }
+  return summary;
+}
+
+RunResult run_cpu(const Scene& scene, const RunOptions& options) {
+  std::ostream& log = options.log ? *options.log : std::cout;
+  RunResult result;
+  try {
+    if (scene.simulation.precision == Precision::Single) return run_with<float>(scene, options, log);
+    return run_with<double>(scene, options, log);
+  } catch (const SceneError& e) {
+    result.exit_code = 1;
+    result.message = e.what();
+  } catch (const std::invalid_argument& e) {
+    result.exit_code = 1;
+    result.message = e.what();
+  } catch (const std::exception& e) {
+    result.exit_code = 2;
+    result.message = e.what();
+  }
+  return result;
+}
+
+}  // namespace fbar

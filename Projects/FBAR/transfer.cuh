@@ -1,0 +1,90 @@
+// APIC / MLS-MPM particle-grid transfers with quadratic B-splines (host and device formulas, no storage).
+//
+// Hu et al. 2018, "A moving least squares material point method with displacement discontinuity and two-way rigid
+// body coupling" (MLS-MPM), with the APIC affine matrix C_p (Jiang et al. 2015). Per step (symplectic Euler):
+//   P2G   m_i   += w_ip m_p
+//         p_i   += w_ip [ m_p v_p + (m_p C_p - dt V_p^0 D_p^-1 tau_p) (x_i - x_p) ]
+//                    (the second term inside the bracket is the MLS internal force impulse -dt f_i)
+//   grid  v_i    = p_i / m_i + dt g, then boundary projections   (grid_update.cuh, boundary.cuh)
+//   G2P   v_p    = sum_i w_ip v_i
+//         C_p    = D_p^-1 sum_i w_ip v_i (x_i - x_p)^T
+//         x_p   += dt v_p;   F_p <- (I + dt C_p) F_p  or  J_p <- (1 + dt tr C_p) J_p   (material advance())
+// with D_p^-1 = 4 / dx^2 (bspline.h: apic_inertia_inverse), V_p^0 the reference particle volume and tau_p the
+// Kirchhoff stress (materials). Units: m [kg], v [m/s], C [1/s], x [m], tau [Pa], V [m^3], dt [s].
+//
+// Conservation (exact in exact arithmetic, the tests check round-off): quadratic B-splines satisfy
+// sum_i w_ip = 1 and sum_i w_ip (x_i - x_p) = 0, so P2G conserves mass and momentum and the internal force sums to
+// zero; G2P conserves momentum (sum_p m_p v_p = sum_i m_i v_i).
+#pragma once
+
+#include "MnBase/Math/bspline.h"
+#include "MnBase/Math/vec.h"
+#include "MnBase/Meta/config.h"
+
+namespace fbar {
+
+/// What one particle deposits on its 27 nodes: node momentum = w (momentum + affine (x_i - x_p)), node mass = w mass.
+template <typename T>
+struct P2GParticle {
+  T mass;            ///< [kg] m_p
+  Vec3<T> momentum;  ///< [kg m/s] m_p v_p
+  Mat3<T> affine;    ///< [kg/s] m_p C_p - dt V_p^0 D_p^-1 tau_p
+};
+
+/// The P2G payload of a particle (MLS-MPM: the stress enters as an affine term, no weight gradients needed).
+/// d_inv = D_p^-1 = 4 / dx^2 [1/m^2].
+template <typename T>
+FBAR_HOST_DEVICE constexpr P2GParticle<T> mls_p2g_particle(T mass, T volume0, const Vec3<T>& velocity, const Mat3<T>& C,
+                                                           const Mat3<T>& kirchhoff, T dt, T d_inv) {
+  return P2GParticle<T>{mass, velocity * mass, C * mass - kirchhoff * (dt * volume0 * d_inv)};
+}
+
+/// Momentum a particle gives node i: w_ip (m v + A (x_i - x_p)) [kg m/s]; xixp = x_i - x_p [m].
+template <typename T>
+FBAR_HOST_DEVICE constexpr Vec3<T> p2g_node_momentum(const P2GParticle<T>& p, T w, const Vec3<T>& xixp) {
+  return (p.momentum + p.affine * xixp) * w;
+}
+
+/// Calls f(i, j, k, w, xixp) for the 27 nodes base + (i, j, k) of a stencil: w the 3D weight, xixp = x_i - x_p [m].
+template <typename T, typename F>
+FBAR_HOST_DEVICE FBAR_FORCE_INLINE void for_each_stencil_node(const QuadraticBspline<T>& s, T dx, F&& f) {
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      const T wij = s.w[0][i] * s.w[1][j];
+      for (int k = 0; k < 3; ++k) f(i, j, k, wij * s.w[2][k], s.node_offset(i, j, k, dx));
+    }
+}
+
+/// G2P accumulator: add() every stencil node, then velocity() and affine().
+template <typename T>
+struct G2PSum {
+  Vec3<T> v = Vec3<T>::zero();  ///< [m/s] sum_i w v_i
+  Mat3<T> B = Mat3<T>::zero();  ///< [m^2/s] sum_i w v_i (x_i - x_p)^T
+
+  FBAR_HOST_DEVICE constexpr void add(T w, const Vec3<T>& v_node, const Vec3<T>& xixp) {
+    const Vec3<T> wv = v_node * w;
+    v += wv;
+    B += outer(wv, xixp);
+  }
+  FBAR_HOST_DEVICE constexpr Vec3<T> velocity() const { return v; }
+  /// C_p = D_p^-1 B [1/s].
+  FBAR_HOST_DEVICE constexpr Mat3<T> affine(T d_inv) const { return B * d_inv; }
+};
+
+/// x_p <- x_p + dt v_p (symplectic Euler: the new velocity moves the particle).
+template <typename T>
+FBAR_HOST_DEVICE constexpr Vec3<T> advect(const Vec3<T>& x, const Vec3<T>& v, T dt) {
+  return x + v * dt;
+}
+
+/// Angular momentum of an APIC particle about the origin [kg m^2/s]: m x × v plus the affine spin
+/// m (dx^2/4) eps_abc C_cb, what its P2G deposits as sum_i x_i × m_i v_i (Jiang et al. 2015).
+template <typename T>
+FBAR_HOST_DEVICE constexpr Vec3<T> apic_angular_momentum(T mass, const Vec3<T>& x, const Vec3<T>& v, const Mat3<T>& C,
+                                                         T dx) {
+  const T inertia = dx * dx / T(4);
+  const Vec3<T> spin{{C(2, 1) - C(1, 2), C(0, 2) - C(2, 0), C(1, 0) - C(0, 1)}};
+  return (cross(x, v) + spin * inertia) * mass;
+}
+
+}  // namespace fbar

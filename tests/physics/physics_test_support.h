@@ -1,0 +1,77 @@
+// Helpers for the physics tests: seeded random tensors and a small scene builder for the CPU engine.
+#pragma once
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "MnBase/Math/vec.h"
+#include "scene.h"
+
+namespace fbar::test {
+
+/// Rotation by `angle` [rad] about the unit `axis` (Rodrigues).
+inline Mat3d rotation(const Vec3d& axis_in, double angle) {
+  const Vec3d a = axis_in / norm(axis_in);
+  const double c = std::cos(angle), s = std::sin(angle);
+  Mat3d K{{{0, -a[2], a[1]}, {a[2], 0, -a[0]}, {-a[1], a[0], 0}}};
+  return Mat3d::identity() + K * s + (K * K) * (1.0 - c);
+}
+
+inline Mat3d random_rotation(std::mt19937_64& rng) {
+  std::normal_distribution<double> n(0.0, 1.0);
+  std::uniform_real_distribution<double> u(0.0, 2.0 * 3.14159265358979323846);
+  return rotation(Vec3d{{n(rng), n(rng), n(rng)}}, u(rng));
+}
+
+/// F = I + e A with A uniform in [-1, 1]^9 (det > 0 for e < 1/3).
+inline Mat3d random_deformation(std::mt19937_64& rng, double e) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  Mat3d F = Mat3d::identity();
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) F(i, j) += e * u(rng);
+  return F;
+}
+
+inline Real3 r3(double x, double y, double z) { return Real3{x, y, z}; }
+
+/// A box body of `law` sampled at 8 ppc (2x2x2 lattice per cell).
+inline BodySpec box_body(Constitutive law, Real3 offset, Real3 span, Real3 velocity = r3(0, 0, 0)) {
+  BodySpec b;
+  b.material.law = law;
+  b.material.ppc = 8.0;
+  b.material.cfl = 0.5;
+  b.material.rho = 1000.0;
+  b.material.youngs_modulus = 1e6;
+  b.material.poisson_ratio = 0.3;
+  b.material.bulk_modulus = 1e6;
+  b.material.gamma = 7.0;
+  b.material.viscosity = 0.0;
+  b.algorithm.use_asflip = false;
+  b.algorithm.use_fbar = false;
+  b.velocity = velocity;
+  GeometrySpec g;
+  g.object = GeometryObject::Box;
+  g.span = span;
+  g.offset = offset;
+  b.geometry.push_back(g);
+  b.output_attribs = {"ID"};
+  return b;
+}
+
+/// A scene with no boundaries and the given gravity; default_dt large so only explicit dt or the CFL bound acts.
+inline Scene empty_scene(Real3 domain, double dx, Real3 gravity) {
+  Scene s;
+  s.simulation.domain = domain;
+  s.simulation.dx = dx;
+  s.simulation.default_dt = 1.0;
+  s.simulation.gravity = gravity;
+  s.simulation.precision = Precision::Double;
+  return s;
+}
+
+constexpr double kEps = std::numeric_limits<double>::epsilon();
+constexpr float kEpsF = std::numeric_limits<float>::epsilon();
+
+}  // namespace fbar::test

@@ -1,0 +1,443 @@
+// The CPU reference engine against exact solutions: free fall, rigid translation, conservation, failure detection.
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <cmath>
+#include <filesystem>
+#include <sstream>
+
+#include "cpu_engine.h"
+#include "engine_api.h"
+#include "physics_test_support.h"
+
+namespace fbar {
+namespace {
+
+using test::box_body;
+using test::empty_scene;
+using test::kEps;
+using test::r3;
+
+Scene two_body_scene_for_summary() {
+  Scene scene = empty_scene(r3(1, 1, 1), 0.05, r3(0, 0, 0));
+  scene.bodies.push_back(box_body(Constitutive::FixedCorotated, r3(0.2, 0.2, 0.2), r3(0.2, 0.2, 0.2)));
+  scene.bodies.push_back(box_body(Constitutive::JFluid, r3(0.6, 0.6, 0.6), r3(0.2, 0.2, 0.2)));
+  return scene;
+}
+
+// VALIDATION.md item 1: symplectic Euler free fall gives x_n = x0 + g t_n^2/2 + g t_n dt/2 exactly (no spatial error:
+// a uniform velocity field is transferred exactly, the deformation stays I). Body far from every wall, fixed dt.
+// Error budget: each step adds O(eps |x|) to x and O(eps |v|) to v; after n = 200 steps |x| <= 1 m, |v| <= 2 m/s:
+// 2 n eps (|x| + t |v|) < 2e-13 m. Tolerance 1e-12 m; velocity 1e-12 m/s; |F - I| 1e-12; stress 1e-12 E.
+class FreeFall : public ::testing::TestWithParam<Constitutive> {};
+
+TEST_P(FreeFall, MatchesSymplecticEulerExactly) {
+  Scene scene = empty_scene(r3(1, 1, 1), 0.05, r3(0.5, -9.81, 0.25));
+  scene.bodies.push_back(box_body(GetParam(), r3(0.4, 0.6, 0.4), r3(0.15, 0.1, 0.1), r3(0.1, 1.0, -0.2)));
+  CpuEngine<double> engine(scene);
+  const std::vector<Vec3d> x0 = engine.positions(0);
+  const Vec3d v0{{0.1, 1.0, -0.2}}, g{{0.5, -9.81, 0.25}};
+  const double dt = 1e-3;
+  const int n = 200;
+  for (int s = 0; s < n; ++s) ASSERT_TRUE(engine.step(dt).ok);
+  const double t = n * dt;
+  EXPECT_EQ(engine.steps(), n);
+  EXPECT_NEAR(engine.time(), t, 1e-15);
+  double x_err = 0, v_err = 0;
+  for (std::size_t p = 0; p < x0.size(); ++p) {
+    const Vec3d expected = x0[p] + v0 * t + g * (0.5 * t * t + 0.5 * t * dt);
+    x_err = std::max(x_err, max_abs(engine.positions(0)[p] - expected));
+    v_err = std::max(v_err, max_abs(engine.velocities(0)[p] - (v0 + g * t)));
+  }
+  EXPECT_LE(x_err, 1e-12) << "max position error " << x_err;
+  EXPECT_LE(v_err, 1e-12) << "max velocity error " << v_err;
+  for (const double J : engine.volume_ratios(0)) EXPECT_NEAR(J, 1.0, 1e-12);
+  for (const Mat3d& s : engine.cauchy_stresses(0)) EXPECT_LE(max_abs(s), 1e-12 * 1e6);
+  std::printf("free fall (%s): max |x - exact| = %.3g m, max |v - exact| = %.3g m/s after %d steps\n",
+              GetParam() == Constitutive::JFluid ? "JFluid" : "FixedCorotated", x_err, v_err, n);
+}
+
+INSTANTIATE_TEST_SUITE_P(Materials, FreeFall, ::testing::Values(Constitutive::JFluid, Constitutive::FixedCorotated));
+
+// VALIDATION.md item 1: uniform translation across many cells keeps v = v0, F = I, stress 0 to round-off. 15 cells
+// travelled (0.3 m at dx = 0.02); the CFL step is taken (it must not matter). Same budget as above.
+TEST(RigidTranslation, StaysUniformAcrossManyCells) {
+  Scene scene = empty_scene(r3(1, 1, 1), 0.02, r3(0, 0, 0));
+  const Vec3d v0{{1.0, -0.5, 0.25}};
+  scene.bodies.push_back(
+      box_body(Constitutive::FixedCorotated, r3(0.2, 0.5, 0.3), r3(0.1, 0.1, 0.1), r3(1.0, -0.5, 0.25)));
+  CpuEngine<double> engine(scene);
+  const std::vector<Vec3d> x0 = engine.positions(0);
+  const StepReport r = engine.advance_to(0.3);
+  ASSERT_TRUE(r.ok) << r.message();
+  EXPECT_EQ(engine.time(), 0.3);  // lands on the target exactly
+  double v_err = 0, x_err = 0, F_err = 0, s_max = 0;
+  const auto F = engine.deformation_gradients(0);
+  const auto sigma = engine.cauchy_stresses(0);
+  for (std::size_t p = 0; p < x0.size(); ++p) {
+    v_err = std::max(v_err, max_abs(engine.velocities(0)[p] - v0));
+    x_err = std::max(x_err, max_abs(engine.positions(0)[p] - (x0[p] + v0 * 0.3)));
+    F_err = std::max(F_err, max_abs(F[p] - Mat3d::identity()));
+    s_max = std::max(s_max, max_abs(sigma[p]));
+  }
+  EXPECT_LE(v_err, 1e-12);
+  EXPECT_LE(x_err, 1e-12);
+  EXPECT_LE(F_err, 1e-12);
+  EXPECT_LE(s_max, 1e-12 * 1e6);
+  std::printf("rigid translation: %lld steps, |v - v0| %.3g m/s, |x - exact| %.3g m, |F - I| %.3g, |sigma| %.3g Pa\n",
+              engine.steps(), v_err, x_err, F_err, s_max);
+}
+
+// Float engine: the same translation keeps v0 to float round-off (n eps_f |v| with n ~ 100 steps -> 1e-5 m/s).
+TEST(RigidTranslation, SinglePrecision) {
+  Scene scene = empty_scene(r3(1, 1, 1), 0.02, r3(0, 0, 0));
+  scene.bodies.push_back(box_body(Constitutive::JFluid, r3(0.2, 0.5, 0.3), r3(0.1, 0.1, 0.1), r3(1.0, -0.5, 0.25)));
+  CpuEngine<float> engine(scene);
+  ASSERT_TRUE(engine.advance_to(0.2).ok);
+  for (const Vec3f& v : engine.velocities(0)) EXPECT_LE(max_abs(v - Vec3f{{1.0f, -0.5f, 0.25f}}), 1e-5f);
+}
+
+// Mass: particle masses never change (sum exactly constant) and P2G puts all of it on the grid (partition of unity,
+// double sum of N terms: relative N eps). A colliding, bouncing scene with walls and gravity.
+TEST(Conservation, MassExact) {
+  Scene scene = empty_scene(r3(0.6, 0.6, 0.3), 0.02, r3(0, -9.81, 0));
+  scene.bodies.push_back(box_body(Constitutive::JFluid, r3(0.05, 0.05, 0.05), r3(0.2, 0.3, 0.2)));
+  scene.bodies.push_back(box_body(Constitutive::FixedCorotated, r3(0.35, 0.3, 0.05), r3(0.1, 0.1, 0.1), r3(-1, 0, 0)));
+  BoundarySpec walls;
+  walls.contact = Contact::Separable;
+  scene.boundaries.push_back(walls);
+  CpuEngine<double> engine(scene);
+  const double m0 = engine.total_mass();
+  ASSERT_TRUE(engine.advance_to(0.05).ok);
+  EXPECT_EQ(engine.total_mass(), m0);
+  EXPECT_NEAR(engine.grid_mass(), m0, static_cast<double>(engine.particle_count()) * kEps * m0);
+  std::printf("mass: %zu particles, %lld steps, |grid mass - particle mass| / mass = %.3g\n", engine.particle_count(),
+              engine.steps(), std::fabs(engine.grid_mass() - m0) / m0);
+}
+
+// Momentum and angular momentum (APIC / MLS-MPM conserve both exactly; VALIDATION.md items 6, 7): two elastic blocks
+// of different density collide and spin, no gravity, no boundaries. Each step's sums are exact up to round-off of
+// terms of size sum m |v| (momentum) and sum m |x||v| (angular momentum); over ~100 steps the drift stays below
+// 1e-12 of those scales.
+TEST(Conservation, MomentumAndAngularMomentumWithoutExternalForces) {
+  Scene scene = empty_scene(r3(1, 1, 1), 0.02, r3(0, 0, 0));
+  scene.bodies.push_back(
+      box_body(Constitutive::FixedCorotated, r3(0.3, 0.4, 0.4), r3(0.12, 0.1, 0.1), r3(2.0, 0.3, 0)));
+  BodySpec other = box_body(Constitutive::FixedCorotated, r3(0.46, 0.45, 0.42), r3(0.1, 0.1, 0.08), r3(-1.0, 0, 0.2));
+  other.material.rho = 2500.0;
+  scene.bodies.push_back(other);
+  CpuEngine<double> engine(scene);
+  // Add spin to body 0 so that angular momentum is exercised by C.
+  engine.set_velocities(0, [](const Vec3d& x) {
+    return Vec3d{{2.0 - 5.0 * (x[1] - 0.45), 0.3 + 5.0 * (x[0] - 0.36), 0.0}};
+  });
+  const Vec3d P0 = engine.total_momentum();
+  const Vec3d L0 = engine.angular_momentum();
+  const double E0 = engine.kinetic_energy() + engine.elastic_energy();
+  double p_scale = 0, l_scale = 0;
+  for (int b = 0; b < 2; ++b)
+    for (std::size_t p = 0; p < engine.particle_count(b); ++p) {
+      p_scale += engine.masses(b)[p] * norm(engine.velocities(b)[p]);
+      l_scale += engine.masses(b)[p] * norm(engine.velocities(b)[p]) * norm(engine.positions(b)[p]);
+    }
+  ASSERT_TRUE(engine.advance_to(0.03).ok);
+  const double dp = max_abs(engine.total_momentum() - P0) / p_scale;
+  const double dl = max_abs(engine.angular_momentum() - L0) / l_scale;
+  EXPECT_LE(dp, 1e-12);
+  EXPECT_LE(dl, 1e-12);
+  const double E1 = engine.kinetic_energy() + engine.elastic_energy();
+  EXPECT_LE(E1, E0 * (1 + 1e-9));  // a collision dissipates (APIC), it never creates energy
+  std::printf("momentum drift %.3g, angular momentum drift %.3g (relative), %lld steps, energy %.6g -> %.6g J\n", dp,
+              dl, engine.steps(), E0, E1);
+}
+
+// Results do not depend on the number of threads (fixed summation order by colour / block / particle).
+TEST(Determinism, BitwiseIndependentOfThreadCount) {
+  auto run = [](int threads) {
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(threads);
+    Scene scene = empty_scene(r3(0.6, 0.6, 0.3), 0.02, r3(0, -9.81, 0));
+    scene.bodies.push_back(box_body(Constitutive::JFluid, r3(0.05, 0.05, 0.05), r3(0.2, 0.3, 0.2)));
+    BoundarySpec walls;
+    walls.contact = Contact::Slip;
+    scene.boundaries.push_back(walls);
+    CpuEngine<double> engine(scene);
+    EXPECT_TRUE(engine.advance_to(0.02).ok);
+    omp_set_num_threads(saved);
+    return engine.positions(0);
+  };
+  const auto a = run(1);
+  const auto b = run(3);
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t p = 0; p < a.size(); ++p) ASSERT_EQ(a[p], b[p]) << "particle " << p;
+}
+
+// ------------------------------------------------------------------------------------------------ time step
+
+// dt = min(default_dt, CFL dx / (c + |v|max)) with the p-wave speed (VALIDATION.md).
+TEST(TimeStep, EngineUsesCflFormula) {
+  Scene scene = empty_scene(r3(1, 1, 1), 0.02, r3(0, 0, 0));
+  scene.bodies.push_back(box_body(Constitutive::FixedCorotated, r3(0.4, 0.4, 0.4), r3(0.1, 0.1, 0.1), r3(3, 0, 4)));
+  CpuEngine<double> engine(scene);
+  const double E = 1e6, nu = 0.3, rho = 1000;
+  const double cp = std::sqrt(E * (1 - nu) / ((1 + nu) * (1 - 2 * nu) * rho));
+  EXPECT_NEAR(engine.next_dt(), 0.5 * 0.02 / (cp + 5.0), 1e-15);
+  scene.simulation.default_dt = 1e-5;
+  CpuEngine<double> capped(scene);
+  EXPECT_EQ(capped.next_dt(), 1e-5);
+  const SceneSummary summary = summarize_scene(scene);
+  EXPECT_NEAR(summary.bodies[0].wave_speed, cp, 1e-12 * cp);
+  EXPECT_NEAR(summary.bodies[0].dt_bound, 0.5 * 0.02 / (cp + 5.0), 1e-15);
+  EXPECT_EQ(summary.dt, 1e-5);
+  EXPECT_EQ(summary.bodies[0].particles, 5 * 5 * 5 * 8);
+  EXPECT_EQ(summary.gpu_bytes.size(), 1u);
+  EXPECT_GT(summary.gpu_bytes[0], 0u);
+}
+
+// A compressed JFluid has a faster sound speed, c^2 = (K/rho0) J^(1-gamma); the engine's dt follows it.
+TEST(TimeStep, FollowsCompressedSoundSpeed) {
+  Scene scene = empty_scene(r3(1, 1, 1), 0.02, r3(0, 0, 0));
+  scene.bodies.push_back(box_body(Constitutive::JFluid, r3(0.4, 0.4, 0.4), r3(0.1, 0.1, 0.1)));
+  CpuEngine<double> engine(scene);
+  const double c0 = std::sqrt(1e6 / 1000.0);
+  EXPECT_NEAR(engine.next_dt(), 0.5 * 0.02 / c0, 1e-15);
+  engine.set_volume_ratios(0, [](const Vec3d& x) { return x[0] < 0.45 ? 0.9 : 1.0; });
+  const double c = c0 * std::sqrt(std::pow(0.9, 1 - 7.0));
+  EXPECT_NEAR(engine.next_dt(), 0.5 * 0.02 / c, 1e-12 * 0.5 * 0.02 / c);
+}
+
+// Memory estimates grow with precision and are split by GPU id.
+TEST(Summary, MemoryEstimatesPerGpu) {
+  Scene scene = two_body_scene_for_summary();
+  scene.bodies[1].gpu = 1;
+  scene.simulation.precision = Precision::Single;
+  const SceneSummary single = summarize_scene(scene);
+  scene.simulation.precision = Precision::Double;
+  const SceneSummary dbl = summarize_scene(scene);
+  ASSERT_EQ(single.gpu_bytes.size(), 2u);
+  EXPECT_GT(single.gpu_bytes[0], 0u);
+  EXPECT_GT(single.gpu_bytes[1], 0u);
+  EXPECT_GT(single.gpu_bytes[0], single.gpu_bytes[1]);  // FixedCorotated stores 12 scalars, JFluid 4
+  EXPECT_GT(dbl.gpu_bytes[0], single.gpu_bytes[0]);
+  EXPECT_GT(single.cpu_bytes, 0u);
+  CpuEngine<double> engine(scene);
+  ASSERT_TRUE(engine.step().ok);
+  // The estimate counts what the engine allocates (within 2x: vector capacities, hash-map nodes).
+  EXPECT_GT(static_cast<double>(dbl.cpu_bytes), 0.5 * static_cast<double>(engine.memory_bytes()));
+  EXPECT_LT(static_cast<double>(dbl.cpu_bytes), 2.0 * static_cast<double>(engine.memory_bytes()));
+}
+
+// A Box obstacle stops a falling block: no particle enters it. Its top face is y = 0.3 (a node plane); a particle's
+// stencil reaches the obstacle's nodes only below y = 0.3 + 1.5 dx, so the lowest particle must get below that
+// (contact happened) and stay above 0.3 (nothing entered), checked after every step.
+TEST(Boundary, FallingBlockRestsOnBoxObstacle) {
+  Scene scene = empty_scene(r3(1, 1, 1), 0.02, r3(0, -9.81, 0));
+  scene.bodies.push_back(box_body(Constitutive::FixedCorotated, r3(0.4, 0.4, 0.4), r3(0.1, 0.1, 0.1), r3(0, -1, 0)));
+  BoundarySpec box;
+  box.object = BoundaryObject::Box;
+  box.contact = Contact::Sticky;
+  box.domain_start = {0.2, 0.1, 0.2};
+  box.domain_end = {0.8, 0.3, 0.8};
+  scene.boundaries.push_back(box);
+  CpuEngine<double> engine(scene);
+  double y_min = 1.0;
+  while (engine.time() < 0.5) {
+    ASSERT_TRUE(engine.step().ok);
+    for (const Vec3d& x : engine.positions(0)) y_min = std::min(y_min, x[1]);
+  }
+  EXPECT_GT(y_min, 0.3);
+  EXPECT_LT(y_min, 0.3 + 1.5 * 0.02);
+  double v_max = 0;
+  for (const Vec3d& v : engine.velocities(0)) v_max = std::max(v_max, norm(v));
+  std::printf("block on box obstacle: lowest particle y = %.5f m (top face 0.3), max |v| %.3g m/s at t = 0.5 s\n",
+              y_min, v_max);
+}
+
+// ------------------------------------------------------------------------------------------------ failures
+
+Scene two_body_scene() {
+  Scene scene = empty_scene(r3(1, 1, 1), 0.05, r3(0, 0, 0));
+  scene.bodies.push_back(box_body(Constitutive::FixedCorotated, r3(0.2, 0.2, 0.2), r3(0.1, 0.1, 0.1)));
+  scene.bodies.push_back(box_body(Constitutive::JFluid, r3(0.6, 0.6, 0.6), r3(0.1, 0.1, 0.1)));
+  return scene;
+}
+
+TEST(Failure, NaNIsReportedWithBodyStepTimeAndStateKept) {
+  CpuEngine<double> engine(two_body_scene());
+  engine.set_log(nullptr);
+  ASSERT_TRUE(engine.step(1e-3).ok);
+  ASSERT_TRUE(engine.step(1e-3).ok);
+  engine.set_velocities(1, [](const Vec3d& x) {
+    return x[0] < 0.62 && x[1] < 0.62 && x[2] < 0.62 ? Vec3d{{std::nan(""), 0, 0}} : Vec3d::zero();
+  });
+  const std::vector<Vec3d> before = engine.positions(1);
+  const StepReport r = engine.step(1e-3);
+  ASSERT_FALSE(r.ok);
+  ASSERT_EQ(r.failures.size(), 1u);
+  const FailureReport& f = r.failures[0];
+  EXPECT_EQ(f.kind, FailureKind::NonFinite);
+  EXPECT_EQ(f.body, 1);
+  EXPECT_EQ(f.step, 3);
+  EXPECT_NEAR(f.time, 2e-3, 1e-18);
+  EXPECT_GE(f.count, 1);
+  EXPECT_EQ(f.first_particle, 0);
+  EXPECT_EQ(engine.steps(), 2);            // not committed
+  EXPECT_EQ(engine.positions(1), before);  // state untouched
+  EXPECT_NE(r.message().find("body 1"), std::string::npos) << r.message();
+  EXPECT_NE(r.message().find("step 3"), std::string::npos);
+  EXPECT_NE(r.message().find("t = 0.002 s"), std::string::npos);
+}
+
+// A particle moving 1.5 cells in one step is a CFL violation (fused G2P2G cannot hold it).
+TEST(Failure, CflViolationIsReported) {
+  CpuEngine<double> engine(two_body_scene());
+  engine.set_log(nullptr);
+  const double dt = 1e-3;
+  for (int s = 0; s < 3; ++s) ASSERT_TRUE(engine.step(dt).ok);
+  engine.set_velocities(0, [&](const Vec3d&) { return Vec3d{{0, 1.5 * 0.05 / dt, 0}}; });
+  const StepReport r = engine.step(dt);
+  ASSERT_FALSE(r.ok);
+  ASSERT_EQ(r.failures.size(), 1u);
+  EXPECT_EQ(r.failures[0].kind, FailureKind::CflViolation);
+  EXPECT_EQ(r.failures[0].body, 0);
+  EXPECT_EQ(r.failures[0].step, 4);
+  EXPECT_NEAR(r.failures[0].time, 3e-3, 1e-18);
+  EXPECT_EQ(r.failures[0].count, static_cast<long long>(engine.particle_count(0)));
+  EXPECT_NE(r.message().find("CFL"), std::string::npos);
+}
+
+// on_failure = reduce_dt: the step is repeated from the saved state with dt/2 (0.75 cells: fine) and logged.
+TEST(Failure, ReduceDtRetriesWithHalfStep) {
+  Scene scene = two_body_scene();
+  scene.simulation.on_failure = OnFailure::ReduceDt;
+  CpuEngine<double> engine(scene);
+  std::ostringstream log;
+  engine.set_log(&log);
+  const double dt = 1e-3;
+  engine.set_velocities(0, [&](const Vec3d&) { return Vec3d{{0, 1.5 * 0.05 / dt, 0}}; });
+  const std::vector<Vec3d> x0 = engine.positions(0);
+  const StepReport r = engine.step(dt);
+  ASSERT_TRUE(r.ok);
+  EXPECT_EQ(r.retries, 1);
+  EXPECT_EQ(r.dt, dt / 2);
+  ASSERT_EQ(r.retried.size(), 1u);
+  EXPECT_EQ(r.retried[0].kind, FailureKind::CflViolation);
+  EXPECT_EQ(engine.time(), dt / 2);
+  EXPECT_NEAR(engine.positions(0)[0][1] - x0[0][1], 0.75 * 0.05, 1e-12);
+  EXPECT_NE(log.str().find("retrying the step with dt = 0.0005 s"), std::string::npos) << log.str();
+}
+
+// A particle that leaves [0, domain] is reported at the first step whose end position is outside: body 0's highest
+// particles sit at x = 0.29375 (lattice 0.25 + (i + 0.5) dx/2 ...); moving +x at 1 m/s toward a domain of 0.3 m
+// they cross at t = 6.25e-3 s, i.e. during step 7 of dt = 1e-3 s.
+TEST(Failure, LeavingTheDomainIsReported) {
+  Scene scene = empty_scene(r3(0.3, 1, 1), 0.025, r3(0, 0, 0));
+  scene.bodies.push_back(box_body(Constitutive::JFluid, r3(0.2, 0.2, 0.2), r3(0.1, 0.1, 0.1), r3(1.0, 0, 0)));
+  CpuEngine<double> engine(scene);
+  double x_max = 0;
+  for (const Vec3d& x : engine.positions(0)) x_max = std::max(x_max, x[0]);
+  ASSERT_NEAR(x_max, 0.29375, 1e-12);
+  StepReport r;
+  while ((r = engine.step(1e-3)).ok) ASSERT_LT(engine.steps(), 20);
+  ASSERT_EQ(r.failures.size(), 1u);
+  EXPECT_EQ(r.failures[0].kind, FailureKind::LeftDomain);
+  EXPECT_EQ(r.failures[0].body, 0);
+  EXPECT_EQ(r.failures[0].step, 7);
+  EXPECT_NEAR(r.failures[0].time, 6e-3, 1e-15);
+  EXPECT_EQ(r.failures[0].count, static_cast<long long>(engine.particle_count(0)) / 8);  // the last of 8 lattice layers
+  EXPECT_NE(r.message().find("left the domain"), std::string::npos);
+}
+
+// ------------------------------------------------------------------------------------------------ API
+
+// Hydrostatic start (VALIDATION.md item 5): J(y) given per particle, mass rescaled so that the current density is
+// rho0 / J; pressures then follow the equation of state.
+TEST(Api, VolumeRatioFieldForJFluid) {
+  Scene scene = empty_scene(r3(1, 1, 1), 0.05, r3(0, -9.81, 0));
+  scene.bodies.push_back(box_body(Constitutive::JFluid, r3(0.2, 0.2, 0.2), r3(0.2, 0.2, 0.2)));
+  CpuEngine<double> engine(scene);
+  const double K = 1e6, gamma = 7.0, rho = 1000.0, g = 9.81, top = 0.4;
+  auto J_of = [&](const Vec3d& x) { return std::pow(1.0 + gamma * rho * g * (top - x[1]) / K, -1.0 / gamma); };
+  engine.set_volume_ratios(0, J_of);
+  const auto J = engine.volume_ratios(0);
+  const auto p = engine.pressures(0);
+  const double V = 0.05 * 0.05 * 0.05 / 8;
+  for (std::size_t i = 0; i < J.size(); ++i) {
+    const Vec3d& x = engine.positions(0)[i];
+    EXPECT_NEAR(J[i], J_of(x), 1e-15);
+    EXPECT_NEAR(p[i], rho * g * (top - x[1]), 1e-9 * rho * g);
+    EXPECT_NEAR(engine.masses(0)[i], rho * V / J[i], 1e-15);
+    EXPECT_NEAR(engine.volumes(0)[i], V / J[i], 1e-18);
+  }
+  EXPECT_THROW(CpuEngine<double>(two_body_scene()).set_volume_ratios(0, J_of), std::invalid_argument);
+  EXPECT_THROW(CpuEngine<double>(two_body_scene()).deformation_gradients(1), std::invalid_argument);
+}
+
+TEST(Api, UnsupportedInputIsRefusedNamingTheBody) {
+  Scene scene = two_body_scene();
+  scene.bodies[1].output_attribs = {"ID", "DefGrad_XX"};  // JFluid stores no F
+  try {
+    CpuEngine<double> engine(scene);
+    FAIL() << "expected std::invalid_argument";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("bodies[1].output_attribs"), std::string::npos) << e.what();
+  }
+  scene = two_body_scene();
+  scene.bodies[0].material.law = Constitutive::NACC;
+  EXPECT_THROW(CpuEngine<double>{scene}, std::invalid_argument);
+  scene = two_body_scene();
+  BoundarySpec sphere;
+  sphere.object = BoundaryObject::Sphere;
+  scene.boundaries.push_back(sphere);
+  EXPECT_THROW(CpuEngine<double>{scene}, std::invalid_argument);
+}
+
+TEST(Api, FrameCarriesRequestedAttributes) {
+  Scene scene = two_body_scene();
+  scene.bodies[0].output_attribs = {"ID", "Velocity_Y", "DefGrad_XX", "VonMisesStress", "J"};
+  scene.bodies[1].output_attribs = {"Pressure", "Mass", "DefGrad_Determinant"};
+  CpuEngine<double> engine(scene);
+  engine.set_velocities(0, [](const Vec3d& x) { return Vec3d{{0, x[0], 0}}; });
+  const io::ParticleFrame f0 = engine.frame(0);
+  ASSERT_EQ(f0.size(), engine.particle_count(0));
+  ASSERT_NE(f0.find("ID"), nullptr);
+  EXPECT_EQ(f0.find("ID")->ints()[5], 5);
+  EXPECT_FLOAT_EQ(f0.find("Velocity_Y")->floats()[7], static_cast<float>(engine.positions(0)[7][0]));
+  EXPECT_FLOAT_EQ(f0.find("DefGrad_XX")->floats()[0], 1.0f);
+  EXPECT_FLOAT_EQ(f0.find("VonMisesStress")->floats()[0], 0.0f);
+  const io::ParticleFrame f1 = engine.frame(1);
+  EXPECT_NE(f1.find("J"), nullptr);  // alias DefGrad_Determinant -> J
+  EXPECT_FLOAT_EQ(f1.find("Mass")->floats()[0], static_cast<float>(1000.0 * 0.05 * 0.05 * 0.05 / 8));
+}
+
+// run_cpu: frames 0..frames written with ClaymoreUW's names; a failure is exit code 2 with a message naming the body.
+TEST(Api, RunCpuWritesFramesAndReportsFailures) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "fbar_test_run_cpu";
+  std::filesystem::remove_all(dir);
+  Scene scene = two_body_scene();
+  scene.simulation.save_path = dir.string();
+  scene.simulation.save_suffix = ".csv";
+  scene.simulation.frames = 2;
+  scene.simulation.fps = 100;
+  scene.bodies[1].model = 1;
+  std::ostringstream log;
+  RunResult r = run_cpu(scene, RunOptions{false, &log});
+  EXPECT_EQ(r.exit_code, 0) << r.message << log.str();
+  EXPECT_NEAR(r.end_time, 0.02, 1e-15);
+  for (int f = 0; f <= 2; ++f) {
+    EXPECT_TRUE(std::filesystem::exists(dir / ("model0_dev0_frame" + std::to_string(f) + ".csv")));
+    EXPECT_TRUE(std::filesystem::exists(dir / ("model1_dev0_frame" + std::to_string(f) + ".csv")));
+  }
+  EXPECT_NE(log.str().find("frame 2/2"), std::string::npos) << log.str();
+
+  scene.bodies[1].velocity = {0, 0, 1e3};  // 1000 m/s leaves the 1 m domain within the first frame
+  scene.simulation.default_dt = 1e-3;
+  std::ostringstream log2;
+  r = run_cpu(scene, RunOptions{true, &log2});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.message.find("body 1"), std::string::npos) << r.message;
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace fbar

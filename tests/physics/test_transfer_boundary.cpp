@@ -1,0 +1,241 @@
+// Transfer formulas (APIC/MLS-MPM moments, conservation), grid update, boundary projections and the time-step bound.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+
+#include "boundary.cuh"
+#include "grid_update.cuh"
+#include "physics_test_support.h"
+#include "time_step.cuh"
+#include "transfer.cuh"
+
+namespace fbar {
+namespace {
+
+using test::kEps;
+
+// ------------------------------------------------------------------------------------------------ transfers
+
+// Quadratic B-spline moments behind every conservation property: sum w = 1, sum w (x_i - x_p) = 0 and
+// sum w (x_i - x_p)(x_i - x_p)^T = dx^2/4 I = D_p, i.e. D_p^-1 = 4/dx^2 for any dx (VALIDATION.md: it must follow dx).
+// Each sum has 27 terms of size <= dx^k: tolerance 64 eps dx^k.
+TEST(Transfer, BsplineMomentsGiveApicInertia) {
+  std::mt19937_64 rng(1);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (double dx : {0.01, 1.0, 7.3}) {
+    for (int n = 0; n < 100; ++n) {
+      const Vec3d x{{u(rng) * 40 * dx, u(rng) * 40 * dx, u(rng) * 40 * dx}};
+      const QuadraticBspline<double> s = quadratic_bspline(x, dx);
+      double w_sum = 0;
+      Vec3d first = Vec3d::zero();
+      Mat3d second = Mat3d::zero();
+      for_each_stencil_node(s, dx, [&](int, int, int, double w, const Vec3d& d) {
+        w_sum += w;
+        first += d * w;
+        second += outer(d, d) * w;
+      });
+      EXPECT_NEAR(w_sum, 1.0, 64 * kEps);
+      EXPECT_LE(max_abs(first), 64 * kEps * dx);
+      EXPECT_LE(max_abs(second - Mat3d::identity() / apic_inertia_inverse(dx)), 64 * kEps * dx * dx);
+    }
+  }
+}
+
+// One particle's P2G: node masses sum to m, node momenta to m v (the affine and stress terms cancel by the first
+// moment), node angular momentum sum x_i x m_i v_i to the APIC particle angular momentum (transfer.cuh).
+TEST(Transfer, P2GConservesMassMomentumAngularMomentum) {
+  const double dx = 0.05, dt = 1e-3, mass = 0.3, vol = 2e-4;
+  const Vec3d x{{0.4123, 0.2871, 0.6502}};
+  const Vec3d v{{1.5, -0.25, 0.75}};
+  const Mat3d C{{{0.5, -2.0, 1.0}, {3.0, 0.25, -1.5}, {0.75, 2.5, -0.5}}};
+  const Mat3d tau_sym{{{1e5, 2e4, -3e4}, {2e4, -5e4, 1e4}, {-3e4, 1e4, 7e4}}};
+  const P2GParticle<double> q = mls_p2g_particle(mass, vol, v, C, tau_sym, dt, apic_inertia_inverse(dx));
+  const QuadraticBspline<double> s = quadratic_bspline(x, dx);
+  double m_sum = 0;
+  Vec3d p_sum = Vec3d::zero(), L_sum = Vec3d::zero();
+  for_each_stencil_node(s, dx, [&](int i, int j, int k, double w, const Vec3d& d) {
+    const Vec3d xi{{(s.base[0] + i) * dx, (s.base[1] + j) * dx, (s.base[2] + k) * dx}};
+    const Vec3d mv = p2g_node_momentum(q, w, d);
+    m_sum += w * q.mass;
+    p_sum += mv;
+    L_sum += cross(xi, mv);
+  });
+  EXPECT_NEAR(m_sum, mass, 16 * kEps * mass);
+  // Force term magnitude dt V D^-1 |tau| dx ~ 1e-3 * 2e-4 * 1600 * 1e5 * 0.05 = 1.6: its sum cancels to round-off.
+  EXPECT_LE(max_abs(p_sum - v * mass), 1e-14 * 10);
+  // The stress part of the angular momentum vanishes because tau is symmetric (no internal torque).
+  const Vec3d L_ref = apic_angular_momentum(mass, x, v, C, dx);
+  EXPECT_LE(max_abs(L_sum - L_ref), 1e-14 * 10);
+}
+
+// APIC reproduces affine velocity fields exactly: a grid holding v_i = v0 + A x_i gives v_p = v0 + A x_p and C_p = A.
+TEST(Transfer, G2PReproducesAffineField) {
+  for (double dx : {0.02, 3.0}) {
+    const Vec3d v0{{0.3, -1.2, 2.0}};
+    const Mat3d A{{{1.0, -0.5, 0.25}, {2.0, 0.1, -3.0}, {0.5, 0.75, -1.0}}};
+    const Vec3d x{{17.37 * dx, 4.51 * dx, 9.99 * dx}};
+    const QuadraticBspline<double> s = quadratic_bspline(x, dx);
+    G2PSum<double> sum;
+    for_each_stencil_node(s, dx, [&](int i, int j, int k, double w, const Vec3d& d) {
+      const Vec3d xi{{(s.base[0] + i) * dx, (s.base[1] + j) * dx, (s.base[2] + k) * dx}};
+      sum.add(w, v0 + A * xi, d);
+    });
+    const double scale = max_abs(A) * 20 * dx + norm(v0);  // velocity magnitude on the stencil
+    EXPECT_LE(max_abs(sum.velocity() - (v0 + A * x)), 64 * kEps * scale);
+    EXPECT_LE(max_abs(sum.affine(apic_inertia_inverse(dx)) - A), 64 * kEps * scale / dx);
+  }
+  EXPECT_EQ(advect(Vec3d{{1, 2, 3}}, Vec3d{{4, 5, 6}}, 0.5), (Vec3d{{3, 4.5, 6}}));
+}
+
+// ------------------------------------------------------------------------------------------------ grid update
+
+TEST(GridUpdate, VelocityFromMomentumPlusGravity) {
+  const Vec3d g{{0, -9.81, 0}};
+  EXPECT_EQ(grid_node_velocity(0.0, Vec3d{{1, 2, 3}}, g, 0.1), Vec3d::zero());  // empty node
+  const Vec3d v = grid_node_velocity(2.0, Vec3d{{1, 2, 3}}, g, 0.1);
+  EXPECT_DOUBLE_EQ(v[0], 0.5);
+  EXPECT_DOUBLE_EQ(v[1], 1.0 + (-9.81 * 0.1));  // the same operations as the formula: exact
+  EXPECT_DOUBLE_EQ(v[2], 1.5);
+}
+
+// ------------------------------------------------------------------------------------------------ boundaries
+
+SimulationSpec unit_sim(double dx) {
+  SimulationSpec s;
+  s.domain = {1.0, 2.0, 1.0};
+  s.dx = dx;
+  return s;
+}
+
+BoundaryParams<double> make(BoundaryObject object, Contact contact, Real3 lo = {0, 0, 0}, Real3 hi = {0, 0, 0},
+                            double dx = 0.1) {
+  BoundarySpec spec;
+  spec.object = object;
+  spec.contact = contact;
+  spec.domain_start = lo;
+  spec.domain_end = hi;
+  BoundaryParams<double> b{};
+  std::string error;
+  EXPECT_TRUE(make_boundary_params(spec, unit_sim(dx), b, error)) << error;
+  return b;
+}
+
+const Vec3d kV{{0.3, -0.7, 0.2}};
+
+TEST(Boundary, WallsDefaultToDomainWithOneCellLayer) {
+  const auto b = make(BoundaryObject::Walls, Contact::Sticky);
+  EXPECT_EQ(b.hi, (Vec3d{{1.0, 2.0, 1.0}}));
+  // Node planes at the face (0) and one cell in (dx) are wall, two cells in (2 dx) is not.
+  EXPECT_EQ(apply_boundary(b, Vec3d{{0.0, 1.0, 0.5}}, kV), Vec3d::zero());
+  EXPECT_EQ(apply_boundary(b, Vec3d{{0.1, 1.0, 0.5}}, kV), Vec3d::zero());
+  EXPECT_EQ(apply_boundary(b, Vec3d{{0.2, 1.0, 0.5}}, kV), kV);
+  EXPECT_EQ(apply_boundary(b, Vec3d{{0.5, 1.9, 0.5}}, kV), Vec3d::zero());  // high y face, one cell in
+  EXPECT_EQ(apply_boundary(b, Vec3d{{0.5, 1.8, 0.5}}, kV), kV);
+  EXPECT_EQ(apply_boundary(b, Vec3d{{-0.1, 1.0, 0.5}}, kV), Vec3d::zero());  // beyond the face
+}
+
+TEST(Boundary, WallsSlipRemovesNormalSeparableOnlyInward) {
+  const auto slip = make(BoundaryObject::Walls, Contact::Slip);
+  const auto sep = make(BoundaryObject::Walls, Contact::Separable);
+  const Vec3d floor_node{{0.5, 0.1, 0.5}}, ceiling_node{{0.5, 2.0, 0.5}};
+  // Floor, moving down (into the wall): both remove v_y.
+  EXPECT_EQ(apply_boundary(slip, floor_node, kV), (Vec3d{{0.3, 0.0, 0.2}}));
+  EXPECT_EQ(apply_boundary(sep, floor_node, kV), (Vec3d{{0.3, 0.0, 0.2}}));
+  // Floor, moving up (away): slip still removes v_y, separable lets it go.
+  const Vec3d up{{0.3, 0.7, 0.2}};
+  EXPECT_EQ(apply_boundary(slip, floor_node, up), (Vec3d{{0.3, 0.0, 0.2}}));
+  EXPECT_EQ(apply_boundary(sep, floor_node, up), up);
+  // Ceiling: "into the wall" is +y.
+  EXPECT_EQ(apply_boundary(sep, ceiling_node, up), (Vec3d{{0.3, 0.0, 0.2}}));
+  EXPECT_EQ(apply_boundary(sep, ceiling_node, kV), kV);
+  // Corner (x low, y low): both normals removed.
+  const Vec3d into_corner{{-0.3, -0.7, 0.2}};
+  EXPECT_EQ(apply_boundary(slip, Vec3d{{0.0, 0.0, 0.5}}, into_corner), (Vec3d{{0.0, 0.0, 0.2}}));
+}
+
+TEST(Boundary, WallsUseTheirOwnBox) {
+  const auto b = make(BoundaryObject::Walls, Contact::Slip, {0.2, 0.2, 0.2}, {0.8, 1.6, 0.8});
+  EXPECT_EQ(apply_boundary(b, Vec3d{{0.3, 1.0, 0.5}}, kV), (Vec3d{{0.0, -0.7, 0.2}}));  // 0.1 from the x face
+  EXPECT_EQ(apply_boundary(b, Vec3d{{0.5, 1.0, 0.5}}, kV), kV);
+}
+
+TEST(Boundary, BoxObstacleNearestFaceNormal) {
+  const auto slip = make(BoundaryObject::Box, Contact::Slip, {0.4, 0.0, 0.4}, {0.6, 0.5, 0.6});
+  const auto sep = make(BoundaryObject::Box, Contact::Separable, {0.4, 0.0, 0.4}, {0.6, 0.5, 0.6});
+  const auto stick = make(BoundaryObject::Box, Contact::Sticky, {0.4, 0.0, 0.4}, {0.6, 0.5, 0.6});
+  EXPECT_EQ(apply_boundary(slip, Vec3d{{0.3, 0.2, 0.5}}, kV), kV);                          // outside
+  EXPECT_EQ(apply_boundary(stick, Vec3d{{0.5, 0.2, 0.5}}, kV), Vec3d::zero());              // inside
+  EXPECT_EQ(apply_boundary(slip, Vec3d{{0.5, 0.48, 0.5}}, kV), (Vec3d{{0.3, 0.0, 0.2}}));   // top face nearest
+  EXPECT_EQ(apply_boundary(slip, Vec3d{{0.41, 0.2, 0.5}}, kV), (Vec3d{{0.0, -0.7, 0.2}}));  // x-low face nearest
+  // Separable at the top face: falling (into the box) is stopped, rising is free.
+  EXPECT_EQ(apply_boundary(sep, Vec3d{{0.5, 0.48, 0.5}}, kV), (Vec3d{{0.3, 0.0, 0.2}}));
+  const Vec3d up{{0.3, 0.7, 0.2}};
+  EXPECT_EQ(apply_boundary(sep, Vec3d{{0.5, 0.48, 0.5}}, up), up);
+  // x-low face: moving +x is into the box.
+  EXPECT_EQ(apply_boundary(sep, Vec3d{{0.41, 0.2, 0.5}}, kV), (Vec3d{{0.0, -0.7, 0.2}}));
+  EXPECT_EQ(apply_boundary(sep, Vec3d{{0.41, 0.2, 0.5}}, -kV), -kV);
+}
+
+// Coulomb friction on the grid: |v_t| <= mu_s |v_n| sticks, otherwise |v_t| shrinks by mu_d |v_n|.
+TEST(Boundary, CoulombFriction) {
+  BoundarySpec spec;
+  spec.object = BoundaryObject::Walls;
+  spec.contact = Contact::Slip;
+  spec.friction_static = 0.5;
+  spec.friction_dynamic = 0.2;
+  BoundaryParams<double> b{};
+  std::string error;
+  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1), b, error));
+  const Vec3d floor_node{{0.5, 0.0, 0.5}};
+  // v_n = -1 (into the floor), |v_t| = 0.4 <= 0.5: sticks.
+  EXPECT_EQ(apply_boundary(b, floor_node, Vec3d{{0.4, -1.0, 0.0}}), Vec3d::zero());
+  // |v_t| = 2 > 0.5: slides with |v_t| = 2 - 0.2 = 1.8 in the same direction.
+  const Vec3d v = apply_boundary(b, floor_node, Vec3d{{1.2, -1.0, 1.6}});
+  EXPECT_NEAR(v[0], 1.2 * 0.9, 4 * kEps);
+  EXPECT_EQ(v[1], 0.0);
+  EXPECT_NEAR(v[2], 1.6 * 0.9, 4 * kEps);
+  // Leaving the floor: no normal force, no friction (slip still removes v_n).
+  EXPECT_EQ(apply_boundary(b, floor_node, Vec3d{{0.4, 1.0, 0.0}}), (Vec3d{{0.4, 0.0, 0.0}}));
+}
+
+TEST(Boundary, TimeWindowAndUnsupportedObjects) {
+  BoundarySpec spec;
+  spec.time = {0.5, 1.5};
+  BoundaryParams<double> b{};
+  std::string error;
+  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1), b, error));
+  EXPECT_FALSE(boundary_active(b, 0.49));
+  EXPECT_TRUE(boundary_active(b, 0.5));
+  EXPECT_TRUE(boundary_active(b, 1.5));
+  EXPECT_FALSE(boundary_active(b, 1.51));
+  spec.object = BoundaryObject::Sphere;
+  EXPECT_FALSE(make_boundary_params(spec, unit_sim(0.1), b, error));
+  EXPECT_NE(error.find("Walls and Box"), std::string::npos);
+  spec.object = BoundaryObject::Box;  // without extents
+  EXPECT_FALSE(make_boundary_params(spec, unit_sim(0.1), b, error));
+  spec.object = BoundaryObject::Walls;
+  spec.velocity = {1, 0, 0};
+  EXPECT_FALSE(make_boundary_params(spec, unit_sim(0.1), b, error));
+}
+
+// ------------------------------------------------------------------------------------------------ time step
+
+TEST(TimeStep, CflBound) {
+  // dt = CFL dx / (c + |v|max): 0.5 * 0.01 / (100 + 0) = 5e-5 s; with |v|max = 25: 4e-5 s.
+  EXPECT_DOUBLE_EQ(cfl_time_step(0.5, 0.01, 100.0, 0.0), 5e-5);
+  EXPECT_DOUBLE_EQ(cfl_time_step(0.5, 0.01, 100.0, 25.0), 4e-5);
+  EXPECT_DOUBLE_EQ(min_time_step(1e-4, 4e-5), 4e-5);
+  EXPECT_DOUBLE_EQ(min_time_step(1e-5, 4e-5), 1e-5);
+  EXPECT_DOUBLE_EQ(min_time_step(1e-5, std::numeric_limits<double>::quiet_NaN()), 1e-5);
+  SimulationSpec sim;
+  sim.dx = 0.02;
+  sim.default_dt = 0.0;
+  EXPECT_DOUBLE_EQ(resolved_default_dt(sim), 2e-4);  // absent: dx / 100 (SCHEMA.md)
+  sim.default_dt = 3e-4;
+  EXPECT_DOUBLE_EQ(resolved_default_dt(sim), 3e-4);
+}
+
+}  // namespace
+}  // namespace fbar
