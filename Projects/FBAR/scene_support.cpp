@@ -3,7 +3,7 @@
 // Release 0.1 runs the CPU reference engine: JFluid and FixedCorotated; APIC/MLS transfers (ASFLIP and F-bar
 // switched on only with zero ratios, which is APIC); Box / Sphere / Cylinder geometry with every operation,
 // rotation and arrays; Walls and Box boundaries (Sticky / Slip / Separable, frictionless, static, any time window);
-// .bgeo / .geo / .csv frames with the attributes in kSupportedOutput. Everything else SCHEMA.md lists is parsed
+// .bgeo / .geo / .csv frames with the attributes cpu_engine_supports_attribute() accepts. Everything else SCHEMA.md lists is parsed
 // and range-checked by scene_parse.cpp, then refused here. A later release enables a feature by deleting its line.
 #include <algorithm>
 #include <array>
@@ -12,20 +12,12 @@
 #include <string>
 #include <string_view>
 
+#include "cpu_engine.h"
 #include "scene_parse.h"
 
 namespace fbar {
 
 namespace {
-
-/// Output attributes the CPU reference engine writes.
-constexpr std::array<std::string_view, 31> kSupportedOutput = {
-    "ID",          "Mass",        "Volume",      "Position_X",  "Position_Y",  "Position_Z",
-    "Velocity_X",  "Velocity_Y",  "Velocity_Z",  "Velocity_Magnitude",
-    "DefGrad_XX",  "DefGrad_XY",  "DefGrad_XZ",  "DefGrad_YX",  "DefGrad_YY",  "DefGrad_YZ",
-    "DefGrad_ZX",  "DefGrad_ZY",  "DefGrad_ZZ",  "J",           "Pressure",
-    "StressCauchy_XX", "StressCauchy_XY", "StressCauchy_XZ", "StressCauchy_YX", "StressCauchy_YY",
-    "StressCauchy_YZ", "StressCauchy_ZX", "StressCauchy_ZY", "StressCauchy_ZZ", "VonMisesStress"};
 
 std::string q(std::string_view s) { return "\"" + std::string(s) + "\""; }
 std::string n(double x) {
@@ -94,10 +86,12 @@ void check_supported(const Scene& scene) {
       refuse(p + ".target_attribs", q(b.target_attribs.front()), "an empty list", "target_attribs (particle sensors)");
     for (std::size_t k = 0; k < b.output_attribs.size(); ++k) {
       const std::string& name = b.output_attribs[k];
-      if (std::find(kSupportedOutput.begin(), kSupportedOutput.end(), name) == kSupportedOutput.end())
+      // The engine's own list decides (DefGrad_* only for a material that stores F), so --check and a run agree.
+      if (!cpu_engine_supports_attribute(m.law, name))
         refuse(p + "." + idx("output_attribs", k), q(name),
-               "one of ID, Mass, Volume, Position_*, Velocity_*, Velocity_Magnitude, DefGrad_* (9), J, Pressure, "
-               "StressCauchy_* (9), VonMisesStress",
+               std::string("one of ID, Mass, Volume, Position_*, Velocity_*, Velocity_Magnitude, J, Pressure, "
+                           "StressCauchy_* (9), VonMisesStress") +
+                   (m.law == Constitutive::FixedCorotated ? ", DefGrad_* (9)" : "") + " for " + to_string(m.law),
                "output attribute " + name);
     }
   }
