@@ -1,0 +1,108 @@
+// The GPU engine's public interface (host code may include it): GpuEngine<T> and run_gpu().
+//
+// Claymore's sparse MLS-MPM on one GPU (mgsp_benchmark.cuh holds the per-device state and the step; the kernels
+// are in mgmpm_kernels.cuh). It runs the same physics functions as the CPU reference engine and reports failures
+// with the same FailureReport / StepReport types, so tests compare the two engines particle by particle (by ID).
+// Precision: GpuEngine<float> (simulation.precision "single") or GpuEngine<double> ("double"); run_gpu rejects
+// "mixed" with a message (a later issue).
+#pragma once
+
+#include <cstddef>
+#include <filesystem>
+#include <iosfwd>
+#include <memory>
+#include <vector>
+
+#include "MnBase/Math/vec.h"
+#include "MnSystem/IO/async_writer.h"
+#include "MnSystem/IO/particle_io.h"
+#include "cpu_engine.h"
+#include "engine_api.h"
+#include "scene.h"
+
+namespace fbar {
+
+/// One body's particles in ID order, copied from the device.
+template <typename T>
+struct ParticleSnapshot {
+  std::vector<Vec3<T>> x;   ///< [m]
+  std::vector<Vec3<T>> v;   ///< [m/s] G2P velocity of the last step (zero unless velocities are recorded)
+  std::vector<Mat3<T>> C;   ///< [1/s] APIC affine matrix of the last step (idem)
+  std::vector<T> J;         ///< [-] volume ratio of the stored state
+  std::vector<Mat3<T>> F;   ///< [-] deformation gradient (materials that store F; empty otherwise)
+};
+
+/// Accumulated device time per kernel family (CUDA events, when timing is on) [ms].
+struct KernelTimes {
+  double grid_update_ms = 0.0;  ///< grid update + dt
+  double g2p2g_ms = 0.0;        ///< fused G2P2G, all bodies
+  double partition_ms = 0.0;    ///< footprint activation, scan, src scatter
+  long long steps = 0;          ///< steps timed
+};
+
+/// Starting capacities (0: sized from the scene). Both grow at run time; tests start them small to exercise that.
+struct GpuEngineOptions {
+  int block_capacity = 0;  ///< grid blocks (hash table, grid buffers, per-block partition arrays)
+  int bin_capacity = 0;    ///< particle bins per body (at least what the initial upload needs)
+};
+
+template <typename T>
+class MgspBenchmark;
+
+template <typename T>
+class GpuEngine {
+ public:
+  /// Samples every body (geometry.h) and starts the device state on the current CUDA device. Throws
+  /// std::invalid_argument for what the GPU engine does not implement, std::runtime_error for CUDA failures.
+  explicit GpuEngine(const Scene& scene, const GpuEngineOptions& options = {});
+  /// As above with given initial positions [m] per body (tests).
+  GpuEngine(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions,
+            const GpuEngineOptions& options = {});
+  ~GpuEngine();
+  GpuEngine(const GpuEngine&) = delete;
+  GpuEngine& operator=(const GpuEngine&) = delete;
+
+  StepReport step();                     ///< one step with the CFL time step (next_dt())
+  StepReport step(double dt);            ///< one step of exactly dt [s] (reduce_dt may still halve it)
+  StepReport advance_to(double t_end);   ///< CFL steps until time() == t_end (the last one shortened)
+  StepReport step_toward(double t_end);  ///< one CFL step of advance_to(t_end)
+
+  double time() const;
+  long long steps() const;
+  double last_dt() const;
+  double next_dt() const;
+  double max_grid_speed() const;         ///< [m/s] of the last grid update
+  void set_log(std::ostream* log);
+  /// G2P2G also writes v and C per particle (12 scalars) for snapshots and frames (off: bins only).
+  void set_record_velocities(bool on);
+  /// Times each kernel family with CUDA events (adds a few microseconds per step).
+  void set_kernel_timing(bool on);
+  KernelTimes kernel_times() const;
+
+  int body_count() const;
+  std::size_t particle_count(int body) const;
+  std::size_t particle_count() const;
+  ParticleSnapshot<T> snapshot(int body) const;
+  /// The body's output_attribs (canonical names), as the CPU engine writes them.
+  io::ParticleFrame frame(int body) const;
+  /// Queues the body's frame on `writer`: device gather, copy on the copy stream into pinned memory; the file is
+  /// built and written by the writer thread (the step loop never waits for it).
+  void submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer);
+
+  double total_mass() const;             ///< [kg] particles x per-body mass
+  double grid_mass() const;              ///< [kg] sum of node masses of the current grid (P2G of this state)
+  std::size_t active_grid_blocks() const;
+  std::size_t device_bytes() const;      ///< device memory held by the engine's buffers
+
+ private:
+  std::unique_ptr<MgspBenchmark<T>> impl_;
+};
+
+extern template class GpuEngine<float>;
+extern template class GpuEngine<double>;
+
+/// Runs the scene on the GPU engine (device 0), writing frames like run_cpu. Exit code 1: scene not supported;
+/// 2: run-time failure (CFL, NaN, left domain, CUDA error).
+RunResult run_gpu(const Scene& scene, const RunOptions& options);
+
+}  // namespace fbar

@@ -1,0 +1,276 @@
+// GPU hash table from packed grid-block coordinates to active block indices (open addressing, linear probing).
+//
+// Claymore indexes blocks through a dense table over the whole domain (512 MB at 2^11 cells per axis); fbar sizes a
+// real hash table from the scene instead: `slot_capacity` (a power of two, at least twice the block capacity, so the
+// load factor stays <= 1/2 and probes stay short) slots of {key: u64, value: i32}. Keys pack the three block
+// coordinates in 21 bits each with a bias of 2^20 (the CPU engine's packing: coordinates in [-2^20, 2^20)).
+//
+// Protocol (lock-free, insert-only between rebuilds):
+//   insert: atomicCAS claims an empty slot for the key; the winner takes the next block index with atomicAdd on
+//           the block counter, records the block coordinates, and publishes the index with a release store. A thread
+//           that finds the key already claimed spins (acquire loads) until the index is published; the publisher is
+//           a thread past its CAS, so the wait is finite (independent thread scheduling, sm_70+).
+//   find:   used only in launches after the inserting launch (kernel boundaries order memory), no spinning.
+// Indices are dense [0, block_count) in insertion order and never change while the table lives, so grid buffers
+// indexed by them stay valid as blocks are added (rehash() on growth keeps every index).
+// Failure is never silent: an insert past the block capacity or after kMaxProbes slots sets a flag the host reads
+// every step (TableStats), and the host grows the table before retrying the partition.
+#pragma once
+
+#include <cuda_runtime.h>
+
+#include <cstddef>
+#include <cstdint>
+
+#include "MnBase/Math/vec.h"
+#include "MnBase/Meta/config.h"
+#include "MnSystem/Cuda/allocators.h"
+
+namespace fbar {
+
+/// Packing of block coordinates into 63-bit keys (same bias and widths as the CPU engine).
+struct BlockKey {
+  static constexpr int kBias = 1 << 20;
+  static constexpr std::uint64_t kEmpty = ~std::uint64_t(0);  ///< never a packed key (bit 63 is always 0)
+
+  FBAR_HOST_DEVICE static constexpr std::uint64_t pack(int x, int y, int z) {
+    return (static_cast<std::uint64_t>(x + kBias) << 42) | (static_cast<std::uint64_t>(y + kBias) << 21) |
+           static_cast<std::uint64_t>(z + kBias);
+  }
+  FBAR_HOST_DEVICE static constexpr Vec3i unpack(std::uint64_t key) {
+    return Vec3i{{static_cast<int>((key >> 42) & 0x1fffff) - kBias, static_cast<int>((key >> 21) & 0x1fffff) - kBias,
+                  static_cast<int>(key & 0x1fffff) - kBias}};
+  }
+  /// Coordinates representable by pack() (a particle far outside the domain must not alias another block).
+  FBAR_HOST_DEVICE static constexpr bool representable(int x, int y, int z) {
+    return x >= -kBias && x < kBias && y >= -kBias && y < kBias && z >= -kBias && z < kBias;
+  }
+  /// splitmix64 finaliser: neighbouring blocks land far apart, so linear probing sees short clusters.
+  FBAR_HOST_DEVICE static constexpr std::uint64_t hash(std::uint64_t k) {
+    k ^= k >> 30;
+    k *= 0xbf58476d1ce4e5b9ull;
+    k ^= k >> 27;
+    k *= 0x94d049bb133111ebull;
+    k ^= k >> 31;
+    return k;
+  }
+};
+
+/// Device counters of the table, read by the host with the step's statistics.
+struct TableCounters {
+  int block_count;   ///< blocks inserted so far (indices [0, block_count))
+  int overflow;      ///< inserts refused: block capacity reached or probe limit hit (grow and retry)
+};
+
+/// Kernel-side view of the table, passed by value (a handful of pointers and sizes).
+struct BlockHashTableView {
+  static constexpr int kMaxProbes = 128;
+
+  unsigned long long* keys;  ///< (slot) packed key or BlockKey::kEmpty
+  int* values;               ///< (slot) block index, -1 until published
+  int* coords;               ///< (block, axis) block coordinates, 3 ints per block
+  TableCounters* counters;
+  std::uint32_t slot_mask;   ///< slot_capacity - 1 (a power of two)
+  int block_capacity;        ///< most blocks the grid buffers can hold
+
+  /// Index of the block `key`, or -1 when it is not in the table. For launches after the inserting one.
+  FBAR_DEVICE int find(std::uint64_t key) const {
+    std::uint32_t slot = static_cast<std::uint32_t>(BlockKey::hash(key)) & slot_mask;
+    for (int probe = 0; probe < kMaxProbes; ++probe) {
+      const unsigned long long k = keys[slot];
+      if (k == key) return values[slot];
+      if (k == BlockKey::kEmpty) return -1;
+      slot = (slot + 1) & slot_mask;
+    }
+    return -1;
+  }
+
+  /// Index of block `key`, inserting it when absent; `inserted` says whether this call created it. -1 (and the
+  /// overflow counter raised) when the block capacity or the probe limit is exceeded.
+  FBAR_DEVICE int insert(std::uint64_t key, bool& inserted) const {
+    inserted = false;
+    std::uint32_t slot = static_cast<std::uint32_t>(BlockKey::hash(key)) & slot_mask;
+    for (int probe = 0; probe < kMaxProbes; ++probe) {
+      unsigned long long k = keys[slot];
+      if (k == BlockKey::kEmpty) k = atomicCAS(&keys[slot], BlockKey::kEmpty, static_cast<unsigned long long>(key));
+      if (k == BlockKey::kEmpty) {  // this thread claimed the slot
+        const int index = atomicAdd(&counters->block_count, 1);
+        if (index >= block_capacity) {
+          atomicAdd(&counters->overflow, 1);
+          // Publish -2: finders stop spinning and report overflow too; the host rebuilds from scratch on growth.
+          atomicExch(&values[slot], -2);
+          return -1;
+        }
+        const Vec3i c = BlockKey::unpack(key);
+        coords[3 * index + 0] = c[0];
+        coords[3 * index + 1] = c[1];
+        coords[3 * index + 2] = c[2];
+        __threadfence();
+        atomicExch(&values[slot], index);
+        inserted = true;
+        return index;
+      }
+      if (k == key) {  // claimed by someone else: wait for the published index
+        // A volatile load (L2), not an atomic: many warps look up the same hot block every step.
+        int v;
+        do {
+          v = *static_cast<volatile int*>(&values[slot]);
+        } while (v == -1);
+        if (v < 0) {
+          atomicAdd(&counters->overflow, 1);
+          return -1;
+        }
+        return v;
+      }
+      slot = (slot + 1) & slot_mask;
+    }
+    atomicAdd(&counters->overflow, 1);
+    return -1;
+  }
+
+  FBAR_DEVICE Vec3i block_coords(int index) const {
+    return Vec3i{{coords[3 * index + 0], coords[3 * index + 1], coords[3 * index + 2]}};
+  }
+};
+
+namespace hash_table_detail {
+
+static __global__ void reset_slots(unsigned long long* keys, int* values, std::uint32_t slots) {
+  const std::uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i < slots) {
+    keys[i] = BlockKey::kEmpty;
+    values[i] = -1;
+  }
+}
+
+/// Re-inserts every published entry of an old table into a new one keeping its block index.
+static __global__ void rehash_slots(const unsigned long long* old_keys, const int* old_values, std::uint32_t old_slots,
+                             BlockHashTableView table) {
+  const std::uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= old_slots) return;
+  const unsigned long long key = old_keys[i];
+  const int value = old_values[i];
+  if (key == BlockKey::kEmpty || value < 0) return;
+  std::uint32_t slot = static_cast<std::uint32_t>(BlockKey::hash(key)) & table.slot_mask;
+  for (int probe = 0; probe <= static_cast<int>(table.slot_mask); ++probe) {
+    if (atomicCAS(&table.keys[slot], BlockKey::kEmpty, key) == BlockKey::kEmpty) {
+      table.values[slot] = value;
+      return;
+    }
+    slot = (slot + 1) & table.slot_mask;
+  }
+  atomicAdd(&table.counters->overflow, 1);
+}
+
+/// After a growth: blocks whose insert overflowed were never recorded; the count restarts at the old capacity.
+static __global__ void clamp_block_count(TableCounters* counters, int old_capacity) {
+  if (counters->block_count > old_capacity) counters->block_count = old_capacity;
+}
+
+inline std::uint32_t next_pow2(std::size_t n) {
+  std::uint32_t p = 1024;
+  while (p < n) p <<= 1;
+  return p;
+}
+
+}  // namespace hash_table_detail
+
+/// Owner of the table's device memory (one per device state object; no globals).
+class BlockHashTable {
+ public:
+  BlockHashTable() = default;
+  BlockHashTable(const BlockHashTable&) = delete;
+  BlockHashTable& operator=(const BlockHashTable&) = delete;
+  ~BlockHashTable() { release(); }
+
+  /// Allocates for `block_capacity` blocks (slots: next power of two >= 2 x capacity) and empties the table.
+  void allocate(int block_capacity, cudaStream_t stream) {
+    release();
+    block_capacity_ = block_capacity;
+    slots_ = hash_table_detail::next_pow2(2 * static_cast<std::size_t>(block_capacity));
+    allocate_arrays();
+    clear(stream);
+  }
+
+  /// Removes every block (counters to 0, every slot empty).
+  void clear(cudaStream_t stream) {
+    hash_table_detail::reset_slots<<<(slots_ + 255) / 256, 256, 0, stream>>>(keys_, values_, slots_);
+    FBAR_CUDA_CHECK(cudaGetLastError());
+    FBAR_CUDA_CHECK(cudaMemsetAsync(counters_, 0, sizeof(TableCounters), stream));
+  }
+
+  /// Grows to `block_capacity` blocks keeping every key and block index (and the block counter). The overflow
+  /// counter is reset; the caller redoes the inserts that overflowed.
+  void grow(int block_capacity, cudaStream_t stream) {
+    unsigned long long* old_keys = keys_;
+    int* old_values = values_;
+    int* old_coords = coords_;
+    TableCounters* old_counters = counters_;
+    const std::uint32_t old_slots = slots_;
+    const int old_capacity = block_capacity_;
+    block_capacity_ = block_capacity;
+    slots_ = hash_table_detail::next_pow2(2 * static_cast<std::size_t>(block_capacity));
+    allocate_arrays();
+    hash_table_detail::reset_slots<<<(slots_ + 255) / 256, 256, 0, stream>>>(keys_, values_, slots_);
+    FBAR_CUDA_CHECK(cudaGetLastError());
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(coords_, old_coords, sizeof(int) * 3 * static_cast<std::size_t>(old_capacity),
+                                    cudaMemcpyDeviceToDevice, stream));
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(counters_, old_counters, sizeof(TableCounters), cudaMemcpyDeviceToDevice, stream));
+    FBAR_CUDA_CHECK(cudaMemsetAsync(&counters_->overflow, 0, sizeof(int), stream));
+    hash_table_detail::clamp_block_count<<<1, 1, 0, stream>>>(counters_, old_capacity);
+    FBAR_CUDA_CHECK(cudaGetLastError());
+    hash_table_detail::rehash_slots<<<(old_slots + 255) / 256, 256, 0, stream>>>(old_keys, old_values, old_slots,
+                                                                                 view());
+    FBAR_CUDA_CHECK(cudaGetLastError());
+    FBAR_CUDA_CHECK(cudaStreamSynchronize(stream));
+    cuda::DeviceAllocator device;
+    device.deallocate(old_keys, 0);
+    device.deallocate(old_values, 0);
+    device.deallocate(old_coords, 0);
+    device.deallocate(old_counters, 0);
+  }
+
+  BlockHashTableView view() const {
+    return BlockHashTableView{keys_, values_, coords_, counters_, slots_ - 1, block_capacity_};
+  }
+  int block_capacity() const { return block_capacity_; }
+  std::uint32_t slot_capacity() const { return slots_; }
+  TableCounters* counters() const { return counters_; }
+  std::size_t bytes() const {
+    return static_cast<std::size_t>(slots_) * (sizeof(unsigned long long) + sizeof(int)) +
+           static_cast<std::size_t>(block_capacity_) * 3 * sizeof(int) + sizeof(TableCounters);
+  }
+
+ private:
+  void allocate_arrays() {
+    cuda::DeviceAllocator device;
+    keys_ = static_cast<unsigned long long*>(device.allocate(sizeof(unsigned long long) * slots_));
+    values_ = static_cast<int*>(device.allocate(sizeof(int) * slots_));
+    coords_ = static_cast<int*>(device.allocate(sizeof(int) * 3 * static_cast<std::size_t>(block_capacity_)));
+    counters_ = static_cast<TableCounters*>(device.allocate(sizeof(TableCounters)));
+  }
+  void release() {
+    cuda::DeviceAllocator device;
+    if (keys_) {
+      // Destructors must not throw: ignore failures at teardown (the context may be gone).
+      cudaFree(keys_);
+      cudaFree(values_);
+      cudaFree(coords_);
+      cudaFree(counters_);
+    }
+    (void)device;
+    keys_ = nullptr;
+    values_ = nullptr;
+    coords_ = nullptr;
+    counters_ = nullptr;
+  }
+
+  unsigned long long* keys_ = nullptr;
+  int* values_ = nullptr;
+  int* coords_ = nullptr;
+  TableCounters* counters_ = nullptr;
+  std::uint32_t slots_ = 0;
+  int block_capacity_ = 0;
+};
+
+}  // namespace fbar

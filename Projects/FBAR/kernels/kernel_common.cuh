@@ -1,0 +1,53 @@
+// Pieces every GPU kernel family shares: the per-step statistics the host reads back, warp/atomic helpers.
+#pragma once
+
+#include <cuda_runtime.h>
+
+#include <cstdint>
+
+#include "MnBase/Meta/config.h"
+
+namespace fbar {
+
+/// Failure kinds counted on the device; the order matches FailureKind of the CPU engine (cpu_engine.h).
+enum : int { kFailNonFinite = 0, kFailCfl = 1, kFailLeftDomain = 2, kFailKinds = 3 };
+
+/// Per-body counters of one step try (zeroed before the try).
+struct BodyStepStats {
+  int failures[kFailKinds];  ///< particles failing each check
+  int first_id[kFailKinds];  ///< smallest failing particle ID (INT_MAX when none)
+  int total_bins;            ///< bins of the next layout (bin_offset[capacity])
+  int particles;             ///< particles placed in the next layout
+};
+
+/// Whole-device counters of one step try; followed in memory by one BodyStepStats per body, so the host reads
+/// everything it needs each step with one small copy.
+struct StepStats {
+  unsigned long long max_speed_sq;  ///< bits of a double: largest |v|^2 of the grid update [m^2/s^2]
+  double dt_next;                   ///< [s] dt of the next step, used by this step's P2G impulse
+  int bin_overflow;                 ///< a body's next layout needs more bins than allocated
+  int internal_error;               ///< arena block missing / particle outside its block: an engine bug
+  int block_count;                  ///< copy of the table's block count after the partition update
+  int table_overflow;               ///< copy of the table's overflow counter
+};
+
+/// atomicMax on a non-negative double stored as its bit pattern (IEEE order = integer order for x >= 0).
+FBAR_DEVICE FBAR_FORCE_INLINE void atomic_max_nonneg(unsigned long long* bits, double value) {
+  atomicMax(bits, static_cast<unsigned long long>(__double_as_longlong(value)));
+}
+
+FBAR_DEVICE FBAR_FORCE_INLINE double warp_max(double v) {
+  for (int o = 16; o > 0; o >>= 1) v = fmax(v, __shfl_xor_sync(0xffffffffu, v, o));
+  return v;
+}
+
+FBAR_DEVICE FBAR_FORCE_INLINE unsigned lanemask_lt() {
+  unsigned m;
+  asm("mov.u32 %0, %%lanemask_lt;" : "=r"(m));
+  return m;
+}
+
+/// Arithmetic-shift floor division by 4 (defined for negatives on every supported compiler).
+FBAR_HOST_DEVICE FBAR_FORCE_INLINE int floor_div4(int n) { return n >> 2; }
+
+}  // namespace fbar

@@ -1,0 +1,1203 @@
+// The GPU simulation driver (ClaymoreUW's mgsp_benchmark): all state of one device and the step, no globals.
+//
+// State between steps n-1 and n (cur, gc: which of the double buffers is current):
+//   bins[cur]          particles of state n (storage order), per body
+//   layout(cur)        their grouping by particle block (src: layout slot -> storage slot), per body
+//   grid[gc]           P2G of state n (mass, momentum with the internal-force impulse of dt_p2g_)
+//   table              every block any layout or grid uses (insert-only between growths; indices stable)
+// Step n (dt):
+//   0. dt != dt_p2g_ (a repeated step, or step(dt) with a new dt): rescale_impulse adds (dt - dt_p2g_) x the
+//      stress impulse to grid[gc] (exact for rate-independent stress; see partition_kernels.cuh)
+//   1. grid update: velocity = grid[gc] / m + dt g, boundaries -> velocity buffer; max |v|
+//   2. compute_next_dt: dt_{n+1} on the device (so the P2G impulse uses it without a host round trip); the JFluid
+//      wave speed in it is the one of state n (the CPU engine uses state n+1's: a one-step lag, documented)
+//   3. per body g2p2g: bins[cur] -> bins[1-cur] in layout(cur) order, P2G into grid[1-gc], next blocks and ranks
+//   4. per body partition: footprint activation, scan, src scatter -> layout(1-cur)
+//   5. one small copy of the step statistics to pinned memory and one stream synchronisation: failures, overflow,
+//      dt_{n+1}, block and bin counts. A failed step leaves cur/gc untouched (on_failure reduce_dt repeats it with
+//      dt/2 from the same buffers); an overflow grows the capacities and redoes step 4 from the new positions.
+#pragma once
+
+#include <cub/device/device_scan.cuh>
+#include <cuda_runtime.h>
+
+#include <algorithm>
+#include <climits>
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
+#include <iostream>
+#include <limits>
+#include <memory>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "MnBase/Math/bspline.h"
+#include "MnSystem/Cuda/device_query.h"
+#include "attributes.h"
+#include "boundary.cuh"
+#include "constitutive_models.cuh"
+#include "cpu_engine.h"
+#include "geometry.h"
+#include "gpu_engine.h"
+#include "grid_buffer.cuh"
+#include "hash_table.cuh"
+#include "mgmpm_kernels.cuh"
+#include "particle_buffer.cuh"
+#include "partition_domain.h"
+#include "time_step.cuh"
+
+namespace fbar {
+
+namespace mgsp_detail {
+
+inline int grid_for(long long n, int threads) { return static_cast<int>((n + threads - 1) / threads); }
+
+inline void check_launch(const char* what) {
+  const cudaError_t e = cudaGetLastError();
+  if (e != cudaSuccess) throw std::runtime_error(std::string("CUDA launch of ") + what + " failed: " + cudaGetErrorString(e));
+}
+
+inline std::string format_g(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.6g", v);
+  return buf;
+}
+
+/// Pinned host memory owned by a unique_ptr (frames hand it to the writer thread).
+struct PinnedDeleter {
+  void operator()(void* p) const { cudaFreeHost(p); }
+};
+using PinnedBytes = std::unique_ptr<void, PinnedDeleter>;
+inline PinnedBytes pinned(std::size_t bytes) {
+  void* p = nullptr;
+  FBAR_CUDA_CHECK(cudaMallocHost(&p, bytes));
+  return PinnedBytes(p);
+}
+
+/// A device array of trivially copyable T (RAII, no copy).
+template <typename V>
+class DeviceArray {
+ public:
+  DeviceArray() = default;
+  DeviceArray(const DeviceArray&) = delete;
+  DeviceArray& operator=(const DeviceArray&) = delete;
+  ~DeviceArray() {
+    if (ptr_) cudaFree(ptr_);
+  }
+  void allocate(std::size_t n) {
+    if (ptr_) FBAR_CUDA_CHECK(cudaFree(ptr_));
+    ptr_ = nullptr;
+    size_ = n;
+    if (n) FBAR_CUDA_CHECK(cudaMalloc(&ptr_, sizeof(V) * n));
+  }
+  V* get() const { return ptr_; }
+  void swap(DeviceArray& o) noexcept {
+    std::swap(ptr_, o.ptr_);
+    std::swap(size_, o.size_);
+  }
+  std::size_t size() const { return size_; }
+  std::size_t bytes() const { return size_ * sizeof(V); }
+
+ private:
+  V* ptr_ = nullptr;
+  std::size_t size_ = 0;
+};
+
+static __global__ void reset_step_stats(StepStats* stats, BodyStepStats* bodies, int body_count, bool partition_only) {
+  const int t = threadIdx.x;
+  if (t == 0) {
+    if (!partition_only) {
+      stats->max_speed_sq = 0;
+      stats->dt_next = 0.0;
+      stats->internal_error = 0;
+    }
+    stats->bin_overflow = 0;
+    stats->block_count = 0;
+    stats->table_overflow = 0;
+  }
+  for (int b = t; b < body_count; b += blockDim.x) {
+    if (!partition_only)
+      for (int k = 0; k < kFailKinds; ++k) {
+        bodies[b].failures[k] = 0;
+        bodies[b].first_id[k] = INT_MAX;
+      }
+    bodies[b].total_bins = 0;
+    bodies[b].particles = 0;
+  }
+}
+
+/// Per-particle-block estimate of the starting capacities from the sampled positions (host, O(N)).
+struct CapacityEstimate {
+  long long particle_blocks = 0;
+  long long footprint_blocks = 0;
+  long long bins = 0;
+};
+
+}  // namespace mgsp_detail
+
+/// The device state of one GPU and its step (the engine behind GpuEngine<T>).
+template <typename T>
+class MgspBenchmark {
+ public:
+  MgspBenchmark(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions,
+                const GpuEngineOptions& options = {});
+  ~MgspBenchmark();
+  MgspBenchmark(const MgspBenchmark&) = delete;
+  MgspBenchmark& operator=(const MgspBenchmark&) = delete;
+
+  StepReport step_impl(double dt, bool cfl_dt, double target);
+  StepReport advance_to(double t_end);
+  /// One CFL step, shortened to land on t_end when it would pass it (the device clamps the next dt likewise).
+  StepReport step_toward(double t_end);
+  double next_dt() const { return next_dt_ * (dt_scale_ / dt_scale_at_compute_); }
+
+  // --- state queries
+  double time() const { return time_; }
+  long long steps() const { return steps_; }
+  double last_dt() const { return last_dt_; }
+  double max_grid_speed() const { return max_grid_speed_; }
+  void set_log(std::ostream* log) { log_ = log; }
+  void set_record_velocities(bool on);
+  void set_kernel_timing(bool on) { timing_ = on; }
+  KernelTimes kernel_times() const { return times_; }
+  int body_count() const { return static_cast<int>(bodies_.size()); }
+  std::size_t particle_count(int body) const { return static_cast<std::size_t>(body_at(body).particles); }
+  std::size_t particle_count() const {
+    std::size_t n = 0;
+    for (const auto& b : bodies_) n += static_cast<std::size_t>(b->particles);
+    return n;
+  }
+  ParticleSnapshot<T> snapshot(int body) const;
+  io::ParticleFrame frame(int body) const;
+  void submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer);
+  double total_mass() const;
+  double grid_mass() const;
+  std::size_t active_grid_blocks() const { return static_cast<std::size_t>(block_count_); }
+  std::size_t device_bytes() const;
+
+ private:
+  // ---------------------------------------------------------------- bodies (host-side polymorphism only)
+  struct BodyBase {
+    BodySpec spec;
+    int index = 0;
+    int particles = 0;
+    T mass = T(0), volume = T(0);
+    double rest_wave_speed = 0.0;
+    PartitionDomain partition;
+    int total_bins[2] = {0, 0};  ///< bins of layout 0 / 1
+    mgsp_detail::DeviceArray<T> aux;  ///< (slot, kAuxScalars) recorded v and C
+    virtual ~BodyBase() = default;
+    virtual bool stores_F() const = 0;
+    virtual int stored_scalars() const = 0;
+    virtual void allocate_bins(int bins) = 0;                   ///< both buffers, contents lost
+    virtual void reallocate_bins(int which, int bins) = 0;      ///< one buffer, contents lost
+    virtual int bins_capacity(int which) const = 0;
+    virtual std::size_t bins_bytes() const = 0;
+    virtual void upload(const std::vector<Vec3d>& x, cudaStream_t s) = 0;  ///< flat into bins[0]
+    virtual void g2p2g(MgspBenchmark& e, bool initial, T dt) = 0;
+    virtual void dest_from_positions(MgspBenchmark& e, int bins_which, const int* valid, int slots) = 0;
+    virtual void rescale_impulse(MgspBenchmark& e, T ddt) = 0;
+    virtual void gather(MgspBenchmark& e, T* out, int* missing, cudaStream_t s) = 0;
+    /// J and F of one gathered record.
+    virtual void state_of(const T* record, T& J, Mat3<T>& F, Mat3<T>& sigma, const Mat3<T>& C) const = 0;
+  };
+
+  template <typename M>
+  struct Body final : BodyBase {
+    using Layout = ParticleLayout<M, T>;
+    material_params_t<M, T> params;
+    ParticleBuffer<M, T> bins[2];
+
+    bool stores_F() const override { return M::kOutputs.deformation_gradient; }
+    int stored_scalars() const override { return Layout::kScalars; }
+    void allocate_bins(int n) override {
+      bins[0].allocate(n);
+      bins[1].allocate(n);
+    }
+    void reallocate_bins(int which, int n) override { bins[which].allocate(n); }
+    int bins_capacity(int which) const override { return bins[which].bin_capacity(); }
+    std::size_t bins_bytes() const override { return bins[0].bytes() + bins[1].bytes(); }
+
+    void upload(const std::vector<Vec3d>& x, cudaStream_t s) override {
+      // Flat bins on the host (slot = particle ID), one copy.
+      const std::size_t bytes = Layout::kBinBytes * static_cast<std::size_t>((x.size() + 31) / 32);
+      std::vector<std::byte> host(bytes);
+      typename Layout::Buffer view(host.data(), (x.size() + 31) / 32);
+      const auto state = M::template reference_state<T>();
+      for (std::size_t i = 0; i < x.size(); ++i) {
+        ParticleRecord<M, T> p{x[i].template cast<T>(), state, static_cast<int>(i)};
+        store_particle<M, T>(view, static_cast<int>(i), p);
+      }
+      if (bytes) FBAR_CUDA_CHECK(cudaMemcpyAsync(bins[0].instance().data(), host.data(), bytes, cudaMemcpyHostToDevice, s));
+      FBAR_CUDA_CHECK(cudaStreamSynchronize(s));
+    }
+
+    void g2p2g(MgspBenchmark& e, bool initial, T dt) override {
+      G2P2GParams<M, T> p;
+      p.in = bins[e.cur_].instance();
+      p.out = bins[1 - e.cur_].instance();
+      p.layout = this->partition.layout(e.cur_);
+      p.next_count = this->partition.layout(1 - e.cur_).count;
+      p.dest = this->partition.dest();
+      p.table = e.table_.view();
+      p.velocity = e.velocity_.instance();
+      p.grid_next = e.grid_[1 - e.gc_].instance();
+      p.grid_this = e.grid_[e.gc_].instance();
+      p.aux = e.record_ ? this->aux.get() : nullptr;
+      p.material = params;
+      p.mass = this->mass;
+      p.volume = this->volume;
+      p.initial_velocity = Vec3<T>{{static_cast<T>(this->spec.velocity[0]), static_cast<T>(this->spec.velocity[1]),
+                                    static_cast<T>(this->spec.velocity[2])}};
+      p.dt = dt;
+      p.dx = e.dx_;
+      p.inv_dx = e.inv_dx_;
+      p.d_inv = e.d_inv_;
+      p.domain = e.domain_;
+      p.dt_next = &e.stats_d_->dt_next;
+      p.stats = e.stats_d_;
+      p.body_stats = e.body_stats_d_ + this->index;
+      p.wave_speed = e.wave_d_.get() + (1 - e.wave_cur_) * e.bodies_.size() + this->index;
+      const int blocks = e.block_count_;
+      if (blocks == 0) return;
+      if (initial)
+        fbar::g2p2g<M, T, true><<<blocks, kG2P2GThreads, 0, e.stream_>>>(p);
+      else
+        fbar::g2p2g<M, T, false><<<blocks, kG2P2GThreads, 0, e.stream_>>>(p);
+      mgsp_detail::check_launch("g2p2g");
+    }
+
+    void dest_from_positions(MgspBenchmark& e, int which, const int* valid, int slots) override {
+      if (slots == 0) return;
+      fbar::dest_from_positions<M, T><<<mgsp_detail::grid_for(slots, kPartitionThreads), kPartitionThreads, 0,
+                                        e.stream_>>>(
+          bins[which].instance(), valid, this->particles, slots, e.inv_dx_, e.table_.view(),
+          this->partition.layout(1 - e.cur_).count, this->partition.dest(), e.grid_[0].instance(),
+          e.grid_[1].instance(), e.body_stats_d_ + this->index);
+      mgsp_detail::check_launch("dest_from_positions");
+    }
+
+    void rescale_impulse(MgspBenchmark& e, T ddt) override {
+      const int slots = this->total_bins[e.cur_] * 32;
+      if (slots == 0) return;
+      fbar::rescale_impulse<M, T><<<mgsp_detail::grid_for(slots, kPartitionThreads), kPartitionThreads, 0, e.stream_>>>(
+          bins[e.cur_].instance(), this->partition.layout(e.cur_), slots, params, this->volume, ddt, e.dx_, e.inv_dx_,
+          e.d_inv_, e.table_.view(), e.grid_[e.gc_].instance(), e.stats_d_);
+      mgsp_detail::check_launch("rescale_impulse");
+    }
+
+    void gather(MgspBenchmark& e, T* out, int* missing, cudaStream_t s) override {
+      const int slots = this->total_bins[e.cur_] * 32;
+      if (slots == 0) return;
+      // aux was written at the storage slots of bins[cur] (the previous G2P2G's layout order).
+      fbar::gather_by_id<M, T><<<mgsp_detail::grid_for(slots, kOutputThreads), kOutputThreads, 0, s>>>(
+          bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, e.aux_valid_ ? this->aux.get() : nullptr,
+          this->particles, out, missing);
+      mgsp_detail::check_launch("gather_by_id");
+    }
+
+    void state_of(const T* r, T& J, Mat3<T>& F, Mat3<T>& sigma, const Mat3<T>& C) const override {
+      material_state_t<M, T> s;
+      std::memcpy(&s, r + 3, sizeof(s));
+      J = M::volume_ratio(s);
+      if constexpr (M::kOutputs.deformation_gradient) F = s.F;
+      sigma = cauchy_stress(M::kirchhoff_stress(params, s, C));
+    }
+  };
+
+  BodyBase& body_at(int b) const {
+    if (b < 0 || b >= body_count()) throw std::out_of_range("GpuEngine: no body " + std::to_string(b));
+    return *bodies_[b];
+  }
+
+  // ---------------------------------------------------------------- step pieces
+  void reset_stats(bool partition_only);
+  void partition_after_g2p2g();          ///< footprint, scan, finalize, src scatter for every body
+  void read_stats();                     ///< the one small copy + synchronisation of a step
+  bool handle_overflow();                ///< grows what overflowed and redoes the partition; true if it did
+  void grow_blocks(int needed);
+  void grow_bins(BodyBase& b, int layout_keep, int needed);
+  void ensure_aux();
+  void initialize(const std::vector<std::vector<Vec3d>>& positions);
+  std::vector<FailureReport> failures_of_try(double dt) const;
+  void commit(double dt);
+  /// Before a step: bins[1 - cur] (the G2P2G target) holds layout(cur); bins grown with headroom (after commit/init).
+  void ensure_step_capacity();
+  void event_record(int i) {
+    if (timing_) FBAR_CUDA_CHECK(cudaEventRecord(events_[i], stream_));
+  }
+  std::vector<T> gather_host(int body, cudaStream_t s) const;
+
+  Scene scene_;
+  GpuEngineOptions options_;
+  T dx_, inv_dx_, d_inv_;
+  Vec3<T> gravity_, domain_;
+  double default_dt_ = 0.0;
+  std::vector<BoundaryParams<T>> boundaries_;
+  std::vector<std::unique_ptr<BodyBase>> bodies_;
+
+  cudaStream_t stream_ = nullptr;       ///< compute stream
+  cudaStream_t copy_stream_ = nullptr;  ///< frame downloads
+  cudaEvent_t events_[4] = {};
+  BlockHashTable table_;
+  GridBuffer<T> grid_[2];
+  GridVelocityBuffer<T> velocity_;
+  int block_capacity_ = 0;
+  int block_count_ = 0;                 ///< table blocks after the last committed partition
+  mgsp_detail::DeviceArray<std::byte> stats_bytes_;
+  StepStats* stats_d_ = nullptr;
+  BodyStepStats* body_stats_d_ = nullptr;
+  mgsp_detail::PinnedBytes stats_h_;
+  StepStats* stats_ = nullptr;          ///< pinned mirror
+  BodyStepStats* body_stats_ = nullptr;
+  mgsp_detail::DeviceArray<unsigned long long> wave_d_;  ///< (2, body) wave-speed bits: current / being reduced
+  int wave_cur_ = 0;
+  mgsp_detail::DeviceArray<std::byte> scan_temp_;
+  std::size_t scan_temp_bytes_ = 0;
+  mgsp_detail::DeviceArray<int> missing_d_;
+
+  int cur_ = 0;   ///< current particle buffer and layout
+  int gc_ = 0;    ///< current grid
+  bool record_ = false;
+  bool flat_source_ = false;  ///< the partition reads the flat upload (slot = ID), not a layout
+  bool aux_valid_ = false;  ///< aux holds v, C of the current state
+  bool timing_ = false;
+  KernelTimes times_;
+  double time_ = 0.0;
+  long long steps_ = 0;
+  double last_dt_ = 0.0;
+  double next_dt_ = 0.0;
+  double dt_scale_at_compute_ = 1.0;
+  double dt_p2g_ = 0.0;        ///< impulse dt inside grid[gc]
+  double dt_scale_ = 1.0;
+  int clean_steps_ = 0;
+  double max_grid_speed_ = 0.0;
+  std::ostream* log_ = &std::cerr;
+};
+
+// =====================================================================================================================
+// Construction
+
+template <typename T>
+MgspBenchmark<T>::MgspBenchmark(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions,
+                                const GpuEngineOptions& options)
+    : scene_(scene), options_(options) {
+  if (cuda::device_count() == 0) throw std::runtime_error(cuda::no_device_reason());
+  const SimulationSpec& sim = scene_.simulation;
+  if (!(sim.dx > 0.0)) throw std::invalid_argument("simulation.default_dx: must be positive");
+  if (positions.size() != scene_.bodies.size()) throw std::invalid_argument("GpuEngine: one position list per body");
+  if (scene_.bodies.size() > static_cast<std::size_t>(DtParams::kMaxBodies))
+    throw std::invalid_argument("GpuEngine: at most " + std::to_string(DtParams::kMaxBodies) + " bodies per device");
+  dx_ = static_cast<T>(sim.dx);
+  inv_dx_ = T(1) / dx_;
+  d_inv_ = apic_inertia_inverse(dx_);
+  for (int a = 0; a < 3; ++a) {
+    gravity_[a] = static_cast<T>(sim.gravity[a]);
+    domain_[a] = static_cast<T>(sim.domain[a]);
+  }
+  default_dt_ = resolved_default_dt(sim);
+  time_ = sim.time;
+  for (std::size_t i = 0; i < scene_.boundaries.size(); ++i) {
+    BoundaryParams<T> p{};
+    std::string error;
+    if (!make_boundary_params(scene_.boundaries[i], sim, p, error))
+      throw std::invalid_argument("boundaries[" + std::to_string(i) + "]: " + error + " in the GPU engine");
+    boundaries_.push_back(p);
+  }
+  if (boundaries_.size() > static_cast<std::size_t>(BoundarySet<T>::kMax))
+    throw std::invalid_argument("GpuEngine: at most " + std::to_string(BoundarySet<T>::kMax) + " boundaries");
+
+  double max_speed = 0.0;
+  for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {
+    const BodySpec& spec = scene_.bodies[b];
+    const std::string where = "bodies[" + std::to_string(b) + "]";
+    const MaterialSpec& mat = spec.material;
+    if (material_index(mat.law) < 0)
+      throw std::invalid_argument(where + ".material.constitutive: not implemented by the GPU engine (implemented: " +
+                                  supported_material_names() + ")");
+    if (mat.type != "particles")
+      throw std::invalid_argument(where + ".material.type: \"" + mat.type + "\" bodies are not implemented");
+    const AlgorithmSpec& alg = spec.algorithm;
+    if (alg.use_asflip && (alg.asflip_alpha != 0.0 || alg.asflip_beta_min != 0.0 || alg.asflip_beta_max != 0.0))
+      throw std::invalid_argument(where + ".algorithm: ASFLIP with nonzero alpha/beta is not implemented by the GPU "
+                                  "engine (APIC/MLS-MPM only)");
+    if (alg.use_fbar && alg.fbar_psi != 0.0)
+      throw std::invalid_argument(where + ".algorithm.FBAR_psi: F-bar is not implemented by the GPU engine");
+    if (alg.use_fem) throw std::invalid_argument(where + ".algorithm.use_FEM: not implemented by the GPU engine");
+    for (const std::string& name : spec.output_attribs) {
+      const std::string canonical = canonical_attribute(name);
+      if (canonical.empty() || !cpu_engine_supports_attribute(mat.law, canonical))
+        throw std::invalid_argument(where + ".output_attribs: " + name + " is not available on the GPU engine");
+    }
+    if (!(mat.ppc > 0.0)) throw std::invalid_argument(where + ".material.ppc: must be positive");
+    if (positions[b].size() > static_cast<std::size_t>(INT_MAX / 2))
+      throw std::invalid_argument(where + ": more than 2^30 particles on one device");
+    for (std::size_t p = 0; p < positions[b].size(); ++p)
+      for (int a = 0; a < 3; ++a)
+        if (!(positions[b][p][a] >= 0.0 && positions[b][p][a] <= sim.domain[a]))
+          throw std::invalid_argument(where + ": particle " + std::to_string(p) + " lies outside the domain");
+    visit_material(mat.law, [&](auto m) {
+      using M = decltype(m);
+      auto body = std::make_unique<Body<M>>();
+      body->params = M::template make_params<T>(mat);
+      body->rest_wave_speed = static_cast<double>(M::wave_speed(M::template make_params<double>(mat),
+                                                                M::template reference_state<double>()));
+      bodies_.push_back(std::move(body));
+    });
+    BodyBase& body = *bodies_.back();
+    body.spec = spec;
+    body.index = static_cast<int>(b);
+    body.particles = static_cast<int>(positions[b].size());
+    const double volume = sim.dx * sim.dx * sim.dx / mat.ppc;
+    body.volume = static_cast<T>(volume);
+    body.mass = static_cast<T>(mat.rho * volume);
+    max_speed = std::max(max_speed, std::sqrt(spec.velocity[0] * spec.velocity[0] +
+                                              spec.velocity[1] * spec.velocity[1] +
+                                              spec.velocity[2] * spec.velocity[2]));
+  }
+  max_grid_speed_ = max_speed;
+  initialize(positions);
+}
+
+template <typename T>
+MgspBenchmark<T>::~MgspBenchmark() {
+  // Buffers free themselves; streams and events last (no throw from a destructor).
+  if (stream_) cudaStreamSynchronize(stream_);
+  if (copy_stream_) cudaStreamSynchronize(copy_stream_);
+  for (cudaEvent_t& e : events_)
+    if (e) cudaEventDestroy(e);
+  if (stream_) cudaStreamDestroy(stream_);
+  if (copy_stream_) cudaStreamDestroy(copy_stream_);
+}
+
+template <typename T>
+void MgspBenchmark<T>::initialize(const std::vector<std::vector<Vec3d>>& positions) {
+  FBAR_CUDA_CHECK(cudaStreamCreateWithFlags(&stream_, cudaStreamNonBlocking));
+  FBAR_CUDA_CHECK(cudaStreamCreateWithFlags(&copy_stream_, cudaStreamNonBlocking));
+  for (cudaEvent_t& e : events_) FBAR_CUDA_CHECK(cudaEventCreate(&e));
+
+  // Starting capacities from the sampled positions: particle blocks (B = floor((base - 1)/4)), their 2x2x2
+  // footprints, and bins; x2 blocks and x1.5 bins of headroom (both grow at run time).
+  std::unordered_map<std::uint64_t, int> per_block;
+  std::unordered_map<std::uint64_t, char> footprint;
+  std::vector<long long> bins_needed(bodies_.size(), 0);
+  for (std::size_t b = 0; b < positions.size(); ++b) {
+    per_block.clear();
+    for (const Vec3d& x : positions[b]) {
+      const Vec3i base = quadratic_bspline_inv(x, 1.0 / scene_.simulation.dx).base;
+      const int bx = floor_div4(base[0] - 1), by = floor_div4(base[1] - 1), bz = floor_div4(base[2] - 1);
+      if (per_block[BlockKey::pack(bx, by, bz)]++ > 0) continue;
+      for (int n = 0; n < 8; ++n) footprint[BlockKey::pack(bx + (n >> 2), by + ((n >> 1) & 1), bz + (n & 1))] = 1;
+    }
+    for (const auto& kv : per_block) bins_needed[b] += (kv.second + 31) / 32;
+  }
+  block_capacity_ = options_.block_capacity > 0 ? options_.block_capacity
+                                                : std::max<int>(1024, static_cast<int>(2 * footprint.size()));
+  table_.allocate(block_capacity_, stream_);
+  grid_[0].allocate(block_capacity_);
+  grid_[1].allocate(block_capacity_);
+  velocity_.allocate(block_capacity_);
+  FBAR_CUDA_CHECK(cudaMemsetAsync(grid_[0].instance().data(), 0, grid_[0].bytes(), stream_));
+  FBAR_CUDA_CHECK(cudaMemsetAsync(grid_[1].instance().data(), 0, grid_[1].bytes(), stream_));
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    BodyBase& body = *bodies_[b];
+    // The flat upload needs ceil(N/32) bins; the grouped layouts need bins_needed.
+    const long long flat = (body.particles + 31) / 32;
+    const int bins = options_.bin_capacity > 0
+                         ? static_cast<int>(std::max<long long>(flat, options_.bin_capacity))
+                         : static_cast<int>(std::max<long long>(64, std::max(flat, bins_needed[b] * 3 / 2 + 16)));
+    body.partition.allocate(block_capacity_, bins);
+    body.allocate_bins(bins);
+    body.upload(positions[b], stream_);
+  }
+  std::size_t temp = 0;
+  FBAR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, temp, static_cast<int*>(nullptr), static_cast<int*>(nullptr),
+                                                block_capacity_ + 1, stream_));
+  scan_temp_.allocate(temp);
+  scan_temp_bytes_ = temp;
+  const std::size_t stats_bytes = sizeof(StepStats) + sizeof(BodyStepStats) * bodies_.size();
+  stats_bytes_.allocate(stats_bytes);
+  stats_d_ = reinterpret_cast<StepStats*>(stats_bytes_.get());
+  body_stats_d_ = reinterpret_cast<BodyStepStats*>(stats_bytes_.get() + sizeof(StepStats));
+  stats_h_ = mgsp_detail::pinned(stats_bytes);
+  stats_ = static_cast<StepStats*>(stats_h_.get());
+  body_stats_ = reinterpret_cast<BodyStepStats*>(static_cast<std::byte*>(stats_h_.get()) + sizeof(StepStats));
+  wave_d_.allocate(2 * bodies_.size());
+  missing_d_.allocate(1);
+  {
+    std::vector<unsigned long long> bits(2 * bodies_.size());
+    for (std::size_t b = 0; b < bodies_.size(); ++b) {
+      double c = bodies_[b]->rest_wave_speed;
+      std::memcpy(&bits[b], &c, sizeof(double));
+      bits[bodies_.size() + b] = 0;
+    }
+    FBAR_CUDA_CHECK(cudaMemcpy(wave_d_.get(), bits.data(), sizeof(unsigned long long) * bits.size(),
+                               cudaMemcpyHostToDevice));
+  }
+
+  // Layout 0 from the flat upload (storage bins[0], slot = ID).
+  cur_ = 1;  // dest_from_positions and the partition write layout(1 - cur_) = layout(0)
+  gc_ = 0;
+  flat_source_ = true;
+  reset_stats(false);
+  for (auto& b : bodies_) {
+    FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(0).count, 0, sizeof(int) * block_capacity_, stream_));
+    b->dest_from_positions(*this, 0, nullptr, b->particles);
+  }
+  partition_after_g2p2g();
+  read_stats();
+  while (handle_overflow()) {
+  }
+  for (auto& b : bodies_) {
+    b->total_bins[0] = body_stats_[b->index].total_bins;
+    if (body_stats_[b->index].particles != b->particles)
+      throw std::runtime_error("GpuEngine: initial partition placed " + std::to_string(body_stats_[b->index].particles) +
+                               " of " + std::to_string(b->particles) + " particles of body " + std::to_string(b->index));
+  }
+  block_count_ = stats_->block_count;
+  flat_source_ = false;
+  for (auto& b : bodies_)  // the initial G2P2G writes bins[1] in layout(0) order
+    if (b->bins_capacity(1) < b->partition.bin_capacity()) b->reallocate_bins(1, b->partition.bin_capacity());
+
+  // The P2G of the initial state with dt_0 (the CPU engine's first next_dt()).
+  double dt0 = default_dt_;
+  for (const auto& b : bodies_)
+    dt0 = min_time_step(dt0, cfl_time_step(b->spec.material.cfl, scene_.simulation.dx, b->rest_wave_speed, max_grid_speed_));
+  cur_ = 0;
+  gc_ = 1;  // the initial P2G goes into grid[1 - gc_] = grid[0]
+  reset_stats(false);
+  {
+    // dt_next of the initial P2G is dt0: written by compute_next_dt with a fixed dt.
+    DtParams dp{};
+    dp.body_count = 0;
+    dp.wave_speed = wave_d_.get();
+    dp.fixed_dt = dt0;
+    dp.t_next = time_;
+    dp.t_target = std::numeric_limits<double>::infinity();
+    dp.stats = stats_d_;
+    dp.scale = 1.0;
+    compute_next_dt<<<1, 1, 0, stream_>>>(dp);
+    mgsp_detail::check_launch("compute_next_dt");
+  }
+  grid_[0].clear(0, block_capacity_, stream_);
+  for (auto& b : bodies_)
+    FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(1).count, 0, sizeof(int) * block_capacity_, stream_));
+  for (auto& b : bodies_) b->g2p2g(*this, true, T(0));
+  partition_after_g2p2g();
+  read_stats();
+  while (handle_overflow()) {
+  }
+  if (stats_->internal_error) throw std::runtime_error("GpuEngine: internal error in the initial P2G");
+  for (auto& b : bodies_) b->total_bins[1] = body_stats_[b->index].total_bins;
+  block_count_ = stats_->block_count;
+  cur_ = 1;
+  gc_ = 0;
+  wave_cur_ = 0;
+  dt_p2g_ = dt0;
+  next_dt_ = dt0;
+  aux_valid_ = record_;
+  ensure_step_capacity();  // the first step writes bins[0], sized for the flat upload only
+}
+
+template <typename T>
+void MgspBenchmark<T>::set_record_velocities(bool on) {
+  record_ = on;
+  if (on) ensure_aux();
+}
+
+template <typename T>
+void MgspBenchmark<T>::ensure_aux() {
+  for (auto& b : bodies_) {
+    const std::size_t need = b->partition.slots() * kAuxScalars;
+    if (b->aux.size() < need) b->aux.allocate(need);
+  }
+}
+
+// =====================================================================================================================
+// Step pieces
+
+template <typename T>
+void MgspBenchmark<T>::reset_stats(bool partition_only) {
+  mgsp_detail::reset_step_stats<<<1, 64, 0, stream_>>>(stats_d_, body_stats_d_, body_count(), partition_only);
+  mgsp_detail::check_launch("reset_step_stats");
+}
+
+template <typename T>
+void MgspBenchmark<T>::partition_after_g2p2g() {
+  const int next = 1 - cur_;
+  for (auto& bp : bodies_) {
+    BodyBase& b = *bp;
+    const LayoutView nl = b.partition.layout(next);
+    activate_footprint<T><<<mgsp_detail::grid_for(block_capacity_, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
+        nl.count, block_capacity_, table_.view(), grid_[0].instance(), grid_[1].instance());
+    mgsp_detail::check_launch("activate_footprint");
+  }
+  for (auto& bp : bodies_) {
+    BodyBase& b = *bp;
+    const LayoutView nl = b.partition.layout(next);
+    blocks_to_bins<<<mgsp_detail::grid_for(block_capacity_ + 1, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
+        nl.count, b.partition.bins_per_block(), block_capacity_);
+    mgsp_detail::check_launch("blocks_to_bins");
+    std::size_t temp = scan_temp_bytes_;
+    FBAR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(scan_temp_.get(), temp, b.partition.bins_per_block(), nl.bin_offset,
+                                                  block_capacity_ + 1, stream_));
+    finalize_layout<<<1, 1, 0, stream_>>>(nl.bin_offset, block_capacity_, b.partition.bin_capacity(),
+                                          body_stats_d_ + b.index, stats_d_, table_.counters());
+    mgsp_detail::check_launch("finalize_layout");
+    // The previous layout's slots: those of layout(cur) (a G2P2G wrote bins[next] in that order), or the flat
+    // upload before the first layout exists.
+    const bool flat = flat_source_;
+    const int* valid = flat ? nullptr : b.partition.layout(cur_).src;
+    const int slots = flat ? b.particles : b.total_bins[cur_] * 32;
+    if (slots > 0) {
+      scatter_src<<<mgsp_detail::grid_for(slots, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
+          b.partition.dest(), valid, b.particles, slots, nl.bin_offset, nl.src, b.partition.bin_capacity(),
+          body_stats_d_ + b.index);
+      mgsp_detail::check_launch("scatter_src");
+    }
+    pad_src<<<mgsp_detail::grid_for(block_capacity_, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
+        nl.count, nl.bin_offset, block_capacity_, nl.src, b.partition.bin_capacity());
+    mgsp_detail::check_launch("pad_src");
+  }
+}
+
+template <typename T>
+void MgspBenchmark<T>::read_stats() {
+  FBAR_CUDA_CHECK(cudaMemcpyAsync(stats_h_.get(), stats_bytes_.get(), stats_bytes_.bytes(), cudaMemcpyDeviceToHost,
+                                  stream_));
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+}
+
+template <typename T>
+void MgspBenchmark<T>::grow_blocks(int needed) {
+  int capacity = block_capacity_;
+  while (capacity < needed) capacity *= 2;
+  if (log_)
+    *log_ << "fbar: GPU engine: grid blocks " << block_capacity_ << " -> " << capacity << " (hash table, grids)\n";
+  const int keep = std::min(block_capacity_, std::max(block_count_, stats_->block_count));
+  table_.grow(capacity, stream_);
+  grid_[0].grow(capacity, keep, stream_);
+  grid_[1].grow(capacity, keep, stream_);
+  velocity_.grow(capacity, keep, stream_);
+  grid_[0].clear(keep, capacity, stream_);
+  grid_[1].clear(keep, capacity, stream_);
+  for (auto& b : bodies_) b->partition.grow_blocks(capacity, cur_, stream_);
+  block_capacity_ = capacity;
+  std::size_t temp = 0;
+  FBAR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, temp, static_cast<int*>(nullptr), static_cast<int*>(nullptr),
+                                                block_capacity_ + 1, stream_));
+  scan_temp_.allocate(temp);
+  scan_temp_bytes_ = temp;
+}
+
+template <typename T>
+void MgspBenchmark<T>::grow_bins(BodyBase& b, int keep, int needed) {
+  int capacity = std::max(64, b.partition.bin_capacity());
+  while (capacity < needed) capacity = capacity + capacity / 2;
+  if (log_)
+    *log_ << "fbar: GPU engine: body " << b.index << " particle bins " << b.partition.bin_capacity() << " -> "
+          << capacity << "\n";
+  b.partition.grow_bins(capacity, keep, stream_);
+  if (record_ || b.aux.size() != 0) {
+    // Keep what the last G2P2G recorded (a frame may still read it).
+    mgsp_detail::DeviceArray<T> bigger;
+    bigger.allocate(b.partition.slots() * kAuxScalars);
+    if (b.aux.size())
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(bigger.get(), b.aux.get(), b.aux.bytes(), cudaMemcpyDeviceToDevice, stream_));
+    FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+    b.aux.swap(bigger);
+  }
+}
+
+/// After read_stats: grows the table/grids or the bins if the partition overflowed, then redoes the partition from
+/// the particles' new positions. Returns true when it did (read_stats() was called again).
+template <typename T>
+bool MgspBenchmark<T>::handle_overflow() {
+  bool grew = false;
+  if (stats_->table_overflow > 0 || stats_->block_count > block_capacity_) {
+    grow_blocks(2 * block_capacity_);
+    grew = true;
+  }
+  for (auto& b : bodies_)
+    if (body_stats_[b->index].total_bins > b->partition.bin_capacity()) {
+      grow_bins(*b, cur_, body_stats_[b->index].total_bins * 3 / 2);
+      grew = true;
+    }
+  if (!grew) return false;
+  // Redo: dest and counts of the next layout from the positions G2P2G wrote (bins[1 - cur] in layout(cur) order).
+  reset_stats(true);
+  const int next = 1 - cur_;
+  for (auto& b : bodies_) {
+    FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(next).count, 0, sizeof(int) * block_capacity_, stream_));
+    if (flat_source_)
+      b->dest_from_positions(*this, 0, nullptr, b->particles);
+    else
+      b->dest_from_positions(*this, next, b->partition.layout(cur_).src, b->total_bins[cur_] * 32);
+  }
+  partition_after_g2p2g();
+  read_stats();
+  return true;
+}
+
+template <typename T>
+std::vector<FailureReport> MgspBenchmark<T>::failures_of_try(double dt) const {
+  std::vector<FailureReport> out;
+  static constexpr FailureKind kKinds[kFailKinds] = {FailureKind::NonFinite, FailureKind::CflViolation,
+                                                     FailureKind::LeftDomain};
+  for (const auto& b : bodies_) {
+    const BodyStepStats& s = body_stats_[b->index];
+    for (int k = 0; k < kFailKinds; ++k) {
+      if (s.failures[k] == 0) continue;
+      FailureReport f;
+      f.kind = kKinds[k];
+      f.body = b->index;
+      f.step = steps_ + 1;
+      f.time = time_;
+      f.dt = static_cast<double>(static_cast<T>(dt));  // the step size the kernels used (as the CPU engine reports)
+      f.count = s.failures[k];
+      f.first_particle = s.first_id[k];
+      out.push_back(f);
+    }
+  }
+  return out;
+}
+
+template <typename T>
+StepReport MgspBenchmark<T>::step_impl(double dt, bool cfl_dt, double target) {
+  if (!(dt > 0.0) || !std::isfinite(dt)) throw std::invalid_argument("GpuEngine::step: dt must be positive");
+  StepReport report;
+  for (;;) {
+    reset_stats(false);
+    // 0. the grid must hold the impulse of this dt
+    if (dt != dt_p2g_) {
+      for (auto& b : bodies_) b->rescale_impulse(*this, static_cast<T>(dt - dt_p2g_));
+      dt_p2g_ = dt;
+    }
+    event_record(0);
+    // 1. grid update
+    {
+      GridUpdateParams<T> gp{};
+      gp.grid = grid_[gc_].instance();
+      gp.velocity = velocity_.instance();
+      gp.coords = table_.view().coords;
+      gp.block_count = block_count_;
+      gp.dt = static_cast<T>(dt);
+      gp.dx = dx_;
+      gp.gravity = gravity_;
+      gp.boundaries.count = 0;
+      for (const BoundaryParams<T>& b : boundaries_)
+        if (boundary_active(b, time_)) gp.boundaries.b[gp.boundaries.count++] = b;
+      gp.stats = stats_d_;
+      if (block_count_ > 0) {
+        update_grid_velocity_query_max<T><<<mgsp_detail::grid_for(block_count_, kGridUpdateThreads / 64),
+                                            kGridUpdateThreads, 0, stream_>>>(gp);
+        mgsp_detail::check_launch("update_grid_velocity_query_max");
+      }
+    }
+    // 2. dt of the next step (its P2G impulse)
+    {
+      DtParams dp{};
+      dp.body_count = body_count();
+      for (const auto& b : bodies_) dp.bodies[b->index] = DtBody{b->spec.material.cfl, b->rest_wave_speed};
+      dp.wave_speed = wave_d_.get() + wave_cur_ * bodies_.size();
+      dp.default_dt = default_dt_;
+      dp.dx = scene_.simulation.dx;
+      dp.scale = dt_scale_;
+      dp.fixed_dt = cfl_dt ? 0.0 : dt;
+      dp.t_next = time_ + dt;
+      dp.t_target = target;
+      dp.stats = stats_d_;
+      compute_next_dt<<<1, 1, 0, stream_>>>(dp);
+      mgsp_detail::check_launch("compute_next_dt");
+    }
+    event_record(1);
+    // 3. G2P2G
+    grid_[1 - gc_].clear(0, block_count_, stream_);
+    FBAR_CUDA_CHECK(cudaMemsetAsync(wave_d_.get() + (1 - wave_cur_) * bodies_.size(), 0,
+                                    sizeof(unsigned long long) * bodies_.size(), stream_));
+    for (auto& b : bodies_)
+      FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(1 - cur_).count, 0, sizeof(int) * block_capacity_, stream_));
+    for (auto& b : bodies_) b->g2p2g(*this, false, static_cast<T>(dt));
+    event_record(2);
+    // 4. partition of the next step
+    partition_after_g2p2g();
+    event_record(3);
+    // 5. the step's one readback
+    read_stats();
+    if (stats_->internal_error)
+      throw std::runtime_error("GpuEngine: internal error (" + std::to_string(stats_->internal_error) +
+                               " arena lookups or particles outside their block) at step " +
+                               std::to_string(steps_ + 1));
+    std::vector<FailureReport> failures = failures_of_try(dt);
+    if (failures.empty()) {
+      while (handle_overflow()) {
+      }
+      for (const auto& b : bodies_)
+        if (body_stats_[b->index].particles != b->particles)
+          throw std::runtime_error("GpuEngine: the partition of body " + std::to_string(b->index) + " placed " +
+                                   std::to_string(body_stats_[b->index].particles) + " of " +
+                                   std::to_string(b->particles) + " particles at step " + std::to_string(steps_ + 1));
+      if (timing_) {
+        float ms = 0.f;
+        FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[0], events_[1]));
+        times_.grid_update_ms += ms;
+        FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[1], events_[2]));
+        times_.g2p2g_ms += ms;
+        FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[2], events_[3]));
+        times_.partition_ms += ms;
+        ++times_.steps;
+      }
+      commit(dt);
+      report.dt = dt;
+      report.steps = 1;
+      if (cfl_dt && dt_scale_ < 1.0 && ++clean_steps_ >= CpuEngine<T>::kRecoverSteps) {
+        dt_scale_ = std::min(1.0, 2.0 * dt_scale_);
+        clean_steps_ = 0;
+      }
+      return report;
+    }
+    if (scene_.simulation.on_failure == OnFailure::ReduceDt && report.retries < CpuEngine<T>::kMaxRetries) {
+      if (log_)
+        for (const FailureReport& f : failures)
+          *log_ << "fbar: " << f.describe() << "; retrying the step with dt = " << mgsp_detail::format_g(dt / 2)
+                << " s\n";
+      report.retried.insert(report.retried.end(), failures.begin(), failures.end());
+      ++report.retries;
+      dt *= 0.5;
+      if (cfl_dt) {
+        dt_scale_ *= 0.5;
+        clean_steps_ = 0;
+      }
+      // Blocks inserted by the failed try stay in the table (zeroed in both grids); count them from now on.
+      block_count_ = std::max(block_count_, std::min(stats_->block_count, block_capacity_));
+      continue;
+    }
+    report.ok = false;
+    report.dt = dt;
+    report.failures = std::move(failures);
+    return report;
+  }
+}
+
+template <typename T>
+void MgspBenchmark<T>::commit(double dt) {
+  for (auto& b : bodies_) b->total_bins[1 - cur_] = body_stats_[b->index].total_bins;
+  cur_ = 1 - cur_;
+  gc_ = 1 - gc_;
+  wave_cur_ = 1 - wave_cur_;
+  time_ += dt;
+  ++steps_;
+  last_dt_ = dt;
+  dt_p2g_ = stats_->dt_next;
+  next_dt_ = stats_->dt_next;
+  dt_scale_at_compute_ = dt_scale_;
+  double max_speed_sq = 0.0;
+  std::memcpy(&max_speed_sq, &stats_->max_speed_sq, sizeof(double));
+  max_grid_speed_ = std::sqrt(max_speed_sq);
+  block_count_ = stats_->block_count;
+  aux_valid_ = record_;
+  // Headroom for the next step (grow between steps, never inside one): blocks at 3/4, bins at 9/10 of capacity.
+  if (block_count_ > block_capacity_ * 3 / 4) grow_blocks(2 * block_capacity_);
+  ensure_step_capacity();
+}
+
+template <typename T>
+void MgspBenchmark<T>::ensure_step_capacity() {
+  for (auto& b : bodies_) {
+    const int need = b->total_bins[cur_];
+    if (need > b->partition.bin_capacity() * 9 / 10) grow_bins(*b, cur_, need * 3 / 2);
+    // The next G2P2G writes bins[1 - cur] (the previous state, free now) in layout(cur) order: it must hold every
+    // bin of that layout (the partition's bin capacity bounds it).
+    if (b->bins_capacity(1 - cur_) < b->partition.bin_capacity()) b->reallocate_bins(1 - cur_, b->partition.bin_capacity());
+  }
+}
+
+template <typename T>
+StepReport MgspBenchmark<T>::step_toward(double t_end) {
+  const double remaining = t_end - time_;
+  double dt = next_dt();
+  const bool last = dt >= remaining;
+  if (last) dt = remaining;
+  StepReport r = step_impl(dt, true, t_end);
+  if (r.ok && last && r.retries == 0) time_ = t_end;  // land on the target exactly, not t_end +- round-off
+  return r;
+}
+
+template <typename T>
+StepReport MgspBenchmark<T>::advance_to(double t_end) {
+  StepReport total;
+  while (time_ < t_end) {
+    StepReport r = step_toward(t_end);
+    total.steps += r.steps;
+    total.retries += r.retries;
+    total.retried.insert(total.retried.end(), r.retried.begin(), r.retried.end());
+    total.dt = r.dt;
+    if (!r.ok) {
+      total.ok = false;
+      total.failures = std::move(r.failures);
+      return total;
+    }
+  }
+  return total;
+}
+
+// =====================================================================================================================
+// Queries and output
+
+template <typename T>
+std::vector<T> MgspBenchmark<T>::gather_host(int body, cudaStream_t s) const {
+  BodyBase& b = body_at(body);
+  const int W = b.stored_scalars() + kAuxScalars;
+  const std::size_t n = static_cast<std::size_t>(b.particles) * W;
+  mgsp_detail::DeviceArray<T> out;
+  out.allocate(std::max<std::size_t>(n, 1));
+  FBAR_CUDA_CHECK(cudaMemsetAsync(missing_d_.get(), 0, sizeof(int), s));
+  auto* self = const_cast<MgspBenchmark*>(this);
+  b.gather(*self, out.get(), missing_d_.get(), s);
+  std::vector<T> host(n);
+  int missing = 0;
+  if (n) FBAR_CUDA_CHECK(cudaMemcpyAsync(host.data(), out.get(), sizeof(T) * n, cudaMemcpyDeviceToHost, s));
+  FBAR_CUDA_CHECK(cudaMemcpyAsync(&missing, missing_d_.get(), sizeof(int), cudaMemcpyDeviceToHost, s));
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(s));
+  if (missing) throw std::runtime_error("GpuEngine: " + std::to_string(missing) + " particles with an invalid ID");
+  return host;
+}
+
+template <typename T>
+ParticleSnapshot<T> MgspBenchmark<T>::snapshot(int body) const {
+  BodyBase& b = body_at(body);
+  const std::vector<T> r = gather_host(body, stream_);
+  const int S = b.stored_scalars();
+  const int W = S + kAuxScalars;
+  ParticleSnapshot<T> snap;
+  const std::size_t n = static_cast<std::size_t>(b.particles);
+  snap.x.resize(n);
+  snap.v.resize(n);
+  snap.C.resize(n);
+  snap.J.resize(n);
+  if (b.stores_F()) snap.F.resize(n);
+  const bool initial = steps_ == 0 && !aux_valid_;  // before the first step: v = initial velocity, C = 0 exactly
+  const Vec3<T> v0{{static_cast<T>(b.spec.velocity[0]), static_cast<T>(b.spec.velocity[1]),
+                    static_cast<T>(b.spec.velocity[2])}};
+  for (std::size_t p = 0; p < n; ++p) {
+    const T* q = r.data() + p * W;
+    snap.x[p] = Vec3<T>{{q[0], q[1], q[2]}};
+    snap.v[p] = initial ? v0 : Vec3<T>{{q[S], q[S + 1], q[S + 2]}};
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) snap.C[p](i, j) = q[S + 3 + 3 * i + j];
+    Mat3<T> F = Mat3<T>::identity(), sigma;
+    b.state_of(q, snap.J[p], F, sigma, snap.C[p]);
+    if (b.stores_F()) snap.F[p] = F;
+  }
+  return snap;
+}
+
+namespace mgsp_detail {
+inline bool tensor_suffix(const std::string& name, const std::string& prefix, int& row, int& col) {
+  if (name.size() != prefix.size() + 2 || name.compare(0, prefix.size(), prefix) != 0) return false;
+  row = name[prefix.size()] - 'X';
+  col = name[prefix.size() + 1] - 'X';
+  return row >= 0 && row < 3 && col >= 0 && col < 3;
+}
+}  // namespace mgsp_detail
+
+template <typename T>
+io::ParticleFrame MgspBenchmark<T>::frame(int body) const {
+  // Attribute names, units and formulas as CpuEngine::frame (cpu_engine.cpp).
+  const BodyBase& b = body_at(body);
+  const ParticleSnapshot<T> s = snapshot(body);
+  const std::size_t n = s.x.size();
+  io::ParticleFrame f;
+  if constexpr (std::is_same_v<T, double>) {
+    f.positions = s.x;
+  } else {
+    f.positions = std::vector<Vec3f>(s.x.begin(), s.x.end());
+  }
+  std::vector<Mat3<T>> sigma;
+  auto stresses = [&] {
+    if (!sigma.empty()) return;
+    sigma.resize(n);
+    const std::vector<T> r = gather_host(body, stream_);
+    const int W = b.stored_scalars() + kAuxScalars;
+    for (std::size_t p = 0; p < n; ++p) {
+      T J;
+      Mat3<T> F;
+      b.state_of(r.data() + p * W, J, F, sigma[p], s.C[p]);
+    }
+  };
+  auto scalar = [&](const std::string& name, const std::string& unit, auto&& value_of) {
+    std::vector<float> values(n);
+    for (std::size_t p = 0; p < n; ++p) values[p] = static_cast<float>(value_of(p));
+    f.add(name, 1, std::move(values), unit);
+  };
+  for (const std::string& requested : b.spec.output_attribs) {
+    const std::string name = canonical_attribute(requested);
+    if (f.find(name)) continue;
+    int row = 0, col = 0;
+    if (name == "ID") {
+      std::vector<std::int32_t> ids(n);
+      for (std::size_t p = 0; p < n; ++p) ids[p] = static_cast<std::int32_t>(p);
+      f.add(name, 1, std::move(ids));
+    } else if (name == "Mass") {
+      scalar(name, "kg", [&](std::size_t) { return b.mass; });
+    } else if (name == "Volume") {
+      scalar(name, "m^3", [&](std::size_t p) { return b.volume * s.J[p]; });
+    } else if (name.rfind("Position_", 0) == 0) {
+      const int a = name.back() - 'X';
+      scalar(name, "m", [&](std::size_t p) { return s.x[p][a]; });
+    } else if (name == "Velocity_Magnitude") {
+      scalar(name, "m/s", [&](std::size_t p) { return norm(s.v[p]); });
+    } else if (name.rfind("Velocity_", 0) == 0) {
+      const int a = name.back() - 'X';
+      scalar(name, "m/s", [&](std::size_t p) { return s.v[p][a]; });
+    } else if (name == "J") {
+      scalar(name, "", [&](std::size_t p) { return s.J[p]; });
+    } else if (mgsp_detail::tensor_suffix(name, "DefGrad_", row, col)) {
+      scalar(name, "", [&](std::size_t p) { return s.F[p](row, col); });
+    } else if (name == "Pressure" || name == "VonMisesStress" ||
+               mgsp_detail::tensor_suffix(name, "StressCauchy_", row, col)) {
+      stresses();
+      if (name == "Pressure")
+        scalar(name, "Pa", [&](std::size_t p) { return mean_pressure(sigma[p]); });
+      else if (name == "VonMisesStress")
+        scalar(name, "Pa", [&](std::size_t p) { return von_mises_stress(sigma[p]); });
+      else
+        scalar(name, "Pa", [&](std::size_t p) { return sigma[p](row, col); });
+    } else {
+      throw std::invalid_argument("bodies[" + std::to_string(body) + "].output_attribs: " + requested +
+                                  " is not available on the GPU engine");
+    }
+  }
+  return f;
+}
+
+template <typename T>
+void MgspBenchmark<T>::submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer) {
+  // Device gather on the compute stream (the state of this step), then the copy on the copy stream into pinned
+  // memory; the writer thread waits for the copy and builds the frame, so the step loop goes on at once.
+  BodyBase& b = body_at(body);
+  const int W = b.stored_scalars() + kAuxScalars;
+  const std::size_t n = static_cast<std::size_t>(b.particles) * W;
+  auto staging = std::make_shared<mgsp_detail::DeviceArray<T>>();
+  staging->allocate(std::max<std::size_t>(n, 1));
+  FBAR_CUDA_CHECK(cudaMemsetAsync(missing_d_.get(), 0, sizeof(int), stream_));
+  b.gather(*this, staging->get(), missing_d_.get(), stream_);
+  cudaEvent_t gathered, copied;
+  FBAR_CUDA_CHECK(cudaEventCreateWithFlags(&gathered, cudaEventDisableTiming));
+  FBAR_CUDA_CHECK(cudaEventCreateWithFlags(&copied, cudaEventDisableTiming));
+  FBAR_CUDA_CHECK(cudaEventRecord(gathered, stream_));
+  FBAR_CUDA_CHECK(cudaStreamWaitEvent(copy_stream_, gathered, 0));
+  auto host = std::make_shared<mgsp_detail::PinnedBytes>(mgsp_detail::pinned(sizeof(T) * std::max<std::size_t>(n, 1)));
+  if (n) FBAR_CUDA_CHECK(cudaMemcpyAsync(host->get(), staging->get(), sizeof(T) * n, cudaMemcpyDeviceToHost, copy_stream_));
+  FBAR_CUDA_CHECK(cudaEventRecord(copied, copy_stream_));
+  FBAR_CUDA_CHECK(cudaEventDestroy(gathered));
+  // What the writer needs, by value: the body's spec, constants, and a host copy of the state functions.
+  const BodyBase* bp = &b;
+  const std::size_t count = static_cast<std::size_t>(b.particles);
+  const int S = b.stored_scalars();
+  const BodySpec spec = b.spec;
+  const T mass = b.mass, volume = b.volume;
+  const bool has_F = b.stores_F();
+  const bool initial = steps_ == 0 && !aux_valid_;  // before the first step: v = initial velocity, C = 0 exactly
+  const Vec3<T> v0{{static_cast<T>(b.spec.velocity[0]), static_cast<T>(b.spec.velocity[1]),
+                    static_cast<T>(b.spec.velocity[2])}};
+  writer.submit_job([=]() mutable {
+    FBAR_CUDA_CHECK(cudaEventSynchronize(copied));
+    cudaEventDestroy(copied);
+    staging.reset();
+    const T* r = static_cast<const T*>(host->get());
+    io::ParticleFrame f;
+    std::vector<Vec3<T>> x(count), v(count);
+    std::vector<T> J(count);
+    std::vector<Mat3<T>> F(count, Mat3<T>::identity()), sigma(count);
+    for (std::size_t p = 0; p < count; ++p) {
+      const T* q = r + p * W;
+      x[p] = Vec3<T>{{q[0], q[1], q[2]}};
+      v[p] = initial ? v0 : Vec3<T>{{q[S], q[S + 1], q[S + 2]}};
+      Mat3<T> C;
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) C(i, j) = q[S + 3 + 3 * i + j];
+      bp->state_of(q, J[p], F[p], sigma[p], C);
+    }
+    if constexpr (std::is_same_v<T, double>) {
+      f.positions = x;
+    } else {
+      f.positions = std::vector<Vec3f>(x.begin(), x.end());
+    }
+    auto scalar = [&](const std::string& name, const std::string& unit, auto&& value_of) {
+      std::vector<float> values(count);
+      for (std::size_t p = 0; p < count; ++p) values[p] = static_cast<float>(value_of(p));
+      f.add(name, 1, std::move(values), unit);
+    };
+    for (const std::string& requested : spec.output_attribs) {
+      const std::string name = canonical_attribute(requested);
+      if (f.find(name)) continue;
+      int row = 0, col = 0;
+      if (name == "ID") {
+        std::vector<std::int32_t> ids(count);
+        for (std::size_t p = 0; p < count; ++p) ids[p] = static_cast<std::int32_t>(p);
+        f.add(name, 1, std::move(ids));
+      } else if (name == "Mass") {
+        scalar(name, "kg", [&](std::size_t) { return mass; });
+      } else if (name == "Volume") {
+        scalar(name, "m^3", [&](std::size_t p) { return volume * J[p]; });
+      } else if (name.rfind("Position_", 0) == 0) {
+        const int a = name.back() - 'X';
+        scalar(name, "m", [&](std::size_t p) { return x[p][a]; });
+      } else if (name == "Velocity_Magnitude") {
+        scalar(name, "m/s", [&](std::size_t p) { return norm(v[p]); });
+      } else if (name.rfind("Velocity_", 0) == 0) {
+        const int a = name.back() - 'X';
+        scalar(name, "m/s", [&](std::size_t p) { return v[p][a]; });
+      } else if (name == "J") {
+        scalar(name, "", [&](std::size_t p) { return J[p]; });
+      } else if (has_F && mgsp_detail::tensor_suffix(name, "DefGrad_", row, col)) {
+        scalar(name, "", [&](std::size_t p) { return F[p](row, col); });
+      } else if (name == "Pressure") {
+        scalar(name, "Pa", [&](std::size_t p) { return mean_pressure(sigma[p]); });
+      } else if (name == "VonMisesStress") {
+        scalar(name, "Pa", [&](std::size_t p) { return von_mises_stress(sigma[p]); });
+      } else if (mgsp_detail::tensor_suffix(name, "StressCauchy_", row, col)) {
+        scalar(name, "Pa", [&](std::size_t p) { return sigma[p](row, col); });
+      }
+    }
+    io::write_frame(path, f);
+  });
+}
+
+template <typename T>
+double MgspBenchmark<T>::total_mass() const {
+  double m = 0.0;
+  for (const auto& b : bodies_) m += static_cast<double>(b->particles) * static_cast<double>(b->mass);
+  return m;
+}
+
+template <typename T>
+double MgspBenchmark<T>::grid_mass() const {
+  using L = GridLayout<T>;
+  const std::size_t bytes = GridBuffer<T>::kBlockBytes * static_cast<std::size_t>(block_count_);
+  std::vector<std::byte> host(bytes);
+  if (bytes) FBAR_CUDA_CHECK(cudaMemcpy(host.data(), grid_[gc_].instance().data(), bytes, cudaMemcpyDeviceToHost));
+  typename L::Buffer view(host.data(), static_cast<std::size_t>(block_count_));
+  double m = 0.0;
+  for (int b = 0; b < block_count_; ++b) {
+    const auto g = view.ch(placeholder::_0, b);
+    for (int n = 0; n < 64; ++n) m += static_cast<double>(g.val_1d(fbar::grid_mass, n));
+  }
+  return m;
+}
+
+template <typename T>
+std::size_t MgspBenchmark<T>::device_bytes() const {
+  std::size_t bytes = table_.bytes() + grid_[0].bytes() + grid_[1].bytes() + velocity_.bytes() +
+                      stats_bytes_.bytes() + wave_d_.bytes() + scan_temp_.bytes();
+  for (const auto& b : bodies_) bytes += b->bins_bytes() + b->partition.bytes() + b->aux.bytes();
+  return bytes;
+}
+
+}  // namespace fbar

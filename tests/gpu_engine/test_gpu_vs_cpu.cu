@@ -1,0 +1,210 @@
+// The GPU engine against the CPU reference engine: the same scene, the same initial positions and the same fixed
+// dt, N steps, then every particle by ID: position, velocity, J and F; total mass exactly; momentum to
+// summation order; the grid mass equals the particle mass (partition of unity).
+//
+// Why the engines can differ at all: both evaluate the same functions (transfer.cuh, materials, boundary.cuh) in the
+// same precision, but the GPU sums node contributions with atomics in an arbitrary order (shared then global),
+// nvcc contracts a*b+c into FMAs where the host compiler does not, and the particle order inside a block differs.
+// Each step therefore adds a few ulps per quantity, which the dynamics may amplify (stiff fluid: an error in J is
+// turned into a pressure impulse). Tolerances, for N = 60 steps:
+//   double (eps 1.1e-16): x 1e-13 m, v 1e-12 m/s, J and F 1e-13: ~1e3 eps of O(1) values, room for 60 steps of
+//     round-off growth yet far below any modelling error (a wrong weight or term is 1e-3 and more).
+//   float (eps 6e-8): x 5e-6 m (1e-4 dx), v 1e-4 m/s (5e-5 of the 2 m/s impact speed), J 2e-5, F 2e-5: 60 steps of
+//     O(10) eps per step amplified by the pressure/stress feedback; still far below an off-by-one-node or
+//     missing-term error, which moves a particle by O(dx dt) per step.
+// Measured on an H100 (first run): float |dx| 1.2e-7 / 2.4e-7 m, |dv| 2.1e-6 / 5.2e-6 m/s, |dJ| 1.2e-7 / 1.7e-6,
+// |dF| 1.1e-6; double |dx| 1.1e-16 / 2.2e-16 m, |dv| 3.6e-15 / 2.6e-15 m/s, |dJ| 2.2e-16 / 1.8e-15
+// (JFluid / FixedCorotated).
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cpu_engine.h"
+#include "gpu_engine.h"
+#include "gpu_test_support.h"
+
+namespace fbar {
+namespace {
+
+struct Tolerance {
+  double x, v, J, F, momentum_rel, grid_mass_rel;
+};
+template <typename T>
+Tolerance tolerance() {
+  if constexpr (std::is_same_v<T, double>) return {1e-13, 1e-12, 1e-13, 1e-13, 1e-12, 1e-13};
+  else return {5e-6, 1e-4, 2e-5, 2e-5, 5e-6, 1e-6};
+}
+
+template <typename T>
+void compare(Constitutive law, double dt, int steps, const GpuEngineOptions& options = {}) {
+  const Scene scene = test::small_scene(law, std::is_same_v<T, double> ? Precision::Double : Precision::Single);
+  const auto positions = test::sample_scene(scene);
+  CpuEngine<T> cpu(scene, positions);
+  GpuEngine<T> gpu(scene, positions, options);
+  std::ostringstream log;
+  gpu.set_log(&log);
+  gpu.set_record_velocities(true);
+  ASSERT_EQ(gpu.particle_count(), cpu.particle_count());
+  EXPECT_EQ(gpu.total_mass(), cpu.total_mass()) << "per-body mass x count must equal the CPU's sum exactly";
+  for (int s = 0; s < steps; ++s) {
+    const StepReport rc = cpu.step(dt);
+    const StepReport rg = gpu.step(dt);
+    ASSERT_TRUE(rc.ok) << rc.message();
+    ASSERT_TRUE(rg.ok) << rg.message();
+  }
+  EXPECT_EQ(gpu.steps(), cpu.steps());
+  EXPECT_DOUBLE_EQ(gpu.time(), cpu.time());
+  const Tolerance tol = tolerance<T>();
+  const ParticleSnapshot<T> g = gpu.snapshot(0);
+  const double ex = test::max_diff(g.x, cpu.positions(0));
+  const double ev = test::max_diff(g.v, cpu.velocities(0));
+  const double eJ = test::max_diff_scalar(g.J, cpu.volume_ratios(0));
+  double eF = 0.0;
+  if (law == Constitutive::FixedCorotated) eF = test::max_diff(g.F, cpu.deformation_gradients(0));
+  // Momentum: double sums in ID order on both sides.
+  Vec3d pg = Vec3d::zero();
+  for (std::size_t p = 0; p < g.v.size(); ++p) pg += g.v[p].template cast<double>() * static_cast<double>(cpu.masses(0)[p]);
+  const Vec3d pc = cpu.total_momentum();
+  const double e_momentum = max_abs(pg - pc) / std::max(1e-30, static_cast<double>(norm(pc)));
+  const double e_grid_mass = std::fabs(gpu.grid_mass() - gpu.total_mass()) / gpu.total_mass();
+  std::cout << "[measured] " << (std::is_same_v<T, double> ? "double " : "float  ")
+            << (law == Constitutive::JFluid ? "JFluid" : "FixedCorotated") << " after " << steps
+            << " steps: |dx| " << ex << " m, |dv| " << ev << " m/s, |dJ| " << eJ << ", |dF| " << eF
+            << ", momentum rel " << e_momentum << ", grid mass rel " << e_grid_mass << "\n";
+  EXPECT_LE(ex, tol.x);
+  EXPECT_LE(ev, tol.v);
+  EXPECT_LE(eJ, tol.J);
+  EXPECT_LE(eF, tol.F);
+  EXPECT_LE(e_momentum, tol.momentum_rel);
+  EXPECT_LE(e_grid_mass, tol.grid_mass_rel);
+  // The block did reach the floor (the walls acted): the lowest particle stopped falling at 2 m/s.
+  double min_vy = 0.0;
+  for (const auto& v : cpu.velocities(0)) min_vy = std::min(min_vy, static_cast<double>(v[1]));
+  EXPECT_GT(min_vy, -2.5);
+}
+
+// dt: JFluid c = sqrt(2e6/1000) = 44.7 m/s, CFL 0.5 dx / c = 5.6e-4 s -> 2e-4 s; 60 steps = 12 ms, 2.4 cm of fall
+// at 2 m/s from 9 cm above the floor: the bottom layer (stencils reach 1.5 dx = 7.5 cm of wall) meets the walls.
+TEST(GpuVsCpu, JFluidFloat) {
+  FBAR_REQUIRE_DEVICE();
+  compare<float>(Constitutive::JFluid, 2e-4, 60);
+}
+TEST(GpuVsCpu, JFluidDouble) {
+  FBAR_REQUIRE_DEVICE();
+  compare<double>(Constitutive::JFluid, 2e-4, 60);
+}
+// FixedCorotated E = 1e5, nu = 0.3: c_p = sqrt((lambda + 2 mu)/rho) = 11.6 m/s; dt 5e-4 s (CFL 0.37).
+TEST(GpuVsCpu, FixedCorotatedFloat) {
+  FBAR_REQUIRE_DEVICE();
+  compare<float>(Constitutive::FixedCorotated, 5e-4, 60);
+}
+TEST(GpuVsCpu, FixedCorotatedDouble) {
+  FBAR_REQUIRE_DEVICE();
+  compare<double>(Constitutive::FixedCorotated, 5e-4, 60);
+}
+// Capacity growth: 8 grid blocks and 64 bins to start (the block needs ~100 blocks and ~60 bins per layout); the
+// engine grows both at run time without a restart and must still match the CPU engine.
+TEST(GpuVsCpu, CapacityGrowthMatchesCpu) {
+  FBAR_REQUIRE_DEVICE();
+  GpuEngineOptions small;
+  small.block_capacity = 8;
+  small.bin_capacity = 1;
+  compare<double>(Constitutive::JFluid, 2e-4, 30, small);
+}
+
+// CFL time step: both engines pick dt themselves; FixedCorotated's wave speed does not depend on the state, so the
+// GPU's dt (computed on the device) must equal the CPU's up to the max-speed round-off.
+TEST(GpuVsCpu, CflTimeStepMatchesCpu) {
+  FBAR_REQUIRE_DEVICE();
+  const Scene scene = test::small_scene(Constitutive::FixedCorotated, Precision::Double);
+  const auto positions = test::sample_scene(scene);
+  CpuEngine<double> cpu(scene, positions);
+  GpuEngine<double> gpu(scene, positions);
+  for (int s = 0; s < 20; ++s) {
+    EXPECT_NEAR(gpu.next_dt(), cpu.next_dt(), 1e-12 * cpu.next_dt()) << "step " << s;
+    ASSERT_TRUE(cpu.step().ok);
+    ASSERT_TRUE(gpu.step().ok);
+  }
+  const StepReport rc = cpu.advance_to(cpu.time() + 0.01);
+  const StepReport rg = gpu.advance_to(gpu.time() + 0.01);
+  ASSERT_TRUE(rc.ok && rg.ok);
+  EXPECT_EQ(gpu.time(), cpu.time()) << "advance_to lands exactly on the target";
+  EXPECT_EQ(gpu.steps(), cpu.steps());
+}
+
+TEST(GpuEngine, FrameMatchesCpuAttributeNames) {
+  FBAR_REQUIRE_DEVICE();
+  const Scene scene = test::small_scene(Constitutive::JFluid, Precision::Single);
+  const auto positions = test::sample_scene(scene);
+  CpuEngine<float> cpu(scene, positions);
+  GpuEngine<float> gpu(scene, positions);
+  gpu.set_record_velocities(true);
+  ASSERT_TRUE(cpu.step(2e-4).ok);
+  ASSERT_TRUE(gpu.step(2e-4).ok);
+  const io::ParticleFrame fc = cpu.frame(0), fg = gpu.frame(0);
+  ASSERT_EQ(fc.size(), fg.size());
+  ASSERT_EQ(fc.attributes.size(), fg.attributes.size());
+  for (std::size_t i = 0; i < fc.attributes.size(); ++i) {
+    EXPECT_EQ(fc.attributes[i].name, fg.attributes[i].name);
+    EXPECT_EQ(fc.attributes[i].unit, fg.attributes[i].unit);
+    EXPECT_EQ(fc.attributes[i].width, fg.attributes[i].width);
+    EXPECT_EQ(fc.attributes[i].type(), fg.attributes[i].type());
+  }
+  EXPECT_EQ(fg.find("ID")->ints()[17], 17);
+}
+
+}  // namespace
+}  // namespace fbar
+
+namespace fbar {
+namespace {
+
+std::vector<std::string> read_lines(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  std::vector<std::string> lines;
+  for (std::string l; std::getline(in, l);) lines.push_back(l);
+  return lines;
+}
+
+// run_gpu writes the same frames as run_cpu: same files, same header (attribute names and units), one row per
+// particle, asynchronously through the writer; positions of frame 2 agree to the float tolerance above.
+TEST(GpuEngine, RunGpuWritesFramesLikeRunCpu) {
+  FBAR_REQUIRE_DEVICE();
+  Scene scene = test::small_scene(Constitutive::JFluid, Precision::Single);
+  scene.simulation.fps = 200;
+  scene.simulation.frames = 2;
+  scene.simulation.save_suffix = ".csv";
+  const std::filesystem::path root = std::filesystem::temp_directory_path() / "fbar_gpu_run_test";
+  std::filesystem::remove_all(root);
+  RunOptions options;
+  std::ostringstream log;
+  options.log = &log;
+  options.quiet = true;
+  scene.simulation.save_path = (root / "cpu").string();
+  const RunResult rc = run_cpu(scene, options);
+  scene.simulation.save_path = (root / "gpu").string();
+  const RunResult rg = run_gpu(scene, options);
+  ASSERT_EQ(rc.exit_code, 0) << rc.message;
+  ASSERT_EQ(rg.exit_code, 0) << rg.message << "\n" << log.str();
+  EXPECT_EQ(rg.steps, rc.steps);
+  EXPECT_DOUBLE_EQ(rg.end_time, rc.end_time);
+  for (int frame = 0; frame <= 2; ++frame) {
+    const std::string name = io::frame_file_name(0, 0, frame, ".csv");
+    const auto lc = read_lines(root / "cpu" / name);
+    const auto lg = read_lines(root / "gpu" / name);
+    ASSERT_FALSE(lg.empty()) << "missing GPU frame " << name;
+    EXPECT_EQ(lg.size(), lc.size());
+    EXPECT_EQ(lg.front(), lc.front()) << "header differs";
+    // Frame 0 is the sampled state (v = initial velocity, J = 1, p = 0) in both engines: the same text.
+    if (frame == 0) EXPECT_EQ(lg, lc);
+  }
+  std::filesystem::remove_all(root);
+}
+
+}  // namespace
+}  // namespace fbar
