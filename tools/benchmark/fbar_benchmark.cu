@@ -1,0 +1,242 @@
+// GPU engine benchmark: 3D dam break (JFluid) and a falling FixedCorotated block at 8 ppc, 1M..64M particles.
+//
+// Per case: wall time per whole step (host work and the per-step readback included) over many steps after a
+// warm-up, per-kernel CUDA-event times in a second timed run, particle-steps per second, the bytes a step must move
+// per particle (from the layouts), that traffic as a fraction of the measured device copy bandwidth, and the
+// device memory per particle (cudaMemGetInfo before construction and after the run). Prints a table and writes a
+// CSV: scene, material, particles, precision, ms_per_step, particle_steps_per_s, bytes_per_particle_step,
+// bandwidth_fraction, device_bytes_per_particle, commit.
+//   fbar_benchmark [--sizes=1,4,16,64] [--precisions=single,double] [--scenes=dam_break,falling_block]
+//                  [--steps=100] [--warmup=20] [--csv=benchmark.csv]
+#include <cuda_runtime.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "MnSystem/Cuda/device_query.h"
+#include "gpu_engine.h"
+#include "kernels/g2p2g_kernel.cuh"
+#include "particle_buffer.cuh"
+
+#ifndef FBAR_GIT_COMMIT
+#define FBAR_GIT_COMMIT "unknown"
+#endif
+
+namespace {
+
+using namespace fbar;
+
+std::vector<std::string> split(const std::string& s) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ',')) out.push_back(item);
+  return out;
+}
+
+/// Device-to-device copy bandwidth (bytes read + written per second), 1 GiB, median of 10.
+double measure_copy_bandwidth() {
+  const std::size_t bytes = std::size_t(1) << 30;
+  void *a = nullptr, *b = nullptr;
+  FBAR_CUDA_CHECK(cudaMalloc(&a, bytes));
+  FBAR_CUDA_CHECK(cudaMalloc(&b, bytes));
+  FBAR_CUDA_CHECK(cudaMemset(a, 1, bytes));
+  cudaEvent_t e0, e1;
+  FBAR_CUDA_CHECK(cudaEventCreate(&e0));
+  FBAR_CUDA_CHECK(cudaEventCreate(&e1));
+  std::vector<float> ms;
+  for (int i = 0; i < 12; ++i) {
+    FBAR_CUDA_CHECK(cudaEventRecord(e0));
+    FBAR_CUDA_CHECK(cudaMemcpy(b, a, bytes, cudaMemcpyDeviceToDevice));
+    FBAR_CUDA_CHECK(cudaEventRecord(e1));
+    FBAR_CUDA_CHECK(cudaEventSynchronize(e1));
+    float t = 0.f;
+    FBAR_CUDA_CHECK(cudaEventElapsedTime(&t, e0, e1));
+    if (i >= 2) ms.push_back(t);
+  }
+  std::sort(ms.begin(), ms.end());
+  cudaEventDestroy(e0);
+  cudaEventDestroy(e1);
+  cudaFree(a);
+  cudaFree(b);
+  return 2.0 * static_cast<double>(bytes) / (ms[ms.size() / 2] * 1e-3);
+}
+
+/// Water column (2k x 2k x k cells of an 8 ppc box) in a 4k x 3k x 1.5k-cell tank, or a solid block of the same
+/// size dropped from mid-height at 1 m/s.
+Scene make_scene(const std::string& name, double millions, Precision precision) {
+  const double cells = millions * 1e6 / 8.0;
+  const int k = std::max(4, static_cast<int>(std::lround(std::cbrt(cells / 4.0))));
+  const double dx = 0.01;
+  Scene s;
+  SimulationSpec& sim = s.simulation;
+  sim.dx = dx;
+  sim.domain = {(4 * k + 8) * dx, (3 * k + 8) * dx, (k + k / 2 + 8) * dx};
+  sim.default_dt = 1e-3;
+  sim.gravity = {0.0, -9.81, 0.0};
+  sim.precision = precision;
+  BodySpec body;
+  GeometrySpec box;
+  box.object = GeometryObject::Box;
+  box.span = {2 * k * dx, 2 * k * dx, k * dx};
+  box.offset = {4 * dx, 4 * dx, 4 * dx};
+  body.material.ppc = 8;
+  body.material.cfl = 0.5;
+  body.material.rho = 1000;
+  if (name == "dam_break") {
+    body.material.law = Constitutive::JFluid;
+    body.material.bulk_modulus = 2e6;
+    body.material.gamma = 7.1;
+    body.material.viscosity = 1e-3;
+  } else {
+    body.material.law = Constitutive::FixedCorotated;
+    body.material.youngs_modulus = 1e7;
+    body.material.poisson_ratio = 0.3;
+    box.offset = {(k + 4) * dx, (k / 2 + 4) * dx, (k / 4 + 4) * dx};
+    body.velocity = {0.0, -1.0, 0.0};
+  }
+  body.algorithm.use_asflip = false;
+  body.algorithm.use_fbar = false;
+  body.geometry.push_back(box);
+  body.output_attribs = {"ID"};
+  s.bodies.push_back(body);
+  BoundarySpec walls;
+  walls.object = BoundaryObject::Walls;
+  walls.contact = Contact::Slip;
+  walls.domain_start = {2 * dx, 2 * dx, 2 * dx};
+  walls.domain_end = {sim.domain[0] - 2 * dx, sim.domain[1] - 2 * dx, sim.domain[2] - 2 * dx};
+  s.boundaries.push_back(walls);
+  return s;
+}
+
+struct Row {
+  std::string scene, material, precision;
+  std::size_t particles = 0;
+  double ms_per_step = 0, particle_steps_per_s = 0, bytes_per_particle_step = 0, bandwidth_fraction = 0;
+  double device_bytes_per_particle = 0;
+  KernelTimes kernels;
+  std::size_t blocks = 0;
+};
+
+/// Bytes one step must move per particle: the bin read and written by G2P2G, its src read and dest write, the
+/// partition's dest read and src write; plus the grid (update: 4 channels read, 3 written; clear: 4 written; G2P2G:
+/// 3 channels of 8 blocks read and 4 written per particle block, approximated by the active blocks) over N.
+template <typename M, typename T>
+double bytes_per_particle_step(std::size_t particles, std::size_t blocks) {
+  const double bin = static_cast<double>(ParticleLayout<M, T>::kParticleBytes);
+  const double particle = 2 * bin + 4 + 8 + 8 + 4 + 4;
+  const double grid = static_cast<double>(blocks) * 64 * sizeof(T) * (4 + 3 + 4 + 3 + 4);
+  return particle + grid / static_cast<double>(particles);
+}
+
+template <typename T>
+Row run_case(const std::string& scene_name, double millions, int steps, int warmup, double bandwidth) {
+  Row row;
+  row.scene = scene_name;
+  row.material = scene_name == "dam_break" ? "JFluid" : "FixedCorotated";
+  row.precision = std::is_same_v<T, double> ? "double" : "single";
+  const Scene scene = make_scene(scene_name, millions, std::is_same_v<T, double> ? Precision::Double : Precision::Single);
+  std::size_t free0 = 0, total = 0;
+  FBAR_CUDA_CHECK(cudaMemGetInfo(&free0, &total));
+  GpuEngine<T> engine(scene);
+  engine.set_log(&std::cerr);
+  row.particles = engine.particle_count();
+  for (int i = 0; i < warmup; ++i) {
+    const StepReport r = engine.step();
+    if (!r.ok) throw std::runtime_error("warm-up step failed: " + r.message());
+  }
+  FBAR_CUDA_CHECK(cudaDeviceSynchronize());
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int i = 0; i < steps; ++i) {
+    const StepReport r = engine.step();
+    if (!r.ok) throw std::runtime_error("step failed: " + r.message());
+  }
+  FBAR_CUDA_CHECK(cudaDeviceSynchronize());
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  engine.set_kernel_timing(true);
+  for (int i = 0; i < steps; ++i) {
+    const StepReport r = engine.step();
+    if (!r.ok) throw std::runtime_error("step failed: " + r.message());
+  }
+  row.kernels = engine.kernel_times();
+  std::size_t free1 = 0;
+  FBAR_CUDA_CHECK(cudaMemGetInfo(&free1, &total));
+  row.blocks = engine.active_grid_blocks();
+  row.ms_per_step = 1e3 * seconds / steps;
+  row.particle_steps_per_s = static_cast<double>(row.particles) / (seconds / steps);
+  row.bytes_per_particle_step = row.material == "JFluid"
+                                    ? bytes_per_particle_step<JFluid, T>(row.particles, row.blocks)
+                                    : bytes_per_particle_step<FixedCorotated, T>(row.particles, row.blocks);
+  row.bandwidth_fraction = row.bytes_per_particle_step * row.particle_steps_per_s / bandwidth;
+  row.device_bytes_per_particle = static_cast<double>(free0 - free1) / static_cast<double>(row.particles);
+  return row;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::vector<std::string> sizes{"1", "4", "16", "64"}, precisions{"single", "double"},
+      scenes{"dam_break", "falling_block"};
+  int steps = 100, warmup = 20;
+  std::string csv = "benchmark.csv";
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&](const char* key) { return a.substr(std::string(key).size()); };
+    if (a.rfind("--sizes=", 0) == 0) sizes = split(value("--sizes="));
+    else if (a.rfind("--precisions=", 0) == 0) precisions = split(value("--precisions="));
+    else if (a.rfind("--scenes=", 0) == 0) scenes = split(value("--scenes="));
+    else if (a.rfind("--steps=", 0) == 0) steps = std::stoi(value("--steps="));
+    else if (a.rfind("--warmup=", 0) == 0) warmup = std::stoi(value("--warmup="));
+    else if (a.rfind("--csv=", 0) == 0) csv = value("--csv=");
+    else {
+      std::cerr << "unknown argument " << a << "\n";
+      return 1;
+    }
+  }
+  if (fbar::cuda::device_count() == 0) {
+    std::cerr << fbar::cuda::no_device_reason() << "\n";
+    return 1;
+  }
+  cudaDeviceProp prop{};
+  FBAR_CUDA_CHECK(cudaGetDeviceProperties(&prop, 0));
+  const double bandwidth = measure_copy_bandwidth();
+  std::printf("device: %s, %d SMs; measured D2D copy bandwidth %.0f GB/s (read + write); commit %s\n", prop.name,
+              prop.multiProcessorCount, bandwidth / 1e9, FBAR_GIT_COMMIT);
+  std::ofstream out(csv);
+  out << "scene,material,particles,precision,ms_per_step,particle_steps_per_s,bytes_per_particle_step,"
+         "bandwidth_fraction,device_bytes_per_particle,commit\n";
+  std::printf("%-14s %-15s %10s %-7s %9s %12s %8s %7s %8s | %8s %8s %8s %8s\n", "scene", "material", "particles",
+              "prec", "ms/step", "p-steps/s", "B/p/step", "bw frac", "dev B/p", "grid ms", "g2p2g ms", "part ms",
+              "blocks");
+  for (const std::string& scene : scenes)
+    for (const std::string& precision : precisions)
+      for (const std::string& size : sizes) {
+        Row r;
+        try {
+          r = precision == "double" ? run_case<double>(scene, std::stod(size), steps, warmup, bandwidth)
+                                    : run_case<float>(scene, std::stod(size), steps, warmup, bandwidth);
+        } catch (const std::exception& e) {
+          std::printf("%-14s %-7s %sM: failed: %s\n", scene.c_str(), precision.c_str(), size.c_str(), e.what());
+          cudaGetLastError();
+          continue;
+        }
+        const double n = static_cast<double>(r.kernels.steps > 0 ? r.kernels.steps : 1);
+        std::printf("%-14s %-15s %10zu %-7s %9.3f %12.3e %8.1f %7.3f %8.1f | %8.3f %8.3f %8.3f %8zu\n",
+                    r.scene.c_str(), r.material.c_str(), r.particles, r.precision.c_str(), r.ms_per_step,
+                    r.particle_steps_per_s, r.bytes_per_particle_step, r.bandwidth_fraction,
+                    r.device_bytes_per_particle, r.kernels.grid_update_ms / n, r.kernels.g2p2g_ms / n,
+                    r.kernels.partition_ms / n, r.blocks);
+        std::fflush(stdout);
+        out << r.scene << ',' << r.material << ',' << r.particles << ',' << r.precision << ',' << r.ms_per_step << ','
+            << r.particle_steps_per_s << ',' << r.bytes_per_particle_step << ',' << r.bandwidth_fraction << ','
+            << r.device_bytes_per_particle << ',' << FBAR_GIT_COMMIT << '\n';
+        out.flush();
+      }
+  return 0;
+}
