@@ -71,6 +71,8 @@ void GpuEngine<T>::set_kernel_timing(bool on) { impl_->set_kernel_timing(on); }
 template <typename T>
 KernelTimes GpuEngine<T>::kernel_times() const { return impl_->kernel_times(); }
 template <typename T>
+long long GpuEngine<T>::p2g_range_repeats() const { return impl_->p2g_range_repeats(); }
+template <typename T>
 int GpuEngine<T>::body_count() const { return impl_->body_count(); }
 template <typename T>
 std::size_t GpuEngine<T>::particle_count(int body) const { return impl_->particle_count(body); }

@@ -78,6 +78,8 @@ class GpuEngine {
   /// Times each kernel family with CUDA events (adds a few microseconds per step).
   void set_kernel_timing(bool on);
   KernelTimes kernel_times() const;
+  /// Steps repeated because P2G contributions outgrew the fixed-point bound of the last step (single precision).
+  long long p2g_range_repeats() const;
 
   int body_count() const;
   std::size_t particle_count(int body) const;

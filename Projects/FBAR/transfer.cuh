@@ -45,6 +45,22 @@ FBAR_HOST_DEVICE constexpr Vec3<T> p2g_node_momentum(const P2GParticle<T>& p, T 
   return (p.momentum + p.affine * xixp) * w;
 }
 
+/// Bound b on every component of what a particle gives any of its 27 nodes, per unit weight:
+/// |p2g_node_momentum(p, w, x_i - x_p)_k| <= w b for every k and node, since |x_i - x_p|_inf <= 1.5 dx on a
+/// quadratic stencil: b = max_k (|momentum_k| + 1.5 dx sum_j |affine_kj|) [kg m/s]. The fixed-point P2G of the
+/// GPU engine sizes its quantum from it (kernels/g2p2g_kernel.cuh).
+template <typename T>
+FBAR_HOST_DEVICE T p2g_momentum_bound(const P2GParticle<T>& p, T dx) {
+  auto abs_of = [](T x) { return x < T(0) ? -x : x; };
+  T b = T(0);
+  for (int k = 0; k < 3; ++k) {
+    const T row = abs_of(p.affine(k, 0)) + abs_of(p.affine(k, 1)) + abs_of(p.affine(k, 2));
+    const T component = abs_of(p.momentum[k]) + T(1.5) * dx * row;
+    b = b > component ? b : component;
+  }
+  return b;
+}
+
 /// Calls f(i, j, k, w, xixp) for the 27 nodes base + (i, j, k) of a stencil: w the 3D weight, xixp = x_i - x_p [m].
 template <typename T, typename F>
 FBAR_HOST_DEVICE FBAR_FORCE_INLINE void for_each_stencil_node(const QuadraticBspline<T>& s, T dx, F&& f) {

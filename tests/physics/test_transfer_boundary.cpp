@@ -1,6 +1,7 @@
 // Transfer formulas (APIC/MLS-MPM moments, conservation), grid update, boundary projections and the time-step bound.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -68,6 +69,34 @@ TEST(Transfer, P2GConservesMassMomentumAngularMomentum) {
   // The stress part of the angular momentum vanishes because tau is symmetric (no internal torque).
   const Vec3d L_ref = apic_angular_momentum(mass, x, v, C, dx);
   EXPECT_LE(max_abs(L_sum - L_ref), 1e-14 * 10);
+}
+
+// The fixed-point P2G of the GPU engine sizes its quantum from p2g_momentum_bound: every component of every node
+// momentum must lie within w b (random particles, payloads and dx; the bound is exact up to round-off, 1e-12).
+// It must also be attained within the triangle inequality's slack: for an affine row of one sign the bound is
+// reached at the stencil corner, so the largest |component| / w over the 27 nodes is at least b / 3.
+TEST(Transfer, P2GMomentumBoundCoversEveryNode) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (double dx : {0.01, 0.5, 4.0}) {
+    for (int n = 0; n < 200; ++n) {
+      P2GParticle<double> q;
+      q.mass = 1.0 + u(rng) * 0.5;
+      q.momentum = Vec3d{{u(rng), u(rng), u(rng)}} * 3.0;
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) q.affine(r, c) = u(rng) * 50.0 / dx;
+      const double b = p2g_momentum_bound(q, dx);
+      const Vec3d x{{(10 + u(rng)) * dx, (20 + u(rng)) * dx, (30 + u(rng)) * dx}};
+      const QuadraticBspline<double> s = quadratic_bspline(x, dx);
+      double largest = 0.0;
+      for_each_stencil_node(s, dx, [&](int, int, int, double w, const Vec3d& d) {
+        const Vec3d mv = p2g_node_momentum(q, w, d);
+        EXPECT_LE(max_abs(mv), w * b * (1 + 1e-12));
+        largest = std::max(largest, max_abs(mv) / w);
+      });
+      EXPECT_GE(largest, b / 3.0);
+    }
+  }
 }
 
 // APIC reproduces affine velocity fields exactly: a grid holding v_i = v0 + A x_i gives v_p = v0 + A x_p and C_p = A.

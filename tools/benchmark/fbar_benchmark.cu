@@ -10,9 +10,11 @@
 //                  [--steps=100] [--warmup=20] [--csv=benchmark.csv]
 #include <cuda_runtime.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -122,6 +124,7 @@ struct Row {
   double device_bytes_per_particle = 0;
   KernelTimes kernels;
   std::size_t blocks = 0;
+  long long repeats = 0;  ///< tries repeated for the fixed-point P2G bound (warm-up and timed steps)
 };
 
 /// Bytes one step must move per particle: the bin read and written by G2P2G, its src read and dest write, the
@@ -168,6 +171,7 @@ Row run_case(const std::string& scene_name, double millions, int steps, int warm
   std::size_t free1 = 0;
   FBAR_CUDA_CHECK(cudaMemGetInfo(&free1, &total));
   row.blocks = engine.active_grid_blocks();
+  row.repeats = engine.p2g_range_repeats();
   row.ms_per_step = 1e3 * seconds / steps;
   row.particle_steps_per_s = static_cast<double>(row.particles) / (seconds / steps);
   row.bytes_per_particle_step = row.material == "JFluid"
@@ -206,14 +210,18 @@ int main(int argc, char** argv) {
   cudaDeviceProp prop{};
   FBAR_CUDA_CHECK(cudaGetDeviceProperties(&prop, 0));
   const double bandwidth = measure_copy_bandwidth();
+  // The commit the numbers belong to: FBAR_COMMIT from the environment (a copied tree may carry a stale .git), else
+  // the one configure saw.
+  const char* env_commit = std::getenv("FBAR_COMMIT");
+  const std::string commit = env_commit && *env_commit ? env_commit : FBAR_GIT_COMMIT;
   std::printf("device: %s, %d SMs; measured D2D copy bandwidth %.0f GB/s (read + write); commit %s\n", prop.name,
-              prop.multiProcessorCount, bandwidth / 1e9, FBAR_GIT_COMMIT);
+              prop.multiProcessorCount, bandwidth / 1e9, commit.c_str());
   std::ofstream out(csv);
   out << "scene,material,particles,precision,ms_per_step,particle_steps_per_s,bytes_per_particle_step,"
          "bandwidth_fraction,device_bytes_per_particle,commit\n";
-  std::printf("%-14s %-15s %10s %-7s %9s %12s %8s %7s %8s | %8s %8s %8s %8s\n", "scene", "material", "particles",
-              "prec", "ms/step", "p-steps/s", "B/p/step", "bw frac", "dev B/p", "grid ms", "g2p2g ms", "part ms",
-              "blocks");
+  std::printf("%-14s %-15s %10s %-7s %9s %12s %8s %7s %8s | %8s %8s %8s %8s %7s\n", "scene", "material",
+              "particles", "prec", "ms/step", "p-steps/s", "B/p/step", "bw frac", "dev B/p", "grid ms", "g2p2g ms",
+              "part ms", "blocks", "repeats");
   for (const std::string& scene : scenes)
     for (const std::string& precision : precisions)
       for (const std::string& size : sizes) {
@@ -227,15 +235,15 @@ int main(int argc, char** argv) {
           continue;
         }
         const double n = static_cast<double>(r.kernels.steps > 0 ? r.kernels.steps : 1);
-        std::printf("%-14s %-15s %10zu %-7s %9.3f %12.3e %8.1f %7.3f %8.1f | %8.3f %8.3f %8.3f %8zu\n",
+        std::printf("%-14s %-15s %10zu %-7s %9.3f %12.3e %8.1f %7.3f %8.1f | %8.3f %8.3f %8.3f %8zu %7lld\n",
                     r.scene.c_str(), r.material.c_str(), r.particles, r.precision.c_str(), r.ms_per_step,
                     r.particle_steps_per_s, r.bytes_per_particle_step, r.bandwidth_fraction,
                     r.device_bytes_per_particle, r.kernels.grid_update_ms / n, r.kernels.g2p2g_ms / n,
-                    r.kernels.partition_ms / n, r.blocks);
+                    r.kernels.partition_ms / n, r.blocks, r.repeats);
         std::fflush(stdout);
         out << r.scene << ',' << r.material << ',' << r.particles << ',' << r.precision << ',' << r.ms_per_step << ','
             << r.particle_steps_per_s << ',' << r.bytes_per_particle_step << ',' << r.bandwidth_fraction << ','
-            << r.device_bytes_per_particle << ',' << FBAR_GIT_COMMIT << '\n';
+            << r.device_bytes_per_particle << ',' << commit << '\n';
         out.flush();
       }
   return 0;

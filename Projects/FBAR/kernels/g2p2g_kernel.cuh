@@ -18,11 +18,26 @@
 // The P2G impulse uses the next step's dt (read from the device: compute_next_dt ran before this kernel), so the
 // next grid holds exactly what the CPU engine's P2G of the next step computes.
 // kInitial: the P2G of the initial state (v = initial velocity, C = 0, no motion): how the driver starts.
+//
+// Fixed-point arena (every launch but the initial one). On sm_90 a shared-memory float or double atomicAdd is a
+// compare-and-swap loop (LDS, FADD, ATOMS.CAST.SPIN, branch; tools/benchmark/shared_atomics.cu): 108 of them per
+// particle were ~90 % of this kernel. 32-bit integer shared atomics are native (ATOMS.ADD), 3.6x faster on the same
+// scatter, so the arena accumulates integers in units of a per-block quantum q (FixedArena: int32 for float, int64
+// as two 32-bit words with a carry for double, since 64-bit shared atomics are CAS loops too) and the flush adds
+// sum x q into the grid. The quantum makes overflow impossible: a node's sum is bounded by
+// sum_p w_ip |c_p| <= 0.75^3 count B, with count the block's particles and B a bound on every contribution per unit
+// weight (mass: m_p; momentum: p2g_momentum_bound of every particle), so q = 0.75^3 count B / R keeps every sum,
+// rounding included, inside the integer (R = 2^31 - 2^24 or 2^63 - 2^40). The momentum bound B is the previous
+// try's measured maximum times kP2GHeadroom; a particle above it flags the try (StepStats::p2g_range) and the driver
+// repeats the step with the bound it just measured, which then holds for every particle. Rounding: |error| <= q/2
+// per contribution, about 1e-7 B (float) or 2e-16 B (double) at 512 particles per block: the size of the
+// floating-point round-off of the same sums. Summation becomes order-independent within a block.
 #pragma once
 
 #include <cuda_runtime.h>
 
 #include <climits>
+#include <type_traits>
 
 #include "MnBase/Math/bspline.h"
 #include "MnBase/Math/vec.h"
@@ -50,6 +65,10 @@ inline constexpr int kArenaPlane = kArenaSide * kArenaSide + 4;
 inline constexpr int kArenaStorage = kArenaSide * kArenaPlane;
 /// Scalars written per slot when velocities are recorded: v (3) then C row-major (9).
 inline constexpr int kAuxScalars = 12;
+/// Fixed-point arena: headroom of the momentum bound over the previous try's maximum, and the largest weight of a
+/// quadratic B-spline stencil node (0.75^3).
+inline constexpr double kP2GHeadroom = 2.0;
+inline constexpr double kMaxNodeWeight = 0.421875;
 
 template <typename M, typename T>
 struct G2P2GParams {
@@ -75,6 +94,8 @@ struct G2P2GParams {
   StepStats* stats;
   BodyStepStats* body_stats;
   unsigned long long* wave_speed;  ///< (this body) bits of the largest wave speed of the new state
+  const unsigned long long* p2g_bound_in;  ///< (this body) bits of the momentum bound B of the last try [kg m/s]
+  unsigned long long* p2g_bound_out;       ///< (this body) bits of the largest p2g_momentum_bound of this try
 };
 
 namespace g2p2g_detail {
@@ -84,6 +105,40 @@ namespace g2p2g_detail {
 template <typename T>
 struct alignas(4 * sizeof(T)) ArenaVelocity {
   T x, y, z, pad;
+};
+
+/// Integer view of the arena's (channel, node) sums for the fixed-point P2G. kRange: the magnitude a node's sum may
+/// use; the rounding of up to 2^24 (float) or 2^40 (double) contributions stays inside the integer.
+template <typename T>
+struct FixedArena;
+template <>
+struct FixedArena<float> {
+  static constexpr double kRange = 2147483648.0 - 16777216.0;  // 2^31 - 2^24
+  unsigned* words;                                               // (channel, node): int32
+  FBAR_DEVICE FBAR_FORCE_INLINE void add(int ch, int a, float units) const {
+    atomicAdd(reinterpret_cast<int*>(words) + ch * kArenaStorage + a, __float2int_rn(units));
+  }
+  FBAR_DEVICE FBAR_FORCE_INLINE float units(int ch, int a) const {
+    return static_cast<float>(static_cast<int>(words[ch * kArenaStorage + a]));
+  }
+};
+template <>
+struct FixedArena<double> {
+  static constexpr double kRange = 9223372036854775808.0 - 1099511627776.0;  // 2^63 - 2^40
+  unsigned* words;  // (half, channel, node): low then high 32 bits of an int64
+  /// 64-bit add from two native 32-bit ones: a low word that wraps carries exactly once into the high word, so the
+  /// pair holds the exact sum modulo 2^64 whatever the interleaving.
+  FBAR_DEVICE FBAR_FORCE_INLINE void add(int ch, int a, double units) const {
+    const long long v = __double2ll_rn(units);
+    const unsigned lo = static_cast<unsigned>(v), hi = static_cast<unsigned>(static_cast<unsigned long long>(v) >> 32);
+    const unsigned old = atomicAdd(words + ch * kArenaStorage + a, lo);
+    atomicAdd(words + (4 + ch) * kArenaStorage + a, hi + (old + lo < old ? 1u : 0u));
+  }
+  FBAR_DEVICE FBAR_FORCE_INLINE double units(int ch, int a) const {
+    const unsigned long long bits = (static_cast<unsigned long long>(words[(4 + ch) * kArenaStorage + a]) << 32) |
+                                    words[ch * kArenaStorage + a];
+    return static_cast<double>(static_cast<long long>(bits));
+  }
 };
 
 /// Shared-memory index of arena node (a, b, c) (x-planes padded, see kArenaPlane).
@@ -167,11 +222,14 @@ template <typename M, typename T, bool kInitial>
 __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
   using State = material_state_t<M, T>;
   constexpr int kStateScalars = ParticleLayout<M, T>::kStateScalars;
+  constexpr bool kFixed = !kInitial;  // the initial P2G has no bound yet: it adds T with CAS atomics
   // (x, y, z) grid velocities of the 8x8x8-node arena (vx, vy, vz, pad per node), index arena_index(x, y, z) =
   // 68 x + 8 y + z.
   __shared__ g2p2g_detail::ArenaVelocity<T> arena_v[kArenaStorage];
-  // (channel, x, y, z) P2G sums: mass, momentum x, y, z; same indexing.
+  // (channel, x, y, z) P2G sums: mass, momentum x, y, z; same indexing. Fixed point: the same bytes as integers
+  // in units of q_mass, q_momentum (FixedArena).
   __shared__ T arena_p[4][kArenaStorage];
+  const g2p2g_detail::FixedArena<T> fixed{reinterpret_cast<unsigned*>(&arena_p[0][0])};
   // (neighbour) hash-table index of the arena's 2x2x2 grid blocks, neighbour = (di * 2 + dj) * 2 + dk.
   __shared__ int arena_blocks[8];
 
@@ -204,6 +262,15 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
   }
 
   const T dt_next = static_cast<T>(*p.dt_next);
+  // Fixed-point quanta of this block [kg], [kg m/s] and their inverses; limit: the bound every particle must meet.
+  const double span = kMaxNodeWeight * count / g2p2g_detail::FixedArena<T>::kRange;
+  const double bound = kP2GHeadroom * __longlong_as_double(static_cast<long long>(*p.p2g_bound_in));
+  const T q_mass = static_cast<T>(static_cast<double>(p.mass) * span), inv_q_mass = T(1) / q_mass;
+  const T q_momentum = static_cast<T>(bound * span);
+  const T inv_q_momentum = bound > 0.0 ? static_cast<T>(1.0 / (bound * span)) : T(0);
+  const T limit = static_cast<T>(bound);
+  double bound_max = 0.0;
+  bool out_of_range = false;
   const int lane = threadIdx.x % 32;
   const int warp = threadIdx.x / 32;
   const int bins = (count + 31) / 32;
@@ -278,15 +345,36 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
           const StressResult<T> stress = M::kirchhoff_stress(p.material, state_new, C);
           const P2GParticle<T> payload =
               mls_p2g_particle(p.mass, p.volume, v, C, stress.kirchhoff, dt_next, p.d_inv);
-          auto scatter = [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
-            const int a = g2p2g_detail::arena_index(l0 + i, l1 + j, l2 + k);
-            const Vec3<T> mv = p2g_node_momentum(payload, w, xixp);
-            atomicAdd(&arena_p[0][a], w * payload.mass);
-            atomicAdd(&arena_p[1][a], mv[0]);
-            atomicAdd(&arena_p[2][a], mv[1]);
-            atomicAdd(&arena_p[3][a], mv[2]);
-          };
-          g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, scatter);
+          const T b = p2g_momentum_bound(payload, p.dx);
+          if (!isfinite(b)) {
+            failed = kFailNonFinite;  // a finite state whose stress overflowed
+          } else {
+            bound_max = fmax(bound_max, static_cast<double>(b));
+            if constexpr (kFixed) {
+              if (b > limit) out_of_range = true;  // this try is repeated with the measured bound
+              else {
+                auto scatter = [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
+                  const int a = g2p2g_detail::arena_index(l0 + i, l1 + j, l2 + k);
+                  const Vec3<T> mv = p2g_node_momentum(payload, w, xixp) * inv_q_momentum;
+                  fixed.add(0, a, w * payload.mass * inv_q_mass);
+                  fixed.add(1, a, mv[0]);
+                  fixed.add(2, a, mv[1]);
+                  fixed.add(3, a, mv[2]);
+                };
+                g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, scatter);
+              }
+            } else {
+              auto scatter = [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
+                const int a = g2p2g_detail::arena_index(l0 + i, l1 + j, l2 + k);
+                const Vec3<T> mv = p2g_node_momentum(payload, w, xixp);
+                atomicAdd(&arena_p[0][a], w * payload.mass);
+                atomicAdd(&arena_p[1][a], mv[0]);
+                atomicAdd(&arena_p[2][a], mv[1]);
+                atomicAdd(&arena_p[3][a], mv[2]);
+              };
+              g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, scatter);
+            }
+          }
           const int b0 = floor_div4(s.base[0] - 1), b1 = floor_div4(s.base[1] - 1), b2 = floor_div4(s.base[2] - 1);
           if (BlockKey::representable(b0, b1, b2)) {
             has_key = true;
@@ -311,21 +399,37 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
   }
   wave_max = warp_max(wave_max);
   if (lane == 0 && wave_max > 0.0) atomic_max_nonneg(p.wave_speed, wave_max);
+  bound_max = warp_max(bound_max);
+  if (lane == 0 && bound_max > 0.0) atomic_max_nonneg(p.p2g_bound_out, bound_max);
+  if constexpr (kFixed) {
+    const unsigned over = __ballot_sync(0xffffffffu, out_of_range);
+    if (lane == 0 && over) atomicAdd(&p.stats->p2g_range, __popc(over));
+  }
 
   __syncthreads();
   // Flush: one thread per arena node; atomics into the (up to 8) grid blocks of the next grid.
   for (int i = threadIdx.x; i < kArenaNodes; i += blockDim.x) {
     const int a = i >> 6, b = (i >> 3) & 7, c = i & 7;
     const int ai = g2p2g_detail::arena_index(a, b, c);
-    const T m = arena_p[0][ai];
-    if (m == T(0)) continue;  // no particle's stencil covers this node
+    T mass_units;
+    if constexpr (kFixed) mass_units = fixed.units(0, ai);
+    else mass_units = arena_p[0][ai];
+    if (mass_units == T(0)) continue;  // no particle's stencil covers this node
     const int nb = arena_blocks[((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2)];
     if (nb < 0) continue;  // counted above as an internal error
     const int node = ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
-    atomicAdd(&block_val(p.grid_next, grid_mass, nb, node), m);
-    atomicAdd(&block_val(p.grid_next, grid_momentum_x, nb, node), arena_p[1][ai]);
-    atomicAdd(&block_val(p.grid_next, grid_momentum_y, nb, node), arena_p[2][ai]);
-    atomicAdd(&block_val(p.grid_next, grid_momentum_z, nb, node), arena_p[3][ai]);
+    T sum[4];
+    if constexpr (kFixed) {
+      sum[0] = mass_units * q_mass;
+      for (int ch = 1; ch < 4; ++ch) sum[ch] = fixed.units(ch, ai) * q_momentum;
+    } else {
+      sum[0] = mass_units;
+      for (int ch = 1; ch < 4; ++ch) sum[ch] = arena_p[ch][ai];
+    }
+    atomicAdd(&block_val(p.grid_next, grid_mass, nb, node), sum[0]);
+    atomicAdd(&block_val(p.grid_next, grid_momentum_x, nb, node), sum[1]);
+    atomicAdd(&block_val(p.grid_next, grid_momentum_y, nb, node), sum[2]);
+    atomicAdd(&block_val(p.grid_next, grid_momentum_z, nb, node), sum[3]);
   }
 }
 
