@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "MnSystem/Cuda/device_query.h"
 #include "engine_api.h"
 #include "scene_parse.h"
 #include "scene_print.h"
@@ -177,13 +178,13 @@ std::string utc_now() {
 
 /// run.json: the resolved scene and how the run went, next to the frames.
 void write_run_json(const fs::path& path, const Scene& scene, const std::vector<std::string>& command_line,
-                    const std::string& started, double wall_s, const RunResult& result) {
+                    const std::string& started, double wall_s, const RunResult& result, bool gpu) {
   rj::Document doc(rj::kObjectType);
   auto& a = doc.GetAllocator();
   auto str = [&](const std::string& s) { return rj::Value(s.c_str(), static_cast<rj::SizeType>(s.size()), a); };
   doc.AddMember("fbar_version", str(FBAR_VERSION), a);
-  doc.AddMember("backend", str("cpu"), a);
-  doc.AddMember("engine", str("CPU reference engine"), a);
+  doc.AddMember("backend", str(gpu ? "gpu" : "cpu"), a);
+  doc.AddMember("engine", str(gpu ? "GPU engine (device 0)" : "CPU reference engine"), a);
   doc.AddMember("precision", str(to_string(scene.simulation.precision)), a);
   rj::Value cmd(rj::kArrayType);
   for (const auto& c : command_line) cmd.PushBack(str(c), a);
@@ -208,7 +209,7 @@ void write_run_json(const fs::path& path, const Scene& scene, const std::vector<
   if (!out) throw std::runtime_error("cannot write " + path.string());
 }
 
-int run(const CliOptions& o, const std::vector<std::string>& command_line) {
+int run(const CliOptions& o, const std::vector<std::string>& command_line, const EngineSet& engines) {
   std::vector<std::string> warnings;
   ParseOptions parse;
   parse.allow_unknown_keys = o.allow_unknown_keys;
@@ -226,14 +227,28 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line) {
     return kExitOk;
   }
 
-  if (o.backend == Backend::Gpu) {
-    std::cerr << "fbar: error: --backend=gpu: the GPU engine is not available in this build (fbar " << FBAR_VERSION
-              << " has the CPU reference engine only; use --backend=cpu or auto)\n";
-    return kExitRuntime;
+  // The engine: --backend=gpu needs the GPU engine and a device; auto takes the GPU engine when both are there.
+  bool gpu = false;
+  if (o.backend != Backend::Cpu) {
+    if (engines.run_gpu == nullptr) {
+      if (o.backend == Backend::Gpu) {
+        std::cerr << "fbar: error: --backend=gpu: the GPU engine is not available in this build (fbar "
+                  << FBAR_VERSION << " has the CPU reference engine only; use --backend=cpu or auto)\n";
+        return kExitRuntime;
+      }
+      std::cerr << "fbar: warning: no GPU engine in this build; running on the CPU reference engine (--backend=cpu "
+                   "silences this)\n";
+    } else if (cuda::device_count() == 0) {
+      if (o.backend == Backend::Gpu) {
+        std::cerr << "fbar: error: --backend=gpu: " << cuda::no_device_reason() << " (use --backend=cpu or auto)\n";
+        return kExitRuntime;
+      }
+      std::cerr << "fbar: warning: " << cuda::no_device_reason()
+                << "; running on the CPU reference engine (--backend=cpu silences this)\n";
+    } else {
+      gpu = true;
+    }
   }
-  if (o.backend == Backend::Auto)
-    std::cerr << "fbar: warning: no GPU engine in this build; running on the CPU reference engine (--backend=cpu "
-                 "silences this)\n";
 
   const fs::path out_dir(scene.simulation.save_path);
   std::error_code ec;
@@ -248,9 +263,9 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line) {
   RunOptions ro;
   ro.quiet = o.quiet;
   ro.log = &std::cout;
-  const RunResult result = run_cpu(scene, ro);
+  const RunResult result = gpu ? engines.run_gpu(scene, ro) : run_cpu(scene, ro);
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  write_run_json(out_dir / "run.json", scene, command_line, started, wall_s, result);
+  write_run_json(out_dir / "run.json", scene, command_line, started, wall_s, result, gpu);
   if (result.exit_code != kExitOk)
     std::cerr << "fbar: error: " << (result.message.empty() ? "the run failed" : result.message) << '\n';
   return result.exit_code;
@@ -258,7 +273,7 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line) {
 
 }  // namespace
 
-int cli_main(int argc, char** argv) {
+int cli_main(int argc, char** argv, const EngineSet& engines) {
   std::vector<std::string> command_line(argv, argv + argc);
   CliOptions options;
   try {
@@ -272,11 +287,13 @@ int cli_main(int argc, char** argv) {
     return kExitOk;
   }
   if (options.version) {
-    std::cout << "fbar " << FBAR_VERSION << " (CPU reference engine; the GPU engine is not available in this build)\n";
+    std::cout << "fbar " << FBAR_VERSION
+              << (engines.run_gpu ? " (GPU engine and CPU reference engine)\n"
+                                  : " (CPU reference engine; the GPU engine is not available in this build)\n");
     return kExitOk;
   }
   try {
-    return run(options, command_line);
+    return run(options, command_line, engines);
   } catch (const SceneError& e) {
     std::cerr << "fbar: error: " << e.what() << '\n';
     return kExitInput;

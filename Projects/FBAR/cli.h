@@ -1,9 +1,17 @@
 // The command line of SCHEMA.md: parses arguments, loads and validates the scene, runs or checks it.
 #pragma once
 
+#include "engine_api.h"
+
 namespace fbar {
 
+/// The engines an executable links beyond the CPU reference engine. The fbar executable (project.cu) passes the GPU
+/// engine's run_gpu; a program that links only the front end (the CLI tests) passes nothing and runs on the CPU.
+struct EngineSet {
+  RunResult (*run_gpu)(const Scene& scene, const RunOptions& options) = nullptr;
+};
+
 /// Entry point of the fbar executable; returns the process exit code (0 ok, 1 bad input, 2 run-time failure).
-int cli_main(int argc, char** argv);
+int cli_main(int argc, char** argv, const EngineSet& engines = {});
 
 }  // namespace fbar

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "cli.h"
+#include "cli_test_support.h"
 #include "scene_parse.h"
 
 namespace fbar {
@@ -24,30 +25,8 @@ namespace fs = std::filesystem;
 
 const fs::path kScenes = FBAR_SCENES_DIR;
 
-struct CliResult {
-  int code = -1;
-  std::string out, err;
-};
-
-/// Runs cli_main with `args` (argv[0] = "fbar"), capturing std::cout and std::cerr.
-CliResult run_cli(std::vector<std::string> args) {
-  args.insert(args.begin(), "fbar");
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  std::ostringstream out, err;
-  struct Redirect {
-    std::ostream& s;
-    std::streambuf* old;
-    Redirect(std::ostream& stream, std::streambuf* to) : s(stream), old(stream.rdbuf(to)) {}
-    ~Redirect() { s.rdbuf(old); }
-  } r1(std::cout, out.rdbuf()), r2(std::cerr, err.rdbuf());
-  CliResult r;
-  r.code = cli_main(static_cast<int>(args.size()), argv.data());
-  r.out = out.str();
-  r.err = err.str();
-  return r;
-}
+using test::CliResult;
+using test::run_cli;
 
 /// This process's scratch root; removed after the last test.
 fs::path scratch_root() { return fs::temp_directory_path() / ("fbar_test_cli_" + std::to_string(::getpid())); }
