@@ -232,11 +232,15 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
   const g2p2g_detail::FixedArena<T> fixed{reinterpret_cast<unsigned*>(&arena_p[0][0])};
   // (neighbour) hash-table index of the arena's 2x2x2 grid blocks, neighbour = (di * 2 + dj) * 2 + dk.
   __shared__ int arena_blocks[8];
+  // (quantity, warp) per-warp maxima of the wave speed and the P2G bound; whether a particle exceeded the bound.
+  __shared__ double block_max[2][kG2P2GThreads / 32];
+  __shared__ int block_over;
 
   const int block = blockIdx.x;
   const int count = p.layout.count[block];
   if (count == 0) return;  // uniform per CUDA block: a stale or footprint-only block
   const Vec3i origin = p.table.block_coords(block);
+  if (threadIdx.x == 0) block_over = 0;
   if (threadIdx.x < 8) {
     const int di = threadIdx.x >> 2, dj = (threadIdx.x >> 1) & 1, dk = threadIdx.x & 1;
     const int found = p.table.find(BlockKey::pack(origin[0] + di, origin[1] + dj, origin[2] + dk));
@@ -397,16 +401,27 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
         g2p2g_detail::claim_block_rank<T>(has_key, key, p.table, p.next_count, p.grid_next, p.grid_this);
     if (active) p.dest[slot] = d;
   }
+  // Per-body maxima: warp, then CUDA block, then one global atomic per block (per-warp atomics on one address
+  // serialise in L2).
   wave_max = warp_max(wave_max);
-  if (lane == 0 && wave_max > 0.0) atomic_max_nonneg(p.wave_speed, wave_max);
   bound_max = warp_max(bound_max);
-  if (lane == 0 && bound_max > 0.0) atomic_max_nonneg(p.p2g_bound_out, bound_max);
-  if constexpr (kFixed) {
-    const unsigned over = __ballot_sync(0xffffffffu, out_of_range);
-    if (lane == 0 && over) atomicAdd(&p.stats->p2g_range, __popc(over));
+  const bool over = __any_sync(0xffffffffu, out_of_range);
+  if (lane == 0) {
+    block_max[0][warp] = wave_max;
+    block_max[1][warp] = bound_max;
+    if (over) block_over = 1;
   }
-
   __syncthreads();
+  if (threadIdx.x == 0) {
+    double wave = 0.0, bound = 0.0;
+    for (int w = 0; w < kG2P2GThreads / 32; ++w) {
+      wave = fmax(wave, block_max[0][w]);
+      bound = fmax(bound, block_max[1][w]);
+    }
+    if (wave > 0.0) atomic_max_nonneg(p.wave_speed, wave);
+    if (bound > 0.0) atomic_max_nonneg(p.p2g_bound_out, bound);
+    if (block_over) atomicAdd(&p.stats->p2g_range, 1);
+  }
   // Flush: one thread per arena node; atomics into the (up to 8) grid blocks of the next grid.
   for (int i = threadIdx.x; i < kArenaNodes; i += blockDim.x) {
     const int a = i >> 6, b = (i >> 3) & 7, c = i & 7;

@@ -29,7 +29,7 @@ struct StepStats {
   int internal_error;               ///< arena block missing / particle outside its block: an engine bug
   int block_count;                  ///< copy of the table's block count after the partition update
   int table_overflow;               ///< copy of the table's overflow counter
-  int p2g_range;                    ///< particles above the fixed-point P2G bound: the try is repeated
+  int p2g_range;                    ///< particle blocks with a particle above the fixed-point P2G bound: repeat
 };
 
 /// atomicMax on a non-negative double stored as its bit pattern (IEEE order = integer order for x >= 0).
