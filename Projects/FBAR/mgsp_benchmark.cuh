@@ -530,6 +530,9 @@ void MgspBenchmark<T>::initialize(const std::vector<std::vector<Vec3d>>& positio
   scan_temp_bytes_ = temp;
   const std::size_t stats_bytes = sizeof(StepStats) + sizeof(BodyStepStats) * bodies_.size();
   stats_bytes_.allocate(stats_bytes);
+  // Zeroed once so that the per-step readback never copies unwritten bytes (struct padding; compute-sanitizer
+  // initcheck reports them otherwise).
+  FBAR_CUDA_CHECK(cudaMemset(stats_bytes_.get(), 0, stats_bytes));
   stats_d_ = reinterpret_cast<StepStats*>(stats_bytes_.get());
   body_stats_d_ = reinterpret_cast<BodyStepStats*>(stats_bytes_.get() + sizeof(StepStats));
   stats_h_ = mgsp_detail::pinned(stats_bytes);
