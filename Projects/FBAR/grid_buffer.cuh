@@ -72,6 +72,9 @@ class BlockBuffer {
   void allocate(int block_capacity) {
     if (instance_) instance_.deallocate(cuda::DeviceAllocator{});
     instance_ = spawn<typename Instance::structural>(cuda::DeviceAllocator{}, static_cast<std::size_t>(block_capacity));
+    // Defined from the start: growth copies blocks that may not have been written since (velocities of blocks the
+    // last grid update did not cover).
+    FBAR_CUDA_CHECK(cudaMemset(instance_.data(), 0, kBlockBytes * static_cast<std::size_t>(block_capacity)));
   }
   /// New capacity keeping blocks [0, keep_blocks) (a block is one contiguous range: the outer node is one element
   /// per block, so the copy is a single memcpy).
@@ -81,6 +84,9 @@ class BlockBuffer {
     if (instance_ && keep_blocks > 0)
       FBAR_CUDA_CHECK(cudaMemcpyAsync(bigger.data(), instance_.data(), kBlockBytes * keep_blocks,
                                       cudaMemcpyDeviceToDevice, stream));
+    const std::size_t kept = instance_ ? static_cast<std::size_t>(std::max(keep_blocks, 0)) : 0;
+    FBAR_CUDA_CHECK(cudaMemsetAsync(bigger.data() + kBlockBytes * kept, 0,
+                                    kBlockBytes * (static_cast<std::size_t>(block_capacity) - kept), stream));
     FBAR_CUDA_CHECK(cudaStreamSynchronize(stream));
     if (instance_) instance_.deallocate(cuda::DeviceAllocator{});
     instance_ = bigger;

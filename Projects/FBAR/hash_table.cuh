@@ -248,6 +248,8 @@ class BlockHashTable {
     values_ = static_cast<int*>(device.allocate(sizeof(int) * slots_));
     coords_ = static_cast<int*>(device.allocate(sizeof(int) * 3 * static_cast<std::size_t>(block_capacity_)));
     counters_ = static_cast<TableCounters*>(device.allocate(sizeof(TableCounters)));
+    // Coordinates of blocks not inserted yet are never read, but growth copies the whole array: keep it defined.
+    FBAR_CUDA_CHECK(cudaMemset(coords_, 0, sizeof(int) * 3 * static_cast<std::size_t>(block_capacity_)));
   }
   void release() {
     cuda::DeviceAllocator device;

@@ -52,6 +52,7 @@ class PartitionDomain {
       FBAR_CUDA_CHECK(cudaMalloc(&count_[l], sizeof(int) * blocks));
       FBAR_CUDA_CHECK(cudaMalloc(&bin_offset_[l], sizeof(int) * (blocks + 1)));
       FBAR_CUDA_CHECK(cudaMalloc(&src_[l], sizeof(int) * slots()));
+      FBAR_CUDA_CHECK(cudaMemset(src_[l], 0xff, sizeof(int) * slots()));  // -1: empty (growth copies all slots)
       FBAR_CUDA_CHECK(cudaMemset(count_[l], 0, sizeof(int) * blocks));
       FBAR_CUDA_CHECK(cudaMemset(bin_offset_[l], 0, sizeof(int) * (blocks + 1)));
     }
@@ -95,6 +96,7 @@ class PartitionDomain {
     for (int l = 0; l < 2; ++l) {
       int* s = nullptr;
       FBAR_CUDA_CHECK(cudaMalloc(&s, sizeof(int) * new_slots));
+      FBAR_CUDA_CHECK(cudaMemsetAsync(s, 0xff, sizeof(int) * new_slots, stream));  // -1: empty
       if (l == keep)
         FBAR_CUDA_CHECK(cudaMemcpyAsync(s, src_[l], sizeof(int) * slots(), cudaMemcpyDeviceToDevice, stream));
       FBAR_CUDA_CHECK(cudaStreamSynchronize(stream));
