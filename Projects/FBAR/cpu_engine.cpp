@@ -186,26 +186,10 @@ CpuEngine<T>::~CpuEngine() = default;
 template <typename T>
 void CpuEngine<T>::init(const std::vector<std::vector<Vec3d>>& positions) {
   const SimulationSpec& sim = scene_.simulation;
-  if (!(sim.dx > 0.0)) throw std::invalid_argument("simulation.default_dx: must be positive");
+  k_ = RunConstants<T>(scene_, "CPU engine");
   if (positions.size() != scene_.bodies.size())
     throw std::invalid_argument("CpuEngine: one position list per body expected");
-  dx_ = static_cast<T>(sim.dx);
-  inv_dx_ = T(1) / dx_;
-  d_inv_ = apic_inertia_inverse(dx_);
-  for (int a = 0; a < 3; ++a) {
-    gravity_[a] = static_cast<T>(sim.gravity[a]);
-    domain_[a] = static_cast<T>(sim.domain[a]);
-  }
-  default_dt_ = resolved_default_dt(sim);
   time_ = sim.time;
-
-  for (std::size_t i = 0; i < scene_.boundaries.size(); ++i) {
-    BoundaryParams<T> p{};
-    std::string error;
-    if (!make_boundary_params(scene_.boundaries[i], sim, p, error))
-      throw std::invalid_argument("boundaries[" + std::to_string(i) + "]: " + error + " in the CPU engine");
-    boundaries_.push_back(p);
-  }
 
   double max_speed = 0.0;
   bodies_.resize(scene_.bodies.size());
@@ -284,7 +268,7 @@ void CpuEngine<T>::build_partition() {
     std::vector<std::uint64_t>& keys = part.particle_key;
     keys.resize(n);
 #pragma omp parallel for schedule(static) if (n >= kMinParallelParticles)
-    for (int p = 0; p < n; ++p) keys[p] = pack_block(block_of_node(quadratic_bspline_inv(body.x[p], inv_dx_).base));
+    for (int p = 0; p < n; ++p) keys[p] = pack_block(block_of_node(quadratic_bspline_inv(body.x[p], k_.inv_dx).base));
 
     // Serial, in particle order: block numbering and the counting sort below are then deterministic. Sampled
     // bodies come in lattice order, so consecutive particles mostly share a block and skip the hash lookup.
@@ -298,7 +282,7 @@ void CpuEngine<T>::build_partition() {
         const auto [it, inserted] = block_of_key.try_emplace(keys[p], static_cast<int>(part.block_keys.size()));
         if (inserted) {
           part.block_keys.push_back(keys[p]);
-          part.block_coords.push_back(block_of_node(quadratic_bspline_inv(body.x[p], inv_dx_).base));
+          part.block_coords.push_back(block_of_node(quadratic_bspline_inv(body.x[p], k_.inv_dx).base));
         }
         last_key = keys[p];
         last_block = it->second;
@@ -341,7 +325,7 @@ void CpuEngine<T>::build_partition() {
 template <typename T>
 void CpuEngine<T>::p2g(Body& body, T dt) {
   const Partition& part = body.partition;
-  const T dx = dx_, inv_dx = inv_dx_, d_inv = d_inv_;
+  const T dx = k_.dx, inv_dx = k_.inv_dx, d_inv = k_.d_inv;
   std::visit(
       [&](auto& mb) {
         using M = typename std::decay_t<decltype(mb)>::material_type;
@@ -410,7 +394,7 @@ void CpuEngine<T>::p2g(Body& body, T dt) {
 template <typename T>
 double CpuEngine<T>::update_grid(T dt) {
   std::vector<BoundaryParams<T>> active;
-  for (const BoundaryParams<T>& b : boundaries_)
+  for (const BoundaryParams<T>& b : k_.boundaries)
     if (boundary_active(b, time_)) active.push_back(b);
   const int nblocks = static_cast<int>(grid_.blocks.size());
   std::vector<double> block_mass(nblocks);
@@ -427,11 +411,11 @@ double CpuEngine<T>::update_grid(T dt) {
           const T m = g.mass[node];
           mass_sum += static_cast<double>(m);
           const Vec3T momentum{{g.momentum[0][node], g.momentum[1][node], g.momentum[2][node]}};
-          Vec3T v = grid_node_velocity(m, momentum, gravity_, dt);
+          Vec3T v = grid_node_velocity(m, momentum, k_.gravity, dt);
           if (m > T(0)) {
-            const Vec3T x_node{{static_cast<T>(c[0] * kBlockSide + i) * dx_,
-                                static_cast<T>(c[1] * kBlockSide + j) * dx_,
-                                static_cast<T>(c[2] * kBlockSide + k) * dx_}};
+            const Vec3T x_node{{static_cast<T>(c[0] * kBlockSide + i) * k_.dx,
+                                static_cast<T>(c[1] * kBlockSide + j) * k_.dx,
+                                static_cast<T>(c[2] * kBlockSide + k) * k_.dx}};
             for (const BoundaryParams<T>& b : active) v = apply_boundary(b, x_node, v);
           }
           g.momentum[0][node] = v[0];
@@ -452,8 +436,8 @@ double CpuEngine<T>::update_grid(T dt) {
 template <typename T>
 void CpuEngine<T>::g2p(int body_index, Body& body, T dt, TryResult& result) {
   const Partition& part = body.partition;
-  const T dx = dx_, inv_dx = inv_dx_, d_inv = d_inv_;
-  const Vec3T domain = domain_;
+  const T dx = k_.dx, inv_dx = k_.inv_dx, d_inv = k_.d_inv;
+  const Vec3T domain = k_.domain;
   const int nb = static_cast<int>(part.block_keys.size());
   long long count[3] = {0, 0, 0};
   long long first[3] = {std::numeric_limits<long long>::max(), std::numeric_limits<long long>::max(),
@@ -591,7 +575,7 @@ void CpuEngine<T>::commit(const TryResult& result, double dt) {
 
 template <typename T>
 double CpuEngine<T>::next_dt() const {
-  double bound = default_dt_;
+  double bound = k_.default_dt;
   for (const Body& body : bodies_)
     bound = min_time_step(
         bound, cfl_time_step(body.spec.material.cfl, scene_.simulation.dx, body.max_wave_speed, max_grid_speed_));

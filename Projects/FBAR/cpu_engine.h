@@ -57,6 +57,7 @@
 #include "MnSystem/IO/particle_io.h"
 #include "boundary.cuh"
 #include "constitutive_models.cuh"
+#include "run_constants.h"
 #include "scene.h"
 
 namespace fbar {
@@ -247,11 +248,7 @@ class CpuEngine {
   Body& body_at(int body);
 
   Scene scene_;
-  T dx_, inv_dx_, d_inv_;
-  Vec3T gravity_;
-  Vec3T domain_;
-  double default_dt_;
-  std::vector<BoundaryParams<T>> boundaries_;
+  RunConstants<T> k_;  ///< dx, gravity, domain, default dt, boundaries (from the scene)
   std::vector<Body> bodies_;
   Grid grid_;
   double time_ = 0.0;

@@ -248,12 +248,10 @@ SceneSummary summarize_scene(const Scene& scene) {
   return summary;
 }
 
-RunResult run_cpu(const Scene& scene, const RunOptions& options) {
-  std::ostream& log = options.log ? *options.log : std::cout;
+RunResult run_guarded(const std::function<RunResult()>& run) {
   RunResult result;
   try {
-    if (scene.simulation.precision == Precision::Single) return run_with<float>(scene, options, log);
-    return run_with<double>(scene, options, log);
+    return run();
   } catch (const SceneError& e) {
     result.exit_code = 1;
     result.message = e.what();
@@ -265,6 +263,14 @@ RunResult run_cpu(const Scene& scene, const RunOptions& options) {
     result.message = e.what();
   }
   return result;
+}
+
+RunResult run_cpu(const Scene& scene, const RunOptions& options) {
+  std::ostream& log = options.log ? *options.log : std::cout;
+  return run_guarded([&] {
+    return scene.simulation.precision == Precision::Single ? run_with<float>(scene, options, log)
+                                                           : run_with<double>(scene, options, log);
+  });
 }
 
 }  // namespace fbar

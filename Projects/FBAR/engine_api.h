@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstddef>
+#include <functional>
 #include <iosfwd>
 #include <string>
 #include <vector>
@@ -43,5 +44,9 @@ struct RunResult {
 
 /// Runs the scene on the CPU reference engine, writing frames to scene.simulation.save_path.
 RunResult run_cpu(const Scene& scene, const RunOptions& options);
+
+/// Calls run() and turns what it throws into a RunResult: SceneError and std::invalid_argument (the scene asks for
+/// what the engine cannot do) give exit code 1, any other exception 2, with the exception's message.
+RunResult run_guarded(const std::function<RunResult()>& run);
 
 }  // namespace fbar

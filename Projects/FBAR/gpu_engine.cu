@@ -175,29 +175,16 @@ RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& 
 
 RunResult run_gpu(const Scene& scene, const RunOptions& options) {
   std::ostream& log = options.log ? *options.log : std::cout;
-  RunResult result;
-  try {
+  return run_guarded([&] {
     switch (scene.simulation.precision) {
       case Precision::Single: return run_with<float>(scene, options, log);
       case Precision::Double: return run_with<double>(scene, options, log);
-      case Precision::Mixed:
-        result.exit_code = 1;
-        result.message = "simulation.precision: \"mixed\" is not implemented by the GPU engine yet (a later issue); "
-                         "use \"single\" or \"double\"";
-        break;
+      case Precision::Mixed: break;
     }
-  } catch (const SceneError& e) {
-    result.exit_code = 1;
-    result.message = e.what();
-  } catch (const std::invalid_argument& e) {
-    result.exit_code = 1;
-    result.message = e.what();
-  } catch (const std::exception& e) {
-    result.exit_code = 2;
-    result.message = e.what();
-  }
-  log << "fbar: " << result.message << "\n";
-  return result;
+    throw std::invalid_argument(
+        "simulation.precision: \"mixed\" is not implemented by the GPU engine yet (a later issue); use \"single\" "
+        "or \"double\"");
+  });
 }
 
 }  // namespace fbar

@@ -49,6 +49,7 @@
 #include "mgmpm_kernels.cuh"
 #include "particle_buffer.cuh"
 #include "partition_domain.h"
+#include "run_constants.h"
 #include "time_step.cuh"
 
 namespace fbar {
@@ -259,10 +260,10 @@ class MgspBenchmark {
       p.initial_velocity = Vec3<T>{{static_cast<T>(this->spec.velocity[0]), static_cast<T>(this->spec.velocity[1]),
                                     static_cast<T>(this->spec.velocity[2])}};
       p.dt = dt;
-      p.dx = e.dx_;
-      p.inv_dx = e.inv_dx_;
-      p.d_inv = e.d_inv_;
-      p.domain = e.domain_;
+      p.dx = e.k_.dx;
+      p.inv_dx = e.k_.inv_dx;
+      p.d_inv = e.k_.d_inv;
+      p.domain = e.k_.domain;
       p.dt_next = &e.stats_d_->dt_next;
       p.stats = e.stats_d_;
       p.body_stats = e.body_stats_d_ + this->index;
@@ -282,7 +283,7 @@ class MgspBenchmark {
       if (slots == 0) return;
       fbar::dest_from_positions<M, T><<<mgsp_detail::grid_for(slots, kPartitionThreads), kPartitionThreads, 0,
                                         e.stream_>>>(
-          bins[which].instance(), valid, this->particles, slots, e.inv_dx_, e.table_.view(),
+          bins[which].instance(), valid, this->particles, slots, e.k_.inv_dx, e.table_.view(),
           this->partition.layout(1 - e.cur_).count, this->partition.dest(), e.grid_[0].instance(),
           e.grid_[1].instance(), e.body_stats_d_ + this->index);
       mgsp_detail::check_launch("dest_from_positions");
@@ -292,8 +293,8 @@ class MgspBenchmark {
       const int slots = this->total_bins[e.cur_] * 32;
       if (slots == 0) return;
       fbar::rescale_impulse<M, T><<<mgsp_detail::grid_for(slots, kPartitionThreads), kPartitionThreads, 0, e.stream_>>>(
-          bins[e.cur_].instance(), this->partition.layout(e.cur_), slots, params, this->volume, ddt, e.dx_, e.inv_dx_,
-          e.d_inv_, e.table_.view(), e.grid_[e.gc_].instance(), e.stats_d_);
+          bins[e.cur_].instance(), this->partition.layout(e.cur_), slots, params, this->volume, ddt, e.k_.dx, e.k_.inv_dx,
+          e.k_.d_inv, e.table_.view(), e.grid_[e.gc_].instance(), e.stats_d_);
       mgsp_detail::check_launch("rescale_impulse");
     }
 
@@ -341,10 +342,7 @@ class MgspBenchmark {
 
   Scene scene_;
   GpuEngineOptions options_;
-  T dx_, inv_dx_, d_inv_;
-  Vec3<T> gravity_, domain_;
-  double default_dt_ = 0.0;
-  std::vector<BoundaryParams<T>> boundaries_;
+  RunConstants<T> k_;  ///< dx, gravity, domain, default dt, boundaries (from the scene)
   std::vector<std::unique_ptr<BodyBase>> bodies_;
 
   cudaStream_t stream_ = nullptr;       ///< compute stream
@@ -399,27 +397,12 @@ MgspBenchmark<T>::MgspBenchmark(const Scene& scene, const std::vector<std::vecto
     : scene_(scene), options_(options) {
   if (cuda::device_count() == 0) throw std::runtime_error(cuda::no_device_reason());
   const SimulationSpec& sim = scene_.simulation;
-  if (!(sim.dx > 0.0)) throw std::invalid_argument("simulation.default_dx: must be positive");
+  k_ = RunConstants<T>(scene_, "GPU engine");
   if (positions.size() != scene_.bodies.size()) throw std::invalid_argument("GpuEngine: one position list per body");
   if (scene_.bodies.size() > static_cast<std::size_t>(DtParams::kMaxBodies))
     throw std::invalid_argument("GpuEngine: at most " + std::to_string(DtParams::kMaxBodies) + " bodies per device");
-  dx_ = static_cast<T>(sim.dx);
-  inv_dx_ = T(1) / dx_;
-  d_inv_ = apic_inertia_inverse(dx_);
-  for (int a = 0; a < 3; ++a) {
-    gravity_[a] = static_cast<T>(sim.gravity[a]);
-    domain_[a] = static_cast<T>(sim.domain[a]);
-  }
-  default_dt_ = resolved_default_dt(sim);
   time_ = sim.time;
-  for (std::size_t i = 0; i < scene_.boundaries.size(); ++i) {
-    BoundaryParams<T> p{};
-    std::string error;
-    if (!make_boundary_params(scene_.boundaries[i], sim, p, error))
-      throw std::invalid_argument("boundaries[" + std::to_string(i) + "]: " + error + " in the GPU engine");
-    boundaries_.push_back(p);
-  }
-  if (boundaries_.size() > static_cast<std::size_t>(BoundarySet<T>::kMax))
+  if (k_.boundaries.size() > static_cast<std::size_t>(BoundarySet<T>::kMax))
     throw std::invalid_argument("GpuEngine: at most " + std::to_string(BoundarySet<T>::kMax) + " boundaries");
 
   double max_speed = 0.0;
@@ -577,7 +560,7 @@ void MgspBenchmark<T>::initialize(const std::vector<std::vector<Vec3d>>& positio
     if (b->bins_capacity(1) < b->partition.bin_capacity()) b->reallocate_bins(1, b->partition.bin_capacity());
 
   // The P2G of the initial state with dt_0 (the CPU engine's first next_dt()).
-  double dt0 = default_dt_;
+  double dt0 = k_.default_dt;
   for (const auto& b : bodies_)
     dt0 = min_time_step(dt0, cfl_time_step(b->spec.material.cfl, scene_.simulation.dx, b->rest_wave_speed, max_grid_speed_));
   cur_ = 0;
@@ -801,10 +784,10 @@ StepReport MgspBenchmark<T>::step_impl(double dt, bool cfl_dt, double target) {
       gp.coords = table_.view().coords;
       gp.block_count = block_count_;
       gp.dt = static_cast<T>(dt);
-      gp.dx = dx_;
-      gp.gravity = gravity_;
+      gp.dx = k_.dx;
+      gp.gravity = k_.gravity;
       gp.boundaries.count = 0;
-      for (const BoundaryParams<T>& b : boundaries_)
+      for (const BoundaryParams<T>& b : k_.boundaries)
         if (boundary_active(b, time_)) gp.boundaries.b[gp.boundaries.count++] = b;
       gp.stats = stats_d_;
       if (block_count_ > 0) {
@@ -819,7 +802,7 @@ StepReport MgspBenchmark<T>::step_impl(double dt, bool cfl_dt, double target) {
       dp.body_count = body_count();
       for (const auto& b : bodies_) dp.bodies[b->index] = DtBody{b->spec.material.cfl, b->rest_wave_speed};
       dp.wave_speed = wave_d_.get() + wave_cur_ * bodies_.size();
-      dp.default_dt = default_dt_;
+      dp.default_dt = k_.default_dt;
       dp.dx = scene_.simulation.dx;
       dp.scale = dt_scale_;
       dp.fixed_dt = cfl_dt ? 0.0 : dt;
