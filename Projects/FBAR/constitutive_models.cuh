@@ -20,12 +20,13 @@
 #include "materials/fixed_corotated.cuh"
 #include "materials/jfluid.cuh"
 #include "materials/material_common.cuh"
+#include "materials/neo_hookean.cuh"
 #include "scene.h"
 
 namespace fbar {
 
 /// Every material an engine can run, in the order of their variant indices.
-using MaterialTypes = type_seq<JFluid, FixedCorotated>;
+using MaterialTypes = type_seq<JFluid, FixedCorotated, NeoHookean>;
 
 template <typename M, typename T>
 using material_params_t = typename M::template Params<T>;

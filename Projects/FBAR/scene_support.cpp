@@ -50,8 +50,8 @@ void check_supported(const Scene& scene) {
     const MaterialSpec& m = b.material;
     const AlgorithmSpec& a = b.algorithm;
     if (m.type != "particles") refuse(p + ".material.type", q(m.type), "\"particles\"", "material type mesh");
-    if (m.law != Constitutive::JFluid && m.law != Constitutive::FixedCorotated)
-      refuse(p + ".material.constitutive", q(to_string(m.law)), "JFluid or FixedCorotated",
+    if (material_index(m.law) < 0)  // the laws of MaterialTypes (constitutive_models.cuh) run
+      refuse(p + ".material.constitutive", q(to_string(m.law)), "one of " + supported_material_names(),
              std::string("constitutive ") + to_string(m.law));
     if (a.type != "particles") refuse(p + ".algorithm.type", q(a.type), "\"particles\"", "algorithm type mesh");
     if (a.use_fem) refuse(p + ".algorithm.use_FEM", "true", "false", "use_FEM");

@@ -1,6 +1,7 @@
 // Homogeneous patch tests of the materials against closed forms: stresses, invariance, energy, wave speeds, fp32.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -36,7 +37,8 @@ double max_abs_diff(const Mat3d& a, const Mat3d& b) { return max_abs(a - b); }
 // ------------------------------------------------------------------------------------------------ material list
 
 TEST(MaterialList, MapsLawsAndJsonNamesToTypes) {
-  EXPECT_EQ(supported_material_names(), "JFluid, FixedCorotated");
+  EXPECT_EQ(supported_material_names(), "JFluid, FixedCorotated, NeoHookean");
+  EXPECT_EQ(material_index(Constitutive::NeoHookean), 2);
   EXPECT_EQ(material_index(Constitutive::JFluid), 0);
   EXPECT_EQ(material_index(Constitutive::FixedCorotated), 1);
   EXPECT_EQ(material_index("FixedCorotated"), 1);
@@ -143,6 +145,77 @@ TEST(FixedCorotated, StressIsEnergyDerivative) {
       }
   }
   EXPECT_EQ(FixedCorotated::energy_density(p, FixedCorotated::reference_state<double>()), 0.0);
+}
+
+// ------------------------------------------------------------------------------------------------ NeoHookean
+
+// VALIDATION.md item 2: P = mu (F - F^-T) + lambda ln J F^-T; F = diag(s, 1, 1) gives the Cauchy stress
+// sigma11 = mu (s - 1/s) + lambda ln(s) / s, sigma22 = sigma33 = lambda ln(s) / s. The material evaluates
+// tau = mu (F F^T - I) + lambda ln J I: a few roundings of products of size (lambda + 2 mu) max(1, s^2), so
+// 16 eps of that, divided by J = s for sigma.
+TEST(NeoHookean, UniaxialStretchMatchesClosedForm) {
+  const auto p = NeoHookean::make_params<double>(solid_spec(1e7, 0.3, 1000.0));
+  for (double s : {0.5, 0.8, 0.99, 0.999999, 1.0, 1.000001, 1.01, 1.5, 2.0}) {
+    SCOPED_TRACE(s);
+    const StressResult<double> r =
+        NeoHookean::kirchhoff_stress(p, {Mat3d::diagonal(Vec3d{{s, 1.0, 1.0}})}, Mat3d::zero());
+    EXPECT_NEAR(r.J, s, 4 * kEps * s);
+    const Mat3d sigma = cauchy_stress(r);
+    const double tol = 16 * kEps * (p.lambda + 2 * p.mu) * std::max(1.0, s * s) / s;
+    EXPECT_NEAR(sigma(0, 0), p.mu * (s - 1 / s) + p.lambda * std::log(s) / s, tol);
+    EXPECT_NEAR(sigma(1, 1), p.lambda * std::log(s) / s, tol);
+    EXPECT_NEAR(sigma(2, 2), p.lambda * std::log(s) / s, tol);
+    EXPECT_EQ(sigma(0, 1), 0.0);
+    EXPECT_EQ(sigma(1, 2), 0.0);
+  }
+}
+
+// tau = P F^T with P evaluated literally from the VALIDATION.md formula (inverse, transpose) for general F; both
+// are backward stable with condition ~ |F| |F^-1| < 10: 1e-13 (lambda + 2 mu). Objectivity tau(R F) = R tau R^T to
+// the same bound, a rotation carries no stress, and an inverted F gives a NaN stress (the engines report it).
+TEST(NeoHookean, KirchhoffStressEqualsLiteralPiolaFormulaAndIsObjective) {
+  const auto p = NeoHookean::make_params<double>(solid_spec(1e7, 0.3, 1000.0));
+  std::mt19937_64 rng(5);
+  for (int n = 0; n < 200; ++n) {
+    const Mat3d F = test::random_deformation(rng, 0.3);
+    const double J = determinant(F);
+    if (J < 0.1) continue;  // ln J needs a well-conditioned, uninverted F
+    const Mat3d Finv_T = transpose(inverse(F));
+    const Mat3d P = (F - Finv_T) * p.mu + Finv_T * (p.lambda * std::log(J));
+    const StressResult<double> r = NeoHookean::kirchhoff_stress(p, {F}, Mat3d::zero());
+    EXPECT_LE(max_abs_diff(r.kirchhoff, P * transpose(F)), 1e-13 * (p.lambda + 2 * p.mu));
+    EXPECT_EQ(max_abs(r.kirchhoff - transpose(r.kirchhoff)), 0.0);
+    const Mat3d R = test::random_rotation(rng);
+    const Mat3d tau_rot = NeoHookean::kirchhoff_stress(p, {R * F}, Mat3d::zero()).kirchhoff;
+    EXPECT_LE(max_abs_diff(tau_rot, R * r.kirchhoff * transpose(R)), 1e-13 * (p.lambda + 2 * p.mu));
+  }
+  const Mat3d R = test::rotation(Vec3d{{0.3, -1, 2}}, 2.1);
+  EXPECT_LE(max_abs(NeoHookean::kirchhoff_stress(p, {R}, Mat3d::zero()).kirchhoff), 16 * kEps * p.lambda);
+  const Mat3d inverted = Mat3d::diagonal(Vec3d{{-0.5, 1.0, 1.0}});
+  EXPECT_TRUE(std::isnan(NeoHookean::kirchhoff_stress(p, {inverted}, Mat3d::zero()).kirchhoff(0, 0)));
+}
+
+// P = dpsi/dF by central differences (h = 1e-6; truncation and rounding as for FixedCorotated: 1e-8 E), the
+// reference state stores no energy, and the wave speed is the p-wave speed of the same Lame parameters.
+TEST(NeoHookean, StressIsEnergyDerivativeAndWaveSpeedIsPWaveSpeed) {
+  const auto p = NeoHookean::make_params<double>(solid_spec(1e7, 0.3, 1000.0));
+  std::mt19937_64 rng(9);
+  for (int n = 0; n < 20; ++n) {
+    const Mat3d F = test::random_deformation(rng, 0.2);
+    const Mat3d P = NeoHookean::kirchhoff_stress(p, {F}, Mat3d::zero()).kirchhoff * transpose(inverse(F));
+    const double h = 1e-6;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) {
+        Mat3d Fp = F, Fm = F;
+        Fp(i, j) += h;
+        Fm(i, j) -= h;
+        const double dpsi = (NeoHookean::energy_density(p, {Fp}) - NeoHookean::energy_density(p, {Fm})) / (2 * h);
+        EXPECT_NEAR(P(i, j), dpsi, 1e-8 * 1e7);
+      }
+  }
+  EXPECT_EQ(NeoHookean::energy_density(p, NeoHookean::reference_state<double>()), 0.0);
+  EXPECT_EQ(NeoHookean::wave_speed(p, NeoHookean::reference_state<double>()),
+            FixedCorotated::wave_speed(p, FixedCorotated::reference_state<double>()));
 }
 
 // VALIDATION.md: c_p = sqrt((lambda + 2 mu) / rho) = sqrt(E (1 - nu) / ((1 + nu)(1 - 2 nu) rho)); ClaymoreUW's

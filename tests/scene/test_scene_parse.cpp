@@ -308,7 +308,7 @@ TEST(SceneParse, ReleasePolicyRejectsWhatTheEngineCannotRun) {
     std::string path;
   };
   const std::vector<Case> cases = {
-      {scene_with(body(R"({"constitutive": "NeoHookean"})")), "bodies[0].material.constitutive"},
+      {scene_with(body(R"({"constitutive": "NACC"})")), "bodies[0].material.constitutive"},
       {scene_with(body(R"({})", R"("algorithm": {"use_ASFLIP": true, "ASFLIP_alpha": 0.95})")),
        "bodies[0].algorithm.ASFLIP_alpha"},
       {scene_with(body(R"({})", R"("algorithm": {"use_FBAR": true, "FBAR_psi": 0.5})")), "bodies[0].algorithm.FBAR_psi"},
