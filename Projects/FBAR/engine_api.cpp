@@ -41,13 +41,13 @@ MaterialFacts material_facts(const MaterialSpec& m) {
     facts.stored_scalars = M::kStoredScalars;
   });
   if (!known) {
-    // Elastic-plastic solids: p-wave speed sqrt((lambda + 2 mu) / rho) (VALIDATION.md); bins store position + F,
-    // plus log Jp for the plastic laws.
+    // The plastic laws not in MaterialTypes yet: p-wave speed sqrt((lambda + 2 mu) / rho) (VALIDATION.md); bins
+    // store position + F + log Jp.
     const double E = m.youngs_modulus, nu = m.poisson_ratio;
     const double mu = E / (2.0 * (1.0 + nu));
     const double lambda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
     facts.wave_speed = std::sqrt((lambda + 2.0 * mu) / m.rho);
-    facts.stored_scalars = m.law == Constitutive::NeoHookean ? 12 : 13;
+    facts.stored_scalars = 13;
   }
   return facts;
 }
