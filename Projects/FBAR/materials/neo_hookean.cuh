@@ -35,14 +35,14 @@ struct NeoHookean {
     return FixedCorotated::make_params<T>(m);
   }
 
+  // Reference state, J, the F update and the p-wave speed are FixedCorotated's (same state, same parameters).
   template <typename T>
   FBAR_HOST_DEVICE static constexpr State<T> reference_state() {
-    return State<T>{Mat3<T>::identity()};
+    return FixedCorotated::reference_state<T>();
   }
-
   template <typename T>
   FBAR_HOST_DEVICE static constexpr T volume_ratio(const State<T>& s) {
-    return determinant(s.F);
+    return FixedCorotated::volume_ratio(s);
   }
 
   /// Kirchhoff stress tau = mu (F F^T - I) + lambda ln J I [Pa]; C is unused (no rate dependence).
@@ -62,17 +62,13 @@ struct NeoHookean {
     return StressResult<T>{tau, J};
   }
 
-  /// State after one step: F <- (I + dt C) F.
   template <typename T>
   FBAR_HOST_DEVICE static constexpr State<T> advance(const State<T>& s, const Mat3<T>& C, T dt) {
-    return State<T>{advance_deformation_gradient(s.F, C, dt)};
+    return FixedCorotated::advance(s, C, dt);
   }
-
-  /// P-wave speed c_p = sqrt((lambda + 2 mu) / rho0) [m/s].
   template <typename T>
-  FBAR_HOST_DEVICE static inline T wave_speed(const Params<T>& p, const State<T>& /*s*/) {
-    using std::sqrt;
-    return sqrt((p.lambda + T(2) * p.mu) / p.rho0);
+  FBAR_HOST_DEVICE static inline T wave_speed(const Params<T>& p, const State<T>& s) {
+    return FixedCorotated::wave_speed(p, s);
   }
 
   /// psi = mu/2 (tr(F^T F) - 3) - mu ln J + lambda/2 (ln J)^2 [J/m^3].
