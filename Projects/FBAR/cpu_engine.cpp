@@ -17,6 +17,7 @@
 #include "attributes.h"
 #include "geometry.h"
 #include "grid_update.cuh"
+#include "particle_frame.h"
 #include "settings.h"
 #include "time_step.cuh"
 #include "transfer.cuh"
@@ -115,14 +116,6 @@ constexpr std::string_view kCommonAttributes[] = {"ID",
                                                   "VonMisesStress"};
 constexpr std::string_view kDefGradAttributes[] = {"DefGrad_XX", "DefGrad_XY", "DefGrad_XZ", "DefGrad_YX", "DefGrad_YY",
                                                    "DefGrad_YZ", "DefGrad_ZX", "DefGrad_ZY", "DefGrad_ZZ"};
-
-/// Row/column of a tensor attribute suffix "XX".."ZZ"; false when the name has no such suffix.
-bool tensor_component(std::string_view name, std::string_view prefix, int& row, int& col) {
-  if (name.size() != prefix.size() + 2 || name.substr(0, prefix.size()) != prefix) return false;
-  row = name[prefix.size()] - 'X';
-  col = name[prefix.size() + 1] - 'X';
-  return row >= 0 && row < 3 && col >= 0 && col < 3;
-}
 
 }  // namespace
 
@@ -895,61 +888,15 @@ double CpuEngine<T>::elastic_energy() const {
 template <typename T>
 io::ParticleFrame CpuEngine<T>::frame(int body) const {
   const Body& b = body_at(body);
-  const std::size_t n = b.x.size();
-  io::ParticleFrame f;
-  if constexpr (std::is_same_v<T, double>) {
-    f.positions = b.x;
-  } else {
-    f.positions = std::vector<Vec3f>(b.x.begin(), b.x.end());
-  }
-  std::vector<Mat3T> sigma;  // computed on first use
-  std::vector<T> J;
-  auto scalar = [&](const std::string& name, const std::string& unit, auto&& value_of) {
-    std::vector<float> values(n);
-    for (std::size_t p = 0; p < n; ++p) values[p] = static_cast<float>(value_of(p));
-    f.add(name, 1, std::move(values), unit);
-  };
-  for (const std::string& requested : b.spec.output_attribs) {
-    const std::string name = canonical_attribute(requested);
-    if (f.find(name)) continue;  // listed twice (e.g. an alias and its canonical name)
-    int row = 0, col = 0;
-    if (name == "ID") {
-      std::vector<std::int32_t> ids(n);
-      for (std::size_t p = 0; p < n; ++p) ids[p] = static_cast<std::int32_t>(p);
-      f.add(name, 1, std::move(ids));
-    } else if (name == "Mass") {
-      scalar(name, "kg", [&](std::size_t p) { return b.mass[p]; });
-    } else if (name == "Volume") {  // current volume V0 J
-      if (J.empty()) J = volume_ratios(body);
-      scalar(name, "m^3", [&](std::size_t p) { return b.volume[p] * J[p]; });
-    } else if (name.rfind("Position_", 0) == 0) {
-      const int a = name.back() - 'X';
-      scalar(name, "m", [&](std::size_t p) { return b.x[p][a]; });
-    } else if (name == "Velocity_Magnitude") {
-      scalar(name, "m/s", [&](std::size_t p) { return norm(b.v[p]); });
-    } else if (name.rfind("Velocity_", 0) == 0) {
-      const int a = name.back() - 'X';
-      scalar(name, "m/s", [&](std::size_t p) { return b.v[p][a]; });
-    } else if (name == "J") {
-      if (J.empty()) J = volume_ratios(body);
-      scalar(name, "", [&](std::size_t p) { return J[p]; });
-    } else if (tensor_component(name, "DefGrad_", row, col)) {
-      const std::vector<Mat3T> F = deformation_gradients(body);
-      scalar(name, "", [&](std::size_t p) { return F[p](row, col); });
-    } else if (name == "Pressure" || name == "VonMisesStress" || tensor_component(name, "StressCauchy_", row, col)) {
-      if (sigma.empty()) sigma = cauchy_stresses(body);
-      if (name == "Pressure")
-        scalar(name, "Pa", [&](std::size_t p) { return mean_pressure(sigma[p]); });
-      else if (name == "VonMisesStress")
-        scalar(name, "Pa", [&](std::size_t p) { return von_mises_stress(sigma[p]); });
-      else
-        scalar(name, "Pa", [&](std::size_t p) { return sigma[p](row, col); });
-    } else {
-      throw std::invalid_argument("bodies[" + std::to_string(body) + "].output_attribs: " + requested +
-                                  " is not available on the CPU engine");
-    }
-  }
-  return f;
+  FrameSource<T> src;
+  src.x = &b.x;
+  src.v = &b.v;
+  src.mass = [&](std::size_t p) { return b.mass[p]; };
+  src.volume0 = [&](std::size_t p) { return b.volume[p]; };
+  src.J = [&] { return volume_ratios(body); };
+  src.F = [&] { return deformation_gradients(body); };
+  src.sigma = [&] { return cauchy_stresses(body); };
+  return build_frame(b.spec, body, src, "CPU engine");
 }
 
 template <typename T>

@@ -48,6 +48,7 @@
 #include "hash_table.cuh"
 #include "mgmpm_kernels.cuh"
 #include "particle_buffer.cuh"
+#include "particle_frame.h"
 #include "partition_domain.h"
 #include "run_constants.h"
 #include "time_step.cuh"
@@ -1008,31 +1009,24 @@ ParticleSnapshot<T> MgspBenchmark<T>::snapshot(int body) const {
   return snap;
 }
 
-namespace mgsp_detail {
-inline bool tensor_suffix(const std::string& name, const std::string& prefix, int& row, int& col) {
-  if (name.size() != prefix.size() + 2 || name.compare(0, prefix.size(), prefix) != 0) return false;
-  row = name[prefix.size()] - 'X';
-  col = name[prefix.size() + 1] - 'X';
-  return row >= 0 && row < 3 && col >= 0 && col < 3;
-}
-}  // namespace mgsp_detail
-
 template <typename T>
 io::ParticleFrame MgspBenchmark<T>::frame(int body) const {
-  // Attribute names, units and formulas as CpuEngine::frame (cpu_engine.cpp).
   const BodyBase& b = body_at(body);
   const ParticleSnapshot<T> s = snapshot(body);
-  const std::size_t n = s.x.size();
-  io::ParticleFrame f;
-  if constexpr (std::is_same_v<T, double>) {
-    f.positions = s.x;
-  } else {
-    f.positions = std::vector<Vec3f>(s.x.begin(), s.x.end());
-  }
-  std::vector<Mat3<T>> sigma;
-  auto stresses = [&] {
-    if (!sigma.empty()) return;
-    sigma.resize(n);
+  FrameSource<T> src;
+  src.x = &s.x;
+  src.v = &s.v;
+  src.mass = [&](std::size_t) { return b.mass; };
+  src.volume0 = [&](std::size_t) { return b.volume; };
+  src.J = [&] { return s.J; };
+  src.F = [&] {
+    if (!b.stores_F()) throw std::invalid_argument("DefGrad: the body's material stores no deformation gradient");
+    return s.F;
+  };
+  src.sigma = [&] {
+    // Cauchy stress from the gathered records (state and the recorded C), with the material's own functions.
+    const std::size_t n = s.x.size();
+    std::vector<Mat3<T>> sigma(n);
     const std::vector<T> r = gather_host(body, stream_);
     const int W = b.stored_scalars() + kAuxScalars;
     for (std::size_t p = 0; p < n; ++p) {
@@ -1040,51 +1034,9 @@ io::ParticleFrame MgspBenchmark<T>::frame(int body) const {
       Mat3<T> F;
       b.state_of(r.data() + p * W, J, F, sigma[p], s.C[p]);
     }
+    return sigma;
   };
-  auto scalar = [&](const std::string& name, const std::string& unit, auto&& value_of) {
-    std::vector<float> values(n);
-    for (std::size_t p = 0; p < n; ++p) values[p] = static_cast<float>(value_of(p));
-    f.add(name, 1, std::move(values), unit);
-  };
-  for (const std::string& requested : b.spec.output_attribs) {
-    const std::string name = canonical_attribute(requested);
-    if (f.find(name)) continue;
-    int row = 0, col = 0;
-    if (name == "ID") {
-      std::vector<std::int32_t> ids(n);
-      for (std::size_t p = 0; p < n; ++p) ids[p] = static_cast<std::int32_t>(p);
-      f.add(name, 1, std::move(ids));
-    } else if (name == "Mass") {
-      scalar(name, "kg", [&](std::size_t) { return b.mass; });
-    } else if (name == "Volume") {
-      scalar(name, "m^3", [&](std::size_t p) { return b.volume * s.J[p]; });
-    } else if (name.rfind("Position_", 0) == 0) {
-      const int a = name.back() - 'X';
-      scalar(name, "m", [&](std::size_t p) { return s.x[p][a]; });
-    } else if (name == "Velocity_Magnitude") {
-      scalar(name, "m/s", [&](std::size_t p) { return norm(s.v[p]); });
-    } else if (name.rfind("Velocity_", 0) == 0) {
-      const int a = name.back() - 'X';
-      scalar(name, "m/s", [&](std::size_t p) { return s.v[p][a]; });
-    } else if (name == "J") {
-      scalar(name, "", [&](std::size_t p) { return s.J[p]; });
-    } else if (mgsp_detail::tensor_suffix(name, "DefGrad_", row, col)) {
-      scalar(name, "", [&](std::size_t p) { return s.F[p](row, col); });
-    } else if (name == "Pressure" || name == "VonMisesStress" ||
-               mgsp_detail::tensor_suffix(name, "StressCauchy_", row, col)) {
-      stresses();
-      if (name == "Pressure")
-        scalar(name, "Pa", [&](std::size_t p) { return mean_pressure(sigma[p]); });
-      else if (name == "VonMisesStress")
-        scalar(name, "Pa", [&](std::size_t p) { return von_mises_stress(sigma[p]); });
-      else
-        scalar(name, "Pa", [&](std::size_t p) { return sigma[p](row, col); });
-    } else {
-      throw std::invalid_argument("bodies[" + std::to_string(body) + "].output_attribs: " + requested +
-                                  " is not available on the GPU engine");
-    }
-  }
-  return f;
+  return build_frame(b.spec, body, src, "GPU engine");
 }
 
 template <typename T>
@@ -1122,7 +1074,6 @@ void MgspBenchmark<T>::submit_frame(int body, const std::filesystem::path& path,
     cudaEventDestroy(copied);
     staging.reset();
     const T* r = static_cast<const T*>(host->get());
-    io::ParticleFrame f;
     std::vector<Vec3<T>> x(count), v(count);
     std::vector<T> J(count);
     std::vector<Mat3<T>> F(count, Mat3<T>::identity()), sigma(count);
@@ -1135,48 +1086,18 @@ void MgspBenchmark<T>::submit_frame(int body, const std::filesystem::path& path,
         for (int j = 0; j < 3; ++j) C(i, j) = q[S + 3 + 3 * i + j];
       bp->state_of(q, J[p], F[p], sigma[p], C);
     }
-    if constexpr (std::is_same_v<T, double>) {
-      f.positions = x;
-    } else {
-      f.positions = std::vector<Vec3f>(x.begin(), x.end());
-    }
-    auto scalar = [&](const std::string& name, const std::string& unit, auto&& value_of) {
-      std::vector<float> values(count);
-      for (std::size_t p = 0; p < count; ++p) values[p] = static_cast<float>(value_of(p));
-      f.add(name, 1, std::move(values), unit);
+    FrameSource<T> src;
+    src.x = &x;
+    src.v = &v;
+    src.mass = [&](std::size_t) { return mass; };
+    src.volume0 = [&](std::size_t) { return volume; };
+    src.J = [&] { return J; };
+    src.F = [&] {
+      if (!has_F) throw std::invalid_argument("DefGrad: the body's material stores no deformation gradient");
+      return F;
     };
-    for (const std::string& requested : spec.output_attribs) {
-      const std::string name = canonical_attribute(requested);
-      if (f.find(name)) continue;
-      int row = 0, col = 0;
-      if (name == "ID") {
-        std::vector<std::int32_t> ids(count);
-        for (std::size_t p = 0; p < count; ++p) ids[p] = static_cast<std::int32_t>(p);
-        f.add(name, 1, std::move(ids));
-      } else if (name == "Mass") {
-        scalar(name, "kg", [&](std::size_t) { return mass; });
-      } else if (name == "Volume") {
-        scalar(name, "m^3", [&](std::size_t p) { return volume * J[p]; });
-      } else if (name.rfind("Position_", 0) == 0) {
-        const int a = name.back() - 'X';
-        scalar(name, "m", [&](std::size_t p) { return x[p][a]; });
-      } else if (name == "Velocity_Magnitude") {
-        scalar(name, "m/s", [&](std::size_t p) { return norm(v[p]); });
-      } else if (name.rfind("Velocity_", 0) == 0) {
-        const int a = name.back() - 'X';
-        scalar(name, "m/s", [&](std::size_t p) { return v[p][a]; });
-      } else if (name == "J") {
-        scalar(name, "", [&](std::size_t p) { return J[p]; });
-      } else if (has_F && mgsp_detail::tensor_suffix(name, "DefGrad_", row, col)) {
-        scalar(name, "", [&](std::size_t p) { return F[p](row, col); });
-      } else if (name == "Pressure") {
-        scalar(name, "Pa", [&](std::size_t p) { return mean_pressure(sigma[p]); });
-      } else if (name == "VonMisesStress") {
-        scalar(name, "Pa", [&](std::size_t p) { return von_mises_stress(sigma[p]); });
-      } else if (mgsp_detail::tensor_suffix(name, "StressCauchy_", row, col)) {
-        scalar(name, "Pa", [&](std::size_t p) { return sigma[p](row, col); });
-      }
-    }
+    src.sigma = [&] { return sigma; };
+    const io::ParticleFrame f = build_frame(spec, body, src, "GPU engine");
     io::write_frame(path, f);
   });
 }
