@@ -59,19 +59,9 @@ inline std::uint64_t pack_block(const Vec3i& b) {
 inline int colour_of(const Vec3i& b) { return (b[0] & 1) | ((b[1] & 1) << 1) | ((b[2] & 1) << 2); }
 
 const char* law_name(Constitutive law) {
-  switch (law) {
-    case Constitutive::JFluid:
-      return "JFluid";
-    case Constitutive::FixedCorotated:
-      return "FixedCorotated";
-    case Constitutive::NeoHookean:
-      return "NeoHookean";
-    case Constitutive::DruckerPrager:
-      return "DruckerPrager";
-    case Constitutive::NACC:
-      return "NACC";
-  }
-  return "?";
+  const char* name = "?";
+  visit_material(law, [&](auto m) { name = decltype(m)::kJsonName; });
+  return name;
 }
 
 /// Every scalar of a trivially copyable state made of T is finite.
@@ -148,12 +138,12 @@ std::string StepReport::message() const {
 bool cpu_engine_supports_attribute(Constitutive law, std::string_view name) {
   for (std::string_view a : kCommonAttributes)
     if (a == name) return material_index(law) >= 0;
-  bool has_F = false;
-  visit_material(law, [&](auto m) { has_F = decltype(m)::kOutputs.deformation_gradient; });
-  if (has_F)
+  MaterialOutputs outputs{false, false};
+  visit_material(law, [&](auto m) { outputs = decltype(m)::kOutputs; });
+  if (outputs.deformation_gradient)
     for (std::string_view a : kDefGradAttributes)
       if (a == name) return true;
-  return false;
+  return outputs.log_jp && name == "logJp";
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -237,7 +227,7 @@ void CpuEngine<T>::init(const std::vector<std::vector<Vec3d>>& positions) {
     visit_material(mat.law, [&](auto m) {
       using M = decltype(m);
       MaterialBody<M> mb{M::template make_params<T>(mat), {}, {}};
-      mb.state.assign(n, M::template reference_state<T>());
+      mb.state.assign(n, material_initial_state<M, T>(spec.material));
       mb.next_state.resize(n);
       body.max_wave_speed = static_cast<double>(M::wave_speed(mb.params, M::template reference_state<T>()));
       body.material = std::move(mb);
@@ -477,7 +467,7 @@ void CpuEngine<T>::g2p(int body_index, Body& body, T dt, TryResult& result) {
               const Vec3T v = sum.velocity();
               const Mat3T C = sum.affine(d_inv);
               const Vec3T x_new = advect(x, v, dt);
-              const auto s_new = M::advance(state[p], C, dt);
+              const auto s_new = M::advance(params, state[p], C, dt);
               body.x_next[p] = x_new;
               body.v_next[p] = v;
               body.C_next[p] = C;
@@ -735,6 +725,25 @@ std::vector<Mat3<T>> CpuEngine<T>::deformation_gradients(int body) const {
 }
 
 template <typename T>
+std::vector<T> CpuEngine<T>::plastic_log_volumes(int body) const {
+  const Body& b = body_at(body);
+  std::vector<T> l;
+  std::visit(
+      [&](const auto& mb) {
+        using M = typename std::decay_t<decltype(mb)>::material_type;
+        if constexpr (M::kOutputs.log_jp) {
+          l.reserve(mb.state.size());
+          for (const auto& s : mb.state) l.push_back(s.logJp);
+        } else {
+          throw std::invalid_argument(std::string("CpuEngine: body ") + std::to_string(body) + " (" + M::kJsonName +
+                                      ") stores no logJp");
+        }
+      },
+      b.material);
+  return l;
+}
+
+template <typename T>
 std::vector<Mat3<T>> CpuEngine<T>::cauchy_stresses(int body) const {
   const Body& b = body_at(body);
   std::vector<Mat3T> sigma(b.x.size());
@@ -896,6 +905,7 @@ io::ParticleFrame CpuEngine<T>::frame(int body) const {
   src.J = [&] { return volume_ratios(body); };
   src.F = [&] { return deformation_gradients(body); };
   src.sigma = [&] { return cauchy_stresses(body); };
+  src.logJp = [&] { return plastic_log_volumes(body); };
   return build_frame(b.spec, body, src, "CPU engine");
 }
 

@@ -151,6 +151,7 @@ class CpuEngine {
   const std::vector<T>& volumes(int body) const;             ///< [m^3] reference volume V0
   std::vector<T> volume_ratios(int body) const;              ///< [-] J
   std::vector<Mat3T> deformation_gradients(int body) const;  ///< [-] F; throws for a law without F (JFluid)
+  std::vector<T> plastic_log_volumes(int body) const;        ///< [-] logJp; throws for a law without it
   std::vector<Mat3T> cauchy_stresses(int body) const;        ///< [Pa] sigma = tau / J
   std::vector<T> pressures(int body) const;                  ///< [Pa] -tr(sigma)/3
   std::vector<T> wave_speeds(int body) const;                ///< [m/s] current material wave speed
@@ -162,7 +163,8 @@ class CpuEngine {
   /// volume becomes V0 = (dx^3/ppc) / J and the mass rho0 V0 (the current density is then rho0 / J, consistent
   /// with the state). Throws std::invalid_argument for a body that does not store J, or J <= 0.
   void set_volume_ratios(int body, const std::function<double(const Vec3d&)>& J_of_position, bool rescale_mass = true);
-  /// Overwrites F(x) of a body whose material stores F (FixedCorotated); throws otherwise.
+  /// Overwrites F(x) of a body whose material stores F (FixedCorotated, NeoHookean, DruckerPrager, NACC); throws
+  /// otherwise.
   void set_deformation_gradients(int body, const std::function<Mat3d(const Vec3d&)>& F_of_position);
 
   // ------------------------------------------------------------------ totals (double sums in particle order)

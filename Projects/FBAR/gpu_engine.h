@@ -30,6 +30,7 @@ struct ParticleSnapshot {
   std::vector<Mat3<T>> C;   ///< [1/s] APIC affine matrix of the last step (idem)
   std::vector<T> J;         ///< [-] volume ratio of the stored state
   std::vector<Mat3<T>> F;   ///< [-] deformation gradient (materials that store F; empty otherwise)
+  std::vector<T> logJp;     ///< [-] plastic state (materials that store logJp; empty otherwise)
 };
 
 /// Accumulated device time per kernel family (CUDA events, when timing is on) [ms].

@@ -209,8 +209,9 @@ class MgspBenchmark {
     virtual void dest_from_positions(MgspBenchmark& e, int bins_which, const int* valid, int slots) = 0;
     virtual void rescale_impulse(MgspBenchmark& e, T ddt) = 0;
     virtual void gather(MgspBenchmark& e, T* out, int* missing, cudaStream_t s) = 0;
-    /// J and F of one gathered record.
-    virtual void state_of(const T* record, T& J, Mat3<T>& F, Mat3<T>& sigma, const Mat3<T>& C) const = 0;
+    virtual bool stores_logJp() const = 0;
+    /// J, F, Cauchy stress and logJp of one gathered record (F and logJp left as they are for a material without).
+    virtual void state_of(const T* record, T& J, Mat3<T>& F, Mat3<T>& sigma, T& logJp, const Mat3<T>& C) const = 0;
   };
 
   template <typename M>
@@ -220,6 +221,7 @@ class MgspBenchmark {
     ParticleBuffer<M, T> bins[2];
 
     bool stores_F() const override { return M::kOutputs.deformation_gradient; }
+    bool stores_logJp() const override { return M::kOutputs.log_jp; }
     int stored_scalars() const override { return Layout::kScalars; }
     void allocate_bins(int n) override {
       bins[0].allocate(n);
@@ -234,7 +236,7 @@ class MgspBenchmark {
       const std::size_t bytes = Layout::kBinBytes * static_cast<std::size_t>((x.size() + 31) / 32);
       std::vector<std::byte> host(bytes);
       typename Layout::Buffer view(host.data(), (x.size() + 31) / 32);
-      const auto state = M::template reference_state<T>();
+      const auto state = material_initial_state<M, T>(this->spec.material);
       for (std::size_t i = 0; i < x.size(); ++i) {
         ParticleRecord<M, T> p{x[i].template cast<T>(), state, static_cast<int>(i)};
         store_particle<M, T>(view, static_cast<int>(i), p);
@@ -309,11 +311,12 @@ class MgspBenchmark {
       mgsp_detail::check_launch("gather_by_id");
     }
 
-    void state_of(const T* r, T& J, Mat3<T>& F, Mat3<T>& sigma, const Mat3<T>& C) const override {
+    void state_of(const T* r, T& J, Mat3<T>& F, Mat3<T>& sigma, T& logJp, const Mat3<T>& C) const override {
       material_state_t<M, T> s;
       std::memcpy(&s, r + 3, sizeof(s));
       J = M::volume_ratio(s);
       if constexpr (M::kOutputs.deformation_gradient) F = s.F;
+      if constexpr (M::kOutputs.log_jp) logJp = s.logJp;
       sigma = cauchy_stress(M::kirchhoff_stress(params, s, C));
     }
   };
@@ -993,6 +996,7 @@ ParticleSnapshot<T> MgspBenchmark<T>::snapshot(int body) const {
   snap.C.resize(n);
   snap.J.resize(n);
   if (b.stores_F()) snap.F.resize(n);
+  if (b.stores_logJp()) snap.logJp.resize(n);
   const bool initial = steps_ == 0 && !aux_valid_;  // before the first step: v = initial velocity, C = 0 exactly
   const Vec3<T> v0{{static_cast<T>(b.spec.velocity[0]), static_cast<T>(b.spec.velocity[1]),
                     static_cast<T>(b.spec.velocity[2])}};
@@ -1003,8 +1007,10 @@ ParticleSnapshot<T> MgspBenchmark<T>::snapshot(int body) const {
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j) snap.C[p](i, j) = q[S + 3 + 3 * i + j];
     Mat3<T> F = Mat3<T>::identity(), sigma;
-    b.state_of(q, snap.J[p], F, sigma, snap.C[p]);
+    T logJp = T(0);
+    b.state_of(q, snap.J[p], F, sigma, logJp, snap.C[p]);
     if (b.stores_F()) snap.F[p] = F;
+    if (b.stores_logJp()) snap.logJp[p] = logJp;
   }
   return snap;
 }
@@ -1023,6 +1029,10 @@ io::ParticleFrame MgspBenchmark<T>::frame(int body) const {
     if (!b.stores_F()) throw std::invalid_argument("DefGrad: the body's material stores no deformation gradient");
     return s.F;
   };
+  src.logJp = [&] {
+    if (!b.stores_logJp()) throw std::invalid_argument("logJp: the body's material stores no plastic state");
+    return s.logJp;
+  };
   src.sigma = [&] {
     // Cauchy stress from the gathered records (state and the recorded C), with the material's own functions.
     const std::size_t n = s.x.size();
@@ -1030,9 +1040,9 @@ io::ParticleFrame MgspBenchmark<T>::frame(int body) const {
     const std::vector<T> r = gather_host(body, stream_);
     const int W = b.stored_scalars() + kAuxScalars;
     for (std::size_t p = 0; p < n; ++p) {
-      T J;
+      T J, logJp;
       Mat3<T> F;
-      b.state_of(r.data() + p * W, J, F, sigma[p], s.C[p]);
+      b.state_of(r.data() + p * W, J, F, sigma[p], logJp, s.C[p]);
     }
     return sigma;
   };
@@ -1066,6 +1076,7 @@ void MgspBenchmark<T>::submit_frame(int body, const std::filesystem::path& path,
   const BodySpec spec = b.spec;
   const T mass = b.mass, volume = b.volume;
   const bool has_F = b.stores_F();
+  const bool has_logJp = b.stores_logJp();
   const bool initial = steps_ == 0 && !aux_valid_;  // before the first step: v = initial velocity, C = 0 exactly
   const Vec3<T> v0{{static_cast<T>(b.spec.velocity[0]), static_cast<T>(b.spec.velocity[1]),
                     static_cast<T>(b.spec.velocity[2])}};
@@ -1075,7 +1086,7 @@ void MgspBenchmark<T>::submit_frame(int body, const std::filesystem::path& path,
     staging.reset();
     const T* r = static_cast<const T*>(host->get());
     std::vector<Vec3<T>> x(count), v(count);
-    std::vector<T> J(count);
+    std::vector<T> J(count), logJp(count, T(0));
     std::vector<Mat3<T>> F(count, Mat3<T>::identity()), sigma(count);
     for (std::size_t p = 0; p < count; ++p) {
       const T* q = r + p * W;
@@ -1084,7 +1095,7 @@ void MgspBenchmark<T>::submit_frame(int body, const std::filesystem::path& path,
       Mat3<T> C;
       for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) C(i, j) = q[S + 3 + 3 * i + j];
-      bp->state_of(q, J[p], F[p], sigma[p], C);
+      bp->state_of(q, J[p], F[p], sigma[p], logJp[p], C);
     }
     FrameSource<T> src;
     src.x = &x;
@@ -1095,6 +1106,10 @@ void MgspBenchmark<T>::submit_frame(int body, const std::filesystem::path& path,
     src.F = [&] {
       if (!has_F) throw std::invalid_argument("DefGrad: the body's material stores no deformation gradient");
       return F;
+    };
+    src.logJp = [&] {
+      if (!has_logJp) throw std::invalid_argument("logJp: the body's material stores no plastic state");
+      return logJp;
     };
     src.sigma = [&] { return sigma; };
     const io::ParticleFrame f = build_frame(spec, body, src, "GPU engine");

@@ -37,6 +37,7 @@ struct FrameSource {
   std::function<std::vector<T>()> J;             ///< [-]
   std::function<std::vector<Mat3<T>>()> F;       ///< [-] (materials that store F)
   std::function<std::vector<Mat3<T>>()> sigma;   ///< [Pa] Cauchy stress
+  std::function<std::vector<T>()> logJp;         ///< [-] plastic state (materials with kOutputs.log_jp)
 };
 
 /// The frame of `spec.output_attribs` (canonical names; an alias and its name count once). `engine` names the
@@ -81,6 +82,9 @@ io::ParticleFrame build_frame(const BodySpec& spec, int body, const FrameSource<
     } else if (name == "J") {
       if (J.empty()) J = src.J();
       scalar(name, "", [&](std::size_t p) { return J[p]; });
+    } else if (name == "logJp") {
+      const std::vector<T> l = src.logJp();
+      scalar(name, "", [&](std::size_t p) { return l[p]; });
     } else if (tensor_component(name, "DefGrad_", row, col)) {
       if (F.empty()) F = src.F();
       scalar(name, "", [&](std::size_t p) { return F[p](row, col); });

@@ -22,6 +22,8 @@
 
 #include "scene_parse.h"
 
+#include "constitutive_models.cuh"
+
 namespace fbar {
 
 namespace {
@@ -41,8 +43,6 @@ void apply_froude_scaling(Scene& scene) {
   const double time = std::sqrt(s);
   const double velocity = std::sqrt(s);
   const double frequency = 1.0 / std::sqrt(s);
-  const double stress = s;
-  const double viscosity = s * std::sqrt(s);
 
   scale3(sim.domain, length);
   sim.dx *= length;
@@ -54,13 +54,11 @@ void apply_froude_scaling(Scene& scene) {
     scale3(b.velocity, velocity);
     scale3(b.partition_start, length);
     scale3(b.partition_end, length);
-    // Only the parameters the law reads: the others keep their defaults (the written scene omits them).
-    if (b.material.law == Constitutive::JFluid) {
-      b.material.bulk_modulus *= stress;
-      b.material.viscosity *= viscosity;
-    } else {
-      b.material.youngs_modulus *= stress;
-    }
+    // Only the parameters the law reads, each by its own power of s (MaterialParameter::froude_power: stress 1,
+    // viscosity 1.5): the others keep their defaults (the written scene omits them).
+    for_each_material_parameter(b.material.law, [&](const MaterialParameter& p) {
+      if (!p.is_flag() && p.froude_power != 0.0) b.material.*(p.number) *= std::pow(s, p.froude_power);
+    });
     for (GeometrySpec& g : b.geometry) {
       if (!g.use_froude_scaling) continue;
       scale3(g.offset, length);

@@ -32,6 +32,7 @@
 #include <utility>
 
 #include "attributes.h"
+#include "constitutive_models.cuh"
 
 namespace fbar {
 
@@ -239,13 +240,18 @@ E read_enum(const rj::Value& v, const std::string& path, const std::vector<EnumN
   throw SceneError(path, json_text(v), expected);
 }
 
-const std::vector<EnumName<Constitutive>> kLaws = {
-    {Constitutive::JFluid, {"JFluid", "Water", "Fluid", "Liquid"}},
-    {Constitutive::FixedCorotated, {"FixedCorotated"}},
-    {Constitutive::NeoHookean, {"NeoHookean"}},
-    {Constitutive::DruckerPrager, {"DruckerPrager", "Sand"}},
-    {Constitutive::NACC, {"NACC", "CamClay"}},
-};
+/// Every material's JSON name and aliases, from MaterialTypes (constitutive_models.cuh).
+std::vector<EnumName<Constitutive>> material_names() {
+  std::vector<EnumName<Constitutive>> laws;
+  for_each_material([&](auto m) {
+    using M = decltype(m);
+    EnumName<Constitutive> e{M::kLaw, {M::kJsonName}};
+    for_each_material_alias<M>([&](const char* a) { e.names.push_back(a); });
+    laws.push_back(std::move(e));
+  });
+  return laws;
+}
+const std::vector<EnumName<Constitutive>> kLaws = material_names();
 const std::vector<EnumName<Precision>> kPrecisions = {
     {Precision::Single, {"single"}}, {Precision::Double, {"double"}}, {Precision::Mixed, {"mixed"}}};
 const std::vector<EnumName<OnFailure>> kOnFailure = {{OnFailure::Stop, {"stop"}},
@@ -326,11 +332,16 @@ const Keys kBodyKeys = {"gpu",           "model",          "velocity",     "part
                         "type",          "name",           "color"};
 const Keys kPartitionKeys = {"gpu", "model", "partition_start", "partition_end"};
 const Keys kOutputKeys = {"output_attribs", "track_attribs", "target_attribs", "track_particle_id"};
-const Keys kMaterialKeys = {"type",           "constitutive",  "ppc",            "CFL",
-                            "rho",            "bulk_modulus",  "gamma",          "viscosity",
-                            "youngs_modulus", "poisson_ratio", "friction_angle", "cohesion",
-                            "logJp0",         "beta",          "SandVolCorrection", "xi",
-                            "hardeningOn"};
+/// Keys of bodies[].material: the common ones, then every material's parameters (kParameters).
+Keys material_keys() {
+  Keys keys = {"type", "constitutive", "ppc", "CFL", "rho"};
+  for_each_material([&](auto m) {
+    for (const MaterialParameter& p : decltype(m)::kParameters)
+      if (std::find(keys.begin(), keys.end(), std::string_view(p.key)) == keys.end()) keys.push_back(p.key);
+  });
+  return keys;
+}
+const Keys kMaterialKeys = material_keys();
 const Keys kAlgorithmKeys = {"type",     "ppc",      "CFL",           "use_ASFLIP",        "ASFLIP_alpha",
                              "ASFLIP_beta_min", "ASFLIP_beta_max", "use_FBAR", "FBAR_psi", "FBAR_fused_kernel",
                              "use_FEM"};
@@ -347,15 +358,6 @@ const Keys kGridSensorKeys = {"attribute",   "operation",    "direction", "outpu
 const Keys kParticleSensorKeys = {"attribute",    "operation",  "output_frequency", "output_freq",
                                   "domain_start", "domain_end", "type",             "name"};
 
-// Parameters each law reads (the others are errors when given: ClaymoreUW ignored them silently).
-const std::map<Constitutive, Keys> kLawParameters = {
-    {Constitutive::JFluid, {"bulk_modulus", "gamma", "viscosity"}},
-    {Constitutive::FixedCorotated, {"youngs_modulus", "poisson_ratio"}},
-    {Constitutive::NeoHookean, {"youngs_modulus", "poisson_ratio"}},
-    {Constitutive::DruckerPrager,
-     {"youngs_modulus", "poisson_ratio", "friction_angle", "cohesion", "logJp0", "beta", "SandVolCorrection"}},
-    {Constitutive::NACC, {"youngs_modulus", "poisson_ratio", "friction_angle", "xi", "beta", "logJp0", "hardeningOn"}},
-};
 
 // ---------------------------------------------------------------------------------------------------------------
 // Parse context and object reader
@@ -623,28 +625,30 @@ MaterialSpec parse_material(ObjectReader& body, ObjectReader* algorithm, const C
   if (auto cfl = read_either<double>(o, algorithm, "CFL", number(Range{0.0, 1.0, true, false}, "-"))) m.cfl = *cfl;
   if (auto* x = o.get("rho")) m.rho = read_number(*x, o.sub("rho"), kPositive, "kg/m^3");
 
-  // The parameters the law reads (type and range checked); finish() reports any other one that is given.
-  const Keys& used = kLawParameters.at(m.law);
-  auto uses = [&](std::string_view k) { return std::find(used.begin(), used.end(), k) != used.end(); };
-  auto param = [&](const char* key, auto read, auto& field) {
-    if (!uses(key)) return;
-    if (const rj::Value* x = o.get(key)) field = read(*x, o.sub(key));
-  };
-  param("bulk_modulus", number(kPositive, "Pa"), m.bulk_modulus);
-  param("gamma", number(kPositive, "-"), m.gamma);
-  param("viscosity", number(kNonNegative, "Pa s"), m.viscosity);
-  param("youngs_modulus", number(kPositive, "Pa"), m.youngs_modulus);
-  param("poisson_ratio", number(Range{-1.0, 0.5, false, true}, "-"), m.poisson_ratio);
-  param("friction_angle", number(Range{0.0, 90.0, false, true}, "deg"), m.friction_angle);
-  param("cohesion", number(kNonNegative, "-"), m.cohesion);
-  param("logJp0", number(kAny, "-"), m.logJp0);
-  param("beta", number(kNonNegative, "-"), m.beta);
-  param("xi", number(kNonNegative, "-"), m.xi);
-  param("SandVolCorrection", [](const rj::Value& x, const std::string& p) { return read_bool(x, p); }, m.vol_correction);
-  param("hardeningOn", [](const rj::Value& x, const std::string& p) { return read_bool(x, p); }, m.hardening);
+  // The parameters the law reads (its kParameters: type and range checked); finish() reports any other one given.
+  std::vector<std::string> used_names;
+  for_each_material_parameter(m.law, [&](const MaterialParameter& p) {
+    used_names.emplace_back(p.key);
+    const rj::Value* x = o.get(p.key);
+    if (!x) return;
+    if (p.is_flag())
+      m.*(p.flag) = read_bool(*x, o.sub(p.key));
+    else
+      m.*(p.number) = read_number(*x, o.sub(p.key), Range{p.range.lo, p.range.hi, p.range.lo_open, p.range.hi_open},
+                                  p.unit);
+  });
+  // Rules across parameters (e.g. DruckerPrager's logJp0 needs the volume correction).
+  visit_material(m.law, [&](auto law) {
+    const ParameterProblem problem = material_check<decltype(law)>(m);
+    if (problem.key == nullptr) return;
+    std::string value;
+    for_each_material_parameter(m.law, [&](const MaterialParameter& p) {
+      if (std::string_view(p.key) == problem.key) value = p.is_flag() ? (m.*(p.flag) ? "true" : "false") : num_text(m.*(p.number));
+    });
+    throw SceneError(o.sub(problem.key), value, problem.expected);
+  });
 
   const std::string law_name = to_string(m.law);
-  std::vector<std::string> used_names(used.begin(), used.end());
   o.finish([&](std::string_view key) {
     return "no " + std::string(key) + " for constitutive " + law_name + " (it reads " + join(used_names) + ")";
   });

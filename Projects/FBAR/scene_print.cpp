@@ -9,6 +9,8 @@
 
 #include "scene_parse.h"
 
+#include "constitutive_models.cuh"
+
 namespace fbar {
 
 namespace {
@@ -48,16 +50,13 @@ void row(std::ostream& os, const std::string& key, const std::string& value) {
 std::string material_line(const MaterialSpec& m) {
   std::string s = std::string(to_string(m.law)) + " (" + m.type + "): ppc " + num(m.ppc) + ", CFL " + num(m.cfl) +
                   ", rho " + num(m.rho) + " kg/m^3";
-  if (m.law == Constitutive::JFluid)
-    return s + ", bulk_modulus " + num(m.bulk_modulus) + " Pa, gamma " + num(m.gamma) + ", viscosity " +
-           num(m.viscosity) + " Pa s";
-  s += ", youngs_modulus " + num(m.youngs_modulus) + " Pa, poisson_ratio " + num(m.poisson_ratio);
-  if (m.law == Constitutive::DruckerPrager)
-    s += ", friction_angle " + num(m.friction_angle) + " deg, cohesion " + num(m.cohesion) + ", logJp0 " +
-         num(m.logJp0) + ", beta " + num(m.beta) + ", SandVolCorrection " + yes_no(m.vol_correction);
-  if (m.law == Constitutive::NACC)
-    s += ", friction_angle " + num(m.friction_angle) + " deg, xi " + num(m.xi) + ", beta " + num(m.beta) +
-         ", logJp0 " + num(m.logJp0) + ", hardeningOn " + yes_no(m.hardening);
+  for_each_material_parameter(m.law, [&](const MaterialParameter& p) {
+    s += std::string(", ") + p.key + " ";
+    if (p.is_flag())
+      s += yes_no(m.*(p.flag));
+    else
+      s += num(m.*(p.number)) + (std::string_view(p.unit) == "-" ? "" : std::string(" ") + p.unit);
+  });
   return s;
 }
 

@@ -1,6 +1,6 @@
 // The release policy, in one place: which parsed and validated scene features this build's engine can run.
 //
-// Release 0.1 runs the CPU reference engine: JFluid and FixedCorotated; APIC/MLS transfers (ASFLIP and F-bar
+// Both engines run every material of MaterialTypes (constitutive_models.cuh); APIC/MLS transfers (ASFLIP and F-bar
 // switched on only with zero ratios, which is APIC); Box / Sphere / Cylinder geometry with every operation,
 // rotation and arrays; Walls and Box boundaries (Sticky / Slip / Separable, frictionless, static, any time window);
 // .bgeo / .geo / .csv frames with the attributes cpu_engine_supports_attribute() accepts. Everything else SCHEMA.md lists is parsed
@@ -87,12 +87,16 @@ void check_supported(const Scene& scene) {
     for (std::size_t k = 0; k < b.output_attribs.size(); ++k) {
       const std::string& name = b.output_attribs[k];
       // The engine's own list decides (DefGrad_* only for a material that stores F), so --check and a run agree.
-      if (!cpu_engine_supports_attribute(m.law, name))
+      if (!cpu_engine_supports_attribute(m.law, name)) {
+        MaterialOutputs outputs{false, false};
+        visit_material(m.law, [&](auto law) { outputs = decltype(law)::kOutputs; });
         refuse(p + "." + idx("output_attribs", k), q(name),
                std::string("one of ID, Mass, Volume, Position_*, Velocity_*, Velocity_Magnitude, J, Pressure, "
                            "StressCauchy_* (9), VonMisesStress") +
-                   (m.law == Constitutive::FixedCorotated ? ", DefGrad_* (9)" : "") + " for " + to_string(m.law),
+                   (outputs.deformation_gradient ? ", DefGrad_* (9)" : "") + (outputs.log_jp ? ", logJp" : "") +
+                   " for " + to_string(m.law),
                "output attribute " + name);
+      }
     }
   }
 

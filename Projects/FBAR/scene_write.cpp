@@ -11,6 +11,8 @@
 
 #include "scene_parse.h"
 
+#include "constitutive_models.cuh"
+
 namespace fbar {
 
 namespace rj = rapidjson;
@@ -37,14 +39,9 @@ const char* to_string(Backend b) {
   return "?";
 }
 const char* to_string(Constitutive c) {
-  switch (c) {
-    case Constitutive::JFluid: return "JFluid";
-    case Constitutive::FixedCorotated: return "FixedCorotated";
-    case Constitutive::NeoHookean: return "NeoHookean";
-    case Constitutive::DruckerPrager: return "DruckerPrager";
-    case Constitutive::NACC: return "NACC";
-  }
-  return "?";
+  const char* name = "?";
+  visit_material(c, [&](auto m) { name = decltype(m)::kJsonName; });
+  return name;
 }
 const char* to_string(GeometryObject o) {
   switch (o) {
@@ -244,28 +241,12 @@ class SceneWriter {
     num("ppc", m.ppc);
     num("CFL", m.cfl);
     num("rho", m.rho);
-    if (m.law == Constitutive::JFluid) {
-      num("bulk_modulus", m.bulk_modulus);
-      num("gamma", m.gamma);
-      num("viscosity", m.viscosity);
-    } else {
-      num("youngs_modulus", m.youngs_modulus);
-      num("poisson_ratio", m.poisson_ratio);
-    }
-    if (m.law == Constitutive::DruckerPrager) {
-      num("friction_angle", m.friction_angle);
-      num("cohesion", m.cohesion);
-      num("logJp0", m.logJp0);
-      num("beta", m.beta);
-      boolean("SandVolCorrection", m.vol_correction);
-    }
-    if (m.law == Constitutive::NACC) {
-      num("friction_angle", m.friction_angle);
-      num("xi", m.xi);
-      num("beta", m.beta);
-      num("logJp0", m.logJp0);
-      boolean("hardeningOn", m.hardening);
-    }
+    for_each_material_parameter(m.law, [&](const MaterialParameter& p) {
+      if (p.is_flag())
+        boolean(p.key, m.*(p.flag));
+      else
+        num(p.key, m.*(p.number));
+    });
     w_.EndObject();
   }
 

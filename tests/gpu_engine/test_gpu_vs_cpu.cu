@@ -27,6 +27,7 @@
 #include "cpu_engine.h"
 #include "gpu_engine.h"
 #include "gpu_test_support.h"
+#include "scene_parse.h"
 
 namespace fbar {
 namespace {
@@ -42,7 +43,11 @@ Tolerance tolerance() {
 
 template <typename T>
 void compare(Constitutive law, double dt, int steps, const GpuEngineOptions& options = {}) {
-  const Scene scene = test::small_scene(law, std::is_same_v<T, double> ? Precision::Double : Precision::Single);
+  Scene scene = test::small_scene(law, std::is_same_v<T, double> ? Precision::Double : Precision::Single);
+  // NACC: a consolidated clay (p0 = kappa sinh(0.8 x 0.3) = 2e4 Pa, about the impact stress rho c v = 2.3e4 Pa), so
+  // the impact yields part of the block and hardens it; DruckerPrager (phi 30 deg, volume correction on) yields
+  // where the walls shear it.
+  if (law == Constitutive::NACC) scene.bodies[0].material.logJp0 = -0.3;
   const auto positions = test::sample_scene(scene);
   CpuEngine<T> cpu(scene, positions);
   GpuEngine<T> gpu(scene, positions, options);
@@ -66,6 +71,17 @@ void compare(Constitutive law, double dt, int steps, const GpuEngineOptions& opt
   const double eJ = test::max_diff_scalar(g.J, cpu.volume_ratios(0));
   double eF = 0.0;
   if (law != Constitutive::JFluid) eF = test::max_diff(g.F, cpu.deformation_gradients(0));
+  double eL = 0.0;  // plastic state: compared like J
+  if (law == Constitutive::DruckerPrager || law == Constitutive::NACC) {
+    eL = test::max_diff_scalar(g.logJp, cpu.plastic_log_volumes(0));
+    const std::vector<T> l = cpu.plastic_log_volumes(0);
+    const double initial = scene.bodies[0].material.logJp0;
+    long long changed = 0;
+    for (T x : l) changed += static_cast<double>(x) != initial;
+    std::cout << "[measured] " << to_string(law) << ": logJp changed on " << changed << " of " << l.size()
+              << " particles\n";
+    EXPECT_GT(changed, 0) << "the scene must exercise the return mapping";
+  }
   // Momentum: double sums in ID order on both sides.
   Vec3d pg = Vec3d::zero();
   for (std::size_t p = 0; p < g.v.size(); ++p) pg += g.v[p].template cast<double>() * static_cast<double>(cpu.masses(0)[p]);
@@ -73,14 +89,14 @@ void compare(Constitutive law, double dt, int steps, const GpuEngineOptions& opt
   const double e_momentum = max_abs(pg - pc) / std::max(1e-30, static_cast<double>(norm(pc)));
   const double e_grid_mass = std::fabs(gpu.grid_mass() - gpu.total_mass()) / gpu.total_mass();
   std::cout << "[measured] " << (std::is_same_v<T, double> ? "double " : "float  ")
-            << (law == Constitutive::JFluid ? "JFluid" : law == Constitutive::NeoHookean ? "NeoHookean" : "FixedCorotated")
-            << " after " << steps
-            << " steps: |dx| " << ex << " m, |dv| " << ev << " m/s, |dJ| " << eJ << ", |dF| " << eF
+            << to_string(law) << " after " << steps << " steps: |dx| " << ex << " m, |dv| " << ev << " m/s, |dJ| "
+            << eJ << ", |dF| " << eF << ", |dlogJp| " << eL
             << ", momentum rel " << e_momentum << ", grid mass rel " << e_grid_mass << "\n";
   EXPECT_LE(ex, tol.x);
   EXPECT_LE(ev, tol.v);
   EXPECT_LE(eJ, tol.J);
   EXPECT_LE(eF, tol.F);
+  EXPECT_LE(eL, tol.J);
   EXPECT_LE(e_momentum, tol.momentum_rel);
   EXPECT_LE(e_grid_mass, tol.grid_mass_rel);
   // The block did reach the floor (the walls acted): the lowest particle stopped falling at 2 m/s.
@@ -141,6 +157,23 @@ TEST(GpuVsCpu, NeoHookeanFloat) {
 TEST(GpuVsCpu, NeoHookeanDouble) {
   FBAR_REQUIRE_DEVICE();
   compare<double>(Constitutive::NeoHookean, 5e-4, 60);
+}
+// DruckerPrager and NACC, elastic constants as above (c_p = 11.6 m/s for both: kappa + 4 mu/3 = lambda + 2 mu).
+TEST(GpuVsCpu, DruckerPragerFloat) {
+  FBAR_REQUIRE_DEVICE();
+  compare<float>(Constitutive::DruckerPrager, 5e-4, 60);
+}
+TEST(GpuVsCpu, DruckerPragerDouble) {
+  FBAR_REQUIRE_DEVICE();
+  compare<double>(Constitutive::DruckerPrager, 5e-4, 60);
+}
+TEST(GpuVsCpu, NaccFloat) {
+  FBAR_REQUIRE_DEVICE();
+  compare<float>(Constitutive::NACC, 5e-4, 60);
+}
+TEST(GpuVsCpu, NaccDouble) {
+  FBAR_REQUIRE_DEVICE();
+  compare<double>(Constitutive::NACC, 5e-4, 60);
 }
 // Capacity growth: 8 grid blocks and 64 bins to start (the block needs ~100 blocks and ~60 bins per layout); the
 // engine grows both at run time without a restart and must still match the CPU engine.

@@ -383,9 +383,6 @@ TEST(Api, UnsupportedInputIsRefusedNamingTheBody) {
     EXPECT_NE(std::string(e.what()).find("bodies[1].output_attribs"), std::string::npos) << e.what();
   }
   scene = two_body_scene();
-  scene.bodies[0].material.law = Constitutive::NACC;
-  EXPECT_THROW(CpuEngine<double>{scene}, std::invalid_argument);
-  scene = two_body_scene();
   BoundarySpec sphere;
   sphere.object = BoundaryObject::Sphere;
   scene.boundaries.push_back(sphere);

@@ -37,13 +37,14 @@ double max_abs_diff(const Mat3d& a, const Mat3d& b) { return max_abs(a - b); }
 // ------------------------------------------------------------------------------------------------ material list
 
 TEST(MaterialList, MapsLawsAndJsonNamesToTypes) {
-  EXPECT_EQ(supported_material_names(), "JFluid, FixedCorotated, NeoHookean");
+  EXPECT_EQ(supported_material_names(), "JFluid, FixedCorotated, NeoHookean, DruckerPrager, NACC");
   EXPECT_EQ(material_index(Constitutive::NeoHookean), 2);
   EXPECT_EQ(material_index(Constitutive::JFluid), 0);
   EXPECT_EQ(material_index(Constitutive::FixedCorotated), 1);
+  EXPECT_EQ(material_index(Constitutive::DruckerPrager), 3);
+  EXPECT_EQ(material_index(Constitutive::NACC), 4);
   EXPECT_EQ(material_index("FixedCorotated"), 1);
-  EXPECT_EQ(material_index(Constitutive::NACC), -1);  // not implemented yet: engines must refuse it
-  EXPECT_EQ(material_index("Water"), -1);             // aliases are the parser's business
+  EXPECT_EQ(material_index("Water"), -1);  // aliases are the parser's business (kAliases)
   bool called = false;
   EXPECT_TRUE(visit_material(Constitutive::JFluid, [&](auto m) {
     called = true;
@@ -51,7 +52,7 @@ TEST(MaterialList, MapsLawsAndJsonNamesToTypes) {
   }));
   EXPECT_TRUE(called);
   called = false;
-  EXPECT_FALSE(visit_material(Constitutive::DruckerPrager, [&](auto) { called = true; }));
+  EXPECT_FALSE(visit_material(static_cast<Constitutive>(99), [&](auto) { called = true; }));
   EXPECT_FALSE(called);
 }
 
@@ -238,7 +239,7 @@ TEST(FixedCorotated, AdvanceUpdatesF) {
   C(2, 2) = -1.0;
   const double dt = 1e-3;
   const Mat3d expected = (Mat3d::identity() + C * dt) * F;
-  EXPECT_LE(max_abs_diff(FixedCorotated::advance(FixedCorotatedState<double>{F}, C, dt).F, expected), 4 * kEps);
+  EXPECT_LE(max_abs_diff(FixedCorotated::advance(FixedCorotatedParams<double>{}, FixedCorotatedState<double>{F}, C, dt).F, expected), 4 * kEps);
 }
 
 // ------------------------------------------------------------------------------------------------ JFluid
@@ -336,7 +337,7 @@ TEST(JFluid, AdvanceUpdatesOneMinusJ) {
   C(0, 2) = 9.0;  // off-diagonal: no volume change
   const double dt = 1e-3, omj = 2e-3;
   const double J_new = (1 - omj) * (1 + dt * trace(C));
-  EXPECT_NEAR(JFluid::advance(JFluidState<double>{omj}, C, dt).one_minus_J, 1 - J_new, 4 * kEps);
+  EXPECT_NEAR(JFluid::advance(JFluidParams<double>{}, JFluidState<double>{omj}, C, dt).one_minus_J, 1 - J_new, 4 * kEps);
 }
 
 // fp32: with 1 - J stored, float keeps the pressure of tiny compressions (water, K = 2e8, the OSU flume scene) to a few

@@ -315,7 +315,7 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
         v = sum.velocity();
         C = sum.affine(p.d_inv);
         x_new = advect(in.x, v, p.dt);
-        state_new = M::advance(in.state, C, p.dt);
+        state_new = M::advance(p.material, in.state, C, p.dt);
         // Checks, in the CPU engine's order: non-finite, left the domain, moved more than a cell.
         if (!(all_finite(x_new) && all_finite(v) && all_finite(C) &&
               g2p2g_detail::state_finite<T, kStateScalars>(state_new))) {

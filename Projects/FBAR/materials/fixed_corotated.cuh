@@ -17,6 +17,7 @@
 #include "MnBase/Math/vec.h"
 #include "MnBase/Meta/config.h"
 #include "materials/material_common.cuh"
+#include "materials/material_parameters.h"
 #include "scene.h"
 
 namespace fbar {
@@ -38,13 +39,14 @@ struct FixedCorotatedState {
 struct FixedCorotated {
   static constexpr const char* kJsonName = "FixedCorotated";
   static constexpr Constitutive kLaw = Constitutive::FixedCorotated;
+  static constexpr MaterialParameter kParameters[] = {kYoungsModulusParameter, kPoissonRatioParameter};
   template <typename T>
   using Params = FixedCorotatedParams<T>;
   template <typename T>
   using State = FixedCorotatedState<T>;
   /// Scalars a particle stores: position (3) + F (9). Mass and volume are per body.
   static constexpr int kStoredScalars = 12;
-  static constexpr MaterialOutputs kOutputs{true};
+  static constexpr MaterialOutputs kOutputs{true, false};
 
   /// Lame parameters from Young's modulus and Poisson's ratio (VALIDATION.md formulas), host only.
   template <typename T>
@@ -88,7 +90,8 @@ struct FixedCorotated {
 
   /// State after one step: F <- (I + dt C) F.
   template <typename T>
-  FBAR_HOST_DEVICE static constexpr State<T> advance(const State<T>& s, const Mat3<T>& C, T dt) {
+  FBAR_HOST_DEVICE static constexpr State<T> advance(const Params<T>& /*p*/, const State<T>& s, const Mat3<T>& C,
+                                                     T dt) {
     return State<T>{advance_deformation_gradient(s.F, C, dt)};
   }
 

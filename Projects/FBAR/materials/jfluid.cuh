@@ -14,6 +14,7 @@
 #include "MnBase/Math/vec.h"
 #include "MnBase/Meta/config.h"
 #include "materials/material_common.cuh"
+#include "materials/material_parameters.h"
 #include "scene.h"
 
 namespace fbar {
@@ -37,13 +38,22 @@ struct JFluid {
   /// Name of the law in scene files (material.constitutive) and its enumerator.
   static constexpr const char* kJsonName = "JFluid";
   static constexpr Constitutive kLaw = Constitutive::JFluid;
+  /// Other names scene files use for it (ClaymoreUW's).
+  static constexpr const char* kAliases[] = {"Water", "Fluid", "Liquid"};
+  /// Scene parameters (bodies[].material), besides rho, ppc and CFL which every material reads.
+  static constexpr MaterialParameter kParameters[] = {
+      number_parameter("bulk_modulus", "Pa", &MaterialSpec::bulk_modulus, kPositiveValue, 1.0,
+                       "bulk modulus K at rest"),
+      number_parameter("gamma", "-", &MaterialSpec::gamma, kPositiveValue, 0.0, "Tait-Murnaghan exponent"),
+      number_parameter("viscosity", "Pa s", &MaterialSpec::viscosity, kNonNegativeValue, 1.5, "dynamic viscosity"),
+  };
   template <typename T>
   using Params = JFluidParams<T>;
   template <typename T>
   using State = JFluidState<T>;
   /// Scalars a particle stores: position (3) + 1 - J (1). Mass and volume are per body.
   static constexpr int kStoredScalars = 4;
-  static constexpr MaterialOutputs kOutputs{false};
+  static constexpr MaterialOutputs kOutputs{false, false};
 
   /// Parameters from the resolved scene (host only).
   template <typename T>
@@ -89,7 +99,8 @@ struct JFluid {
 
   /// State after one step: J <- (1 + dt tr C) J on 1 - J.
   template <typename T>
-  FBAR_HOST_DEVICE static constexpr State<T> advance(const State<T>& s, const Mat3<T>& C, T dt) {
+  FBAR_HOST_DEVICE static constexpr State<T> advance(const Params<T>& /*p*/, const State<T>& s, const Mat3<T>& C,
+                                                     T dt) {
     return State<T>{advance_one_minus_J(s.one_minus_J, C, dt)};
   }
 

@@ -104,7 +104,8 @@ FBAR_HOST_DEVICE inline bool all_finite(const Mat<T, R, C>& a) {
 /// Which particle outputs a material can produce beyond the common ones (ID, Mass, Volume, Position, Velocity,
 /// J, Pressure, StressCauchy, VonMisesStress).
 struct MaterialOutputs {
-  bool deformation_gradient;  ///< DefGrad_XX..ZZ (a material that stores F)
+  bool deformation_gradient;  ///< DefGrad_XX..ZZ (a material that stores F in State::F)
+  bool log_jp;                ///< logJp (a plastic material that stores State::logJp)
 };
 
 }  // namespace fbar

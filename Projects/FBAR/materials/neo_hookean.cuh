@@ -15,6 +15,7 @@
 #include "MnBase/Meta/config.h"
 #include "materials/fixed_corotated.cuh"
 #include "materials/material_common.cuh"
+#include "materials/material_parameters.h"
 #include "scene.h"
 
 namespace fbar {
@@ -22,13 +23,14 @@ namespace fbar {
 struct NeoHookean {
   static constexpr const char* kJsonName = "NeoHookean";
   static constexpr Constitutive kLaw = Constitutive::NeoHookean;
+  static constexpr MaterialParameter kParameters[] = {kYoungsModulusParameter, kPoissonRatioParameter};
   /// Same parameters (rho0, mu, lambda from E and nu) and the same state (F) as FixedCorotated.
   template <typename T>
   using Params = FixedCorotatedParams<T>;
   template <typename T>
   using State = FixedCorotatedState<T>;
   static constexpr int kStoredScalars = 12;  ///< position (3) + F (9)
-  static constexpr MaterialOutputs kOutputs{true};
+  static constexpr MaterialOutputs kOutputs{true, false};
 
   template <typename T>
   static Params<T> make_params(const MaterialSpec& m) {
@@ -63,8 +65,9 @@ struct NeoHookean {
   }
 
   template <typename T>
-  FBAR_HOST_DEVICE static constexpr State<T> advance(const State<T>& s, const Mat3<T>& C, T dt) {
-    return FixedCorotated::advance(s, C, dt);
+  FBAR_HOST_DEVICE static constexpr State<T> advance(const Params<T>& p, const State<T>& s, const Mat3<T>& C,
+                                                     T dt) {
+    return FixedCorotated::advance(p, s, C, dt);
   }
   template <typename T>
   FBAR_HOST_DEVICE static inline T wave_speed(const Params<T>& p, const State<T>& s) {
