@@ -6,7 +6,8 @@
 // device memory per particle (cudaMemGetInfo before construction and after the run). Prints a table and writes a
 // CSV: scene, material, particles, precision, ms_per_step, particle_steps_per_s, bytes_per_particle_step,
 // bandwidth_fraction, device_bytes_per_particle, commit.
-//   fbar_benchmark [--sizes=1,4,16,64] [--precisions=single,double] [--scenes=dam_break,falling_block]
+//   fbar_benchmark [--sizes=1,4,16,64] [--precisions=single,double]
+//                  [--scenes=dam_break,falling_block,neo_block,sand_block,clay_block]
 //                  [--steps=100] [--warmup=20] [--csv=benchmark.csv]
 #include <cuda_runtime.h>
 
@@ -25,6 +26,7 @@
 #include "gpu_engine.h"
 #include "kernels/g2p2g_kernel.cuh"
 #include "particle_buffer.cuh"
+#include "scene_parse.h"
 
 #ifndef FBAR_GIT_COMMIT
 #define FBAR_GIT_COMMIT "unknown"
@@ -97,9 +99,16 @@ Scene make_scene(const std::string& name, double millions, Precision precision) 
     body.material.gamma = 7.1;
     body.material.viscosity = 1e-3;
   } else {
-    body.material.law = Constitutive::FixedCorotated;
+    // falling_block: FixedCorotated; neo_block, sand_block, clay_block: the same block in NeoHookean,
+    // DruckerPrager (phi 30 deg, volume correction) and NACC (phi 30 deg, consolidated: logJp0 = -0.3).
+    body.material.law = name == "neo_block"    ? Constitutive::NeoHookean
+                        : name == "sand_block" ? Constitutive::DruckerPrager
+                        : name == "clay_block" ? Constitutive::NACC
+                                               : Constitutive::FixedCorotated;
     body.material.youngs_modulus = 1e7;
     body.material.poisson_ratio = 0.3;
+    body.material.friction_angle = 30.0;
+    if (body.material.law == Constitutive::NACC) body.material.logJp0 = -0.3;
     box.offset = {(k + 4) * dx, (k / 2 + 4) * dx, (k / 4 + 4) * dx};
     body.velocity = {0.0, -1.0, 0.0};
   }
@@ -142,9 +151,9 @@ template <typename T>
 Row run_case(const std::string& scene_name, double millions, int steps, int warmup, double bandwidth) {
   Row row;
   row.scene = scene_name;
-  row.material = scene_name == "dam_break" ? "JFluid" : "FixedCorotated";
   row.precision = std::is_same_v<T, double> ? "double" : "single";
   const Scene scene = make_scene(scene_name, millions, std::is_same_v<T, double> ? Precision::Double : Precision::Single);
+  row.material = to_string(scene.bodies[0].material.law);
   std::size_t free0 = 0, total = 0;
   FBAR_CUDA_CHECK(cudaMemGetInfo(&free0, &total));
   GpuEngine<T> engine(scene);
@@ -174,9 +183,9 @@ Row run_case(const std::string& scene_name, double millions, int steps, int warm
   row.repeats = engine.p2g_range_repeats();
   row.ms_per_step = 1e3 * seconds / steps;
   row.particle_steps_per_s = static_cast<double>(row.particles) / (seconds / steps);
-  row.bytes_per_particle_step = row.material == "JFluid"
-                                    ? bytes_per_particle_step<JFluid, T>(row.particles, row.blocks)
-                                    : bytes_per_particle_step<FixedCorotated, T>(row.particles, row.blocks);
+  visit_material(scene.bodies[0].material.law, [&](auto m) {
+    row.bytes_per_particle_step = bytes_per_particle_step<decltype(m), T>(row.particles, row.blocks);
+  });
   row.bandwidth_fraction = row.bytes_per_particle_step * row.particle_steps_per_s / bandwidth;
   row.device_bytes_per_particle = static_cast<double>(free0 - free1) / static_cast<double>(row.particles);
   return row;
