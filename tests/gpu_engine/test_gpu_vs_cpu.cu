@@ -35,9 +35,21 @@ namespace {
 struct Tolerance {
   double x, v, J, F, momentum_rel, grid_mass_rel;
 };
+// Plastic laws (DruckerPrager, NACC) amplify round-off more: whether a particle on the yield surface yields in a
+// step, and by how much, is decided by the last bits of its trial state, and the plastic increment then changes F
+// by the strain increment of the step, not by ulps; the granular flow that follows spreads that difference. The
+// same amplification shows in double (measured on an H100 at ac3ad0b, 60 steps: |dF| 3.6e-14 DruckerPrager,
+// 1.0e-14 NACC against 1.2e-15 FixedCorotated), which keeps double's 1e-13 tolerances and so checks that the two
+// engines compute the same return mapping. In float the same factor (25-150x) lifts the measured differences to
+// |dv| 2.3e-4 m/s, |dJ| 2.3e-4, |dF| 2.3e-4, |dlogJp| 2e-5 (DruckerPrager) and |dv| 1e-4, |dJ| 3.4e-5 (NACC):
+// float tolerances for plastic laws are 1e-3 for v, J and F and 1e-4 for logJp and momentum. They stay far below
+// the physics being compared: the impact strain is rho c_p v / (lambda + 2 mu) = 1000 x 11.6 x 2 / 1.35e5 = 0.17,
+// so a wrong or missing term in the return mapping moves F by O(1e-2) and more.
 template <typename T>
-Tolerance tolerance() {
+Tolerance tolerance(Constitutive law) {
+  const bool plastic = law == Constitutive::DruckerPrager || law == Constitutive::NACC;
   if constexpr (std::is_same_v<T, double>) return {1e-13, 1e-12, 1e-13, 1e-13, 1e-12, 1e-13};
+  else if (plastic) return {1e-5, 1e-3, 1e-3, 1e-3, 1e-4, 1e-6};
   else return {5e-6, 1e-4, 2e-5, 2e-5, 5e-6, 1e-6};
 }
 
@@ -64,7 +76,7 @@ void compare(Constitutive law, double dt, int steps, const GpuEngineOptions& opt
   }
   EXPECT_EQ(gpu.steps(), cpu.steps());
   EXPECT_DOUBLE_EQ(gpu.time(), cpu.time());
-  const Tolerance tol = tolerance<T>();
+  const Tolerance tol = tolerance<T>(law);
   const ParticleSnapshot<T> g = gpu.snapshot(0);
   const double ex = test::max_diff(g.x, cpu.positions(0));
   const double ev = test::max_diff(g.v, cpu.velocities(0));
@@ -96,7 +108,7 @@ void compare(Constitutive law, double dt, int steps, const GpuEngineOptions& opt
   EXPECT_LE(ev, tol.v);
   EXPECT_LE(eJ, tol.J);
   EXPECT_LE(eF, tol.F);
-  EXPECT_LE(eL, tol.J);
+  EXPECT_LE(eL, std::is_same_v<T, double> ? tol.J : 1e-4);
   EXPECT_LE(e_momentum, tol.momentum_rel);
   EXPECT_LE(e_grid_mass, tol.grid_mass_rel);
   // The block did reach the floor (the walls acted): the lowest particle stopped falling at 2 m/s.
@@ -139,7 +151,7 @@ TEST(GpuVsCpu, FixedPointBoundRepeatsAStepAndMatchesCpu) {
     ASSERT_TRUE(gpu.step(2e-4).ok);
   }
   const ParticleSnapshot<float> g = gpu.snapshot(0);
-  const Tolerance tol = tolerance<float>();
+  const Tolerance tol = tolerance<float>(Constitutive::JFluid);
   const double ex = test::max_diff(g.x, cpu.positions(0)), ev = test::max_diff(g.v, cpu.velocities(0));
   std::cout << "[measured] fixed-point bound repeats in 40 steps from rest: " << gpu.p2g_range_repeats() << "; |dx| "
             << ex << " m, |dv| " << ev << " m/s\n";
