@@ -108,7 +108,7 @@ void compare(Constitutive law, double dt, int steps, const GpuEngineOptions& opt
   EXPECT_LE(ev, tol.v);
   EXPECT_LE(eJ, tol.J);
   EXPECT_LE(eF, tol.F);
-  EXPECT_LE(eL, std::is_same_v<T, double> ? tol.J : 1e-4);
+  EXPECT_LE(eL, (std::is_same_v<T, double> ? tol.J : 1e-4));
   EXPECT_LE(e_momentum, tol.momentum_rel);
   EXPECT_LE(e_grid_mass, tol.grid_mass_rel);
   // The block did reach the floor (the walls acted): the lowest particle stopped falling at 2 m/s.
