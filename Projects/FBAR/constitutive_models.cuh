@@ -25,6 +25,7 @@
 #include "MnBase/Meta/type_seq.h"
 #include "materials/drucker_prager.cuh"
 #include "materials/fixed_corotated.cuh"
+#include "materials/hencky.cuh"
 #include "materials/jfluid.cuh"
 #include "materials/material_common.cuh"
 #include "materials/material_parameters.h"
@@ -35,7 +36,7 @@
 namespace fbar {
 
 /// Every material an engine can run, in the order of their variant indices.
-using MaterialTypes = type_seq<JFluid, FixedCorotated, NeoHookean, DruckerPrager, NACC>;
+using MaterialTypes = type_seq<JFluid, FixedCorotated, NeoHookean, DruckerPrager, NACC, Hencky>;
 
 template <typename M, typename T>
 using material_params_t = typename M::template Params<T>;

@@ -187,12 +187,6 @@ void CpuEngine<T>::init(const std::vector<std::vector<Vec3d>>& positions) {
     if (mat.type != "particles")
       throw std::invalid_argument(where + ".material.type: \"" + mat.type + "\" bodies are not implemented");
     const AlgorithmSpec& alg = spec.algorithm;
-    if (alg.use_asflip && (alg.asflip_alpha != 0.0 || alg.asflip_beta_min != 0.0 || alg.asflip_beta_max != 0.0))
-      throw std::invalid_argument(where +
-                                  ".algorithm: ASFLIP with nonzero alpha/beta is not implemented by the "
-                                  "CPU engine (APIC/MLS-MPM only; alpha = beta = 0 is APIC)");
-    if (alg.use_fbar && alg.fbar_psi != 0.0)
-      throw std::invalid_argument(where + ".algorithm.FBAR_psi: F-bar is not implemented by the CPU engine");
     if (alg.use_fem) throw std::invalid_argument(where + ".algorithm.use_FEM: not implemented by the CPU engine");
     for (const std::string& name : spec.output_attribs) {
       const std::string canonical = canonical_attribute(name);
@@ -219,6 +213,11 @@ void CpuEngine<T>::init(const std::vector<std::vector<Vec3d>>& positions) {
     }
     body.v.assign(n, v0);
     body.C.assign(n, Mat3T::zero());
+    body.asflip = alg.use_asflip && (alg.asflip_alpha != 0.0 || alg.asflip_beta_min != 0.0 || alg.asflip_beta_max != 0.0);
+    body.asflip_params = AsflipParams<T>{static_cast<T>(alg.asflip_alpha), static_cast<T>(alg.asflip_beta_min),
+                                         static_cast<T>(alg.asflip_beta_max)};
+    asflip_ = asflip_ || body.asflip;
+    body.fbar_psi = alg.use_fbar ? static_cast<T>(alg.fbar_psi) : T(0);
     body.mass.assign(n, static_cast<T>(mat.rho * volume));
     body.volume.assign(n, static_cast<T>(volume));
     body.x_next.resize(n);
@@ -322,6 +321,7 @@ void CpuEngine<T>::p2g(Body& body, T dt) {
           // (channel, node) private arena of one particle block: mass, momentum x, y, z.
           T arena_m[kArenaNodes];
           T arena_p[3][kArenaNodes];
+          T arena_q[3][kArenaNodes];  // ASFLIP: the momentum without the stress impulse, m (v + C (x_i - x_p))
           for (int colour = 0; colour < 8; ++colour) {
             const std::vector<int>& list = part.colour_blocks[colour];
             const int count = static_cast<int>(list.size());
@@ -332,6 +332,8 @@ void CpuEngine<T>::p2g(Body& body, T dt) {
               const Vec3i& origin = part.block_coords[pb];
               std::fill(arena_m, arena_m + kArenaNodes, T(0));
               for (auto& ch : arena_p) std::fill(ch, ch + kArenaNodes, T(0));
+              if (body.asflip)
+                for (auto& ch : arena_q) std::fill(ch, ch + kArenaNodes, T(0));
               for (int q = part.block_start[pb]; q < part.block_start[pb + 1]; ++q) {
                 const int p = part.order[q];
                 const QuadraticBspline<T> s = quadratic_bspline_inv(body.x[p], inv_dx);
@@ -349,6 +351,15 @@ void CpuEngine<T>::p2g(Body& body, T dt) {
                   arena_p[1][a] += mv[1];
                   arena_p[2][a] += mv[2];
                 });
+                if (body.asflip) {
+                  const P2GParticle<T> transported =
+                      mls_p2g_particle(body.mass[p], body.volume[p], body.v[p], body.C[p], Mat3T::zero(), dt, d_inv);
+                  for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3T& xixp) {
+                    const int a = arena_index(l0 + i, l1 + j, l2 + k);
+                    const Vec3T mv = p2g_node_momentum(transported, w, xixp);
+                    for (int d = 0; d < 3; ++d) arena_q[d][a] += mv[d];
+                  });
+                }
               }
               // Add the arena to the (up to 8) grid blocks it overlaps; no other block of this colour touches them.
               const std::array<int, 8>& targets = part.grid_blocks[pb];
@@ -363,6 +374,8 @@ void CpuEngine<T>::p2g(Body& body, T dt) {
                     g.momentum[0][node] += arena_p[0][ai];
                     g.momentum[1][node] += arena_p[1][ai];
                     g.momentum[2][node] += arena_p[2][ai];
+                    if (body.asflip)
+                      for (int d = 0; d < 3; ++d) g.old_velocity[d][node] += arena_q[d][ai];
                   }
             }
           }
@@ -394,6 +407,11 @@ double CpuEngine<T>::update_grid(T dt) {
           const T m = g.mass[node];
           mass_sum += static_cast<double>(m);
           const Vec3T momentum{{g.momentum[0][node], g.momentum[1][node], g.momentum[2][node]}};
+          if (asflip_) {  // v^n = transported momentum / m (P2G accumulated it in old_velocity)
+            const Vec3T transported{{g.old_velocity[0][node], g.old_velocity[1][node], g.old_velocity[2][node]}};
+            const Vec3T v_old = grid_node_velocity(m, transported, Vec3T::zero(), dt);
+            for (int a = 0; a < 3; ++a) g.old_velocity[a][node] = v_old[a];
+          }
           Vec3T v = grid_node_velocity(m, momentum, k_.gravity, dt);
           if (m > T(0)) {
             const Vec3T x_node{{static_cast<T>(c[0] * kBlockSide + i) * k_.dx,
@@ -411,6 +429,81 @@ double CpuEngine<T>::update_grid(T dt) {
   grid_mass_ = 0.0;
   for (double m : block_mass) grid_mass_ += m;
   return std::sqrt(static_cast<double>(max_speed_sq));
+}
+
+// ---------------------------------------------------------------------------------------------
+// F-bar: the body's volume-weighted velocity divergence per grid cell (transfer.cuh, fbar_velocity_gradient)
+
+template <typename T>
+void CpuEngine<T>::fbar_divergence(Body& body) {
+  const int nblocks = static_cast<int>(grid_.blocks.size());
+#pragma omp parallel for schedule(static) if (nblocks >= kMinParallelBlocks)
+  for (int gb = 0; gb < nblocks; ++gb)
+    for (auto& ch : grid_.blocks[gb].fbar) std::fill(ch, ch + 64, T(0));
+  const Partition& part = body.partition;
+  const T dx = k_.dx, inv_dx = k_.inv_dx, d_inv = k_.d_inv;
+  std::visit(
+      [&](auto& mb) {
+        using M = typename std::decay_t<decltype(mb)>::material_type;
+        const auto& state = mb.state;
+        int largest_colour = 0;
+        for (const auto& list : part.colour_blocks)
+          largest_colour = std::max(largest_colour, static_cast<int>(list.size()));
+#pragma omp parallel if (largest_colour >= kMinParallelBlocks)
+        {
+          T arena_v[3][kArenaNodes];     // (component, node) grid velocities around one particle block
+          T arena_sum[2][kArenaNodes];   // (sum, cell) the block's deposits: V tr C, V (cell i at node i)
+          for (int colour = 0; colour < 8; ++colour) {
+            const std::vector<int>& list = part.colour_blocks[colour];
+            const int count = static_cast<int>(list.size());
+#pragma omp for schedule(dynamic, 1)
+            for (int li = 0; li < count; ++li) {
+              const int pb = list[li];
+              const std::array<int, 8>& blocks = part.grid_blocks[pb];
+              for (int a = 0; a < kArenaSide; ++a)
+                for (int b = 0; b < kArenaSide; ++b)
+                  for (int c = 0; c < kArenaSide; ++c) {
+                    const GridBlock& g = grid_.blocks[blocks[arena_neighbour(a, b, c)]];
+                    const int node = arena_node_in_block(a, b, c);
+                    const int ai = arena_index(a, b, c);
+                    for (int d = 0; d < 3; ++d) arena_v[d][ai] = g.momentum[d][node];
+                    arena_sum[0][ai] = arena_sum[1][ai] = T(0);
+                  }
+              const Vec3i& origin = part.block_coords[pb];
+              for (int q = part.block_start[pb]; q < part.block_start[pb + 1]; ++q) {
+                const int p = part.order[q];
+                const QuadraticBspline<T> s = quadratic_bspline_inv(body.x[p], inv_dx);
+                const int l0 = s.base[0] - origin[0] * kBlockSide;
+                const int l1 = s.base[1] - origin[1] * kBlockSide;
+                const int l2 = s.base[2] - origin[2] * kBlockSide;
+                G2PSum<T> sum;
+                for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3T& xixp) {
+                  const int a = arena_index(l0 + i, l1 + j, l2 + k);
+                  sum.add(w, Vec3T{{arena_v[0][a], arena_v[1][a], arena_v[2][a]}}, xixp);
+                });
+                const Mat3T C = sum.affine(d_inv);
+                const T V = body.volume[p] * M::volume_ratio(state[p]);
+                const Vec3i cell = fbar_cell_offset(body.x[p], inv_dx, s.base);
+                const int a = arena_index(l0 + cell[0], l1 + cell[1], l2 + cell[2]);
+                arena_sum[0][a] += V * (C(0, 0) + C(1, 1) + C(2, 2));
+                arena_sum[1][a] += V;
+              }
+              // The same colour discipline as P2G: no other block of this colour touches these grid blocks.
+              for (int a = 0; a < kArenaSide; ++a)
+                for (int b = 0; b < kArenaSide; ++b)
+                  for (int c = 0; c < kArenaSide; ++c) {
+                    const int ai = arena_index(a, b, c);
+                    if (arena_sum[1][ai] == T(0)) continue;
+                    GridBlock& g = grid_.blocks[blocks[arena_neighbour(a, b, c)]];
+                    const int node = arena_node_in_block(a, b, c);
+                    g.fbar[0][node] += arena_sum[0][ai];
+                    g.fbar[1][node] += arena_sum[1][ai];
+                  }
+            }
+          }
+        }
+      },
+      body.material);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -432,9 +525,12 @@ void CpuEngine<T>::g2p(int body_index, Body& body, T dt, TryResult& result) {
         const auto params = mb.params;
         const auto& state = mb.state;
         auto& next_state = mb.next_state;
+        const bool fbar = body.fbar_psi != T(0);
 #pragma omp parallel if (nb >= kMinParallelBlocks)
         {
-          T arena_v[3][kArenaNodes];  // (component, node) grid velocities around one particle block
+          T arena_v[3][kArenaNodes];      // (component, node) grid velocities around one particle block
+          T arena_v_old[3][kArenaNodes];  // (component, node) ASFLIP's v^n, when the body uses it
+          T arena_fbar[2][kArenaNodes];   // (sum, node) F-bar's divergence sums, when the body uses it
           long long my_count[3] = {0, 0, 0};
           long long my_first[3] = {first[0], first[1], first[2]};
           T my_wave = T(0);
@@ -450,6 +546,10 @@ void CpuEngine<T>::g2p(int body_index, Body& body, T dt, TryResult& result) {
                   arena_v[0][ai] = g.momentum[0][node];
                   arena_v[1][ai] = g.momentum[1][node];
                   arena_v[2][ai] = g.momentum[2][node];
+                  if (body.asflip)
+                    for (int d = 0; d < 3; ++d) arena_v_old[d][ai] = g.old_velocity[d][node];
+                  if (fbar)
+                    for (int d = 0; d < 2; ++d) arena_fbar[d][ai] = g.fbar[d][node];
                 }
             const Vec3i& origin = part.block_coords[pb];
             for (int q = part.block_start[pb]; q < part.block_start[pb + 1]; ++q) {
@@ -460,14 +560,30 @@ void CpuEngine<T>::g2p(int body_index, Body& body, T dt, TryResult& result) {
               const int l1 = s.base[1] - origin[1] * kBlockSide;
               const int l2 = s.base[2] - origin[2] * kBlockSide;
               G2PSum<T> sum;
+              G2POldSum<T> old;
+              T divergence = T(0);  // F-bar's smoothed tr C
               for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3T& xixp) {
                 const int a = arena_index(l0 + i, l1 + j, l2 + k);
                 sum.add(w, Vec3T{{arena_v[0][a], arena_v[1][a], arena_v[2][a]}}, xixp);
+                if (body.asflip) old.add(w, Vec3T{{arena_v_old[0][a], arena_v_old[1][a], arena_v_old[2][a]}});
               });
-              const Vec3T v = sum.velocity();
+              if (fbar) {
+                const Vec3i cell = fbar_cell_offset(x, inv_dx, s.base);
+                const int a = arena_index(l0 + cell[0], l1 + cell[1], l2 + cell[2]);
+                divergence = fbar_cell_divergence(arena_fbar[0][a], arena_fbar[1][a]);
+              }              Vec3T v = sum.velocity();
               const Mat3T C = sum.affine(d_inv);
-              const Vec3T x_new = advect(x, v, dt);
-              const auto s_new = M::advance(params, state[p], C, dt);
+              const auto s_new =
+                  M::advance(params, state[p], fbar ? fbar_velocity_gradient(C, divergence, body.fbar_psi) : C, dt);
+              Vec3T x_new;
+              if (body.asflip) {
+                const AsflipUpdate<T> u =
+                    asflip_update(body.asflip_params, body.v[p], v, old.v, M::volume_ratio(s_new), dt);
+                v = u.v;
+                x_new = x + u.move;
+              } else {
+                x_new = advect(x, v, dt);
+              }
               body.x_next[p] = x_new;
               body.v_next[p] = v;
               body.C_next[p] = C;
@@ -535,7 +651,10 @@ typename CpuEngine<T>::TryResult CpuEngine<T>::try_step(double dt_in) {
   for (int gb = 0; gb < nblocks; ++gb) std::memset(&grid_.blocks[gb], 0, sizeof(GridBlock));
   for (Body& body : bodies_) p2g(body, dt);
   result.max_grid_speed = update_grid(dt);
-  for (std::size_t b = 0; b < bodies_.size(); ++b) g2p(static_cast<int>(b), bodies_[b], dt, result);
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    if (bodies_[b].fbar_psi != T(0)) fbar_divergence(bodies_[b]);  // F-bar smooths within one body
+    g2p(static_cast<int>(b), bodies_[b], dt, result);
+  }
   return result;
 }
 

@@ -59,6 +59,7 @@
 #include "constitutive_models.cuh"
 #include "run_constants.h"
 #include "scene.h"
+#include "transfer.cuh"
 
 namespace fbar {
 
@@ -218,6 +219,9 @@ class CpuEngine {
     std::vector<T> mass, volume;
     MaterialVariant material;
     double max_wave_speed = 0.0;  // [m/s] over the particles of the committed state
+    bool asflip = false;          // PIC-FLIP / ASFLIP velocity and position update (transfer.cuh)
+    AsflipParams<T> asflip_params{T(0), T(0), T(0)};
+    T fbar_psi = T(0);  // F-bar blend (transfer.cuh: fbar_velocity_gradient); 0: off
     Partition partition;
   };
 
@@ -225,6 +229,11 @@ class CpuEngine {
   struct GridBlock {
     T mass[64];
     T momentum[3][64];  // momentum after P2G, velocity after the grid update
+    // ASFLIP's v^n (only when a body uses it): P2G accumulates the transported momentum m (v + C (x_i - x_p))
+    // without the MLS stress impulse, the grid update divides it by the mass.
+    T old_velocity[3][64];
+    // F-bar (only when a body uses it): sum w V tr C and sum w V of the body in G2P (transfer.cuh).
+    T fbar[2][64];
   };
   struct Grid {
     std::unordered_map<std::uint64_t, int> index;  // packed block coordinates -> block
@@ -243,6 +252,7 @@ class CpuEngine {
   TryResult try_step(double dt);
   void p2g(Body& body, T dt);
   double update_grid(T dt);
+  void fbar_divergence(Body& body);
   void g2p(int body_index, Body& body, T dt, TryResult& result);
   void commit(const TryResult& result, double dt);
   StepReport step_impl(double dt, bool cfl_dt);
@@ -261,6 +271,7 @@ class CpuEngine {
   double dt_scale_ = 1.0;  // reduce_dt: current halving factor
   int clean_steps_ = 0;    // reduce_dt: clean steps since the last halving
   bool partition_valid_ = false;
+  bool asflip_ = false;  // some body uses ASFLIP: the grid update keeps v^n
   std::ostream* log_;
 };
 

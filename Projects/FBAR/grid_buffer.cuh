@@ -3,6 +3,7 @@
 // Two kinds of buffer share the block indexing of the hash table (hash_table.cuh):
 //   GridBuffer<T>          mass + momentum (4 channels): what P2G accumulates. Double-buffered by the driver:
 //                          G2P2G of step n reads the velocities of step n and scatters into the other buffer.
+//   GridFbarBuffer<T>      F-bar's cell sums (2 channels, transfer.cuh), only when a body uses F-bar.
 //   GridVelocityBuffer<T>  velocity (3 channels): what the grid update writes and G2P reads. Keeping it apart from
 //                          the momentum leaves the P2G sums of step n intact until step n commits, which is what
 //                          a retried step (on_failure = reduce_dt) and a changed dt need (see mgsp_benchmark.cuh).
@@ -32,6 +33,8 @@ inline constexpr auto grid_momentum_z = placeholder::_3;
 inline constexpr auto grid_velocity_x = placeholder::_0;  ///< [m/s] (velocity buffer)
 inline constexpr auto grid_velocity_y = placeholder::_1;
 inline constexpr auto grid_velocity_z = placeholder::_2;
+inline constexpr auto grid_fbar_volume_rate = placeholder::_0;  ///< [m^3/s] F-bar cell sum of V tr C (cell at node)
+inline constexpr auto grid_fbar_volume = placeholder::_1;       ///< [m^3] F-bar cell sum of V
 
 template <typename T>
 struct GridLayout {
@@ -44,10 +47,14 @@ struct GridLayout {
   using block_ = structural<structural_type::dense, block_domain, soa, scalar_, scalar_, scalar_, scalar_>;
   /// (channel, node) velocity of one block.
   using velocity_block_ = structural<structural_type::dense, block_domain, soa, scalar_, scalar_, scalar_>;
+  /// (channel, cell) F-bar's cell sums of one block (transfer.cuh), allocated only when a body uses F-bar.
+  using fbar_block_ = structural<structural_type::dense, block_domain, soa, scalar_, scalar_>;
   using buffer_ = structural<structural_type::dynamic, dynamic_domain<int>, soa, block_>;
+  using fbar_buffer_ = structural<structural_type::dynamic, dynamic_domain<int>, soa, fbar_block_>;
   using velocity_buffer_ = structural<structural_type::dynamic, dynamic_domain<int>, soa, velocity_block_>;
   using Buffer = structural_instance<buffer_>;
   using VelocityBuffer = structural_instance<velocity_buffer_>;
+  using FbarBuffer = structural_instance<fbar_buffer_>;
 
   static constexpr std::size_t kBlockBytes = block_::element_storage_size * block_domain::extent;
   static_assert(block_::size == 4 * 64 * sizeof(T), "a grid block is 4 channels x 64 nodes, nothing else");
@@ -108,5 +115,7 @@ template <typename T>
 using GridBuffer = BlockBuffer<typename GridLayout<T>::block_>;
 template <typename T>
 using GridVelocityBuffer = BlockBuffer<typename GridLayout<T>::velocity_block_>;
+template <typename T>
+using GridFbarBuffer = BlockBuffer<typename GridLayout<T>::fbar_block_>;
 
 }  // namespace fbar

@@ -194,6 +194,7 @@ class MgspBenchmark {
     int particles = 0;
     T mass = T(0), volume = T(0);
     double rest_wave_speed = 0.0;
+    T fbar_psi = T(0);  ///< F-bar blend (transfer.cuh), 0: off
     PartitionDomain partition;
     int total_bins[2] = {0, 0};  ///< bins of layout 0 / 1
     mgsp_detail::DeviceArray<T> aux;  ///< (slot, kAuxScalars) recorded v and C
@@ -257,6 +258,8 @@ class MgspBenchmark {
       p.grid_next = e.grid_[1 - e.gc_].instance();
       p.grid_this = e.grid_[e.gc_].instance();
       p.aux = e.record_ ? this->aux.get() : nullptr;
+      p.fbar_psi = initial ? T(0) : this->fbar_psi;
+      if (p.fbar_psi != T(0)) p.fbar_sums = e.fbar_sums_.instance();
       p.material = params;
       p.mass = this->mass;
       p.volume = this->volume;
@@ -275,6 +278,22 @@ class MgspBenchmark {
       p.p2g_bound_out = e.p2g_bound_d_.get() + (1 - e.bound_cur_) * e.bodies_.size() + this->index;
       const int blocks = e.block_count_;
       if (blocks == 0) return;
+      if (p.fbar_psi != T(0)) {  // F-bar: this body's cell sums first (kernels/g2p2g_kernel.cuh, fbar_divergence)
+        e.fbar_sums_.clear(0, blocks, e.stream_);
+        FbarDivergenceParams<M, T> f;
+        f.in = p.in;
+        f.layout = p.layout;
+        f.table = p.table;
+        f.velocity = p.velocity;
+        f.sums = p.fbar_sums;
+        f.volume = p.volume;
+        f.dx = p.dx;
+        f.inv_dx = p.inv_dx;
+        f.d_inv = p.d_inv;
+        f.stats = p.stats;
+        fbar::fbar_divergence<M, T><<<blocks, kG2P2GThreads, 0, e.stream_>>>(f);
+        mgsp_detail::check_launch("fbar_divergence");
+      }
       if (initial)
         fbar::g2p2g<M, T, true><<<blocks, kG2P2GThreads, 0, e.stream_>>>(p);
       else
@@ -355,6 +374,8 @@ class MgspBenchmark {
   BlockHashTable table_;
   GridBuffer<T> grid_[2];
   GridVelocityBuffer<T> velocity_;
+  GridFbarBuffer<T> fbar_sums_;         ///< F-bar cell sums, allocated only when a body uses F-bar
+  bool fbar_ = false;
   int block_capacity_ = 0;
   int block_count_ = 0;                 ///< table blocks after the last committed partition
   mgsp_detail::DeviceArray<std::byte> stats_bytes_;
@@ -421,10 +442,9 @@ MgspBenchmark<T>::MgspBenchmark(const Scene& scene, const std::vector<std::vecto
       throw std::invalid_argument(where + ".material.type: \"" + mat.type + "\" bodies are not implemented");
     const AlgorithmSpec& alg = spec.algorithm;
     if (alg.use_asflip && (alg.asflip_alpha != 0.0 || alg.asflip_beta_min != 0.0 || alg.asflip_beta_max != 0.0))
-      throw std::invalid_argument(where + ".algorithm: ASFLIP with nonzero alpha/beta is not implemented by the GPU "
-                                  "engine (APIC/MLS-MPM only)");
-    if (alg.use_fbar && alg.fbar_psi != 0.0)
-      throw std::invalid_argument(where + ".algorithm.FBAR_psi: F-bar is not implemented by the GPU engine");
+      throw std::invalid_argument(where + ".algorithm: PIC-FLIP / ASFLIP (ASFLIP_alpha, ASFLIP_beta_min, "
+                                  "ASFLIP_beta_max not all 0) is not implemented by the GPU engine yet; it runs on "
+                                  "the CPU engine (--backend=cpu)");
     if (alg.use_fem) throw std::invalid_argument(where + ".algorithm.use_FEM: not implemented by the GPU engine");
     for (const std::string& name : spec.output_attribs) {
       const std::string canonical = canonical_attribute(name);
@@ -453,6 +473,8 @@ MgspBenchmark<T>::MgspBenchmark(const Scene& scene, const std::vector<std::vecto
     const double volume = sim.dx * sim.dx * sim.dx / mat.ppc;
     body.volume = static_cast<T>(volume);
     body.mass = static_cast<T>(mat.rho * volume);
+    body.fbar_psi = alg.use_fbar ? static_cast<T>(alg.fbar_psi) : T(0);
+    fbar_ = fbar_ || body.fbar_psi != T(0);
     max_speed = std::max(max_speed, std::sqrt(spec.velocity[0] * spec.velocity[0] +
                                               spec.velocity[1] * spec.velocity[1] +
                                               spec.velocity[2] * spec.velocity[2]));
@@ -499,6 +521,7 @@ void MgspBenchmark<T>::initialize(const std::vector<std::vector<Vec3d>>& positio
   grid_[0].allocate(block_capacity_);
   grid_[1].allocate(block_capacity_);
   velocity_.allocate(block_capacity_);
+  if (fbar_) fbar_sums_.allocate(block_capacity_);
   FBAR_CUDA_CHECK(cudaMemsetAsync(grid_[0].instance().data(), 0, grid_[0].bytes(), stream_));
   FBAR_CUDA_CHECK(cudaMemsetAsync(grid_[1].instance().data(), 0, grid_[1].bytes(), stream_));
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
@@ -684,6 +707,7 @@ void MgspBenchmark<T>::grow_blocks(int needed) {
   grid_[0].grow(capacity, keep, stream_);
   grid_[1].grow(capacity, keep, stream_);
   velocity_.grow(capacity, keep, stream_);
+  if (fbar_) fbar_sums_.grow(capacity, 0, stream_);  // refilled before every use
   grid_[0].clear(keep, capacity, stream_);
   grid_[1].clear(keep, capacity, stream_);
   for (auto& b : bodies_) b->partition.grow_blocks(capacity, cur_, stream_);
@@ -1141,7 +1165,7 @@ double MgspBenchmark<T>::grid_mass() const {
 
 template <typename T>
 std::size_t MgspBenchmark<T>::device_bytes() const {
-  std::size_t bytes = table_.bytes() + grid_[0].bytes() + grid_[1].bytes() + velocity_.bytes() +
+  std::size_t bytes = table_.bytes() + grid_[0].bytes() + grid_[1].bytes() + velocity_.bytes() + fbar_sums_.bytes() +
                       stats_bytes_.bytes() + wave_d_.bytes() + p2g_bound_d_.bytes() + scan_temp_.bytes();
   for (const auto& b : bodies_) bytes += b->bins_bytes() + b->partition.bytes() + b->aux.bytes();
   return bytes;

@@ -41,7 +41,7 @@ struct SimulationSpec {
   std::uint64_t seed = 0;               ///< seed for jittered particle sampling
 };
 
-enum class Constitutive { JFluid, FixedCorotated, NeoHookean, DruckerPrager, NACC };
+enum class Constitutive { JFluid, FixedCorotated, NeoHookean, DruckerPrager, NACC, Hencky };
 
 struct MaterialSpec {
   Constitutive law = Constitutive::JFluid;

@@ -71,6 +71,13 @@ FBAR_HOST_DEVICE FBAR_FORCE_INLINE void for_each_stencil_node(const QuadraticBsp
     }
 }
 
+/// Interpolated previous grid velocity sum_i w v_i^n (ASFLIP's v_old).
+template <typename T>
+struct G2POldSum {
+  Vec3<T> v = Vec3<T>::zero();  ///< [m/s]
+  FBAR_HOST_DEVICE constexpr void add(T w, const Vec3<T>& v_node_old) { v += v_node_old * w; }
+};
+
 /// G2P accumulator: add() every stencil node, then velocity() and affine().
 template <typename T>
 struct G2PSum {
@@ -86,6 +93,81 @@ struct G2PSum {
   /// C_p = D_p^-1 B [1/s].
   FBAR_HOST_DEVICE constexpr Mat3<T> affine(T d_inv) const { return B * d_inv; }
 };
+
+/// PIC-FLIP blend and ASFLIP (Fei et al. 2021, "Revisiting integration in the material point method: a scheme for
+/// easier separation and less dissipation"). With v_pic = sum_i w v_i^{n+1} (the APIC/PIC velocity, as above) and
+/// v_old = sum_i w v_i^n, where v_i^n is the grid velocity the particles transported, before any force: in MLS-MPM the
+/// P2G momentum p_i already holds the stress impulse, so v_i^n = sum_p w m_p (v_p + C_p (x_i - x_p)) / m_i is
+/// accumulated apart (p_i / m_i would hide the elastic force from the FLIP increment v^{n+1} - v^n),
+///   v_p^{n+1} = v_pic + alpha (v_p^n - v_old)                      (alpha = 1: FLIP, 0: APIC)
+///   x_p^{n+1} = x_p^n + dt (v_pic + beta (v_p^n - v_old))           (beta = 0: the APIC position update)
+/// beta = beta_max for a particle whose volume ratio J >= 1 (dilated: separating, splashing) and beta_min otherwise
+/// (in contact), the switch of Fei et al. ClaymoreUW's keys: ASFLIP_alpha, ASFLIP_beta_min, ASFLIP_beta_max. The
+/// affine C stays APIC's (from v^{n+1}), so alpha = beta = 0 is exactly APIC. Uniform motion is exact for every
+/// alpha, beta: then v_p^n = v_old.
+template <typename T>
+struct AsflipParams {
+  T alpha;     ///< [-] FLIP fraction of the velocity update, 0..1
+  T beta_min;  ///< [-] position correction of compressed particles (J < 1), 0..1
+  T beta_max;  ///< [-] position correction of dilated particles (J >= 1), 0..1
+};
+
+/// What ASFLIP gives a particle: its new velocity and its displacement this step.
+template <typename T>
+struct AsflipUpdate {
+  Vec3<T> v;     ///< [m/s] v_p^{n+1}
+  Vec3<T> move;  ///< [m] x_p^{n+1} - x_p^n
+};
+
+/// The ASFLIP particle update (above); J is the particle's volume ratio after the step.
+template <typename T>
+FBAR_HOST_DEVICE constexpr AsflipUpdate<T> asflip_update(const AsflipParams<T>& a, const Vec3<T>& v_particle,
+                                                        const Vec3<T>& v_pic, const Vec3<T>& v_old, T J, T dt) {
+  const Vec3<T> flip = v_particle - v_old;
+  const T beta = J >= T(1) ? a.beta_max : a.beta_min;
+  return AsflipUpdate<T>{v_pic + flip * a.alpha, (v_pic + flip * beta) * dt};
+}
+
+/// F-bar anti-locking in incremental form (de Souza Neto et al. 1996's F-bar applied to the step's deformation
+/// increment, averaged over background cells as Coombs et al. 2018, "Overcoming volumetric locking in material point
+/// methods", do). A nearly incompressible material locks when every particle must keep its own volume: more volume
+/// constraints than the grid has velocity degrees of freedom, and the pressure checkerboards. F-bar gives all the
+/// particles of a grid cell one volume rate, their volume-weighted mean:
+///   d_c     = sum_{q in c} V_q tr C_q / sum_{q in c} V_q    (cell c = floor(x_q / dx); V_q = V_q^0 J_q, current)
+///   C'_p    = C_p + psi (d_c - tr C_p) / 3 I                (psi = FBAR_psi: 0 off, 1 full F-bar)
+/// and the material advances with C'_p: J <- (1 + dt tr C') J (JFluid) takes the blended volume rate exactly, F <-
+/// (I + dt C') F to first order in dt; the deviatoric part of the motion is untouched. Only the state update sees
+/// C'_p: the transfers keep C_p, so mass, momentum and angular momentum are conserved as without F-bar, and a uniform
+/// divergence (all tr C_q equal) is left unchanged. The cell sums ride in two grid channels (cell c at node c, the
+/// node at its lower corner), filled by a pass between the grid update and G2P.
+/// Why cells, not nodes: averaging through the B-spline weights (sum_i w_ip of nodal means, ClaymoreUW's way) removes
+/// the particle-to-particle checkerboard but leaves a two-cell pressure wave in a nearly incompressible block
+/// (tests/validation/test_fbar_locking.cpp measured checkerboard 0.066 rho g H against 0.0003 per cell).
+
+/// Offset of the cell holding x from the stencil base (each component 0 or 1: cell node = base + offset).
+template <typename T>
+FBAR_HOST_DEVICE inline Vec3i fbar_cell_offset(const Vec3<T>& x, T inv_dx, const Vec3i& base) {
+  using std::floor;
+  return Vec3i{{static_cast<int>(floor(x[0] * inv_dx)) - base[0], static_cast<int>(floor(x[1] * inv_dx)) - base[1],
+                static_cast<int>(floor(x[2] * inv_dx)) - base[2]}};
+}
+
+/// Cell divergence d_c = (sum V tr C) / (sum V) [1/s]; 0 for a cell without particles.
+template <typename T>
+FBAR_HOST_DEVICE constexpr T fbar_cell_divergence(T volume_divergence_sum, T volume_sum) {
+  return volume_sum > T(0) ? volume_divergence_sum / volume_sum : T(0);
+}
+
+/// C'_p = C_p + psi (d_c - tr C_p) / 3 I [1/s] (above).
+template <typename T>
+FBAR_HOST_DEVICE constexpr Mat3<T> fbar_velocity_gradient(const Mat3<T>& C, T cell_divergence, T psi) {
+  const T kappa = psi * (cell_divergence - (C(0, 0) + C(1, 1) + C(2, 2))) / T(3);
+  Mat3<T> out = C;
+  out(0, 0) += kappa;
+  out(1, 1) += kappa;
+  out(2, 2) += kappa;
+  return out;
+}
 
 /// x_p <- x_p + dt v_p (symplectic Euler: the new velocity moves the particle).
 template <typename T>

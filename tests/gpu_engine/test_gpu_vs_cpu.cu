@@ -54,8 +54,10 @@ Tolerance tolerance(Constitutive law) {
 }
 
 template <typename T>
-void compare(Constitutive law, double dt, int steps, const GpuEngineOptions& options = {}) {
+void compare(Constitutive law, double dt, int steps, const GpuEngineOptions& options = {}, double fbar_psi = 0.0) {
   Scene scene = test::small_scene(law, std::is_same_v<T, double> ? Precision::Double : Precision::Single);
+  scene.bodies[0].algorithm.use_fbar = fbar_psi != 0.0;
+  scene.bodies[0].algorithm.fbar_psi = fbar_psi;
   // NACC: a consolidated clay (p0 = kappa sinh(0.8 x 0.3) = 2e4 Pa, about the impact stress rho c v = 2.3e4 Pa), so
   // the impact yields part of the block and hardens it; DruckerPrager (phi 30 deg, volume correction on) yields
   // where the walls shear it.
@@ -77,6 +79,15 @@ void compare(Constitutive law, double dt, int steps, const GpuEngineOptions& opt
   EXPECT_EQ(gpu.steps(), cpu.steps());
   EXPECT_DOUBLE_EQ(gpu.time(), cpu.time());
   const Tolerance tol = tolerance<T>(law);
+  if (fbar_psi != 0.0) {  // F-bar must have changed the run by far more than the engines differ
+    Scene plain_scene = scene;
+    plain_scene.bodies[0].algorithm.fbar_psi = 0.0;
+    CpuEngine<T> plain(plain_scene, positions);
+    for (int s = 0; s < steps; ++s) ASSERT_TRUE(plain.step(dt).ok);
+    const double effect = test::max_diff_scalar(plain.volume_ratios(0), cpu.volume_ratios(0));
+    std::cout << "[measured] F-bar (psi " << fbar_psi << ") changes J by up to " << effect << "\n";
+    EXPECT_GT(effect, 100 * tol.J);
+  }
   const ParticleSnapshot<T> g = gpu.snapshot(0);
   const double ex = test::max_diff(g.x, cpu.positions(0));
   const double ev = test::max_diff(g.v, cpu.velocities(0));
@@ -170,6 +181,15 @@ TEST(GpuVsCpu, NeoHookeanDouble) {
   FBAR_REQUIRE_DEVICE();
   compare<double>(Constitutive::NeoHookean, 5e-4, 60);
 }
+// Hencky (the worked example of the developer guide), same constants and dt as FixedCorotated.
+TEST(GpuVsCpu, HenckyFloat) {
+  FBAR_REQUIRE_DEVICE();
+  compare<float>(Constitutive::Hencky, 5e-4, 60);
+}
+TEST(GpuVsCpu, HenckyDouble) {
+  FBAR_REQUIRE_DEVICE();
+  compare<double>(Constitutive::Hencky, 5e-4, 60);
+}
 // DruckerPrager and NACC, elastic constants as above (c_p = 11.6 m/s for both: kappa + 4 mu/3 = lambda + 2 mu).
 TEST(GpuVsCpu, DruckerPragerFloat) {
   FBAR_REQUIRE_DEVICE();
@@ -187,6 +207,25 @@ TEST(GpuVsCpu, NaccDouble) {
   FBAR_REQUIRE_DEVICE();
   compare<double>(Constitutive::NACC, 5e-4, 60);
 }
+// F-bar (transfer.cuh: cell-averaged volume rate; the GPU's fbar_divergence kernel sums cells with atomics, the CPU in
+// particle order): same tolerances as without, and the run must differ from plain MLS-MPM.
+TEST(GpuVsCpu, FbarFixedCorotatedFloat) {
+  FBAR_REQUIRE_DEVICE();
+  compare<float>(Constitutive::FixedCorotated, 5e-4, 60, {}, 1.0);
+}
+TEST(GpuVsCpu, FbarFixedCorotatedDouble) {
+  FBAR_REQUIRE_DEVICE();
+  compare<double>(Constitutive::FixedCorotated, 5e-4, 60, {}, 1.0);
+}
+TEST(GpuVsCpu, FbarJFluidDouble) {
+  FBAR_REQUIRE_DEVICE();
+  compare<double>(Constitutive::JFluid, 2e-4, 60, {}, 0.5);
+}
+TEST(GpuVsCpu, FbarDruckerPragerDouble) {
+  FBAR_REQUIRE_DEVICE();
+  compare<double>(Constitutive::DruckerPrager, 5e-4, 60, {}, 1.0);
+}
+
 // Capacity growth: 8 grid blocks and 64 bins to start (the block needs ~100 blocks and ~60 bins per layout); the
 // engine grows both at run time without a restart and must still match the CPU engine.
 TEST(GpuVsCpu, CapacityGrowthMatchesCpu) {

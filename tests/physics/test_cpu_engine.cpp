@@ -5,8 +5,10 @@
 #include <cmath>
 #include <filesystem>
 #include <sstream>
+#include <string>
 
 #include "cpu_engine.h"
+#include "scene_parse.h"
 #include "engine_api.h"
 #include "physics_test_support.h"
 
@@ -29,11 +31,35 @@ Scene two_body_scene_for_summary() {
 // a uniform velocity field is transferred exactly, the deformation stays I). Body far from every wall, fixed dt.
 // Error budget: each step adds O(eps |x|) to x and O(eps |v|) to v; after n = 200 steps |x| <= 1 m, |v| <= 2 m/s:
 // 2 n eps (|x| + t |v|) < 2e-13 m. Tolerance 1e-12 m; velocity 1e-12 m/s; |F - I| 1e-12; stress 1e-12 E.
-class FreeFall : public ::testing::TestWithParam<Constitutive> {};
+/// (material, ASFLIP alpha, beta_min, beta_max, FBAR_psi): every law under APIC, and FLIP / ASFLIP / F-bar (uniform
+/// motion is exact for any alpha, beta: the particle velocity equals the transported grid velocity; F-bar leaves a
+/// uniform divergence unchanged: transfer.cuh).
+struct FallCase {
+  Constitutive law;
+  double alpha, beta_min, beta_max;
+  double psi = 0.0;
+};
+std::string fall_case_name(const ::testing::TestParamInfo<FallCase>& info) {
+  const FallCase& c = info.param;
+  std::string name = to_string(c.law);
+  if (c.alpha != 0.0 || c.beta_min != 0.0 || c.beta_max != 0.0) name += c.beta_max != 0.0 ? "_ASFLIP" : "_PICFLIP";
+  if (c.psi != 0.0) name += "_Fbar";
+  return name;
+}
+class FreeFall : public ::testing::TestWithParam<FallCase> {};
 
 TEST_P(FreeFall, MatchesSymplecticEulerExactly) {
+  const FallCase c = GetParam();
   Scene scene = empty_scene(r3(1, 1, 1), 0.05, r3(0.5, -9.81, 0.25));
-  scene.bodies.push_back(box_body(GetParam(), r3(0.4, 0.6, 0.4), r3(0.15, 0.1, 0.1), r3(0.1, 1.0, -0.2)));
+  scene.bodies.push_back(box_body(c.law, r3(0.4, 0.6, 0.4), r3(0.15, 0.1, 0.1), r3(0.1, 1.0, -0.2)));
+  AlgorithmSpec& a = scene.bodies[0].algorithm;
+  a.use_asflip = true;
+  a.asflip_alpha = c.alpha;
+  a.asflip_beta_min = c.beta_min;
+  a.asflip_beta_max = c.beta_max;
+  a.use_fbar = true;
+  a.fbar_psi = c.psi;
+  scene.bodies[0].material.logJp0 = c.law == Constitutive::NACC ? -0.1 : 0.0;  // a clay with strength
   CpuEngine<double> engine(scene);
   const std::vector<Vec3d> x0 = engine.positions(0);
   const Vec3d v0{{0.1, 1.0, -0.2}}, g{{0.5, -9.81, 0.25}};
@@ -53,11 +79,21 @@ TEST_P(FreeFall, MatchesSymplecticEulerExactly) {
   EXPECT_LE(v_err, 1e-12) << "max velocity error " << v_err;
   for (const double J : engine.volume_ratios(0)) EXPECT_NEAR(J, 1.0, 1e-12);
   for (const Mat3d& s : engine.cauchy_stresses(0)) EXPECT_LE(max_abs(s), 1e-12 * 1e6);
-  std::printf("free fall (%s): max |x - exact| = %.3g m, max |v - exact| = %.3g m/s after %d steps\n",
-              GetParam() == Constitutive::JFluid ? "JFluid" : "FixedCorotated", x_err, v_err, n);
+  std::printf("free fall (%s, alpha %g, beta %g/%g, psi %g): max |x - exact| = %.3g m, max |v - exact| = %.3g m/s "
+              "after %d steps\n",
+              to_string(c.law), c.alpha, c.beta_min, c.beta_max, c.psi, x_err, v_err, n);
 }
 
-INSTANTIATE_TEST_SUITE_P(Materials, FreeFall, ::testing::Values(Constitutive::JFluid, Constitutive::FixedCorotated));
+INSTANTIATE_TEST_SUITE_P(
+    MaterialsAndSchemes, FreeFall,
+    ::testing::Values(FallCase{Constitutive::JFluid, 0, 0, 0}, FallCase{Constitutive::FixedCorotated, 0, 0, 0},
+                      FallCase{Constitutive::NeoHookean, 0, 0, 0}, FallCase{Constitutive::DruckerPrager, 0, 0, 0},
+                      FallCase{Constitutive::NACC, 0, 0, 0}, FallCase{Constitutive::JFluid, 1, 0, 0},
+                      FallCase{Constitutive::FixedCorotated, 0.95, 0, 0},
+                      FallCase{Constitutive::DruckerPrager, 0.9, 0.05, 0.2},
+                      FallCase{Constitutive::Hencky, 0, 0, 0}, FallCase{Constitutive::NeoHookean, 0, 0, 0, 1.0},
+                      FallCase{Constitutive::JFluid, 0, 0, 0, 0.5}),
+    fall_case_name);
 
 // VALIDATION.md item 1: uniform translation across many cells keeps v = v0, F = I, stress 0 to round-off. 15 cells
 // travelled (0.3 m at dx = 0.02); the CFL step is taken (it must not matter). Same budget as above.

@@ -268,3 +268,60 @@ TEST(TimeStep, CflBound) {
 
 }  // namespace
 }  // namespace fbar
+
+namespace fbar {
+namespace {
+
+// transfer.cuh ASFLIP update (Fei et al. 2021): alpha = beta = 0 is APIC bit for bit; alpha = 1 is FLIP's velocity
+// v_p + (v_pic - v_old); beta_max acts on dilated particles (J >= 1), beta_min on compressed ones.
+TEST(Asflip, UpdateFormulas) {
+  const Vec3d vp{{1.0, -2.0, 0.5}}, vpic{{0.8, -1.5, 0.25}}, vold{{0.9, -1.75, 0.375}};
+  const double dt = 1e-3;
+  const AsflipUpdate<double> apic = asflip_update(AsflipParams<double>{0, 0, 0}, vp, vpic, vold, 1.01, dt);
+  EXPECT_EQ(apic.v, vpic);
+  EXPECT_EQ(apic.move, vpic * dt);
+  const AsflipUpdate<double> flip = asflip_update(AsflipParams<double>{1, 0, 0}, vp, vpic, vold, 0.99, dt);
+  EXPECT_LE(max_abs(flip.v - (vp + (vpic - vold))), 4e-16);
+  const AsflipParams<double> a{0.5, 0.1, 0.3};
+  const AsflipUpdate<double> dilated = asflip_update(a, vp, vpic, vold, 1.0, dt);
+  const AsflipUpdate<double> compressed = asflip_update(a, vp, vpic, vold, 0.999, dt);
+  EXPECT_LE(max_abs(dilated.v - (vpic + (vp - vold) * 0.5)), 4e-16);
+  EXPECT_LE(max_abs(dilated.move - (vpic + (vp - vold) * 0.3) * dt), 1e-18);
+  EXPECT_LE(max_abs(compressed.move - (vpic + (vp - vold) * 0.1) * dt), 1e-18);
+  // Uniform motion (v_p = v_old): every scheme moves with v_pic.
+  const AsflipUpdate<double> uniform = asflip_update(a, vold, vpic, vold, 1.2, dt);
+  EXPECT_EQ(uniform.v, vpic);
+  EXPECT_EQ(uniform.move, vpic * dt);
+}
+
+// transfer.cuh F-bar: C' = C + psi (d_c - tr C) / 3 I takes the blended volume rate, keeps the deviatoric part, is
+// C itself for psi = 0 or d_c = tr C; the cell of a particle is base + 0 or 1 per axis; an empty cell has d_c = 0.
+TEST(Fbar, VelocityGradientAndCell) {
+  Mat3d C = Mat3d::zero();
+  C(0, 0) = 0.3, C(0, 1) = -1.2, C(1, 0) = 0.4, C(1, 1) = -0.1, C(2, 2) = 0.7, C(2, 0) = 0.25;
+  const double trC = 0.9, d = -0.6;
+  for (const double psi : {0.0, 0.25, 1.0}) {
+    const Mat3d Cp = fbar_velocity_gradient(C, d, psi);
+    EXPECT_NEAR(Cp(0, 0) + Cp(1, 1) + Cp(2, 2), (1 - psi) * trC + psi * d, 1e-15) << psi;
+    const Mat3d diff = Cp - C;
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b)
+        EXPECT_NEAR(diff(a, b), a == b ? psi * (d - trC) / 3 : 0.0, 1e-15) << psi << " " << a << b;
+  }
+  EXPECT_LE(max_abs(fbar_velocity_gradient(C, trC, 1.0) - C), 1e-16);
+  EXPECT_EQ(fbar_cell_divergence(0.0, 0.0), 0.0);
+  EXPECT_DOUBLE_EQ(fbar_cell_divergence(3e-6, 2e-6), 1.5);
+  const double dx = 0.1;
+  for (const double x : {0.05, 0.0999, 0.1, 0.149, 0.15, 0.1999, 1.234}) {
+    const Vec3d p{{x, x + 0.04, x + 0.07}};
+    const QuadraticBspline<double> s = quadratic_bspline_inv(p, 1.0 / dx);
+    const Vec3i c = fbar_cell_offset(p, 1.0 / dx, s.base);
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_TRUE(c[a] == 0 || c[a] == 1) << x;
+      EXPECT_EQ(s.base[a] + c[a], static_cast<int>(std::floor(p[a] / dx))) << x;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace fbar

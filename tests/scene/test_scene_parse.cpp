@@ -308,9 +308,6 @@ TEST(SceneParse, ReleasePolicyRejectsWhatTheEngineCannotRun) {
     std::string path;
   };
   const std::vector<Case> cases = {
-      {scene_with(body(R"({})", R"("algorithm": {"use_ASFLIP": true, "ASFLIP_alpha": 0.95})")),
-       "bodies[0].algorithm.ASFLIP_alpha"},
-      {scene_with(body(R"({})", R"("algorithm": {"use_FBAR": true, "FBAR_psi": 0.5})")), "bodies[0].algorithm.FBAR_psi"},
       {scene_with(body(R"({})", R"("algorithm": {"use_FEM": true})")), "bodies[0].algorithm.use_FEM"},
       {scene_with(body(R"({})", R"("output_attribs": ["logJp"])")), "bodies[0].output_attribs[0]"},
       {scene_with(body(R"({})", R"("track_particle_id": [0], "track_attribs": ["Position_Y"])")),

@@ -60,7 +60,13 @@ Vec3d body_velocity(const CpuEngine<double>& engine, int body) {
   return p / m;
 }
 
-DisksResult run_disks(double dx, double t_end) {
+struct Scheme {
+  const char* name;
+  double alpha, beta_min, beta_max;
+};
+constexpr Scheme kApic{"APIC", 0, 0, 0};
+
+DisksResult run_disks(double dx, double t_end, const Scheme& scheme = kApic) {
   validation::Stopwatch clock;
   // The slab [z0, z0 + dx] between slip walls; with one cell of thickness every node is a wall node along z, so
   // both WallFit placements give the same plane-strain constraint.
@@ -69,6 +75,10 @@ DisksResult run_disks(double dx, double t_end) {
   for (int d = 0; d < 2; ++d) {
     const double c = kShift + (d == 0 ? -0.3 : 0.3);
     BodySpec disk = validation::fixed_corotated_body(kRho, kE, kNu);
+    disk.algorithm.use_asflip = true;
+    disk.algorithm.asflip_alpha = scheme.alpha;
+    disk.algorithm.asflip_beta_min = scheme.beta_min;
+    disk.algorithm.asflip_beta_max = scheme.beta_max;
     validation::add_disk(disk, c, c, kR, z0, dx);
     disk.velocity = d == 0 ? r3(kSpeed, kSpeed, 0) : r3(-kSpeed, -kSpeed, 0);
     scene.bodies.push_back(disk);
@@ -109,8 +119,8 @@ DisksResult run_disks(double dx, double t_end) {
   r.steps = engine.steps();
   r.seconds = clock.seconds();
   r.ok = true;
-  std::printf("two disks, dx = %g m (R/dx = %g): %zu particles, %lld steps, %.2f s wall\n", dx, kR / dx, r.particles,
-              r.steps, r.seconds);
+  std::printf("two disks (%s), dx = %g m (R/dx = %g): %zu particles, %lld steps, %.2f s wall\n", scheme.name, dx,
+              kR / dx, r.particles, r.steps, r.seconds);
   std::printf("  KE0 %.4f J/m (reference %.4f; sampled area / pi R^2 = %.4f); energy max %.5f, end %.5f of E0\n",
               r.ke0_per_thickness, kKineticPerThickness, r.area_ratio, r.energy_max / r.energy0,
               r.energy_end / r.energy0);
@@ -160,6 +170,35 @@ TEST(TwoDisks, MomentumEnergyAndRebound) {
       "%.4f, %.4f, %.4f\n",
       t_end, 100 * loss[0], 100 * loss[1], 100 * loss[2], -runs[0].v_end[0][0] / kSpeed, -runs[1].v_end[0][0] / kSpeed,
       -runs[2].v_end[0][0] / kSpeed);
+}
+
+// Energy history per transfer scheme (VALIDATION.md item 6: "report energy loss per scheme"), R/dx = 8. Each scheme
+// must conserve momentum to round-off (P2G/G2P conserve it for any alpha, beta: the FLIP increment is a grid
+// difference) and rebound; FLIP keeps the particle velocity through the contact and dissipates less than APIC: the
+// loss must not exceed APIC's. Energy growth: the blends (alpha 0.95) must stay within the symplectic oscillation
+// (1e-3) like APIC; pure FLIP (alpha = 1) keeps the particle velocity modes the grid cannot see (the FLIP noise of
+// VALIDATION.md "where methods fail"), nothing damps them and the contact pumps some energy into them: measured
+// +0.26 % at the peak, bounded here at +1 % (a growing instability would exceed it; engineering use keeps
+// alpha < 1).
+// Measured (CPU, double): energy lost APIC 12.04 %, PIC-FLIP 0.95 4.58 %, FLIP 4.44 %, ASFLIP (0.95, 0, 0.2) 4.56 %;
+// restitution 0.919, 0.952, 0.952, 0.952.
+TEST(TwoDisks, EnergyPerTransferScheme) {
+  const Scheme schemes[] = {kApic, {"PIC-FLIP 0.95", 0.95, 0, 0}, {"FLIP", 1.0, 0, 0}, {"ASFLIP", 0.95, 0.0, 0.2}};
+  double apic_loss = 0;
+  for (const Scheme& s : schemes) {
+    SCOPED_TRACE(s.name);
+    const DisksResult r = run_disks(0.025, 4.5, s);
+    ASSERT_TRUE(r.ok);
+    const double loss = 1 - r.energy_end / r.energy0;
+    std::printf("%-14s energy lost %.2f %%, energy max/E0 %.5f, restitution %.4f, momentum drift %.2g\n", s.name,
+                100 * loss, r.energy_max / r.energy0, -r.v_end[0][0] / kSpeed, r.momentum_drift);
+    EXPECT_LE(r.momentum_drift, 1e-12);
+    EXPECT_LE(r.energy_max, r.energy0 * (1 + (s.alpha < 1 ? 1e-3 : 1e-2)));
+    EXPECT_LT(r.v_end[0][0], 0.0);
+    EXPECT_GT(r.v_end[1][0], 0.0);
+    if (s.alpha == 0) apic_loss = loss;
+    else EXPECT_LE(loss, apic_loss);
+  }
 }
 
 }  // namespace

@@ -7,7 +7,9 @@
 // CSV: scene, material, particles, precision, ms_per_step, particle_steps_per_s, bytes_per_particle_step,
 // bandwidth_fraction, device_bytes_per_particle, commit.
 //   fbar_benchmark [--sizes=1,4,16,64] [--precisions=single,double]
-//                  [--scenes=dam_break,falling_block,neo_block,sand_block,clay_block]
+//                  [--scenes=dam_break,falling_block,neo_block,sand_block,clay_block,hencky_block,fbar_block,
+//                            fbar_dam_break]
+// fbar_block and fbar_dam_break: falling_block and dam_break with F-bar (FBAR_psi 1): the cost of the scheme.
 //                  [--steps=100] [--warmup=20] [--csv=benchmark.csv]
 #include <cuda_runtime.h>
 
@@ -93,18 +95,21 @@ Scene make_scene(const std::string& name, double millions, Precision precision) 
   body.material.ppc = 8;
   body.material.cfl = 0.5;
   body.material.rho = 1000;
-  if (name == "dam_break") {
+  if (name == "dam_break" || name == "fbar_dam_break") {
     body.material.law = Constitutive::JFluid;
     body.material.bulk_modulus = 2e6;
     body.material.gamma = 7.1;
     body.material.viscosity = 1e-3;
+    if (name == "fbar_dam_break") body.algorithm.fbar_psi = 1.0;
   } else {
     // falling_block: FixedCorotated; neo_block, sand_block, clay_block: the same block in NeoHookean,
     // DruckerPrager (phi 30 deg, volume correction) and NACC (phi 30 deg, consolidated: logJp0 = -0.3).
     body.material.law = name == "neo_block"    ? Constitutive::NeoHookean
                         : name == "sand_block" ? Constitutive::DruckerPrager
                         : name == "clay_block" ? Constitutive::NACC
+                        : name == "hencky_block" ? Constitutive::Hencky
                                                : Constitutive::FixedCorotated;
+    if (name == "fbar_block") body.algorithm.fbar_psi = 1.0;
     body.material.youngs_modulus = 1e7;
     body.material.poisson_ratio = 0.3;
     body.material.friction_angle = 30.0;
@@ -113,7 +118,7 @@ Scene make_scene(const std::string& name, double millions, Precision precision) 
     body.velocity = {0.0, -1.0, 0.0};
   }
   body.algorithm.use_asflip = false;
-  body.algorithm.use_fbar = false;
+  body.algorithm.use_fbar = body.algorithm.fbar_psi != 0.0;
   body.geometry.push_back(box);
   body.output_attribs = {"ID"};
   s.bodies.push_back(body);

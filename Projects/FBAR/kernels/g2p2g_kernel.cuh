@@ -83,6 +83,8 @@ struct G2P2GParams {
   typename GridLayout<T>::Buffer grid_next;         ///< P2G target (zeroed on blocks [0, block count))
   typename GridLayout<T>::Buffer grid_this;         ///< this step's P2G sums: a new block is zeroed here as well
   T* aux;                    ///< (slot, kAuxScalars) v and C, or nullptr
+  typename GridLayout<T>::FbarBuffer fbar_sums;  ///< F-bar cell sums of this body (fbar_divergence), when fbar_psi > 0
+  T fbar_psi;                ///< [-] F-bar blend, 0: off (transfer.cuh)
   material_params_t<M, T> material;
   T mass;                    ///< [kg] per particle
   T volume;                  ///< [m^3] reference volume per particle
@@ -315,7 +317,18 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
         v = sum.velocity();
         C = sum.affine(p.d_inv);
         x_new = advect(in.x, v, p.dt);
-        state_new = M::advance(p.material, in.state, C, p.dt);
+        if (p.fbar_psi != T(0)) {  // F-bar: the state advances with the cell's volume rate (transfer.cuh)
+          const Vec3i cell = fbar_cell_offset(in.x, p.inv_dx, s.base);
+          const int a = c0 + cell[0], b = c1 + cell[1], c = c2 + cell[2];
+          const int nb = arena_blocks[((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2)];
+          const int node = ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
+          const T d = nb < 0 ? T(0)
+                             : fbar_cell_divergence(block_val(p.fbar_sums, grid_fbar_volume_rate, nb, node),
+                                                    block_val(p.fbar_sums, grid_fbar_volume, nb, node));
+          state_new = M::advance(p.material, in.state, fbar_velocity_gradient(C, d, p.fbar_psi), p.dt);
+        } else {
+          state_new = M::advance(p.material, in.state, C, p.dt);
+        }
         // Checks, in the CPU engine's order: non-finite, left the domain, moved more than a cell.
         if (!(all_finite(x_new) && all_finite(v) && all_finite(C) &&
               g2p2g_detail::state_finite<T, kStateScalars>(state_new))) {
@@ -448,6 +461,74 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
     atomicAdd(&block_val(p.grid_next, grid_momentum_x, nb, node), sum[1]);
     atomicAdd(&block_val(p.grid_next, grid_momentum_y, nb, node), sum[2]);
     atomicAdd(&block_val(p.grid_next, grid_momentum_z, nb, node), sum[3]);
+  }
+}
+
+/// F-bar's cell sums of one body (transfer.cuh): per particle, G2P of C from this step's grid velocities, then
+/// V tr C and V (V = V0 J, current volume) added to the particle's cell, cell c stored at node c. Launched per body
+/// between the grid update and its G2P2G, into a zeroed buffer; one CUDA block per particle block, like g2p2g.
+template <typename M, typename T>
+struct FbarDivergenceParams {
+  typename ParticleLayout<M, T>::Buffer in;         ///< particles of this step (storage order)
+  LayoutView layout;                                ///< this step's layout
+  BlockHashTableView table;
+  typename GridLayout<T>::VelocityBuffer velocity;  ///< grid velocities of this step
+  typename GridLayout<T>::FbarBuffer sums;          ///< target (zeroed on blocks [0, block count))
+  T volume;                                         ///< [m^3] reference volume per particle
+  T dx, inv_dx, d_inv;                              ///< [m], [1/m], [1/m^2]
+  StepStats* stats;
+};
+
+template <typename M, typename T>
+__global__ void __launch_bounds__(kG2P2GThreads) fbar_divergence(FbarDivergenceParams<M, T> p) {
+  __shared__ g2p2g_detail::ArenaVelocity<T> arena_v[kArenaStorage];
+  __shared__ int arena_blocks[8];
+  const int block = blockIdx.x;
+  const int count = p.layout.count[block];
+  if (count == 0) return;
+  const Vec3i origin = p.table.block_coords(block);
+  if (threadIdx.x < 8) {
+    const int di = threadIdx.x >> 2, dj = (threadIdx.x >> 1) & 1, dk = threadIdx.x & 1;
+    const int found = p.table.find(BlockKey::pack(origin[0] + di, origin[1] + dj, origin[2] + dk));
+    arena_blocks[threadIdx.x] = found;
+    if (found < 0) atomicAdd(&p.stats->internal_error, 1);
+  }
+  __syncthreads();
+  for (int i = threadIdx.x; i < kArenaNodes; i += blockDim.x) {
+    const int a = i >> 6, b = (i >> 3) & 7, c = i & 7;
+    const int nb = arena_blocks[((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2)];
+    const int node = ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
+    T vx = T(0), vy = T(0), vz = T(0);
+    if (nb >= 0) {
+      vx = block_val(p.velocity, grid_velocity_x, nb, node);
+      vy = block_val(p.velocity, grid_velocity_y, nb, node);
+      vz = block_val(p.velocity, grid_velocity_z, nb, node);
+    }
+    arena_v[g2p2g_detail::arena_index(a, b, c)] = g2p2g_detail::ArenaVelocity<T>{vx, vy, vz, T(0)};
+  }
+  __syncthreads();
+  const int first_slot = p.layout.bin_offset[block] * 32;
+  for (int t = threadIdx.x; t < ((count + 31) / 32) * 32; t += blockDim.x) {
+    const int src = p.layout.src[first_slot + t];
+    if (src < 0) continue;
+    const ParticleRecord<M, T> in = load_particle<M, T>(p.in, src);
+    const QuadraticBspline<T> s = quadratic_bspline_inv(in.x, p.inv_dx);
+    const int c0 = min(max(s.base[0] - 4 * origin[0], 0), 5), c1 = min(max(s.base[1] - 4 * origin[1], 0), 5),
+              c2 = min(max(s.base[2] - 4 * origin[2], 0), 5);
+    G2PSum<T> sum;
+    g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
+      const g2p2g_detail::ArenaVelocity<T> node_v = arena_v[g2p2g_detail::arena_index(c0 + i, c1 + j, c2 + k)];
+      sum.add(w, Vec3<T>{{node_v.x, node_v.y, node_v.z}}, xixp);
+    });
+    const Mat3<T> C = sum.affine(p.d_inv);
+    const T V = p.volume * M::volume_ratio(in.state);
+    const Vec3i cell = fbar_cell_offset(in.x, p.inv_dx, s.base);
+    const int a = c0 + cell[0], b = c1 + cell[1], c = c2 + cell[2];
+    const int nb = arena_blocks[((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2)];
+    if (nb < 0) continue;  // counted above
+    const int node = ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
+    atomicAdd(&block_val(p.sums, grid_fbar_volume_rate, nb, node), V * (C(0, 0) + C(1, 1) + C(2, 2)));
+    atomicAdd(&block_val(p.sums, grid_fbar_volume, nb, node), V);
   }
 }
 
