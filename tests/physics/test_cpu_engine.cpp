@@ -9,6 +9,7 @@
 
 #include "cpu_engine.h"
 #include "scene_parse.h"
+#include "scene_print.h"
 #include "engine_api.h"
 #include "physics_test_support.h"
 
@@ -228,6 +229,30 @@ TEST(TimeStep, EngineUsesCflFormula) {
   EXPECT_EQ(summary.bodies[0].particles, 5 * 5 * 5 * 8);
   EXPECT_EQ(summary.gpu_bytes.size(), 1u);
   EXPECT_GT(summary.gpu_bytes[0], 0u);
+}
+
+// --check names the scheme that runs: APIC, PIC-FLIP (0 < alpha < 1, beta 0), FLIP (alpha 1), ASFLIP (beta > 0),
+// each with " + F-bar" when FBAR_psi > 0.
+TEST(CheckReport, NamesTheTransferScheme) {
+  struct Case {
+    double alpha, beta_max, psi;
+    const char* expected;
+  };
+  for (const Case& c : {Case{0, 0, 0, "APIC ("}, Case{0.95, 0, 0, "PIC-FLIP ("}, Case{1, 0, 0, "FLIP ("},
+                        Case{0.95, 0.2, 0, "ASFLIP ("}, Case{0, 0, 1, "APIC + F-bar ("},
+                        Case{0.9, 0.1, 0.5, "ASFLIP + F-bar ("}}) {
+    Scene scene = empty_scene(r3(1, 1, 1), 0.05, r3(0, 0, 0));
+    scene.bodies.push_back(box_body(Constitutive::FixedCorotated, r3(0.4, 0.4, 0.4), r3(0.1, 0.1, 0.1)));
+    AlgorithmSpec& a = scene.bodies[0].algorithm;
+    a.use_asflip = a.use_fbar = true;
+    a.asflip_alpha = c.alpha;
+    a.asflip_beta_max = c.beta_max;
+    a.fbar_psi = c.psi;
+    std::ostringstream os;
+    print_scene_report(os, scene, summarize_scene(scene));
+    EXPECT_NE(os.str().find(std::string(" ") + c.expected + "use_ASFLIP"), std::string::npos) << c.expected << "\n"
+                                                                                            << os.str();
+  }
 }
 
 // A compressed JFluid has a faster sound speed, c^2 = (K/rho0) J^(1-gamma); the engine's dt follows it.
