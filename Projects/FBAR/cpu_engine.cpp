@@ -332,7 +332,7 @@ void CpuEngine<T>::p2g(Body& body, T dt) {
               const Vec3i& origin = part.block_coords[pb];
               std::fill(arena_m, arena_m + kArenaNodes, T(0));
               for (auto& ch : arena_p) std::fill(ch, ch + kArenaNodes, T(0));
-              if (body.asflip)
+              if (asflip_)
                 for (auto& ch : arena_q) std::fill(ch, ch + kArenaNodes, T(0));
               for (int q = part.block_start[pb]; q < part.block_start[pb + 1]; ++q) {
                 const int p = part.order[q];
@@ -351,7 +351,8 @@ void CpuEngine<T>::p2g(Body& body, T dt) {
                   arena_p[1][a] += mv[1];
                   arena_p[2][a] += mv[2];
                 });
-                if (body.asflip) {
+                // Every body transports momentum into v^n when any body uses ASFLIP: v^n = sum / (all bodies' mass).
+                if (asflip_) {
                   const P2GParticle<T> transported =
                       mls_p2g_particle(body.mass[p], body.volume[p], body.v[p], body.C[p], Mat3T::zero(), dt, d_inv);
                   for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3T& xixp) {
@@ -374,7 +375,7 @@ void CpuEngine<T>::p2g(Body& body, T dt) {
                     g.momentum[0][node] += arena_p[0][ai];
                     g.momentum[1][node] += arena_p[1][ai];
                     g.momentum[2][node] += arena_p[2][ai];
-                    if (body.asflip)
+                    if (asflip_)
                       for (int d = 0; d < 3; ++d) g.old_velocity[d][node] += arena_q[d][ai];
                   }
             }

@@ -195,6 +195,10 @@ class MgspBenchmark {
     T mass = T(0), volume = T(0);
     double rest_wave_speed = 0.0;
     T fbar_psi = T(0);  ///< F-bar blend (transfer.cuh), 0: off
+    bool asflip = false;  ///< PIC-FLIP / ASFLIP (transfer.cuh)
+    AsflipParams<T> asflip_params{T(0), T(0), T(0)};
+    /// ASFLIP only: (slot, 3) particle velocities beside bins[0] / bins[1], same slots (empty otherwise).
+    mgsp_detail::DeviceArray<T> particle_v[2];
     PartitionDomain partition;
     int total_bins[2] = {0, 0};  ///< bins of layout 0 / 1
     mgsp_detail::DeviceArray<T> aux;  ///< (slot, kAuxScalars) recorded v and C
@@ -227,10 +231,19 @@ class MgspBenchmark {
     void allocate_bins(int n) override {
       bins[0].allocate(n);
       bins[1].allocate(n);
+      if (this->asflip) {
+        this->particle_v[0].allocate(static_cast<std::size_t>(n) * 32 * 3);
+        this->particle_v[1].allocate(static_cast<std::size_t>(n) * 32 * 3);
+      }
     }
-    void reallocate_bins(int which, int n) override { bins[which].allocate(n); }
+    void reallocate_bins(int which, int n) override {
+      bins[which].allocate(n);
+      if (this->asflip) this->particle_v[which].allocate(static_cast<std::size_t>(n) * 32 * 3);
+    }
     int bins_capacity(int which) const override { return bins[which].bin_capacity(); }
-    std::size_t bins_bytes() const override { return bins[0].bytes() + bins[1].bytes(); }
+    std::size_t bins_bytes() const override {
+      return bins[0].bytes() + bins[1].bytes() + this->particle_v[0].bytes() + this->particle_v[1].bytes();
+    }
 
     void upload(const std::vector<Vec3d>& x, cudaStream_t s) override {
       // Flat bins on the host (slot = particle ID), one copy.
@@ -258,6 +271,14 @@ class MgspBenchmark {
       p.grid_next = e.grid_[1 - e.gc_].instance();
       p.grid_this = e.grid_[e.gc_].instance();
       p.aux = e.record_ ? this->aux.get() : nullptr;
+      if (e.asflip_) p.transported_next = e.transported_[1 - e.gc_].instance();
+      p.asflip = this->asflip;
+      p.asflip_params = this->asflip_params;
+      if (this->asflip) {
+        p.old_velocity = e.old_velocity_.instance();
+        p.particle_v_in = this->particle_v[e.cur_].get();
+        p.particle_v_out = this->particle_v[1 - e.cur_].get();
+      }
       p.fbar_psi = initial ? T(0) : this->fbar_psi;
       if (p.fbar_psi != T(0)) p.fbar_sums = e.fbar_sums_.instance();
       p.material = params;
@@ -375,6 +396,11 @@ class MgspBenchmark {
   GridBuffer<T> grid_[2];
   GridVelocityBuffer<T> velocity_;
   GridFbarBuffer<T> fbar_sums_;         ///< F-bar cell sums, allocated only when a body uses F-bar
+  /// ASFLIP, allocated only when a body uses it: transported momentum of each P2G (double-buffered like grid_) and
+  /// v^n from the grid update.
+  GridVelocityBuffer<T> transported_[2];
+  GridVelocityBuffer<T> old_velocity_;
+  bool asflip_ = false;
   bool fbar_ = false;
   int block_capacity_ = 0;
   int block_count_ = 0;                 ///< table blocks after the last committed partition
@@ -441,10 +467,6 @@ MgspBenchmark<T>::MgspBenchmark(const Scene& scene, const std::vector<std::vecto
     if (mat.type != "particles")
       throw std::invalid_argument(where + ".material.type: \"" + mat.type + "\" bodies are not implemented");
     const AlgorithmSpec& alg = spec.algorithm;
-    if (alg.use_asflip && (alg.asflip_alpha != 0.0 || alg.asflip_beta_min != 0.0 || alg.asflip_beta_max != 0.0))
-      throw std::invalid_argument(where + ".algorithm: PIC-FLIP / ASFLIP (ASFLIP_alpha, ASFLIP_beta_min, "
-                                  "ASFLIP_beta_max not all 0) is not implemented by the GPU engine yet; it runs on "
-                                  "the CPU engine (--backend=cpu)");
     if (alg.use_fem) throw std::invalid_argument(where + ".algorithm.use_FEM: not implemented by the GPU engine");
     for (const std::string& name : spec.output_attribs) {
       const std::string canonical = canonical_attribute(name);
@@ -473,6 +495,10 @@ MgspBenchmark<T>::MgspBenchmark(const Scene& scene, const std::vector<std::vecto
     const double volume = sim.dx * sim.dx * sim.dx / mat.ppc;
     body.volume = static_cast<T>(volume);
     body.mass = static_cast<T>(mat.rho * volume);
+    body.asflip = alg.use_asflip && (alg.asflip_alpha != 0.0 || alg.asflip_beta_min != 0.0 || alg.asflip_beta_max != 0.0);
+    body.asflip_params = AsflipParams<T>{static_cast<T>(alg.asflip_alpha), static_cast<T>(alg.asflip_beta_min),
+                                         static_cast<T>(alg.asflip_beta_max)};
+    asflip_ = asflip_ || body.asflip;
     body.fbar_psi = alg.use_fbar ? static_cast<T>(alg.fbar_psi) : T(0);
     fbar_ = fbar_ || body.fbar_psi != T(0);
     max_speed = std::max(max_speed, std::sqrt(spec.velocity[0] * spec.velocity[0] +
@@ -522,6 +548,11 @@ void MgspBenchmark<T>::initialize(const std::vector<std::vector<Vec3d>>& positio
   grid_[1].allocate(block_capacity_);
   velocity_.allocate(block_capacity_);
   if (fbar_) fbar_sums_.allocate(block_capacity_);
+  if (asflip_) {
+    transported_[0].allocate(block_capacity_);
+    transported_[1].allocate(block_capacity_);
+    old_velocity_.allocate(block_capacity_);
+  }
   FBAR_CUDA_CHECK(cudaMemsetAsync(grid_[0].instance().data(), 0, grid_[0].bytes(), stream_));
   FBAR_CUDA_CHECK(cudaMemsetAsync(grid_[1].instance().data(), 0, grid_[1].bytes(), stream_));
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
@@ -607,6 +638,7 @@ void MgspBenchmark<T>::initialize(const std::vector<std::vector<Vec3d>>& positio
     mgsp_detail::check_launch("compute_next_dt");
   }
   grid_[0].clear(0, block_capacity_, stream_);
+  if (asflip_) transported_[0].clear(0, block_capacity_, stream_);
   for (auto& b : bodies_)
     FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(1).count, 0, sizeof(int) * block_capacity_, stream_));
   for (auto& b : bodies_) b->g2p2g(*this, true, T(0));
@@ -708,6 +740,11 @@ void MgspBenchmark<T>::grow_blocks(int needed) {
   grid_[1].grow(capacity, keep, stream_);
   velocity_.grow(capacity, keep, stream_);
   if (fbar_) fbar_sums_.grow(capacity, 0, stream_);  // refilled before every use
+  if (asflip_) {
+    transported_[0].grow(capacity, keep, stream_);
+    transported_[1].grow(capacity, keep, stream_);
+    old_velocity_.grow(capacity, keep, stream_);
+  }
   grid_[0].clear(keep, capacity, stream_);
   grid_[1].clear(keep, capacity, stream_);
   for (auto& b : bodies_) b->partition.grow_blocks(capacity, cur_, stream_);
@@ -809,6 +846,10 @@ StepReport MgspBenchmark<T>::step_impl(double dt, bool cfl_dt, double target) {
       GridUpdateParams<T> gp{};
       gp.grid = grid_[gc_].instance();
       gp.velocity = velocity_.instance();
+      if (asflip_) {
+        gp.transported = transported_[gc_].instance();
+        gp.old_velocity = old_velocity_.instance();
+      }
       gp.coords = table_.view().coords;
       gp.block_count = block_count_;
       gp.dt = static_cast<T>(dt);
@@ -843,6 +884,8 @@ StepReport MgspBenchmark<T>::step_impl(double dt, bool cfl_dt, double target) {
     event_record(1);
     // 3. G2P2G
     grid_[1 - gc_].clear(0, block_count_, stream_);
+    // New blocks appear during G2P2G (its leader threads zero them in grid_); the transported sums are cleared whole.
+    if (asflip_) transported_[1 - gc_].clear(0, block_capacity_, stream_);
     FBAR_CUDA_CHECK(cudaMemsetAsync(wave_d_.get() + (1 - wave_cur_) * bodies_.size(), 0,
                                     sizeof(unsigned long long) * bodies_.size(), stream_));
     FBAR_CUDA_CHECK(cudaMemsetAsync(p2g_bound_d_.get() + (1 - bound_cur_) * bodies_.size(), 0,
@@ -1166,6 +1209,7 @@ double MgspBenchmark<T>::grid_mass() const {
 template <typename T>
 std::size_t MgspBenchmark<T>::device_bytes() const {
   std::size_t bytes = table_.bytes() + grid_[0].bytes() + grid_[1].bytes() + velocity_.bytes() + fbar_sums_.bytes() +
+                      transported_[0].bytes() + transported_[1].bytes() + old_velocity_.bytes() +
                       stats_bytes_.bytes() + wave_d_.bytes() + p2g_bound_d_.bytes() + scan_temp_.bytes();
   for (const auto& b : bodies_) bytes += b->bins_bytes() + b->partition.bytes() + b->aux.bytes();
   return bytes;

@@ -55,8 +55,7 @@ void check_supported(const Scene& scene) {
              std::string("constitutive ") + to_string(m.law));
     if (a.type != "particles") refuse(p + ".algorithm.type", q(a.type), "\"particles\"", "algorithm type mesh");
     if (a.use_fem) refuse(p + ".algorithm.use_FEM", "true", "false", "use_FEM");
-    // ASFLIP / PIC-FLIP (alpha, beta) and F-bar (FBAR_psi) run on the CPU engine; the GPU engine refuses what its
-    // kernels do not carry yet with a message naming --backend=cpu (mgsp_benchmark.cuh).
+    // ASFLIP / PIC-FLIP (alpha, beta) and F-bar (FBAR_psi) run on both engines.
     for (std::size_t j = 0; j < b.geometry.size(); ++j) {
       const GeometrySpec& g = b.geometry[j];
       const std::string gp = p + "." + idx("geometry", j);

@@ -53,11 +53,21 @@ Tolerance tolerance(Constitutive law) {
   else return {5e-6, 1e-4, 2e-5, 2e-5, 5e-6, 1e-6};
 }
 
+/// Transfer scheme of a comparison: APIC unless alpha or beta are given (PIC-FLIP, FLIP, ASFLIP).
+struct Scheme {
+  double alpha = 0, beta_min = 0, beta_max = 0;
+};
+
 template <typename T>
-void compare(Constitutive law, double dt, int steps, const GpuEngineOptions& options = {}, double fbar_psi = 0.0) {
+void compare(Constitutive law, double dt, int steps, const GpuEngineOptions& options = {}, double fbar_psi = 0.0,
+             Scheme scheme = {}) {
   Scene scene = test::small_scene(law, std::is_same_v<T, double> ? Precision::Double : Precision::Single);
   scene.bodies[0].algorithm.use_fbar = fbar_psi != 0.0;
   scene.bodies[0].algorithm.fbar_psi = fbar_psi;
+  scene.bodies[0].algorithm.use_asflip = scheme.alpha != 0.0 || scheme.beta_min != 0.0 || scheme.beta_max != 0.0;
+  scene.bodies[0].algorithm.asflip_alpha = scheme.alpha;
+  scene.bodies[0].algorithm.asflip_beta_min = scheme.beta_min;
+  scene.bodies[0].algorithm.asflip_beta_max = scheme.beta_max;
   // NACC: a consolidated clay (p0 = kappa sinh(0.8 x 0.3) = 2e4 Pa, about the impact stress rho c v = 2.3e4 Pa), so
   // the impact yields part of the block and hardens it; DruckerPrager (phi 30 deg, volume correction on) yields
   // where the walls shear it.
@@ -87,6 +97,16 @@ void compare(Constitutive law, double dt, int steps, const GpuEngineOptions& opt
     const double effect = test::max_diff_scalar(plain.volume_ratios(0), cpu.volume_ratios(0));
     std::cout << "[measured] F-bar (psi " << fbar_psi << ") changes J by up to " << effect << "\n";
     EXPECT_GT(effect, 100 * tol.J);
+  }
+  if (scene.bodies[0].algorithm.use_asflip) {  // the scheme must have changed the velocities far beyond tolerance
+    Scene plain_scene = scene;
+    plain_scene.bodies[0].algorithm.use_asflip = false;
+    CpuEngine<T> plain(plain_scene, positions);
+    for (int s = 0; s < steps; ++s) ASSERT_TRUE(plain.step(dt).ok);
+    const double effect = test::max_diff(plain.velocities(0), cpu.velocities(0));
+    std::cout << "[measured] scheme (alpha " << scheme.alpha << ", beta " << scheme.beta_min << ".." << scheme.beta_max
+              << ") changes v by up to " << effect << " m/s\n";
+    EXPECT_GT(effect, 100 * tol.v);
   }
   const ParticleSnapshot<T> g = gpu.snapshot(0);
   const double ex = test::max_diff(g.x, cpu.positions(0));
@@ -224,6 +244,33 @@ TEST(GpuVsCpu, FbarJFluidDouble) {
 TEST(GpuVsCpu, FbarDruckerPragerDouble) {
   FBAR_REQUIRE_DEVICE();
   compare<double>(Constitutive::DruckerPrager, 5e-4, 60, {}, 1.0);
+}
+
+// PIC-FLIP, FLIP and ASFLIP (transfer.cuh; the GPU keeps particle velocities beside the bins and adds the
+// transported momentum with global atomics, the CPU in particle order): same tolerances as APIC.
+TEST(GpuVsCpu, PicFlipFixedCorotatedFloat) {
+  FBAR_REQUIRE_DEVICE();
+  compare<float>(Constitutive::FixedCorotated, 5e-4, 60, {}, 0.0, Scheme{0.95, 0, 0});
+}
+TEST(GpuVsCpu, PicFlipFixedCorotatedDouble) {
+  FBAR_REQUIRE_DEVICE();
+  compare<double>(Constitutive::FixedCorotated, 5e-4, 60, {}, 0.0, Scheme{0.95, 0, 0});
+}
+TEST(GpuVsCpu, FlipJFluidDouble) {
+  FBAR_REQUIRE_DEVICE();
+  compare<double>(Constitutive::JFluid, 2e-4, 60, {}, 0.0, Scheme{1.0, 0, 0});
+}
+TEST(GpuVsCpu, AsflipJFluidFloat) {
+  FBAR_REQUIRE_DEVICE();
+  compare<float>(Constitutive::JFluid, 2e-4, 60, {}, 0.0, Scheme{0.9, 0.05, 0.2});
+}
+TEST(GpuVsCpu, AsflipDruckerPragerDouble) {
+  FBAR_REQUIRE_DEVICE();
+  compare<double>(Constitutive::DruckerPrager, 5e-4, 60, {}, 0.0, Scheme{0.9, 0.05, 0.2});
+}
+TEST(GpuVsCpu, AsflipFbarNeoHookeanDouble) {
+  FBAR_REQUIRE_DEVICE();
+  compare<double>(Constitutive::NeoHookean, 5e-4, 60, {}, 1.0, Scheme{0.75, 0.0, 0.1});
 }
 
 // Capacity growth: 8 grid blocks and 64 bins to start (the block needs ~100 blocks and ~60 bins per layout); the

@@ -83,6 +83,15 @@ struct G2P2GParams {
   typename GridLayout<T>::Buffer grid_next;         ///< P2G target (zeroed on blocks [0, block count))
   typename GridLayout<T>::Buffer grid_this;         ///< this step's P2G sums: a new block is zeroed here as well
   T* aux;                    ///< (slot, kAuxScalars) v and C, or nullptr
+  /// ASFLIP (transfer.cuh). Every body adds its transported momentum m (v + C (x_i - x_p)) to `transported_next`
+  /// when any body uses ASFLIP (non-null); a body that uses it also reads v^n (`old_velocity`) and its particles'
+  /// velocities (`particle_v_in` at the storage slot, `particle_v_out` at the layout slot; 3 scalars per slot).
+  typename GridLayout<T>::VelocityBuffer transported_next;
+  typename GridLayout<T>::VelocityBuffer old_velocity;
+  const T* particle_v_in;
+  T* particle_v_out;
+  bool asflip;                ///< this body uses PIC-FLIP / ASFLIP
+  AsflipParams<T> asflip_params;
   typename GridLayout<T>::FbarBuffer fbar_sums;  ///< F-bar cell sums of this body (fbar_divergence), when fbar_psi > 0
   T fbar_psi;                ///< [-] F-bar blend, 0: off (transfer.cuh)
   material_params_t<M, T> material;
@@ -316,7 +325,7 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
         });
         v = sum.velocity();
         C = sum.affine(p.d_inv);
-        x_new = advect(in.x, v, p.dt);
+        if (!p.asflip) x_new = advect(in.x, v, p.dt);
         if (p.fbar_psi != T(0)) {  // F-bar: the state advances with the cell's volume rate (transfer.cuh)
           const Vec3i cell = fbar_cell_offset(in.x, p.inv_dx, s.base);
           const int a = c0 + cell[0], b = c1 + cell[1], c = c2 + cell[2];
@@ -328,6 +337,23 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
           state_new = M::advance(p.material, in.state, fbar_velocity_gradient(C, d, p.fbar_psi), p.dt);
         } else {
           state_new = M::advance(p.material, in.state, C, p.dt);
+        }
+        if (p.asflip) {  // FLIP increment from v^n at the same stencil, the particle's own velocity (transfer.cuh)
+          G2POldSum<T> old;
+          g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, [&](int i, int j, int k, T w, const Vec3<T>&) {
+            const int a = c0 + i, b = c1 + j, c = c2 + k;
+            const int nb = arena_blocks[((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2)];
+            if (nb < 0) return;
+            const int node = ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
+            old.add(w, Vec3<T>{{block_val(p.old_velocity, grid_velocity_x, nb, node),
+                                block_val(p.old_velocity, grid_velocity_y, nb, node),
+                                block_val(p.old_velocity, grid_velocity_z, nb, node)}});
+          });
+          const T* vp = p.particle_v_in + static_cast<std::size_t>(src) * 3;
+          const AsflipUpdate<T> u = asflip_update(p.asflip_params, Vec3<T>{{vp[0], vp[1], vp[2]}}, v, old.v,
+                                                  M::volume_ratio(state_new), p.dt);
+          v = u.v;
+          x_new = in.x + u.move;
         }
         // Checks, in the CPU engine's order: non-finite, left the domain, moved more than a cell.
         if (!(all_finite(x_new) && all_finite(v) && all_finite(C) &&
@@ -344,6 +370,12 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
       }
       ParticleRecord<M, T> out{x_new, state_new, in.id};
       store_particle<M, T>(p.out, slot, out);
+      if (p.asflip) {
+        T* vp = p.particle_v_out + static_cast<std::size_t>(slot) * 3;
+        vp[0] = v[0];
+        vp[1] = v[1];
+        vp[2] = v[2];
+      }
       if (p.aux != nullptr) {
         T* a = p.aux + static_cast<std::size_t>(slot) * kAuxScalars;
         a[0] = v[0];
@@ -394,6 +426,21 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
               };
               g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, scatter);
             }
+          }
+          if (p.transported_next && failed < 0) {
+            // v^n of the next step: the momentum this particle carries, without the stress impulse; global atomics
+            // (only scenes with ASFLIP pay for them).
+            const P2GParticle<T> transported = mls_p2g_particle(p.mass, p.volume, v, C, Mat3<T>::zero(), dt_next, p.d_inv);
+            g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
+              const int a = l0 + i, b = l1 + j, c = l2 + k;
+              const int nb = arena_blocks[((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2)];
+              if (nb < 0) return;
+              const int node = ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
+              const Vec3<T> mv = p2g_node_momentum(transported, w, xixp);
+              atomicAdd(&block_val(p.transported_next, grid_velocity_x, nb, node), mv[0]);
+              atomicAdd(&block_val(p.transported_next, grid_velocity_y, nb, node), mv[1]);
+              atomicAdd(&block_val(p.transported_next, grid_velocity_z, nb, node), mv[2]);
+            });
           }
           const int b0 = floor_div4(s.base[0] - 1), b1 = floor_div4(s.base[1] - 1), b2 = floor_div4(s.base[2] - 1);
           if (BlockKey::representable(b0, b1, b2)) {

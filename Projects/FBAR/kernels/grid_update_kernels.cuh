@@ -25,6 +25,10 @@ template <typename T>
 struct GridUpdateParams {
   typename GridLayout<T>::Buffer grid;              ///< P2G sums of this step (read only: kept for a retry)
   typename GridLayout<T>::VelocityBuffer velocity;  ///< written: node velocities
+  /// ASFLIP (when a body uses it, else null): the transported momentum the P2G summed apart (read), and v^n =
+  /// transported / m (written), what G2P's FLIP increment needs (transfer.cuh).
+  typename GridLayout<T>::VelocityBuffer transported;
+  typename GridLayout<T>::VelocityBuffer old_velocity;
   const int* coords;                                ///< (block, axis) block coordinates (hash table)
   int block_count;
   T dt;         ///< [s]
@@ -48,6 +52,15 @@ __global__ void __launch_bounds__(kGridUpdateThreads) update_grid_velocity_query
                             block_val(p.grid, grid_momentum_y, block, node),
                             block_val(p.grid, grid_momentum_z, block, node)}};
     Vec3<T> v = grid_node_velocity(m, momentum, p.gravity, p.dt);
+    if (p.old_velocity) {
+      const Vec3<T> transported{{block_val(p.transported, grid_velocity_x, block, node),
+                                 block_val(p.transported, grid_velocity_y, block, node),
+                                 block_val(p.transported, grid_velocity_z, block, node)}};
+      const Vec3<T> v_old = grid_node_velocity(m, transported, Vec3<T>::zero(), p.dt);
+      block_val(p.old_velocity, grid_velocity_x, block, node) = v_old[0];
+      block_val(p.old_velocity, grid_velocity_y, block, node) = v_old[1];
+      block_val(p.old_velocity, grid_velocity_z, block, node) = v_old[2];
+    }
     if (m > T(0)) {
       const int i = node / 16, j = (node / 4) % 4, k = node % 4;
       const Vec3<T> x_node{{static_cast<T>(p.coords[3 * block + 0] * 4 + i) * p.dx,
