@@ -315,10 +315,14 @@ class MgspBenchmark {
         fbar::fbar_divergence<M, T><<<blocks, kG2P2GThreads, 0, e.stream_>>>(f);
         mgsp_detail::check_launch("fbar_divergence");
       }
+      const bool transport = static_cast<bool>(p.transported_next);
+      const std::size_t arena = g2p2g_arena_bytes<T>(transport);
       if (initial)
-        fbar::g2p2g<M, T, true><<<blocks, kG2P2GThreads, 0, e.stream_>>>(p);
+        fbar::g2p2g<M, T, true, false><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
+      else if (transport)
+        fbar::g2p2g<M, T, false, true><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
       else
-        fbar::g2p2g<M, T, false><<<blocks, kG2P2GThreads, 0, e.stream_>>>(p);
+        fbar::g2p2g<M, T, false, false><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
       mgsp_detail::check_launch("g2p2g");
     }
 

@@ -109,6 +109,13 @@ struct G2P2GParams {
   unsigned long long* p2g_bound_out;       ///< (this body) bits of the largest p2g_momentum_bound of this try
 };
 
+/// Dynamic shared memory of a g2p2g launch [bytes]: the P2G arena of 4 channels, or 7 when transported momentum
+/// is summed (ASFLIP).
+template <typename T>
+constexpr std::size_t g2p2g_arena_bytes(bool transported) {
+  return static_cast<std::size_t>(transported ? 7 : 4) * kArenaStorage * sizeof(T);
+}
+
 namespace g2p2g_detail {
 
 /// One arena node's grid velocity, padded to 4 scalars so G2P reads a node with one 16-byte (float) or two
@@ -126,6 +133,7 @@ template <>
 struct FixedArena<float> {
   static constexpr double kRange = 2147483648.0 - 16777216.0;  // 2^31 - 2^24
   unsigned* words;                                               // (channel, node): int32
+  int channels;                                                  // 4, or 7 with ASFLIP's transported momentum
   FBAR_DEVICE FBAR_FORCE_INLINE void add(int ch, int a, float units) const {
     atomicAdd(reinterpret_cast<int*>(words) + ch * kArenaStorage + a, __float2int_rn(units));
   }
@@ -137,16 +145,17 @@ template <>
 struct FixedArena<double> {
   static constexpr double kRange = 9223372036854775808.0 - 1099511627776.0;  // 2^63 - 2^40
   unsigned* words;  // (half, channel, node): low then high 32 bits of an int64
+  int channels;     // 4, or 7 with ASFLIP's transported momentum
   /// 64-bit add from two native 32-bit ones: a low word that wraps carries exactly once into the high word, so the
   /// pair holds the exact sum modulo 2^64 whatever the interleaving.
   FBAR_DEVICE FBAR_FORCE_INLINE void add(int ch, int a, double units) const {
     const long long v = __double2ll_rn(units);
     const unsigned lo = static_cast<unsigned>(v), hi = static_cast<unsigned>(static_cast<unsigned long long>(v) >> 32);
     const unsigned old = atomicAdd(words + ch * kArenaStorage + a, lo);
-    atomicAdd(words + (4 + ch) * kArenaStorage + a, hi + (old + lo < old ? 1u : 0u));
+    atomicAdd(words + (channels + ch) * kArenaStorage + a, hi + (old + lo < old ? 1u : 0u));
   }
   FBAR_DEVICE FBAR_FORCE_INLINE double units(int ch, int a) const {
-    const unsigned long long bits = (static_cast<unsigned long long>(words[(4 + ch) * kArenaStorage + a]) << 32) |
+    const unsigned long long bits = (static_cast<unsigned long long>(words[(channels + ch) * kArenaStorage + a]) << 32) |
                                     words[ch * kArenaStorage + a];
     return static_cast<double>(static_cast<long long>(bits));
   }
@@ -229,7 +238,11 @@ FBAR_DEVICE ParticleDest claim_block_rank(bool has_key, std::uint64_t key, const
 
 }  // namespace g2p2g_detail
 
-template <typename M, typename T, bool kInitial>
+/// kTransport: the arena also sums the transported momentum (some body uses ASFLIP). A separate instantiation, so
+/// that APIC scenes run a kernel without that code: with the ASFLIP code present behind run-time branches, APIC
+/// steps in double took 5.03 / 7.09 ms (dam_break / falling_block, 16M particles, H100) against 3.33 / 4.83 ms
+/// without (two runs, docs/benchmarks/2026-11-23-h100-asflip-arena.md). The initial P2G decides at run time.
+template <typename M, typename T, bool kInitial, bool kTransport>
 __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
   using State = material_state_t<M, T>;
   constexpr int kStateScalars = ParticleLayout<M, T>::kStateScalars;
@@ -239,8 +252,15 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
   __shared__ g2p2g_detail::ArenaVelocity<T> arena_v[kArenaStorage];
   // (channel, x, y, z) P2G sums: mass, momentum x, y, z; same indexing. Fixed point: the same bytes as integers
   // in units of q_mass, q_momentum (FixedArena).
-  __shared__ T arena_p[4][kArenaStorage];
-  const g2p2g_detail::FixedArena<T> fixed{reinterpret_cast<unsigned*>(&arena_p[0][0])};
+  // Dynamic shared memory (the launch gives g2p2g_arena_bytes): 4 channels, or 7 when a body uses ASFLIP (the
+  // transported momentum x, y, z as channels 4..6, transfer.cuh); in double 7 channels take 30.5 KB, which with
+  // arena_v stays inside the 48 KB a block may use without opting in.
+  extern __shared__ __align__(16) unsigned char g2p2g_dynamic_shared[];
+  T* const arena_p = reinterpret_cast<T*>(g2p2g_dynamic_shared);
+  const int channels = (kTransport || (kInitial && static_cast<bool>(p.transported_next))) ? 7 : 4;
+  // A body that uses ASFLIP runs in a kTransport launch (or the initial one): only those carry its code.
+  constexpr bool kMayAsflip = kTransport || kInitial;
+  const g2p2g_detail::FixedArena<T> fixed{reinterpret_cast<unsigned*>(arena_p), channels};
   // (neighbour) hash-table index of the arena's 2x2x2 grid blocks, neighbour = (di * 2 + dj) * 2 + dk.
   __shared__ int arena_blocks[8];
   // (quantity, warp) per-warp maxima of the wave speed and the P2G bound; whether a particle exceeded the bound.
@@ -258,7 +278,7 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
     arena_blocks[threadIdx.x] = found;
     if (found < 0) atomicAdd(&p.stats->internal_error, 1);
   }
-  for (int i = threadIdx.x; i < 4 * kArenaStorage; i += blockDim.x) (&arena_p[0][0])[i] = T(0);
+  for (int i = threadIdx.x; i < channels * kArenaStorage; i += blockDim.x) arena_p[i] = T(0);
   __syncthreads();
   if constexpr (!kInitial) {
     for (int i = threadIdx.x; i < kArenaNodes; i += blockDim.x) {
@@ -325,7 +345,7 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
         });
         v = sum.velocity();
         C = sum.affine(p.d_inv);
-        if (!p.asflip) x_new = advect(in.x, v, p.dt);
+        if (!(kMayAsflip && p.asflip)) x_new = advect(in.x, v, p.dt);
         if (p.fbar_psi != T(0)) {  // F-bar: the state advances with the cell's volume rate (transfer.cuh)
           const Vec3i cell = fbar_cell_offset(in.x, p.inv_dx, s.base);
           const int a = c0 + cell[0], b = c1 + cell[1], c = c2 + cell[2];
@@ -338,7 +358,7 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
         } else {
           state_new = M::advance(p.material, in.state, C, p.dt);
         }
-        if (p.asflip) {  // FLIP increment from v^n at the same stencil, the particle's own velocity (transfer.cuh)
+        if (kMayAsflip && p.asflip) {  // FLIP increment from v^n at the stencil, the particle's own velocity
           G2POldSum<T> old;
           g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, [&](int i, int j, int k, T w, const Vec3<T>&) {
             const int a = c0 + i, b = c1 + j, c = c2 + k;
@@ -370,7 +390,7 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
       }
       ParticleRecord<M, T> out{x_new, state_new, in.id};
       store_particle<M, T>(p.out, slot, out);
-      if (p.asflip) {
+      if (kMayAsflip && p.asflip) {
         T* vp = p.particle_v_out + static_cast<std::size_t>(slot) * 3;
         vp[0] = v[0];
         vp[1] = v[1];
@@ -394,7 +414,12 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
           const StressResult<T> stress = M::kirchhoff_stress(p.material, state_new, C);
           const P2GParticle<T> payload =
               mls_p2g_particle(p.mass, p.volume, v, C, stress.kirchhoff, dt_next, p.d_inv);
-          const T b = p2g_momentum_bound(payload, p.dx);
+          // ASFLIP: the momentum the particle carries, without the stress impulse (v^n of the next step).
+          const bool transport = channels == 7;
+          const P2GParticle<T> carried =
+              transport ? mls_p2g_particle(p.mass, p.volume, v, C, Mat3<T>::zero(), dt_next, p.d_inv) : P2GParticle<T>{};
+          T b = p2g_momentum_bound(payload, p.dx);
+          if (transport) b = fmax(b, p2g_momentum_bound(carried, p.dx));
           if (!isfinite(b)) {
             failed = kFailNonFinite;  // a finite state whose stress overflowed
           } else {
@@ -414,33 +439,36 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
                   fixed.add(3, a, mv[2]);
                 };
                 g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, scatter);
+                if (transport) {
+                  const P2GParticle<T> carried_units{T(0), carried.momentum * inv_q_momentum,
+                                                     carried.affine * inv_q_momentum};
+                  auto scatter_carried = [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
+                    const int a = g2p2g_detail::arena_index(l0 + i, l1 + j, l2 + k);
+                    const Vec3<T> mv = p2g_node_momentum(carried_units, w, xixp);
+                    fixed.add(4, a, mv[0]);
+                    fixed.add(5, a, mv[1]);
+                    fixed.add(6, a, mv[2]);
+                  };
+                  g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, scatter_carried);
+                }
               }
             } else {
               auto scatter = [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
                 const int a = g2p2g_detail::arena_index(l0 + i, l1 + j, l2 + k);
                 const Vec3<T> mv = p2g_node_momentum(payload, w, xixp);
-                atomicAdd(&arena_p[0][a], w * payload.mass);
-                atomicAdd(&arena_p[1][a], mv[0]);
-                atomicAdd(&arena_p[2][a], mv[1]);
-                atomicAdd(&arena_p[3][a], mv[2]);
+                atomicAdd(&arena_p[0 * kArenaStorage + a], w * payload.mass);
+                atomicAdd(&arena_p[1 * kArenaStorage + a], mv[0]);
+                atomicAdd(&arena_p[2 * kArenaStorage + a], mv[1]);
+                atomicAdd(&arena_p[3 * kArenaStorage + a], mv[2]);
+                if (transport) {
+                  const Vec3<T> cv = p2g_node_momentum(carried, w, xixp);
+                  atomicAdd(&arena_p[4 * kArenaStorage + a], cv[0]);
+                  atomicAdd(&arena_p[5 * kArenaStorage + a], cv[1]);
+                  atomicAdd(&arena_p[6 * kArenaStorage + a], cv[2]);
+                }
               };
               g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, scatter);
             }
-          }
-          if (p.transported_next && failed < 0) {
-            // v^n of the next step: the momentum this particle carries, without the stress impulse; global atomics
-            // (only scenes with ASFLIP pay for them).
-            const P2GParticle<T> transported = mls_p2g_particle(p.mass, p.volume, v, C, Mat3<T>::zero(), dt_next, p.d_inv);
-            g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
-              const int a = l0 + i, b = l1 + j, c = l2 + k;
-              const int nb = arena_blocks[((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2)];
-              if (nb < 0) return;
-              const int node = ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
-              const Vec3<T> mv = p2g_node_momentum(transported, w, xixp);
-              atomicAdd(&block_val(p.transported_next, grid_velocity_x, nb, node), mv[0]);
-              atomicAdd(&block_val(p.transported_next, grid_velocity_y, nb, node), mv[1]);
-              atomicAdd(&block_val(p.transported_next, grid_velocity_z, nb, node), mv[2]);
-            });
           }
           const int b0 = floor_div4(s.base[0] - 1), b1 = floor_div4(s.base[1] - 1), b2 = floor_div4(s.base[2] - 1);
           if (BlockKey::representable(b0, b1, b2)) {
@@ -491,23 +519,28 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
     const int ai = g2p2g_detail::arena_index(a, b, c);
     T mass_units;
     if constexpr (kFixed) mass_units = fixed.units(0, ai);
-    else mass_units = arena_p[0][ai];
+    else mass_units = arena_p[ai];
     if (mass_units == T(0)) continue;  // no particle's stencil covers this node
     const int nb = arena_blocks[((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2)];
     if (nb < 0) continue;  // counted above as an internal error
     const int node = ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
-    T sum[4];
+    T sum[7];
     if constexpr (kFixed) {
       sum[0] = mass_units * q_mass;
-      for (int ch = 1; ch < 4; ++ch) sum[ch] = fixed.units(ch, ai) * q_momentum;
+      for (int ch = 1; ch < channels; ++ch) sum[ch] = fixed.units(ch, ai) * q_momentum;
     } else {
       sum[0] = mass_units;
-      for (int ch = 1; ch < 4; ++ch) sum[ch] = arena_p[ch][ai];
+      for (int ch = 1; ch < channels; ++ch) sum[ch] = arena_p[ch * kArenaStorage + ai];
     }
     atomicAdd(&block_val(p.grid_next, grid_mass, nb, node), sum[0]);
     atomicAdd(&block_val(p.grid_next, grid_momentum_x, nb, node), sum[1]);
     atomicAdd(&block_val(p.grid_next, grid_momentum_y, nb, node), sum[2]);
     atomicAdd(&block_val(p.grid_next, grid_momentum_z, nb, node), sum[3]);
+    if (channels == 7) {
+      atomicAdd(&block_val(p.transported_next, grid_velocity_x, nb, node), sum[4]);
+      atomicAdd(&block_val(p.transported_next, grid_velocity_y, nb, node), sum[5]);
+      atomicAdd(&block_val(p.transported_next, grid_velocity_z, nb, node), sum[6]);
+    }
   }
 }
 
