@@ -218,6 +218,7 @@ void CpuEngine<T>::init(const std::vector<std::vector<Vec3d>>& positions) {
                                          static_cast<T>(alg.asflip_beta_max)};
     asflip_ = asflip_ || body.asflip;
     body.fbar_psi = alg.use_fbar ? static_cast<T>(alg.fbar_psi) : T(0);
+    fbar_ = fbar_ || body.fbar_psi != T(0);
     body.mass.assign(n, static_cast<T>(mat.rho * volume));
     body.volume.assign(n, static_cast<T>(volume));
     body.x_next.resize(n);
@@ -298,6 +299,8 @@ void CpuEngine<T>::build_partition() {
     }
   }
   grid_.blocks.resize(grid_.coords.size());
+  if (asflip_) grid_.asflip.resize(grid_.coords.size());
+  if (fbar_) grid_.fbar.resize(grid_.coords.size());
   partition_valid_ = true;
 }
 
@@ -369,14 +372,15 @@ void CpuEngine<T>::p2g(Body& body, T dt) {
                   for (int c = 0; c < kArenaSide; ++c) {
                     const int ai = arena_index(a, b, c);
                     if (arena_m[ai] == T(0)) continue;  // untouched node (zero weight everywhere)
-                    GridBlock& g = grid_.blocks[targets[arena_neighbour(a, b, c)]];
+                    const int gb = targets[arena_neighbour(a, b, c)];
+                    GridBlock& g = grid_.blocks[gb];
                     const int node = arena_node_in_block(a, b, c);
                     g.mass[node] += arena_m[ai];
                     g.momentum[0][node] += arena_p[0][ai];
                     g.momentum[1][node] += arena_p[1][ai];
                     g.momentum[2][node] += arena_p[2][ai];
                     if (asflip_)
-                      for (int d = 0; d < 3; ++d) g.old_velocity[d][node] += arena_q[d][ai];
+                      for (int d = 0; d < 3; ++d) grid_.asflip[gb].old_velocity[d][node] += arena_q[d][ai];
                   }
             }
           }
@@ -409,9 +413,10 @@ double CpuEngine<T>::update_grid(T dt) {
           mass_sum += static_cast<double>(m);
           const Vec3T momentum{{g.momentum[0][node], g.momentum[1][node], g.momentum[2][node]}};
           if (asflip_) {  // v^n = transported momentum / m (P2G accumulated it in old_velocity)
-            const Vec3T transported{{g.old_velocity[0][node], g.old_velocity[1][node], g.old_velocity[2][node]}};
+            T(&old)[3][64] = grid_.asflip[gb].old_velocity;
+            const Vec3T transported{{old[0][node], old[1][node], old[2][node]}};
             const Vec3T v_old = grid_node_velocity(m, transported, Vec3T::zero(), dt);
-            for (int a = 0; a < 3; ++a) g.old_velocity[a][node] = v_old[a];
+            for (int a = 0; a < 3; ++a) old[a][node] = v_old[a];
           }
           Vec3T v = grid_node_velocity(m, momentum, k_.gravity, dt);
           if (m > T(0)) {
@@ -440,7 +445,7 @@ void CpuEngine<T>::fbar_divergence(Body& body) {
   const int nblocks = static_cast<int>(grid_.blocks.size());
 #pragma omp parallel for schedule(static) if (nblocks >= kMinParallelBlocks)
   for (int gb = 0; gb < nblocks; ++gb)
-    for (auto& ch : grid_.blocks[gb].fbar) std::fill(ch, ch + 64, T(0));
+    for (auto& ch : grid_.fbar[gb].sums) std::fill(ch, ch + 64, T(0));
   const Partition& part = body.partition;
   const T dx = k_.dx, inv_dx = k_.inv_dx, d_inv = k_.d_inv;
   std::visit(
@@ -495,10 +500,10 @@ void CpuEngine<T>::fbar_divergence(Body& body) {
                   for (int c = 0; c < kArenaSide; ++c) {
                     const int ai = arena_index(a, b, c);
                     if (arena_sum[1][ai] == T(0)) continue;
-                    GridBlock& g = grid_.blocks[blocks[arena_neighbour(a, b, c)]];
+                    FbarBlock& g = grid_.fbar[blocks[arena_neighbour(a, b, c)]];
                     const int node = arena_node_in_block(a, b, c);
-                    g.fbar[0][node] += arena_sum[0][ai];
-                    g.fbar[1][node] += arena_sum[1][ai];
+                    g.sums[0][node] += arena_sum[0][ai];
+                    g.sums[1][node] += arena_sum[1][ai];
                   }
             }
           }
@@ -541,16 +546,17 @@ void CpuEngine<T>::g2p(int body_index, Body& body, T dt, TryResult& result) {
             for (int a = 0; a < kArenaSide; ++a)
               for (int b = 0; b < kArenaSide; ++b)
                 for (int c = 0; c < kArenaSide; ++c) {
-                  const GridBlock& g = grid_.blocks[sources[arena_neighbour(a, b, c)]];
+                  const int gb = sources[arena_neighbour(a, b, c)];
+                  const GridBlock& g = grid_.blocks[gb];
                   const int node = arena_node_in_block(a, b, c);
                   const int ai = arena_index(a, b, c);
                   arena_v[0][ai] = g.momentum[0][node];
                   arena_v[1][ai] = g.momentum[1][node];
                   arena_v[2][ai] = g.momentum[2][node];
                   if (body.asflip)
-                    for (int d = 0; d < 3; ++d) arena_v_old[d][ai] = g.old_velocity[d][node];
+                    for (int d = 0; d < 3; ++d) arena_v_old[d][ai] = grid_.asflip[gb].old_velocity[d][node];
                   if (fbar)
-                    for (int d = 0; d < 2; ++d) arena_fbar[d][ai] = g.fbar[d][node];
+                    for (int d = 0; d < 2; ++d) arena_fbar[d][ai] = grid_.fbar[gb].sums[d][node];
                 }
             const Vec3i& origin = part.block_coords[pb];
             for (int q = part.block_start[pb]; q < part.block_start[pb + 1]; ++q) {
@@ -649,7 +655,10 @@ typename CpuEngine<T>::TryResult CpuEngine<T>::try_step(double dt_in) {
   result.max_wave_speed.assign(bodies_.size(), 0.0);
   const int nblocks = static_cast<int>(grid_.blocks.size());
 #pragma omp parallel for schedule(static) if (nblocks >= kMinParallelBlocks)
-  for (int gb = 0; gb < nblocks; ++gb) std::memset(&grid_.blocks[gb], 0, sizeof(GridBlock));
+  for (int gb = 0; gb < nblocks; ++gb) {
+    std::memset(&grid_.blocks[gb], 0, sizeof(GridBlock));
+    if (asflip_) std::memset(&grid_.asflip[gb], 0, sizeof(AsflipBlock));
+  }
   for (Body& body : bodies_) p2g(body, dt);
   result.max_grid_speed = update_grid(dt);
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
@@ -1044,7 +1053,8 @@ std::size_t CpuEngine<T>::memory_bytes() const {
              part.grid_blocks.capacity() * sizeof(std::array<int, 8>) +
              part.block_keys.capacity() * (sizeof(std::uint64_t) + sizeof(Vec3i) + 2 * sizeof(int));
   }
-  bytes += grid_.blocks.capacity() * sizeof(GridBlock) + grid_.coords.capacity() * sizeof(Vec3i);
+  bytes += grid_.blocks.capacity() * sizeof(GridBlock) + grid_.coords.capacity() * sizeof(Vec3i) +
+           grid_.asflip.capacity() * sizeof(AsflipBlock) + grid_.fbar.capacity() * sizeof(FbarBlock);
   bytes += grid_.index.size() * (sizeof(std::uint64_t) + sizeof(int) + 2 * sizeof(void*));
   return bytes;
 }

@@ -229,16 +229,22 @@ class CpuEngine {
   struct GridBlock {
     T mass[64];
     T momentum[3][64];  // momentum after P2G, velocity after the grid update
-    // ASFLIP's v^n (only when a body uses it): P2G accumulates the transported momentum m (v + C (x_i - x_p))
-    // without the MLS stress impulse, the grid update divides it by the mass.
+  };
+  // ASFLIP's v^n (only when a body uses it): P2G accumulates the transported momentum m (v + C (x_i - x_p)) without
+  // the MLS stress impulse, the grid update divides it by the mass.
+  struct AsflipBlock {
     T old_velocity[3][64];
-    // F-bar (only when a body uses it): sum w V tr C and sum w V of the body in G2P (transfer.cuh).
-    T fbar[2][64];
+  };
+  // F-bar's cell sums (only when a body uses it): sum V tr C and sum V of the body in G2P, cell c at node c.
+  struct FbarBlock {
+    T sums[2][64];
   };
   struct Grid {
     std::unordered_map<std::uint64_t, int> index;  // packed block coordinates -> block
     std::vector<Vec3i> coords;                     // (block) block coordinates
     std::vector<GridBlock> blocks;
+    std::vector<AsflipBlock> asflip;  // (block), empty unless a body uses ASFLIP
+    std::vector<FbarBlock> fbar;      // (block), empty unless a body uses F-bar
   };
 
   struct TryResult {
@@ -272,6 +278,7 @@ class CpuEngine {
   int clean_steps_ = 0;    // reduce_dt: clean steps since the last halving
   bool partition_valid_ = false;
   bool asflip_ = false;  // some body uses ASFLIP: the grid update keeps v^n
+  bool fbar_ = false;    // some body uses F-bar: the grid has cell sums
   std::ostream* log_;
 };
 
