@@ -187,6 +187,7 @@ SceneSummary summarize_scene(const Scene& scene) {
   std::vector<std::unordered_set<std::uint64_t>> gpu_blocks(max_gpu + 1);
   std::vector<std::size_t> gpu_bins_bytes(max_gpu + 1, 0), gpu_particles(max_gpu + 1, 0);
   std::size_t cpu_particle_bytes = 0;
+  bool asflip = false, fbar = false;  // some body uses ASFLIP / F-bar: the grids carry their channels
 
   for (std::size_t i = 0; i < scene.bodies.size(); ++i) {
     const BodySpec& body = scene.bodies[i];
@@ -224,6 +225,13 @@ SceneSummary summarize_scene(const Scene& scene) {
     gpu_bins_bytes[body.gpu] += 2 * bins * settings::kBinSize * static_cast<std::size_t>(facts.stored_scalars) *
                                 gpu_particle_scalar_bytes(sim.precision);
     gpu_particles[body.gpu] += x.size();
+    const AlgorithmSpec& a = body.algorithm;
+    const bool body_asflip = a.use_asflip && (a.asflip_alpha != 0.0 || a.asflip_beta_min != 0.0 || a.asflip_beta_max != 0.0);
+    asflip = asflip || body_asflip;
+    fbar = fbar || (a.use_fbar && a.fbar_psi != 0.0);
+    // ASFLIP: the GPU keeps particle velocities (3 scalars) beside both particle buffers.
+    if (body_asflip)
+      gpu_bins_bytes[body.gpu] += 2 * bins * settings::kBinSize * 3 * gpu_particle_scalar_bytes(sim.precision);
 
     // CPU engine, double: x, v, their next copies (4 x 3), C and its next copy (2 x 9), mass, volume (2), state
     // twice, plus order / block index / key scratch (16 bytes).
@@ -231,8 +239,10 @@ SceneSummary summarize_scene(const Scene& scene) {
     cpu_particle_bytes += x.size() * ((12 + 18 + 2 + 2 * state_scalars) * sizeof(double) + 16);
   }
 
-  // CPU grid: 4 double channels x 64 nodes per block, coordinates and a hash-map entry.
-  summary.cpu_bytes = cpu_particle_bytes + cpu_blocks.size() * (4 * 64 * sizeof(double) + 12 + 48);
+  // CPU grid: 4 double channels x 64 nodes per block (+3 for ASFLIP's v^n, +2 for F-bar's cell sums, only when a
+  // body uses them), coordinates and a hash-map entry.
+  const std::size_t cpu_channels = 4 + (asflip ? 3 : 0) + (fbar ? 2 : 0);
+  summary.cpu_bytes = cpu_particle_bytes + cpu_blocks.size() * (cpu_channels * 64 * sizeof(double) + 12 + 48);
 
   // GPU: grid blocks (4 channels x 64 nodes x 2 buffers) for the covered blocks x 1.5 (capacity for growth), and a
   // partition of the same capacity: hash table at load factor 1/2 (key 3 ints + value, 16 B, x 2), per-block
@@ -241,7 +251,9 @@ SceneSummary summarize_scene(const Scene& scene) {
   summary.gpu_bytes.assign(max_gpu + 1, 0);
   for (int g = 0; g <= max_gpu; ++g) {
     const double capacity = 1.5 * static_cast<double>(gpu_blocks[g].size());
-    const double grid = capacity * 4.0 * 64.0 * static_cast<double>(gpu_grid_scalar_bytes(sim.precision)) * 2.0;
+    // ASFLIP: transported momentum (3 channels x 2 buffers) and v^n (3); F-bar: cell sums (2).
+    const double channels = 4.0 * 2.0 + (asflip ? 9.0 : 0.0) + (fbar ? 2.0 : 0.0);
+    const double grid = capacity * channels * 64.0 * static_cast<double>(gpu_grid_scalar_bytes(sim.precision));
     const double partition = capacity * (2.0 * 16.0 + 16.0 + 64.0 * 4.0) + static_cast<double>(gpu_particles[g]) * 8.0;
     summary.gpu_bytes[g] = gpu_bins_bytes[g] + static_cast<std::size_t>(grid + partition);
   }

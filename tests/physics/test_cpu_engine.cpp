@@ -267,6 +267,41 @@ TEST(TimeStep, FollowsCompressedSoundSpeed) {
   EXPECT_NEAR(engine.next_dt(), 0.5 * 0.02 / c, 1e-12 * 0.5 * 0.02 / c);
 }
 
+// A scene pays only for what it uses: ASFLIP adds particle velocities (GPU) and 3 + 3 grid channels per buffer set,
+// F-bar 2 grid channels; the estimates grow by those and only when a body switches the scheme on, and the CPU
+// estimate still brackets what the engine allocates.
+TEST(Summary, MemoryEstimatesCountTheSchemes) {
+  Scene scene = two_body_scene_for_summary();
+  scene.simulation.precision = Precision::Double;
+  const SceneSummary apic = summarize_scene(scene);
+  Scene asflip = scene;
+  asflip.bodies[0].algorithm.use_asflip = true;
+  asflip.bodies[0].algorithm.asflip_alpha = 0.9;
+  const SceneSummary with_asflip = summarize_scene(asflip);
+  Scene fbar = scene;
+  fbar.bodies[1].algorithm.use_fbar = true;
+  fbar.bodies[1].algorithm.fbar_psi = 1.0;
+  const SceneSummary with_fbar = summarize_scene(fbar);
+  Scene off = scene;  // ratios given but the switches off: plain APIC, same memory
+  off.bodies[0].algorithm.use_asflip = false;
+  off.bodies[0].algorithm.asflip_alpha = 0.9;
+  off.bodies[1].algorithm.use_fbar = false;
+  off.bodies[1].algorithm.fbar_psi = 1.0;
+  EXPECT_EQ(summarize_scene(off).gpu_bytes[0], apic.gpu_bytes[0]);
+  EXPECT_EQ(summarize_scene(off).cpu_bytes, apic.cpu_bytes);
+  EXPECT_GT(with_asflip.gpu_bytes[0], with_fbar.gpu_bytes[0]);
+  EXPECT_GT(with_fbar.gpu_bytes[0], apic.gpu_bytes[0]);
+  EXPECT_GT(with_asflip.cpu_bytes, with_fbar.cpu_bytes);
+  EXPECT_GT(with_fbar.cpu_bytes, apic.cpu_bytes);
+  for (const Scene* s : {&asflip, &fbar}) {
+    CpuEngine<double> engine(*s);
+    ASSERT_TRUE(engine.step().ok);
+    const double estimate = static_cast<double>(summarize_scene(*s).cpu_bytes);
+    EXPECT_GT(estimate, 0.5 * static_cast<double>(engine.memory_bytes()));
+    EXPECT_LT(estimate, 2.0 * static_cast<double>(engine.memory_bytes()));
+  }
+}
+
 // Memory estimates grow with precision and are split by GPU id.
 TEST(Summary, MemoryEstimatesPerGpu) {
   Scene scene = two_body_scene_for_summary();
