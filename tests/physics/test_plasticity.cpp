@@ -188,6 +188,21 @@ TEST(DruckerPrager, CohesionGivesTensileStrengthAtTheApex) {
 }
 
 // tau = (dpsi/dF) F^T for psi = mu |ln s|^2 + lambda/2 (tr ln s)^2 (central differences, h = 1e-6; tolerance
+// A plane-strain Mohr-Coulomb angle converts to the compression cone's friction_angle by equal sqrt(J2) / p:
+// 2 sqrt(3) sin(phi) / (3 - sin(phi)) = 3 tan(phi_mc) / sqrt(9 + 12 tan^2(phi_mc)) to round-off; 33 deg -> 23.04 deg,
+// always below phi_mc (the compression cone is the stronger fit); 0 stays 0.
+TEST(DruckerPrager, PlaneStrainFrictionAngleMatchesMohrCoulomb) {
+  const double deg = 3.14159265358979323846 / 180.0;
+  for (const double phi_mc : {10.0, 20.0, 33.0, 40.0, 45.0}) {
+    const double phi = DruckerPrager::plane_strain_friction_angle(phi_mc);
+    const double s = std::sin(phi * deg), t = std::tan(phi_mc * deg);
+    EXPECT_NEAR(2 * std::sqrt(3.0) * s / (3 - s), 3 * t / std::sqrt(9 + 12 * t * t), 1e-14) << phi_mc;
+    EXPECT_LT(phi, phi_mc);
+  }
+  EXPECT_NEAR(DruckerPrager::plane_strain_friction_angle(33.0), 23.04, 0.01);
+  EXPECT_EQ(DruckerPrager::plane_strain_friction_angle(0.0), 0.0);
+}
+
 // 1e-8 E as for the elastic laws).
 TEST(DruckerPrager, HenckyStressIsEnergyDerivative) {
   const auto p = DruckerPrager::make_params<double>(plastic_spec(Constitutive::DruckerPrager, 1e7, 0.3, 30.0));

@@ -111,6 +111,18 @@ struct DruckerPrager {
     return std::sqrt(2.0 / 3.0) * 2.0 * s / (3.0 - s);
   }
 
+  /// The friction_angle [deg] to give this law for a granular material whose Mohr-Coulomb angle phi_mc [deg] was
+  /// measured in plane strain (a planar flume, a slab between walls). The cone above matches Mohr-Coulomb in
+  /// triaxial compression (Klar et al. 2016, as ClaymoreUW): sqrt(J2) = k p with k = 2 sqrt(3) sin(phi) / (3 -
+  /// sin(phi)); in plane strain Mohr-Coulomb is sqrt(J2) = k p with k = 3 tan(phi_mc) / sqrt(9 + 12 tan^2(phi_mc))
+  /// (the inscribed match). Equal k: sin(phi) = 3 k / (2 sqrt(3) + k). 33 deg in plane strain is 23.04 deg here:
+  /// the compression cone at 33 deg is 48 % stronger than the plane-strain material.
+  static double plane_strain_friction_angle(double phi_mc_deg) {
+    const double t = std::tan(phi_mc_deg * 3.14159265358979323846 / 180.0);
+    const double k = 3.0 * t / std::sqrt(9.0 + 12.0 * t * t);
+    return std::asin(3.0 * k / (2.0 * std::sqrt(3.0) + k)) * 180.0 / 3.14159265358979323846;
+  }
+
   template <typename T>
   static Params<T> make_params(const MaterialSpec& m) {
     const auto e = FixedCorotated::make_params<T>(m);
