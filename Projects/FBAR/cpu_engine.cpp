@@ -149,27 +149,28 @@ bool cpu_engine_supports_attribute(Constitutive law, std::string_view name) {
 // ---------------------------------------------------------------------------------------------
 // Construction
 
-template <typename T>
-CpuEngine<T>::CpuEngine(const Scene& scene) : scene_(scene), log_(&std::cerr) {
+template <typename T, typename TG>
+CpuEngine<T, TG>::CpuEngine(const Scene& scene) : scene_(scene), log_(&std::cerr) {
   std::vector<std::vector<Vec3d>> positions;
   for (std::size_t b = 0; b < scene.bodies.size(); ++b)
     positions.push_back(sample_body(scene.bodies[b], scene.simulation, static_cast<int>(b)));
   init(positions);
 }
 
-template <typename T>
-CpuEngine<T>::CpuEngine(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions)
+template <typename T, typename TG>
+CpuEngine<T, TG>::CpuEngine(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions)
     : scene_(scene), log_(&std::cerr) {
   init(positions);
 }
 
-template <typename T>
-CpuEngine<T>::~CpuEngine() = default;
+template <typename T, typename TG>
+CpuEngine<T, TG>::~CpuEngine() = default;
 
-template <typename T>
-void CpuEngine<T>::init(const std::vector<std::vector<Vec3d>>& positions) {
+template <typename T, typename TG>
+void CpuEngine<T, TG>::init(const std::vector<std::vector<Vec3d>>& positions) {
   const SimulationSpec& sim = scene_.simulation;
   k_ = RunConstants<T>(scene_, "CPU engine");
+  kg_ = RunConstants<TG>(scene_, "CPU engine");
   if (positions.size() != scene_.bodies.size())
     throw std::invalid_argument("CpuEngine: one position list per body expected");
   time_ = sim.time;
@@ -239,8 +240,8 @@ void CpuEngine<T>::init(const std::vector<std::vector<Vec3d>>& positions) {
 // ---------------------------------------------------------------------------------------------
 // Partition: particle blocks per body, active grid blocks for all bodies
 
-template <typename T>
-void CpuEngine<T>::build_partition() {
+template <typename T, typename TG>
+void CpuEngine<T, TG>::build_partition() {
   grid_.index.clear();
   grid_.coords.clear();
   std::unordered_map<std::uint64_t, int> block_of_key;
@@ -307,8 +308,8 @@ void CpuEngine<T>::build_partition() {
 // ---------------------------------------------------------------------------------------------
 // P2G
 
-template <typename T>
-void CpuEngine<T>::p2g(Body& body, T dt) {
+template <typename T, typename TG>
+void CpuEngine<T, TG>::p2g(Body& body, T dt) {
   const Partition& part = body.partition;
   const T dx = k_.dx, inv_dx = k_.inv_dx, d_inv = k_.d_inv;
   std::visit(
@@ -321,10 +322,11 @@ void CpuEngine<T>::p2g(Body& body, T dt) {
           largest_colour = std::max(largest_colour, static_cast<int>(list.size()));
 #pragma omp parallel if (largest_colour >= kMinParallelBlocks)
         {
-          // (channel, node) private arena of one particle block: mass, momentum x, y, z.
-          T arena_m[kArenaNodes];
-          T arena_p[3][kArenaNodes];
-          T arena_q[3][kArenaNodes];  // ASFLIP: the momentum without the stress impulse, m (v + C (x_i - x_p))
+          // (channel, node) private arena of one particle block: mass, momentum x, y, z; summed in the grid scalar
+          // type (float in mixed precision, like the GPU engine's arena and grid).
+          TG arena_m[kArenaNodes];
+          TG arena_p[3][kArenaNodes];
+          TG arena_q[3][kArenaNodes];  // ASFLIP: the momentum without the stress impulse, m (v + C (x_i - x_p))
           for (int colour = 0; colour < 8; ++colour) {
             const std::vector<int>& list = part.colour_blocks[colour];
             const int count = static_cast<int>(list.size());
@@ -333,10 +335,10 @@ void CpuEngine<T>::p2g(Body& body, T dt) {
             for (int li = 0; li < count; ++li) {
               const int pb = list[li];
               const Vec3i& origin = part.block_coords[pb];
-              std::fill(arena_m, arena_m + kArenaNodes, T(0));
-              for (auto& ch : arena_p) std::fill(ch, ch + kArenaNodes, T(0));
+              std::fill(arena_m, arena_m + kArenaNodes, TG(0));
+              for (auto& ch : arena_p) std::fill(ch, ch + kArenaNodes, TG(0));
               if (asflip_)
-                for (auto& ch : arena_q) std::fill(ch, ch + kArenaNodes, T(0));
+                for (auto& ch : arena_q) std::fill(ch, ch + kArenaNodes, TG(0));
               for (int q = part.block_start[pb]; q < part.block_start[pb + 1]; ++q) {
                 const int p = part.order[q];
                 const QuadraticBspline<T> s = quadratic_bspline_inv(body.x[p], inv_dx);
@@ -349,10 +351,10 @@ void CpuEngine<T>::p2g(Body& body, T dt) {
                 for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3T& xixp) {
                   const int a = arena_index(l0 + i, l1 + j, l2 + k);
                   const Vec3T mv = p2g_node_momentum(payload, w, xixp);
-                  arena_m[a] += w * payload.mass;
-                  arena_p[0][a] += mv[0];
-                  arena_p[1][a] += mv[1];
-                  arena_p[2][a] += mv[2];
+                  arena_m[a] += static_cast<TG>(w * payload.mass);
+                  arena_p[0][a] += static_cast<TG>(mv[0]);
+                  arena_p[1][a] += static_cast<TG>(mv[1]);
+                  arena_p[2][a] += static_cast<TG>(mv[2]);
                 });
                 // Every body transports momentum into v^n when any body uses ASFLIP: v^n = sum / (all bodies' mass).
                 if (asflip_) {
@@ -361,7 +363,7 @@ void CpuEngine<T>::p2g(Body& body, T dt) {
                   for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3T& xixp) {
                     const int a = arena_index(l0 + i, l1 + j, l2 + k);
                     const Vec3T mv = p2g_node_momentum(transported, w, xixp);
-                    for (int d = 0; d < 3; ++d) arena_q[d][a] += mv[d];
+                    for (int d = 0; d < 3; ++d) arena_q[d][a] += static_cast<TG>(mv[d]);
                   });
                 }
               }
@@ -371,7 +373,7 @@ void CpuEngine<T>::p2g(Body& body, T dt) {
                 for (int b = 0; b < kArenaSide; ++b)
                   for (int c = 0; c < kArenaSide; ++c) {
                     const int ai = arena_index(a, b, c);
-                    if (arena_m[ai] == T(0)) continue;  // untouched node (zero weight everywhere)
+                    if (arena_m[ai] == TG(0)) continue;  // untouched node (zero weight everywhere)
                     const int gb = targets[arena_neighbour(a, b, c)];
                     GridBlock& g = grid_.blocks[gb];
                     const int node = arena_node_in_block(a, b, c);
@@ -392,14 +394,15 @@ void CpuEngine<T>::p2g(Body& body, T dt) {
 // ---------------------------------------------------------------------------------------------
 // Grid update
 
-template <typename T>
-double CpuEngine<T>::update_grid(T dt) {
-  std::vector<BoundaryParams<T>> active;
-  for (const BoundaryParams<T>& b : k_.boundaries)
+template <typename T, typename TG>
+double CpuEngine<T, TG>::update_grid(TG dt) {
+  using Vec3G = Vec3<TG>;
+  std::vector<BoundaryParams<TG>> active;
+  for (const BoundaryParams<TG>& b : kg_.boundaries)
     if (boundary_active(b, time_)) active.push_back(b);
   const int nblocks = static_cast<int>(grid_.blocks.size());
   std::vector<double> block_mass(nblocks);
-  T max_speed_sq = T(0);
+  TG max_speed_sq = TG(0);
 #pragma omp parallel for schedule(static) reduction(max : max_speed_sq) if (nblocks >= kMinParallelBlocks)
   for (int gb = 0; gb < nblocks; ++gb) {
     GridBlock& g = grid_.blocks[gb];
@@ -409,21 +412,21 @@ double CpuEngine<T>::update_grid(T dt) {
       for (int j = 0; j < kBlockSide; ++j)
         for (int k = 0; k < kBlockSide; ++k) {
           const int node = block_node(i, j, k);
-          const T m = g.mass[node];
+          const TG m = g.mass[node];
           mass_sum += static_cast<double>(m);
-          const Vec3T momentum{{g.momentum[0][node], g.momentum[1][node], g.momentum[2][node]}};
+          const Vec3G momentum{{g.momentum[0][node], g.momentum[1][node], g.momentum[2][node]}};
           if (asflip_) {  // v^n = transported momentum / m (P2G accumulated it in old_velocity)
-            T(&old)[3][64] = grid_.asflip[gb].old_velocity;
-            const Vec3T transported{{old[0][node], old[1][node], old[2][node]}};
-            const Vec3T v_old = grid_node_velocity(m, transported, Vec3T::zero(), dt);
+            TG(&old)[3][64] = grid_.asflip[gb].old_velocity;
+            const Vec3G transported{{old[0][node], old[1][node], old[2][node]}};
+            const Vec3G v_old = grid_node_velocity(m, transported, Vec3G::zero(), dt);
             for (int a = 0; a < 3; ++a) old[a][node] = v_old[a];
           }
-          Vec3T v = grid_node_velocity(m, momentum, k_.gravity, dt);
-          if (m > T(0)) {
-            const Vec3T x_node{{static_cast<T>(c[0] * kBlockSide + i) * k_.dx,
-                                static_cast<T>(c[1] * kBlockSide + j) * k_.dx,
-                                static_cast<T>(c[2] * kBlockSide + k) * k_.dx}};
-            for (const BoundaryParams<T>& b : active) v = apply_boundary(b, x_node, v);
+          Vec3G v = grid_node_velocity(m, momentum, kg_.gravity, dt);
+          if (m > TG(0)) {
+            const Vec3G x_node{{static_cast<TG>(c[0] * kBlockSide + i) * kg_.dx,
+                                static_cast<TG>(c[1] * kBlockSide + j) * kg_.dx,
+                                static_cast<TG>(c[2] * kBlockSide + k) * kg_.dx}};
+            for (const BoundaryParams<TG>& b : active) v = apply_boundary(b, x_node, v);
           }
           g.momentum[0][node] = v[0];
           g.momentum[1][node] = v[1];
@@ -440,12 +443,12 @@ double CpuEngine<T>::update_grid(T dt) {
 // ---------------------------------------------------------------------------------------------
 // F-bar: the body's volume-weighted velocity divergence per grid cell (transfer.cuh, fbar_velocity_gradient)
 
-template <typename T>
-void CpuEngine<T>::fbar_divergence(Body& body) {
+template <typename T, typename TG>
+void CpuEngine<T, TG>::fbar_divergence(Body& body) {
   const int nblocks = static_cast<int>(grid_.blocks.size());
 #pragma omp parallel for schedule(static) if (nblocks >= kMinParallelBlocks)
   for (int gb = 0; gb < nblocks; ++gb)
-    for (auto& ch : grid_.fbar[gb].sums) std::fill(ch, ch + 64, T(0));
+    for (auto& ch : grid_.fbar[gb].sums) std::fill(ch, ch + 64, TG(0));
   const Partition& part = body.partition;
   const T dx = k_.dx, inv_dx = k_.inv_dx, d_inv = k_.d_inv;
   std::visit(
@@ -502,8 +505,8 @@ void CpuEngine<T>::fbar_divergence(Body& body) {
                     if (arena_sum[1][ai] == T(0)) continue;
                     FbarBlock& g = grid_.fbar[blocks[arena_neighbour(a, b, c)]];
                     const int node = arena_node_in_block(a, b, c);
-                    g.sums[0][node] += arena_sum[0][ai];
-                    g.sums[1][node] += arena_sum[1][ai];
+                    g.sums[0][node] += static_cast<TG>(arena_sum[0][ai]);
+                    g.sums[1][node] += static_cast<TG>(arena_sum[1][ai]);
                   }
             }
           }
@@ -515,8 +518,8 @@ void CpuEngine<T>::fbar_divergence(Body& body) {
 // ---------------------------------------------------------------------------------------------
 // G2P with failure checks
 
-template <typename T>
-void CpuEngine<T>::g2p(int body_index, Body& body, T dt, TryResult& result) {
+template <typename T, typename TG>
+void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) {
   const Partition& part = body.partition;
   const T dx = k_.dx, inv_dx = k_.inv_dx, d_inv = k_.d_inv;
   const Vec3T domain = k_.domain;
@@ -578,7 +581,8 @@ void CpuEngine<T>::g2p(int body_index, Body& body, T dt, TryResult& result) {
                 const Vec3i cell = fbar_cell_offset(x, inv_dx, s.base);
                 const int a = arena_index(l0 + cell[0], l1 + cell[1], l2 + cell[2]);
                 divergence = fbar_cell_divergence(arena_fbar[0][a], arena_fbar[1][a]);
-              }              Vec3T v = sum.velocity();
+              }
+              Vec3T v = sum.velocity();
               const Mat3T C = sum.affine(d_inv);
               const auto s_new =
                   M::advance(params, state[p], fbar ? fbar_velocity_gradient(C, divergence, body.fbar_psi) : C, dt);
@@ -648,8 +652,8 @@ void CpuEngine<T>::g2p(int body_index, Body& body, T dt, TryResult& result) {
 // ---------------------------------------------------------------------------------------------
 // Step
 
-template <typename T>
-typename CpuEngine<T>::TryResult CpuEngine<T>::try_step(double dt_in) {
+template <typename T, typename TG>
+typename CpuEngine<T, TG>::TryResult CpuEngine<T, TG>::try_step(double dt_in) {
   const T dt = static_cast<T>(dt_in);
   TryResult result;
   result.max_wave_speed.assign(bodies_.size(), 0.0);
@@ -660,7 +664,7 @@ typename CpuEngine<T>::TryResult CpuEngine<T>::try_step(double dt_in) {
     if (asflip_) std::memset(&grid_.asflip[gb], 0, sizeof(AsflipBlock));
   }
   for (Body& body : bodies_) p2g(body, dt);
-  result.max_grid_speed = update_grid(dt);
+  result.max_grid_speed = update_grid(static_cast<TG>(dt_in));
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     if (bodies_[b].fbar_psi != T(0)) fbar_divergence(bodies_[b]);  // F-bar smooths within one body
     g2p(static_cast<int>(b), bodies_[b], dt, result);
@@ -668,8 +672,8 @@ typename CpuEngine<T>::TryResult CpuEngine<T>::try_step(double dt_in) {
   return result;
 }
 
-template <typename T>
-void CpuEngine<T>::commit(const TryResult& result, double dt) {
+template <typename T, typename TG>
+void CpuEngine<T, TG>::commit(const TryResult& result, double dt) {
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     Body& body = bodies_[b];
     body.x.swap(body.x_next);
@@ -685,8 +689,8 @@ void CpuEngine<T>::commit(const TryResult& result, double dt) {
   partition_valid_ = false;
 }
 
-template <typename T>
-double CpuEngine<T>::next_dt() const {
+template <typename T, typename TG>
+double CpuEngine<T, TG>::next_dt() const {
   double bound = k_.default_dt;
   for (const Body& body : bodies_)
     bound = min_time_step(
@@ -694,8 +698,8 @@ double CpuEngine<T>::next_dt() const {
   return bound * dt_scale_;
 }
 
-template <typename T>
-StepReport CpuEngine<T>::step_impl(double dt, bool cfl_dt) {
+template <typename T, typename TG>
+StepReport CpuEngine<T, TG>::step_impl(double dt, bool cfl_dt) {
   if (!(dt > 0.0) || !std::isfinite(dt)) throw std::invalid_argument("CpuEngine::step: dt must be positive");
   StepReport report;
   for (;;) {
@@ -731,18 +735,18 @@ StepReport CpuEngine<T>::step_impl(double dt, bool cfl_dt) {
   }
 }
 
-template <typename T>
-StepReport CpuEngine<T>::step() {
+template <typename T, typename TG>
+StepReport CpuEngine<T, TG>::step() {
   return step_impl(next_dt(), true);
 }
 
-template <typename T>
-StepReport CpuEngine<T>::step(double dt) {
+template <typename T, typename TG>
+StepReport CpuEngine<T, TG>::step(double dt) {
   return step_impl(dt, false);
 }
 
-template <typename T>
-StepReport CpuEngine<T>::advance_to(double t_end) {
+template <typename T, typename TG>
+StepReport CpuEngine<T, TG>::advance_to(double t_end) {
   StepReport total;
   while (time_ < t_end) {
     const double remaining = t_end - time_;
@@ -775,54 +779,54 @@ StepReport CpuEngine<T>::advance_to(double t_end) {
 // ---------------------------------------------------------------------------------------------
 // Particle access
 
-template <typename T>
-const typename CpuEngine<T>::Body& CpuEngine<T>::body_at(int body) const {
+template <typename T, typename TG>
+const typename CpuEngine<T, TG>::Body& CpuEngine<T, TG>::body_at(int body) const {
   if (body < 0 || body >= body_count()) throw std::out_of_range("CpuEngine: no body " + std::to_string(body));
   return bodies_[body];
 }
-template <typename T>
-typename CpuEngine<T>::Body& CpuEngine<T>::body_at(int body) {
+template <typename T, typename TG>
+typename CpuEngine<T, TG>::Body& CpuEngine<T, TG>::body_at(int body) {
   if (body < 0 || body >= body_count()) throw std::out_of_range("CpuEngine: no body " + std::to_string(body));
   return bodies_[body];
 }
 
-template <typename T>
-std::size_t CpuEngine<T>::particle_count(int body) const {
+template <typename T, typename TG>
+std::size_t CpuEngine<T, TG>::particle_count(int body) const {
   return body_at(body).x.size();
 }
-template <typename T>
-std::size_t CpuEngine<T>::particle_count() const {
+template <typename T, typename TG>
+std::size_t CpuEngine<T, TG>::particle_count() const {
   std::size_t n = 0;
   for (const Body& b : bodies_) n += b.x.size();
   return n;
 }
-template <typename T>
-Constitutive CpuEngine<T>::law(int body) const {
+template <typename T, typename TG>
+Constitutive CpuEngine<T, TG>::law(int body) const {
   return body_at(body).spec.material.law;
 }
-template <typename T>
-const std::vector<Vec3<T>>& CpuEngine<T>::positions(int body) const {
+template <typename T, typename TG>
+const std::vector<Vec3<T>>& CpuEngine<T, TG>::positions(int body) const {
   return body_at(body).x;
 }
-template <typename T>
-const std::vector<Vec3<T>>& CpuEngine<T>::velocities(int body) const {
+template <typename T, typename TG>
+const std::vector<Vec3<T>>& CpuEngine<T, TG>::velocities(int body) const {
   return body_at(body).v;
 }
-template <typename T>
-const std::vector<Mat3<T>>& CpuEngine<T>::affine(int body) const {
+template <typename T, typename TG>
+const std::vector<Mat3<T>>& CpuEngine<T, TG>::affine(int body) const {
   return body_at(body).C;
 }
-template <typename T>
-const std::vector<T>& CpuEngine<T>::masses(int body) const {
+template <typename T, typename TG>
+const std::vector<T>& CpuEngine<T, TG>::masses(int body) const {
   return body_at(body).mass;
 }
-template <typename T>
-const std::vector<T>& CpuEngine<T>::volumes(int body) const {
+template <typename T, typename TG>
+const std::vector<T>& CpuEngine<T, TG>::volumes(int body) const {
   return body_at(body).volume;
 }
 
-template <typename T>
-std::vector<T> CpuEngine<T>::volume_ratios(int body) const {
+template <typename T, typename TG>
+std::vector<T> CpuEngine<T, TG>::volume_ratios(int body) const {
   const Body& b = body_at(body);
   std::vector<T> J(b.x.size());
   std::visit(
@@ -834,8 +838,8 @@ std::vector<T> CpuEngine<T>::volume_ratios(int body) const {
   return J;
 }
 
-template <typename T>
-std::vector<Mat3<T>> CpuEngine<T>::deformation_gradients(int body) const {
+template <typename T, typename TG>
+std::vector<Mat3<T>> CpuEngine<T, TG>::deformation_gradients(int body) const {
   const Body& b = body_at(body);
   std::vector<Mat3T> F;
   std::visit(
@@ -853,8 +857,8 @@ std::vector<Mat3<T>> CpuEngine<T>::deformation_gradients(int body) const {
   return F;
 }
 
-template <typename T>
-std::vector<T> CpuEngine<T>::plastic_log_volumes(int body) const {
+template <typename T, typename TG>
+std::vector<T> CpuEngine<T, TG>::plastic_log_volumes(int body) const {
   const Body& b = body_at(body);
   std::vector<T> l;
   std::visit(
@@ -872,8 +876,8 @@ std::vector<T> CpuEngine<T>::plastic_log_volumes(int body) const {
   return l;
 }
 
-template <typename T>
-std::vector<Mat3<T>> CpuEngine<T>::cauchy_stresses(int body) const {
+template <typename T, typename TG>
+std::vector<Mat3<T>> CpuEngine<T, TG>::cauchy_stresses(int body) const {
   const Body& b = body_at(body);
   std::vector<Mat3T> sigma(b.x.size());
   std::visit(
@@ -887,16 +891,16 @@ std::vector<Mat3<T>> CpuEngine<T>::cauchy_stresses(int body) const {
   return sigma;
 }
 
-template <typename T>
-std::vector<T> CpuEngine<T>::pressures(int body) const {
+template <typename T, typename TG>
+std::vector<T> CpuEngine<T, TG>::pressures(int body) const {
   const std::vector<Mat3T> sigma = cauchy_stresses(body);
   std::vector<T> p(sigma.size());
   for (std::size_t i = 0; i < p.size(); ++i) p[i] = mean_pressure(sigma[i]);
   return p;
 }
 
-template <typename T>
-std::vector<T> CpuEngine<T>::wave_speeds(int body) const {
+template <typename T, typename TG>
+std::vector<T> CpuEngine<T, TG>::wave_speeds(int body) const {
   const Body& b = body_at(body);
   std::vector<T> c(b.x.size());
   std::visit(
@@ -908,8 +912,8 @@ std::vector<T> CpuEngine<T>::wave_speeds(int body) const {
   return c;
 }
 
-template <typename T>
-void CpuEngine<T>::set_velocities(int body, const std::function<Vec3d(const Vec3d&)>& velocity_of_position) {
+template <typename T, typename TG>
+void CpuEngine<T, TG>::set_velocities(int body, const std::function<Vec3d(const Vec3d&)>& velocity_of_position) {
   Body& b = body_at(body);
   for (std::size_t p = 0; p < b.x.size(); ++p) {
     b.v[p] = velocity_of_position(b.x[p].template cast<double>()).template cast<T>();
@@ -917,8 +921,8 @@ void CpuEngine<T>::set_velocities(int body, const std::function<Vec3d(const Vec3
   }
 }
 
-template <typename T>
-void CpuEngine<T>::set_volume_ratios(int body, const std::function<double(const Vec3d&)>& J_of_position,
+template <typename T, typename TG>
+void CpuEngine<T, TG>::set_volume_ratios(int body, const std::function<double(const Vec3d&)>& J_of_position,
                                      bool rescale_mass) {
   Body& b = body_at(body);
   const SimulationSpec& sim = scene_.simulation;
@@ -948,8 +952,8 @@ void CpuEngine<T>::set_volume_ratios(int body, const std::function<double(const 
       b.material);
 }
 
-template <typename T>
-void CpuEngine<T>::set_deformation_gradients(int body, const std::function<Mat3d(const Vec3d&)>& F_of_position) {
+template <typename T, typename TG>
+void CpuEngine<T, TG>::set_deformation_gradients(int body, const std::function<Mat3d(const Vec3d&)>& F_of_position) {
   Body& b = body_at(body);
   std::visit(
       [&](auto& mb) {
@@ -968,24 +972,24 @@ void CpuEngine<T>::set_deformation_gradients(int body, const std::function<Mat3d
 // ---------------------------------------------------------------------------------------------
 // Totals
 
-template <typename T>
-double CpuEngine<T>::total_mass() const {
+template <typename T, typename TG>
+double CpuEngine<T, TG>::total_mass() const {
   double m = 0.0;
   for (const Body& b : bodies_)
     for (const T mp : b.mass) m += static_cast<double>(mp);
   return m;
 }
 
-template <typename T>
-Vec3d CpuEngine<T>::total_momentum() const {
+template <typename T, typename TG>
+Vec3d CpuEngine<T, TG>::total_momentum() const {
   Vec3d P = Vec3d::zero();
   for (const Body& b : bodies_)
     for (std::size_t p = 0; p < b.x.size(); ++p) P += b.v[p].template cast<double>() * static_cast<double>(b.mass[p]);
   return P;
 }
 
-template <typename T>
-Vec3d CpuEngine<T>::angular_momentum() const {
+template <typename T, typename TG>
+Vec3d CpuEngine<T, TG>::angular_momentum() const {
   Vec3d L = Vec3d::zero();
   const double dx = scene_.simulation.dx;
   for (const Body& b : bodies_)
@@ -995,8 +999,8 @@ Vec3d CpuEngine<T>::angular_momentum() const {
   return L;
 }
 
-template <typename T>
-double CpuEngine<T>::kinetic_energy() const {
+template <typename T, typename TG>
+double CpuEngine<T, TG>::kinetic_energy() const {
   double e = 0.0;
   for (const Body& b : bodies_)
     for (std::size_t p = 0; p < b.x.size(); ++p) {
@@ -1006,8 +1010,8 @@ double CpuEngine<T>::kinetic_energy() const {
   return e;
 }
 
-template <typename T>
-double CpuEngine<T>::elastic_energy() const {
+template <typename T, typename TG>
+double CpuEngine<T, TG>::elastic_energy() const {
   double e = 0.0;
   for (const Body& b : bodies_)
     std::visit(
@@ -1023,8 +1027,8 @@ double CpuEngine<T>::elastic_energy() const {
 // ---------------------------------------------------------------------------------------------
 // Output
 
-template <typename T>
-io::ParticleFrame CpuEngine<T>::frame(int body) const {
+template <typename T, typename TG>
+io::ParticleFrame CpuEngine<T, TG>::frame(int body) const {
   const Body& b = body_at(body);
   FrameSource<T> src;
   src.x = &b.x;
@@ -1038,8 +1042,8 @@ io::ParticleFrame CpuEngine<T>::frame(int body) const {
   return build_frame(b.spec, body, src, "CPU engine");
 }
 
-template <typename T>
-std::size_t CpuEngine<T>::memory_bytes() const {
+template <typename T, typename TG>
+std::size_t CpuEngine<T, TG>::memory_bytes() const {
   std::size_t bytes = 0;
   for (const Body& b : bodies_) {
     bytes += (b.x.capacity() + b.v.capacity() + b.x_next.capacity() + b.v_next.capacity()) * sizeof(Vec3T);
@@ -1059,7 +1063,8 @@ std::size_t CpuEngine<T>::memory_bytes() const {
   return bytes;
 }
 
-template class CpuEngine<double>;
-template class CpuEngine<float>;
+template class CpuEngine<double, double>;
+template class CpuEngine<float, float>;
+template class CpuEngine<double, float>;
 
 }  // namespace fbar

@@ -100,7 +100,10 @@ struct StepReport {
 /// Output attributes (canonical names, attributes.h) the CPU engine can write for a body of material `law`.
 bool cpu_engine_supports_attribute(Constitutive law, std::string_view canonical_name);
 
-template <typename T>
+/// T: particle scalar type (positions, velocities, state, transfers); TG: grid scalar type (P2G sums, grid
+/// velocities, grid update). CpuEngine<float> runs "single", CpuEngine<double> "double" and CpuEngine<double, float>
+/// "mixed", the GPU engine's three precisions (the grid sums of mixed are floats, as on the GPU).
+template <typename T, typename TG = T>
 class CpuEngine {
  public:
   using Vec3T = Vec3<T>;
@@ -227,17 +230,17 @@ class CpuEngine {
 
   // Grid blocks of 4x4x4 nodes, structure of arrays inside a block: channel[node], node = (i*4 + j)*4 + k.
   struct GridBlock {
-    T mass[64];
-    T momentum[3][64];  // momentum after P2G, velocity after the grid update
+    TG mass[64];
+    TG momentum[3][64];  // momentum after P2G, velocity after the grid update
   };
   // ASFLIP's v^n (only when a body uses it): P2G accumulates the transported momentum m (v + C (x_i - x_p)) without
   // the MLS stress impulse, the grid update divides it by the mass.
   struct AsflipBlock {
-    T old_velocity[3][64];
+    TG old_velocity[3][64];
   };
   // F-bar's cell sums (only when a body uses it): sum V tr C and sum V of the body in G2P, cell c at node c.
   struct FbarBlock {
-    T sums[2][64];
+    TG sums[2][64];
   };
   struct Grid {
     std::unordered_map<std::uint64_t, int> index;  // packed block coordinates -> block
@@ -257,7 +260,7 @@ class CpuEngine {
   void build_partition();
   TryResult try_step(double dt);
   void p2g(Body& body, T dt);
-  double update_grid(T dt);
+  double update_grid(TG dt);
   void fbar_divergence(Body& body);
   void g2p(int body_index, Body& body, T dt, TryResult& result);
   void commit(const TryResult& result, double dt);
@@ -266,7 +269,8 @@ class CpuEngine {
   Body& body_at(int body);
 
   Scene scene_;
-  RunConstants<T> k_;  ///< dx, gravity, domain, default dt, boundaries (from the scene)
+  RunConstants<T> k_;    ///< dx, gravity, domain, default dt, boundaries (from the scene): particle side
+  RunConstants<TG> kg_;  ///< the same in the grid scalar type: the grid update
   std::vector<Body> bodies_;
   Grid grid_;
   double time_ = 0.0;
@@ -282,7 +286,8 @@ class CpuEngine {
   std::ostream* log_;
 };
 
-extern template class CpuEngine<double>;
-extern template class CpuEngine<float>;
+extern template class CpuEngine<double, double>;
+extern template class CpuEngine<float, float>;
+extern template class CpuEngine<double, float>;
 
 }  // namespace fbar

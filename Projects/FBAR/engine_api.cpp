@@ -52,11 +52,11 @@ MaterialFacts material_facts(const MaterialSpec& m) {
   return facts;
 }
 
-/// Bytes of one particle scalar and one grid scalar on the GPU for a precision: single stores and accumulates
-/// in float; double in double; mixed keeps particles in float and accumulates the grid in double (the fp32-atomics
-/// limit of VALIDATION.md).
-std::size_t gpu_particle_scalar_bytes(Precision p) { return p == Precision::Double ? 8 : 4; }
-std::size_t gpu_grid_scalar_bytes(Precision p) { return p == Precision::Single ? 4 : 8; }
+/// Bytes of one particle scalar and one grid scalar for a precision, on both engines: single stores and accumulates
+/// in float; double in double; mixed keeps the particle state in double and the grid in float (ClaymoreUW's choice;
+/// GpuEngine<double, float>, CpuEngine<double, float>).
+std::size_t particle_scalar_bytes(Precision p) { return p == Precision::Single ? 4 : 8; }
+std::size_t grid_scalar_bytes(Precision p) { return p == Precision::Double ? 8 : 4; }
 
 std::uint64_t pack(int x, int y, int z) {
   constexpr int bias = 1 << 20;
@@ -84,7 +84,7 @@ const char* precision_name(Precision p) {
   return "?";
 }
 
-template <typename T>
+template <typename T, typename TG>
 RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& log) {
   RunResult result;
   const SimulationSpec& sim = scene.simulation;
@@ -99,7 +99,7 @@ RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& 
         !scene.bodies[b].target_attribs.empty())
       throw std::invalid_argument("bodies[" + std::to_string(b) +
                                   "]: particle tracking / target attributes are not implemented by the CPU engine yet");
-  CpuEngine<T> engine(scene);
+  CpuEngine<T, TG> engine(scene);
   engine.set_log(&log);
 
   std::filesystem::create_directories(sim.save_path);
@@ -116,8 +116,9 @@ RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& 
   const double t0 = engine.time();
   const double t_end = t0 + sim.frames / sim.fps;
   if (!options.quiet)
-    log << "fbar: CPU reference engine (" << precision_name(sim.precision) << " -> "
-        << (std::is_same_v<T, double> ? "double" : "float") << "), " << engine.particle_count() << " particles, "
+    log << "fbar: CPU reference engine (" << precision_name(sim.precision)
+        << (std::is_same_v<T, TG> ? "" : ": particles double, grid single") << "), " << engine.particle_count()
+        << " particles, "
         << engine.body_count() << " bodies, " << omp_get_max_threads() << " threads\n";
   write_frame(0);
 
@@ -223,7 +224,7 @@ SceneSummary summarize_scene(const Scene& scene) {
       bins += static_cast<std::size_t>((kv.second + settings::kBinSize - 1) / settings::kBinSize);
     // Two particle buffers (the fused G2P2G reads one and writes the other).
     gpu_bins_bytes[body.gpu] += 2 * bins * settings::kBinSize * static_cast<std::size_t>(facts.stored_scalars) *
-                                gpu_particle_scalar_bytes(sim.precision);
+                                particle_scalar_bytes(sim.precision);
     gpu_particles[body.gpu] += x.size();
     const AlgorithmSpec& a = body.algorithm;
     const bool body_asflip = a.use_asflip && (a.asflip_alpha != 0.0 || a.asflip_beta_min != 0.0 || a.asflip_beta_max != 0.0);
@@ -231,18 +232,19 @@ SceneSummary summarize_scene(const Scene& scene) {
     fbar = fbar || (a.use_fbar && a.fbar_psi != 0.0);
     // ASFLIP: the GPU keeps particle velocities (3 scalars) beside both particle buffers.
     if (body_asflip)
-      gpu_bins_bytes[body.gpu] += 2 * bins * settings::kBinSize * 3 * gpu_particle_scalar_bytes(sim.precision);
+      gpu_bins_bytes[body.gpu] += 2 * bins * settings::kBinSize * 3 * particle_scalar_bytes(sim.precision);
 
-    // CPU engine, double: x, v, their next copies (4 x 3), C and its next copy (2 x 9), mass, volume (2), state
-    // twice, plus order / block index / key scratch (16 bytes).
+    // CPU engine: x, v, their next copies (4 x 3), C and its next copy (2 x 9), mass, volume (2), state twice, in
+    // the particle scalar type, plus order / block index / key scratch (16 bytes).
     const std::size_t state_scalars = static_cast<std::size_t>(facts.stored_scalars - 3);
-    cpu_particle_bytes += x.size() * ((12 + 18 + 2 + 2 * state_scalars) * sizeof(double) + 16);
+    cpu_particle_bytes += x.size() * ((12 + 18 + 2 + 2 * state_scalars) * particle_scalar_bytes(sim.precision) + 16);
   }
 
-  // CPU grid: 4 double channels x 64 nodes per block (+3 for ASFLIP's v^n, +2 for F-bar's cell sums, only when a
-  // body uses them), coordinates and a hash-map entry.
+  // CPU grid: 4 channels x 64 nodes per block in the grid scalar type (+3 for ASFLIP's v^n, +2 for F-bar's cell
+  // sums, only when a body uses them), coordinates and a hash-map entry.
   const std::size_t cpu_channels = 4 + (asflip ? 3 : 0) + (fbar ? 2 : 0);
-  summary.cpu_bytes = cpu_particle_bytes + cpu_blocks.size() * (cpu_channels * 64 * sizeof(double) + 12 + 48);
+  summary.cpu_bytes =
+      cpu_particle_bytes + cpu_blocks.size() * (cpu_channels * 64 * grid_scalar_bytes(sim.precision) + 12 + 48);
 
   // GPU: grid blocks (4 channels x 64 nodes x 2 buffers) for the covered blocks x 1.5 (capacity for growth), and a
   // partition of the same capacity: hash table at load factor 1/2 (key 3 ints + value, 16 B, x 2), per-block
@@ -253,7 +255,7 @@ SceneSummary summarize_scene(const Scene& scene) {
     const double capacity = 1.5 * static_cast<double>(gpu_blocks[g].size());
     // ASFLIP: transported momentum (3 channels x 2 buffers) and v^n (3); F-bar: cell sums (2).
     const double channels = 4.0 * 2.0 + (asflip ? 9.0 : 0.0) + (fbar ? 2.0 : 0.0);
-    const double grid = capacity * channels * 64.0 * static_cast<double>(gpu_grid_scalar_bytes(sim.precision));
+    const double grid = capacity * channels * 64.0 * static_cast<double>(grid_scalar_bytes(sim.precision));
     const double partition = capacity * (2.0 * 16.0 + 16.0 + 64.0 * 4.0) + static_cast<double>(gpu_particles[g]) * 8.0;
     summary.gpu_bytes[g] = gpu_bins_bytes[g] + static_cast<std::size_t>(grid + partition);
   }
@@ -280,8 +282,12 @@ RunResult run_guarded(const std::function<RunResult()>& run) {
 RunResult run_cpu(const Scene& scene, const RunOptions& options) {
   std::ostream& log = options.log ? *options.log : std::cout;
   return run_guarded([&] {
-    return scene.simulation.precision == Precision::Single ? run_with<float>(scene, options, log)
-                                                           : run_with<double>(scene, options, log);
+    switch (scene.simulation.precision) {
+      case Precision::Single: return run_with<float, float>(scene, options, log);
+      case Precision::Mixed: return run_with<double, float>(scene, options, log);
+      case Precision::Double: break;
+    }
+    return run_with<double, double>(scene, options, log);
   });
 }
 

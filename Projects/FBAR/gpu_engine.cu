@@ -1,4 +1,4 @@
-// GpuEngine<T> (forwarding to the per-device MgspBenchmark<T>) and run_gpu(), the GPU engine's run loop.
+// GpuEngine<T, TG> (forwarding to the per-device MgspBenchmark<T, TG>) and run_gpu(), the GPU engine's run loop.
 #include "gpu_engine.h"
 
 #include <chrono>
@@ -24,89 +24,97 @@ std::vector<std::vector<Vec3d>> sample_all(const Scene& scene) {
   return positions;
 }
 
+template <typename T, typename TG>
+const char* precision_label() {
+  if constexpr (!std::is_same_v<T, TG>) return "mixed: particles double, grid single";
+  else if constexpr (std::is_same_v<T, double>) return "double";
+  else return "single";
+}
+
 }  // namespace
 
-template <typename T>
-GpuEngine<T>::GpuEngine(const Scene& scene, const GpuEngineOptions& options)
-    : impl_(std::make_unique<MgspBenchmark<T>>(scene, sample_all(scene), options)) {}
-template <typename T>
-GpuEngine<T>::GpuEngine(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions,
+template <typename T, typename TG>
+GpuEngine<T, TG>::GpuEngine(const Scene& scene, const GpuEngineOptions& options)
+    : impl_(std::make_unique<MgspBenchmark<T, TG>>(scene, sample_all(scene), options)) {}
+template <typename T, typename TG>
+GpuEngine<T, TG>::GpuEngine(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions,
                         const GpuEngineOptions& options)
-    : impl_(std::make_unique<MgspBenchmark<T>>(scene, positions, options)) {}
-template <typename T>
-GpuEngine<T>::~GpuEngine() = default;
+    : impl_(std::make_unique<MgspBenchmark<T, TG>>(scene, positions, options)) {}
+template <typename T, typename TG>
+GpuEngine<T, TG>::~GpuEngine() = default;
 
-template <typename T>
-StepReport GpuEngine<T>::step() {
+template <typename T, typename TG>
+StepReport GpuEngine<T, TG>::step() {
   return impl_->step_impl(impl_->next_dt(), true, std::numeric_limits<double>::infinity());
 }
-template <typename T>
-StepReport GpuEngine<T>::step(double dt) {
+template <typename T, typename TG>
+StepReport GpuEngine<T, TG>::step(double dt) {
   return impl_->step_impl(dt, false, std::numeric_limits<double>::infinity());
 }
-template <typename T>
-StepReport GpuEngine<T>::advance_to(double t_end) {
+template <typename T, typename TG>
+StepReport GpuEngine<T, TG>::advance_to(double t_end) {
   return impl_->advance_to(t_end);
 }
-template <typename T>
-StepReport GpuEngine<T>::step_toward(double t_end) {
+template <typename T, typename TG>
+StepReport GpuEngine<T, TG>::step_toward(double t_end) {
   return impl_->step_toward(t_end);
 }
-template <typename T>
-double GpuEngine<T>::time() const { return impl_->time(); }
-template <typename T>
-long long GpuEngine<T>::steps() const { return impl_->steps(); }
-template <typename T>
-double GpuEngine<T>::last_dt() const { return impl_->last_dt(); }
-template <typename T>
-double GpuEngine<T>::next_dt() const { return impl_->next_dt(); }
-template <typename T>
-double GpuEngine<T>::max_grid_speed() const { return impl_->max_grid_speed(); }
-template <typename T>
-void GpuEngine<T>::set_log(std::ostream* log) { impl_->set_log(log); }
-template <typename T>
-void GpuEngine<T>::set_record_velocities(bool on) { impl_->set_record_velocities(on); }
-template <typename T>
-void GpuEngine<T>::set_kernel_timing(bool on) { impl_->set_kernel_timing(on); }
-template <typename T>
-KernelTimes GpuEngine<T>::kernel_times() const { return impl_->kernel_times(); }
-template <typename T>
-long long GpuEngine<T>::p2g_range_repeats() const { return impl_->p2g_range_repeats(); }
-template <typename T>
-int GpuEngine<T>::body_count() const { return impl_->body_count(); }
-template <typename T>
-std::size_t GpuEngine<T>::particle_count(int body) const { return impl_->particle_count(body); }
-template <typename T>
-std::size_t GpuEngine<T>::particle_count() const { return impl_->particle_count(); }
-template <typename T>
-ParticleSnapshot<T> GpuEngine<T>::snapshot(int body) const { return impl_->snapshot(body); }
-template <typename T>
-io::ParticleFrame GpuEngine<T>::frame(int body) const { return impl_->frame(body); }
-template <typename T>
-void GpuEngine<T>::submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer) {
+template <typename T, typename TG>
+double GpuEngine<T, TG>::time() const { return impl_->time(); }
+template <typename T, typename TG>
+long long GpuEngine<T, TG>::steps() const { return impl_->steps(); }
+template <typename T, typename TG>
+double GpuEngine<T, TG>::last_dt() const { return impl_->last_dt(); }
+template <typename T, typename TG>
+double GpuEngine<T, TG>::next_dt() const { return impl_->next_dt(); }
+template <typename T, typename TG>
+double GpuEngine<T, TG>::max_grid_speed() const { return impl_->max_grid_speed(); }
+template <typename T, typename TG>
+void GpuEngine<T, TG>::set_log(std::ostream* log) { impl_->set_log(log); }
+template <typename T, typename TG>
+void GpuEngine<T, TG>::set_record_velocities(bool on) { impl_->set_record_velocities(on); }
+template <typename T, typename TG>
+void GpuEngine<T, TG>::set_kernel_timing(bool on) { impl_->set_kernel_timing(on); }
+template <typename T, typename TG>
+KernelTimes GpuEngine<T, TG>::kernel_times() const { return impl_->kernel_times(); }
+template <typename T, typename TG>
+long long GpuEngine<T, TG>::p2g_range_repeats() const { return impl_->p2g_range_repeats(); }
+template <typename T, typename TG>
+int GpuEngine<T, TG>::body_count() const { return impl_->body_count(); }
+template <typename T, typename TG>
+std::size_t GpuEngine<T, TG>::particle_count(int body) const { return impl_->particle_count(body); }
+template <typename T, typename TG>
+std::size_t GpuEngine<T, TG>::particle_count() const { return impl_->particle_count(); }
+template <typename T, typename TG>
+ParticleSnapshot<T> GpuEngine<T, TG>::snapshot(int body) const { return impl_->snapshot(body); }
+template <typename T, typename TG>
+io::ParticleFrame GpuEngine<T, TG>::frame(int body) const { return impl_->frame(body); }
+template <typename T, typename TG>
+void GpuEngine<T, TG>::submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer) {
   impl_->submit_frame(body, path, writer);
 }
-template <typename T>
-double GpuEngine<T>::total_mass() const { return impl_->total_mass(); }
-template <typename T>
-double GpuEngine<T>::grid_mass() const { return impl_->grid_mass(); }
-template <typename T>
-std::size_t GpuEngine<T>::active_grid_blocks() const { return impl_->active_grid_blocks(); }
-template <typename T>
-std::size_t GpuEngine<T>::device_bytes() const { return impl_->device_bytes(); }
+template <typename T, typename TG>
+double GpuEngine<T, TG>::total_mass() const { return impl_->total_mass(); }
+template <typename T, typename TG>
+double GpuEngine<T, TG>::grid_mass() const { return impl_->grid_mass(); }
+template <typename T, typename TG>
+std::size_t GpuEngine<T, TG>::active_grid_blocks() const { return impl_->active_grid_blocks(); }
+template <typename T, typename TG>
+std::size_t GpuEngine<T, TG>::device_bytes() const { return impl_->device_bytes(); }
 
-template class GpuEngine<float>;
-template class GpuEngine<double>;
+template class GpuEngine<float, float>;
+template class GpuEngine<double, double>;
+template class GpuEngine<double, float>;
 
 namespace {
 
-template <typename T>
+template <typename T, typename TG>
 RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& log) {
   RunResult result;
   const SimulationSpec& sim = scene.simulation;
   if (sim.particles_output_exterior_only)
     throw std::invalid_argument("simulation.particles_output_exterior_only: not implemented by the GPU engine");
-  GpuEngine<T> engine(scene);
+  GpuEngine<T, TG> engine(scene);
   engine.set_log(&log);
   std::filesystem::create_directories(sim.save_path);
   const std::string suffix = sim.save_suffix;
@@ -128,7 +136,7 @@ RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& 
     }
   const double t0 = engine.time();
   if (!options.quiet)
-    log << "fbar: GPU engine (" << (std::is_same_v<T, double> ? "double" : "single") << "), "
+    log << "fbar: GPU engine (" << precision_label<T, TG>() << "), "
         << engine.particle_count() << " particles, " << engine.body_count() << " bodies, "
         << engine.device_bytes() / (1024.0 * 1024.0) << " MiB on the device\n";
   write_frame(0);
@@ -177,13 +185,11 @@ RunResult run_gpu(const Scene& scene, const RunOptions& options) {
   std::ostream& log = options.log ? *options.log : std::cout;
   return run_guarded([&] {
     switch (scene.simulation.precision) {
-      case Precision::Single: return run_with<float>(scene, options, log);
-      case Precision::Double: return run_with<double>(scene, options, log);
-      case Precision::Mixed: break;
+      case Precision::Single: return run_with<float, float>(scene, options, log);
+      case Precision::Double: return run_with<double, double>(scene, options, log);
+      case Precision::Mixed: return run_with<double, float>(scene, options, log);
     }
-    throw std::invalid_argument(
-        "simulation.precision: \"mixed\" is not implemented by the GPU engine yet (a later issue); use \"single\" "
-        "or \"double\"");
+    throw std::invalid_argument("simulation.precision: unknown value");
   });
 }
 

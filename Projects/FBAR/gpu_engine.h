@@ -3,8 +3,9 @@
 // Claymore's sparse MLS-MPM on one GPU (mgsp_benchmark.cuh holds the per-device state and the step; the kernels
 // are in mgmpm_kernels.cuh). It runs the same physics functions as the CPU reference engine and reports failures
 // with the same FailureReport / StepReport types, so tests compare the two engines particle by particle (by ID).
-// Precision: GpuEngine<float> (simulation.precision "single") or GpuEngine<double> ("double"); run_gpu rejects
-// "mixed" with a message (a later issue).
+// Precision: GpuEngine<float> (simulation.precision "single"), GpuEngine<double> ("double") or
+// GpuEngine<double, float> ("mixed": particle state and transfers in double, grid storage, the shared P2G arena and
+// the grid update in single).
 #pragma once
 
 #include <cstddef>
@@ -47,10 +48,12 @@ struct GpuEngineOptions {
   int bin_capacity = 0;    ///< particle bins per body (at least what the initial upload needs)
 };
 
-template <typename T>
+template <typename T, typename TG>
 class MgspBenchmark;
 
-template <typename T>
+/// T: particle scalar type (stored state, snapshots, frames); TG: grid scalar type (grid buffers, P2G sums, grid
+/// update). GpuEngine<float> is "single", GpuEngine<double> "double", GpuEngine<double, float> "mixed".
+template <typename T, typename TG = T>
 class GpuEngine {
  public:
   /// Samples every body (geometry.h) and starts the device state on the current CUDA device. Throws
@@ -98,11 +101,14 @@ class GpuEngine {
   std::size_t device_bytes() const;      ///< device memory held by the engine's buffers
 
  private:
-  std::unique_ptr<MgspBenchmark<T>> impl_;
+  std::unique_ptr<MgspBenchmark<T, TG>> impl_;
 };
 
-extern template class GpuEngine<float>;
-extern template class GpuEngine<double>;
+extern template class GpuEngine<float, float>;
+extern template class GpuEngine<double, double>;
+extern template class GpuEngine<double, float>;
+/// Mixed precision (simulation.precision "mixed"): particles in double, the grid in single (ClaymoreUW's choice).
+using MixedGpuEngine = GpuEngine<double, float>;
 
 /// Runs the scene on the GPU engine (device 0), writing frames like run_cpu. Exit code 1: scene not supported;
 /// 2: run-time failure (CFL, NaN, left domain, CUDA error).

@@ -145,8 +145,10 @@ struct CapacityEstimate {
 
 }  // namespace mgsp_detail
 
-/// The device state of one GPU and its step (the engine behind GpuEngine<T>).
-template <typename T>
+/// The device state of one GPU and its step (the engine behind GpuEngine<T, TG>). T: particle scalar type (stored
+/// state, transfers, material update); TG: grid scalar type (grid buffers, the shared P2G arena, the grid update).
+/// single: <float, float>; double: <double, double>; mixed: <double, float> (ClaymoreUW's choice).
+template <typename T, typename TG>
 class MgspBenchmark {
  public:
   MgspBenchmark(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions,
@@ -260,7 +262,7 @@ class MgspBenchmark {
     }
 
     void g2p2g(MgspBenchmark& e, bool initial, T dt) override {
-      G2P2GParams<M, T> p;
+      G2P2GParams<M, T, TG> p;
       p.in = bins[e.cur_].instance();
       p.out = bins[1 - e.cur_].instance();
       p.layout = this->partition.layout(e.cur_);
@@ -301,7 +303,7 @@ class MgspBenchmark {
       if (blocks == 0) return;
       if (p.fbar_psi != T(0)) {  // F-bar: this body's cell sums first (kernels/g2p2g_kernel.cuh, fbar_divergence)
         e.fbar_sums_.clear(0, blocks, e.stream_);
-        FbarDivergenceParams<M, T> f;
+        FbarDivergenceParams<M, T, TG> f;
         f.in = p.in;
         f.layout = p.layout;
         f.table = p.table;
@@ -312,23 +314,23 @@ class MgspBenchmark {
         f.inv_dx = p.inv_dx;
         f.d_inv = p.d_inv;
         f.stats = p.stats;
-        fbar::fbar_divergence<M, T><<<blocks, kG2P2GThreads, 0, e.stream_>>>(f);
+        fbar::fbar_divergence<M, T, TG><<<blocks, kG2P2GThreads, 0, e.stream_>>>(f);
         mgsp_detail::check_launch("fbar_divergence");
       }
       const bool transport = static_cast<bool>(p.transported_next);
-      const std::size_t arena = g2p2g_arena_bytes<T>(transport);
+      const std::size_t arena = g2p2g_arena_bytes<TG>(transport);
       if (initial)
-        fbar::g2p2g<M, T, true, false><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
+        fbar::g2p2g<M, T, TG, true, false><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
       else if (transport)
-        fbar::g2p2g<M, T, false, true><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
+        fbar::g2p2g<M, T, TG, false, true><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
       else
-        fbar::g2p2g<M, T, false, false><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
+        fbar::g2p2g<M, T, TG, false, false><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
       mgsp_detail::check_launch("g2p2g");
     }
 
     void dest_from_positions(MgspBenchmark& e, int which, const int* valid, int slots) override {
       if (slots == 0) return;
-      fbar::dest_from_positions<M, T><<<mgsp_detail::grid_for(slots, kPartitionThreads), kPartitionThreads, 0,
+      fbar::dest_from_positions<M, T, TG><<<mgsp_detail::grid_for(slots, kPartitionThreads), kPartitionThreads, 0,
                                         e.stream_>>>(
           bins[which].instance(), valid, this->particles, slots, e.k_.inv_dx, e.table_.view(),
           this->partition.layout(1 - e.cur_).count, this->partition.dest(), e.grid_[0].instance(),
@@ -339,7 +341,7 @@ class MgspBenchmark {
     void rescale_impulse(MgspBenchmark& e, T ddt) override {
       const int slots = this->total_bins[e.cur_] * 32;
       if (slots == 0) return;
-      fbar::rescale_impulse<M, T><<<mgsp_detail::grid_for(slots, kPartitionThreads), kPartitionThreads, 0, e.stream_>>>(
+      fbar::rescale_impulse<M, T, TG><<<mgsp_detail::grid_for(slots, kPartitionThreads), kPartitionThreads, 0, e.stream_>>>(
           bins[e.cur_].instance(), this->partition.layout(e.cur_), slots, params, this->volume, ddt, e.k_.dx, e.k_.inv_dx,
           e.k_.d_inv, e.table_.view(), e.grid_[e.gc_].instance(), e.stats_d_);
       mgsp_detail::check_launch("rescale_impulse");
@@ -390,20 +392,21 @@ class MgspBenchmark {
 
   Scene scene_;
   GpuEngineOptions options_;
-  RunConstants<T> k_;  ///< dx, gravity, domain, default dt, boundaries (from the scene)
+  RunConstants<T> k_;    ///< dx, gravity, domain, default dt, boundaries (from the scene): particle side
+  RunConstants<TG> kg_;  ///< the same in the grid scalar type: the grid update
   std::vector<std::unique_ptr<BodyBase>> bodies_;
 
   cudaStream_t stream_ = nullptr;       ///< compute stream
   cudaStream_t copy_stream_ = nullptr;  ///< frame downloads
   cudaEvent_t events_[4] = {};
   BlockHashTable table_;
-  GridBuffer<T> grid_[2];
-  GridVelocityBuffer<T> velocity_;
-  GridFbarBuffer<T> fbar_sums_;         ///< F-bar cell sums, allocated only when a body uses F-bar
+  GridBuffer<TG> grid_[2];
+  GridVelocityBuffer<TG> velocity_;
+  GridFbarBuffer<TG> fbar_sums_;         ///< F-bar cell sums, allocated only when a body uses F-bar
   /// ASFLIP, allocated only when a body uses it: transported momentum of each P2G (double-buffered like grid_) and
   /// v^n from the grid update.
-  GridVelocityBuffer<T> transported_[2];
-  GridVelocityBuffer<T> old_velocity_;
+  GridVelocityBuffer<TG> transported_[2];
+  GridVelocityBuffer<TG> old_velocity_;
   bool asflip_ = false;
   bool fbar_ = false;
   int block_capacity_ = 0;
@@ -446,19 +449,20 @@ class MgspBenchmark {
 // =====================================================================================================================
 // Construction
 
-template <typename T>
-MgspBenchmark<T>::MgspBenchmark(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions,
+template <typename T, typename TG>
+MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions,
                                 const GpuEngineOptions& options)
     : scene_(scene), options_(options) {
   if (cuda::device_count() == 0) throw std::runtime_error(cuda::no_device_reason());
   const SimulationSpec& sim = scene_.simulation;
   k_ = RunConstants<T>(scene_, "GPU engine");
+  kg_ = RunConstants<TG>(scene_, "GPU engine");
   if (positions.size() != scene_.bodies.size()) throw std::invalid_argument("GpuEngine: one position list per body");
   if (scene_.bodies.size() > static_cast<std::size_t>(DtParams::kMaxBodies))
     throw std::invalid_argument("GpuEngine: at most " + std::to_string(DtParams::kMaxBodies) + " bodies per device");
   time_ = sim.time;
-  if (k_.boundaries.size() > static_cast<std::size_t>(BoundarySet<T>::kMax))
-    throw std::invalid_argument("GpuEngine: at most " + std::to_string(BoundarySet<T>::kMax) + " boundaries");
+  if (k_.boundaries.size() > static_cast<std::size_t>(BoundarySet<TG>::kMax))
+    throw std::invalid_argument("GpuEngine: at most " + std::to_string(BoundarySet<TG>::kMax) + " boundaries");
 
   double max_speed = 0.0;
   for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {
@@ -513,8 +517,8 @@ MgspBenchmark<T>::MgspBenchmark(const Scene& scene, const std::vector<std::vecto
   initialize(positions);
 }
 
-template <typename T>
-MgspBenchmark<T>::~MgspBenchmark() {
+template <typename T, typename TG>
+MgspBenchmark<T, TG>::~MgspBenchmark() {
   // Buffers free themselves; streams and events last (no throw from a destructor).
   if (stream_) cudaStreamSynchronize(stream_);
   if (copy_stream_) cudaStreamSynchronize(copy_stream_);
@@ -524,8 +528,8 @@ MgspBenchmark<T>::~MgspBenchmark() {
   if (copy_stream_) cudaStreamDestroy(copy_stream_);
 }
 
-template <typename T>
-void MgspBenchmark<T>::initialize(const std::vector<std::vector<Vec3d>>& positions) {
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>& positions) {
   FBAR_CUDA_CHECK(cudaStreamCreateWithFlags(&stream_, cudaStreamNonBlocking));
   FBAR_CUDA_CHECK(cudaStreamCreateWithFlags(&copy_stream_, cudaStreamNonBlocking));
   for (cudaEvent_t& e : events_) FBAR_CUDA_CHECK(cudaEventCreate(&e));
@@ -663,14 +667,14 @@ void MgspBenchmark<T>::initialize(const std::vector<std::vector<Vec3d>>& positio
   ensure_step_capacity();  // the first step writes bins[0], sized for the flat upload only
 }
 
-template <typename T>
-void MgspBenchmark<T>::set_record_velocities(bool on) {
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::set_record_velocities(bool on) {
   record_ = on;
   if (on) ensure_aux();
 }
 
-template <typename T>
-void MgspBenchmark<T>::ensure_aux() {
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::ensure_aux() {
   for (auto& b : bodies_) {
     const std::size_t need = b->partition.slots() * kAuxScalars;
     if (b->aux.size() < need) b->aux.allocate(need);
@@ -680,19 +684,19 @@ void MgspBenchmark<T>::ensure_aux() {
 // =====================================================================================================================
 // Step pieces
 
-template <typename T>
-void MgspBenchmark<T>::reset_stats(bool partition_only) {
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::reset_stats(bool partition_only) {
   mgsp_detail::reset_step_stats<<<1, 64, 0, stream_>>>(stats_d_, body_stats_d_, body_count(), partition_only);
   mgsp_detail::check_launch("reset_step_stats");
 }
 
-template <typename T>
-void MgspBenchmark<T>::partition_after_g2p2g() {
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::partition_after_g2p2g() {
   const int next = 1 - cur_;
   for (auto& bp : bodies_) {
     BodyBase& b = *bp;
     const LayoutView nl = b.partition.layout(next);
-    activate_footprint<T><<<mgsp_detail::grid_for(block_capacity_, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
+    activate_footprint<TG><<<mgsp_detail::grid_for(block_capacity_, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
         nl.count, block_capacity_, table_.view(), grid_[0].instance(), grid_[1].instance());
     mgsp_detail::check_launch("activate_footprint");
   }
@@ -725,15 +729,15 @@ void MgspBenchmark<T>::partition_after_g2p2g() {
   }
 }
 
-template <typename T>
-void MgspBenchmark<T>::read_stats() {
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::read_stats() {
   FBAR_CUDA_CHECK(cudaMemcpyAsync(stats_h_.get(), stats_bytes_.get(), stats_bytes_.bytes(), cudaMemcpyDeviceToHost,
                                   stream_));
   FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
 }
 
-template <typename T>
-void MgspBenchmark<T>::grow_blocks(int needed) {
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::grow_blocks(int needed) {
   int capacity = block_capacity_;
   while (capacity < needed) capacity *= 2;
   if (log_)
@@ -760,8 +764,8 @@ void MgspBenchmark<T>::grow_blocks(int needed) {
   scan_temp_bytes_ = temp;
 }
 
-template <typename T>
-void MgspBenchmark<T>::grow_bins(BodyBase& b, int keep, int needed) {
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::grow_bins(BodyBase& b, int keep, int needed) {
   int capacity = std::max(64, b.partition.bin_capacity());
   while (capacity < needed) capacity = capacity + capacity / 2;
   if (log_)
@@ -781,8 +785,8 @@ void MgspBenchmark<T>::grow_bins(BodyBase& b, int keep, int needed) {
 
 /// After read_stats: grows the table/grids or the bins if the partition overflowed, then redoes the partition from
 /// the particles' new positions. Returns true when it did (read_stats() was called again).
-template <typename T>
-bool MgspBenchmark<T>::handle_overflow() {
+template <typename T, typename TG>
+bool MgspBenchmark<T, TG>::handle_overflow() {
   bool grew = false;
   if (stats_->table_overflow > 0 || stats_->block_count > block_capacity_) {
     grow_blocks(2 * block_capacity_);
@@ -809,8 +813,8 @@ bool MgspBenchmark<T>::handle_overflow() {
   return true;
 }
 
-template <typename T>
-std::vector<FailureReport> MgspBenchmark<T>::failures_of_try(double dt) const {
+template <typename T, typename TG>
+std::vector<FailureReport> MgspBenchmark<T, TG>::failures_of_try(double dt) const {
   std::vector<FailureReport> out;
   static constexpr FailureKind kKinds[kFailKinds] = {FailureKind::NonFinite, FailureKind::CflViolation,
                                                      FailureKind::LeftDomain};
@@ -832,8 +836,8 @@ std::vector<FailureReport> MgspBenchmark<T>::failures_of_try(double dt) const {
   return out;
 }
 
-template <typename T>
-StepReport MgspBenchmark<T>::step_impl(double dt, bool cfl_dt, double target) {
+template <typename T, typename TG>
+StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target) {
   if (!(dt > 0.0) || !std::isfinite(dt)) throw std::invalid_argument("GpuEngine::step: dt must be positive");
   StepReport report;
   int range_repeats = 0;
@@ -847,7 +851,7 @@ StepReport MgspBenchmark<T>::step_impl(double dt, bool cfl_dt, double target) {
     event_record(0);
     // 1. grid update
     {
-      GridUpdateParams<T> gp{};
+      GridUpdateParams<TG> gp{};
       gp.grid = grid_[gc_].instance();
       gp.velocity = velocity_.instance();
       if (asflip_) {
@@ -856,15 +860,15 @@ StepReport MgspBenchmark<T>::step_impl(double dt, bool cfl_dt, double target) {
       }
       gp.coords = table_.view().coords;
       gp.block_count = block_count_;
-      gp.dt = static_cast<T>(dt);
-      gp.dx = k_.dx;
-      gp.gravity = k_.gravity;
+      gp.dt = static_cast<TG>(dt);
+      gp.dx = kg_.dx;
+      gp.gravity = kg_.gravity;
       gp.boundaries.count = 0;
-      for (const BoundaryParams<T>& b : k_.boundaries)
+      for (const BoundaryParams<TG>& b : kg_.boundaries)
         if (boundary_active(b, time_)) gp.boundaries.b[gp.boundaries.count++] = b;
       gp.stats = stats_d_;
       if (block_count_ > 0) {
-        update_grid_velocity_query_max<T><<<mgsp_detail::grid_for(block_count_, kGridUpdateThreads / 64),
+        update_grid_velocity_query_max<TG><<<mgsp_detail::grid_for(block_count_, kGridUpdateThreads / 64),
                                             kGridUpdateThreads, 0, stream_>>>(gp);
         mgsp_detail::check_launch("update_grid_velocity_query_max");
       }
@@ -969,8 +973,8 @@ StepReport MgspBenchmark<T>::step_impl(double dt, bool cfl_dt, double target) {
   }
 }
 
-template <typename T>
-void MgspBenchmark<T>::commit(double dt) {
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::commit(double dt) {
   for (auto& b : bodies_) b->total_bins[1 - cur_] = body_stats_[b->index].total_bins;
   cur_ = 1 - cur_;
   gc_ = 1 - gc_;
@@ -992,8 +996,8 @@ void MgspBenchmark<T>::commit(double dt) {
   ensure_step_capacity();
 }
 
-template <typename T>
-void MgspBenchmark<T>::ensure_step_capacity() {
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::ensure_step_capacity() {
   for (auto& b : bodies_) {
     const int need = b->total_bins[cur_];
     if (need > b->partition.bin_capacity() * 9 / 10) grow_bins(*b, cur_, need * 3 / 2);
@@ -1003,8 +1007,8 @@ void MgspBenchmark<T>::ensure_step_capacity() {
   }
 }
 
-template <typename T>
-StepReport MgspBenchmark<T>::step_toward(double t_end) {
+template <typename T, typename TG>
+StepReport MgspBenchmark<T, TG>::step_toward(double t_end) {
   const double remaining = t_end - time_;
   double dt = next_dt();
   const bool last = dt >= remaining;
@@ -1014,8 +1018,8 @@ StepReport MgspBenchmark<T>::step_toward(double t_end) {
   return r;
 }
 
-template <typename T>
-StepReport MgspBenchmark<T>::advance_to(double t_end) {
+template <typename T, typename TG>
+StepReport MgspBenchmark<T, TG>::advance_to(double t_end) {
   StepReport total;
   while (time_ < t_end) {
     StepReport r = step_toward(t_end);
@@ -1035,8 +1039,8 @@ StepReport MgspBenchmark<T>::advance_to(double t_end) {
 // =====================================================================================================================
 // Queries and output
 
-template <typename T>
-std::vector<T> MgspBenchmark<T>::gather_host(int body, cudaStream_t s) const {
+template <typename T, typename TG>
+std::vector<T> MgspBenchmark<T, TG>::gather_host(int body, cudaStream_t s) const {
   BodyBase& b = body_at(body);
   const int W = b.stored_scalars() + kAuxScalars;
   const std::size_t n = static_cast<std::size_t>(b.particles) * W;
@@ -1054,8 +1058,8 @@ std::vector<T> MgspBenchmark<T>::gather_host(int body, cudaStream_t s) const {
   return host;
 }
 
-template <typename T>
-ParticleSnapshot<T> MgspBenchmark<T>::snapshot(int body) const {
+template <typename T, typename TG>
+ParticleSnapshot<T> MgspBenchmark<T, TG>::snapshot(int body) const {
   BodyBase& b = body_at(body);
   const std::vector<T> r = gather_host(body, stream_);
   const int S = b.stored_scalars();
@@ -1086,8 +1090,8 @@ ParticleSnapshot<T> MgspBenchmark<T>::snapshot(int body) const {
   return snap;
 }
 
-template <typename T>
-io::ParticleFrame MgspBenchmark<T>::frame(int body) const {
+template <typename T, typename TG>
+io::ParticleFrame MgspBenchmark<T, TG>::frame(int body) const {
   const BodyBase& b = body_at(body);
   const ParticleSnapshot<T> s = snapshot(body);
   FrameSource<T> src;
@@ -1120,8 +1124,8 @@ io::ParticleFrame MgspBenchmark<T>::frame(int body) const {
   return build_frame(b.spec, body, src, "GPU engine");
 }
 
-template <typename T>
-void MgspBenchmark<T>::submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer) {
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer) {
   // Device gather on the compute stream (the state of this step), then the copy on the copy stream into pinned
   // memory; the writer thread waits for the copy and builds the frame, so the step loop goes on at once.
   BodyBase& b = body_at(body);
@@ -1188,17 +1192,17 @@ void MgspBenchmark<T>::submit_frame(int body, const std::filesystem::path& path,
   });
 }
 
-template <typename T>
-double MgspBenchmark<T>::total_mass() const {
+template <typename T, typename TG>
+double MgspBenchmark<T, TG>::total_mass() const {
   double m = 0.0;
   for (const auto& b : bodies_) m += static_cast<double>(b->particles) * static_cast<double>(b->mass);
   return m;
 }
 
-template <typename T>
-double MgspBenchmark<T>::grid_mass() const {
-  using L = GridLayout<T>;
-  const std::size_t bytes = GridBuffer<T>::kBlockBytes * static_cast<std::size_t>(block_count_);
+template <typename T, typename TG>
+double MgspBenchmark<T, TG>::grid_mass() const {
+  using L = GridLayout<TG>;
+  const std::size_t bytes = GridBuffer<TG>::kBlockBytes * static_cast<std::size_t>(block_count_);
   std::vector<std::byte> host(bytes);
   if (bytes) FBAR_CUDA_CHECK(cudaMemcpy(host.data(), grid_[gc_].instance().data(), bytes, cudaMemcpyDeviceToHost));
   typename L::Buffer view(host.data(), static_cast<std::size_t>(block_count_));
@@ -1210,8 +1214,8 @@ double MgspBenchmark<T>::grid_mass() const {
   return m;
 }
 
-template <typename T>
-std::size_t MgspBenchmark<T>::device_bytes() const {
+template <typename T, typename TG>
+std::size_t MgspBenchmark<T, TG>::device_bytes() const {
   std::size_t bytes = table_.bytes() + grid_[0].bytes() + grid_[1].bytes() + velocity_.bytes() + fbar_sums_.bytes() +
                       transported_[0].bytes() + transported_[1].bytes() + old_velocity_.bytes() +
                       stats_bytes_.bytes() + wave_d_.bytes() + p2g_bound_d_.bytes() + scan_temp_.bytes();

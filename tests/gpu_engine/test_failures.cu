@@ -2,6 +2,7 @@
 // exactly as the CPU reference engine reports it (the same checks on the same state), and reduce_dt repeats.
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <limits>
 #include <sstream>
 
@@ -144,17 +145,24 @@ TEST(GpuFailures, ReduceDtRepeatsTheStepLikeCpu) {
   EXPECT_LE(test::max_diff(gpu.snapshot(0).x, cpu.positions(0)), 1e-12);
 }
 
-TEST(GpuFailures, MixedPrecisionIsRejectedWithAMessage) {
+// simulation.precision "mixed" runs on the GPU engine (GpuEngine<double, float>) through run_gpu and says so.
+TEST(GpuFailures, MixedPrecisionRunsFromTheScene) {
   FBAR_REQUIRE_DEVICE();
   Scene scene = test::small_scene(Constitutive::JFluid, Precision::Mixed);
-  scene.simulation.frames = 1;
+  scene.simulation.frames = 2;
+  scene.simulation.fps = 200;
+  scene.simulation.save_path = (std::filesystem::temp_directory_path() / "fbar_gpu_mixed").string();
+  std::filesystem::remove_all(scene.simulation.save_path);
   std::ostringstream log;
   RunOptions options;
   options.log = &log;
-  options.quiet = true;
   const RunResult r = run_gpu(scene, options);
-  EXPECT_EQ(r.exit_code, 1);
-  EXPECT_NE(r.message.find("mixed"), std::string::npos);
+  EXPECT_EQ(r.exit_code, 0) << r.message;
+  EXPECT_NEAR(r.end_time, 0.01, 1e-12);
+  EXPECT_NE(log.str().find("mixed: particles double, grid single"), std::string::npos) << log.str();
+  std::size_t frames = 0;
+  for (const auto& e : std::filesystem::directory_iterator(scene.simulation.save_path)) frames += e.is_regular_file();
+  EXPECT_EQ(frames, 3u) << "frames 0, 1 and 2";
 }
 
 }  // namespace

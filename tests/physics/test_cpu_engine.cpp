@@ -302,14 +302,36 @@ TEST(Summary, MemoryEstimatesCountTheSchemes) {
   }
 }
 
-// Memory estimates grow with precision and are split by GPU id.
+// Memory estimates grow with precision (mixed: double particles, float grid, between the two) and are split by GPU
+// id; the CPU estimates hold for the engine of each precision.
 TEST(Summary, MemoryEstimatesPerGpu) {
   Scene scene = two_body_scene_for_summary();
   scene.bodies[1].gpu = 1;
   scene.simulation.precision = Precision::Single;
   const SceneSummary single = summarize_scene(scene);
+  scene.simulation.precision = Precision::Mixed;
+  const SceneSummary mixed = summarize_scene(scene);
   scene.simulation.precision = Precision::Double;
   const SceneSummary dbl = summarize_scene(scene);
+  for (int g = 0; g < 2; ++g) {
+    EXPECT_GT(mixed.gpu_bytes[g], single.gpu_bytes[g]);
+    EXPECT_LT(mixed.gpu_bytes[g], dbl.gpu_bytes[g]);
+  }
+  std::size_t mixed_engine_bytes = 0;
+  {
+    Scene s = scene;
+    s.simulation.precision = Precision::Single;
+    CpuEngine<float> e(s);
+    ASSERT_TRUE(e.step().ok);
+    EXPECT_GT(static_cast<double>(single.cpu_bytes), 0.5 * static_cast<double>(e.memory_bytes()));
+    EXPECT_LT(static_cast<double>(single.cpu_bytes), 2.0 * static_cast<double>(e.memory_bytes()));
+    s.simulation.precision = Precision::Mixed;
+    CpuEngine<double, float> m(s);
+    ASSERT_TRUE(m.step().ok);
+    EXPECT_GT(static_cast<double>(mixed.cpu_bytes), 0.5 * static_cast<double>(m.memory_bytes()));
+    EXPECT_LT(static_cast<double>(mixed.cpu_bytes), 2.0 * static_cast<double>(m.memory_bytes()));
+    mixed_engine_bytes = m.memory_bytes();
+  }
   ASSERT_EQ(single.gpu_bytes.size(), 2u);
   EXPECT_GT(single.gpu_bytes[0], 0u);
   EXPECT_GT(single.gpu_bytes[1], 0u);
@@ -321,6 +343,7 @@ TEST(Summary, MemoryEstimatesPerGpu) {
   // The estimate counts what the engine allocates (within 2x: vector capacities, hash-map nodes).
   EXPECT_GT(static_cast<double>(dbl.cpu_bytes), 0.5 * static_cast<double>(engine.memory_bytes()));
   EXPECT_LT(static_cast<double>(dbl.cpu_bytes), 2.0 * static_cast<double>(engine.memory_bytes()));
+  EXPECT_LT(mixed_engine_bytes, engine.memory_bytes()) << "mixed: the grid in float";
 }
 
 // A Box obstacle stops a falling block: no particle enters it. Its top face is y = 0.3 (a node plane); a particle's

@@ -6,7 +6,7 @@
 // device memory per particle (cudaMemGetInfo before construction and after the run). Prints a table and writes a
 // CSV: scene, material, particles, precision, ms_per_step, particle_steps_per_s, bytes_per_particle_step,
 // bandwidth_fraction, device_bytes_per_particle, commit.
-//   fbar_benchmark [--sizes=1,4,16,64] [--precisions=single,double]
+//   fbar_benchmark [--sizes=1,4,16,64] [--precisions=single,double,mixed]
 //                  [--scenes=dam_break,falling_block,neo_block,sand_block,clay_block,hencky_block,fbar_block,
 //                            fbar_dam_break,asflip_dam_break,asflip_block]
 // fbar_block and fbar_dam_break: falling_block and dam_break with F-bar (FBAR_psi 1); asflip_dam_break and
@@ -150,24 +150,28 @@ struct Row {
 /// Bytes one step must move per particle: the bin read and written by G2P2G, its src read and dest write, the
 /// partition's dest read and src write; plus the grid (update: 4 channels read, 3 written; clear: 4 written; G2P2G:
 /// 3 channels of 8 blocks read and 4 written per particle block, approximated by the active blocks) over N.
-template <typename M, typename T>
+template <typename M, typename T, typename TG>
 double bytes_per_particle_step(std::size_t particles, std::size_t blocks) {
   const double bin = static_cast<double>(ParticleLayout<M, T>::kParticleBytes);
   const double particle = 2 * bin + 4 + 8 + 8 + 4 + 4;
-  const double grid = static_cast<double>(blocks) * 64 * sizeof(T) * (4 + 3 + 4 + 3 + 4);
+  const double grid = static_cast<double>(blocks) * 64 * sizeof(TG) * (4 + 3 + 4 + 3 + 4);
   return particle + grid / static_cast<double>(particles);
 }
 
-template <typename T>
+/// T, TG: particle and grid scalar types (<float, float> single, <double, double> double, <double, float> mixed).
+template <typename T, typename TG>
 Row run_case(const std::string& scene_name, double millions, int steps, int warmup, double bandwidth) {
   Row row;
   row.scene = scene_name;
-  row.precision = std::is_same_v<T, double> ? "double" : "single";
-  const Scene scene = make_scene(scene_name, millions, std::is_same_v<T, double> ? Precision::Double : Precision::Single);
+  const Precision precision = !std::is_same_v<T, TG>       ? Precision::Mixed
+                              : std::is_same_v<T, double> ? Precision::Double
+                                                          : Precision::Single;
+  row.precision = to_string(precision);
+  const Scene scene = make_scene(scene_name, millions, precision);
   row.material = to_string(scene.bodies[0].material.law);
   std::size_t free0 = 0, total = 0;
   FBAR_CUDA_CHECK(cudaMemGetInfo(&free0, &total));
-  GpuEngine<T> engine(scene);
+  GpuEngine<T, TG> engine(scene);
   engine.set_log(&std::cerr);
   row.particles = engine.particle_count();
   for (int i = 0; i < warmup; ++i) {
@@ -195,7 +199,7 @@ Row run_case(const std::string& scene_name, double millions, int steps, int warm
   row.ms_per_step = 1e3 * seconds / steps;
   row.particle_steps_per_s = static_cast<double>(row.particles) / (seconds / steps);
   visit_material(scene.bodies[0].material.law, [&](auto m) {
-    row.bytes_per_particle_step = bytes_per_particle_step<decltype(m), T>(row.particles, row.blocks);
+    row.bytes_per_particle_step = bytes_per_particle_step<decltype(m), T, TG>(row.particles, row.blocks);
   });
   row.bandwidth_fraction = row.bytes_per_particle_step * row.particle_steps_per_s / bandwidth;
   row.device_bytes_per_particle = static_cast<double>(free0 - free1) / static_cast<double>(row.particles);
@@ -247,8 +251,14 @@ int main(int argc, char** argv) {
       for (const std::string& size : sizes) {
         Row r;
         try {
-          r = precision == "double" ? run_case<double>(scene, std::stod(size), steps, warmup, bandwidth)
-                                    : run_case<float>(scene, std::stod(size), steps, warmup, bandwidth);
+          if (precision == "double")
+            r = run_case<double, double>(scene, std::stod(size), steps, warmup, bandwidth);
+          else if (precision == "mixed")
+            r = run_case<double, float>(scene, std::stod(size), steps, warmup, bandwidth);
+          else if (precision == "single")
+            r = run_case<float, float>(scene, std::stod(size), steps, warmup, bandwidth);
+          else
+            throw std::invalid_argument("--precisions: \"" + precision + "\" is not single, double or mixed");
         } catch (const std::exception& e) {
           std::printf("%-14s %-7s %sM: failed: %s\n", scene.c_str(), precision.c_str(), size.c_str(), e.what());
           cudaGetLastError();

@@ -70,7 +70,7 @@ inline constexpr int kAuxScalars = 12;
 inline constexpr double kP2GHeadroom = 2.0;
 inline constexpr double kMaxNodeWeight = 0.421875;
 
-template <typename M, typename T>
+template <typename M, typename T, typename TG>
 struct G2P2GParams {
   using Bins = typename ParticleLayout<M, T>::Buffer;
   Bins in;                   ///< particles of this step (storage order)
@@ -79,20 +79,20 @@ struct G2P2GParams {
   int* next_count;           ///< (block) particles per block of the next layout (zeroed before)
   ParticleDest* dest;        ///< (slot) next block and rank of each particle
   BlockHashTableView table;
-  typename GridLayout<T>::VelocityBuffer velocity;  ///< grid velocities of this step
-  typename GridLayout<T>::Buffer grid_next;         ///< P2G target (zeroed on blocks [0, block count))
-  typename GridLayout<T>::Buffer grid_this;         ///< this step's P2G sums: a new block is zeroed here as well
+  typename GridLayout<TG>::VelocityBuffer velocity;  ///< grid velocities of this step
+  typename GridLayout<TG>::Buffer grid_next;         ///< P2G target (zeroed on blocks [0, block count))
+  typename GridLayout<TG>::Buffer grid_this;         ///< this step's P2G sums: a new block is zeroed here as well
   T* aux;                    ///< (slot, kAuxScalars) v and C, or nullptr
   /// ASFLIP (transfer.cuh). Every body adds its transported momentum m (v + C (x_i - x_p)) to `transported_next`
   /// when any body uses ASFLIP (non-null); a body that uses it also reads v^n (`old_velocity`) and its particles'
   /// velocities (`particle_v_in` at the storage slot, `particle_v_out` at the layout slot; 3 scalars per slot).
-  typename GridLayout<T>::VelocityBuffer transported_next;
-  typename GridLayout<T>::VelocityBuffer old_velocity;
+  typename GridLayout<TG>::VelocityBuffer transported_next;
+  typename GridLayout<TG>::VelocityBuffer old_velocity;
   const T* particle_v_in;
   T* particle_v_out;
   bool asflip;                ///< this body uses PIC-FLIP / ASFLIP
   AsflipParams<T> asflip_params;
-  typename GridLayout<T>::FbarBuffer fbar_sums;  ///< F-bar cell sums of this body (fbar_divergence), when fbar_psi > 0
+  typename GridLayout<TG>::FbarBuffer fbar_sums;  ///< F-bar cell sums of this body (fbar_divergence), when fbar_psi > 0
   T fbar_psi;                ///< [-] F-bar blend, 0: off (transfer.cuh)
   material_params_t<M, T> material;
   T mass;                    ///< [kg] per particle
@@ -110,10 +110,10 @@ struct G2P2GParams {
 };
 
 /// Dynamic shared memory of a g2p2g launch [bytes]: the P2G arena of 4 channels, or 7 when transported momentum
-/// is summed (ASFLIP).
-template <typename T>
+/// is summed (ASFLIP), in the grid scalar type TG.
+template <typename TG>
 constexpr std::size_t g2p2g_arena_bytes(bool transported) {
-  return static_cast<std::size_t>(transported ? 7 : 4) * kArenaStorage * sizeof(T);
+  return static_cast<std::size_t>(transported ? 7 : 4) * kArenaStorage * sizeof(TG);
 }
 
 namespace g2p2g_detail {
@@ -134,8 +134,13 @@ struct FixedArena<float> {
   static constexpr double kRange = 2147483648.0 - 16777216.0;  // 2^31 - 2^24
   unsigned* words;                                               // (channel, node): int32
   int channels;                                                  // 4, or 7 with ASFLIP's transported momentum
-  FBAR_DEVICE FBAR_FORCE_INLINE void add(int ch, int a, float units) const {
-    atomicAdd(reinterpret_cast<int*>(words) + ch * kArenaStorage + a, __float2int_rn(units));
+  /// units: in the particle scalar type (float, or double in mixed precision: rounded once, to the integer).
+  template <typename U>
+  FBAR_DEVICE FBAR_FORCE_INLINE void add(int ch, int a, U units) const {
+    int v;
+    if constexpr (std::is_same_v<U, double>) v = __double2int_rn(units);
+    else v = __float2int_rn(units);
+    atomicAdd(reinterpret_cast<int*>(words) + ch * kArenaStorage + a, v);
   }
   FBAR_DEVICE FBAR_FORCE_INLINE float units(int ch, int a) const {
     return static_cast<float>(static_cast<int>(words[ch * kArenaStorage + a]));
@@ -242,25 +247,25 @@ FBAR_DEVICE ParticleDest claim_block_rank(bool has_key, std::uint64_t key, const
 /// that APIC scenes run a kernel without that code: with the ASFLIP code present behind run-time branches, APIC
 /// steps in double took 5.03 / 7.09 ms (dam_break / falling_block, 16M particles, H100) against 3.33 / 4.83 ms
 /// without (two runs, docs/benchmarks/2026-11-23-h100-asflip-arena.md). The initial P2G decides at run time.
-template <typename M, typename T, bool kInitial, bool kTransport>
-__global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
+template <typename M, typename T, typename TG, bool kInitial, bool kTransport>
+__global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) {
   using State = material_state_t<M, T>;
   constexpr int kStateScalars = ParticleLayout<M, T>::kStateScalars;
   constexpr bool kFixed = !kInitial;  // the initial P2G has no bound yet: it adds T with CAS atomics
   // (x, y, z) grid velocities of the 8x8x8-node arena (vx, vy, vz, pad per node), index arena_index(x, y, z) =
   // 68 x + 8 y + z.
-  __shared__ g2p2g_detail::ArenaVelocity<T> arena_v[kArenaStorage];
+  __shared__ g2p2g_detail::ArenaVelocity<TG> arena_v[kArenaStorage];
   // (channel, x, y, z) P2G sums: mass, momentum x, y, z; same indexing. Fixed point: the same bytes as integers
   // in units of q_mass, q_momentum (FixedArena).
   // Dynamic shared memory (the launch gives g2p2g_arena_bytes): 4 channels, or 7 when a body uses ASFLIP (the
   // transported momentum x, y, z as channels 4..6, transfer.cuh); in double 7 channels take 30.5 KB, which with
   // arena_v stays inside the 48 KB a block may use without opting in.
   extern __shared__ __align__(16) unsigned char g2p2g_dynamic_shared[];
-  T* const arena_p = reinterpret_cast<T*>(g2p2g_dynamic_shared);
+  TG* const arena_p = reinterpret_cast<TG*>(g2p2g_dynamic_shared);
   const int channels = (kTransport || (kInitial && static_cast<bool>(p.transported_next))) ? 7 : 4;
   // A body that uses ASFLIP runs in a kTransport launch (or the initial one): only those carry its code.
   constexpr bool kMayAsflip = kTransport || kInitial;
-  const g2p2g_detail::FixedArena<T> fixed{reinterpret_cast<unsigned*>(arena_p), channels};
+  const g2p2g_detail::FixedArena<TG> fixed{reinterpret_cast<unsigned*>(arena_p), channels};
   // (neighbour) hash-table index of the arena's 2x2x2 grid blocks, neighbour = (di * 2 + dj) * 2 + dk.
   __shared__ int arena_blocks[8];
   // (quantity, warp) per-warp maxima of the wave speed and the P2G bound; whether a particle exceeded the bound.
@@ -278,27 +283,27 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
     arena_blocks[threadIdx.x] = found;
     if (found < 0) atomicAdd(&p.stats->internal_error, 1);
   }
-  for (int i = threadIdx.x; i < channels * kArenaStorage; i += blockDim.x) arena_p[i] = T(0);
+  for (int i = threadIdx.x; i < channels * kArenaStorage; i += blockDim.x) arena_p[i] = TG(0);
   __syncthreads();
   if constexpr (!kInitial) {
     for (int i = threadIdx.x; i < kArenaNodes; i += blockDim.x) {
       const int a = i >> 6, b = (i >> 3) & 7, c = i & 7;
       const int nb = arena_blocks[((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2)];
       const int node = ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
-      T vx = T(0), vy = T(0), vz = T(0);
+      TG vx = TG(0), vy = TG(0), vz = TG(0);
       if (nb >= 0) {
         vx = block_val(p.velocity, grid_velocity_x, nb, node);
         vy = block_val(p.velocity, grid_velocity_y, nb, node);
         vz = block_val(p.velocity, grid_velocity_z, nb, node);
       }
-      arena_v[g2p2g_detail::arena_index(a, b, c)] = g2p2g_detail::ArenaVelocity<T>{vx, vy, vz, T(0)};
+      arena_v[g2p2g_detail::arena_index(a, b, c)] = g2p2g_detail::ArenaVelocity<TG>{vx, vy, vz, TG(0)};
     }
     __syncthreads();
   }
 
   const T dt_next = static_cast<T>(*p.dt_next);
   // Fixed-point quanta of this block [kg], [kg m/s] and their inverses; limit: the bound every particle must meet.
-  const double span = kMaxNodeWeight * count / g2p2g_detail::FixedArena<T>::kRange;
+  const double span = kMaxNodeWeight * count / g2p2g_detail::FixedArena<TG>::kRange;
   const double bound = kP2GHeadroom * __longlong_as_double(static_cast<long long>(*p.p2g_bound_in));
   const T q_mass = static_cast<T>(static_cast<double>(p.mass) * span), inv_q_mass = T(1) / q_mass;
   const T q_momentum = static_cast<T>(bound * span);
@@ -340,8 +345,8 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
         G2PSum<T> sum;
         g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
           const int a = g2p2g_detail::arena_index(c0 + i, c1 + j, c2 + k);
-          const g2p2g_detail::ArenaVelocity<T> node_v = arena_v[a];
-          sum.add(w, Vec3<T>{{node_v.x, node_v.y, node_v.z}}, xixp);
+          const g2p2g_detail::ArenaVelocity<TG> node_v = arena_v[a];
+          sum.add(w, Vec3<T>{{static_cast<T>(node_v.x), static_cast<T>(node_v.y), static_cast<T>(node_v.z)}}, xixp);
         });
         v = sum.velocity();
         C = sum.affine(p.d_inv);
@@ -352,8 +357,8 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
           const int nb = arena_blocks[((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2)];
           const int node = ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
           const T d = nb < 0 ? T(0)
-                             : fbar_cell_divergence(block_val(p.fbar_sums, grid_fbar_volume_rate, nb, node),
-                                                    block_val(p.fbar_sums, grid_fbar_volume, nb, node));
+                             : fbar_cell_divergence(static_cast<T>(block_val(p.fbar_sums, grid_fbar_volume_rate, nb, node)),
+                                                    static_cast<T>(block_val(p.fbar_sums, grid_fbar_volume, nb, node)));
           state_new = M::advance(p.material, in.state, fbar_velocity_gradient(C, d, p.fbar_psi), p.dt);
         } else {
           state_new = M::advance(p.material, in.state, C, p.dt);
@@ -365,9 +370,9 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
             const int nb = arena_blocks[((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2)];
             if (nb < 0) return;
             const int node = ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
-            old.add(w, Vec3<T>{{block_val(p.old_velocity, grid_velocity_x, nb, node),
-                                block_val(p.old_velocity, grid_velocity_y, nb, node),
-                                block_val(p.old_velocity, grid_velocity_z, nb, node)}});
+            old.add(w, Vec3<T>{{static_cast<T>(block_val(p.old_velocity, grid_velocity_x, nb, node)),
+                                static_cast<T>(block_val(p.old_velocity, grid_velocity_y, nb, node)),
+                                static_cast<T>(block_val(p.old_velocity, grid_velocity_z, nb, node))}});
           });
           const T* vp = p.particle_v_in + static_cast<std::size_t>(src) * 3;
           const AsflipUpdate<T> u = asflip_update(p.asflip_params, Vec3<T>{{vp[0], vp[1], vp[2]}}, v, old.v,
@@ -456,15 +461,15 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
               auto scatter = [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
                 const int a = g2p2g_detail::arena_index(l0 + i, l1 + j, l2 + k);
                 const Vec3<T> mv = p2g_node_momentum(payload, w, xixp);
-                atomicAdd(&arena_p[0 * kArenaStorage + a], w * payload.mass);
-                atomicAdd(&arena_p[1 * kArenaStorage + a], mv[0]);
-                atomicAdd(&arena_p[2 * kArenaStorage + a], mv[1]);
-                atomicAdd(&arena_p[3 * kArenaStorage + a], mv[2]);
+                atomicAdd(&arena_p[0 * kArenaStorage + a], static_cast<TG>(w * payload.mass));
+                atomicAdd(&arena_p[1 * kArenaStorage + a], static_cast<TG>(mv[0]));
+                atomicAdd(&arena_p[2 * kArenaStorage + a], static_cast<TG>(mv[1]));
+                atomicAdd(&arena_p[3 * kArenaStorage + a], static_cast<TG>(mv[2]));
                 if (transport) {
                   const Vec3<T> cv = p2g_node_momentum(carried, w, xixp);
-                  atomicAdd(&arena_p[4 * kArenaStorage + a], cv[0]);
-                  atomicAdd(&arena_p[5 * kArenaStorage + a], cv[1]);
-                  atomicAdd(&arena_p[6 * kArenaStorage + a], cv[2]);
+                  atomicAdd(&arena_p[4 * kArenaStorage + a], static_cast<TG>(cv[0]));
+                  atomicAdd(&arena_p[5 * kArenaStorage + a], static_cast<TG>(cv[1]));
+                  atomicAdd(&arena_p[6 * kArenaStorage + a], static_cast<TG>(cv[2]));
                 }
               };
               g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, scatter);
@@ -489,7 +494,7 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
       }
     }
     const ParticleDest d =
-        g2p2g_detail::claim_block_rank<T>(has_key, key, p.table, p.next_count, p.grid_next, p.grid_this);
+        g2p2g_detail::claim_block_rank<TG>(has_key, key, p.table, p.next_count, p.grid_next, p.grid_this);
     if (active) p.dest[slot] = d;
   }
   // Per-body maxima: warp, then CUDA block, then one global atomic per block (per-warp atomics on one address
@@ -517,17 +522,17 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
   for (int i = threadIdx.x; i < kArenaNodes; i += blockDim.x) {
     const int a = i >> 6, b = (i >> 3) & 7, c = i & 7;
     const int ai = g2p2g_detail::arena_index(a, b, c);
-    T mass_units;
+    TG mass_units;
     if constexpr (kFixed) mass_units = fixed.units(0, ai);
     else mass_units = arena_p[ai];
-    if (mass_units == T(0)) continue;  // no particle's stencil covers this node
+    if (mass_units == TG(0)) continue;  // no particle's stencil covers this node
     const int nb = arena_blocks[((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2)];
     if (nb < 0) continue;  // counted above as an internal error
     const int node = ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
-    T sum[7];
+    TG sum[7];
     if constexpr (kFixed) {
-      sum[0] = mass_units * q_mass;
-      for (int ch = 1; ch < channels; ++ch) sum[ch] = fixed.units(ch, ai) * q_momentum;
+      sum[0] = static_cast<TG>(mass_units * q_mass);
+      for (int ch = 1; ch < channels; ++ch) sum[ch] = static_cast<TG>(fixed.units(ch, ai) * q_momentum);
     } else {
       sum[0] = mass_units;
       for (int ch = 1; ch < channels; ++ch) sum[ch] = arena_p[ch * kArenaStorage + ai];
@@ -547,21 +552,21 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T> p) {
 /// F-bar's cell sums of one body (transfer.cuh): per particle, G2P of C from this step's grid velocities, then
 /// V tr C and V (V = V0 J, current volume) added to the particle's cell, cell c stored at node c. Launched per body
 /// between the grid update and its G2P2G, into a zeroed buffer; one CUDA block per particle block, like g2p2g.
-template <typename M, typename T>
+template <typename M, typename T, typename TG>
 struct FbarDivergenceParams {
   typename ParticleLayout<M, T>::Buffer in;         ///< particles of this step (storage order)
   LayoutView layout;                                ///< this step's layout
   BlockHashTableView table;
-  typename GridLayout<T>::VelocityBuffer velocity;  ///< grid velocities of this step
-  typename GridLayout<T>::FbarBuffer sums;          ///< target (zeroed on blocks [0, block count))
+  typename GridLayout<TG>::VelocityBuffer velocity;  ///< grid velocities of this step
+  typename GridLayout<TG>::FbarBuffer sums;          ///< target (zeroed on blocks [0, block count))
   T volume;                                         ///< [m^3] reference volume per particle
   T dx, inv_dx, d_inv;                              ///< [m], [1/m], [1/m^2]
   StepStats* stats;
 };
 
-template <typename M, typename T>
-__global__ void __launch_bounds__(kG2P2GThreads) fbar_divergence(FbarDivergenceParams<M, T> p) {
-  __shared__ g2p2g_detail::ArenaVelocity<T> arena_v[kArenaStorage];
+template <typename M, typename T, typename TG>
+__global__ void __launch_bounds__(kG2P2GThreads) fbar_divergence(FbarDivergenceParams<M, T, TG> p) {
+  __shared__ g2p2g_detail::ArenaVelocity<TG> arena_v[kArenaStorage];
   __shared__ int arena_blocks[8];
   const int block = blockIdx.x;
   const int count = p.layout.count[block];
@@ -578,13 +583,13 @@ __global__ void __launch_bounds__(kG2P2GThreads) fbar_divergence(FbarDivergenceP
     const int a = i >> 6, b = (i >> 3) & 7, c = i & 7;
     const int nb = arena_blocks[((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2)];
     const int node = ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
-    T vx = T(0), vy = T(0), vz = T(0);
+    TG vx = TG(0), vy = TG(0), vz = TG(0);
     if (nb >= 0) {
       vx = block_val(p.velocity, grid_velocity_x, nb, node);
       vy = block_val(p.velocity, grid_velocity_y, nb, node);
       vz = block_val(p.velocity, grid_velocity_z, nb, node);
     }
-    arena_v[g2p2g_detail::arena_index(a, b, c)] = g2p2g_detail::ArenaVelocity<T>{vx, vy, vz, T(0)};
+    arena_v[g2p2g_detail::arena_index(a, b, c)] = g2p2g_detail::ArenaVelocity<TG>{vx, vy, vz, TG(0)};
   }
   __syncthreads();
   const int first_slot = p.layout.bin_offset[block] * 32;
@@ -597,8 +602,8 @@ __global__ void __launch_bounds__(kG2P2GThreads) fbar_divergence(FbarDivergenceP
               c2 = min(max(s.base[2] - 4 * origin[2], 0), 5);
     G2PSum<T> sum;
     g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
-      const g2p2g_detail::ArenaVelocity<T> node_v = arena_v[g2p2g_detail::arena_index(c0 + i, c1 + j, c2 + k)];
-      sum.add(w, Vec3<T>{{node_v.x, node_v.y, node_v.z}}, xixp);
+      const g2p2g_detail::ArenaVelocity<TG> node_v = arena_v[g2p2g_detail::arena_index(c0 + i, c1 + j, c2 + k)];
+      sum.add(w, Vec3<T>{{static_cast<T>(node_v.x), static_cast<T>(node_v.y), static_cast<T>(node_v.z)}}, xixp);
     });
     const Mat3<T> C = sum.affine(p.d_inv);
     const T V = p.volume * M::volume_ratio(in.state);
@@ -607,8 +612,8 @@ __global__ void __launch_bounds__(kG2P2GThreads) fbar_divergence(FbarDivergenceP
     const int nb = arena_blocks[((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2)];
     if (nb < 0) continue;  // counted above
     const int node = ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
-    atomicAdd(&block_val(p.sums, grid_fbar_volume_rate, nb, node), V * (C(0, 0) + C(1, 1) + C(2, 2)));
-    atomicAdd(&block_val(p.sums, grid_fbar_volume, nb, node), V);
+    atomicAdd(&block_val(p.sums, grid_fbar_volume_rate, nb, node), static_cast<TG>(V * (C(0, 0) + C(1, 1) + C(2, 2))));
+    atomicAdd(&block_val(p.sums, grid_fbar_volume, nb, node), static_cast<TG>(V));
   }
 }
 

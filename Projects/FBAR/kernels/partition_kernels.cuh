@@ -27,11 +27,11 @@ inline constexpr int kPartitionThreads = 256;
 /// Records (block, rank) for particles at slots [0, slots) of `bins` from their positions (initial partition and
 /// the repeat of a partition after the table grew). valid: the slot holds a particle when valid[slot] >= 0
 /// (nullptr: when slot < particles).
-template <typename M, typename T>
+template <typename M, typename T, typename TG>
 __global__ void __launch_bounds__(kPartitionThreads)
     dest_from_positions(typename ParticleLayout<M, T>::Buffer bins, const int* valid, int particles, int slots,
                         T inv_dx, BlockHashTableView table, int* next_count, ParticleDest* dest,
-                        typename GridLayout<T>::Buffer grid_a, typename GridLayout<T>::Buffer grid_b,
+                        typename GridLayout<TG>::Buffer grid_a, typename GridLayout<TG>::Buffer grid_b,
                         BodyStepStats* body_stats) {
   const int slot = blockIdx.x * blockDim.x + threadIdx.x;  // whole warps run: claim_block_rank is collective
   const bool in_range = slot < slots;
@@ -50,7 +50,7 @@ __global__ void __launch_bounds__(kPartitionThreads)
       atomicMin(&body_stats->first_id[kFailLeftDomain], p.id);
     }
   }
-  const ParticleDest d = g2p2g_detail::claim_block_rank<T>(has_key, key, table, next_count, grid_a, grid_b);
+  const ParticleDest d = g2p2g_detail::claim_block_rank<TG>(has_key, key, table, next_count, grid_a, grid_b);
   if (active) dest[slot] = d;
 }
 
@@ -126,11 +126,11 @@ static __global__ void __launch_bounds__(kPartitionThreads)
 /// layout, so a grid built with impulse dt_old holds the one of dt_old + ddt (a repeated step with a smaller dt,
 /// or step(dt) with a new dt). The stress is evaluated with C = 0: exact for rate-independent materials; the
 /// viscous part of a JFluid keeps its old dt (C is not stored between steps).
-template <typename M, typename T>
+template <typename M, typename T, typename TG>
 __global__ void __launch_bounds__(kPartitionThreads)
     rescale_impulse(typename ParticleLayout<M, T>::Buffer bins, LayoutView layout, int slots,
                     material_params_t<M, T> material, T volume, T ddt, T dx, T inv_dx, T d_inv,
-                    BlockHashTableView table, typename GridLayout<T>::Buffer grid, StepStats* stats) {
+                    BlockHashTableView table, typename GridLayout<TG>::Buffer grid, StepStats* stats) {
   const int slot = blockIdx.x * blockDim.x + threadIdx.x;
   if (slot >= slots) return;
   const int src = layout.src[slot];
@@ -149,9 +149,9 @@ __global__ void __launch_bounds__(kPartitionThreads)
     }
     const int node = ((nx & 3) * 4 + (ny & 3)) * 4 + (nz & 3);
     const Vec3<T> mv = p2g_node_momentum(payload, w, xixp);
-    atomicAdd(&block_val(grid, grid_momentum_x, b, node), mv[0]);
-    atomicAdd(&block_val(grid, grid_momentum_y, b, node), mv[1]);
-    atomicAdd(&block_val(grid, grid_momentum_z, b, node), mv[2]);
+    atomicAdd(&block_val(grid, grid_momentum_x, b, node), static_cast<TG>(mv[0]));
+    atomicAdd(&block_val(grid, grid_momentum_y, b, node), static_cast<TG>(mv[1]));
+    atomicAdd(&block_val(grid, grid_momentum_z, b, node), static_cast<TG>(mv[2]));
   });
 }
 
