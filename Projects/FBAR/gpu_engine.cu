@@ -96,6 +96,8 @@ void GpuEngine<T, TG>::submit_frame(int body, const std::filesystem::path& path,
 template <typename T, typename TG>
 double GpuEngine<T, TG>::total_mass() const { return impl_->total_mass(); }
 template <typename T, typename TG>
+double GpuEngine<T, TG>::elastic_energy() const { return impl_->elastic_energy(); }
+template <typename T, typename TG>
 double GpuEngine<T, TG>::grid_mass() const { return impl_->grid_mass(); }
 template <typename T, typename TG>
 std::size_t GpuEngine<T, TG>::active_grid_blocks() const { return impl_->active_grid_blocks(); }

@@ -32,6 +32,7 @@ struct ParticleSnapshot {
   std::vector<T> J;         ///< [-] volume ratio of the stored state
   std::vector<Mat3<T>> F;   ///< [-] deformation gradient (materials that store F; empty otherwise)
   std::vector<T> logJp;     ///< [-] plastic state (materials that store logJp; empty otherwise)
+  std::vector<Mat3<T>> sigma;  ///< [Pa] Cauchy stress of the stored state (with the recorded C for rate terms)
 };
 
 /// Accumulated device time per kernel family (CUDA events, when timing is on) [ms].
@@ -46,6 +47,9 @@ struct KernelTimes {
 struct GpuEngineOptions {
   int block_capacity = 0;  ///< grid blocks (hash table, grid buffers, per-block partition arrays)
   int bin_capacity = 0;    ///< particle bins per body (at least what the initial upload needs)
+  /// Per body, per particle (ID order) initial velocities [m/s], as CpuEngine::set_velocities gives them (tests,
+  /// restarts); a body without an entry, or with an empty one, starts at its scene velocity.
+  std::vector<std::vector<Vec3d>> initial_velocities;
 };
 
 template <typename T, typename TG>
@@ -96,6 +100,7 @@ class GpuEngine {
   void submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer);
 
   double total_mass() const;             ///< [kg] particles x per-body mass
+  double elastic_energy() const;         ///< [J] sum V0 psi(state), in double on the host (as CpuEngine)
   double grid_mass() const;              ///< [kg] sum of node masses of the current grid (P2G of this state)
   std::size_t active_grid_blocks() const;
   std::size_t device_bytes() const;      ///< device memory held by the engine's buffers

@@ -184,6 +184,7 @@ class MgspBenchmark {
   io::ParticleFrame frame(int body) const;
   void submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer);
   double total_mass() const;
+  double elastic_energy() const;
   double grid_mass() const;
   std::size_t active_grid_blocks() const { return static_cast<std::size_t>(block_count_); }
   std::size_t device_bytes() const;
@@ -204,6 +205,10 @@ class MgspBenchmark {
     PartitionDomain partition;
     int total_bins[2] = {0, 0};  ///< bins of layout 0 / 1
     mgsp_detail::DeviceArray<T> aux;  ///< (slot, kAuxScalars) recorded v and C
+    /// Per-particle initial velocities (GpuEngineOptions::initial_velocities): (ID, 3) on the device for the initial
+    /// P2G, and on the host for snapshots before the first step; empty when the body starts at its scene velocity.
+    mgsp_detail::DeviceArray<T> initial_v;
+    std::vector<Vec3<T>> initial_v_host;
     virtual ~BodyBase() = default;
     virtual bool stores_F() const = 0;
     virtual int stored_scalars() const = 0;
@@ -219,6 +224,8 @@ class MgspBenchmark {
     virtual bool stores_logJp() const = 0;
     /// J, F, Cauchy stress and logJp of one gathered record (F and logJp left as they are for a material without).
     virtual void state_of(const T* record, T& J, Mat3<T>& F, Mat3<T>& sigma, T& logJp, const Mat3<T>& C) const = 0;
+    /// psi(state) [J/m^3] of one gathered record.
+    virtual double energy_density_of(const T* record) const = 0;
   };
 
   template <typename M>
@@ -288,6 +295,7 @@ class MgspBenchmark {
       p.volume = this->volume;
       p.initial_velocity = Vec3<T>{{static_cast<T>(this->spec.velocity[0]), static_cast<T>(this->spec.velocity[1]),
                                     static_cast<T>(this->spec.velocity[2])}};
+      p.initial_v = initial && this->initial_v.size() ? this->initial_v.get() : nullptr;
       p.dt = dt;
       p.dx = e.k_.dx;
       p.inv_dx = e.k_.inv_dx;
@@ -364,6 +372,11 @@ class MgspBenchmark {
       if constexpr (M::kOutputs.deformation_gradient) F = s.F;
       if constexpr (M::kOutputs.log_jp) logJp = s.logJp;
       sigma = cauchy_stress(M::kirchhoff_stress(params, s, C));
+    }
+    double energy_density_of(const T* r) const override {
+      material_state_t<M, T> s;
+      std::memcpy(&s, r + 3, sizeof(s));
+      return static_cast<double>(M::energy_density(params, s));
     }
   };
 
@@ -512,6 +525,22 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
     max_speed = std::max(max_speed, std::sqrt(spec.velocity[0] * spec.velocity[0] +
                                               spec.velocity[1] * spec.velocity[1] +
                                               spec.velocity[2] * spec.velocity[2]));
+    if (b < options.initial_velocities.size() && !options.initial_velocities[b].empty()) {
+      const std::vector<Vec3d>& v = options.initial_velocities[b];
+      if (v.size() != positions[b].size())
+        throw std::invalid_argument("GpuEngine: " + std::to_string(v.size()) + " initial velocities for the " +
+                                    std::to_string(positions[b].size()) + " particles of body " + std::to_string(b));
+      std::vector<T> flat(3 * v.size());
+      body.initial_v_host.resize(v.size());
+      for (std::size_t p = 0; p < v.size(); ++p) {
+        body.initial_v_host[p] = v[p].template cast<T>();
+        for (int a = 0; a < 3; ++a) flat[3 * p + a] = static_cast<T>(v[p][a]);
+        max_speed = std::max(max_speed, std::sqrt(dot(v[p], v[p])));
+      }
+      body.initial_v.allocate(std::max<std::size_t>(flat.size(), 1));
+      if (!flat.empty())
+        FBAR_CUDA_CHECK(cudaMemcpy(body.initial_v.get(), flat.data(), sizeof(T) * flat.size(), cudaMemcpyHostToDevice));
+    }
   }
   max_grid_speed_ = max_speed;
   initialize(positions);
@@ -650,6 +679,10 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>& pos
   for (auto& b : bodies_)
     FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(1).count, 0, sizeof(int) * block_capacity_, stream_));
   for (auto& b : bodies_) b->g2p2g(*this, true, T(0));
+  for (auto& b : bodies_) {  // read by the initial P2G only (cudaFree waits for it)
+    mgsp_detail::DeviceArray<T> done;
+    b->initial_v.swap(done);
+  }
   partition_after_g2p2g();
   read_stats();
   while (handle_overflow()) {
@@ -1070,6 +1103,7 @@ ParticleSnapshot<T> MgspBenchmark<T, TG>::snapshot(int body) const {
   snap.v.resize(n);
   snap.C.resize(n);
   snap.J.resize(n);
+  snap.sigma.resize(n);
   if (b.stores_F()) snap.F.resize(n);
   if (b.stores_logJp()) snap.logJp.resize(n);
   const bool initial = steps_ == 0 && !aux_valid_;  // before the first step: v = initial velocity, C = 0 exactly
@@ -1078,12 +1112,13 @@ ParticleSnapshot<T> MgspBenchmark<T, TG>::snapshot(int body) const {
   for (std::size_t p = 0; p < n; ++p) {
     const T* q = r.data() + p * W;
     snap.x[p] = Vec3<T>{{q[0], q[1], q[2]}};
-    snap.v[p] = initial ? v0 : Vec3<T>{{q[S], q[S + 1], q[S + 2]}};
+    snap.v[p] = !initial ? Vec3<T>{{q[S], q[S + 1], q[S + 2]}} : b.initial_v_host.empty() ? v0 : b.initial_v_host[p];
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j) snap.C[p](i, j) = q[S + 3 + 3 * i + j];
     Mat3<T> F = Mat3<T>::identity(), sigma;
     T logJp = T(0);
     b.state_of(q, snap.J[p], F, sigma, logJp, snap.C[p]);
+    snap.sigma[p] = sigma;
     if (b.stores_F()) snap.F[p] = F;
     if (b.stores_logJp()) snap.logJp[p] = logJp;
   }
@@ -1155,6 +1190,7 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
   const bool initial = steps_ == 0 && !aux_valid_;  // before the first step: v = initial velocity, C = 0 exactly
   const Vec3<T> v0{{static_cast<T>(b.spec.velocity[0]), static_cast<T>(b.spec.velocity[1]),
                     static_cast<T>(b.spec.velocity[2])}};
+  const std::vector<Vec3<T>> v_init = b.initial_v_host;
   writer.submit_job([=]() mutable {
     FBAR_CUDA_CHECK(cudaEventSynchronize(copied));
     cudaEventDestroy(copied);
@@ -1166,7 +1202,7 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
     for (std::size_t p = 0; p < count; ++p) {
       const T* q = r + p * W;
       x[p] = Vec3<T>{{q[0], q[1], q[2]}};
-      v[p] = initial ? v0 : Vec3<T>{{q[S], q[S + 1], q[S + 2]}};
+      v[p] = !initial ? Vec3<T>{{q[S], q[S + 1], q[S + 2]}} : v_init.empty() ? v0 : v_init[p];
       Mat3<T> C;
       for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) C(i, j) = q[S + 3 + 3 * i + j];
@@ -1197,6 +1233,19 @@ double MgspBenchmark<T, TG>::total_mass() const {
   double m = 0.0;
   for (const auto& b : bodies_) m += static_cast<double>(b->particles) * static_cast<double>(b->mass);
   return m;
+}
+
+template <typename T, typename TG>
+double MgspBenchmark<T, TG>::elastic_energy() const {
+  double e = 0.0;
+  for (int body = 0; body < body_count(); ++body) {
+    const BodyBase& b = body_at(body);
+    const std::vector<T> r = gather_host(body, stream_);
+    const int W = b.stored_scalars() + kAuxScalars;
+    for (std::size_t p = 0; p < static_cast<std::size_t>(b.particles); ++p)
+      e += static_cast<double>(b.volume) * b.energy_density_of(r.data() + p * W);
+  }
+  return e;
 }
 
 template <typename T, typename TG>

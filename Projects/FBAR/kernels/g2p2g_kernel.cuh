@@ -98,6 +98,7 @@ struct G2P2GParams {
   T mass;                    ///< [kg] per particle
   T volume;                  ///< [m^3] reference volume per particle
   Vec3<T> initial_velocity;  ///< [m/s] (kInitial)
+  const T* initial_v;        ///< (particle ID, 3) per-particle initial velocities [m/s] (kInitial), or nullptr
   T dt;                      ///< [s] this step
   T dx, inv_dx, d_inv;       ///< [m], [1/m], [1/m^2]
   Vec3<T> domain;            ///< [m]
@@ -331,7 +332,9 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
       Mat3<T> C;
       State state_new;
       if constexpr (kInitial) {
-        v = p.initial_velocity;
+        // The initial pass reads the flat upload: storage slot = particle ID.
+        v = p.initial_v ? Vec3<T>{{p.initial_v[3 * src], p.initial_v[3 * src + 1], p.initial_v[3 * src + 2]}}
+                        : p.initial_velocity;
         C = Mat3<T>::zero();
         x_new = in.x;
         state_new = in.state;
