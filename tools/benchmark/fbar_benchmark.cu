@@ -8,9 +8,10 @@
 // bandwidth_fraction, device_bytes_per_particle, commit.
 //   fbar_benchmark [--sizes=1,4,16,64] [--precisions=single,double,mixed]
 //                  [--scenes=dam_break,falling_block,neo_block,sand_block,clay_block,hencky_block,fbar_block,
-//                            fbar_dam_break,asflip_dam_break,asflip_block]
+//                            fbar_dam_break,asflip_dam_break,asflip_block,picflip_dam_break,flip_dam_break]
 // fbar_block and fbar_dam_break: falling_block and dam_break with F-bar (FBAR_psi 1); asflip_dam_break and
-// asflip_block with ASFLIP (alpha 0.9, beta 0 / 0.2): the cost of each scheme.
+// asflip_block with ASFLIP (alpha 0.9, beta 0 / 0.2); picflip_dam_break (alpha 0.95) and flip_dam_break (alpha 1):
+// the cost of each scheme.
 //                  [--steps=100] [--warmup=20] [--csv=benchmark.csv]
 #include <cuda_runtime.h>
 
@@ -96,7 +97,8 @@ Scene make_scene(const std::string& name, double millions, Precision precision) 
   body.material.ppc = 8;
   body.material.cfl = 0.5;
   body.material.rho = 1000;
-  if (name == "dam_break" || name == "fbar_dam_break" || name == "asflip_dam_break") {
+  if (name == "dam_break" || name == "fbar_dam_break" || name == "asflip_dam_break" || name == "picflip_dam_break" ||
+      name == "flip_dam_break") {
     body.material.law = Constitutive::JFluid;
     body.material.bulk_modulus = 2e6;
     body.material.gamma = 7.1;
@@ -118,11 +120,13 @@ Scene make_scene(const std::string& name, double millions, Precision precision) 
     box.offset = {(k + 4) * dx, (k / 2 + 4) * dx, (k / 4 + 4) * dx};
     body.velocity = {0.0, -1.0, 0.0};
   }
-  body.algorithm.use_asflip = name == "asflip_dam_break" || name == "asflip_block";
-  if (body.algorithm.use_asflip) {
-    body.algorithm.asflip_alpha = 0.9;
+  body.algorithm.use_asflip = name == "asflip_dam_break" || name == "asflip_block" || name == "picflip_dam_break" ||
+                              name == "flip_dam_break";
+  if (body.algorithm.use_asflip) {  // ASFLIP (alpha 0.9, beta 0 / 0.2), PIC-FLIP blend 0.95, FLIP
+    const bool blend = name == "picflip_dam_break" || name == "flip_dam_break";
+    body.algorithm.asflip_alpha = name == "flip_dam_break" ? 1.0 : blend ? 0.95 : 0.9;
     body.algorithm.asflip_beta_min = 0.0;
-    body.algorithm.asflip_beta_max = 0.2;
+    body.algorithm.asflip_beta_max = blend ? 0.0 : 0.2;
   }
   body.algorithm.use_fbar = body.algorithm.fbar_psi != 0.0;
   body.geometry.push_back(box);
