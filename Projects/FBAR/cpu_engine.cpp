@@ -214,11 +214,11 @@ void CpuEngine<T, TG>::init(const std::vector<std::vector<Vec3d>>& positions) {
     }
     body.v.assign(n, v0);
     body.C.assign(n, Mat3T::zero());
-    body.asflip = alg.use_asflip && (alg.asflip_alpha != 0.0 || alg.asflip_beta_min != 0.0 || alg.asflip_beta_max != 0.0);
+    body.asflip = alg.asflip_active();
     body.asflip_params = AsflipParams<T>{static_cast<T>(alg.asflip_alpha), static_cast<T>(alg.asflip_beta_min),
                                          static_cast<T>(alg.asflip_beta_max)};
     asflip_ = asflip_ || body.asflip;
-    body.fbar_psi = alg.use_fbar ? static_cast<T>(alg.fbar_psi) : T(0);
+    body.fbar_psi = static_cast<T>(alg.fbar_blend());
     fbar_ = fbar_ || body.fbar_psi != T(0);
     body.mass.assign(n, static_cast<T>(mat.rho * volume));
     body.volume.assign(n, static_cast<T>(volume));
@@ -284,6 +284,9 @@ void CpuEngine<T, TG>::build_partition() {
     }
     for (auto& list : part.colour_blocks) list.clear();
     for (int b = 0; b < nb; ++b) part.colour_blocks[colour_of(part.block_coords[b])].push_back(b);
+    part.largest_colour = 0;
+    for (const auto& list : part.colour_blocks)
+      part.largest_colour = std::max(part.largest_colour, static_cast<int>(list.size()));
 
     // Grid blocks: each particle block's 2x2x2 footprint.
     part.grid_blocks.resize(nb);
@@ -317,10 +320,7 @@ void CpuEngine<T, TG>::p2g(Body& body, T dt) {
         using M = typename std::decay_t<decltype(mb)>::material_type;
         const auto params = mb.params;
         const auto& state = mb.state;
-        int largest_colour = 0;
-        for (const auto& list : part.colour_blocks)
-          largest_colour = std::max(largest_colour, static_cast<int>(list.size()));
-#pragma omp parallel if (largest_colour >= kMinParallelBlocks)
+#pragma omp parallel if (part.largest_colour >= kMinParallelBlocks)
         {
           // (channel, node) private arena of one particle block: mass, momentum x, y, z; summed in the grid scalar
           // type (float in mixed precision, like the GPU engine's arena and grid).
@@ -455,10 +455,7 @@ void CpuEngine<T, TG>::fbar_divergence(Body& body) {
       [&](auto& mb) {
         using M = typename std::decay_t<decltype(mb)>::material_type;
         const auto& state = mb.state;
-        int largest_colour = 0;
-        for (const auto& list : part.colour_blocks)
-          largest_colour = std::max(largest_colour, static_cast<int>(list.size()));
-#pragma omp parallel if (largest_colour >= kMinParallelBlocks)
+#pragma omp parallel if (part.largest_colour >= kMinParallelBlocks)
         {
           T arena_v[3][kArenaNodes];     // (component, node) grid velocities around one particle block
           T arena_sum[2][kArenaNodes];   // (sum, cell) the block's deposits: V tr C, V (cell i at node i)

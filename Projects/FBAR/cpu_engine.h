@@ -211,6 +211,7 @@ class CpuEngine {
     std::vector<int> order;                         // particle indices sorted by block (stable)
     std::vector<std::array<int, 8>> grid_blocks;    // (particle block, 2x2x2 neighbour) grid block index
     std::array<std::vector<int>, 8> colour_blocks;  // particle blocks of each parity colour
+    int largest_colour = 0;                         // blocks in the largest colour (whether to go parallel)
     std::vector<int> particle_block;                // (particle) its particle block (scratch)
     std::vector<std::uint64_t> particle_key;        // (particle) packed block coordinates (scratch)
   };

@@ -21,6 +21,7 @@
 #include "cpu_engine.h"
 #include "geometry.h"
 #include "scene_error.h"
+#include "scene_parse.h"
 #include "settings.h"
 #include "time_step.cuh"
 
@@ -72,18 +73,6 @@ std::string format_duration(double seconds) {
   return buf;
 }
 
-const char* precision_name(Precision p) {
-  switch (p) {
-    case Precision::Single:
-      return "single";
-    case Precision::Double:
-      return "double";
-    case Precision::Mixed:
-      return "mixed";
-  }
-  return "?";
-}
-
 template <typename T, typename TG>
 RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& log) {
   RunResult result;
@@ -116,10 +105,8 @@ RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& 
   const double t0 = engine.time();
   const double t_end = t0 + sim.frames / sim.fps;
   if (!options.quiet)
-    log << "fbar: CPU reference engine (" << precision_name(sim.precision)
-        << (std::is_same_v<T, TG> ? "" : ": particles double, grid single") << "), " << engine.particle_count()
-        << " particles, "
-        << engine.body_count() << " bodies, " << omp_get_max_threads() << " threads\n";
+    log << "fbar: CPU reference engine (" << precision_description(sim.precision) << "), " << engine.particle_count()
+        << " particles, " << engine.body_count() << " bodies, " << omp_get_max_threads() << " threads\n";
   write_frame(0);
 
   const auto wall_start = std::chrono::steady_clock::now();
@@ -227,9 +214,9 @@ SceneSummary summarize_scene(const Scene& scene) {
                                 particle_scalar_bytes(sim.precision);
     gpu_particles[body.gpu] += x.size();
     const AlgorithmSpec& a = body.algorithm;
-    const bool body_asflip = a.use_asflip && (a.asflip_alpha != 0.0 || a.asflip_beta_min != 0.0 || a.asflip_beta_max != 0.0);
+    const bool body_asflip = a.asflip_active();
     asflip = asflip || body_asflip;
-    fbar = fbar || (a.use_fbar && a.fbar_psi != 0.0);
+    fbar = fbar || a.fbar_blend() != 0.0;
     // ASFLIP: the GPU keeps particle velocities (3 scalars) beside both particle buffers.
     if (body_asflip)
       gpu_bins_bytes[body.gpu] += 2 * bins * settings::kBinSize * 3 * particle_scalar_bytes(sim.precision);

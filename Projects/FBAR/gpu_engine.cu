@@ -13,6 +13,7 @@
 #include "geometry.h"
 #include "mgsp_benchmark.cuh"
 #include "scene_error.h"
+#include "scene_parse.h"
 
 namespace fbar {
 namespace {
@@ -22,13 +23,6 @@ std::vector<std::vector<Vec3d>> sample_all(const Scene& scene) {
   for (std::size_t b = 0; b < scene.bodies.size(); ++b)
     positions.push_back(sample_body(scene.bodies[b], scene.simulation, static_cast<int>(b)));
   return positions;
-}
-
-template <typename T, typename TG>
-const char* precision_label() {
-  if constexpr (!std::is_same_v<T, TG>) return "mixed: particles double, grid single";
-  else if constexpr (std::is_same_v<T, double>) return "double";
-  else return "single";
 }
 
 }  // namespace
@@ -94,6 +88,10 @@ void GpuEngine<T, TG>::submit_frame(int body, const std::filesystem::path& path,
   impl_->submit_frame(body, path, writer);
 }
 template <typename T, typename TG>
+double GpuEngine<T, TG>::particle_mass(int body) const { return impl_->particle_mass(body); }
+template <typename T, typename TG>
+double GpuEngine<T, TG>::particle_volume(int body) const { return impl_->particle_volume(body); }
+template <typename T, typename TG>
 double GpuEngine<T, TG>::total_mass() const { return impl_->total_mass(); }
 template <typename T, typename TG>
 double GpuEngine<T, TG>::elastic_energy() const { return impl_->elastic_energy(); }
@@ -138,7 +136,7 @@ RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& 
     }
   const double t0 = engine.time();
   if (!options.quiet)
-    log << "fbar: GPU engine (" << precision_label<T, TG>() << "), "
+    log << "fbar: GPU engine (" << precision_description(sim.precision) << "), "
         << engine.particle_count() << " particles, " << engine.body_count() << " bodies, "
         << engine.device_bytes() / (1024.0 * 1024.0) << " MiB on the device\n";
   write_frame(0);

@@ -99,6 +99,8 @@ class GpuEngine {
   /// built and written by the writer thread (the step loop never waits for it).
   void submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer);
 
+  double particle_mass(int body) const;    ///< [kg] every particle of the body (rho dx^3 / ppc, as CpuEngine)
+  double particle_volume(int body) const;  ///< [m^3] reference volume V0 of every particle of the body
   double total_mass() const;             ///< [kg] particles x per-body mass
   double elastic_energy() const;         ///< [J] sum V0 psi(state), in double on the host (as CpuEngine)
   double grid_mass() const;              ///< [kg] sum of node masses of the current grid (P2G of this state)

@@ -183,6 +183,8 @@ class MgspBenchmark {
   ParticleSnapshot<T> snapshot(int body) const;
   io::ParticleFrame frame(int body) const;
   void submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer);
+  double particle_mass(int body) const { return static_cast<double>(body_at(body).mass); }
+  double particle_volume(int body) const { return static_cast<double>(body_at(body).volume); }
   double total_mass() const;
   double elastic_energy() const;
   double grid_mass() const;
@@ -516,11 +518,11 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
     const double volume = sim.dx * sim.dx * sim.dx / mat.ppc;
     body.volume = static_cast<T>(volume);
     body.mass = static_cast<T>(mat.rho * volume);
-    body.asflip = alg.use_asflip && (alg.asflip_alpha != 0.0 || alg.asflip_beta_min != 0.0 || alg.asflip_beta_max != 0.0);
+    body.asflip = alg.asflip_active();
     body.asflip_params = AsflipParams<T>{static_cast<T>(alg.asflip_alpha), static_cast<T>(alg.asflip_beta_min),
                                          static_cast<T>(alg.asflip_beta_max)};
     asflip_ = asflip_ || body.asflip;
-    body.fbar_psi = alg.use_fbar ? static_cast<T>(alg.fbar_psi) : T(0);
+    body.fbar_psi = static_cast<T>(alg.fbar_blend());
     fbar_ = fbar_ || body.fbar_psi != T(0);
     max_speed = std::max(max_speed, std::sqrt(spec.velocity[0] * spec.velocity[0] +
                                               spec.velocity[1] * spec.velocity[1] +
@@ -1143,19 +1145,7 @@ io::ParticleFrame MgspBenchmark<T, TG>::frame(int body) const {
     if (!b.stores_logJp()) throw std::invalid_argument("logJp: the body's material stores no plastic state");
     return s.logJp;
   };
-  src.sigma = [&] {
-    // Cauchy stress from the gathered records (state and the recorded C), with the material's own functions.
-    const std::size_t n = s.x.size();
-    std::vector<Mat3<T>> sigma(n);
-    const std::vector<T> r = gather_host(body, stream_);
-    const int W = b.stored_scalars() + kAuxScalars;
-    for (std::size_t p = 0; p < n; ++p) {
-      T J, logJp;
-      Mat3<T> F;
-      b.state_of(r.data() + p * W, J, F, sigma[p], logJp, s.C[p]);
-    }
-    return sigma;
-  };
+  src.sigma = [&] { return s.sigma; };  // from the state and the recorded C (snapshot)
   return build_frame(b.spec, body, src, "GPU engine");
 }
 

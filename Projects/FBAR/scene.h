@@ -76,6 +76,14 @@ struct AlgorithmSpec {
   double fbar_psi = 0.0;
   bool fbar_fused_kernel = false;
   bool use_fem = false;
+
+  /// The transfer is PIC-FLIP / ASFLIP (transfer.cuh): use_ASFLIP with some alpha or beta non-zero. All zero is
+  /// APIC, and then neither engine stores particle velocities or v^n.
+  bool asflip_active() const {
+    return use_asflip && (asflip_alpha != 0.0 || asflip_beta_min != 0.0 || asflip_beta_max != 0.0);
+  }
+  /// F-bar's blend psi when use_FBAR is on, else 0 (0: off, no cell sums).
+  double fbar_blend() const { return use_fbar ? fbar_psi : 0.0; }
 };
 
 enum class GeometryObject { Box, Sphere, Cylinder, File };

@@ -62,6 +62,8 @@ std::size_t levenshtein_distance(std::string_view a, std::string_view b);
 
 // Canonical names (the spelling write_scene_json uses and --check prints).
 const char* to_string(Precision p);
+/// The precision as run logs state it: "single", "double", or "mixed: particles double, grid single".
+const char* precision_description(Precision p);
 const char* to_string(OnFailure f);
 const char* to_string(Backend b);
 const char* to_string(Constitutive c);

@@ -61,8 +61,8 @@ std::string material_line(const MaterialSpec& m) {
 }
 
 std::string algorithm_line(const AlgorithmSpec& a) {
-  const bool asflip = a.use_asflip && (a.asflip_alpha != 0.0 || a.asflip_beta_min != 0.0 || a.asflip_beta_max != 0.0);
-  const bool fbar = a.use_fbar && a.fbar_psi != 0.0;
+  const bool asflip = a.asflip_active();
+  const bool fbar = a.fbar_blend() != 0.0;
   // The scheme that runs (transfer.cuh): beta > 0 is ASFLIP, alpha = 1 without beta FLIP, 0 < alpha < 1 the blend.
   const bool beta = a.asflip_beta_min != 0.0 || a.asflip_beta_max != 0.0;
   std::string s = !asflip ? "APIC" : beta ? "ASFLIP" : a.asflip_alpha == 1.0 ? "FLIP" : "PIC-FLIP";

@@ -29,6 +29,9 @@ const char* to_string(Precision p) {
   }
   return "?";
 }
+const char* precision_description(Precision p) {
+  return p == Precision::Mixed ? "mixed: particles double, grid single" : to_string(p);
+}
 const char* to_string(OnFailure f) { return f == OnFailure::Stop ? "stop" : "reduce_dt"; }
 const char* to_string(Backend b) {
   switch (b) {

@@ -1,7 +1,7 @@
 // CpuEngine's query interface over the GPU engine, so that the validation cases of tests/validation (*_case.h,
 // templated on the engine) run unchanged on the GPU: every query reads one snapshot of the body (cached until the
-// next step), velocities are recorded every step, masses and volumes are the per-body constants the CPU engine
-// stores per particle. Per-particle initial velocities (set_velocities) are handed to the GPU engine's constructor,
+// next step), velocities are recorded every step, masses and volumes are the engine's per-body constants, which the
+// CPU engine stores per particle. Per-particle initial velocities (set_velocities) are handed to the GPU engine's constructor,
 // which therefore runs at the first query after them.
 #pragma once
 
@@ -21,15 +21,8 @@ namespace fbar::test {
 template <typename T>
 class GpuValidationEngine {
  public:
-  explicit GpuValidationEngine(const Scene& scene) : scene_(scene), positions_(sample_scene(scene)) {
-    cache_.resize(scene.bodies.size());
-    for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
-      const double volume = scene.simulation.dx * scene.simulation.dx * scene.simulation.dx /
-                            scene.bodies[b].material.ppc;
-      mass_.push_back(static_cast<T>(scene.bodies[b].material.rho * volume));
-      volume_.push_back(static_cast<T>(volume));
-    }
-  }
+  explicit GpuValidationEngine(const Scene& scene)
+      : scene_(scene), positions_(sample_scene(scene)), cache_(scene.bodies.size()) {}
 
   /// As CpuEngine::set_velocities, before the first step or query only.
   void set_velocities(int body, const std::function<Vec3d(const Vec3d&)>& velocity_of_position) {
@@ -55,8 +48,10 @@ class GpuValidationEngine {
   std::size_t particle_count(int body) { return engine().particle_count(body); }
   const std::vector<Vec3<T>>& positions(int body) { return snapshot(body).x; }
   const std::vector<Vec3<T>>& velocities(int body) { return snapshot(body).v; }
-  std::vector<T> masses(int body) { return std::vector<T>(particle_count(body), mass_[body]); }
-  std::vector<T> volumes(int body) { return std::vector<T>(particle_count(body), volume_[body]); }
+  std::vector<T> masses(int body) { return std::vector<T>(particle_count(body), mass(body)); }
+  std::vector<T> volumes(int body) {
+    return std::vector<T>(particle_count(body), static_cast<T>(engine().particle_volume(body)));
+  }
   std::vector<T> volume_ratios(int body) { return snapshot(body).J; }
   std::vector<Mat3<T>> deformation_gradients(int body) { return snapshot(body).F; }
   std::vector<T> plastic_log_volumes(int body) { return snapshot(body).logJp; }
@@ -68,22 +63,17 @@ class GpuValidationEngine {
     return p;
   }
 
-  double total_mass() {
-    double m = 0.0;
-    for (int b = 0; b < engine().body_count(); ++b)
-      m += static_cast<double>(mass_[b]) * static_cast<double>(particle_count(b));
-    return m;
-  }
+  double total_mass() { return engine().total_mass(); }
   Vec3d total_momentum() {
     Vec3d sum = Vec3d::zero();
     for (int b = 0; b < engine().body_count(); ++b)
-      for (const Vec3<T>& v : velocities(b)) sum += v.template cast<double>() * static_cast<double>(mass_[b]);
+      for (const Vec3<T>& v : velocities(b)) sum += v.template cast<double>() * static_cast<double>(mass(b));
     return sum;
   }
   double kinetic_energy() {
     double e = 0.0;
     for (int b = 0; b < engine().body_count(); ++b)
-      for (const Vec3<T>& v : velocities(b)) e += 0.5 * static_cast<double>(mass_[b]) * static_cast<double>(dot(v, v));
+      for (const Vec3<T>& v : velocities(b)) e += 0.5 * static_cast<double>(mass(b)) * static_cast<double>(dot(v, v));
     return e;
   }
   double elastic_energy() { return engine().elastic_energy(); }
@@ -96,6 +86,7 @@ class GpuValidationEngine {
     }
     return *engine_;
   }
+  T mass(int body) { return static_cast<T>(engine().particle_mass(body)); }
   StepReport changed(StepReport r) {
     for (auto& c : cache_) c.reset();
     return r;
@@ -108,7 +99,6 @@ class GpuValidationEngine {
   Scene scene_;
   std::vector<std::vector<Vec3d>> positions_;
   GpuEngineOptions options_;
-  std::vector<T> mass_, volume_;
   std::unique_ptr<GpuEngine<T>> engine_;
   std::vector<std::optional<ParticleSnapshot<T>>> cache_;
 };

@@ -17,6 +17,7 @@
 // Shared by the CPU validation test and the GPU engine's (tests/gpu_engine/test_validation_gpu.cu): the run is
 // templated on the engine (CpuEngine, or test::GpuValidationEngine with the same queries).
 #pragma once
+
 #include <gtest/gtest.h>
 
 #include <algorithm>

@@ -14,8 +14,6 @@ namespace {
 
 using namespace locking_case;
 
-using validation::r3;
-
 // Locking and its cure at 8 cells per height. Measured (2026-11-23): without F-bar, pressure RMS error 1.33 rho g H
 // and checkerboard 1.30 rho g H (particle pressures alternate in sign row to row); with F-bar 0.050 and 0.0003,
 // settlement 1.043 of the exact value. Tolerances: the checkerboard of a cell-averaged volume rate is zero up to the

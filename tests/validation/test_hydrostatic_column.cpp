@@ -14,8 +14,6 @@ namespace {
 
 using namespace hydrostatic_case;
 
-using validation::r3;
-
 // Equilibrium start, bed on the zero-velocity plane: the engine's discrete equilibrium is the exact hydrostatic field.
 // Why it must be exact: every free node's support is complete (validation_support.h), and the MLS node force of a
 // particle pressure field p(y) is sum_p V p_p D^-1 (x_i - x_p) w_ip; on the 2-per-cell lattice the B-spline moments

@@ -14,8 +14,6 @@ namespace {
 
 using namespace element_case;
 
-using validation::r3;
-
 TEST(MaterialPointElement, NaccInteriorFollowsItsSingleParticleReference) {
   const ElementResult r = run_element<NACC>(Constitutive::NACC, 4e-3);
   ASSERT_GE(r.interior, 8);

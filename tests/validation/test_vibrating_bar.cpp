@@ -14,9 +14,6 @@ namespace {
 
 using namespace bar_case;
 
-using validation::kPi;
-using validation::r3;
-
 // L/dx = 50 (dx = 0.5 m, 400 particles, ~1050 steps over 2.6 periods), the bar's end on the last wall node plane of
 // the sticky wall (validation_support.h: the engine's convention).
 // Period: within 2 % of T1 = 10 s. Error budget: the clamp. The grid velocity vanishes identically up to half a cell

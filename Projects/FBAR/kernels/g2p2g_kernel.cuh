@@ -169,6 +169,45 @@ struct FixedArena<double> {
 
 /// Shared-memory index of arena node (a, b, c) (x-planes padded, see kArenaPlane).
 FBAR_DEVICE FBAR_FORCE_INLINE int arena_index(int a, int b, int c) { return a * kArenaPlane + b * kArenaSide + c; }
+/// Which of the arena's 2x2x2 grid blocks holds arena node (a, b, c) (neighbour = (di * 2 + dj) * 2 + dk), and the
+/// node's index inside that block.
+FBAR_DEVICE FBAR_FORCE_INLINE int arena_neighbour(int a, int b, int c) {
+  return ((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2);
+}
+FBAR_DEVICE FBAR_FORCE_INLINE int arena_node_in_block(int a, int b, int c) {
+  return ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
+}
+
+/// Threads 0..7 of the CUDA block: the hash-table index of each of the arena's 2x2x2 grid blocks (-1 and an internal
+/// error when one is missing). The caller synchronises.
+FBAR_DEVICE FBAR_FORCE_INLINE void find_arena_blocks(const BlockHashTableView& table, const Vec3i& origin,
+                                                     int* arena_blocks, StepStats* stats) {
+  if (threadIdx.x < 8) {
+    const int di = threadIdx.x >> 2, dj = (threadIdx.x >> 1) & 1, dk = threadIdx.x & 1;
+    const int found = table.find(BlockKey::pack(origin[0] + di, origin[1] + dj, origin[2] + dk));
+    arena_blocks[threadIdx.x] = found;
+    if (found < 0) atomicAdd(&stats->internal_error, 1);
+  }
+}
+
+/// The grid velocities of the arena's 8x8x8 nodes into shared memory (zero in a missing block). The caller
+/// synchronises before and after.
+template <typename TG>
+FBAR_DEVICE FBAR_FORCE_INLINE void load_arena_velocities(const typename GridLayout<TG>::VelocityBuffer& velocity,
+                                                         const int* arena_blocks, ArenaVelocity<TG>* arena_v) {
+  for (int i = threadIdx.x; i < kArenaNodes; i += blockDim.x) {
+    const int a = i >> 6, b = (i >> 3) & 7, c = i & 7;
+    const int nb = arena_blocks[arena_neighbour(a, b, c)];
+    const int node = arena_node_in_block(a, b, c);
+    TG vx = TG(0), vy = TG(0), vz = TG(0);
+    if (nb >= 0) {
+      vx = block_val(velocity, grid_velocity_x, nb, node);
+      vy = block_val(velocity, grid_velocity_y, nb, node);
+      vz = block_val(velocity, grid_velocity_z, nb, node);
+    }
+    arena_v[arena_index(a, b, c)] = ArenaVelocity<TG>{vx, vy, vz, TG(0)};
+  }
+}
 
 /// Zeroes block `index` of a grid buffer (one thread, a new block: rare).
 template <typename T>
@@ -278,27 +317,11 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
   if (count == 0) return;  // uniform per CUDA block: a stale or footprint-only block
   const Vec3i origin = p.table.block_coords(block);
   if (threadIdx.x == 0) block_over = 0;
-  if (threadIdx.x < 8) {
-    const int di = threadIdx.x >> 2, dj = (threadIdx.x >> 1) & 1, dk = threadIdx.x & 1;
-    const int found = p.table.find(BlockKey::pack(origin[0] + di, origin[1] + dj, origin[2] + dk));
-    arena_blocks[threadIdx.x] = found;
-    if (found < 0) atomicAdd(&p.stats->internal_error, 1);
-  }
+  g2p2g_detail::find_arena_blocks(p.table, origin, arena_blocks, p.stats);
   for (int i = threadIdx.x; i < channels * kArenaStorage; i += blockDim.x) arena_p[i] = TG(0);
   __syncthreads();
   if constexpr (!kInitial) {
-    for (int i = threadIdx.x; i < kArenaNodes; i += blockDim.x) {
-      const int a = i >> 6, b = (i >> 3) & 7, c = i & 7;
-      const int nb = arena_blocks[((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2)];
-      const int node = ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
-      TG vx = TG(0), vy = TG(0), vz = TG(0);
-      if (nb >= 0) {
-        vx = block_val(p.velocity, grid_velocity_x, nb, node);
-        vy = block_val(p.velocity, grid_velocity_y, nb, node);
-        vz = block_val(p.velocity, grid_velocity_z, nb, node);
-      }
-      arena_v[g2p2g_detail::arena_index(a, b, c)] = g2p2g_detail::ArenaVelocity<TG>{vx, vy, vz, TG(0)};
-    }
+    g2p2g_detail::load_arena_velocities<TG>(p.velocity, arena_blocks, arena_v);
     __syncthreads();
   }
 
@@ -357,8 +380,8 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
         if (p.fbar_psi != T(0)) {  // F-bar: the state advances with the cell's volume rate (transfer.cuh)
           const Vec3i cell = fbar_cell_offset(in.x, p.inv_dx, s.base);
           const int a = c0 + cell[0], b = c1 + cell[1], c = c2 + cell[2];
-          const int nb = arena_blocks[((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2)];
-          const int node = ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
+          const int nb = arena_blocks[g2p2g_detail::arena_neighbour(a, b, c)];
+          const int node = g2p2g_detail::arena_node_in_block(a, b, c);
           const T d = nb < 0 ? T(0)
                              : fbar_cell_divergence(static_cast<T>(block_val(p.fbar_sums, grid_fbar_volume_rate, nb, node)),
                                                     static_cast<T>(block_val(p.fbar_sums, grid_fbar_volume, nb, node)));
@@ -370,9 +393,9 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
           G2POldSum<T> old;
           g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, [&](int i, int j, int k, T w, const Vec3<T>&) {
             const int a = c0 + i, b = c1 + j, c = c2 + k;
-            const int nb = arena_blocks[((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2)];
+            const int nb = arena_blocks[g2p2g_detail::arena_neighbour(a, b, c)];
             if (nb < 0) return;
-            const int node = ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
+            const int node = g2p2g_detail::arena_node_in_block(a, b, c);
             old.add(w, Vec3<T>{{static_cast<T>(block_val(p.old_velocity, grid_velocity_x, nb, node)),
                                 static_cast<T>(block_val(p.old_velocity, grid_velocity_y, nb, node)),
                                 static_cast<T>(block_val(p.old_velocity, grid_velocity_z, nb, node))}});
@@ -529,9 +552,9 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
     if constexpr (kFixed) mass_units = fixed.units(0, ai);
     else mass_units = arena_p[ai];
     if (mass_units == TG(0)) continue;  // no particle's stencil covers this node
-    const int nb = arena_blocks[((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2)];
+    const int nb = arena_blocks[g2p2g_detail::arena_neighbour(a, b, c)];
     if (nb < 0) continue;  // counted above as an internal error
-    const int node = ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
+    const int node = g2p2g_detail::arena_node_in_block(a, b, c);
     TG sum[7];
     if constexpr (kFixed) {
       sum[0] = static_cast<TG>(mass_units * q_mass);
@@ -575,25 +598,9 @@ __global__ void __launch_bounds__(kG2P2GThreads) fbar_divergence(FbarDivergenceP
   const int count = p.layout.count[block];
   if (count == 0) return;
   const Vec3i origin = p.table.block_coords(block);
-  if (threadIdx.x < 8) {
-    const int di = threadIdx.x >> 2, dj = (threadIdx.x >> 1) & 1, dk = threadIdx.x & 1;
-    const int found = p.table.find(BlockKey::pack(origin[0] + di, origin[1] + dj, origin[2] + dk));
-    arena_blocks[threadIdx.x] = found;
-    if (found < 0) atomicAdd(&p.stats->internal_error, 1);
-  }
+  g2p2g_detail::find_arena_blocks(p.table, origin, arena_blocks, p.stats);
   __syncthreads();
-  for (int i = threadIdx.x; i < kArenaNodes; i += blockDim.x) {
-    const int a = i >> 6, b = (i >> 3) & 7, c = i & 7;
-    const int nb = arena_blocks[((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2)];
-    const int node = ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
-    TG vx = TG(0), vy = TG(0), vz = TG(0);
-    if (nb >= 0) {
-      vx = block_val(p.velocity, grid_velocity_x, nb, node);
-      vy = block_val(p.velocity, grid_velocity_y, nb, node);
-      vz = block_val(p.velocity, grid_velocity_z, nb, node);
-    }
-    arena_v[g2p2g_detail::arena_index(a, b, c)] = g2p2g_detail::ArenaVelocity<TG>{vx, vy, vz, TG(0)};
-  }
+  g2p2g_detail::load_arena_velocities<TG>(p.velocity, arena_blocks, arena_v);
   __syncthreads();
   const int first_slot = p.layout.bin_offset[block] * 32;
   for (int t = threadIdx.x; t < ((count + 31) / 32) * 32; t += blockDim.x) {
@@ -612,9 +619,9 @@ __global__ void __launch_bounds__(kG2P2GThreads) fbar_divergence(FbarDivergenceP
     const T V = p.volume * M::volume_ratio(in.state);
     const Vec3i cell = fbar_cell_offset(in.x, p.inv_dx, s.base);
     const int a = c0 + cell[0], b = c1 + cell[1], c = c2 + cell[2];
-    const int nb = arena_blocks[((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2)];
+    const int nb = arena_blocks[g2p2g_detail::arena_neighbour(a, b, c)];
     if (nb < 0) continue;  // counted above
-    const int node = ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
+    const int node = g2p2g_detail::arena_node_in_block(a, b, c);
     atomicAdd(&block_val(p.sums, grid_fbar_volume_rate, nb, node), static_cast<TG>(V * (C(0, 0) + C(1, 1) + C(2, 2))));
     atomicAdd(&block_val(p.sums, grid_fbar_volume, nb, node), static_cast<TG>(V));
   }

@@ -33,6 +33,7 @@
 #include "MnBase/Math/vec.h"
 #include "MnBase/Meta/config.h"
 #include "materials/fixed_corotated.cuh"
+#include "materials/hencky.cuh"
 #include "materials/material_common.cuh"
 #include "materials/material_parameters.h"
 #include "scene.h"
@@ -183,33 +184,28 @@ struct DruckerPrager {
     return return_map(p, advance_deformation_gradient(s.F, C, dt), s.logJp);
   }
 
-  /// tau = U diag(2 mu eps + lambda tr eps) U^T [Pa] of the stored (returned) F; C unused.
+  /// The elasticity is the Hencky law's (materials/hencky.cuh) with the same mu and lambda.
+  template <typename T>
+  FBAR_HOST_DEVICE static constexpr Hencky::Params<T> elastic(const Params<T>& p) {
+    return Hencky::Params<T>{p.rho0, p.mu, p.lambda};
+  }
+
+  /// tau = U diag(2 mu eps + lambda tr eps) U^T [Pa] of the stored (returned, never inverted) F; C unused.
   template <typename T>
   FBAR_HOST_DEVICE static inline StressResult<T> kirchhoff_stress(const Params<T>& p, const State<T>& s,
-                                                                  const Mat3<T>& /*C*/) {
-    const HenckyPrincipal<T> h = hencky_principal(s.F);
-    const T tr = h.eps[0] + h.eps[1] + h.eps[2];
-    const Vec3<T> principal{{T(2) * p.mu * h.eps[0] + p.lambda * tr, T(2) * p.mu * h.eps[1] + p.lambda * tr,
-                             T(2) * p.mu * h.eps[2] + p.lambda * tr}};
-    Mat3<T> tau = u_diag_vt(h.d.U, principal, h.d.U);
-    tau.m[1][0] = tau.m[0][1];
-    tau.m[2][0] = tau.m[0][2];
-    tau.m[2][1] = tau.m[1][2];
-    return StressResult<T>{tau, h.d.sigma[0] * h.d.sigma[1] * h.d.sigma[2]};
+                                                                  const Mat3<T>& C) {
+    return Hencky::kirchhoff_stress(elastic(p), Hencky::State<T>{s.F}, C);
   }
 
   template <typename T>
   FBAR_HOST_DEVICE static inline T wave_speed(const Params<T>& p, const State<T>& /*s*/) {
-    using std::sqrt;
-    return sqrt((p.lambda + T(2) * p.mu) / p.rho0);
+    return Hencky::wave_speed(elastic(p), Hencky::State<T>{Mat3<T>::identity()});
   }
 
   /// psi = mu |eps|^2 + lambda/2 (tr eps)^2 of the elastic F [J/m^3].
   template <typename T>
   FBAR_HOST_DEVICE static inline T energy_density(const Params<T>& p, const State<T>& s) {
-    const HenckyPrincipal<T> h = hencky_principal(s.F);
-    const T tr = h.eps[0] + h.eps[1] + h.eps[2];
-    return p.mu * dot(h.eps, h.eps) + T(0.5) * p.lambda * tr * tr;
+    return Hencky::energy_density(elastic(p), Hencky::State<T>{s.F});
   }
 };
 
