@@ -18,6 +18,7 @@
 
 #include "MnSystem/Cuda/device_query.h"
 #include "engine_api.h"
+#include "memory_plan.h"
 #include "scene_parse.h"
 #include "scene_print.h"
 
@@ -221,7 +222,27 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
   if (o.output) scene.simulation.save_path = *o.output;
 
   if (o.check) {
-    const SceneSummary summary = summarize_scene(scene);
+    SceneSummary summary = summarize_scene(scene);
+    // With a device present: its free memory, and whether the plan fits (a run that does not fit is refused).
+    const int devices = cuda::device_count();
+    for (std::size_t g = 0; devices > 0 && g < summary.gpu_plans.size(); ++g) {
+      if (static_cast<int>(g) >= devices) {
+        summary.device_notes.push_back("GPU " + std::to_string(g) + ": not present on this machine (" +
+                                       std::to_string(devices) + " CUDA devices)");
+        continue;
+      }
+      std::size_t free_bytes = 0, total_bytes = 0;
+      if (cudaSetDevice(static_cast<int>(g)) == cudaSuccess) cuda::memory_info(free_bytes, total_bytes);
+      cudaDeviceProp prop{};
+      cudaGetDeviceProperties(&prop, static_cast<int>(g));
+      const std::string fit = memory_fit_message(summary.gpu_plans[g], free_bytes, total_bytes, scene,
+                                                 "GPU " + std::to_string(g));
+      summary.device_notes.push_back("GPU " + std::to_string(g) + " (" + prop.name + "): " +
+                                     format_bytes(static_cast<double>(free_bytes)) + " free of " +
+                                     format_bytes(static_cast<double>(total_bytes)) + "; " +
+                                     (fit.empty() ? std::string("the scene fits") : "DOES NOT FIT: " + fit));
+    }
+    if (devices == 0) summary.device_notes.push_back("no CUDA device on this machine: free memory not checked");
     std::cout << "fbar " << FBAR_VERSION << ": scene " << o.file << " is valid\n";
     print_scene_report(std::cout, scene, summary);
     return kExitOk;

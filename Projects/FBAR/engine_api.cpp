@@ -20,6 +20,8 @@
 #include "constitutive_models.cuh"
 #include "cpu_engine.h"
 #include "geometry.h"
+#include "memory_plan.h"
+#include "particle_frame.h"
 #include "scene_error.h"
 #include "scene_parse.h"
 #include "settings.h"
@@ -162,28 +164,29 @@ RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& 
 
 }  // namespace
 
-SceneSummary summarize_scene(const Scene& scene) {
+SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) {
   const SimulationSpec& sim = scene.simulation;
   SceneSummary summary;
   summary.dt = resolved_default_dt(sim);
   const double dx = sim.dx;
-  const double inv_dx = 1.0 / dx;
 
-  std::unordered_set<std::uint64_t> cpu_blocks;
   int max_gpu = -1;
   for (const BodySpec& b : scene.bodies) max_gpu = std::max(max_gpu, b.gpu);
+  // Grid blocks of every body's 2x2x2 particle-block footprints, per GPU and for the CPU engine.
+  std::unordered_set<std::uint64_t> cpu_blocks;
   std::vector<std::unordered_set<std::uint64_t>> gpu_blocks(max_gpu + 1);
-  std::vector<std::size_t> gpu_bins_bytes(max_gpu + 1, 0), gpu_particles(max_gpu + 1, 0);
+  std::vector<std::vector<BodyMemoryInput>> gpu_inputs(max_gpu + 1);
   std::size_t cpu_particle_bytes = 0;
   bool asflip = false, fbar = false;  // some body uses ASFLIP / F-bar: the grids carry their channels
 
   for (std::size_t i = 0; i < scene.bodies.size(); ++i) {
     const BodySpec& body = scene.bodies[i];
     const MaterialSpec& m = body.material;
-    const std::vector<Vec3d> x = sample_body(body, sim, static_cast<int>(i));
+    // Counted, not stored: --check and the memory plan cost no host memory per particle.
+    const SampleCount count = BodySampler(body, sim, static_cast<int>(i)).count(dx);
     const MaterialFacts facts = material_facts(m);
     BodySummary s;
-    s.particles = static_cast<long long>(x.size());
+    s.particles = count.particles;
     s.particle_volume = dx * dx * dx / m.ppc;
     s.particle_mass = m.rho * s.particle_volume;
     s.wave_speed = facts.wave_speed;
@@ -193,38 +196,42 @@ SceneSummary summarize_scene(const Scene& scene) {
     summary.dt = min_time_step(summary.dt, s.dt_bound);
     summary.bodies.push_back(s);
 
-    // Particle blocks (block of the stencil base node) and their 2x2x2 grid footprints; bins of 32 per block.
-    std::unordered_map<std::uint64_t, long long> per_block;
-    for (const Vec3d& p : x) {
-      const Vec3i base = quadratic_bspline_inv(p, inv_dx).base;
-      const int bx = base[0] >> 2, by = base[1] >> 2, bz = base[2] >> 2;
-      if (per_block[pack(bx, by, bz)]++ > 0) continue;
-      for (int di = 0; di < 2; ++di)
-        for (int dj = 0; dj < 2; ++dj)
-          for (int dk = 0; dk < 2; ++dk) {
-            cpu_blocks.insert(pack(bx + di, by + dj, bz + dk));
-            gpu_blocks[body.gpu].insert(pack(bx + di, by + dj, bz + dk));
-          }
+    BodyMemoryInput in;
+    in.particles = count.particles;
+    for (const BlockCount& c : count.blocks) {
+      in.bins_needed += (c.particles + settings::kBinSize - 1) / settings::kBinSize;
+      for (int n = 0; n < 8; ++n) {
+        const std::uint64_t key = pack(c.bx + (n >> 2), c.by + ((n >> 1) & 1), c.bz + (n & 1));
+        cpu_blocks.insert(key);
+        gpu_blocks[body.gpu].insert(key);
+      }
     }
-    std::size_t bins = 0;
-    for (const auto& kv : per_block)
-      bins += static_cast<std::size_t>((kv.second + settings::kBinSize - 1) / settings::kBinSize);
-    // Two particle buffers (the fused G2P2G reads one and writes the other).
-    gpu_bins_bytes[body.gpu] += 2 * bins * settings::kBinSize * static_cast<std::size_t>(facts.stored_scalars) *
-                                particle_scalar_bytes(sim.precision);
-    gpu_particles[body.gpu] += x.size();
-    const AlgorithmSpec& a = body.algorithm;
-    const bool body_asflip = a.asflip_active();
-    asflip = asflip || body_asflip;
-    fbar = fbar || a.fbar_blend() != 0.0;
-    // ASFLIP: the GPU keeps particle velocities (3 scalars) beside both particle buffers.
-    if (body_asflip)
-      gpu_bins_bytes[body.gpu] += 2 * bins * settings::kBinSize * 3 * particle_scalar_bytes(sim.precision);
+    in.stored_scalars = facts.stored_scalars;
+    in.asflip = body.algorithm.asflip_active();
+    in.fbar = body.algorithm.fbar_blend() != 0.0;
+    if (options.frames) {
+      try {
+        in.frame_columns = frame_float_columns(frame_attributes(body, static_cast<int>(i), "GPU engine"));
+      } catch (const std::invalid_argument&) {
+        in.frame_columns = static_cast<int>(body.output_attribs.size());  // the run refuses it; count the bytes
+      }
+    }
+    asflip = asflip || in.asflip;
+    fbar = fbar || in.fbar;
+    gpu_inputs[body.gpu].push_back(in);
+    // GPU set-up: one batch of sampled positions (double) in their per-plane vectors and concatenated, its bin
+    // records, and the block counts.
+    const std::size_t batch = static_cast<std::size_t>(std::min(count.particles, kSampleBatchParticles));
+    summary.host_setup_bytes =
+        std::max(summary.host_setup_bytes,
+                 batch * (2 * 24 + particle_record_bytes(facts.stored_scalars, particle_scalar_bytes(sim.precision))) +
+                     count.blocks.size() * (sizeof(BlockCount) + 8 * 16));
 
     // CPU engine: x, v, their next copies (4 x 3), C and its next copy (2 x 9), mass, volume (2), state twice, in
     // the particle scalar type, plus order / block index / key scratch (16 bytes).
     const std::size_t state_scalars = static_cast<std::size_t>(facts.stored_scalars - 3);
-    cpu_particle_bytes += x.size() * ((12 + 18 + 2 + 2 * state_scalars) * particle_scalar_bytes(sim.precision) + 16);
+    cpu_particle_bytes += static_cast<std::size_t>(count.particles) *
+                          ((12 + 18 + 2 + 2 * state_scalars) * particle_scalar_bytes(sim.precision) + 16);
   }
 
   // CPU grid: 4 channels x 64 nodes per block in the grid scalar type (+3 for ASFLIP's v^n, +2 for F-bar's cell
@@ -233,18 +240,12 @@ SceneSummary summarize_scene(const Scene& scene) {
   summary.cpu_bytes =
       cpu_particle_bytes + cpu_blocks.size() * (cpu_channels * 64 * grid_scalar_bytes(sim.precision) + 12 + 48);
 
-  // GPU: grid blocks (4 channels x 64 nodes x 2 buffers) for the covered blocks x 1.5 (capacity for growth), and a
-  // partition of the same capacity: hash table at load factor 1/2 (key 3 ints + value, 16 B, x 2), per-block
-  // bookkeeping (counts, bin offsets, 4 ints) and per-cell particle counts (64 ints), plus two particle index
-  // buckets (block bucket and advection source, 4 B each) per particle.
+  // GPU: the engine's own plan (memory_plan.h), per GPU.
   summary.gpu_bytes.assign(max_gpu + 1, 0);
   for (int g = 0; g <= max_gpu; ++g) {
-    const double capacity = 1.5 * static_cast<double>(gpu_blocks[g].size());
-    // ASFLIP: transported momentum (3 channels x 2 buffers) and v^n (3); F-bar: cell sums (2).
-    const double channels = 4.0 * 2.0 + (asflip ? 9.0 : 0.0) + (fbar ? 2.0 : 0.0);
-    const double grid = capacity * channels * 64.0 * static_cast<double>(grid_scalar_bytes(sim.precision));
-    const double partition = capacity * (2.0 * 16.0 + 16.0 + 64.0 * 4.0) + static_cast<double>(gpu_particles[g]) * 8.0;
-    summary.gpu_bytes[g] = gpu_bins_bytes[g] + static_cast<std::size_t>(grid + partition);
+    summary.gpu_plans.push_back(
+        plan_device_memory(sim.precision, static_cast<long long>(gpu_blocks[g].size()), gpu_inputs[g]));
+    summary.gpu_bytes[g] = summary.gpu_plans.back().total();
   }
   return summary;
 }

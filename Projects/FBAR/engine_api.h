@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "memory_plan.h"
 #include "scene.h"
 
 namespace fbar {
@@ -21,14 +22,22 @@ struct BodySummary {
 };
 
 struct SceneSummary {
+  std::vector<DeviceMemoryPlan> gpu_plans;  ///< the GPU engine's plan per GPU (index = gpu id)
   std::vector<BodySummary> bodies;
   double dt = 0.0;                          ///< [s] min(default_dt, every body's dt_bound)
   std::size_t cpu_bytes = 0;                ///< estimated host memory of the CPU engine
-  std::vector<std::size_t> gpu_bytes;       ///< estimated device memory per GPU (index = gpu id)
+  std::vector<std::size_t> gpu_bytes;       ///< estimated device memory per GPU (index = gpu id): gpu_plans' totals
+  std::size_t host_setup_bytes = 0;         ///< host memory of the GPU engine's set-up (one sampling batch)
+  std::vector<std::string> device_notes;    ///< free memory of the devices present, and whether the plan fits
 };
 
-/// Samples every body (deterministically) and computes the time step and memory estimates.
-SceneSummary summarize_scene(const Scene& scene);
+struct SummaryOptions {
+  bool frames = true;  ///< the run writes frames (the GPU keeps each body's frame on the device)
+};
+
+/// Counts every body's particles (deterministically, without storing them) and computes the time step and memory
+/// estimates.
+SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options = {});
 
 struct RunOptions {
   bool quiet = false;              ///< no progress lines

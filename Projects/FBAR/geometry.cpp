@@ -5,6 +5,9 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <map>
+#include <memory>
+#include <tuple>
 #include <stdexcept>
 #include <string>
 
@@ -262,114 +265,245 @@ bool BodyShape::contains(const Vec3d& p) const {
   return inside;
 }
 
-std::vector<Vec3d> sample_body(const BodySpec& body, const SimulationSpec& sim, int body_index) {
+BodySampler::BodySampler(const BodySpec& body, const SimulationSpec& sim, int body_index)
+    : body_index_(body_index), seed_(sim.seed), path_("bodies[" + std::to_string(body_index) + "].geometry") {
   const std::string body_path = "bodies[" + std::to_string(body_index) + "]";
-  const std::string path = body_path + ".geometry";
+  const std::string& path = path_;
   if (!(sim.dx > 0.0) || !std::isfinite(sim.dx))
     throw SceneError("simulation.default_dx", fmt(sim.dx), "a positive number", "m");
-  SamplingPattern pattern;
   try {
-    pattern = sampling_pattern(body.material.ppc);
+    pattern_ = sampling_pattern(body.material.ppc);
   } catch (const std::invalid_argument&) {
     throw SceneError(body_path + ".material.ppc", fmt(body.material.ppc), "a positive number of particles per cell");
   }
   if (body.geometry.empty()) throw SceneError(path, "[]", "at least one Box, Sphere or Cylinder entry");
 
-  const BodyShape shape(body.geometry, body_index);
-  const Vec3d part_lo = to_vec(body.partition_start), part_hi = to_vec(body.partition_end);
-  Aabb box = shape.bounds();
+  shape_ = std::make_shared<BodyShape>(body.geometry, body_index);
+  part_lo_ = to_vec(body.partition_start);
+  part_hi_ = to_vec(body.partition_end);
+  domain_ = Vec3d{{sim.domain[0], sim.domain[1], sim.domain[2]}};
+  Aabb box = shape_->bounds();
   for (int d = 0; d < 3; ++d) {
-    box.lo[d] = std::max(box.lo[d], part_lo[d]);
-    box.hi[d] = std::min(box.hi[d], part_hi[d]);
+    box.lo[d] = std::max(box.lo[d], part_lo_[d]);
+    box.hi[d] = std::min(box.hi[d], part_hi_[d]);
   }
   if (box.empty()) throw_no_particles(path);
 
   // Candidate points: the lattice (spacing h) or cells (edge dx) covering `box`, one extra on each side so that
   // rounding in the index computation never loses a point; the predicate decides.
-  const double h = pattern.lattice ? sim.dx / pattern.per_axis : sim.dx;
-  long long first[3], count[3];
+  h_ = pattern_.lattice ? sim.dx / pattern_.per_axis : sim.dx;
   double candidates = 1.0;
   for (int d = 0; d < 3; ++d) {
-    const double lo = pattern.lattice ? box.lo[d] / h - 0.5 : box.lo[d] / h;
-    const double hi = pattern.lattice ? box.hi[d] / h - 0.5 : box.hi[d] / h;
+    const double lo = pattern_.lattice ? box.lo[d] / h_ - 0.5 : box.lo[d] / h_;
+    const double hi = pattern_.lattice ? box.hi[d] / h_ - 0.5 : box.hi[d] / h_;
     if (!std::isfinite(lo) || !std::isfinite(hi) || std::fabs(lo) > 9e15 || std::fabs(hi) > 9e15)
       throw SceneError(path, "bounding box " + fmt3(box.lo) + " to " + fmt3(box.hi),
                        "a finite geometry (clip it with partition_start/partition_end)", "m");
-    first[d] = static_cast<long long>(std::floor(lo)) - 1;
-    count[d] = static_cast<long long>(std::ceil(hi)) + 1 - first[d] + 1;
-    candidates *= static_cast<double>(count[d]);
+    first_[d] = static_cast<long long>(std::floor(lo)) - 1;
+    count_[d] = static_cast<long long>(std::ceil(hi)) + 1 - first_[d] + 1;
+    candidates *= static_cast<double>(count_[d]);
   }
   if (candidates > kMaxCandidates)
     throw SceneError(path, fmt(candidates) + " candidate sampling points in bounding box " + fmt3(box.lo) + " to " +
                                fmt3(box.hi),
                      "at most 2^36 (check default_dx, ppc and the geometry's span)");
+}
 
+template <typename F>
+void BodySampler::visit_plane(long long ix, F&& f) const {
   // The partition box is half-open, [start, end): a body split between GPUs at a plane through lattice points
   // (ClaymoreUW's inside_partition) gives each point to exactly one of them.
-  auto in_partition = [&](const Vec3d& p) {
-    return p[0] >= part_lo[0] && p[0] < part_hi[0] && p[1] >= part_lo[1] && p[1] < part_hi[1] &&
-           p[2] >= part_lo[2] && p[2] < part_hi[2];
+  auto keep = [&](const Vec3d& p) {
+    return p[0] >= part_lo_[0] && p[0] < part_hi_[0] && p[1] >= part_lo_[1] && p[1] < part_hi_[1] &&
+           p[2] >= part_lo_[2] && p[2] < part_hi_[2] && shape_->contains(p);
   };
-  auto keep = [&](const Vec3d& p) { return in_partition(p) && shape.contains(p); };
-
-  // One output vector per x-plane, concatenated in plane order: deterministic for any thread count.
-  std::vector<std::vector<Vec3d>> planes(static_cast<std::size_t>(count[0]));
-  const double ppc_floor = std::floor(pattern.ppc);
-  const double ppc_frac = pattern.ppc - ppc_floor;
+  const double ppc_floor = std::floor(pattern_.ppc);
+  const double ppc_frac = pattern_.ppc - ppc_floor;
   const int base = static_cast<int>(ppc_floor);
-#pragma omp parallel for schedule(dynamic, 1)
-  for (long long ix = 0; ix < count[0]; ++ix) {
-    std::vector<Vec3d>& out = planes[static_cast<std::size_t>(ix)];
-    const long long i = first[0] + ix;
-    for (long long j = first[1]; j < first[1] + count[1]; ++j)
-      for (long long k = first[2]; k < first[2] + count[2]; ++k) {
-        if (pattern.lattice) {
-          const Vec3d p{{(static_cast<double>(i) + 0.5) * h, (static_cast<double>(j) + 0.5) * h,
-                         (static_cast<double>(k) + 0.5) * h}};
-          if (keep(p)) out.push_back(p);
-        } else {
-          const std::uint64_t key = cell_key(sim.seed, body_index, i, j, k);
-          const int n = base + ((ppc_frac > 0.0 && uniform(key, 3ull * (base + 1)) < ppc_frac) ? 1 : 0);
-          for (int s = 0; s < n; ++s) {
-            const Vec3d p{{(static_cast<double>(i) + uniform(key, 3ull * s + 0)) * h,
-                           (static_cast<double>(j) + uniform(key, 3ull * s + 1)) * h,
-                           (static_cast<double>(k) + uniform(key, 3ull * s + 2)) * h}};
-            if (keep(p)) out.push_back(p);
-          }
+  const long long i = first_[0] + ix;
+  for (long long j = first_[1]; j < first_[1] + count_[1]; ++j)
+    for (long long k = first_[2]; k < first_[2] + count_[2]; ++k) {
+      if (pattern_.lattice) {
+        const Vec3d p{{(static_cast<double>(i) + 0.5) * h_, (static_cast<double>(j) + 0.5) * h_,
+                       (static_cast<double>(k) + 0.5) * h_}};
+        if (keep(p)) f(p);
+      } else {
+        const std::uint64_t key = cell_key(seed_, body_index_, i, j, k);
+        const int n = base + ((ppc_frac > 0.0 && uniform(key, 3ull * (base + 1)) < ppc_frac) ? 1 : 0);
+        for (int s = 0; s < n; ++s) {
+          const Vec3d p{{(static_cast<double>(i) + uniform(key, 3ull * s + 0)) * h_,
+                         (static_cast<double>(j) + uniform(key, 3ull * s + 1)) * h_,
+                         (static_cast<double>(k) + uniform(key, 3ull * s + 2)) * h_}};
+          if (keep(p)) f(p);
         }
       }
-  }
+    }
+}
 
-  std::size_t total = 0;
+void BodySampler::sample_planes(long long first, long long last, std::vector<Vec3d>& out) const {
+  first = std::max(first, 0LL);
+  last = std::min(last, count_[0]);
+  if (first >= last) return;
+  // One output vector per x-plane, concatenated in plane order: deterministic for any thread count.
+  std::vector<std::vector<Vec3d>> planes(static_cast<std::size_t>(last - first));
+#pragma omp parallel for schedule(dynamic, 1)
+  for (long long ix = first; ix < last; ++ix) {
+    std::vector<Vec3d>& pl = planes[static_cast<std::size_t>(ix - first)];
+    visit_plane(ix, [&](const Vec3d& p) { pl.push_back(p); });
+  }
+  std::size_t total = out.size();
   for (const auto& pl : planes) total += pl.size();
-  if (total == 0) throw_no_particles(path);
-  std::vector<Vec3d> points;
-  points.reserve(total);
+  out.reserve(total);
   for (auto& pl : planes) {
-    points.insert(points.end(), pl.begin(), pl.end());
+    out.insert(out.end(), pl.begin(), pl.end());
     std::vector<Vec3d>().swap(pl);
   }
+}
 
+void BodySampler::check_inside_domain(std::size_t outside, std::size_t total, const Vec3d& first_outside) const {
+  if (outside == 0) return;
   // The engine owns its boundary margins; here we only refuse particles outside the simulated box itself.
+  throw SceneError(path_,
+                   std::to_string(outside) + " of " + std::to_string(total) +
+                       " particles outside simulation.domain [0, " + fmt(domain_[0]) + "] x [0, " + fmt(domain_[1]) +
+                       "] x [0, " + fmt(domain_[2]) + "], first at " + fmt3(first_outside),
+                   "every particle inside simulation.domain (move or shrink the geometry, or clip it with "
+                   "partition_start/partition_end)",
+                   "m");
+}
+
+bool BodySampler::outside_domain(const Vec3d& p) const {
+  return p[0] < 0.0 || p[1] < 0.0 || p[2] < 0.0 || p[0] > domain_[0] || p[1] > domain_[1] || p[2] > domain_[2];
+}
+
+SampleCount BodySampler::count(double dx) const {
+  // Particle blocks as the GPU engine forms them (partition_domain.h): B = floor((base - 1) / 4) per axis with
+  // base = floor(x / dx - 0.5). Counted into a dense box of blocks (planes in parallel, atomic increments); every
+  // candidate point lies inside it, so no count is lost.
+  const double inv_dx = 1.0 / dx;
+  auto block_of = [&](double x) {
+    const long long base = static_cast<long long>(std::floor(x * inv_dx - 0.5));
+    return static_cast<long long>(std::floor(static_cast<double>(base - 1) / 4.0));
+  };
+  long long blo[3], bn[3];
+  double dense = 1.0;
+  for (int d = 0; d < 3; ++d) {
+    const double lo = static_cast<double>(first_[d]) * h_ - h_, hi = static_cast<double>(first_[d] + count_[d]) * h_ + h_;
+    blo[d] = block_of(lo) - 1;
+    bn[d] = block_of(hi) + 2 - blo[d];
+    dense *= static_cast<double>(bn[d]);
+  }
+  SampleCount c;
+  if (dense > 268435456.0)  // 2^28 blocks (1 GiB of counters): a body this sparse is counted per plane in maps
+    return count_sparse(dx);
+  std::vector<std::uint32_t> counts(static_cast<std::size_t>(dense), 0u);
+  c.per_plane.assign(static_cast<std::size_t>(count_[0]), 0);
+  std::size_t particles = 0, outside = 0;
+  long long first_outside_plane = count_[0];
+  Vec3d first_outside{};
+#pragma omp parallel for schedule(dynamic, 1) reduction(+ : particles, outside)
+  for (long long ix = 0; ix < count_[0]; ++ix) {
+    bool plane_outside = false;
+    Vec3d plane_first{};
+    long long in_plane = 0;
+    visit_plane(ix, [&](const Vec3d& p) {
+      ++particles;
+      ++in_plane;
+      if (outside_domain(p)) {
+        if (!plane_outside) plane_first = p;
+        plane_outside = true;
+        ++outside;
+        return;
+      }
+      const long long b0 = block_of(p[0]) - blo[0], b1 = block_of(p[1]) - blo[1], b2 = block_of(p[2]) - blo[2];
+      std::uint32_t& slot = counts[static_cast<std::size_t>((b0 * bn[1] + b1) * bn[2] + b2)];
+#pragma omp atomic
+      ++slot;
+    });
+    c.per_plane[static_cast<std::size_t>(ix)] = in_plane;
+    if (plane_outside) {
+#pragma omp critical(fbar_count_outside)
+      if (ix < first_outside_plane) {
+        first_outside_plane = ix;
+        first_outside = plane_first;
+      }
+    }
+  }
+  if (particles == 0) throw_no_particles(path_);
+  check_inside_domain(outside, particles, first_outside);
+  c.particles = static_cast<long long>(particles);
+  for (long long i = 0; i < bn[0]; ++i)
+    for (long long j = 0; j < bn[1]; ++j)
+      for (long long k = 0; k < bn[2]; ++k) {
+        const std::uint32_t n = counts[static_cast<std::size_t>((i * bn[1] + j) * bn[2] + k)];
+        if (n == 0) continue;
+        c.blocks.push_back(BlockCount{static_cast<int>(blo[0] + i), static_cast<int>(blo[1] + j),
+                                      static_cast<int>(blo[2] + k), static_cast<long long>(n)});
+      }
+  return c;
+}
+
+SampleCount BodySampler::count_sparse(double dx) const {
+  SampleCount c;
+  std::map<std::tuple<int, int, int>, long long> blocks;
+  const double inv_dx = 1.0 / dx;
+  std::size_t outside = 0;
+  Vec3d first_outside{};
+  c.per_plane.assign(static_cast<std::size_t>(count_[0]), 0);
+  for (long long ix = 0; ix < count_[0]; ++ix) {
+    visit_plane(ix, [&](const Vec3d& p) {
+      ++c.particles;
+      ++c.per_plane[static_cast<std::size_t>(ix)];
+      if (outside_domain(p)) {
+        if (outside++ == 0) first_outside = p;
+        return;
+      }
+      int b[3];
+      for (int d = 0; d < 3; ++d) {
+        const long long base = static_cast<long long>(std::floor(p[d] * inv_dx - 0.5));
+        b[d] = static_cast<int>(std::floor(static_cast<double>(base - 1) / 4.0));
+      }
+      ++blocks[{b[0], b[1], b[2]}];
+    });
+  }
+  if (c.particles == 0) throw_no_particles(path_);
+  check_inside_domain(outside, static_cast<std::size_t>(c.particles), first_outside);
+  for (const auto& [key, n] : blocks)
+    c.blocks.push_back(BlockCount{std::get<0>(key), std::get<1>(key), std::get<2>(key), n});
+  return c;
+}
+
+SampleCount count_points(const std::vector<Vec3d>& points, double dx) {
+  SampleCount c;
+  c.particles = static_cast<long long>(points.size());
+  std::map<std::tuple<int, int, int>, long long> blocks;
+  const double inv_dx = 1.0 / dx;
+  for (const Vec3d& p : points) {
+    int b[3];
+    for (int d = 0; d < 3; ++d) {
+      const long long base = static_cast<long long>(std::floor(p[d] * inv_dx - 0.5));
+      b[d] = static_cast<int>(std::floor(static_cast<double>(base - 1) / 4.0));
+    }
+    ++blocks[{b[0], b[1], b[2]}];
+  }
+  for (const auto& [key, n] : blocks)
+    c.blocks.push_back(BlockCount{std::get<0>(key), std::get<1>(key), std::get<2>(key), n});
+  return c;
+}
+
+std::vector<Vec3d> sample_body(const BodySpec& body, const SimulationSpec& sim, int body_index) {
+  const BodySampler sampler(body, sim, body_index);
+  std::vector<Vec3d> points;
+  sampler.sample_planes(0, sampler.planes(), points);
+  if (points.empty()) throw_no_particles(sampler.path());
   std::size_t outside = 0;
   const Vec3d* first_outside = nullptr;
-  for (const Vec3d& p : points) {
-    const bool out = p[0] < 0.0 || p[1] < 0.0 || p[2] < 0.0 || p[0] > sim.domain[0] || p[1] > sim.domain[1] ||
-                     p[2] > sim.domain[2];
-    if (out) {
+  for (const Vec3d& p : points)
+    if (sampler.outside_domain(p)) {
       if (!first_outside) first_outside = &p;
       ++outside;
     }
-  }
-  if (outside > 0)
-    throw SceneError(path,
-                     std::to_string(outside) + " of " + std::to_string(points.size()) +
-                         " particles outside simulation.domain [0, " + fmt(sim.domain[0]) + "] x [0, " +
-                         fmt(sim.domain[1]) + "] x [0, " + fmt(sim.domain[2]) + "], first at " +
-                         fmt3(*first_outside),
-                     "every particle inside simulation.domain (move or shrink the geometry, or clip it with "
-                     "partition_start/partition_end)",
-                     "m");
+  if (outside > 0) sampler.check_inside_domain(outside, points.size(), *first_outside);
   return points;
 }
 

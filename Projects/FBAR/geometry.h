@@ -42,6 +42,8 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
+#include <string>
 #include <vector>
 
 #include "MnBase/Math/vec.h"
@@ -101,6 +103,55 @@ class BodyShape {
   std::vector<Entry> entries_;
   Aabb bounds_;
 };
+
+/// Particles of one particle block (the GPU engine's grouping: B = floor((floor(x/dx - 0.5) - 1) / 4) per axis).
+struct BlockCount {
+  int bx, by, bz;
+  long long particles;
+};
+
+/// What sampling a body would produce, counted without storing a point: the particle count and the particles per
+/// particle block (the GPU engine sizes its buffers from it before it samples).
+struct SampleCount {
+  long long particles = 0;
+  std::vector<BlockCount> blocks;  ///< blocks holding particles, in (bx, by, bz) order
+  std::vector<long long> per_plane;  ///< particles of each x-plane of the candidate lattice (BodySampler::planes())
+};
+
+/// One body's sampling, split by x-plane of the candidate lattice so that it can be counted first and then produced
+/// in bounded batches (the GPU engine uploads each batch before sampling the next: host memory stays O(batch)).
+/// sample_planes(0, planes()) is exactly sample_body()'s output, in the same order.
+class BodySampler {
+ public:
+  /// Validates the body's sampling inputs; throws SceneError as sample_body does.
+  BodySampler(const BodySpec& body, const SimulationSpec& sim, int body_index);
+  long long planes() const { return count_[0]; }
+  /// Appends the points of planes [first, last) in order (OpenMP over planes, deterministic).
+  void sample_planes(long long first, long long last, std::vector<Vec3d>& out) const;
+  /// Counts particles and particles per block (OpenMP over planes). Throws SceneError, as sample_body, when no
+  /// particle remains or any lies outside simulation.domain.
+  SampleCount count(double dx) const;
+  bool outside_domain(const Vec3d& p) const;
+  void check_inside_domain(std::size_t outside, std::size_t total, const Vec3d& first_outside) const;
+  const std::string& path() const { return path_; }
+
+ private:
+  template <typename F>
+  void visit_plane(long long ix, F&& f) const;
+  SampleCount count_sparse(double dx) const;
+
+  int body_index_ = 0;
+  std::uint64_t seed_ = 0;
+  std::string path_;
+  SamplingPattern pattern_;
+  std::shared_ptr<BodyShape> shape_;
+  Vec3d part_lo_{}, part_hi_{}, domain_{};
+  double h_ = 0.0;
+  long long first_[3] = {0, 0, 0}, count_[3] = {0, 0, 0};
+};
+
+/// The same counts for given points (tests, restarts).
+SampleCount count_points(const std::vector<Vec3d>& points, double dx);
 
 /// Samples body `body_index` of a scene (see the file comment for every convention).
 /// Throws SceneError at "bodies[i].geometry" when any particle lies outside [0, simulation.domain] (the message

@@ -16,24 +16,13 @@
 #include "scene_parse.h"
 
 namespace fbar {
-namespace {
-
-std::vector<std::vector<Vec3d>> sample_all(const Scene& scene) {
-  std::vector<std::vector<Vec3d>> positions;
-  for (std::size_t b = 0; b < scene.bodies.size(); ++b)
-    positions.push_back(sample_body(scene.bodies[b], scene.simulation, static_cast<int>(b)));
-  return positions;
-}
-
-}  // namespace
-
 template <typename T, typename TG>
 GpuEngine<T, TG>::GpuEngine(const Scene& scene, const GpuEngineOptions& options)
-    : impl_(std::make_unique<MgspBenchmark<T, TG>>(scene, sample_all(scene), options)) {}
+    : impl_(std::make_unique<MgspBenchmark<T, TG>>(scene, nullptr, options)) {}
 template <typename T, typename TG>
 GpuEngine<T, TG>::GpuEngine(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions,
                         const GpuEngineOptions& options)
-    : impl_(std::make_unique<MgspBenchmark<T, TG>>(scene, positions, options)) {}
+    : impl_(std::make_unique<MgspBenchmark<T, TG>>(scene, &positions, options)) {}
 template <typename T, typename TG>
 GpuEngine<T, TG>::~GpuEngine() = default;
 
@@ -84,6 +73,14 @@ ParticleSnapshot<T> GpuEngine<T, TG>::snapshot(int body) const { return impl_->s
 template <typename T, typename TG>
 io::ParticleFrame GpuEngine<T, TG>::frame(int body) const { return impl_->frame(body); }
 template <typename T, typename TG>
+void GpuEngine<T, TG>::set_frame_capture(bool on) { impl_->set_frame_capture(on); }
+template <typename T, typename TG>
+double GpuEngine<T, TG>::output_wait_seconds() const { return impl_->output_wait_seconds(); }
+template <typename T, typename TG>
+const DeviceMemoryPlan& GpuEngine<T, TG>::memory_plan() const { return impl_->memory_plan(); }
+template <typename T, typename TG>
+std::size_t GpuEngine<T, TG>::peak_device_bytes() const { return impl_->peak_device_bytes(); }
+template <typename T, typename TG>
 void GpuEngine<T, TG>::submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer) {
   impl_->submit_frame(body, path, writer);
 }
@@ -108,51 +105,59 @@ template class GpuEngine<double, float>;
 
 namespace {
 
+std::string mgsp_detail_format(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.3g", v);
+  return buf;
+}
+
 template <typename T, typename TG>
 RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& log) {
   RunResult result;
   const SimulationSpec& sim = scene.simulation;
   if (sim.particles_output_exterior_only)
     throw std::invalid_argument("simulation.particles_output_exterior_only: not implemented by the GPU engine");
-  GpuEngine<T, TG> engine(scene);
+  GpuEngineOptions engine_options;
+  engine_options.frames = true;
+  const auto setup_start = std::chrono::steady_clock::now();
+  GpuEngine<T, TG> engine(scene, engine_options);
+  const double setup_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - setup_start).count();
   engine.set_log(&log);
   std::filesystem::create_directories(sim.save_path);
   const std::string suffix = sim.save_suffix;
   io::frame_format(suffix);
-  io::AsyncWriter writer(2);  // declared after the engine: destroyed (joined) first
+  // Declared after the engine: destroyed (joined) first. One frame may wait while one is written: the engine's
+  // pinned buffer per body bounds the rest, so host memory stays flat however slow the disk.
+  io::AsyncWriter writer(1);
   auto write_frame = [&](int frame) {
     for (int b = 0; b < engine.body_count(); ++b) {
       const BodySpec& spec = scene.bodies[b];
       engine.submit_frame(b, io::frame_file_path(sim.save_path, spec.model, spec.gpu, frame, suffix), writer);
     }
   };
-  // v and C are only stored when a frame needs them: recording is switched on for the step that lands on a frame.
-  bool needs_velocity = false;
-  for (const BodySpec& b : scene.bodies)
-    for (const std::string& a : b.output_attribs) {
-      const std::string c = canonical_attribute(a);
-      needs_velocity = needs_velocity || c.rfind("Velocity", 0) == 0 || c.rfind("Stress", 0) == 0 ||
-                       c == "Pressure" || c == "VonMisesStress";
-    }
   const double t0 = engine.time();
-  if (!options.quiet)
-    log << "fbar: GPU engine (" << precision_description(sim.precision) << "), "
-        << engine.particle_count() << " particles, " << engine.body_count() << " bodies, "
-        << engine.device_bytes() / (1024.0 * 1024.0) << " MiB on the device\n";
+  if (!options.quiet) {
+    const DeviceMemoryPlan& plan = engine.memory_plan();
+    log << "fbar: GPU engine (" << precision_description(sim.precision) << "), " << engine.particle_count()
+        << " particles, " << engine.body_count() << " bodies, " << format_bytes(static_cast<double>(engine.device_bytes()))
+        << " on the device (" << format_bytes(static_cast<double>(plan.total())) << " planned), set-up "
+        << mgsp_detail_format(setup_s) << " s\n";
+  }
   write_frame(0);
   const auto wall_start = std::chrono::steady_clock::now();
   for (int frame = 1; frame <= sim.frames; ++frame) {
     const double target = t0 + frame / sim.fps;
     StepReport report;
     while (engine.time() < target && report.ok) {
-      // Record v and C in the step that lands on the frame time (the last step before it).
-      engine.set_record_velocities(needs_velocity && engine.time() + engine.next_dt() >= target);
+      // The step that lands on the frame time (the last one before it) writes the frame on the device.
+      engine.set_frame_capture(engine.time() + engine.next_dt() >= target);
       const StepReport r = engine.step_toward(target);
       report.ok = r.ok;
       report.failures = r.failures;
       if (sim.info_rate > 0 && !options.quiet && engine.steps() % sim.info_rate == 0)
         log << "step " << engine.steps() << "  t = " << engine.time() << " s  dt = " << engine.last_dt() << " s\n";
     }
+    engine.set_frame_capture(false);
     result.steps = engine.steps();
     result.end_time = engine.time();
     if (!report.ok) {
@@ -166,10 +171,14 @@ RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& 
     if (!options.quiet) {
       const double elapsed =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
-      char line[256];
-      std::snprintf(line, sizeof(line), "frame %d/%d  t = %.6g s  dt = %.3g s  steps = %lld  %.3g ms/step\n", frame,
-                    sim.frames, engine.time(), engine.last_dt(), engine.steps(),
-                    engine.steps() > 0 ? 1e3 * elapsed / static_cast<double>(engine.steps()) : 0.0);
+      char line[320];
+      std::snprintf(line, sizeof(line),
+                    "frame %d/%d  t = %.6g s  dt = %.3g s  steps = %lld  %.3g ms/step  (waited %.3g s for output; "
+                    "device memory %s, peak %s)\n",
+                    frame, sim.frames, engine.time(), engine.last_dt(), engine.steps(),
+                    engine.steps() > 0 ? 1e3 * elapsed / static_cast<double>(engine.steps()) : 0.0,
+                    engine.output_wait_seconds(), format_bytes(static_cast<double>(engine.device_bytes())).c_str(),
+                    format_bytes(static_cast<double>(engine.peak_device_bytes())).c_str());
       log << line << std::flush;
     }
   }

@@ -19,6 +19,7 @@
 #include "MnSystem/IO/particle_io.h"
 #include "cpu_engine.h"
 #include "engine_api.h"
+#include "memory_plan.h"
 #include "scene.h"
 
 namespace fbar {
@@ -50,6 +51,12 @@ struct GpuEngineOptions {
   /// Per body, per particle (ID order) initial velocities [m/s], as CpuEngine::set_velocities gives them (tests,
   /// restarts); a body without an entry, or with an empty one, starts at its scene velocity.
   std::vector<std::vector<Vec3d>> initial_velocities;
+  /// Plan and keep every body's output frame on the device (submit_frame); the run loop sets it.
+  bool frames = false;
+  /// Treat the device as having at most this much free memory [bytes] when checking the plan (0: what it has).
+  std::size_t memory_limit = 0;
+  /// Particles sampled and uploaded per batch at start (host memory is O(batch)); tests make it small.
+  long long sample_batch = kSampleBatchParticles;
 };
 
 template <typename T, typename TG>
@@ -95,9 +102,16 @@ class GpuEngine {
   ParticleSnapshot<T> snapshot(int body) const;
   /// The body's output_attribs (canonical names), as the CPU engine writes them.
   io::ParticleFrame frame(int body) const;
-  /// Queues the body's frame on `writer`: device gather, copy on the copy stream into pinned memory; the file is
-  /// built and written by the writer thread (the step loop never waits for it).
+  /// The next step writes every body's output frame on the device (needs GpuEngineOptions::frames): set it for
+  /// the step that lands on a frame time.
+  void set_frame_capture(bool on);
+  /// Queues the body's frame on `writer`: the frame the last step captured (or, before the first step, the
+  /// initial state's) is downloaded on the copy stream into the body's pinned buffer, and the writer thread builds
+  /// and writes the file. The step loop waits only while the previous frame's buffer is still being read.
   void submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer);
+  double output_wait_seconds() const;      ///< [s] spent waiting in submit_frame for the writer
+  const DeviceMemoryPlan& memory_plan() const;  ///< what the engine planned and allocated at start
+  std::size_t peak_device_bytes() const;   ///< most device memory the engine's buffers held so far
 
   double particle_mass(int body) const;    ///< [kg] every particle of the body (rho dx^3 / ppc, as CpuEngine)
   double particle_volume(int body) const;  ///< [m^3] reference volume V0 of every particle of the body

@@ -19,6 +19,9 @@
 #pragma once
 
 #include <cub/device/device_scan.cuh>
+#include <chrono>
+#include <condition_variable>
+#include <mutex>
 #include <cuda_runtime.h>
 
 #include <algorithm>
@@ -34,6 +37,7 @@
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include "MnBase/Math/bspline.h"
@@ -46,6 +50,7 @@
 #include "gpu_engine.h"
 #include "grid_buffer.cuh"
 #include "hash_table.cuh"
+#include "memory_plan.h"
 #include "mgmpm_kernels.cuh"
 #include "particle_buffer.cuh"
 #include "particle_frame.h"
@@ -95,7 +100,7 @@ class DeviceArray {
     if (ptr_) FBAR_CUDA_CHECK(cudaFree(ptr_));
     ptr_ = nullptr;
     size_ = n;
-    if (n) FBAR_CUDA_CHECK(cudaMalloc(&ptr_, sizeof(V) * n));
+    if (n) ptr_ = static_cast<V*>(cuda::device_malloc(sizeof(V) * n, "GPU engine buffer"));
     // Zeroed: allocations are rare, and growth copies whole arrays whose unused slots were never written.
     if (n) FBAR_CUDA_CHECK(cudaMemset(ptr_, 0, sizeof(V) * n));
   }
@@ -151,7 +156,9 @@ struct CapacityEstimate {
 template <typename T, typename TG>
 class MgspBenchmark {
  public:
-  MgspBenchmark(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions,
+  /// positions: per body, given initial positions [m] (tests); nullptr: every body is sampled from the scene in
+  /// batches (geometry.h BodySampler), uploaded batch by batch.
+  MgspBenchmark(const Scene& scene, const std::vector<std::vector<Vec3d>>* positions,
                 const GpuEngineOptions& options = {});
   ~MgspBenchmark();
   MgspBenchmark(const MgspBenchmark&) = delete;
@@ -170,6 +177,13 @@ class MgspBenchmark {
   double max_grid_speed() const { return max_grid_speed_; }
   void set_log(std::ostream* log) { log_ = log; }
   void set_record_velocities(bool on);
+  /// The next step writes every body's output frame on the device (GpuEngineOptions::frames).
+  void set_frame_capture(bool on) { capture_next_ = on; }
+  /// Seconds the step loop waited for the writer thread to release a frame's host buffer (output slower than the
+  /// simulation).
+  double output_wait_seconds() const { return output_wait_s_; }
+  const DeviceMemoryPlan& memory_plan() const { return plan_; }
+  std::size_t peak_device_bytes() const { return peak_bytes_; }
   void set_kernel_timing(bool on) { timing_ = on; }
   KernelTimes kernel_times() const { return times_; }
   long long p2g_range_repeats() const { return p2g_range_repeats_; }
@@ -211,14 +225,35 @@ class MgspBenchmark {
     /// P2G, and on the host for snapshots before the first step; empty when the body starts at its scene velocity.
     mgsp_detail::DeviceArray<T> initial_v;
     std::vector<Vec3<T>> initial_v_host;
-    virtual ~BodyBase() = default;
+    /// Output frame (GpuEngineOptions::frames): its attributes, the device copy a capture step writes (ID order),
+    /// the pinned host copy the writer thread reads, and whether that host copy is still being read.
+    std::vector<FrameAttributeSpec> frame_attrs;
+    FrameCapture<T> capture;
+    mgsp_detail::DeviceArray<T> frame_x;
+    mgsp_detail::DeviceArray<float> frame_columns;
+    mgsp_detail::PinnedBytes frame_host;
+    struct HostSlot {
+      std::mutex mutex;
+      std::condition_variable released;
+      bool busy = false;
+    };
+    std::shared_ptr<HostSlot> frame_slot = std::make_shared<HostSlot>();
+    cudaEvent_t frame_copied = nullptr;  ///< the last download of the frame finished (the next capture waits)
+    std::size_t frame_host_bytes() const {
+      return static_cast<std::size_t>(particles) * (3 * sizeof(T) + sizeof(float) * capture.column_count);
+    }
+    virtual ~BodyBase() {
+      if (frame_copied) cudaEventDestroy(frame_copied);
+    }
+    virtual void capture_state(MgspBenchmark& e) = 0;  ///< the frame of the current state (before the first step)
     virtual bool stores_F() const = 0;
     virtual int stored_scalars() const = 0;
     virtual void allocate_bins(int bins) = 0;                   ///< both buffers, contents lost
     virtual void reallocate_bins(int which, int bins) = 0;      ///< one buffer, contents lost
     virtual int bins_capacity(int which) const = 0;
     virtual std::size_t bins_bytes() const = 0;
-    virtual void upload(const std::vector<Vec3d>& x, cudaStream_t s) = 0;  ///< flat into bins[0]
+    /// Particles first_id .. first_id + x.size() into bins[0] (flat: slot = ID); first_id is a multiple of 32.
+    virtual void upload(const Vec3d* x, std::size_t n, long long first_id, cudaStream_t s) = 0;
     virtual void g2p2g(MgspBenchmark& e, bool initial, T dt) = 0;
     virtual void dest_from_positions(MgspBenchmark& e, int bins_which, const int* valid, int slots) = 0;
     virtual void rescale_impulse(MgspBenchmark& e, T ddt) = 0;
@@ -256,17 +291,19 @@ class MgspBenchmark {
       return bins[0].bytes() + bins[1].bytes() + this->particle_v[0].bytes() + this->particle_v[1].bytes();
     }
 
-    void upload(const std::vector<Vec3d>& x, cudaStream_t s) override {
-      // Flat bins on the host (slot = particle ID), one copy.
-      const std::size_t bytes = Layout::kBinBytes * static_cast<std::size_t>((x.size() + 31) / 32);
+    void upload(const Vec3d* x, std::size_t n, long long first_id, cudaStream_t s) override {
+      // Flat bins of this batch on the host (slot = particle ID), one copy to their place in bins[0].
+      const std::size_t bins_n = (n + 31) / 32;
+      const std::size_t bytes = Layout::kBinBytes * bins_n;
       std::vector<std::byte> host(bytes);
-      typename Layout::Buffer view(host.data(), (x.size() + 31) / 32);
+      typename Layout::Buffer view(host.data(), bins_n);
       const auto state = material_initial_state<M, T>(this->spec.material);
-      for (std::size_t i = 0; i < x.size(); ++i) {
-        ParticleRecord<M, T> p{x[i].template cast<T>(), state, static_cast<int>(i)};
+      for (std::size_t i = 0; i < n; ++i) {
+        ParticleRecord<M, T> p{x[i].template cast<T>(), state, static_cast<int>(first_id + static_cast<long long>(i))};
         store_particle<M, T>(view, static_cast<int>(i), p);
       }
-      if (bytes) FBAR_CUDA_CHECK(cudaMemcpyAsync(bins[0].instance().data(), host.data(), bytes, cudaMemcpyHostToDevice, s));
+      std::byte* target = bins[0].instance().data() + Layout::kBinBytes * static_cast<std::size_t>(first_id / 32);
+      if (bytes) FBAR_CUDA_CHECK(cudaMemcpyAsync(target, host.data(), bytes, cudaMemcpyHostToDevice, s));
       FBAR_CUDA_CHECK(cudaStreamSynchronize(s));
     }
 
@@ -282,6 +319,7 @@ class MgspBenchmark {
       p.grid_next = e.grid_[1 - e.gc_].instance();
       p.grid_this = e.grid_[e.gc_].instance();
       p.aux = e.record_ ? this->aux.get() : nullptr;
+      if (e.capture_next_ && this->capture.x) p.capture = this->capture;
       if (e.asflip_) p.transported_next = e.transported_[1 - e.gc_].instance();
       p.asflip = this->asflip;
       p.asflip_params = this->asflip_params;
@@ -329,13 +367,29 @@ class MgspBenchmark {
       }
       const bool transport = static_cast<bool>(p.transported_next);
       const std::size_t arena = g2p2g_arena_bytes<TG>(transport);
+      const bool capture = p.capture.x != nullptr;
       if (initial)
         fbar::g2p2g<M, T, TG, true, false><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
+      else if (transport && capture)
+        fbar::g2p2g<M, T, TG, false, true, true><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
       else if (transport)
         fbar::g2p2g<M, T, TG, false, true><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
+      else if (capture)
+        fbar::g2p2g<M, T, TG, false, false, true><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
       else
         fbar::g2p2g<M, T, TG, false, false><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
       mgsp_detail::check_launch("g2p2g");
+    }
+
+    void capture_state(MgspBenchmark& e) override {
+      const int slots = this->total_bins[e.cur_] * 32;
+      if (slots == 0) return;
+      const Vec3<T> v0{{static_cast<T>(this->spec.velocity[0]), static_cast<T>(this->spec.velocity[1]),
+                        static_cast<T>(this->spec.velocity[2])}};
+      fbar::capture_frame_state<M, T><<<mgsp_detail::grid_for(slots, kOutputThreads), kOutputThreads, 0, e.stream_>>>(
+          bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, this->capture, v0, params, this->mass,
+          this->volume);
+      mgsp_detail::check_launch("capture_frame_state");
     }
 
     void dest_from_positions(MgspBenchmark& e, int which, const int* valid, int slots) override {
@@ -393,9 +447,13 @@ class MgspBenchmark {
   void read_stats();                     ///< the one small copy + synchronisation of a step
   bool handle_overflow();                ///< grows what overflowed and redoes the partition; true if it did
   void grow_blocks(int needed);
+  void grow_blocks_to(int capacity);
+  void grow_bins_to(BodyBase& b, int keep, int capacity);
   void grow_bins(BodyBase& b, int layout_keep, int needed);
   void ensure_aux();
-  void initialize(const std::vector<std::vector<Vec3d>>& positions);
+  void allocate_frames();
+  void initialize(const std::vector<std::vector<Vec3d>>* positions);
+  void upload_sampled(BodyBase& body);
   std::vector<FailureReport> failures_of_try(double dt) const;
   void commit(double dt);
   /// Before a step: bins[1 - cur] (the G2P2G target) holds layout(cur); bins grown with headroom (after commit/init).
@@ -405,8 +463,14 @@ class MgspBenchmark {
   }
   std::vector<T> gather_host(int body, cudaStream_t s) const;
 
+  static constexpr Precision kPrecision = !std::is_same_v<T, TG>      ? Precision::Mixed
+                                           : std::is_same_v<T, double> ? Precision::Double
+                                                                       : Precision::Single;
   Scene scene_;
   GpuEngineOptions options_;
+  DeviceMemoryPlan plan_;            ///< what the engine allocated at start (memory_plan.h)
+  std::vector<SampleCount> counts_;  ///< per body: particles per particle block at start (released after start)
+  std::size_t peak_bytes_ = 0;       ///< most device memory the engine's buffers held
   RunConstants<T> k_;    ///< dx, gravity, domain, default dt, boundaries (from the scene): particle side
   RunConstants<TG> kg_;  ///< the same in the grid scalar type: the grid update
   std::vector<std::unique_ptr<BodyBase>> bodies_;
@@ -444,6 +508,9 @@ class MgspBenchmark {
   int cur_ = 0;   ///< current particle buffer and layout
   int gc_ = 0;    ///< current grid
   bool record_ = false;
+  bool capture_next_ = false;     ///< the next step captures frames
+  long long captured_step_ = -1;  ///< the step whose state the device frames hold
+  double output_wait_s_ = 0.0;
   bool flat_source_ = false;  ///< the partition reads the flat upload (slot = ID), not a layout
   bool aux_valid_ = false;  ///< aux holds v, C of the current state
   bool timing_ = false;
@@ -465,14 +532,15 @@ class MgspBenchmark {
 // Construction
 
 template <typename T, typename TG>
-MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions,
+MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::vector<Vec3d>>* positions,
                                 const GpuEngineOptions& options)
     : scene_(scene), options_(options) {
   if (cuda::device_count() == 0) throw std::runtime_error(cuda::no_device_reason());
   const SimulationSpec& sim = scene_.simulation;
   k_ = RunConstants<T>(scene_, "GPU engine");
   kg_ = RunConstants<TG>(scene_, "GPU engine");
-  if (positions.size() != scene_.bodies.size()) throw std::invalid_argument("GpuEngine: one position list per body");
+  if (positions && positions->size() != scene_.bodies.size())
+    throw std::invalid_argument("GpuEngine: one position list per body");
   if (scene_.bodies.size() > static_cast<std::size_t>(DtParams::kMaxBodies))
     throw std::invalid_argument("GpuEngine: at most " + std::to_string(DtParams::kMaxBodies) + " bodies per device");
   time_ = sim.time;
@@ -497,12 +565,25 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
         throw std::invalid_argument(where + ".output_attribs: " + name + " is not available on the GPU engine");
     }
     if (!(mat.ppc > 0.0)) throw std::invalid_argument(where + ".material.ppc: must be positive");
-    if (positions[b].size() > static_cast<std::size_t>(INT_MAX / 2))
-      throw std::invalid_argument(where + ": more than 2^30 particles on one device");
-    for (std::size_t p = 0; p < positions[b].size(); ++p)
-      for (int a = 0; a < 3; ++a)
-        if (!(positions[b][p][a] >= 0.0 && positions[b][p][a] <= sim.domain[a]))
-          throw std::invalid_argument(where + ": particle " + std::to_string(p) + " lies outside the domain");
+    if (positions) {
+      const std::vector<Vec3d>& x = (*positions)[b];
+      for (std::size_t p = 0; p < x.size(); ++p)
+        for (int a = 0; a < 3; ++a)
+          if (!(x[p][a] >= 0.0 && x[p][a] <= sim.domain[a]))
+            throw std::invalid_argument(where + ": particle " + std::to_string(p) + " lies outside the domain");
+      counts_.push_back(count_points(x, sim.dx));
+    } else {
+      // Counted without storing a point (throws SceneError for particles outside the domain, or none at all).
+      counts_.push_back(BodySampler(spec, sim, static_cast<int>(b)).count(sim.dx));
+    }
+    long long bins_needed = 0;
+    for (const BlockCount& c : counts_.back().blocks) bins_needed += (c.particles + 31) / 32;
+    if (bins_needed * 32 > DeviceLimits::kMaxSlots)
+      throw std::invalid_argument(where + ": " + std::to_string(counts_.back().particles) + " particles need " +
+                                  std::to_string(bins_needed * 32) + " particle slots on one device; at most " +
+                                  std::to_string(DeviceLimits::kMaxSlots) +
+                                  " (2^31 - 1, docs/user_guide.md \"Limits\"): use a coarser default_dx, fewer ppc, "
+                                  "or split the body with partition_start / partition_end");
     visit_material(mat.law, [&](auto m) {
       using M = decltype(m);
       auto body = std::make_unique<Body<M>>();
@@ -514,7 +595,7 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
     BodyBase& body = *bodies_.back();
     body.spec = spec;
     body.index = static_cast<int>(b);
-    body.particles = static_cast<int>(positions[b].size());
+    body.particles = static_cast<int>(counts_.back().particles);
     const double volume = sim.dx * sim.dx * sim.dx / mat.ppc;
     body.volume = static_cast<T>(volume);
     body.mass = static_cast<T>(mat.rho * volume);
@@ -529,9 +610,9 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
                                               spec.velocity[2] * spec.velocity[2]));
     if (b < options.initial_velocities.size() && !options.initial_velocities[b].empty()) {
       const std::vector<Vec3d>& v = options.initial_velocities[b];
-      if (v.size() != positions[b].size())
+      if (v.size() != static_cast<std::size_t>(body.particles))
         throw std::invalid_argument("GpuEngine: " + std::to_string(v.size()) + " initial velocities for the " +
-                                    std::to_string(positions[b].size()) + " particles of body " + std::to_string(b));
+                                    std::to_string(body.particles) + " particles of body " + std::to_string(b));
       std::vector<T> flat(3 * v.size());
       body.initial_v_host.resize(v.size());
       for (std::size_t p = 0; p < v.size(); ++p) {
@@ -545,7 +626,40 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
     }
   }
   max_grid_speed_ = max_speed;
+
+  // The plan (memory_plan.h): capacities and every buffer's size, from the counts; refused before anything is
+  // allocated or sampled when it does not fit the device.
+  {
+    std::unordered_set<std::uint64_t> footprint;
+    std::vector<BodyMemoryInput> inputs;
+    for (std::size_t b = 0; b < bodies_.size(); ++b) {
+      BodyMemoryInput in;
+      in.particles = counts_[b].particles;
+      for (const BlockCount& c : counts_[b].blocks) {
+        in.bins_needed += (c.particles + 31) / 32;
+        for (int n = 0; n < 8; ++n)
+          footprint.insert(BlockKey::pack(c.bx + (n >> 2), c.by + ((n >> 1) & 1), c.bz + (n & 1)));
+      }
+      in.stored_scalars = bodies_[b]->stored_scalars();
+      in.asflip = bodies_[b]->asflip;
+      in.fbar = bodies_[b]->fbar_psi != T(0);
+      if (options_.frames) in.frame_columns = frame_float_columns(frame_attributes(bodies_[b]->spec, static_cast<int>(b), "GPU engine"));
+      inputs.push_back(in);
+    }
+    plan_ = plan_device_memory(kPrecision, static_cast<long long>(footprint.size()), inputs);
+    if (plan_.block_capacity > DeviceLimits::kMaxBlocks)
+      throw std::invalid_argument("GpuEngine: " + std::to_string(plan_.block_capacity) + " grid blocks of capacity; at most " +
+                                  std::to_string(DeviceLimits::kMaxBlocks) + " per device (docs/user_guide.md \"Limits\")");
+    std::size_t free_bytes = 0, total_bytes = 0;
+    cuda::memory_info(free_bytes, total_bytes);
+    if (options_.memory_limit > 0) free_bytes = std::min(free_bytes, options_.memory_limit);
+    const std::string fit = memory_fit_message(plan_, free_bytes, total_bytes, scene_, "GPU 0");
+    if (!fit.empty()) throw cuda::OutOfMemory("the scene does not fit: " + fit + " (fbar --check prints the plan)");
+  }
   initialize(positions);
+  counts_.clear();
+  counts_.shrink_to_fit();
+  peak_bytes_ = device_bytes();
 }
 
 template <typename T, typename TG>
@@ -560,28 +674,13 @@ MgspBenchmark<T, TG>::~MgspBenchmark() {
 }
 
 template <typename T, typename TG>
-void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>& positions) {
+void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* positions) {
   FBAR_CUDA_CHECK(cudaStreamCreateWithFlags(&stream_, cudaStreamNonBlocking));
   FBAR_CUDA_CHECK(cudaStreamCreateWithFlags(&copy_stream_, cudaStreamNonBlocking));
   for (cudaEvent_t& e : events_) FBAR_CUDA_CHECK(cudaEventCreate(&e));
 
-  // Starting capacities from the sampled positions: particle blocks (B = floor((base - 1)/4)), their 2x2x2
-  // footprints, and bins; x2 blocks and x1.5 bins of headroom (both grow at run time).
-  std::unordered_map<std::uint64_t, int> per_block;
-  std::unordered_map<std::uint64_t, char> footprint;
-  std::vector<long long> bins_needed(bodies_.size(), 0);
-  for (std::size_t b = 0; b < positions.size(); ++b) {
-    per_block.clear();
-    for (const Vec3d& x : positions[b]) {
-      const Vec3i base = quadratic_bspline_inv(x, 1.0 / scene_.simulation.dx).base;
-      const int bx = floor_div4(base[0] - 1), by = floor_div4(base[1] - 1), bz = floor_div4(base[2] - 1);
-      if (per_block[BlockKey::pack(bx, by, bz)]++ > 0) continue;
-      for (int n = 0; n < 8; ++n) footprint[BlockKey::pack(bx + (n >> 2), by + ((n >> 1) & 1), bz + (n & 1))] = 1;
-    }
-    for (const auto& kv : per_block) bins_needed[b] += (kv.second + 31) / 32;
-  }
-  block_capacity_ = options_.block_capacity > 0 ? options_.block_capacity
-                                                : std::max<int>(1024, static_cast<int>(2 * footprint.size()));
+  // Capacities from the plan (options may start them smaller: tests exercise growth).
+  block_capacity_ = options_.block_capacity > 0 ? options_.block_capacity : static_cast<int>(plan_.block_capacity);
   table_.allocate(block_capacity_, stream_);
   grid_[0].allocate(block_capacity_);
   grid_[1].allocate(block_capacity_);
@@ -596,15 +695,18 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>& pos
   FBAR_CUDA_CHECK(cudaMemsetAsync(grid_[1].instance().data(), 0, grid_[1].bytes(), stream_));
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     BodyBase& body = *bodies_[b];
-    // The flat upload needs ceil(N/32) bins; the grouped layouts need bins_needed.
+    // The flat upload needs ceil(N/32) bins; the grouped layouts need the plan's.
     const long long flat = (body.particles + 31) / 32;
-    const int bins = options_.bin_capacity > 0
-                         ? static_cast<int>(std::max<long long>(flat, options_.bin_capacity))
-                         : static_cast<int>(std::max<long long>(64, std::max(flat, bins_needed[b] * 3 / 2 + 16)));
+    const int bins = options_.bin_capacity > 0 ? static_cast<int>(std::max<long long>(flat, options_.bin_capacity))
+                                               : static_cast<int>(plan_.bin_capacity[b]);
     body.partition.allocate(block_capacity_, bins);
     body.allocate_bins(bins);
-    body.upload(positions[b], stream_);
+    if (positions)
+      body.upload((*positions)[b].data(), (*positions)[b].size(), 0, stream_);
+    else
+      upload_sampled(body);
   }
+  allocate_frames();
   std::size_t temp = 0;
   FBAR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, temp, static_cast<int*>(nullptr), static_cast<int*>(nullptr),
                                                 block_capacity_ + 1, stream_));
@@ -703,9 +805,58 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>& pos
 }
 
 template <typename T, typename TG>
+void MgspBenchmark<T, TG>::upload_sampled(BodyBase& body) {
+  // Batches of whole x-planes of about kSampleBatchParticles, uploaded in ID order; a batch ends on a multiple of
+  // 32 particles (the rest waits for the next), so every upload fills whole bins of the flat layout.
+  const BodySampler sampler(body.spec, scene_.simulation, body.index);
+  const std::vector<long long>& per_plane = counts_[body.index].per_plane;
+  std::vector<Vec3d> pending;
+  long long next_id = 0, plane = 0;
+  const long long planes = sampler.planes();
+  while (plane < planes) {
+    long long end = plane, n = static_cast<long long>(pending.size());
+    while (end < planes && (end == plane || n + per_plane[static_cast<std::size_t>(end)] <= options_.sample_batch))
+      n += per_plane[static_cast<std::size_t>(end++)];
+    sampler.sample_planes(plane, end, pending);
+    plane = end;
+    const std::size_t send = plane == planes ? pending.size() : pending.size() / 32 * 32;
+    if (next_id + static_cast<long long>(send) > body.particles)
+      throw std::runtime_error("GpuEngine: sampling body " + std::to_string(body.index) + " gave more particles than counted");
+    body.upload(pending.data(), send, next_id, stream_);
+    next_id += static_cast<long long>(send);
+    pending.erase(pending.begin(), pending.begin() + static_cast<std::ptrdiff_t>(send));
+  }
+  if (next_id != body.particles)
+    throw std::runtime_error("GpuEngine: sampling body " + std::to_string(body.index) + " gave " + std::to_string(next_id) +
+                             " particles, " + std::to_string(body.particles) + " counted");
+}
+
+template <typename T, typename TG>
 void MgspBenchmark<T, TG>::set_record_velocities(bool on) {
   record_ = on;
   if (on) ensure_aux();
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::allocate_frames() {
+  if (!options_.frames) return;
+  for (auto& bp : bodies_) {
+    BodyBase& b = *bp;
+    b.frame_attrs = frame_attributes(b.spec, b.index, "GPU engine");
+    const FrameNeeds needs = frame_needs(b.frame_attrs);
+    FrameCapture<T> cap;
+    for (const FrameAttributeSpec& a : b.frame_attrs)
+      if (a.column.quantity != FrameQuantity::Id) cap.column[cap.column_count++] = a.column;
+    cap.particles = b.particles;
+    cap.sigma = needs.sigma;
+    const std::size_t n = static_cast<std::size_t>(b.particles);
+    b.frame_x.allocate(3 * n);
+    b.frame_columns.allocate(static_cast<std::size_t>(cap.column_count) * n);
+    cap.x = b.frame_x.get();
+    cap.columns = b.frame_columns.get();
+    b.capture = cap;
+    FBAR_CUDA_CHECK(cudaEventCreateWithFlags(&b.frame_copied, cudaEventDisableTiming));
+  }
 }
 
 template <typename T, typename TG>
@@ -773,8 +924,28 @@ void MgspBenchmark<T, TG>::read_stats() {
 
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::grow_blocks(int needed) {
-  int capacity = block_capacity_;
-  while (capacity < needed) capacity *= 2;
+  long long wanted = block_capacity_;
+  while (wanted < needed) wanted *= 2;
+  if (wanted > DeviceLimits::kMaxBlocks)
+    throw std::runtime_error("GpuEngine: the active grid needs " + std::to_string(wanted) + " blocks at step " +
+                             std::to_string(steps_ + 1) + "; at most " + std::to_string(DeviceLimits::kMaxBlocks) +
+                             " per device (docs/user_guide.md \"Limits\")");
+  const int capacity = static_cast<int>(wanted);
+  try {
+    grow_blocks_to(capacity);
+  } catch (const cuda::OutOfMemory& e) {
+    throw cuda::OutOfMemory("GpuEngine: at step " + std::to_string(steps_ + 1) + " (t = " + mgsp_detail::format_g(time_) +
+                            " s) the active grid outgrew its capacity (" + std::to_string(block_capacity_) + " -> " +
+                            std::to_string(capacity) + " blocks, " + format_bytes(static_cast<double>(device_bytes())) +
+                            " held): " + e.what() +
+                            ". fbar --check plans the memory at start; a scene that spreads needs room to grow: "
+                            "coarser default_dx, fewer ppc, or more GPUs");
+  }
+  peak_bytes_ = std::max(peak_bytes_, device_bytes());
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::grow_blocks_to(int capacity) {
   if (log_)
     *log_ << "fbar: GPU engine: grid blocks " << block_capacity_ << " -> " << capacity << " (hash table, grids)\n";
   const int keep = std::min(block_capacity_, std::max(block_count_, stats_->block_count));
@@ -801,8 +972,29 @@ void MgspBenchmark<T, TG>::grow_blocks(int needed) {
 
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::grow_bins(BodyBase& b, int keep, int needed) {
-  int capacity = std::max(64, b.partition.bin_capacity());
-  while (capacity < needed) capacity = capacity + capacity / 2;
+  long long wanted = std::max(64, b.partition.bin_capacity());
+  while (wanted < needed) wanted = wanted + wanted / 2;
+  const long long max_bins = DeviceLimits::kMaxSlots / 32;
+  if (needed > max_bins)
+    throw std::runtime_error("GpuEngine: body " + std::to_string(b.index) + " needs " + std::to_string(32LL * needed) +
+                             " particle slots at step " + std::to_string(steps_ + 1) + "; at most " +
+                             std::to_string(DeviceLimits::kMaxSlots) + " per body and device (docs/user_guide.md \"Limits\")");
+  const int capacity = static_cast<int>(std::min(wanted, max_bins));
+  try {
+    grow_bins_to(b, keep, capacity);
+  } catch (const cuda::OutOfMemory& e) {
+    throw cuda::OutOfMemory("GpuEngine: at step " + std::to_string(steps_ + 1) + " (t = " + mgsp_detail::format_g(time_) +
+                            " s) the particle bins of body " + std::to_string(b.index) + " outgrew their capacity (" +
+                            std::to_string(b.partition.bin_capacity()) + " -> " + std::to_string(capacity) + " bins, " +
+                            format_bytes(static_cast<double>(device_bytes())) + " held): " + e.what() +
+                            ". fbar --check plans the memory at start; a scene that spreads needs room to grow: "
+                            "coarser default_dx, fewer ppc, or more GPUs");
+  }
+  peak_bytes_ = std::max(peak_bytes_, device_bytes());
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::grow_bins_to(BodyBase& b, int keep, int capacity) {
   if (log_)
     *log_ << "fbar: GPU engine: body " << b.index << " particle bins " << b.partition.bin_capacity() << " -> "
           << capacity << "\n";
@@ -935,6 +1127,9 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
                                     sizeof(unsigned long long) * bodies_.size(), stream_));
     for (auto& b : bodies_)
       FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(1 - cur_).count, 0, sizeof(int) * block_capacity_, stream_));
+    if (capture_next_)  // the device frames are overwritten: their last download must be done
+      for (auto& b : bodies_)
+        if (b->frame_copied) FBAR_CUDA_CHECK(cudaStreamWaitEvent(stream_, b->frame_copied, 0));
     for (auto& b : bodies_) b->g2p2g(*this, false, static_cast<T>(dt));
     event_record(2);
     // 4. partition of the next step
@@ -1017,6 +1212,7 @@ void MgspBenchmark<T, TG>::commit(double dt) {
   bound_cur_ = 1 - bound_cur_;
   time_ += dt;
   ++steps_;
+  if (capture_next_) captured_step_ = steps_;
   last_dt_ = dt;
   dt_p2g_ = stats_->dt_next;
   next_dt_ = stats_->dt_next;
@@ -1040,6 +1236,7 @@ void MgspBenchmark<T, TG>::ensure_step_capacity() {
     // bin of that layout (the partition's bin capacity bounds it).
     if (b->bins_capacity(1 - cur_) < b->partition.bin_capacity()) b->reallocate_bins(1 - cur_, b->partition.bin_capacity());
   }
+  peak_bytes_ = std::max(peak_bytes_, device_bytes());
 }
 
 template <typename T, typename TG>
@@ -1151,69 +1348,83 @@ io::ParticleFrame MgspBenchmark<T, TG>::frame(int body) const {
 
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer) {
-  // Device gather on the compute stream (the state of this step), then the copy on the copy stream into pinned
-  // memory; the writer thread waits for the copy and builds the frame, so the step loop goes on at once.
+  // The frame is on the device already (the capture step, or capture_state before the first step). Its download
+  // runs on the copy stream into the body's pinned buffer, which the writer thread turns into the file; the step
+  // loop waits only when that buffer is still being read from the previous frame (output slower than simulation).
   BodyBase& b = body_at(body);
-  const int W = b.stored_scalars() + kAuxScalars;
-  const std::size_t n = static_cast<std::size_t>(b.particles) * W;
-  auto staging = std::make_shared<mgsp_detail::DeviceArray<T>>();
-  staging->allocate(std::max<std::size_t>(n, 1));
-  FBAR_CUDA_CHECK(cudaMemsetAsync(missing_d_.get(), 0, sizeof(int), stream_));
-  b.gather(*this, staging->get(), missing_d_.get(), stream_);
-  cudaEvent_t gathered, copied;
-  FBAR_CUDA_CHECK(cudaEventCreateWithFlags(&gathered, cudaEventDisableTiming));
-  FBAR_CUDA_CHECK(cudaEventCreateWithFlags(&copied, cudaEventDisableTiming));
-  FBAR_CUDA_CHECK(cudaEventRecord(gathered, stream_));
-  FBAR_CUDA_CHECK(cudaStreamWaitEvent(copy_stream_, gathered, 0));
-  auto host = std::make_shared<mgsp_detail::PinnedBytes>(mgsp_detail::pinned(sizeof(T) * std::max<std::size_t>(n, 1)));
-  if (n) FBAR_CUDA_CHECK(cudaMemcpyAsync(host->get(), staging->get(), sizeof(T) * n, cudaMemcpyDeviceToHost, copy_stream_));
-  FBAR_CUDA_CHECK(cudaEventRecord(copied, copy_stream_));
-  FBAR_CUDA_CHECK(cudaEventDestroy(gathered));
-  // What the writer needs, by value: the body's spec, constants, and a host copy of the state functions.
-  const BodyBase* bp = &b;
-  const std::size_t count = static_cast<std::size_t>(b.particles);
-  const int S = b.stored_scalars();
-  const BodySpec spec = b.spec;
-  const T mass = b.mass, volume = b.volume;
-  const bool has_F = b.stores_F();
-  const bool has_logJp = b.stores_logJp();
-  const bool initial = steps_ == 0 && !aux_valid_;  // before the first step: v = initial velocity, C = 0 exactly
-  const Vec3<T> v0{{static_cast<T>(b.spec.velocity[0]), static_cast<T>(b.spec.velocity[1]),
-                    static_cast<T>(b.spec.velocity[2])}};
-  const std::vector<Vec3<T>> v_init = b.initial_v_host;
-  writer.submit_job([=]() mutable {
-    FBAR_CUDA_CHECK(cudaEventSynchronize(copied));
-    cudaEventDestroy(copied);
-    staging.reset();
-    const T* r = static_cast<const T*>(host->get());
-    std::vector<Vec3<T>> x(count), v(count);
-    std::vector<T> J(count), logJp(count, T(0));
-    std::vector<Mat3<T>> F(count, Mat3<T>::identity()), sigma(count);
-    for (std::size_t p = 0; p < count; ++p) {
-      const T* q = r + p * W;
-      x[p] = Vec3<T>{{q[0], q[1], q[2]}};
-      v[p] = !initial ? Vec3<T>{{q[S], q[S + 1], q[S + 2]}} : v_init.empty() ? v0 : v_init[p];
-      Mat3<T> C;
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) C(i, j) = q[S + 3 + 3 * i + j];
-      bp->state_of(q, J[p], F[p], sigma[p], logJp[p], C);
+  if (!b.capture.x)
+    throw std::logic_error("GpuEngine::submit_frame: frames were not planned (GpuEngineOptions::frames)");
+  if (captured_step_ != steps_) {
+    if (steps_ != 0 || !b.initial_v_host.empty())
+      throw std::logic_error("GpuEngine::submit_frame: step " + std::to_string(steps_) +
+                             " did not capture a frame (set_frame_capture(true) before the step that lands on it)");
+    b.capture_state(*this);
+  }
+  {
+    const auto t0 = std::chrono::steady_clock::now();
+    std::unique_lock<std::mutex> lock(b.frame_slot->mutex);
+    while (b.frame_slot->busy) {
+      b.frame_slot->released.wait_for(lock, std::chrono::milliseconds(50));
+      if (b.frame_slot->busy && writer.failed()) {
+        lock.unlock();
+        writer.flush();  // rethrows the writer's error
+        lock.lock();
+      }
     }
-    FrameSource<T> src;
-    src.x = &x;
-    src.v = &v;
-    src.mass = [&](std::size_t) { return mass; };
-    src.volume0 = [&](std::size_t) { return volume; };
-    src.J = [&] { return J; };
-    src.F = [&] {
-      if (!has_F) throw std::invalid_argument("DefGrad: the body's material stores no deformation gradient");
-      return F;
+    b.frame_slot->busy = true;
+    output_wait_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
+  const std::size_t n = static_cast<std::size_t>(b.particles);
+  const int columns = b.capture.column_count;
+  if (!b.frame_host) b.frame_host = mgsp_detail::pinned(std::max<std::size_t>(b.frame_host_bytes(), 1));
+  cudaEvent_t ready;
+  FBAR_CUDA_CHECK(cudaEventCreateWithFlags(&ready, cudaEventDisableTiming));
+  FBAR_CUDA_CHECK(cudaEventRecord(ready, stream_));
+  FBAR_CUDA_CHECK(cudaStreamWaitEvent(copy_stream_, ready, 0));
+  FBAR_CUDA_CHECK(cudaEventDestroy(ready));
+  auto* host = static_cast<std::byte*>(b.frame_host.get());
+  if (n) {
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(host, b.frame_x.get(), 3 * n * sizeof(T), cudaMemcpyDeviceToHost, copy_stream_));
+    if (columns)
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(host + 3 * n * sizeof(T), b.frame_columns.get(), columns * n * sizeof(float),
+                                      cudaMemcpyDeviceToHost, copy_stream_));
+  }
+  FBAR_CUDA_CHECK(cudaEventRecord(b.frame_copied, copy_stream_));
+  const cudaEvent_t copied = b.frame_copied;
+  const std::vector<FrameAttributeSpec> attrs = b.frame_attrs;
+  const std::shared_ptr<typename BodyBase::HostSlot> slot = b.frame_slot;
+  writer.submit_job([=] {
+    // The host buffer goes back to the step loop once the frame is built, also when building throws.
+    struct Release {
+      std::shared_ptr<typename BodyBase::HostSlot> slot;
+      ~Release() {
+        {
+          std::lock_guard<std::mutex> lock(slot->mutex);
+          slot->busy = false;
+        }
+        slot->released.notify_all();
+      }
     };
-    src.logJp = [&] {
-      if (!has_logJp) throw std::invalid_argument("logJp: the body's material stores no plastic state");
-      return logJp;
-    };
-    src.sigma = [&] { return sigma; };
-    const io::ParticleFrame f = build_frame(spec, body, src, "GPU engine");
+    io::ParticleFrame f;
+    {
+      Release release{slot};
+      FBAR_CUDA_CHECK(cudaEventSynchronize(copied));
+      const T* x = reinterpret_cast<const T*>(host);
+      std::vector<Vec3<T>> positions(n);
+      for (std::size_t p = 0; p < n; ++p) positions[p] = Vec3<T>{{x[3 * p], x[3 * p + 1], x[3 * p + 2]}};
+      f.positions = std::move(positions);
+      const float* col = reinterpret_cast<const float*>(host + 3 * n * sizeof(T));
+      for (const FrameAttributeSpec& a : attrs) {
+        if (a.column.quantity == FrameQuantity::Id) {
+          std::vector<std::int32_t> ids(n);
+          for (std::size_t p = 0; p < n; ++p) ids[p] = static_cast<std::int32_t>(p);
+          f.add(a.name, 1, std::move(ids));
+        } else {
+          f.add(a.name, 1, std::vector<float>(col, col + n), a.unit);
+          col += n;
+        }
+      }
+    }
     io::write_frame(path, f);
   });
 }
@@ -1258,7 +1469,8 @@ std::size_t MgspBenchmark<T, TG>::device_bytes() const {
   std::size_t bytes = table_.bytes() + grid_[0].bytes() + grid_[1].bytes() + velocity_.bytes() + fbar_sums_.bytes() +
                       transported_[0].bytes() + transported_[1].bytes() + old_velocity_.bytes() +
                       stats_bytes_.bytes() + wave_d_.bytes() + p2g_bound_d_.bytes() + scan_temp_.bytes();
-  for (const auto& b : bodies_) bytes += b->bins_bytes() + b->partition.bytes() + b->aux.bytes();
+  for (const auto& b : bodies_)
+    bytes += b->bins_bytes() + b->partition.bytes() + b->aux.bytes() + b->frame_x.bytes() + b->frame_columns.bytes();
   return bytes;
 }
 

@@ -49,16 +49,16 @@ class PartitionDomain {
     block_capacity_ = blocks;
     bin_capacity_ = bins;
     for (int l = 0; l < 2; ++l) {
-      FBAR_CUDA_CHECK(cudaMalloc(&count_[l], sizeof(int) * blocks));
-      FBAR_CUDA_CHECK(cudaMalloc(&bin_offset_[l], sizeof(int) * (blocks + 1)));
-      FBAR_CUDA_CHECK(cudaMalloc(&src_[l], sizeof(int) * slots()));
+      count_[l] = static_cast<int*>(cuda::device_malloc(sizeof(int) * blocks, "partition arrays"));
+      bin_offset_[l] = static_cast<int*>(cuda::device_malloc(sizeof(int) * (blocks + 1), "partition arrays"));
+      src_[l] = static_cast<int*>(cuda::device_malloc(sizeof(int) * slots(), "partition arrays"));
       FBAR_CUDA_CHECK(cudaMemset(src_[l], 0xff, sizeof(int) * slots()));  // -1: empty (growth copies all slots)
       FBAR_CUDA_CHECK(cudaMemset(count_[l], 0, sizeof(int) * blocks));
       FBAR_CUDA_CHECK(cudaMemset(bin_offset_[l], 0, sizeof(int) * (blocks + 1)));
     }
-    FBAR_CUDA_CHECK(cudaMalloc(&dest_, sizeof(ParticleDest) * slots()));
-    FBAR_CUDA_CHECK(cudaMalloc(&bins_per_block_, sizeof(int) * (blocks + 1)));
-    FBAR_CUDA_CHECK(cudaMalloc(&halo_tag_, blocks));
+    dest_ = static_cast<ParticleDest*>(cuda::device_malloc(sizeof(ParticleDest) * slots(), "partition arrays"));
+    bins_per_block_ = static_cast<int*>(cuda::device_malloc(sizeof(int) * (blocks + 1), "partition arrays"));
+    halo_tag_ = static_cast<unsigned char*>(cuda::device_malloc(blocks, "partition arrays"));
     FBAR_CUDA_CHECK(cudaMemset(halo_tag_, 0, blocks));
   }
 
@@ -67,8 +67,8 @@ class PartitionDomain {
     for (int l = 0; l < 2; ++l) {
       int* c = nullptr;
       int* o = nullptr;
-      FBAR_CUDA_CHECK(cudaMalloc(&c, sizeof(int) * blocks));
-      FBAR_CUDA_CHECK(cudaMalloc(&o, sizeof(int) * (blocks + 1)));
+      c = static_cast<int*>(cuda::device_malloc(sizeof(int) * blocks, "partition arrays"));
+      o = static_cast<int*>(cuda::device_malloc(sizeof(int) * (blocks + 1), "partition arrays"));
       FBAR_CUDA_CHECK(cudaMemsetAsync(c, 0, sizeof(int) * blocks, stream));
       FBAR_CUDA_CHECK(cudaMemsetAsync(o, 0, sizeof(int) * (blocks + 1), stream));
       if (l == keep) {
@@ -84,8 +84,8 @@ class PartitionDomain {
     }
     cudaFree(bins_per_block_);
     cudaFree(halo_tag_);
-    FBAR_CUDA_CHECK(cudaMalloc(&bins_per_block_, sizeof(int) * (blocks + 1)));
-    FBAR_CUDA_CHECK(cudaMalloc(&halo_tag_, blocks));
+    bins_per_block_ = static_cast<int*>(cuda::device_malloc(sizeof(int) * (blocks + 1), "partition arrays"));
+    halo_tag_ = static_cast<unsigned char*>(cuda::device_malloc(blocks, "partition arrays"));
     FBAR_CUDA_CHECK(cudaMemsetAsync(halo_tag_, 0, blocks, stream));
     block_capacity_ = blocks;
   }
@@ -95,7 +95,7 @@ class PartitionDomain {
     const std::size_t new_slots = static_cast<std::size_t>(bins) * 32;
     for (int l = 0; l < 2; ++l) {
       int* s = nullptr;
-      FBAR_CUDA_CHECK(cudaMalloc(&s, sizeof(int) * new_slots));
+      s = static_cast<int*>(cuda::device_malloc(sizeof(int) * new_slots, "partition arrays"));
       FBAR_CUDA_CHECK(cudaMemsetAsync(s, 0xff, sizeof(int) * new_slots, stream));  // -1: empty
       if (l == keep)
         FBAR_CUDA_CHECK(cudaMemcpyAsync(s, src_[l], sizeof(int) * slots(), cudaMemcpyDeviceToDevice, stream));
@@ -104,7 +104,7 @@ class PartitionDomain {
       src_[l] = s;
     }
     cudaFree(dest_);
-    FBAR_CUDA_CHECK(cudaMalloc(&dest_, sizeof(ParticleDest) * new_slots));
+    dest_ = static_cast<ParticleDest*>(cuda::device_malloc(sizeof(ParticleDest) * new_slots, "partition arrays"));
     bin_capacity_ = bins;
   }
 

@@ -1,12 +1,14 @@
 // Prints the resolved scene with units, particle counts, time steps and memory estimates (`fbar --check`).
 #include "scene_print.h"
 
+#include <algorithm>
 #include <cmath>
 #include <iomanip>
 #include <ostream>
 #include <sstream>
 #include <string>
 
+#include "memory_plan.h"
 #include "scene_parse.h"
 
 #include "constitutive_models.cuh"
@@ -36,11 +38,7 @@ std::string list(const std::vector<std::string>& v) {
   for (std::size_t i = 0; i < v.size(); ++i) s += (i ? ", " : "") + v[i];
   return s;
 }
-std::string bytes(std::size_t b) {
-  std::ostringstream os;
-  os << std::fixed << std::setprecision(1) << static_cast<double>(b) / (1024.0 * 1024.0) << " MiB";
-  return os.str();
-}
+std::string bytes(std::size_t b) { return format_bytes(static_cast<double>(b)); }
 const char* yes_no(bool b) { return b ? "true" : "false"; }
 
 void row(std::ostream& os, const std::string& key, const std::string& value) {
@@ -168,8 +166,27 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
   const double steps_per_frame = summary.dt > 0.0 ? std::ceil(1.0 / (s.fps * summary.dt)) : 0.0;
   row(os, "steps", "about " + num(steps_per_frame) + " per frame, " + num(steps_per_frame * s.frames) + " in all");
   row(os, "memory (CPU engine)", bytes(summary.cpu_bytes));
-  for (std::size_t g = 0; g < summary.gpu_bytes.size(); ++g)
-    row(os, "memory (GPU " + std::to_string(g) + ")", bytes(summary.gpu_bytes[g]));
+  for (std::size_t g = 0; g < summary.gpu_plans.size(); ++g) {
+    const DeviceMemoryPlan& p = summary.gpu_plans[g];
+    const std::string gpu = "GPU " + std::to_string(g);
+    const double n = static_cast<double>(std::max<long long>(1, p.total_particles()));
+    std::ostringstream per;
+    per << std::fixed << std::setprecision(1) << static_cast<double>(p.total()) / n << " B per particle";
+    row(os, "memory (" + gpu + ")",
+        bytes(p.total()) + " for the whole run (" + per.str() + "; + about " + bytes(kCudaContextBytes) +
+            " CUDA context): particles " + bytes(p.particles_bytes) + ", partition " + bytes(p.partition) + ", grid " +
+            bytes(p.grid) + " (" + std::to_string(p.block_capacity) + " blocks of capacity for " +
+            std::to_string(p.footprint_blocks) + " at start), frames " + bytes(p.frames));
+    row(os, "growth (" + gpu + ")",
+        "+" + bytes(p.grid_growth) + " if the active grid outgrows its capacity (blocks x2), +" +
+            bytes(p.bins_growth) + " if the particle bins do (x1.5); logged when it happens");
+  }
+  row(os, "host memory (set-up)", bytes(summary.host_setup_bytes) +
+                                      " at most while sampling (bodies are sampled and uploaded in batches)");
+  row(os, "limits (per GPU)", std::to_string(DeviceLimits::kMaxSlots) + " particle slots per body (particles and the "
+                              "empty lanes of partly filled bins of 32), " + std::to_string(DeviceLimits::kMaxBlocks) +
+                              " grid blocks, " + std::to_string(DeviceLimits::kMaxBodies) + " bodies");
+  for (const std::string& line : summary.device_notes) row(os, "device", line);
 }
 
 }  // namespace fbar

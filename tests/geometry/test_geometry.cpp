@@ -462,3 +462,50 @@ TEST(SampleBody, FourMillionParticles) {
 
 }  // namespace
 }  // namespace fbar
+
+namespace fbar {
+namespace {
+
+// The counting pass (what the GPU engine plans with) agrees with sampling: the same particle count, per-plane
+// counts that sum to it, and per-block counts equal to grouping the sampled points by block (count_points); the
+// batches of planes concatenate to sample_body's output. Lattice (ppc 8) and jitter (ppc 5), with CSG.
+TEST(BodySampler, CountAndBatchesAgreeWithSampling) {
+  const SimulationSpec sim = make_sim(0.05, {2.0, 1.0, 1.0});
+  for (double ppc : {8.0, 5.0}) {
+    const BodySpec body = make_body({make_box({0.1, 0.2, 0.15}, {1.3, 0.55, 0.6}), make_sphere({0.4, 0.3, 0.3}, 0.15),
+                                     make_box({0.5, 0.3, 0.3}, {0.2, 0.2, 0.2}, GeometryOperation::Subtract)},
+                                    ppc);
+    const std::vector<Vec3d> all = sample_body(body, sim, 0);
+    const BodySampler sampler(body, sim, 0);
+    const SampleCount c = sampler.count(sim.dx);
+    EXPECT_EQ(c.particles, static_cast<long long>(all.size())) << "ppc " << ppc;
+    long long planes = 0;
+    for (long long n : c.per_plane) planes += n;
+    EXPECT_EQ(planes, c.particles);
+    const SampleCount direct = count_points(all, sim.dx);
+    ASSERT_EQ(c.blocks.size(), direct.blocks.size());
+    for (std::size_t i = 0; i < c.blocks.size(); ++i) {
+      EXPECT_EQ(c.blocks[i].bx, direct.blocks[i].bx);
+      EXPECT_EQ(c.blocks[i].by, direct.blocks[i].by);
+      EXPECT_EQ(c.blocks[i].bz, direct.blocks[i].bz);
+      EXPECT_EQ(c.blocks[i].particles, direct.blocks[i].particles);
+    }
+    std::vector<Vec3d> batched;
+    for (long long p = 0; p < sampler.planes(); p += 3) sampler.sample_planes(p, p + 3, batched);
+    ASSERT_EQ(batched.size(), all.size());
+    for (std::size_t i = 0; i < all.size(); ++i) ASSERT_EQ(batched[i], all[i]) << i;
+  }
+}
+
+// The count refuses what sampling refuses, with the same message (particles outside the domain).
+TEST(BodySampler, CountRefusesParticlesOutsideTheDomain) {
+  const SimulationSpec sim = make_sim(0.05, {1.0, 1.0, 1.0});
+  const BodySpec body = make_body({make_box({0.8, 0.1, 0.1}, {0.4, 0.2, 0.2})}, 8);
+  const auto sampled = scene_error_of([&] { sample_body(body, sim, 0); });
+  const auto counted = scene_error_of([&] { BodySampler(body, sim, 0).count(sim.dx); });
+  EXPECT_EQ(sampled.first, counted.first);
+  EXPECT_EQ(sampled.second, counted.second);
+}
+
+}  // namespace
+}  // namespace fbar

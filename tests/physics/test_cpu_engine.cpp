@@ -557,3 +557,38 @@ TEST(Api, RunCpuWritesFramesAndReportsFailures) {
 
 }  // namespace
 }  // namespace fbar
+
+namespace fbar {
+namespace {
+
+// The GPU memory plan of --check (memory_plan.h): frames cost N (3 sizeof(T) + 4 per float attribute); the
+// per-particle figure of a compact single-precision JFluid body is at most 120 B with frames of its positions; a
+// device too small gets a message naming a coarser dx, fewer ppc and more GPUs, and none when it fits.
+TEST(Summary, GpuPlanCountsFramesAndNamesWhatFits) {
+  Scene scene = empty_scene(r3(1, 1, 1), 0.02, r3(0, -9.81, 0));
+  scene.bodies.push_back(box_body(Constitutive::JFluid, r3(0.1, 0.1, 0.1), r3(0.8, 0.8, 0.8)));
+  scene.simulation.precision = Precision::Single;
+  scene.bodies[0].output_attribs = {"ID"};
+  SummaryOptions no_frames;
+  no_frames.frames = false;
+  const SceneSummary bare = summarize_scene(scene, no_frames);
+  const SceneSummary with = summarize_scene(scene);
+  const long long n = with.bodies[0].particles;
+  ASSERT_EQ(n, 40LL * 40 * 40 * 8);
+  EXPECT_EQ(with.gpu_plans[0].frames, static_cast<std::size_t>(n) * 12);
+  EXPECT_EQ(with.gpu_bytes[0] - bare.gpu_bytes[0], static_cast<std::size_t>(n) * 12);
+  scene.bodies[0].output_attribs = {"ID", "Pressure", "Velocity_Magnitude"};
+  EXPECT_EQ(summarize_scene(scene).gpu_plans[0].frames, static_cast<std::size_t>(n) * (12 + 8));
+  EXPECT_LE(static_cast<double>(with.gpu_bytes[0]) / static_cast<double>(n), 120.0);
+  const DeviceMemoryPlan& plan = with.gpu_plans[0];
+  EXPECT_TRUE(memory_fit_message(plan, plan.total() + 1, plan.total() * 2, scene, "GPU 0").empty());
+  const std::string m = memory_fit_message(plan, plan.total() / 3, plan.total(), scene, "GPU 0");
+  EXPECT_NE(m.find("default_dx 0.02 -> "), std::string::npos) << m;
+  EXPECT_NE(m.find("ppc 8 -> 2"), std::string::npos) << m;
+  EXPECT_NE(m.find("4 GPUs"), std::string::npos) << m;
+  EXPECT_GT(with.host_setup_bytes, 0u);
+  EXPECT_LT(with.host_setup_bytes, static_cast<std::size_t>(n) * 100);
+}
+
+}  // namespace
+}  // namespace fbar

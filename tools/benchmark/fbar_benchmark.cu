@@ -3,16 +3,19 @@
 // Per case: wall time per whole step (host work and the per-step readback included) over many steps after a
 // warm-up, per-kernel CUDA-event times in a second timed run, particle-steps per second, the bytes a step must move
 // per particle (from the layouts), that traffic as a fraction of the measured device copy bandwidth, and the
-// device memory per particle (cudaMemGetInfo before construction and after the run). Prints a table and writes a
-// CSV: scene, material, particles, precision, ms_per_step, particle_steps_per_s, bytes_per_particle_step,
-// bandwidth_fraction, device_bytes_per_particle, commit.
+// device memory per particle at start and at its peak during the run (cudaMemGetInfo before construction, after
+// it, and after every step), the host's peak resident memory during set-up and run (VmHWM, reset per case), and
+// the set-up time (counting, sampling in batches, upload, first partition). Prints a table and writes a CSV.
+// tank_box: the issue-16 scene (a JFluid box filling its tank: compact, at rest); dam_break: the water column in a
+// tank twice its width (spreading). --frames=K also captures and writes a frame (ID and positions, .bgeo) every K
+// steps through the engine's asynchronous output into --frame-dir (default /tmp/fbar_benchmark_frames).
 //   fbar_benchmark [--sizes=1,4,16,64] [--precisions=single,double,mixed]
 //                  [--scenes=dam_break,falling_block,neo_block,sand_block,clay_block,hencky_block,fbar_block,
 //                            fbar_dam_break,asflip_dam_break,asflip_block,picflip_dam_break,flip_dam_break]
 // fbar_block and fbar_dam_break: falling_block and dam_break with F-bar (FBAR_psi 1); asflip_dam_break and
 // asflip_block with ASFLIP (alpha 0.9, beta 0 / 0.2); picflip_dam_break (alpha 0.95) and flip_dam_break (alpha 1):
 // the cost of each scheme.
-//                  [--steps=100] [--warmup=20] [--csv=benchmark.csv]
+//                  [--steps=100] [--warmup=20] [--csv=benchmark.csv] [--frames=0] [--frame-dir=DIR]
 #include <cuda_runtime.h>
 
 #include <algorithm>
@@ -20,6 +23,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -27,6 +31,7 @@
 #include <vector>
 
 #include "MnSystem/Cuda/device_query.h"
+#include "MnSystem/IO/async_writer.h"
 #include "gpu_engine.h"
 #include "kernels/g2p2g_kernel.cuh"
 #include "particle_buffer.cuh"
@@ -84,6 +89,38 @@ Scene make_scene(const std::string& name, double millions, Precision precision) 
   const double dx = 0.01;
   Scene s;
   SimulationSpec& sim = s.simulation;
+  if (name == "tank_box") {  // compact: the box fills its tank but for a two-cell margin (issue 16's scene)
+    const int kx = std::max(4, static_cast<int>(std::lround(std::cbrt(cells / 0.3))));  // 2 : 1.2 : 1 box
+    const int ky = std::max(4, static_cast<int>(std::lround(0.6 * kx))), kz = std::max(4, kx / 2);
+    const double dxb = 0.002;
+    sim.dx = dxb;
+    sim.domain = {(kx + 8) * dxb, (ky + 8) * dxb, (kz + 8) * dxb};
+    sim.default_dt = 1e-3;
+    sim.gravity = {0.0, -9.81, 0.0};
+    sim.precision = precision;
+    BodySpec body;
+    GeometrySpec box;
+    box.object = GeometryObject::Box;
+    box.span = {kx * dxb, ky * dxb, kz * dxb};
+    box.offset = {4 * dxb, 4 * dxb, 4 * dxb};
+    body.material.ppc = 8;
+    body.material.cfl = 0.5;
+    body.material.rho = 1000;
+    body.material.law = Constitutive::JFluid;
+    body.material.bulk_modulus = 2e6;
+    body.material.gamma = 7.1;
+    body.material.viscosity = 1e-3;
+    body.geometry.push_back(box);
+    body.output_attribs = {"ID"};
+    s.bodies.push_back(body);
+    BoundarySpec walls;
+    walls.object = BoundaryObject::Walls;
+    walls.contact = Contact::Separable;
+    walls.domain_start = {2 * dxb, 2 * dxb, 2 * dxb};
+    walls.domain_end = {sim.domain[0] - 2 * dxb, sim.domain[1] - 2 * dxb, sim.domain[2] - 2 * dxb};
+    s.boundaries.push_back(walls);
+    return s;
+  }
   sim.dx = dx;
   sim.domain = {(4 * k + 8) * dx, (3 * k + 8) * dx, (k + k / 2 + 8) * dx};
   sim.default_dt = 1e-3;
@@ -145,7 +182,11 @@ struct Row {
   std::string scene, material, precision;
   std::size_t particles = 0;
   double ms_per_step = 0, particle_steps_per_s = 0, bytes_per_particle_step = 0, bandwidth_fraction = 0;
-  double device_bytes_per_particle = 0;
+  double device_bytes_per_particle = 0;       ///< at start (after construction)
+  double device_peak_bytes_per_particle = 0;  ///< most during the run
+  double host_peak_mib = 0;                   ///< VmHWM over set-up and run
+  double setup_s = 0;
+  double output_wait_s = 0;
   KernelTimes kernels;
   std::size_t blocks = 0;
   long long repeats = 0;  ///< tries repeated for the fixed-point P2G bound (warm-up and timed steps)
@@ -163,8 +204,27 @@ double bytes_per_particle_step(std::size_t particles, std::size_t blocks) {
 }
 
 /// T, TG: particle and grid scalar types (<float, float> single, <double, double> double, <double, float> mixed).
+/// Peak resident memory of this process [KiB] since the last reset_host_peak().
+double host_peak_kib() {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line))
+    if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6));
+  return 0.0;
+}
+void reset_host_peak() {
+  std::ofstream clear("/proc/self/clear_refs");
+  clear << "5";  // resets VmHWM to the current resident size (Linux >= 4.0)
+}
+
+struct FrameOptions {
+  int every = 0;  ///< steps between frames, 0: none
+  std::string dir = "/tmp/fbar_benchmark_frames";
+};
+
 template <typename T, typename TG>
-Row run_case(const std::string& scene_name, double millions, int steps, int warmup, double bandwidth) {
+Row run_case(const std::string& scene_name, double millions, int steps, int warmup, double bandwidth,
+             const FrameOptions& frames) {
   Row row;
   row.scene = scene_name;
   const Precision precision = !std::is_same_v<T, TG>       ? Precision::Mixed
@@ -173,31 +233,47 @@ Row run_case(const std::string& scene_name, double millions, int steps, int warm
   row.precision = to_string(precision);
   const Scene scene = make_scene(scene_name, millions, precision);
   row.material = to_string(scene.bodies[0].material.law);
-  std::size_t free0 = 0, total = 0;
+  std::size_t free0 = 0, total = 0, free_min = 0, free_now = 0;
   FBAR_CUDA_CHECK(cudaMemGetInfo(&free0, &total));
-  GpuEngine<T, TG> engine(scene);
+  reset_host_peak();
+  GpuEngineOptions options;
+  options.frames = frames.every > 0;
+  const auto s0 = std::chrono::steady_clock::now();
+  GpuEngine<T, TG> engine(scene, options);
+  FBAR_CUDA_CHECK(cudaDeviceSynchronize());
+  row.setup_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - s0).count();
+  FBAR_CUDA_CHECK(cudaMemGetInfo(&free_min, &total));
+  const std::size_t free_start = free_min;
   engine.set_log(&std::cerr);
   row.particles = engine.particle_count();
-  for (int i = 0; i < warmup; ++i) {
+  std::filesystem::create_directories(frames.dir);
+  io::AsyncWriter writer(1);
+  int frame = 0;
+  auto one_step = [&](int i, const char* what) {
+    if (frames.every > 0) engine.set_frame_capture((i + 1) % frames.every == 0);
     const StepReport r = engine.step();
-    if (!r.ok) throw std::runtime_error("warm-up step failed: " + r.message());
-  }
+    if (!r.ok) throw std::runtime_error(std::string(what) + " step failed: " + r.message());
+    if (frames.every > 0 && (i + 1) % frames.every == 0)
+      engine.submit_frame(0, std::filesystem::path(frames.dir) / ("frame" + std::to_string(frame++ % 4) + ".bgeo"),
+                          writer);
+    FBAR_CUDA_CHECK(cudaMemGetInfo(&free_now, &total));
+    free_min = std::min(free_min, free_now);
+  };
+  for (int i = 0; i < warmup; ++i) one_step(i, "warm-up");
   FBAR_CUDA_CHECK(cudaDeviceSynchronize());
   const auto t0 = std::chrono::steady_clock::now();
-  for (int i = 0; i < steps; ++i) {
-    const StepReport r = engine.step();
-    if (!r.ok) throw std::runtime_error("step failed: " + r.message());
-  }
+  for (int i = 0; i < steps; ++i) one_step(i, "timed");
   FBAR_CUDA_CHECK(cudaDeviceSynchronize());
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  writer.close();
+  row.output_wait_s = engine.output_wait_seconds();
   engine.set_kernel_timing(true);
   for (int i = 0; i < steps; ++i) {
     const StepReport r = engine.step();
     if (!r.ok) throw std::runtime_error("step failed: " + r.message());
   }
   row.kernels = engine.kernel_times();
-  std::size_t free1 = 0;
-  FBAR_CUDA_CHECK(cudaMemGetInfo(&free1, &total));
+  row.host_peak_mib = host_peak_kib() / 1024.0;
   row.blocks = engine.active_grid_blocks();
   row.repeats = engine.p2g_range_repeats();
   row.ms_per_step = 1e3 * seconds / steps;
@@ -206,7 +282,8 @@ Row run_case(const std::string& scene_name, double millions, int steps, int warm
     row.bytes_per_particle_step = bytes_per_particle_step<decltype(m), T, TG>(row.particles, row.blocks);
   });
   row.bandwidth_fraction = row.bytes_per_particle_step * row.particle_steps_per_s / bandwidth;
-  row.device_bytes_per_particle = static_cast<double>(free0 - free1) / static_cast<double>(row.particles);
+  row.device_bytes_per_particle = static_cast<double>(free0 - free_start) / static_cast<double>(row.particles);
+  row.device_peak_bytes_per_particle = static_cast<double>(free0 - free_min) / static_cast<double>(row.particles);
   return row;
 }
 
@@ -217,6 +294,7 @@ int main(int argc, char** argv) {
       scenes{"dam_break", "falling_block"};
   int steps = 100, warmup = 20;
   std::string csv = "benchmark.csv";
+  FrameOptions frames;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&](const char* key) { return a.substr(std::string(key).size()); };
@@ -226,6 +304,8 @@ int main(int argc, char** argv) {
     else if (a.rfind("--steps=", 0) == 0) steps = std::stoi(value("--steps="));
     else if (a.rfind("--warmup=", 0) == 0) warmup = std::stoi(value("--warmup="));
     else if (a.rfind("--csv=", 0) == 0) csv = value("--csv=");
+    else if (a.rfind("--frames=", 0) == 0) frames.every = std::stoi(value("--frames="));
+    else if (a.rfind("--frame-dir=", 0) == 0) frames.dir = value("--frame-dir=");
     else {
       std::cerr << "unknown argument " << a << "\n";
       return 1;
@@ -246,21 +326,22 @@ int main(int argc, char** argv) {
               prop.multiProcessorCount, bandwidth / 1e9, commit.c_str());
   std::ofstream out(csv);
   out << "scene,material,particles,precision,ms_per_step,particle_steps_per_s,bytes_per_particle_step,"
-         "bandwidth_fraction,device_bytes_per_particle,commit\n";
-  std::printf("%-14s %-15s %10s %-7s %9s %12s %8s %7s %8s | %8s %8s %8s %8s %7s\n", "scene", "material",
-              "particles", "prec", "ms/step", "p-steps/s", "B/p/step", "bw frac", "dev B/p", "grid ms", "g2p2g ms",
-              "part ms", "blocks", "repeats");
+         "bandwidth_fraction,device_bytes_per_particle,device_peak_bytes_per_particle,host_peak_mib,setup_s,"
+         "frames_every,output_wait_s,commit\n";
+  std::printf("%-14s %-15s %10s %-7s %9s %12s %8s %7s %8s %8s %9s %7s | %8s %8s %8s %8s %7s\n", "scene",
+              "material", "particles", "prec", "ms/step", "p-steps/s", "B/p/step", "bw frac", "dev B/p", "peak B/p",
+              "host MiB", "setup s", "grid ms", "g2p2g ms", "part ms", "blocks", "repeats");
   for (const std::string& scene : scenes)
     for (const std::string& precision : precisions)
       for (const std::string& size : sizes) {
         Row r;
         try {
           if (precision == "double")
-            r = run_case<double, double>(scene, std::stod(size), steps, warmup, bandwidth);
+            r = run_case<double, double>(scene, std::stod(size), steps, warmup, bandwidth, frames);
           else if (precision == "mixed")
-            r = run_case<double, float>(scene, std::stod(size), steps, warmup, bandwidth);
+            r = run_case<double, float>(scene, std::stod(size), steps, warmup, bandwidth, frames);
           else if (precision == "single")
-            r = run_case<float, float>(scene, std::stod(size), steps, warmup, bandwidth);
+            r = run_case<float, float>(scene, std::stod(size), steps, warmup, bandwidth, frames);
           else
             throw std::invalid_argument("--precisions: \"" + precision + "\" is not single, double or mixed");
         } catch (const std::exception& e) {
@@ -269,15 +350,17 @@ int main(int argc, char** argv) {
           continue;
         }
         const double n = static_cast<double>(r.kernels.steps > 0 ? r.kernels.steps : 1);
-        std::printf("%-14s %-15s %10zu %-7s %9.3f %12.3e %8.1f %7.3f %8.1f | %8.3f %8.3f %8.3f %8zu %7lld\n",
+        std::printf("%-14s %-15s %10zu %-7s %9.3f %12.3e %8.1f %7.3f %8.1f %8.1f %9.0f %7.1f | %8.3f %8.3f %8.3f %8zu %7lld\n",
                     r.scene.c_str(), r.material.c_str(), r.particles, r.precision.c_str(), r.ms_per_step,
                     r.particle_steps_per_s, r.bytes_per_particle_step, r.bandwidth_fraction,
-                    r.device_bytes_per_particle, r.kernels.grid_update_ms / n, r.kernels.g2p2g_ms / n,
+                    r.device_bytes_per_particle, r.device_peak_bytes_per_particle, r.host_peak_mib, r.setup_s,
+                    r.kernels.grid_update_ms / n, r.kernels.g2p2g_ms / n,
                     r.kernels.partition_ms / n, r.blocks, r.repeats);
         std::fflush(stdout);
         out << r.scene << ',' << r.material << ',' << r.particles << ',' << r.precision << ',' << r.ms_per_step << ','
             << r.particle_steps_per_s << ',' << r.bytes_per_particle_step << ',' << r.bandwidth_fraction << ','
-            << r.device_bytes_per_particle << ',' << commit << '\n';
+            << r.device_bytes_per_particle << ',' << r.device_peak_bytes_per_particle << ',' << r.host_peak_mib << ','
+            << r.setup_s << ',' << frames.every << ',' << r.output_wait_s << ',' << commit << '\n';
         out.flush();
       }
   return 0;

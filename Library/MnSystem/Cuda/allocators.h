@@ -14,13 +14,9 @@ namespace fbar::cuda {
 struct DeviceAllocator {
   static constexpr std::size_t alignment = 256;
 
-  /// `bytes` of uninitialised device memory; throws std::runtime_error (FBAR_CUDA_CHECK) on failure.
-  /// 0 bytes gives nullptr.
-  void* allocate(std::size_t bytes) const {
-    void* ptr = nullptr;
-    if (bytes != 0) FBAR_CUDA_CHECK(cudaMalloc(&ptr, bytes));
-    return ptr;
-  }
+  /// `bytes` of uninitialised device memory; throws cuda::OutOfMemory when the device is full, std::runtime_error
+  /// on any other failure. 0 bytes gives nullptr.
+  void* allocate(std::size_t bytes) const { return device_malloc(bytes); }
   /// Frees memory from allocate(); nullptr is ignored. Throws std::runtime_error if cudaFree fails.
   void deallocate(void* ptr, std::size_t /*bytes*/) const {
     if (ptr != nullptr) FBAR_CUDA_CHECK(cudaFree(ptr));

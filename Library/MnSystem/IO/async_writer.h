@@ -72,6 +72,12 @@ class AsyncWriter {
     rethrow_locked();
   }
 
+  /// True once a job has thrown (the next submit, flush or close rethrows it).
+  bool failed() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return static_cast<bool>(error_);
+  }
+
   /// Jobs finished successfully so far.
   std::size_t completed() const {
     std::lock_guard<std::mutex> lock(mutex_);

@@ -42,6 +42,7 @@
 #include "MnBase/Math/bspline.h"
 #include "MnBase/Math/vec.h"
 #include "constitutive_models.cuh"
+#include "frame_columns.h"
 #include "grid_buffer.cuh"
 #include "hash_table.cuh"
 #include "kernels/kernel_common.cuh"
@@ -70,6 +71,43 @@ inline constexpr int kAuxScalars = 12;
 inline constexpr double kP2GHeadroom = 2.0;
 inline constexpr double kMaxNodeWeight = 0.421875;
 
+/// A body's output frame on the device (ID order), written by the G2P2G of the step that lands on a frame time and
+/// by capture_frame_state before the first step: positions in T, then one float per attribute (frame_columns.h).
+template <typename T>
+struct FrameCapture {
+  T* x = nullptr;            ///< (ID, 3) [m], nullptr: this launch captures nothing
+  float* columns = nullptr;  ///< (column, ID)
+  int particles = 0;
+  int column_count = 0;
+  bool sigma = false;        ///< some column reads the Cauchy stress
+  FrameColumn column[kMaxFrameColumns];
+};
+
+/// Writes particle `id`'s frame entry from its new state (out of line: only capture steps pay its registers).
+template <typename M, typename T>
+__device__ __noinline__ void capture_particle(const FrameCapture<T>& cap, int id, const Vec3<T>& x, const Vec3<T>& v,
+                                              const Mat3<T>& C, const material_state_t<M, T>& s,
+                                              const material_params_t<M, T>& material, T mass, T volume) {
+  if (id < 0 || id >= cap.particles) return;
+  FrameInputs<T> in{};
+  in.x = x;
+  in.v = v;
+  in.mass = mass;
+  in.volume0 = volume;
+  in.J = M::volume_ratio(s);
+  in.logJp = T(0);
+  in.F = Mat3<T>::identity();
+  if constexpr (M::kOutputs.deformation_gradient) in.F = s.F;
+  if constexpr (M::kOutputs.log_jp) in.logJp = s.logJp;
+  if (cap.sigma) in.sigma = cauchy_stress(M::kirchhoff_stress(material, s, C));
+  const std::size_t i = static_cast<std::size_t>(id);
+  cap.x[3 * i + 0] = x[0];
+  cap.x[3 * i + 1] = x[1];
+  cap.x[3 * i + 2] = x[2];
+  for (int c = 0; c < cap.column_count; ++c)
+    cap.columns[static_cast<std::size_t>(c) * cap.particles + i] = static_cast<float>(frame_value(cap.column[c], in));
+}
+
 template <typename M, typename T, typename TG>
 struct G2P2GParams {
   using Bins = typename ParticleLayout<M, T>::Buffer;
@@ -83,6 +121,7 @@ struct G2P2GParams {
   typename GridLayout<TG>::Buffer grid_next;         ///< P2G target (zeroed on blocks [0, block count))
   typename GridLayout<TG>::Buffer grid_this;         ///< this step's P2G sums: a new block is zeroed here as well
   T* aux;                    ///< (slot, kAuxScalars) v and C, or nullptr
+  FrameCapture<T> capture;   ///< this body's frame (capture.x != nullptr on a frame step)
   /// ASFLIP (transfer.cuh). Every body adds its transported momentum m (v + C (x_i - x_p)) to `transported_next`
   /// when any body uses ASFLIP (non-null); a body that uses it also reads v^n (`old_velocity`) and its particles'
   /// velocities (`particle_v_in` at the storage slot, `particle_v_out` at the layout slot; 3 scalars per slot).
@@ -287,7 +326,9 @@ FBAR_DEVICE ParticleDest claim_block_rank(bool has_key, std::uint64_t key, const
 /// that APIC scenes run a kernel without that code: with the ASFLIP code present behind run-time branches, APIC
 /// steps in double took 5.03 / 7.09 ms (dam_break / falling_block, 16M particles, H100) against 3.33 / 4.83 ms
 /// without (two runs, docs/benchmarks/2026-11-23-h100-asflip-arena.md). The initial P2G decides at run time.
-template <typename M, typename T, typename TG, bool kInitial, bool kTransport>
+/// kCapture: this launch also writes the body's output frame (a separate instantiation: a run-time branch to the
+/// capture call, even out of line, doubled the APIC kernel's time on an H100).
+template <typename M, typename T, typename TG, bool kInitial, bool kTransport, bool kCapture = false>
 __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) {
   using State = material_state_t<M, T>;
   constexpr int kStateScalars = ParticleLayout<M, T>::kStateScalars;
@@ -435,6 +476,8 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
         for (int r = 0; r < 3; ++r)
           for (int c = 0; c < 3; ++c) a[3 + 3 * r + c] = C(r, c);
       }
+      if constexpr (kCapture)
+        capture_particle<M, T>(p.capture, in.id, x_new, v, C, state_new, p.material, p.mass, p.volume);
       if (failed < 0) {
         const QuadraticBspline<T> s = quadratic_bspline_inv(x_new, p.inv_dx);
         const int l0 = s.base[0] - 4 * origin[0], l1 = s.base[1] - 4 * origin[1], l2 = s.base[2] - 4 * origin[2];

@@ -36,4 +36,18 @@ __global__ void __launch_bounds__(kOutputThreads)
   for (int i = 0; i < kAuxScalars; ++i) o[S + i] = aux ? aux[static_cast<std::size_t>(s) * kAuxScalars + i] : T(0);
 }
 
+/// The frame of the state before the first step (v = the body's initial velocity, C = 0): one thread per slot of
+/// the current layout, particles read through src.
+template <typename M, typename T>
+__global__ void __launch_bounds__(kOutputThreads)
+    capture_frame_state(typename ParticleLayout<M, T>::Buffer bins, const int* src, int slots, FrameCapture<T> capture,
+                        Vec3<T> velocity, material_params_t<M, T> material, T mass, T volume) {
+  const int slot = blockIdx.x * blockDim.x + threadIdx.x;
+  if (slot >= slots) return;
+  const int s = src[slot];
+  if (s < 0) return;
+  const ParticleRecord<M, T> p = load_particle<M, T>(bins, s);
+  capture_particle<M, T>(capture, p.id, p.x, velocity, Mat3<T>::zero(), p.state, material, mass, volume);
+}
+
 }  // namespace fbar

@@ -1,0 +1,168 @@
+// The GPU engine at scale, on small scenes: the memory plan is the allocation, a scene that does not fit is refused
+// before anything is allocated, batched sampling uploads the same particles as a whole-body sample, and the frame
+// a capture step writes on the device equals the frame built on the host from a snapshot of the same state.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "MnSystem/IO/async_writer.h"
+#include "MnSystem/IO/particle_io.h"
+#include "gpu_engine.h"
+#include "gpu_test_support.h"
+#include "memory_plan.h"
+#include "particle_frame.h"
+
+namespace fbar {
+namespace {
+
+Scene frame_scene(Constitutive law, Precision precision) {
+  Scene s = test::small_scene(law, precision);
+  s.bodies[0].output_attribs = {"ID", "Position_Y", "Velocity_X", "Velocity_Magnitude", "J", "Pressure",
+                                "VonMisesStress", "StressCauchy_XY", "Mass", "Volume"};
+  if (law != Constitutive::JFluid) s.bodies[0].output_attribs.push_back("DefGrad_YY");
+  return s;
+}
+
+// device_bytes() after construction is the plan's total (the plan is computed from the same counts the engine
+// uses; only the CUB scan scratch is estimated): within 0.5 %, with and without frames, single and double.
+TEST(GpuMemory, PlanIsTheAllocation) {
+  FBAR_REQUIRE_DEVICE();
+  for (bool frames : {false, true}) {
+    GpuEngineOptions o;
+    o.frames = frames;
+    GpuEngine<float> single(frame_scene(Constitutive::JFluid, Precision::Single), o);
+    const double ps = static_cast<double>(single.memory_plan().total());
+    EXPECT_NEAR(static_cast<double>(single.device_bytes()), ps, 0.005 * ps) << "frames " << frames;
+    GpuEngine<double> dbl(frame_scene(Constitutive::FixedCorotated, Precision::Double), o);
+    const double pd = static_cast<double>(dbl.memory_plan().total());
+    EXPECT_NEAR(static_cast<double>(dbl.device_bytes()), pd, 0.005 * pd) << "frames " << frames;
+    // Frames cost exactly N (3 sizeof(T) + 4 columns) bytes.
+    if (frames)
+      EXPECT_EQ(single.memory_plan().frames, single.particle_count() * (3 * sizeof(float) + 4 * 9));
+  }
+  // The peak stays the start while nothing grows.
+  GpuEngine<float> e(frame_scene(Constitutive::JFluid, Precision::Single));
+  for (int i = 0; i < 10; ++i) ASSERT_TRUE(e.step().ok);
+  EXPECT_EQ(e.peak_device_bytes(), e.device_bytes());
+}
+
+// A device that is too small: refused in the constructor, naming what would fit, before any allocation.
+TEST(GpuMemory, RefusesWhatDoesNotFit) {
+  FBAR_REQUIRE_DEVICE();
+  GpuEngineOptions o;
+  o.memory_limit = 1 << 20;  // 1 MiB "free"
+  try {
+    GpuEngine<float> e(frame_scene(Constitutive::JFluid, Precision::Single), o);
+    FAIL() << "expected a refusal";
+  } catch (const cuda::OutOfMemory& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("does not fit"), std::string::npos) << m;
+    EXPECT_NE(m.find("default_dx"), std::string::npos) << m;
+    EXPECT_NE(m.find("ppc"), std::string::npos) << m;
+    EXPECT_NE(m.find("GPUs"), std::string::npos) << m;
+  }
+}
+
+// Batches of 100 particles (a remainder carried across batches) give the very particles of one whole sample.
+TEST(GpuMemory, BatchedSamplingEqualsWholeSample) {
+  FBAR_REQUIRE_DEVICE();
+  const Scene scene = frame_scene(Constitutive::FixedCorotated, Precision::Double);
+  GpuEngineOptions small;
+  small.sample_batch = 100;
+  GpuEngine<double> batched(scene, small);
+  GpuEngine<double> whole(scene, test::sample_scene(scene));
+  const ParticleSnapshot<double> a = batched.snapshot(0), b = whole.snapshot(0);
+  ASSERT_EQ(a.x.size(), b.x.size());
+  for (std::size_t p = 0; p < a.x.size(); ++p)
+    for (int d = 0; d < 3; ++d) ASSERT_EQ(a.x[p][d], b.x[p][d]) << "particle " << p;
+  for (int s = 0; s < 5; ++s) {
+    ASSERT_TRUE(batched.step(1e-3).ok);
+    ASSERT_TRUE(whole.step(1e-3).ok);
+  }
+  // Then the runs agree to the summation order of the grid's global atomics (not bitwise between two GPU runs).
+  const ParticleSnapshot<double> c = batched.snapshot(0), d = whole.snapshot(0);
+  for (std::size_t p = 0; p < c.x.size(); ++p)
+    for (int k = 0; k < 3; ++k) ASSERT_NEAR(c.x[p][k], d.x[p][k], 1e-12) << "particle " << p;
+}
+
+template <typename T>
+void expect_frame_matches_snapshot(Constitutive law, Precision precision) {
+  const Scene scene = frame_scene(law, precision);
+  GpuEngineOptions o;
+  o.frames = true;
+  GpuEngine<T> gpu(scene, o);
+  const auto dir = std::filesystem::temp_directory_path() / ("fbar_frames_" + std::to_string(static_cast<int>(law)));
+  std::filesystem::create_directories(dir);
+  io::AsyncWriter writer(1);
+  gpu.set_record_velocities(true);  // the snapshot's v and C of the same step (the reference)
+  gpu.submit_frame(0, dir / "f0.bgeo", writer);
+  for (int s = 0; s < 6; ++s) {
+    gpu.set_frame_capture(s == 5);
+    ASSERT_TRUE(gpu.step(1e-3).ok);
+  }
+  gpu.submit_frame(0, dir / "f1.bgeo", writer);
+  writer.close();
+  const io::ParticleFrame reference = gpu.frame(0);  // host build_frame from the snapshot (aux v, C)
+  const io::ParticleFrame written = io::read_bgeo(dir / "f1.bgeo");
+  ASSERT_EQ(written.size(), reference.size());
+  for (std::size_t p = 0; p < written.size(); ++p)
+    for (int d = 0; d < 3; ++d)
+      ASSERT_NEAR(written.position(p)[d], reference.position(p)[d], 1e-6) << "particle " << p;
+  // Stress attributes: float rounding of the pressure (|sigma| ~ p) carries into the small deviatoric parts, so their
+  // tolerance scales with the largest |pressure|.
+  double pressure_scale = 0.0;
+  if (const io::FrameAttribute* pr = reference.find("Pressure"))
+    for (float v : std::get<std::vector<float>>(pr->values)) pressure_scale = std::max(pressure_scale, std::fabs(double(v)));
+  for (const io::FrameAttribute& a : reference.attributes) {
+    const io::FrameAttribute* w = written.find(a.name);
+    ASSERT_NE(w, nullptr) << a.name;
+    if (a.name == "ID") {
+      EXPECT_EQ(std::get<std::vector<std::int32_t>>(w->values), std::get<std::vector<std::int32_t>>(a.values));
+      continue;
+    }
+    const auto& rv = std::get<std::vector<float>>(a.values);
+    const auto& wv = std::get<std::vector<float>>(w->values);
+    ASSERT_EQ(rv.size(), wv.size());
+    double scale = 0.0, err = 0.0;
+    for (std::size_t p = 0; p < rv.size(); ++p) {
+      scale = std::max(scale, std::fabs(static_cast<double>(rv[p])));
+      err = std::max(err, std::fabs(static_cast<double>(rv[p]) - static_cast<double>(wv[p])));
+    }
+    if (a.name == "VonMisesStress" || a.name.rfind("StressCauchy_", 0) == 0) scale = std::max(scale, pressure_scale);
+    // The same formula on the same state: equal up to rounding in T (float: 6e-8; FMA contraction differs between
+    // the device and the host) and the float output: 1e-5 of the scale.
+    EXPECT_LE(err, 1e-5 * std::max(scale, 1e-30) + 1e-30) << a.name << " scale " << scale;
+  }
+  // Frame 0 (before the first step) holds the sampled positions.
+  const io::ParticleFrame first = io::read_bgeo(dir / "f0.bgeo");
+  const auto positions = test::sample_scene(scene);
+  ASSERT_EQ(first.size(), positions[0].size());
+  for (std::size_t p = 0; p < first.size(); ++p)
+    for (int d = 0; d < 3; ++d) ASSERT_NEAR(first.position(p)[d], positions[0][p][d], 1e-6);
+}
+
+TEST(GpuFrames, CaptureEqualsSnapshotJFluidFloat) {
+  FBAR_REQUIRE_DEVICE();
+  expect_frame_matches_snapshot<float>(Constitutive::JFluid, Precision::Single);
+}
+TEST(GpuFrames, CaptureEqualsSnapshotFixedCorotatedDouble) {
+  FBAR_REQUIRE_DEVICE();
+  expect_frame_matches_snapshot<double>(Constitutive::FixedCorotated, Precision::Double);
+}
+
+// A frame must come from a capture step: submitting after a step that captured nothing is a programming error.
+TEST(GpuFrames, RefusesAFrameThatWasNotCaptured) {
+  FBAR_REQUIRE_DEVICE();
+  GpuEngineOptions o;
+  o.frames = true;
+  GpuEngine<float> gpu(frame_scene(Constitutive::JFluid, Precision::Single), o);
+  ASSERT_TRUE(gpu.step(1e-3).ok);
+  io::AsyncWriter writer(1);
+  EXPECT_THROW(gpu.submit_frame(0, std::filesystem::temp_directory_path() / "fbar_never.bgeo", writer),
+               std::logic_error);
+}
+
+}  // namespace
+}  // namespace fbar
