@@ -12,10 +12,7 @@
 #include <stdexcept>
 #include <string>
 #include <type_traits>
-#include <unordered_map>
-#include <unordered_set>
 
-#include "MnBase/Math/bspline.h"
 #include "MnSystem/IO/async_writer.h"
 #include "constitutive_models.cuh"
 #include "cpu_engine.h"
@@ -24,7 +21,6 @@
 #include "particle_frame.h"
 #include "scene_error.h"
 #include "scene_parse.h"
-#include "settings.h"
 #include "time_step.cuh"
 
 namespace fbar {
@@ -60,12 +56,6 @@ MaterialFacts material_facts(const MaterialSpec& m) {
 /// GpuEngine<double, float>, CpuEngine<double, float>).
 std::size_t particle_scalar_bytes(Precision p) { return p == Precision::Single ? 4 : 8; }
 std::size_t grid_scalar_bytes(Precision p) { return p == Precision::Double ? 8 : 4; }
-
-std::uint64_t pack(int x, int y, int z) {
-  constexpr int bias = 1 << 20;
-  return (static_cast<std::uint64_t>(x + bias) << 42) | (static_cast<std::uint64_t>(y + bias) << 21) |
-         static_cast<std::uint64_t>(z + bias);
-}
 
 std::string format_duration(double seconds) {
   if (!std::isfinite(seconds) || seconds < 0) return "--:--:--";
@@ -172,9 +162,8 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
 
   int max_gpu = -1;
   for (const BodySpec& b : scene.bodies) max_gpu = std::max(max_gpu, b.gpu);
-  // Grid blocks of every body's 2x2x2 particle-block footprints, per GPU and for the CPU engine.
-  std::unordered_set<std::uint64_t> cpu_blocks;
-  std::vector<std::unordered_set<std::uint64_t>> gpu_blocks(max_gpu + 1);
+  // Every body's particle blocks (their 2x2x2 footprints are the grid blocks, per GPU and for the CPU engine).
+  std::vector<SampleCount> counts;
   std::vector<std::vector<BodyMemoryInput>> gpu_inputs(max_gpu + 1);
   std::size_t cpu_particle_bytes = 0;
   bool asflip = false, fbar = false;  // some body uses ASFLIP / F-bar: the grids carry their channels
@@ -183,7 +172,8 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     const BodySpec& body = scene.bodies[i];
     const MaterialSpec& m = body.material;
     // Counted, not stored: --check and the memory plan cost no host memory per particle.
-    const SampleCount count = BodySampler(body, sim, static_cast<int>(i)).count(dx);
+    counts.push_back(BodySampler(body, sim, static_cast<int>(i)).count(dx));
+    const SampleCount& count = counts.back();
     const MaterialFacts facts = material_facts(m);
     BodySummary s;
     s.particles = count.particles;
@@ -198,14 +188,7 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
 
     BodyMemoryInput in;
     in.particles = count.particles;
-    for (const BlockCount& c : count.blocks) {
-      in.bins_needed += (c.particles + settings::kBinSize - 1) / settings::kBinSize;
-      for (int n = 0; n < 8; ++n) {
-        const std::uint64_t key = pack(c.bx + (n >> 2), c.by + ((n >> 1) & 1), c.bz + (n & 1));
-        cpu_blocks.insert(key);
-        gpu_blocks[body.gpu].insert(key);
-      }
-    }
+    in.bins_needed = bins_needed(count);
     in.stored_scalars = facts.stored_scalars;
     in.asflip = body.algorithm.asflip_active();
     in.fbar = body.algorithm.fbar_blend() != 0.0;
@@ -237,14 +220,18 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
   // CPU grid: 4 channels x 64 nodes per block in the grid scalar type (+3 for ASFLIP's v^n, +2 for F-bar's cell
   // sums, only when a body uses them), coordinates and a hash-map entry.
   const std::size_t cpu_channels = 4 + (asflip ? 3 : 0) + (fbar ? 2 : 0);
-  summary.cpu_bytes =
-      cpu_particle_bytes + cpu_blocks.size() * (cpu_channels * 64 * grid_scalar_bytes(sim.precision) + 12 + 48);
+  std::vector<const SampleCount*> all;
+  for (const SampleCount& c : counts) all.push_back(&c);
+  summary.cpu_bytes = cpu_particle_bytes + static_cast<std::size_t>(footprint_blocks(all)) *
+                                               (cpu_channels * 64 * grid_scalar_bytes(sim.precision) + 12 + 48);
 
   // GPU: the engine's own plan (memory_plan.h), per GPU.
   summary.gpu_bytes.assign(max_gpu + 1, 0);
   for (int g = 0; g <= max_gpu; ++g) {
-    summary.gpu_plans.push_back(
-        plan_device_memory(sim.precision, static_cast<long long>(gpu_blocks[g].size()), gpu_inputs[g]));
+    std::vector<const SampleCount*> on_gpu;
+    for (std::size_t i = 0; i < counts.size(); ++i)
+      if (scene.bodies[i].gpu == g) on_gpu.push_back(&counts[i]);
+    summary.gpu_plans.push_back(plan_device_memory(sim.precision, footprint_blocks(on_gpu), gpu_inputs[g]));
     summary.gpu_bytes[g] = summary.gpu_plans.back().total();
   }
   return summary;

@@ -265,6 +265,30 @@ bool BodyShape::contains(const Vec3d& p) const {
   return inside;
 }
 
+namespace {
+
+/// Particle block of a coordinate (per axis): B = floor((base - 1) / 4), base = floor(x / dx - 0.5), as the GPU
+/// engine groups particles (partition_domain.h).
+long long particle_block(double x, double inv_dx) {
+  const long long base = static_cast<long long>(std::floor(x * inv_dx - 0.5));
+  return static_cast<long long>(std::floor(static_cast<double>(base - 1) / 4.0));
+}
+
+/// Particles per block in an ordered map (sparse bodies and given point lists).
+struct BlockTally {
+  std::map<std::tuple<long long, long long, long long>, long long> blocks;
+  void add(const Vec3d& p, double inv_dx) {
+    ++blocks[{particle_block(p[0], inv_dx), particle_block(p[1], inv_dx), particle_block(p[2], inv_dx)}];
+  }
+  void emit(SampleCount& c) const {
+    for (const auto& [key, n] : blocks)
+      c.blocks.push_back(BlockCount{static_cast<int>(std::get<0>(key)), static_cast<int>(std::get<1>(key)),
+                                    static_cast<int>(std::get<2>(key)), n});
+  }
+};
+
+}  // namespace
+
 BodySampler::BodySampler(const BodySpec& body, const SimulationSpec& sim, int body_index)
     : body_index_(body_index), seed_(sim.seed), path_("bodies[" + std::to_string(body_index) + "].geometry") {
   const std::string body_path = "bodies[" + std::to_string(body_index) + "]";
@@ -381,10 +405,7 @@ SampleCount BodySampler::count(double dx) const {
   // base = floor(x / dx - 0.5). Counted into a dense box of blocks (planes in parallel, atomic increments); every
   // candidate point lies inside it, so no count is lost.
   const double inv_dx = 1.0 / dx;
-  auto block_of = [&](double x) {
-    const long long base = static_cast<long long>(std::floor(x * inv_dx - 0.5));
-    return static_cast<long long>(std::floor(static_cast<double>(base - 1) / 4.0));
-  };
+  auto block_of = [&](double x) { return particle_block(x, inv_dx); };
   long long blo[3], bn[3];
   double dense = 1.0;
   for (int d = 0; d < 3; ++d) {
@@ -393,9 +414,9 @@ SampleCount BodySampler::count(double dx) const {
     bn[d] = block_of(hi) + 2 - blo[d];
     dense *= static_cast<double>(bn[d]);
   }
-  SampleCount c;
   if (dense > 268435456.0)  // 2^28 blocks (1 GiB of counters): a body this sparse is counted per plane in maps
     return count_sparse(dx);
+  SampleCount c;
   std::vector<std::uint32_t> counts(static_cast<std::size_t>(dense), 0u);
   c.per_plane.assign(static_cast<std::size_t>(count_[0]), 0);
   std::size_t particles = 0, outside = 0;
@@ -445,7 +466,7 @@ SampleCount BodySampler::count(double dx) const {
 
 SampleCount BodySampler::count_sparse(double dx) const {
   SampleCount c;
-  std::map<std::tuple<int, int, int>, long long> blocks;
+  BlockTally tally;
   const double inv_dx = 1.0 / dx;
   std::size_t outside = 0;
   Vec3d first_outside{};
@@ -458,36 +479,21 @@ SampleCount BodySampler::count_sparse(double dx) const {
         if (outside++ == 0) first_outside = p;
         return;
       }
-      int b[3];
-      for (int d = 0; d < 3; ++d) {
-        const long long base = static_cast<long long>(std::floor(p[d] * inv_dx - 0.5));
-        b[d] = static_cast<int>(std::floor(static_cast<double>(base - 1) / 4.0));
-      }
-      ++blocks[{b[0], b[1], b[2]}];
+      tally.add(p, inv_dx);
     });
   }
   if (c.particles == 0) throw_no_particles(path_);
   check_inside_domain(outside, static_cast<std::size_t>(c.particles), first_outside);
-  for (const auto& [key, n] : blocks)
-    c.blocks.push_back(BlockCount{std::get<0>(key), std::get<1>(key), std::get<2>(key), n});
+  tally.emit(c);
   return c;
 }
 
 SampleCount count_points(const std::vector<Vec3d>& points, double dx) {
   SampleCount c;
   c.particles = static_cast<long long>(points.size());
-  std::map<std::tuple<int, int, int>, long long> blocks;
-  const double inv_dx = 1.0 / dx;
-  for (const Vec3d& p : points) {
-    int b[3];
-    for (int d = 0; d < 3; ++d) {
-      const long long base = static_cast<long long>(std::floor(p[d] * inv_dx - 0.5));
-      b[d] = static_cast<int>(std::floor(static_cast<double>(base - 1) / 4.0));
-    }
-    ++blocks[{b[0], b[1], b[2]}];
-  }
-  for (const auto& [key, n] : blocks)
-    c.blocks.push_back(BlockCount{std::get<0>(key), std::get<1>(key), std::get<2>(key), n});
+  BlockTally tally;
+  for (const Vec3d& p : points) tally.add(p, 1.0 / dx);
+  tally.emit(c);
   return c;
 }
 

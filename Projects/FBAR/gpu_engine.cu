@@ -105,12 +105,6 @@ template class GpuEngine<double, float>;
 
 namespace {
 
-std::string mgsp_detail_format(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.3g", v);
-  return buf;
-}
-
 template <typename T, typename TG>
 RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& log) {
   RunResult result;
@@ -141,7 +135,7 @@ RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& 
     log << "fbar: GPU engine (" << precision_description(sim.precision) << "), " << engine.particle_count()
         << " particles, " << engine.body_count() << " bodies, " << format_bytes(static_cast<double>(engine.device_bytes()))
         << " on the device (" << format_bytes(static_cast<double>(plan.total())) << " planned), set-up "
-        << mgsp_detail_format(setup_s) << " s\n";
+        << mgsp_detail::format_g(setup_s) << " s\n";
   }
   write_frame(0);
   const auto wall_start = std::chrono::steady_clock::now();

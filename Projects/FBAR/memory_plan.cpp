@@ -4,7 +4,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdint>
 #include <sstream>
+#include <unordered_set>
 
 namespace fbar {
 namespace {
@@ -39,6 +41,26 @@ std::size_t partition_block_bytes(long long capacity) {
 }
 
 }  // namespace
+
+long long bins_needed(const SampleCount& count) {
+  long long bins = 0;
+  for (const BlockCount& c : count.blocks) bins += (c.particles + 31) / 32;
+  return bins;
+}
+
+long long footprint_blocks(const std::vector<const SampleCount*>& counts) {
+  // Keys pack the coordinates in 21 bits each with a bias of 2^20 (hash_table.cuh BlockKey's packing).
+  auto pack = [](long long x, long long y, long long z) {
+    constexpr long long bias = 1 << 20;
+    return (static_cast<std::uint64_t>(x + bias) << 42) | (static_cast<std::uint64_t>(y + bias) << 21) |
+           static_cast<std::uint64_t>(z + bias);
+  };
+  std::unordered_set<std::uint64_t> blocks;
+  for (const SampleCount* count : counts)
+    for (const BlockCount& c : count->blocks)
+      for (int n = 0; n < 8; ++n) blocks.insert(pack(c.bx + (n >> 2), c.by + ((n >> 1) & 1), c.bz + (n & 1)));
+  return static_cast<long long>(blocks.size());
+}
 
 std::size_t particle_record_bytes(int stored_scalars, std::size_t scalar_bytes) {
   const std::size_t raw = static_cast<std::size_t>(stored_scalars) * scalar_bytes + 4;
@@ -117,7 +139,7 @@ std::string memory_fit_message(const DeviceMemoryPlan& plan, std::size_t free_by
      << scene.simulation.dx * std::cbrt(ratio * 1.05) << " m (coarser)";
   double ppc = 0.0;
   for (const BodySpec& b : scene.bodies) ppc = std::max(ppc, b.material.ppc);
-  if (ppc > 1.0) os << ", or material.ppc " << ppc << " -> " << std::max(1.0, std::floor(ppc / (ratio * 1.05))) << "";
+  if (ppc > 1.0) os << ", or material.ppc " << ppc << " -> " << std::max(1.0, std::floor(ppc / (ratio * 1.05)));
   os << ", or " << static_cast<int>(std::ceil(ratio * 1.05))
      << " GPUs of this size (one body spanning several GPUs: the multi-GPU release; today bodies[].gpu places whole "
         "bodies)";

@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "geometry.h"
 #include "scene.h"
 
 namespace fbar {
@@ -73,6 +74,12 @@ inline constexpr std::size_t kCudaContextBytes = std::size_t(600) << 20;
 
 /// Bytes of one particle in a bin: stored scalars and the 32-bit ID, padded to the scalar's alignment.
 std::size_t particle_record_bytes(int stored_scalars, std::size_t scalar_bytes);
+
+/// Bins of 32 the particle blocks of a count need: sum of ceil(count / 32).
+long long bins_needed(const SampleCount& count);
+
+/// Grid blocks covered by the 2x2x2 footprints (blocks B .. B + 1 per axis) of every particle block of `counts`.
+long long footprint_blocks(const std::vector<const SampleCount*>& counts);
 
 /// Grid-block and bin capacities and the bytes of every buffer (see the file comment).
 DeviceMemoryPlan plan_device_memory(Precision precision, long long footprint_blocks,

@@ -33,11 +33,10 @@
 #include <iostream>
 #include <limits>
 #include <memory>
+#include <numeric>
 #include <sstream>
 #include <stdexcept>
 #include <string>
-#include <unordered_map>
-#include <unordered_set>
 #include <vector>
 
 #include "MnBase/Math/bspline.h"
@@ -140,13 +139,6 @@ static __global__ void reset_step_stats(StepStats* stats, BodyStepStats* bodies,
     bodies[b].particles = 0;
   }
 }
-
-/// Per-particle-block estimate of the starting capacities from the sampled positions (host, O(N)).
-struct CapacityEstimate {
-  long long particle_blocks = 0;
-  long long footprint_blocks = 0;
-  long long bins = 0;
-};
 
 }  // namespace mgsp_detail
 
@@ -448,6 +440,8 @@ class MgspBenchmark {
   bool handle_overflow();                ///< grows what overflowed and redoes the partition; true if it did
   void grow_blocks(int needed);
   void grow_blocks_to(int capacity);
+  /// The error of a growth the device could not hold: step, time, what grew, memory held, what would help.
+  cuda::OutOfMemory growth_failure(const std::string& what, const cuda::OutOfMemory& e) const;
   void grow_bins_to(BodyBase& b, int keep, int capacity);
   void grow_bins(BodyBase& b, int layout_keep, int needed);
   void ensure_aux();
@@ -576,11 +570,10 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
       // Counted without storing a point (throws SceneError for particles outside the domain, or none at all).
       counts_.push_back(BodySampler(spec, sim, static_cast<int>(b)).count(sim.dx));
     }
-    long long bins_needed = 0;
-    for (const BlockCount& c : counts_.back().blocks) bins_needed += (c.particles + 31) / 32;
-    if (bins_needed * 32 > DeviceLimits::kMaxSlots)
+    const long long slots_needed = 32 * bins_needed(counts_.back());
+    if (slots_needed > DeviceLimits::kMaxSlots)
       throw std::invalid_argument(where + ": " + std::to_string(counts_.back().particles) + " particles need " +
-                                  std::to_string(bins_needed * 32) + " particle slots on one device; at most " +
+                                  std::to_string(slots_needed) + " particle slots on one device; at most " +
                                   std::to_string(DeviceLimits::kMaxSlots) +
                                   " (2^31 - 1, docs/user_guide.md \"Limits\"): use a coarser default_dx, fewer ppc, "
                                   "or split the body with partition_start / partition_end");
@@ -630,23 +623,24 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
   // The plan (memory_plan.h): capacities and every buffer's size, from the counts; refused before anything is
   // allocated or sampled when it does not fit the device.
   {
-    std::unordered_set<std::uint64_t> footprint;
+    std::vector<const SampleCount*> all;
     std::vector<BodyMemoryInput> inputs;
     for (std::size_t b = 0; b < bodies_.size(); ++b) {
+      BodyBase& body = *bodies_[b];
+      all.push_back(&counts_[b]);
       BodyMemoryInput in;
       in.particles = counts_[b].particles;
-      for (const BlockCount& c : counts_[b].blocks) {
-        in.bins_needed += (c.particles + 31) / 32;
-        for (int n = 0; n < 8; ++n)
-          footprint.insert(BlockKey::pack(c.bx + (n >> 2), c.by + ((n >> 1) & 1), c.bz + (n & 1)));
+      in.bins_needed = bins_needed(counts_[b]);
+      in.stored_scalars = body.stored_scalars();
+      in.asflip = body.asflip;
+      in.fbar = body.fbar_psi != T(0);
+      if (options_.frames) {
+        body.frame_attrs = frame_attributes(body.spec, body.index, "GPU engine");
+        in.frame_columns = frame_float_columns(body.frame_attrs);
       }
-      in.stored_scalars = bodies_[b]->stored_scalars();
-      in.asflip = bodies_[b]->asflip;
-      in.fbar = bodies_[b]->fbar_psi != T(0);
-      if (options_.frames) in.frame_columns = frame_float_columns(frame_attributes(bodies_[b]->spec, static_cast<int>(b), "GPU engine"));
       inputs.push_back(in);
     }
-    plan_ = plan_device_memory(kPrecision, static_cast<long long>(footprint.size()), inputs);
+    plan_ = plan_device_memory(kPrecision, footprint_blocks(all), inputs);
     if (plan_.block_capacity > DeviceLimits::kMaxBlocks)
       throw std::invalid_argument("GpuEngine: " + std::to_string(plan_.block_capacity) + " grid blocks of capacity; at most " +
                                   std::to_string(DeviceLimits::kMaxBlocks) + " per device (docs/user_guide.md \"Limits\")");
@@ -841,8 +835,7 @@ template <typename T, typename TG>
 void MgspBenchmark<T, TG>::allocate_frames() {
   if (!options_.frames) return;
   for (auto& bp : bodies_) {
-    BodyBase& b = *bp;
-    b.frame_attrs = frame_attributes(b.spec, b.index, "GPU engine");
+    BodyBase& b = *bp;  // frame_attrs: resolved for the plan
     const FrameNeeds needs = frame_needs(b.frame_attrs);
     FrameCapture<T> cap;
     for (const FrameAttributeSpec& a : b.frame_attrs)
@@ -923,6 +916,15 @@ void MgspBenchmark<T, TG>::read_stats() {
 }
 
 template <typename T, typename TG>
+cuda::OutOfMemory MgspBenchmark<T, TG>::growth_failure(const std::string& what, const cuda::OutOfMemory& e) const {
+  return cuda::OutOfMemory("GpuEngine: at step " + std::to_string(steps_ + 1) + " (t = " + mgsp_detail::format_g(time_) +
+                           " s) " + what + ", " + format_bytes(static_cast<double>(device_bytes())) + " held): " +
+                           e.what() +
+                           ". fbar --check plans the memory at start; a scene that spreads needs room to grow: "
+                           "coarser default_dx, fewer ppc, or more GPUs");
+}
+
+template <typename T, typename TG>
 void MgspBenchmark<T, TG>::grow_blocks(int needed) {
   long long wanted = block_capacity_;
   while (wanted < needed) wanted *= 2;
@@ -934,12 +936,9 @@ void MgspBenchmark<T, TG>::grow_blocks(int needed) {
   try {
     grow_blocks_to(capacity);
   } catch (const cuda::OutOfMemory& e) {
-    throw cuda::OutOfMemory("GpuEngine: at step " + std::to_string(steps_ + 1) + " (t = " + mgsp_detail::format_g(time_) +
-                            " s) the active grid outgrew its capacity (" + std::to_string(block_capacity_) + " -> " +
-                            std::to_string(capacity) + " blocks, " + format_bytes(static_cast<double>(device_bytes())) +
-                            " held): " + e.what() +
-                            ". fbar --check plans the memory at start; a scene that spreads needs room to grow: "
-                            "coarser default_dx, fewer ppc, or more GPUs");
+    throw growth_failure("the active grid outgrew its capacity (" + std::to_string(block_capacity_) + " -> " +
+                             std::to_string(capacity) + " blocks",
+                         e);
   }
   peak_bytes_ = std::max(peak_bytes_, device_bytes());
 }
@@ -983,12 +982,9 @@ void MgspBenchmark<T, TG>::grow_bins(BodyBase& b, int keep, int needed) {
   try {
     grow_bins_to(b, keep, capacity);
   } catch (const cuda::OutOfMemory& e) {
-    throw cuda::OutOfMemory("GpuEngine: at step " + std::to_string(steps_ + 1) + " (t = " + mgsp_detail::format_g(time_) +
-                            " s) the particle bins of body " + std::to_string(b.index) + " outgrew their capacity (" +
-                            std::to_string(b.partition.bin_capacity()) + " -> " + std::to_string(capacity) + " bins, " +
-                            format_bytes(static_cast<double>(device_bytes())) + " held): " + e.what() +
-                            ". fbar --check plans the memory at start; a scene that spreads needs room to grow: "
-                            "coarser default_dx, fewer ppc, or more GPUs");
+    throw growth_failure("the particle bins of body " + std::to_string(b.index) + " outgrew their capacity (" +
+                             std::to_string(b.partition.bin_capacity()) + " -> " + std::to_string(capacity) + " bins",
+                         e);
   }
   peak_bytes_ = std::max(peak_bytes_, device_bytes());
 }
@@ -1417,7 +1413,7 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
       for (const FrameAttributeSpec& a : attrs) {
         if (a.column.quantity == FrameQuantity::Id) {
           std::vector<std::int32_t> ids(n);
-          for (std::size_t p = 0; p < n; ++p) ids[p] = static_cast<std::int32_t>(p);
+          std::iota(ids.begin(), ids.end(), 0);  // frames are in ID order
           f.add(a.name, 1, std::move(ids));
         } else {
           f.add(a.name, 1, std::vector<float>(col, col + n), a.unit);
