@@ -37,6 +37,7 @@
 #include "particle_buffer.cuh"
 #include "scene_parse.h"
 
+#include "git_commit.h"  // FBAR_GIT_COMMIT, written at build time
 #ifndef FBAR_GIT_COMMIT
 #define FBAR_GIT_COMMIT "unknown"
 #endif
@@ -165,7 +166,9 @@ struct Row {
   double setup_s = 0;
   double output_wait_s = 0;
   KernelTimes kernels;
-  std::size_t blocks = 0;
+  std::size_t blocks = 0;          ///< active grid blocks after the timed steps
+  std::size_t blocks_start = 0;    ///< after set-up (spreading: blocks / blocks_start > 1)
+  double sim_time = 0;             ///< [s] simulated time reached (warm-up and timed steps)
   long long repeats = 0;  ///< tries repeated for the fixed-point P2G bound (warm-up and timed steps)
 };
 
@@ -223,6 +226,7 @@ Row run_case(const std::string& scene_name, double millions, int steps, int warm
   const std::size_t free_start = free_min;
   engine.set_log(&std::cerr);
   row.particles = engine.particle_count();
+  row.blocks_start = engine.active_grid_blocks();
   std::filesystem::create_directories(frames.dir);
   io::AsyncWriter writer(1);
   int frame = 0;
@@ -243,6 +247,7 @@ Row run_case(const std::string& scene_name, double millions, int steps, int warm
   FBAR_CUDA_CHECK(cudaDeviceSynchronize());
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   writer.close();
+  row.sim_time = engine.time();
   row.output_wait_s = engine.output_wait_seconds();
   engine.set_kernel_timing(true);
   for (int i = 0; i < steps; ++i) {
@@ -296,7 +301,7 @@ int main(int argc, char** argv) {
   FBAR_CUDA_CHECK(cudaGetDeviceProperties(&prop, 0));
   const double bandwidth = measure_copy_bandwidth();
   // The commit the numbers belong to: FBAR_COMMIT from the environment (a copied tree may carry a stale .git), else
-  // the one configure saw.
+  // the one of the build (tools/benchmark/git_commit.cmake).
   const char* env_commit = std::getenv("FBAR_COMMIT");
   const std::string commit = env_commit && *env_commit ? env_commit : FBAR_GIT_COMMIT;
   std::printf("device: %s, %d SMs; measured D2D copy bandwidth %.0f GB/s (read + write); commit %s\n", prop.name,
@@ -304,10 +309,10 @@ int main(int argc, char** argv) {
   std::ofstream out(csv);
   out << "scene,material,particles,precision,ms_per_step,particle_steps_per_s,bytes_per_particle_step,"
          "bandwidth_fraction,device_bytes_per_particle,device_peak_bytes_per_particle,host_peak_mib,setup_s,"
-         "frames_every,output_wait_s,commit\n";
-  std::printf("%-14s %-15s %10s %-7s %9s %12s %8s %7s %8s %8s %9s %7s | %8s %8s %8s %8s %7s\n", "scene",
+         "frames_every,output_wait_s,blocks_start,blocks,sim_time_s,commit\n";
+  std::printf("%-14s %-15s %10s %-7s %9s %12s %8s %7s %8s %8s %9s %7s | %8s %8s %8s %8s %8s %7s %7s\n", "scene",
               "material", "particles", "prec", "ms/step", "p-steps/s", "B/p/step", "bw frac", "dev B/p", "peak B/p",
-              "host MiB", "setup s", "grid ms", "g2p2g ms", "part ms", "blocks", "repeats");
+              "host MiB", "setup s", "grid ms", "g2p2g ms", "part ms", "blocks0", "blocks", "t [s]", "repeats");
   for (const std::string& scene : scenes)
     for (const std::string& precision : precisions)
       for (const std::string& size : sizes) {
@@ -327,17 +332,18 @@ int main(int argc, char** argv) {
           continue;
         }
         const double n = static_cast<double>(r.kernels.steps > 0 ? r.kernels.steps : 1);
-        std::printf("%-14s %-15s %10zu %-7s %9.3f %12.3e %8.1f %7.3f %8.1f %8.1f %9.0f %7.1f | %8.3f %8.3f %8.3f %8zu %7lld\n",
+        std::printf("%-14s %-15s %10zu %-7s %9.3f %12.3e %8.1f %7.3f %8.1f %8.1f %9.0f %7.1f | %8.3f %8.3f %8.3f %8zu %8zu %7.4f %7lld\n",
                     r.scene.c_str(), r.material.c_str(), r.particles, r.precision.c_str(), r.ms_per_step,
                     r.particle_steps_per_s, r.bytes_per_particle_step, r.bandwidth_fraction,
                     r.device_bytes_per_particle, r.device_peak_bytes_per_particle, r.host_peak_mib, r.setup_s,
                     r.kernels.grid_update_ms / n, r.kernels.g2p2g_ms / n,
-                    r.kernels.partition_ms / n, r.blocks, r.repeats);
+                    r.kernels.partition_ms / n, r.blocks_start, r.blocks, r.sim_time, r.repeats);
         std::fflush(stdout);
         out << r.scene << ',' << r.material << ',' << r.particles << ',' << r.precision << ',' << r.ms_per_step << ','
             << r.particle_steps_per_s << ',' << r.bytes_per_particle_step << ',' << r.bandwidth_fraction << ','
             << r.device_bytes_per_particle << ',' << r.device_peak_bytes_per_particle << ',' << r.host_peak_mib << ','
-            << r.setup_s << ',' << frames.every << ',' << r.output_wait_s << ',' << commit << '\n';
+            << r.setup_s << ',' << frames.every << ',' << r.output_wait_s << ',' << r.blocks_start << ',' << r.blocks << ','
+            << r.sim_time << ',' << commit << '\n';
         out.flush();
       }
   return 0;
