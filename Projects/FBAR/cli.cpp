@@ -17,10 +17,11 @@
 #include <vector>
 
 #include "MnSystem/Cuda/device_query.h"
-#include "engine_api.h"
-#include "memory_plan.h"
-#include "scene_parse.h"
-#include "scene_print.h"
+#include "engine/engine_api.h"
+#include "engine/stop_request.h"
+#include "engine/gpu/memory_plan.h"
+#include "scene/scene_parse.h"
+#include "scene/scene_print.h"
 
 #ifndef FBAR_VERSION
 #define FBAR_VERSION "unknown"
@@ -76,7 +77,9 @@ const char* kHelp =
     "  -h, --help              print this help and exit\n"
     "\n"
     "exit codes: 0 success, 1 invalid scene, input file or option, 2 run-time failure (NaN, CFL violation,\n"
-    "capacity, device or output error); messages go to stderr as `fbar: error: ...`.\n";
+    "capacity, device or output error); messages go to stderr as `fbar: error: ...`. SIGINT (Ctrl-C) or SIGTERM\n"
+    "stops the run at the next step, writes run.json (status \"interrupted\") and exits with 128 + the signal\n"
+    "number (130, 143); a second signal ends the process at once.\n";
 
 const std::vector<std::string_view> kLongOptions = {"--file",   "--check",  "--backend",           "--output",
                                                     "--frames", "--quiet",  "--allow-unknown-keys", "--data-dir",
@@ -196,6 +199,12 @@ void write_run_json(const fs::path& path, const Scene& scene, const std::vector<
   doc.AddMember("wall_time_s", wall_s, a);
   doc.AddMember("steps", static_cast<int64_t>(result.steps), a);
   doc.AddMember("end_time_s", result.end_time, a);
+  doc.AddMember("frames_written", result.frames_written, a);
+  doc.AddMember("status", str(result.exit_code == kExitOk ? "completed"
+                              : result.stop_signal != 0 ? "interrupted"
+                                                        : "failed"),
+                a);
+  if (result.stop_signal != 0) doc.AddMember("signal", str(signal_name(result.stop_signal)), a);
   doc.AddMember("exit_code", result.exit_code, a);
   doc.AddMember("message", str(result.message), a);
   rj::Document resolved(&a);
@@ -284,10 +293,17 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
   RunOptions ro;
   ro.quiet = o.quiet;
   ro.log = &std::cout;
-  const RunResult result = gpu ? engines.run_gpu(scene, ro) : run_cpu(scene, ro);
+  RunResult result;
+  {
+    // SIGINT / SIGTERM stop the run at the next step boundary; run.json below then says so (stop_request.h).
+    const StopSignals stop_signals;
+    result = gpu ? engines.run_gpu(scene, ro) : run_cpu(scene, ro);
+  }
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   write_run_json(out_dir / "run.json", scene, command_line, started, wall_s, result, gpu);
-  if (result.exit_code != kExitOk)
+  if (result.stop_signal != 0)
+    std::cerr << "fbar: " << result.message << "; run.json written\n";
+  else if (result.exit_code != kExitOk)
     std::cerr << "fbar: error: " << (result.message.empty() ? "the run failed" : result.message) << '\n';
   return result.exit_code;
 }

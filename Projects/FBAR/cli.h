@@ -1,7 +1,7 @@
 // The command line of SCHEMA.md: parses arguments, loads and validates the scene, runs or checks it.
 #pragma once
 
-#include "engine_api.h"
+#include "engine/engine_api.h"
 
 namespace fbar {
 

@@ -1,6 +1,6 @@
 // fbar's main: hands the command line and the GPU engine to the front end (cli.h), which loads the scene and runs it.
 #include "cli.h"
-#include "gpu_engine.h"
+#include "engine/gpu/gpu_engine.h"
 
 int main(int argc, char** argv) {
   fbar::EngineSet engines;

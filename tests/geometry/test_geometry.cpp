@@ -9,8 +9,8 @@
 #include <map>
 #include <tuple>
 
-#include "geometry.h"
-#include "scene_error.h"
+#include "geometry/geometry.h"
+#include "scene/scene_error.h"
 
 namespace fbar {
 namespace {

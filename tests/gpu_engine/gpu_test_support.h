@@ -8,8 +8,8 @@
 #include <vector>
 
 #include "MnSystem/Cuda/device_query.h"
-#include "geometry.h"
-#include "scene.h"
+#include "geometry/geometry.h"
+#include "scene/scene.h"
 
 #define FBAR_REQUIRE_DEVICE()                                                   \
   do {                                                                          \

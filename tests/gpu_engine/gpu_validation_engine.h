@@ -12,9 +12,9 @@
 #include <vector>
 
 #include "MnBase/Math/vec.h"
-#include "gpu_engine.h"
+#include "engine/gpu/gpu_engine.h"
 #include "gpu_test_support.h"
-#include "scene.h"
+#include "scene/scene.h"
 
 namespace fbar::test {
 

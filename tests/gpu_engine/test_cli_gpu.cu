@@ -10,7 +10,7 @@
 
 #include "../scene/cli_test_support.h"
 #include "MnSystem/Cuda/device_query.h"
-#include "gpu_engine.h"
+#include "engine/gpu/gpu_engine.h"
 #include "gpu_test_support.h"
 
 namespace fbar {

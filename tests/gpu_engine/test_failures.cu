@@ -6,8 +6,8 @@
 #include <limits>
 #include <sstream>
 
-#include "cpu_engine.h"
-#include "gpu_engine.h"
+#include "engine/cpu/cpu_engine.h"
+#include "engine/gpu/gpu_engine.h"
 #include "gpu_test_support.h"
 
 namespace fbar {

@@ -24,10 +24,10 @@
 #include <string>
 #include <vector>
 
-#include "cpu_engine.h"
-#include "gpu_engine.h"
+#include "engine/cpu/cpu_engine.h"
+#include "engine/gpu/gpu_engine.h"
 #include "gpu_test_support.h"
-#include "scene_parse.h"
+#include "scene/scene_parse.h"
 
 namespace fbar {
 namespace {

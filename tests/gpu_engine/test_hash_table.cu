@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "gpu_test_support.h"
-#include "hash_table.cuh"
+#include "engine/gpu/hash_table.cuh"
 
 namespace fbar {
 namespace {

@@ -8,8 +8,8 @@
 #include <vector>
 
 #include "gpu_test_support.h"
-#include "grid_buffer.cuh"
-#include "particle_buffer.cuh"
+#include "engine/gpu/grid_buffer.cuh"
+#include "engine/gpu/particle_buffer.cuh"
 
 namespace fbar {
 namespace {

@@ -9,10 +9,10 @@
 
 #include "MnSystem/IO/async_writer.h"
 #include "MnSystem/IO/particle_io.h"
-#include "gpu_engine.h"
+#include "engine/gpu/gpu_engine.h"
 #include "gpu_test_support.h"
-#include "memory_plan.h"
-#include "particle_frame.h"
+#include "engine/gpu/memory_plan.h"
+#include "io/particle_frame.h"
 
 namespace fbar {
 namespace {

@@ -13,12 +13,12 @@
 #include <string>
 #include <vector>
 
-#include "constitutive_models.cuh"
-#include "cpu_engine.h"
-#include "gpu_engine.h"
+#include "physics/constitutive_models.cuh"
+#include "engine/cpu/cpu_engine.h"
+#include "engine/gpu/gpu_engine.h"
 #include "gpu_test_support.h"
 #include "gpu_validation_engine.h"
-#include "scene_parse.h"
+#include "scene/scene_parse.h"
 #include "../validation/fbar_locking_case.h"
 #include "../validation/granular_collapse_case.h"
 #include "../validation/hydrostatic_column_case.h"

@@ -7,7 +7,7 @@
 #include <cstdlib>
 #include <string>
 
-#include "cpu_engine.h"
+#include "engine/cpu/cpu_engine.h"
 
 namespace {
 

@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "MnBase/Math/vec.h"
-#include "scene.h"
+#include "scene/scene.h"
 
 namespace fbar::test {
 

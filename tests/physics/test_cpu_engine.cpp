@@ -7,10 +7,10 @@
 #include <sstream>
 #include <string>
 
-#include "cpu_engine.h"
-#include "scene_parse.h"
-#include "scene_print.h"
-#include "engine_api.h"
+#include "engine/cpu/cpu_engine.h"
+#include "scene/scene_parse.h"
+#include "scene/scene_print.h"
+#include "engine/engine_api.h"
 #include "physics_test_support.h"
 
 namespace fbar {

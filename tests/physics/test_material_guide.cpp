@@ -10,10 +10,10 @@
 #include <string>
 #include <vector>
 
-#include "constitutive_models.cuh"
-#include "cpu_engine.h"
+#include "physics/constitutive_models.cuh"
+#include "engine/cpu/cpu_engine.h"
 #include "physics_test_support.h"
-#include "scene_parse.h"
+#include "scene/scene_parse.h"
 
 namespace fbar {
 namespace {
@@ -54,9 +54,9 @@ TEST(MaterialGuide, EveryCodeBlockIsTheTreesCode) {
   ASSERT_FALSE(guide.empty()) << "docs/developer_guide.md not found under " << kSource;
   const std::vector<std::string> blocks = fenced_blocks(guide, "## Adding a material", "cpp");
   ASSERT_GE(blocks.size(), 5u) << "the guide's worked example lost its code";
-  const std::vector<std::string> sources = {read_text(kSource + "/Projects/FBAR/materials/hencky.cuh"),
-                                            read_text(kSource + "/Projects/FBAR/scene.h"),
-                                            read_text(kSource + "/Projects/FBAR/constitutive_models.cuh")};
+  const std::vector<std::string> sources = {read_text(kSource + "/Projects/FBAR/physics/materials/hencky.cuh"),
+                                            read_text(kSource + "/Projects/FBAR/scene/scene.h"),
+                                            read_text(kSource + "/Projects/FBAR/physics/constitutive_models.cuh")};
   for (const std::string& block : blocks) {
     const bool found = std::any_of(sources.begin(), sources.end(),
                                    [&](const std::string& s) { return s.find(block) != std::string::npos; });
@@ -65,8 +65,8 @@ TEST(MaterialGuide, EveryCodeBlockIsTheTreesCode) {
                        << block;
   }
   // The guide's include line names the header.
-  EXPECT_NE(guide.find("#include \"materials/hencky.cuh\""), std::string::npos);
-  EXPECT_NE(sources[2].find("#include \"materials/hencky.cuh\""), std::string::npos);
+  EXPECT_NE(guide.find("#include \"physics/materials/hencky.cuh\""), std::string::npos);
+  EXPECT_NE(sources[2].find("#include \"physics/materials/hencky.cuh\""), std::string::npos);
 }
 
 TEST(MaterialGuide, JsonSceneParsesAndRunsOnTheCpuEngine) {

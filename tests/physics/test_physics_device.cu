@@ -5,12 +5,12 @@
 #include <vector>
 
 #include "MnSystem/Cuda/device_query.h"
-#include "boundary.cuh"
-#include "constitutive_models.cuh"
-#include "grid_update.cuh"
+#include "physics/boundary.cuh"
+#include "physics/constitutive_models.cuh"
+#include "physics/grid_update.cuh"
 #include "physics_test_support.h"
-#include "time_step.cuh"
-#include "transfer.cuh"
+#include "physics/time_step.cuh"
+#include "physics/transfer.cuh"
 
 namespace fbar {
 namespace {

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <random>
 
-#include "constitutive_models.cuh"
+#include "physics/constitutive_models.cuh"
 #include "physics_test_support.h"
 
 namespace fbar {

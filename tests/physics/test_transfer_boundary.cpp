@@ -6,11 +6,11 @@
 #include <limits>
 #include <random>
 
-#include "boundary.cuh"
-#include "grid_update.cuh"
+#include "physics/boundary.cuh"
+#include "physics/grid_update.cuh"
 #include "physics_test_support.h"
-#include "time_step.cuh"
-#include "transfer.cuh"
+#include "physics/time_step.cuh"
+#include "physics/transfer.cuh"
 
 namespace fbar {
 namespace {

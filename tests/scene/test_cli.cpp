@@ -5,6 +5,10 @@
 #include <rapidjson/writer.h>
 #include <unistd.h>
 
+#include <chrono>
+#include <csignal>
+#include <thread>
+
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
@@ -16,7 +20,7 @@
 
 #include "cli.h"
 #include "cli_test_support.h"
-#include "scene_parse.h"
+#include "scene/scene_parse.h"
 
 namespace fbar {
 namespace {
@@ -211,6 +215,8 @@ TEST(Cli, RunWritesRunJsonWithTheResolvedScene) {
   EXPECT_STREQ(doc["backend"].GetString(), "cpu");
   EXPECT_STREQ(doc["precision"].GetString(), "single");
   EXPECT_EQ(doc["exit_code"].GetInt(), 0);
+  EXPECT_STREQ(doc["status"].GetString(), "completed");
+  EXPECT_EQ(doc["frames_written"].GetInt(), 1);
   EXPECT_GT(doc["steps"].GetInt64(), 0);
   EXPECT_GE(doc["wall_time_s"].GetDouble(), 0.0);
   ASSERT_TRUE(doc.HasMember("scene"));
@@ -223,6 +229,63 @@ TEST(Cli, RunWritesRunJsonWithTheResolvedScene) {
   expected.simulation.frames = 1;
   expected.simulation.save_path = out.string();
   EXPECT_TRUE(ran == expected) << sb.GetString();
+}
+
+// SIGTERM (a batch system's time limit, `kill`) stops the run at the next step: run.json says "interrupted" with the
+// signal, the step and the last frame written, and the exit code is 128 + 15 as a shell reports a killed process.
+TEST(Cli, SigtermStopsTheRunAndWritesRunJson) {
+  const fs::path dir = scratch("sigterm");
+  const fs::path out = dir / "frames";
+  std::string scene;
+  {
+    std::ifstream in(kScenes / "good" / "tiny_fluid.json");
+    std::stringstream ss;
+    ss << in.rdbuf();
+    scene = ss.str();
+  }
+  // 1000 frames of 1 s (about 1000 steps each): far longer than the test waits.
+  auto set = [&](const std::string& from, const std::string& to) {
+    const std::size_t at = scene.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    scene.replace(at, from.size(), to);
+  };
+  set("\"fps\": 100", "\"fps\": 1");
+  set("\"frames\": 2", "\"frames\": 1000");
+  write_text(dir / "long.json", scene);
+  CliResult r;
+  std::thread run([&] {
+    r = run_cli({"--backend=cpu", "--quiet", "--output=" + out.string(), "--file=" + (dir / "long.json").string()});
+  });
+  // Wait for frame 1 (the run loop, and so the handler, is running), then send the signal.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while (!fs::exists(out / "model0_dev0_frame1.csv") && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  const bool started = fs::exists(out / "model0_dev0_frame1.csv");
+  if (started) std::raise(SIGTERM);  // only while the run (and its handler) is known to be there
+  run.join();
+  ASSERT_TRUE(started) << "frame 1 never appeared: " << r.err;
+  EXPECT_EQ(r.code, 128 + SIGTERM) << r.err;
+  EXPECT_NE(r.err.find("stopped by SIGTERM at step"), std::string::npos) << r.err;
+  ASSERT_TRUE(fs::is_regular_file(out / "run.json"));
+  std::ifstream in(out / "run.json");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  rapidjson::Document doc;
+  doc.Parse<rapidjson::kParseNanAndInfFlag | rapidjson::kParseFullPrecisionFlag>(ss.str().c_str());
+  ASSERT_FALSE(doc.HasParseError()) << ss.str();
+  EXPECT_STREQ(doc["status"].GetString(), "interrupted");
+  EXPECT_STREQ(doc["signal"].GetString(), "SIGTERM");
+  EXPECT_EQ(doc["exit_code"].GetInt(), 128 + SIGTERM);
+  const int written = doc["frames_written"].GetInt();
+  EXPECT_GE(written, 1);
+  EXPECT_LT(written, 1000);
+  EXPECT_TRUE(fs::exists(out / ("model0_dev0_frame" + std::to_string(written) + ".csv")));
+  EXPECT_FALSE(fs::exists(out / ("model0_dev0_frame" + std::to_string(written + 1) + ".csv")));
+  EXPECT_GT(doc["steps"].GetInt64(), 0);
+  // The handler is gone after the run: the default action is back.
+  struct sigaction now {};
+  sigaction(SIGTERM, nullptr, &now);
+  EXPECT_EQ(now.sa_handler, SIG_DFL);
 }
 
 }  // namespace

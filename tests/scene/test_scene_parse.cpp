@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "scene_parse.h"
+#include "scene/scene_parse.h"
 
 namespace fbar {
 namespace {

@@ -30,7 +30,7 @@
 #include <tuple>
 #include <vector>
 
-#include "cpu_engine.h"
+#include "engine/cpu/cpu_engine.h"
 #include "validation_support.h"
 
 namespace fbar {

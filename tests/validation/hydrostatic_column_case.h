@@ -28,8 +28,8 @@
 #include <type_traits>
 #include <vector>
 
-#include "cpu_engine.h"
-#include "scene_parse.h"
+#include "engine/cpu/cpu_engine.h"
+#include "scene/scene_parse.h"
 #include "validation_support.h"
 
 namespace fbar {

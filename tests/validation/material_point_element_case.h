@@ -25,8 +25,8 @@
 #include <cstdio>
 #include <vector>
 
-#include "constitutive_models.cuh"
-#include "cpu_engine.h"
+#include "physics/constitutive_models.cuh"
+#include "engine/cpu/cpu_engine.h"
 #include "validation_support.h"
 
 namespace fbar {

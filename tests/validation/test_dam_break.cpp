@@ -17,7 +17,7 @@
 #include <cstdio>
 #include <vector>
 
-#include "cpu_engine.h"
+#include "engine/cpu/cpu_engine.h"
 #include "validation_support.h"
 
 namespace fbar {

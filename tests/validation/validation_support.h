@@ -37,7 +37,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include "scene.h"
+#include "scene/scene.h"
 
 namespace fbar::validation {
 

@@ -32,10 +32,10 @@
 
 #include "MnSystem/Cuda/device_query.h"
 #include "MnSystem/IO/async_writer.h"
-#include "gpu_engine.h"
-#include "kernels/g2p2g_kernel.cuh"
-#include "particle_buffer.cuh"
-#include "scene_parse.h"
+#include "engine/gpu/gpu_engine.h"
+#include "engine/gpu/kernels/g2p2g_kernel.cuh"
+#include "engine/gpu/particle_buffer.cuh"
+#include "scene/scene_parse.h"
 
 #include "git_commit.h"  // FBAR_GIT_COMMIT, written at build time
 #ifndef FBAR_GIT_COMMIT

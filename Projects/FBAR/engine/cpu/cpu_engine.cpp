@@ -1,0 +1,1087 @@
+// The CPU reference engine (cpu_engine.h): partition, P2G, grid update, G2P, checks, totals and frames.
+#include "engine/cpu/cpu_engine.h"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <iostream>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+#include <type_traits>
+
+#include "MnBase/Math/bspline.h"
+#include "scene/attributes.h"
+#include "geometry/geometry.h"
+#include "physics/grid_update.cuh"
+#include "io/particle_frame.h"
+#include "settings.h"
+#include "physics/time_step.cuh"
+#include "physics/transfer.cuh"
+
+namespace fbar {
+namespace {
+
+constexpr int kBlockSide = settings::kBlockSide;
+static_assert(kBlockSide == 4, "the block packing below assumes 4x4x4 blocks");
+/// A particle block's stencils span nodes 0..5 (base 0..3 inside the block, + 0..2) along each axis.
+constexpr int kArenaSide = kBlockSide + 2;
+constexpr int kArenaNodes = kArenaSide * kArenaSide * kArenaSide;
+
+/// Below these sizes a loop runs on one thread: a parallel region costs microseconds (far more when the cores are
+/// shared), more than a few blocks of work.
+constexpr int kMinParallelParticles = 4096;
+constexpr int kMinParallelBlocks = 4;
+
+constexpr int arena_index(int a, int b, int c) { return (a * kArenaSide + b) * kArenaSide + c; }
+constexpr int block_node(int i, int j, int k) { return (i * kBlockSide + j) * kBlockSide + k; }
+/// Which of the 2x2x2 grid blocks of a particle block an arena node (a, b, c) falls in, and where.
+constexpr int arena_neighbour(int a, int b, int c) { return ((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2); }
+constexpr int arena_node_in_block(int a, int b, int c) { return block_node(a & 3, b & 3, c & 3); }
+
+/// Floor division by 4 (arithmetic shift: defined for negatives by every compiler fbar supports, and by C++20).
+inline int block_of_node(int node) { return node >> 2; }
+inline Vec3i block_of_node(const Vec3i& node) {
+  return Vec3i{{block_of_node(node[0]), block_of_node(node[1]), block_of_node(node[2])}};
+}
+
+/// 21 bits per axis, offset by 2^20: block coordinates in [-2^20, 2^20) (4 million cells each way).
+constexpr int kKeyBias = 1 << 20;
+inline std::uint64_t pack_block(const Vec3i& b) {
+  return (static_cast<std::uint64_t>(b[0] + kKeyBias) << 42) | (static_cast<std::uint64_t>(b[1] + kKeyBias) << 21) |
+         static_cast<std::uint64_t>(b[2] + kKeyBias);
+}
+/// Parity colour 0..7: blocks of one colour are >= 2 blocks apart along some axis, so their 2x2x2 footprints are
+/// disjoint.
+inline int colour_of(const Vec3i& b) { return (b[0] & 1) | ((b[1] & 1) << 1) | ((b[2] & 1) << 2); }
+
+const char* law_name(Constitutive law) {
+  const char* name = "?";
+  visit_material(law, [&](auto m) { name = decltype(m)::kJsonName; });
+  return name;
+}
+
+/// Every scalar of a trivially copyable state made of T is finite.
+template <typename T, typename S>
+bool state_is_finite(const S& s) {
+  static_assert(std::is_trivially_copyable_v<S> && sizeof(S) % sizeof(T) == 0, "state must be made of T");
+  T values[sizeof(S) / sizeof(T)];
+  std::memcpy(values, &s, sizeof(S));
+  for (const T v : values)
+    if (!std::isfinite(v)) return false;
+  return true;
+}
+
+std::string format_g(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.6g", v);
+  return buf;
+}
+
+/// Output attributes every material provides on the CPU engine.
+constexpr std::string_view kCommonAttributes[] = {"ID",
+                                                  "Mass",
+                                                  "Volume",
+                                                  "Position_X",
+                                                  "Position_Y",
+                                                  "Position_Z",
+                                                  "Velocity_X",
+                                                  "Velocity_Y",
+                                                  "Velocity_Z",
+                                                  "Velocity_Magnitude",
+                                                  "J",
+                                                  "Pressure",
+                                                  "StressCauchy_XX",
+                                                  "StressCauchy_XY",
+                                                  "StressCauchy_XZ",
+                                                  "StressCauchy_YX",
+                                                  "StressCauchy_YY",
+                                                  "StressCauchy_YZ",
+                                                  "StressCauchy_ZX",
+                                                  "StressCauchy_ZY",
+                                                  "StressCauchy_ZZ",
+                                                  "VonMisesStress"};
+constexpr std::string_view kDefGradAttributes[] = {"DefGrad_XX", "DefGrad_XY", "DefGrad_XZ", "DefGrad_YX", "DefGrad_YY",
+                                                   "DefGrad_YZ", "DefGrad_ZX", "DefGrad_ZY", "DefGrad_ZZ"};
+
+}  // namespace
+
+const char* to_string(FailureKind kind) {
+  switch (kind) {
+    case FailureKind::NonFinite:
+      return "NaN/Inf in the particle state";
+    case FailureKind::CflViolation:
+      return "moved more than one cell in one step (CFL violation)";
+    case FailureKind::LeftDomain:
+      return "left the domain";
+  }
+  return "?";
+}
+
+std::string FailureReport::describe() const {
+  std::ostringstream s;
+  s << "body " << body << ": " << count << (count == 1 ? " particle " : " particles ") << to_string(kind) << " at step "
+    << step << ", t = " << format_g(time) << " s, dt = " << format_g(dt) << " s (first: particle " << first_particle
+    << ")";
+  return s.str();
+}
+
+std::string StepReport::message() const {
+  std::string m;
+  for (const FailureReport& f : failures) m += (m.empty() ? "" : "\n") + f.describe();
+  return m;
+}
+
+bool cpu_engine_supports_attribute(Constitutive law, std::string_view name) {
+  for (std::string_view a : kCommonAttributes)
+    if (a == name) return material_index(law) >= 0;
+  MaterialOutputs outputs{false, false};
+  visit_material(law, [&](auto m) { outputs = decltype(m)::kOutputs; });
+  if (outputs.deformation_gradient)
+    for (std::string_view a : kDefGradAttributes)
+      if (a == name) return true;
+  return outputs.log_jp && name == "logJp";
+}
+
+// ---------------------------------------------------------------------------------------------
+// Construction
+
+template <typename T, typename TG>
+CpuEngine<T, TG>::CpuEngine(const Scene& scene) : scene_(scene), log_(&std::cerr) {
+  std::vector<std::vector<Vec3d>> positions;
+  for (std::size_t b = 0; b < scene.bodies.size(); ++b)
+    positions.push_back(sample_body(scene.bodies[b], scene.simulation, static_cast<int>(b)));
+  init(positions);
+}
+
+template <typename T, typename TG>
+CpuEngine<T, TG>::CpuEngine(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions)
+    : scene_(scene), log_(&std::cerr) {
+  init(positions);
+}
+
+template <typename T, typename TG>
+CpuEngine<T, TG>::~CpuEngine() = default;
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::init(const std::vector<std::vector<Vec3d>>& positions) {
+  const SimulationSpec& sim = scene_.simulation;
+  k_ = RunConstants<T>(scene_, "CPU engine");
+  kg_ = RunConstants<TG>(scene_, "CPU engine");
+  if (positions.size() != scene_.bodies.size())
+    throw std::invalid_argument("CpuEngine: one position list per body expected");
+  time_ = sim.time;
+
+  double max_speed = 0.0;
+  bodies_.resize(scene_.bodies.size());
+  for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {
+    const BodySpec& spec = scene_.bodies[b];
+    const std::string where = "bodies[" + std::to_string(b) + "]";
+    const MaterialSpec& mat = spec.material;
+    if (material_index(mat.law) < 0)
+      throw std::invalid_argument(where + ".material.constitutive: " + law_name(mat.law) +
+                                  " is not implemented by the CPU engine (implemented: " + supported_material_names() +
+                                  ")");
+    if (mat.type != "particles")
+      throw std::invalid_argument(where + ".material.type: \"" + mat.type + "\" bodies are not implemented");
+    const AlgorithmSpec& alg = spec.algorithm;
+    if (alg.use_fem) throw std::invalid_argument(where + ".algorithm.use_FEM: not implemented by the CPU engine");
+    for (const std::string& name : spec.output_attribs) {
+      const std::string canonical = canonical_attribute(name);
+      if (canonical.empty() || !cpu_engine_supports_attribute(mat.law, canonical))
+        throw std::invalid_argument(where + ".output_attribs: " + name + " is not available for a " +
+                                    law_name(mat.law) + " body");
+    }
+    if (!(mat.ppc > 0.0)) throw std::invalid_argument(where + ".material.ppc: must be positive");
+
+    Body& body = bodies_[b];
+    body.spec = spec;
+    const std::size_t n = positions[b].size();
+    const double volume = sim.dx * sim.dx * sim.dx / mat.ppc;
+    const Vec3T v0{
+        {static_cast<T>(spec.velocity[0]), static_cast<T>(spec.velocity[1]), static_cast<T>(spec.velocity[2])}};
+    max_speed = std::max(max_speed, static_cast<double>(norm(v0)));
+    body.x.resize(n);
+    for (std::size_t p = 0; p < n; ++p) {
+      const Vec3d& q = positions[b][p];
+      for (int a = 0; a < 3; ++a)
+        if (!(q[a] >= 0.0 && q[a] <= sim.domain[a]))
+          throw std::invalid_argument(where + ": particle " + std::to_string(p) + " lies outside the domain");
+      body.x[p] = q.template cast<T>();
+    }
+    body.v.assign(n, v0);
+    body.C.assign(n, Mat3T::zero());
+    body.asflip = alg.asflip_active();
+    body.asflip_params = AsflipParams<T>{static_cast<T>(alg.asflip_alpha), static_cast<T>(alg.asflip_beta_min),
+                                         static_cast<T>(alg.asflip_beta_max)};
+    asflip_ = asflip_ || body.asflip;
+    body.fbar_psi = static_cast<T>(alg.fbar_blend());
+    fbar_ = fbar_ || body.fbar_psi != T(0);
+    body.mass.assign(n, static_cast<T>(mat.rho * volume));
+    body.volume.assign(n, static_cast<T>(volume));
+    body.x_next.resize(n);
+    body.v_next.resize(n);
+    body.C_next.resize(n);
+    visit_material(mat.law, [&](auto m) {
+      using M = decltype(m);
+      MaterialBody<M> mb{M::template make_params<T>(mat), {}, {}};
+      mb.state.assign(n, material_initial_state<M, T>(spec.material));
+      mb.next_state.resize(n);
+      body.max_wave_speed = static_cast<double>(M::wave_speed(mb.params, M::template reference_state<T>()));
+      body.material = std::move(mb);
+    });
+  }
+  max_grid_speed_ = max_speed;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Partition: particle blocks per body, active grid blocks for all bodies
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::build_partition() {
+  grid_.index.clear();
+  grid_.coords.clear();
+  std::unordered_map<std::uint64_t, int> block_of_key;
+  for (Body& body : bodies_) {
+    Partition& part = body.partition;
+    const int n = static_cast<int>(body.x.size());
+    part.particle_block.resize(n);
+    std::vector<std::uint64_t>& keys = part.particle_key;
+    keys.resize(n);
+#pragma omp parallel for schedule(static) if (n >= kMinParallelParticles)
+    for (int p = 0; p < n; ++p) keys[p] = pack_block(block_of_node(quadratic_bspline_inv(body.x[p], k_.inv_dx).base));
+
+    // Serial, in particle order: block numbering and the counting sort below are then deterministic. Sampled
+    // bodies come in lattice order, so consecutive particles mostly share a block and skip the hash lookup.
+    block_of_key.clear();
+    part.block_keys.clear();
+    part.block_coords.clear();
+    std::uint64_t last_key = 0;
+    int last_block = -1;
+    for (int p = 0; p < n; ++p) {
+      if (last_block < 0 || keys[p] != last_key) {
+        const auto [it, inserted] = block_of_key.try_emplace(keys[p], static_cast<int>(part.block_keys.size()));
+        if (inserted) {
+          part.block_keys.push_back(keys[p]);
+          part.block_coords.push_back(block_of_node(quadratic_bspline_inv(body.x[p], k_.inv_dx).base));
+        }
+        last_key = keys[p];
+        last_block = it->second;
+      }
+      part.particle_block[p] = last_block;
+    }
+    const int nb = static_cast<int>(part.block_keys.size());
+    part.block_start.assign(nb + 1, 0);
+    for (int p = 0; p < n; ++p) ++part.block_start[part.particle_block[p] + 1];
+    for (int b = 0; b < nb; ++b) part.block_start[b + 1] += part.block_start[b];
+    part.order.resize(n);
+    {
+      std::vector<int> fill(part.block_start.begin(), part.block_start.end() - 1);
+      for (int p = 0; p < n; ++p) part.order[fill[part.particle_block[p]]++] = p;
+    }
+    for (auto& list : part.colour_blocks) list.clear();
+    for (int b = 0; b < nb; ++b) part.colour_blocks[colour_of(part.block_coords[b])].push_back(b);
+    part.largest_colour = 0;
+    for (const auto& list : part.colour_blocks)
+      part.largest_colour = std::max(part.largest_colour, static_cast<int>(list.size()));
+
+    // Grid blocks: each particle block's 2x2x2 footprint.
+    part.grid_blocks.resize(nb);
+    for (int b = 0; b < nb; ++b) {
+      const Vec3i& c = part.block_coords[b];
+      for (int di = 0; di < 2; ++di)
+        for (int dj = 0; dj < 2; ++dj)
+          for (int dk = 0; dk < 2; ++dk) {
+            const Vec3i g{{c[0] + di, c[1] + dj, c[2] + dk}};
+            const auto [it, inserted] = grid_.index.try_emplace(pack_block(g), static_cast<int>(grid_.coords.size()));
+            if (inserted) grid_.coords.push_back(g);
+            part.grid_blocks[b][(di * 2 + dj) * 2 + dk] = it->second;
+          }
+    }
+  }
+  grid_.blocks.resize(grid_.coords.size());
+  if (asflip_) grid_.asflip.resize(grid_.coords.size());
+  if (fbar_) grid_.fbar.resize(grid_.coords.size());
+  partition_valid_ = true;
+}
+
+// ---------------------------------------------------------------------------------------------
+// P2G
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::p2g(Body& body, T dt) {
+  const Partition& part = body.partition;
+  const T dx = k_.dx, inv_dx = k_.inv_dx, d_inv = k_.d_inv;
+  std::visit(
+      [&](auto& mb) {
+        using M = typename std::decay_t<decltype(mb)>::material_type;
+        const auto params = mb.params;
+        const auto& state = mb.state;
+#pragma omp parallel if (part.largest_colour >= kMinParallelBlocks)
+        {
+          // (channel, node) private arena of one particle block: mass, momentum x, y, z; summed in the grid scalar
+          // type (float in mixed precision, like the GPU engine's arena and grid).
+          TG arena_m[kArenaNodes];
+          TG arena_p[3][kArenaNodes];
+          TG arena_q[3][kArenaNodes];  // ASFLIP: the momentum without the stress impulse, m (v + C (x_i - x_p))
+          for (int colour = 0; colour < 8; ++colour) {
+            const std::vector<int>& list = part.colour_blocks[colour];
+            const int count = static_cast<int>(list.size());
+        // The implicit barrier at the end of each `omp for` keeps the colours in order.
+#pragma omp for schedule(dynamic, 1)
+            for (int li = 0; li < count; ++li) {
+              const int pb = list[li];
+              const Vec3i& origin = part.block_coords[pb];
+              std::fill(arena_m, arena_m + kArenaNodes, TG(0));
+              for (auto& ch : arena_p) std::fill(ch, ch + kArenaNodes, TG(0));
+              if (asflip_)
+                for (auto& ch : arena_q) std::fill(ch, ch + kArenaNodes, TG(0));
+              for (int q = part.block_start[pb]; q < part.block_start[pb + 1]; ++q) {
+                const int p = part.order[q];
+                const QuadraticBspline<T> s = quadratic_bspline_inv(body.x[p], inv_dx);
+                const int l0 = s.base[0] - origin[0] * kBlockSide;
+                const int l1 = s.base[1] - origin[1] * kBlockSide;
+                const int l2 = s.base[2] - origin[2] * kBlockSide;
+                const StressResult<T> stress = M::kirchhoff_stress(params, state[p], body.C[p]);
+                const P2GParticle<T> payload =
+                    mls_p2g_particle(body.mass[p], body.volume[p], body.v[p], body.C[p], stress.kirchhoff, dt, d_inv);
+                for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3T& xixp) {
+                  const int a = arena_index(l0 + i, l1 + j, l2 + k);
+                  const Vec3T mv = p2g_node_momentum(payload, w, xixp);
+                  arena_m[a] += static_cast<TG>(w * payload.mass);
+                  arena_p[0][a] += static_cast<TG>(mv[0]);
+                  arena_p[1][a] += static_cast<TG>(mv[1]);
+                  arena_p[2][a] += static_cast<TG>(mv[2]);
+                });
+                // Every body transports momentum into v^n when any body uses ASFLIP: v^n = sum / (all bodies' mass).
+                if (asflip_) {
+                  const P2GParticle<T> transported =
+                      mls_p2g_particle(body.mass[p], body.volume[p], body.v[p], body.C[p], Mat3T::zero(), dt, d_inv);
+                  for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3T& xixp) {
+                    const int a = arena_index(l0 + i, l1 + j, l2 + k);
+                    const Vec3T mv = p2g_node_momentum(transported, w, xixp);
+                    for (int d = 0; d < 3; ++d) arena_q[d][a] += static_cast<TG>(mv[d]);
+                  });
+                }
+              }
+              // Add the arena to the (up to 8) grid blocks it overlaps; no other block of this colour touches them.
+              const std::array<int, 8>& targets = part.grid_blocks[pb];
+              for (int a = 0; a < kArenaSide; ++a)
+                for (int b = 0; b < kArenaSide; ++b)
+                  for (int c = 0; c < kArenaSide; ++c) {
+                    const int ai = arena_index(a, b, c);
+                    if (arena_m[ai] == TG(0)) continue;  // untouched node (zero weight everywhere)
+                    const int gb = targets[arena_neighbour(a, b, c)];
+                    GridBlock& g = grid_.blocks[gb];
+                    const int node = arena_node_in_block(a, b, c);
+                    g.mass[node] += arena_m[ai];
+                    g.momentum[0][node] += arena_p[0][ai];
+                    g.momentum[1][node] += arena_p[1][ai];
+                    g.momentum[2][node] += arena_p[2][ai];
+                    if (asflip_)
+                      for (int d = 0; d < 3; ++d) grid_.asflip[gb].old_velocity[d][node] += arena_q[d][ai];
+                  }
+            }
+          }
+        }
+      },
+      body.material);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Grid update
+
+template <typename T, typename TG>
+double CpuEngine<T, TG>::update_grid(TG dt) {
+  using Vec3G = Vec3<TG>;
+  std::vector<BoundaryParams<TG>> active;
+  for (const BoundaryParams<TG>& b : kg_.boundaries)
+    if (boundary_active(b, time_)) active.push_back(b);
+  const int nblocks = static_cast<int>(grid_.blocks.size());
+  std::vector<double> block_mass(nblocks);
+  TG max_speed_sq = TG(0);
+#pragma omp parallel for schedule(static) reduction(max : max_speed_sq) if (nblocks >= kMinParallelBlocks)
+  for (int gb = 0; gb < nblocks; ++gb) {
+    GridBlock& g = grid_.blocks[gb];
+    const Vec3i& c = grid_.coords[gb];
+    double mass_sum = 0.0;
+    for (int i = 0; i < kBlockSide; ++i)
+      for (int j = 0; j < kBlockSide; ++j)
+        for (int k = 0; k < kBlockSide; ++k) {
+          const int node = block_node(i, j, k);
+          const TG m = g.mass[node];
+          mass_sum += static_cast<double>(m);
+          const Vec3G momentum{{g.momentum[0][node], g.momentum[1][node], g.momentum[2][node]}};
+          if (asflip_) {  // v^n = transported momentum / m (P2G accumulated it in old_velocity)
+            TG(&old)[3][64] = grid_.asflip[gb].old_velocity;
+            const Vec3G transported{{old[0][node], old[1][node], old[2][node]}};
+            const Vec3G v_old = grid_node_velocity(m, transported, Vec3G::zero(), dt);
+            for (int a = 0; a < 3; ++a) old[a][node] = v_old[a];
+          }
+          Vec3G v = grid_node_velocity(m, momentum, kg_.gravity, dt);
+          if (m > TG(0)) {
+            const Vec3G x_node{{static_cast<TG>(c[0] * kBlockSide + i) * kg_.dx,
+                                static_cast<TG>(c[1] * kBlockSide + j) * kg_.dx,
+                                static_cast<TG>(c[2] * kBlockSide + k) * kg_.dx}};
+            for (const BoundaryParams<TG>& b : active) v = apply_boundary(b, x_node, v);
+          }
+          g.momentum[0][node] = v[0];
+          g.momentum[1][node] = v[1];
+          g.momentum[2][node] = v[2];
+          max_speed_sq = std::max(max_speed_sq, dot(v, v));
+        }
+    block_mass[gb] = mass_sum;
+  }
+  grid_mass_ = 0.0;
+  for (double m : block_mass) grid_mass_ += m;
+  return std::sqrt(static_cast<double>(max_speed_sq));
+}
+
+// ---------------------------------------------------------------------------------------------
+// F-bar: the body's volume-weighted velocity divergence per grid cell (transfer.cuh, fbar_velocity_gradient)
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::fbar_divergence(Body& body) {
+  const int nblocks = static_cast<int>(grid_.blocks.size());
+#pragma omp parallel for schedule(static) if (nblocks >= kMinParallelBlocks)
+  for (int gb = 0; gb < nblocks; ++gb)
+    for (auto& ch : grid_.fbar[gb].sums) std::fill(ch, ch + 64, TG(0));
+  const Partition& part = body.partition;
+  const T dx = k_.dx, inv_dx = k_.inv_dx, d_inv = k_.d_inv;
+  std::visit(
+      [&](auto& mb) {
+        using M = typename std::decay_t<decltype(mb)>::material_type;
+        const auto& state = mb.state;
+#pragma omp parallel if (part.largest_colour >= kMinParallelBlocks)
+        {
+          T arena_v[3][kArenaNodes];     // (component, node) grid velocities around one particle block
+          T arena_sum[2][kArenaNodes];   // (sum, cell) the block's deposits: V tr C, V (cell i at node i)
+          for (int colour = 0; colour < 8; ++colour) {
+            const std::vector<int>& list = part.colour_blocks[colour];
+            const int count = static_cast<int>(list.size());
+#pragma omp for schedule(dynamic, 1)
+            for (int li = 0; li < count; ++li) {
+              const int pb = list[li];
+              const std::array<int, 8>& blocks = part.grid_blocks[pb];
+              for (int a = 0; a < kArenaSide; ++a)
+                for (int b = 0; b < kArenaSide; ++b)
+                  for (int c = 0; c < kArenaSide; ++c) {
+                    const GridBlock& g = grid_.blocks[blocks[arena_neighbour(a, b, c)]];
+                    const int node = arena_node_in_block(a, b, c);
+                    const int ai = arena_index(a, b, c);
+                    for (int d = 0; d < 3; ++d) arena_v[d][ai] = g.momentum[d][node];
+                    arena_sum[0][ai] = arena_sum[1][ai] = T(0);
+                  }
+              const Vec3i& origin = part.block_coords[pb];
+              for (int q = part.block_start[pb]; q < part.block_start[pb + 1]; ++q) {
+                const int p = part.order[q];
+                const QuadraticBspline<T> s = quadratic_bspline_inv(body.x[p], inv_dx);
+                const int l0 = s.base[0] - origin[0] * kBlockSide;
+                const int l1 = s.base[1] - origin[1] * kBlockSide;
+                const int l2 = s.base[2] - origin[2] * kBlockSide;
+                G2PSum<T> sum;
+                for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3T& xixp) {
+                  const int a = arena_index(l0 + i, l1 + j, l2 + k);
+                  sum.add(w, Vec3T{{arena_v[0][a], arena_v[1][a], arena_v[2][a]}}, xixp);
+                });
+                const Mat3T C = sum.affine(d_inv);
+                const T V = body.volume[p] * M::volume_ratio(state[p]);
+                const Vec3i cell = fbar_cell_offset(body.x[p], inv_dx, s.base);
+                const int a = arena_index(l0 + cell[0], l1 + cell[1], l2 + cell[2]);
+                arena_sum[0][a] += V * (C(0, 0) + C(1, 1) + C(2, 2));
+                arena_sum[1][a] += V;
+              }
+              // The same colour discipline as P2G: no other block of this colour touches these grid blocks.
+              for (int a = 0; a < kArenaSide; ++a)
+                for (int b = 0; b < kArenaSide; ++b)
+                  for (int c = 0; c < kArenaSide; ++c) {
+                    const int ai = arena_index(a, b, c);
+                    if (arena_sum[1][ai] == T(0)) continue;
+                    FbarBlock& g = grid_.fbar[blocks[arena_neighbour(a, b, c)]];
+                    const int node = arena_node_in_block(a, b, c);
+                    g.sums[0][node] += static_cast<TG>(arena_sum[0][ai]);
+                    g.sums[1][node] += static_cast<TG>(arena_sum[1][ai]);
+                  }
+            }
+          }
+        }
+      },
+      body.material);
+}
+
+// ---------------------------------------------------------------------------------------------
+// G2P with failure checks
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) {
+  const Partition& part = body.partition;
+  const T dx = k_.dx, inv_dx = k_.inv_dx, d_inv = k_.d_inv;
+  const Vec3T domain = k_.domain;
+  const int nb = static_cast<int>(part.block_keys.size());
+  long long count[3] = {0, 0, 0};
+  long long first[3] = {std::numeric_limits<long long>::max(), std::numeric_limits<long long>::max(),
+                        std::numeric_limits<long long>::max()};
+  double max_wave = 0.0;
+  std::visit(
+      [&](auto& mb) {
+        using M = typename std::decay_t<decltype(mb)>::material_type;
+        const auto params = mb.params;
+        const auto& state = mb.state;
+        auto& next_state = mb.next_state;
+        const bool fbar = body.fbar_psi != T(0);
+#pragma omp parallel if (nb >= kMinParallelBlocks)
+        {
+          T arena_v[3][kArenaNodes];      // (component, node) grid velocities around one particle block
+          T arena_v_old[3][kArenaNodes];  // (component, node) ASFLIP's v^n, when the body uses it
+          T arena_fbar[2][kArenaNodes];   // (sum, node) F-bar's divergence sums, when the body uses it
+          long long my_count[3] = {0, 0, 0};
+          long long my_first[3] = {first[0], first[1], first[2]};
+          T my_wave = T(0);
+#pragma omp for schedule(dynamic, 1)
+          for (int pb = 0; pb < nb; ++pb) {
+            const std::array<int, 8>& sources = part.grid_blocks[pb];
+            for (int a = 0; a < kArenaSide; ++a)
+              for (int b = 0; b < kArenaSide; ++b)
+                for (int c = 0; c < kArenaSide; ++c) {
+                  const int gb = sources[arena_neighbour(a, b, c)];
+                  const GridBlock& g = grid_.blocks[gb];
+                  const int node = arena_node_in_block(a, b, c);
+                  const int ai = arena_index(a, b, c);
+                  arena_v[0][ai] = g.momentum[0][node];
+                  arena_v[1][ai] = g.momentum[1][node];
+                  arena_v[2][ai] = g.momentum[2][node];
+                  if (body.asflip)
+                    for (int d = 0; d < 3; ++d) arena_v_old[d][ai] = grid_.asflip[gb].old_velocity[d][node];
+                  if (fbar)
+                    for (int d = 0; d < 2; ++d) arena_fbar[d][ai] = grid_.fbar[gb].sums[d][node];
+                }
+            const Vec3i& origin = part.block_coords[pb];
+            for (int q = part.block_start[pb]; q < part.block_start[pb + 1]; ++q) {
+              const int p = part.order[q];
+              const Vec3T x = body.x[p];
+              const QuadraticBspline<T> s = quadratic_bspline_inv(x, inv_dx);
+              const int l0 = s.base[0] - origin[0] * kBlockSide;
+              const int l1 = s.base[1] - origin[1] * kBlockSide;
+              const int l2 = s.base[2] - origin[2] * kBlockSide;
+              G2PSum<T> sum;
+              G2POldSum<T> old;
+              T divergence = T(0);  // F-bar's smoothed tr C
+              for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3T& xixp) {
+                const int a = arena_index(l0 + i, l1 + j, l2 + k);
+                sum.add(w, Vec3T{{arena_v[0][a], arena_v[1][a], arena_v[2][a]}}, xixp);
+                if (body.asflip) old.add(w, Vec3T{{arena_v_old[0][a], arena_v_old[1][a], arena_v_old[2][a]}});
+              });
+              if (fbar) {
+                const Vec3i cell = fbar_cell_offset(x, inv_dx, s.base);
+                const int a = arena_index(l0 + cell[0], l1 + cell[1], l2 + cell[2]);
+                divergence = fbar_cell_divergence(arena_fbar[0][a], arena_fbar[1][a]);
+              }
+              Vec3T v = sum.velocity();
+              const Mat3T C = sum.affine(d_inv);
+              const auto s_new =
+                  M::advance(params, state[p], fbar ? fbar_velocity_gradient(C, divergence, body.fbar_psi) : C, dt);
+              Vec3T x_new;
+              if (body.asflip) {
+                const AsflipUpdate<T> u =
+                    asflip_update(body.asflip_params, body.v[p], v, old.v, M::volume_ratio(s_new), dt);
+                v = u.v;
+                x_new = x + u.move;
+              } else {
+                x_new = advect(x, v, dt);
+              }
+              body.x_next[p] = x_new;
+              body.v_next[p] = v;
+              body.C_next[p] = C;
+              next_state[p] = s_new;
+
+              const bool finite = all_finite(x_new) && all_finite(v) && all_finite(C) && state_is_finite<T>(s_new);
+              int failed = -1;
+              if (!finite) {
+                failed = static_cast<int>(FailureKind::NonFinite);
+              } else {
+                bool inside = true;
+                for (int a = 0; a < 3; ++a) inside = inside && x_new[a] >= T(0) && x_new[a] <= domain[a];
+                if (!inside)
+                  failed = static_cast<int>(FailureKind::LeftDomain);
+                else if (max_abs(x_new - x) > dx)
+                  failed = static_cast<int>(FailureKind::CflViolation);
+                else
+                  my_wave = std::max(my_wave, M::wave_speed(params, s_new));
+              }
+              if (failed >= 0) {
+                ++my_count[failed];
+                my_first[failed] = std::min<long long>(my_first[failed], p);
+              }
+            }
+          }
+#pragma omp critical(fbar_cpu_g2p_reduce)
+          {
+            for (int k = 0; k < 3; ++k) {
+              count[k] += my_count[k];
+              first[k] = std::min(first[k], my_first[k]);
+            }
+            max_wave = std::max(max_wave, static_cast<double>(my_wave));
+          }
+        }
+        // Never below the wave speed at rest (a fluid in slight tension would otherwise loosen the bound).
+        max_wave = std::max(max_wave, static_cast<double>(M::wave_speed(params, M::template reference_state<T>())));
+      },
+      body.material);
+
+  result.max_wave_speed[body_index] = max_wave;
+  for (int k = 0; k < 3; ++k) {
+    if (count[k] == 0) continue;
+    FailureReport f;
+    f.kind = static_cast<FailureKind>(k);
+    f.body = body_index;
+    f.step = steps_ + 1;
+    f.time = time_;
+    f.dt = static_cast<double>(dt);
+    f.count = count[k];
+    f.first_particle = first[k];
+    result.failures.push_back(f);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Step
+
+template <typename T, typename TG>
+typename CpuEngine<T, TG>::TryResult CpuEngine<T, TG>::try_step(double dt_in) {
+  const T dt = static_cast<T>(dt_in);
+  TryResult result;
+  result.max_wave_speed.assign(bodies_.size(), 0.0);
+  const int nblocks = static_cast<int>(grid_.blocks.size());
+#pragma omp parallel for schedule(static) if (nblocks >= kMinParallelBlocks)
+  for (int gb = 0; gb < nblocks; ++gb) {
+    std::memset(&grid_.blocks[gb], 0, sizeof(GridBlock));
+    if (asflip_) std::memset(&grid_.asflip[gb], 0, sizeof(AsflipBlock));
+  }
+  for (Body& body : bodies_) p2g(body, dt);
+  result.max_grid_speed = update_grid(static_cast<TG>(dt_in));
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    if (bodies_[b].fbar_psi != T(0)) fbar_divergence(bodies_[b]);  // F-bar smooths within one body
+    g2p(static_cast<int>(b), bodies_[b], dt, result);
+  }
+  return result;
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::commit(const TryResult& result, double dt) {
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    Body& body = bodies_[b];
+    body.x.swap(body.x_next);
+    body.v.swap(body.v_next);
+    body.C.swap(body.C_next);
+    std::visit([](auto& mb) { mb.state.swap(mb.next_state); }, body.material);
+    body.max_wave_speed = result.max_wave_speed[b];
+  }
+  time_ += dt;
+  ++steps_;
+  last_dt_ = dt;
+  max_grid_speed_ = result.max_grid_speed;
+  partition_valid_ = false;
+}
+
+template <typename T, typename TG>
+double CpuEngine<T, TG>::next_dt() const {
+  double bound = k_.default_dt;
+  for (const Body& body : bodies_)
+    bound = min_time_step(
+        bound, cfl_time_step(body.spec.material.cfl, scene_.simulation.dx, body.max_wave_speed, max_grid_speed_));
+  return bound * dt_scale_;
+}
+
+template <typename T, typename TG>
+StepReport CpuEngine<T, TG>::step_impl(double dt, bool cfl_dt) {
+  if (!(dt > 0.0) || !std::isfinite(dt)) throw std::invalid_argument("CpuEngine::step: dt must be positive");
+  StepReport report;
+  for (;;) {
+    if (!partition_valid_) build_partition();
+    TryResult result = try_step(dt);
+    if (result.failures.empty()) {
+      commit(result, dt);
+      report.dt = dt;
+      report.steps = 1;
+      if (cfl_dt && dt_scale_ < 1.0 && ++clean_steps_ >= kRecoverSteps) {
+        dt_scale_ = std::min(1.0, 2.0 * dt_scale_);
+        clean_steps_ = 0;
+      }
+      return report;
+    }
+    if (scene_.simulation.on_failure == OnFailure::ReduceDt && report.retries < kMaxRetries) {
+      if (log_)
+        for (const FailureReport& f : result.failures)
+          *log_ << "fbar: " << f.describe() << "; retrying the step with dt = " << format_g(dt / 2) << " s\n";
+      report.retried.insert(report.retried.end(), result.failures.begin(), result.failures.end());
+      ++report.retries;
+      dt *= 0.5;
+      if (cfl_dt) {
+        dt_scale_ *= 0.5;
+        clean_steps_ = 0;
+      }
+      continue;
+    }
+    report.ok = false;
+    report.dt = dt;
+    report.failures = std::move(result.failures);
+    return report;
+  }
+}
+
+template <typename T, typename TG>
+StepReport CpuEngine<T, TG>::step() {
+  return step_impl(next_dt(), true);
+}
+
+template <typename T, typename TG>
+StepReport CpuEngine<T, TG>::step(double dt) {
+  return step_impl(dt, false);
+}
+
+template <typename T, typename TG>
+StepReport CpuEngine<T, TG>::step_toward(double t_end) {
+  const double remaining = t_end - time_;
+  double dt = next_dt();
+  const bool last = dt >= remaining;
+  if (last)
+    dt = remaining;
+  else if (2.0 * dt > remaining)
+    dt = 0.5 * remaining;  // two equal steps rather than a full one and a sliver
+  if (!(time_ + dt > time_))
+    throw std::runtime_error("CpuEngine::advance_to: the time step " + format_g(dt) +
+                             " s is below the resolution "
+                             "of the clock at t = " +
+                             format_g(time_) + " s");
+  StepReport r = step_impl(dt, true);
+  if (r.ok && last && r.retries == 0) time_ = t_end;  // land on the target exactly, not t_end +- round-off
+  return r;
+}
+
+template <typename T, typename TG>
+StepReport CpuEngine<T, TG>::advance_to(double t_end) {
+  StepReport total;
+  while (time_ < t_end) {
+    StepReport r = step_toward(t_end);
+    total.steps += r.steps;
+    total.retries += r.retries;
+    total.retried.insert(total.retried.end(), r.retried.begin(), r.retried.end());
+    total.dt = r.dt;
+    if (!r.ok) {
+      total.ok = false;
+      total.failures = std::move(r.failures);
+      return total;
+    }
+  }
+  return total;
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer) {
+  io::ParticleFrame f = frame(body);
+  const auto t0 = std::chrono::steady_clock::now();
+  writer.submit(path, std::move(f));
+  output_wait_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+template <typename T, typename TG>
+std::string CpuEngine<T, TG>::resource_note() const {
+  return std::to_string(omp_get_max_threads()) + " threads";
+}
+
+// ---------------------------------------------------------------------------------------------
+// Particle access
+
+template <typename T, typename TG>
+const typename CpuEngine<T, TG>::Body& CpuEngine<T, TG>::body_at(int body) const {
+  if (body < 0 || body >= body_count()) throw std::out_of_range("CpuEngine: no body " + std::to_string(body));
+  return bodies_[body];
+}
+template <typename T, typename TG>
+typename CpuEngine<T, TG>::Body& CpuEngine<T, TG>::body_at(int body) {
+  if (body < 0 || body >= body_count()) throw std::out_of_range("CpuEngine: no body " + std::to_string(body));
+  return bodies_[body];
+}
+
+template <typename T, typename TG>
+std::size_t CpuEngine<T, TG>::particle_count(int body) const {
+  return body_at(body).x.size();
+}
+template <typename T, typename TG>
+std::size_t CpuEngine<T, TG>::particle_count() const {
+  std::size_t n = 0;
+  for (const Body& b : bodies_) n += b.x.size();
+  return n;
+}
+template <typename T, typename TG>
+Constitutive CpuEngine<T, TG>::law(int body) const {
+  return body_at(body).spec.material.law;
+}
+template <typename T, typename TG>
+const std::vector<Vec3<T>>& CpuEngine<T, TG>::positions(int body) const {
+  return body_at(body).x;
+}
+template <typename T, typename TG>
+const std::vector<Vec3<T>>& CpuEngine<T, TG>::velocities(int body) const {
+  return body_at(body).v;
+}
+template <typename T, typename TG>
+const std::vector<Mat3<T>>& CpuEngine<T, TG>::affine(int body) const {
+  return body_at(body).C;
+}
+template <typename T, typename TG>
+const std::vector<T>& CpuEngine<T, TG>::masses(int body) const {
+  return body_at(body).mass;
+}
+template <typename T, typename TG>
+const std::vector<T>& CpuEngine<T, TG>::volumes(int body) const {
+  return body_at(body).volume;
+}
+
+template <typename T, typename TG>
+std::vector<T> CpuEngine<T, TG>::volume_ratios(int body) const {
+  const Body& b = body_at(body);
+  std::vector<T> J(b.x.size());
+  std::visit(
+      [&](const auto& mb) {
+        using M = typename std::decay_t<decltype(mb)>::material_type;
+        for (std::size_t p = 0; p < J.size(); ++p) J[p] = M::volume_ratio(mb.state[p]);
+      },
+      b.material);
+  return J;
+}
+
+template <typename T, typename TG>
+std::vector<Mat3<T>> CpuEngine<T, TG>::deformation_gradients(int body) const {
+  const Body& b = body_at(body);
+  std::vector<Mat3T> F;
+  std::visit(
+      [&](const auto& mb) {
+        using M = typename std::decay_t<decltype(mb)>::material_type;
+        if constexpr (M::kOutputs.deformation_gradient) {
+          F.reserve(mb.state.size());
+          for (const auto& s : mb.state) F.push_back(s.F);
+        } else {
+          throw std::invalid_argument(std::string("CpuEngine: body ") + std::to_string(body) + " (" + M::kJsonName +
+                                      ") stores no deformation gradient");
+        }
+      },
+      b.material);
+  return F;
+}
+
+template <typename T, typename TG>
+std::vector<T> CpuEngine<T, TG>::plastic_log_volumes(int body) const {
+  const Body& b = body_at(body);
+  std::vector<T> l;
+  std::visit(
+      [&](const auto& mb) {
+        using M = typename std::decay_t<decltype(mb)>::material_type;
+        if constexpr (M::kOutputs.log_jp) {
+          l.reserve(mb.state.size());
+          for (const auto& s : mb.state) l.push_back(s.logJp);
+        } else {
+          throw std::invalid_argument(std::string("CpuEngine: body ") + std::to_string(body) + " (" + M::kJsonName +
+                                      ") stores no logJp");
+        }
+      },
+      b.material);
+  return l;
+}
+
+template <typename T, typename TG>
+std::vector<Mat3<T>> CpuEngine<T, TG>::cauchy_stresses(int body) const {
+  const Body& b = body_at(body);
+  std::vector<Mat3T> sigma(b.x.size());
+  std::visit(
+      [&](const auto& mb) {
+        using M = typename std::decay_t<decltype(mb)>::material_type;
+        const int n = static_cast<int>(sigma.size());
+#pragma omp parallel for schedule(static) if (n >= kMinParallelParticles)
+        for (int p = 0; p < n; ++p) sigma[p] = cauchy_stress(M::kirchhoff_stress(mb.params, mb.state[p], b.C[p]));
+      },
+      b.material);
+  return sigma;
+}
+
+template <typename T, typename TG>
+std::vector<T> CpuEngine<T, TG>::pressures(int body) const {
+  const std::vector<Mat3T> sigma = cauchy_stresses(body);
+  std::vector<T> p(sigma.size());
+  for (std::size_t i = 0; i < p.size(); ++i) p[i] = mean_pressure(sigma[i]);
+  return p;
+}
+
+template <typename T, typename TG>
+std::vector<T> CpuEngine<T, TG>::wave_speeds(int body) const {
+  const Body& b = body_at(body);
+  std::vector<T> c(b.x.size());
+  std::visit(
+      [&](const auto& mb) {
+        using M = typename std::decay_t<decltype(mb)>::material_type;
+        for (std::size_t p = 0; p < c.size(); ++p) c[p] = M::wave_speed(mb.params, mb.state[p]);
+      },
+      b.material);
+  return c;
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::set_velocities(int body, const std::function<Vec3d(const Vec3d&)>& velocity_of_position) {
+  Body& b = body_at(body);
+  for (std::size_t p = 0; p < b.x.size(); ++p) {
+    b.v[p] = velocity_of_position(b.x[p].template cast<double>()).template cast<T>();
+    max_grid_speed_ = std::max(max_grid_speed_, static_cast<double>(norm(b.v[p])));
+  }
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::set_volume_ratios(int body, const std::function<double(const Vec3d&)>& J_of_position,
+                                     bool rescale_mass) {
+  Body& b = body_at(body);
+  const SimulationSpec& sim = scene_.simulation;
+  const double current_volume = sim.dx * sim.dx * sim.dx / b.spec.material.ppc;
+  std::visit(
+      [&](auto& mb) {
+        using M = typename std::decay_t<decltype(mb)>::material_type;
+        if constexpr (std::is_same_v<M, JFluid>) {
+          double c_max = 0.0;
+          for (std::size_t p = 0; p < b.x.size(); ++p) {
+            const double J = J_of_position(b.x[p].template cast<double>());
+            if (!(J > 0.0) || !std::isfinite(J))
+              throw std::invalid_argument("CpuEngine::set_volume_ratios: J must be positive and finite");
+            mb.state[p] = M::template state_with_J<T>(static_cast<T>(J));
+            if (rescale_mass) {
+              b.volume[p] = static_cast<T>(current_volume / J);
+              b.mass[p] = static_cast<T>(b.spec.material.rho * current_volume / J);
+            }
+            c_max = std::max(c_max, static_cast<double>(M::wave_speed(mb.params, mb.state[p])));
+          }
+          b.max_wave_speed = std::max(b.max_wave_speed, c_max);
+        } else {
+          throw std::invalid_argument(std::string("CpuEngine::set_volume_ratios: body ") + std::to_string(body) + " (" +
+                                      M::kJsonName + ") does not store J");
+        }
+      },
+      b.material);
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::set_deformation_gradients(int body, const std::function<Mat3d(const Vec3d&)>& F_of_position) {
+  Body& b = body_at(body);
+  std::visit(
+      [&](auto& mb) {
+        using M = typename std::decay_t<decltype(mb)>::material_type;
+        if constexpr (M::kOutputs.deformation_gradient) {
+          for (std::size_t p = 0; p < b.x.size(); ++p)
+            mb.state[p].F = F_of_position(b.x[p].template cast<double>()).template cast<T>();
+        } else {
+          throw std::invalid_argument(std::string("CpuEngine::set_deformation_gradients: body ") +
+                                      std::to_string(body) + " (" + M::kJsonName + ") does not store F");
+        }
+      },
+      b.material);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Totals
+
+template <typename T, typename TG>
+double CpuEngine<T, TG>::total_mass() const {
+  double m = 0.0;
+  for (const Body& b : bodies_)
+    for (const T mp : b.mass) m += static_cast<double>(mp);
+  return m;
+}
+
+template <typename T, typename TG>
+Vec3d CpuEngine<T, TG>::total_momentum() const {
+  Vec3d P = Vec3d::zero();
+  for (const Body& b : bodies_)
+    for (std::size_t p = 0; p < b.x.size(); ++p) P += b.v[p].template cast<double>() * static_cast<double>(b.mass[p]);
+  return P;
+}
+
+template <typename T, typename TG>
+Vec3d CpuEngine<T, TG>::angular_momentum() const {
+  Vec3d L = Vec3d::zero();
+  const double dx = scene_.simulation.dx;
+  for (const Body& b : bodies_)
+    for (std::size_t p = 0; p < b.x.size(); ++p)
+      L += apic_angular_momentum(static_cast<double>(b.mass[p]), b.x[p].template cast<double>(),
+                                 b.v[p].template cast<double>(), b.C[p].template cast<double>(), dx);
+  return L;
+}
+
+template <typename T, typename TG>
+double CpuEngine<T, TG>::kinetic_energy() const {
+  double e = 0.0;
+  for (const Body& b : bodies_)
+    for (std::size_t p = 0; p < b.x.size(); ++p) {
+      const Vec3d v = b.v[p].template cast<double>();
+      e += 0.5 * static_cast<double>(b.mass[p]) * dot(v, v);
+    }
+  return e;
+}
+
+template <typename T, typename TG>
+double CpuEngine<T, TG>::elastic_energy() const {
+  double e = 0.0;
+  for (const Body& b : bodies_)
+    std::visit(
+        [&](const auto& mb) {
+          using M = typename std::decay_t<decltype(mb)>::material_type;
+          for (std::size_t p = 0; p < b.x.size(); ++p)
+            e += static_cast<double>(b.volume[p]) * static_cast<double>(M::energy_density(mb.params, mb.state[p]));
+        },
+        b.material);
+  return e;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Output
+
+template <typename T, typename TG>
+io::ParticleFrame CpuEngine<T, TG>::frame(int body) const {
+  const Body& b = body_at(body);
+  FrameSource<T> src;
+  src.x = &b.x;
+  src.v = &b.v;
+  src.mass = [&](std::size_t p) { return b.mass[p]; };
+  src.volume0 = [&](std::size_t p) { return b.volume[p]; };
+  src.J = [&] { return volume_ratios(body); };
+  src.F = [&] { return deformation_gradients(body); };
+  src.sigma = [&] { return cauchy_stresses(body); };
+  src.logJp = [&] { return plastic_log_volumes(body); };
+  return build_frame(b.spec, body, src, "CPU engine");
+}
+
+template <typename T, typename TG>
+std::size_t CpuEngine<T, TG>::memory_bytes() const {
+  std::size_t bytes = 0;
+  for (const Body& b : bodies_) {
+    bytes += (b.x.capacity() + b.v.capacity() + b.x_next.capacity() + b.v_next.capacity()) * sizeof(Vec3T);
+    bytes += (b.C.capacity() + b.C_next.capacity()) * sizeof(Mat3T);
+    bytes += (b.mass.capacity() + b.volume.capacity()) * sizeof(T);
+    std::visit([&](const auto& mb) { bytes += (mb.state.capacity() + mb.next_state.capacity()) * sizeof(mb.state[0]); },
+               b.material);
+    const Partition& part = b.partition;
+    bytes += part.order.capacity() * sizeof(int) + part.particle_block.capacity() * sizeof(int) +
+             part.particle_key.capacity() * sizeof(std::uint64_t) +
+             part.grid_blocks.capacity() * sizeof(std::array<int, 8>) +
+             part.block_keys.capacity() * (sizeof(std::uint64_t) + sizeof(Vec3i) + 2 * sizeof(int));
+  }
+  bytes += grid_.blocks.capacity() * sizeof(GridBlock) + grid_.coords.capacity() * sizeof(Vec3i) +
+           grid_.asflip.capacity() * sizeof(AsflipBlock) + grid_.fbar.capacity() * sizeof(FbarBlock);
+  bytes += grid_.index.size() * (sizeof(std::uint64_t) + sizeof(int) + 2 * sizeof(void*));
+  return bytes;
+}
+
+template class CpuEngine<double, double>;
+template class CpuEngine<float, float>;
+template class CpuEngine<double, float>;
+
+}  // namespace fbar

@@ -1,0 +1,308 @@
+// The CPU reference engine: explicit MLS-MPM on a hashed sparse grid of 4x4x4 node blocks, OpenMP, any scene.
+//
+// It runs the same physics functions as the GPU engine (constitutive_models.cuh, transfer.cuh, grid_update.cuh,
+// boundary.cuh, time_step.cuh), is the oracle of the GPU tests and the engine of the physics tests. Simple and
+// readable first, then fast.
+//
+// One step (symplectic Euler, Hu et al. 2018 MLS-MPM, APIC):
+//   1. partition  every body's particles are bucketed by the 4x4x4 block holding their stencil's base node
+//                 (a "particle block"); the grid blocks it touches (the block and its +1 neighbours, 2x2x2) are
+//                 activated in a std::unordered_map from packed block coordinates to a block index.
+//   2. P2G        per particle block: the stress and the MLS payload of each particle are scattered into a private
+//                 6x6x6-node arena, which is then added to the grid blocks. Blocks are processed in 8 colours
+//                 (block coordinate parities); blocks of one colour write disjoint nodes, so a colour runs in
+//                 parallel without atomics. Every node sum therefore has a fixed order (body, colour, particle
+//                 order inside the block): results are bitwise independent of the number of threads.
+//   3. grid       v = p/m + dt g, boundary projections, max |v| (for the next dt).
+//   4. G2P        per particle block, from a 6x6x6 arena gathered from the grid: v, C, x += dt v, F or 1-J update,
+//                 then the failure checks. New values go to a second set of arrays: the step commits (swaps) only
+//                 when no check failed, so a failed step leaves the state untouched and can be retried.
+// Failure checks (every step, every particle): NaN/Inf in x, v, C or the material state; a move of more than one
+// cell along an axis in one step (CFL violation: the fused GPU G2P2G cannot represent it); a position outside the
+// domain [0, simulation.domain]. on_failure = stop: step() reports (body, step, time, count) and does not commit.
+// on_failure = reduce_dt: the step is retried from the unchanged state with dt/2, up to kMaxRetries times; the
+// halving persists for later steps and is undone (x2) after kRecoverSteps clean steps.
+//
+// Time step: dt = min(default_dt, min_b CFL_b dx / (c_b + |v|max)) where c_b is the largest wave speed of body b's
+// particles (material wave_speed() of the current state, e.g. the compressed sound speed of JFluid; never below
+// the material's speed at rest) and |v|max the largest grid speed of the previous step (the initial particle
+// speed before the first step).
+//
+// Particles of a body are stored in their sampling order for the whole run (index = ID); only an index list is
+// sorted by block each step. Mass and reference volume are per particle (rho dx^3/ppc and dx^3/ppc at start;
+// set_volume_ratios may change them to start in a pre-compressed state).
+//
+// Use (a physics test; every quantity in SI units):
+//   Scene scene = ...;                                    // bodies, boundaries (scene.h)
+//   CpuEngine<double> engine(scene);                      // samples the bodies (geometry.h)
+//   engine.set_volume_ratios(0, [&](const Vec3d& x) { return J_hydrostatic(x[1]); });   // optional initial state
+//   const StepReport r = engine.advance_to(0.5);          // CFL steps, lands on t = 0.5 s
+//   ASSERT_TRUE(r.ok) << r.message();
+//   const std::vector<double> p = engine.pressures(0);    // per particle, index = ID, with positions(0)
+//   const double e = engine.kinetic_energy() + engine.elastic_energy();
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <iosfwd>
+#include <string>
+#include <string_view>
+#include <unordered_map>
+#include <variant>
+#include <vector>
+
+#include "MnBase/Math/vec.h"
+#include "MnSystem/IO/async_writer.h"
+#include "MnSystem/IO/particle_io.h"
+#include "physics/boundary.cuh"
+#include "physics/constitutive_models.cuh"
+#include "engine/run_constants.h"
+#include "scene/scene.h"
+#include "physics/transfer.cuh"
+
+namespace fbar {
+
+/// What a failed check found.
+enum class FailureKind {
+  NonFinite,     ///< NaN or Inf in a particle's position, velocity, affine matrix or material state
+  CflViolation,  ///< a particle moved more than one cell along an axis in one step
+  LeftDomain,    ///< a particle's new position lies outside [0, simulation.domain]
+};
+const char* to_string(FailureKind kind);
+
+/// One failed check of one body in one step.
+struct FailureReport {
+  FailureKind kind = FailureKind::NonFinite;
+  int body = 0;                   ///< index in scene.bodies
+  long long step = 0;             ///< 1-based index of the step that failed (steps() + 1 when it was attempted)
+  double time = 0.0;              ///< [s] simulated time at the start of that step
+  double dt = 0.0;                ///< [s] the step size that failed
+  long long count = 0;            ///< particles of the body that failed this check
+  long long first_particle = -1;  ///< smallest failing particle index (ID) of the body
+  /// "body 0: 12 particles moved more than one cell in one step (CFL violation) at step 345, t = 0.1234 s,
+  ///  dt = 1e-4 s (first: particle 17)".
+  std::string describe() const;
+};
+
+/// Outcome of step() / advance_to().
+struct StepReport {
+  bool ok = true;
+  double dt = 0.0;                      ///< [s] size of the (last) committed step; of the failed try when !ok
+  int retries = 0;                      ///< dt halvings in this step (on_failure = reduce_dt)
+  long long steps = 0;                  ///< steps committed by this call
+  std::vector<FailureReport> failures;  ///< the checks that failed in the last try (empty when ok)
+  std::vector<FailureReport> retried;   ///< failures that were repaired by halving dt (reduce_dt)
+  /// All failures, one line each (empty when ok).
+  std::string message() const;
+};
+
+/// Output attributes (canonical names, attributes.h) the CPU engine can write for a body of material `law`.
+bool cpu_engine_supports_attribute(Constitutive law, std::string_view canonical_name);
+
+/// T: particle scalar type (positions, velocities, state, transfers); TG: grid scalar type (P2G sums, grid
+/// velocities, grid update). CpuEngine<float> runs "single", CpuEngine<double> "double" and CpuEngine<double, float>
+/// "mixed", the GPU engine's three precisions (the grid sums of mixed are floats, as on the GPU).
+template <typename T, typename TG = T>
+class CpuEngine {
+ public:
+  using Vec3T = Vec3<T>;
+  using Mat3T = Mat3<T>;
+
+  /// Dt halvings per step before on_failure = reduce_dt gives up (dt / 2^8 at most).
+  static constexpr int kMaxRetries = 8;
+  /// Clean steps after which a halved dt is doubled again (on_failure = reduce_dt).
+  static constexpr int kRecoverSteps = 100;
+
+  /// Samples every body with sample_body() (geometry.h). Throws SceneError (sampling) or std::invalid_argument
+  /// naming the body / boundary for what this engine does not implement (material law, boundary object, output
+  /// attribute).
+  explicit CpuEngine(const Scene& scene);
+  /// As above with given initial positions [m] per body (tests, restarts); positions must lie inside the domain.
+  CpuEngine(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions);
+  ~CpuEngine();
+  CpuEngine(const CpuEngine&) = delete;
+  CpuEngine& operator=(const CpuEngine&) = delete;
+
+  // ------------------------------------------------------------------ stepping
+  /// One step with the CFL time step (next_dt()).
+  StepReport step();
+  /// One step of exactly dt [s] (no CFL bound; reduce_dt may still halve it on failure).
+  StepReport step(double dt);
+  /// Steps with the CFL time step until time() == t_end [s]: the last two steps share what remains (no sliver
+  /// step) and the last one lands on t_end exactly.
+  /// Stops at the first failure that is not repaired; then time() < t_end.
+  StepReport advance_to(double t_end);
+  /// One step of advance_to(t_end): the CFL step, or what remains when that reaches t_end (landing on it exactly),
+  /// or half of what remains when one CFL step would leave a sliver.
+  StepReport step_toward(double t_end);
+
+  double time() const { return time_; }        ///< [s]
+  long long steps() const { return steps_; }   ///< committed steps
+  double last_dt() const { return last_dt_; }  ///< [s] size of the last committed step
+  /// [s] the dt step() would take now: min(default_dt, min_b CFL_b dx / (c_b + |v|max)) x reduce_dt factor.
+  double next_dt() const;
+  double max_grid_speed() const { return max_grid_speed_; }  ///< [m/s] |v|max of the last grid update
+  /// Redirects reduce_dt retry messages (default std::cerr; nullptr: silent).
+  void set_log(std::ostream* log) { log_ = log; }
+
+  // ------------------------------------------------------------------ output (run_loop.h)
+  /// Nothing to prepare: frame() builds a frame from the current state (the GPU engine captures it during a step).
+  void set_frame_capture(bool) {}
+  /// Queues frame(body) on the writer (waiting while the writer's queue is full).
+  void submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer);
+  double output_wait_seconds() const { return output_wait_s_; }  ///< [s] waited in submit_frame
+  std::string resource_note() const;                             ///< threads, for progress lines
+
+  // ------------------------------------------------------------------ particles (index = particle ID)
+  int body_count() const { return static_cast<int>(bodies_.size()); }
+  std::size_t particle_count(int body) const;
+  std::size_t particle_count() const;  ///< all bodies
+  Constitutive law(int body) const;
+  const std::vector<Vec3T>& positions(int body) const;       ///< [m]
+  const std::vector<Vec3T>& velocities(int body) const;      ///< [m/s]
+  const std::vector<Mat3T>& affine(int body) const;          ///< [1/s] APIC C (velocity gradient)
+  const std::vector<T>& masses(int body) const;              ///< [kg]
+  const std::vector<T>& volumes(int body) const;             ///< [m^3] reference volume V0
+  std::vector<T> volume_ratios(int body) const;              ///< [-] J
+  std::vector<Mat3T> deformation_gradients(int body) const;  ///< [-] F; throws for a law without F (JFluid)
+  std::vector<T> plastic_log_volumes(int body) const;        ///< [-] logJp; throws for a law without it
+  std::vector<Mat3T> cauchy_stresses(int body) const;        ///< [Pa] sigma = tau / J
+  std::vector<T> pressures(int body) const;                  ///< [Pa] -tr(sigma)/3
+  std::vector<T> wave_speeds(int body) const;                ///< [m/s] current material wave speed
+
+  /// Overwrites the velocity of every particle of `body` with v(x) [m/s] (C is left as is).
+  void set_velocities(int body, const std::function<Vec3d(const Vec3d&)>& velocity_of_position);
+  /// Starts a JFluid body compressed: J(x) per particle (e.g. hydrostatic: J(y) = (1 + gamma p(y)/K)^(-1/gamma)).
+  /// The particles sit where they were sampled, each occupying dx^3/ppc now, so with rescale_mass the reference
+  /// volume becomes V0 = (dx^3/ppc) / J and the mass rho0 V0 (the current density is then rho0 / J, consistent
+  /// with the state). Throws std::invalid_argument for a body that does not store J, or J <= 0.
+  void set_volume_ratios(int body, const std::function<double(const Vec3d&)>& J_of_position, bool rescale_mass = true);
+  /// Overwrites F(x) of a body whose material stores F (FixedCorotated, NeoHookean, DruckerPrager, NACC); throws
+  /// otherwise.
+  void set_deformation_gradients(int body, const std::function<Mat3d(const Vec3d&)>& F_of_position);
+
+  // ------------------------------------------------------------------ totals (double sums in particle order)
+  double total_mass() const;       ///< [kg] sum of particle masses
+  Vec3d total_momentum() const;    ///< [kg m/s] sum m v
+  Vec3d angular_momentum() const;  ///< [kg m^2/s] about the origin, with the APIC affine spin
+  double kinetic_energy() const;   ///< [J] sum m |v|^2 / 2
+  double elastic_energy() const;   ///< [J] sum V0 psi(state)
+  /// [kg] sum of grid node masses of the last P2G (equals total_mass() to round-off: partition of unity).
+  double grid_mass() const { return grid_mass_; }
+  std::size_t active_grid_blocks() const { return grid_.blocks.size(); }
+
+  // ------------------------------------------------------------------ output
+  /// The body's particles with its output_attribs (canonical names; aliases resolved), positions in T, for the
+  /// particle_io writers: ID int32 (= particle index), everything else float. Volume is the current volume V0 J
+  /// [m^3], Pressure -tr(sigma)/3 [Pa], VonMisesStress sqrt(3/2 s:s) [Pa].
+  io::ParticleFrame frame(int body) const;
+  /// Host memory held by particles and grid [bytes].
+  std::size_t memory_bytes() const;
+
+  const Scene& scene() const { return scene_; }
+
+ private:
+  // Per-material part of a body: parameters and the stored state (current and next, for transactional steps).
+  template <typename M>
+  struct MaterialBody {
+    using material_type = M;
+    material_params_t<M, T> params;
+    std::vector<material_state_t<M, T>> state, next_state;
+  };
+  template <typename... Ms>
+  using MaterialVariantOf = std::variant<MaterialBody<Ms>...>;
+  using MaterialVariant = typename MaterialTypes::template apply<MaterialVariantOf>;
+
+  // Particle blocks of one body, rebuilt from the positions before every step.
+  struct Partition {
+    std::vector<std::uint64_t> block_keys;          // (particle block) packed block coordinates
+    std::vector<Vec3i> block_coords;                // (particle block) block coordinates
+    std::vector<int> block_start;                   // (particle block + 1) offsets into `order`
+    std::vector<int> order;                         // particle indices sorted by block (stable)
+    std::vector<std::array<int, 8>> grid_blocks;    // (particle block, 2x2x2 neighbour) grid block index
+    std::array<std::vector<int>, 8> colour_blocks;  // particle blocks of each parity colour
+    int largest_colour = 0;                         // blocks in the largest colour (whether to go parallel)
+    std::vector<int> particle_block;                // (particle) its particle block (scratch)
+    std::vector<std::uint64_t> particle_key;        // (particle) packed block coordinates (scratch)
+  };
+
+  struct Body {
+    BodySpec spec;
+    std::vector<Vec3T> x, v, x_next, v_next;
+    std::vector<Mat3T> C, C_next;
+    std::vector<T> mass, volume;
+    MaterialVariant material;
+    double max_wave_speed = 0.0;  // [m/s] over the particles of the committed state
+    bool asflip = false;          // PIC-FLIP / ASFLIP velocity and position update (transfer.cuh)
+    AsflipParams<T> asflip_params{T(0), T(0), T(0)};
+    T fbar_psi = T(0);  // F-bar blend (transfer.cuh: fbar_velocity_gradient); 0: off
+    Partition partition;
+  };
+
+  // Grid blocks of 4x4x4 nodes, structure of arrays inside a block: channel[node], node = (i*4 + j)*4 + k.
+  struct GridBlock {
+    TG mass[64];
+    TG momentum[3][64];  // momentum after P2G, velocity after the grid update
+  };
+  // ASFLIP's v^n (only when a body uses it): P2G accumulates the transported momentum m (v + C (x_i - x_p)) without
+  // the MLS stress impulse, the grid update divides it by the mass.
+  struct AsflipBlock {
+    TG old_velocity[3][64];
+  };
+  // F-bar's cell sums (only when a body uses it): sum V tr C and sum V of the body in G2P, cell c at node c.
+  struct FbarBlock {
+    TG sums[2][64];
+  };
+  struct Grid {
+    std::unordered_map<std::uint64_t, int> index;  // packed block coordinates -> block
+    std::vector<Vec3i> coords;                     // (block) block coordinates
+    std::vector<GridBlock> blocks;
+    std::vector<AsflipBlock> asflip;  // (block), empty unless a body uses ASFLIP
+    std::vector<FbarBlock> fbar;      // (block), empty unless a body uses F-bar
+  };
+
+  struct TryResult {
+    std::vector<FailureReport> failures;
+    double max_grid_speed = 0.0;
+    std::vector<double> max_wave_speed;  // per body, of the new state
+  };
+
+  void init(const std::vector<std::vector<Vec3d>>& positions);
+  void build_partition();
+  TryResult try_step(double dt);
+  void p2g(Body& body, T dt);
+  double update_grid(TG dt);
+  void fbar_divergence(Body& body);
+  void g2p(int body_index, Body& body, T dt, TryResult& result);
+  void commit(const TryResult& result, double dt);
+  StepReport step_impl(double dt, bool cfl_dt);
+  const Body& body_at(int body) const;
+  Body& body_at(int body);
+
+  Scene scene_;
+  RunConstants<T> k_;    ///< dx, gravity, domain, default dt, boundaries (from the scene): particle side
+  RunConstants<TG> kg_;  ///< the same in the grid scalar type: the grid update
+  std::vector<Body> bodies_;
+  Grid grid_;
+  double time_ = 0.0;
+  long long steps_ = 0;
+  double last_dt_ = 0.0;
+  double output_wait_s_ = 0.0;  // [s] in submit_frame
+  double max_grid_speed_ = 0.0;
+  double grid_mass_ = 0.0;
+  double dt_scale_ = 1.0;  // reduce_dt: current halving factor
+  int clean_steps_ = 0;    // reduce_dt: clean steps since the last halving
+  bool partition_valid_ = false;
+  bool asflip_ = false;  // some body uses ASFLIP: the grid update keeps v^n
+  bool fbar_ = false;    // some body uses F-bar: the grid has cell sums
+  std::ostream* log_;
+};
+
+extern template class CpuEngine<double, double>;
+extern template class CpuEngine<float, float>;
+extern template class CpuEngine<double, float>;
+
+}  // namespace fbar

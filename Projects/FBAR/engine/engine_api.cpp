@@ -1,0 +1,188 @@
+// summarize_scene() (particle counts, wave speeds, dt, memory estimates) and run_cpu() (the CPU engine in run_loop.h).
+#include "engine/engine_api.h"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <stdexcept>
+#include <string>
+#include <type_traits>
+
+#include "MnSystem/IO/async_writer.h"
+#include "physics/constitutive_models.cuh"
+#include "engine/cpu/cpu_engine.h"
+#include "engine/run_loop.h"
+#include "geometry/geometry.h"
+#include "engine/gpu/memory_plan.h"
+#include "io/particle_frame.h"
+#include "scene/scene_error.h"
+#include "scene/scene_parse.h"
+#include "physics/time_step.cuh"
+
+namespace fbar {
+namespace {
+
+/// Material facts the summary needs, also for laws no engine implements yet (so `--check` still answers).
+struct MaterialFacts {
+  double wave_speed;   ///< [m/s] at rest
+  int stored_scalars;  ///< per particle in a GPU bin (position + state)
+};
+
+MaterialFacts material_facts(const MaterialSpec& m) {
+  MaterialFacts facts{0.0, 0};
+  const bool known = visit_material(m.law, [&](auto mt) {
+    using M = decltype(mt);
+    facts.wave_speed = M::wave_speed(M::template make_params<double>(m), M::template reference_state<double>());
+    facts.stored_scalars = M::kStoredScalars;
+  });
+  if (!known) {
+    // The plastic laws not in MaterialTypes yet: p-wave speed sqrt((lambda + 2 mu) / rho) (VALIDATION.md); bins
+    // store position + F + log Jp.
+    const double E = m.youngs_modulus, nu = m.poisson_ratio;
+    const double mu = E / (2.0 * (1.0 + nu));
+    const double lambda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
+    facts.wave_speed = std::sqrt((lambda + 2.0 * mu) / m.rho);
+    facts.stored_scalars = 13;
+  }
+  return facts;
+}
+
+/// Bytes of one particle scalar and one grid scalar for a precision, on both engines: single stores and accumulates
+/// in float; double in double; mixed keeps the particle state in double and the grid in float (ClaymoreUW's choice;
+/// GpuEngine<double, float>, CpuEngine<double, float>).
+std::size_t particle_scalar_bytes(Precision p) { return p == Precision::Single ? 4 : 8; }
+std::size_t grid_scalar_bytes(Precision p) { return p == Precision::Double ? 8 : 4; }
+
+template <typename T, typename TG>
+RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& log) {
+  if (scene.simulation.particles_output_exterior_only)
+    throw std::invalid_argument("simulation.particles_output_exterior_only: not implemented by the CPU engine");
+  CpuEngine<T, TG> engine(scene);
+  engine.set_log(&log);
+  const std::string line = std::string("fbar: CPU reference engine (") + precision_description(scene.simulation.precision) +
+                           "), " + std::to_string(engine.particle_count()) + " particles, " +
+                           std::to_string(engine.body_count()) + " bodies, " + std::to_string(omp_get_max_threads()) +
+                           " threads";
+  return run_frames(engine, scene, options, log, line);
+}
+
+}  // namespace
+
+SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) {
+  const SimulationSpec& sim = scene.simulation;
+  SceneSummary summary;
+  summary.dt = resolved_default_dt(sim);
+  const double dx = sim.dx;
+
+  int max_gpu = -1;
+  for (const BodySpec& b : scene.bodies) max_gpu = std::max(max_gpu, b.gpu);
+  // Every body's particle blocks (their 2x2x2 footprints are the grid blocks, per GPU and for the CPU engine).
+  std::vector<SampleCount> counts;
+  std::vector<std::vector<BodyMemoryInput>> gpu_inputs(max_gpu + 1);
+  std::size_t cpu_particle_bytes = 0;
+  bool asflip = false, fbar = false;  // some body uses ASFLIP / F-bar: the grids carry their channels
+
+  for (std::size_t i = 0; i < scene.bodies.size(); ++i) {
+    const BodySpec& body = scene.bodies[i];
+    const MaterialSpec& m = body.material;
+    // Counted, not stored: --check and the memory plan cost no host memory per particle.
+    counts.push_back(BodySampler(body, sim, static_cast<int>(i)).count(dx));
+    const SampleCount& count = counts.back();
+    const MaterialFacts facts = material_facts(m);
+    BodySummary s;
+    s.particles = count.particles;
+    s.particle_volume = dx * dx * dx / m.ppc;
+    s.particle_mass = m.rho * s.particle_volume;
+    s.wave_speed = facts.wave_speed;
+    const double v0 = std::sqrt(body.velocity[0] * body.velocity[0] + body.velocity[1] * body.velocity[1] +
+                                body.velocity[2] * body.velocity[2]);
+    s.dt_bound = cfl_time_step(m.cfl, dx, facts.wave_speed, v0);
+    summary.dt = min_time_step(summary.dt, s.dt_bound);
+    summary.bodies.push_back(s);
+
+    BodyMemoryInput in;
+    in.particles = count.particles;
+    in.bins_needed = bins_needed(count);
+    in.stored_scalars = facts.stored_scalars;
+    in.asflip = body.algorithm.asflip_active();
+    in.fbar = body.algorithm.fbar_blend() != 0.0;
+    if (options.frames) {
+      try {
+        in.frame_columns = frame_float_columns(frame_attributes(body, static_cast<int>(i), "GPU engine"));
+      } catch (const std::invalid_argument&) {
+        in.frame_columns = static_cast<int>(body.output_attribs.size());  // the run refuses it; count the bytes
+      }
+    }
+    asflip = asflip || in.asflip;
+    fbar = fbar || in.fbar;
+    gpu_inputs[body.gpu].push_back(in);
+    // GPU set-up: one batch of sampled positions (double) in their per-plane vectors and concatenated, its bin
+    // records, and the block counts.
+    const std::size_t batch = static_cast<std::size_t>(std::min(count.particles, kSampleBatchParticles));
+    summary.host_setup_bytes =
+        std::max(summary.host_setup_bytes,
+                 batch * (2 * 24 + particle_record_bytes(facts.stored_scalars, particle_scalar_bytes(sim.precision))) +
+                     count.blocks.size() * (sizeof(BlockCount) + 8 * 16));
+
+    // CPU engine: x, v, their next copies (4 x 3), C and its next copy (2 x 9), mass, volume (2), state twice, in
+    // the particle scalar type, plus order / block index / key scratch (16 bytes).
+    const std::size_t state_scalars = static_cast<std::size_t>(facts.stored_scalars - 3);
+    cpu_particle_bytes += static_cast<std::size_t>(count.particles) *
+                          ((12 + 18 + 2 + 2 * state_scalars) * particle_scalar_bytes(sim.precision) + 16);
+  }
+
+  // CPU grid: 4 channels x 64 nodes per block in the grid scalar type (+3 for ASFLIP's v^n, +2 for F-bar's cell
+  // sums, only when a body uses them), coordinates and a hash-map entry.
+  const std::size_t cpu_channels = 4 + (asflip ? 3 : 0) + (fbar ? 2 : 0);
+  std::vector<const SampleCount*> all;
+  for (const SampleCount& c : counts) all.push_back(&c);
+  summary.cpu_bytes = cpu_particle_bytes + static_cast<std::size_t>(footprint_blocks(all)) *
+                                               (cpu_channels * 64 * grid_scalar_bytes(sim.precision) + 12 + 48);
+
+  // GPU: the engine's own plan (memory_plan.h), per GPU.
+  summary.gpu_bytes.assign(max_gpu + 1, 0);
+  for (int g = 0; g <= max_gpu; ++g) {
+    std::vector<const SampleCount*> on_gpu;
+    for (std::size_t i = 0; i < counts.size(); ++i)
+      if (scene.bodies[i].gpu == g) on_gpu.push_back(&counts[i]);
+    summary.gpu_plans.push_back(plan_device_memory(sim.precision, footprint_blocks(on_gpu), gpu_inputs[g]));
+    summary.gpu_bytes[g] = summary.gpu_plans.back().total();
+  }
+  return summary;
+}
+
+RunResult run_guarded(const std::function<RunResult()>& run) {
+  RunResult result;
+  try {
+    return run();
+  } catch (const SceneError& e) {
+    result.exit_code = 1;
+    result.message = e.what();
+  } catch (const std::invalid_argument& e) {
+    result.exit_code = 1;
+    result.message = e.what();
+  } catch (const std::exception& e) {
+    result.exit_code = 2;
+    result.message = e.what();
+  }
+  return result;
+}
+
+RunResult run_cpu(const Scene& scene, const RunOptions& options) {
+  std::ostream& log = options.log ? *options.log : std::cout;
+  return run_guarded([&] {
+    switch (scene.simulation.precision) {
+      case Precision::Single: return run_with<float, float>(scene, options, log);
+      case Precision::Mixed: return run_with<double, float>(scene, options, log);
+      case Precision::Double: break;
+    }
+    return run_with<double, double>(scene, options, log);
+  });
+}
+
+}  // namespace fbar

@@ -1,0 +1,63 @@
+// What the front end (cli.cpp) needs from the engines: scene summary for --check, and a run (run_loop.h).
+#pragma once
+
+#include <cstddef>
+#include <functional>
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include "engine/gpu/memory_plan.h"
+#include "scene/scene.h"
+
+namespace fbar {
+
+/// Per-body facts printed by `fbar --check` and logged at the start of a run.
+struct BodySummary {
+  long long particles = 0;        ///< particles after sampling and partition clipping
+  double particle_volume = 0.0;   ///< [m^3] dx^3 / ppc
+  double particle_mass = 0.0;     ///< [kg] rho * particle_volume
+  double wave_speed = 0.0;        ///< [m/s] p-wave speed at rest (VALIDATION.md formulas)
+  double dt_bound = 0.0;          ///< [s] CFL * dx / (wave_speed + |initial velocity|)
+};
+
+struct SceneSummary {
+  std::vector<DeviceMemoryPlan> gpu_plans;  ///< the GPU engine's plan per GPU (index = gpu id)
+  std::vector<BodySummary> bodies;
+  double dt = 0.0;                          ///< [s] min(default_dt, every body's dt_bound)
+  std::size_t cpu_bytes = 0;                ///< estimated host memory of the CPU engine
+  std::vector<std::size_t> gpu_bytes;       ///< estimated device memory per GPU (index = gpu id): gpu_plans' totals
+  std::size_t host_setup_bytes = 0;         ///< host memory of the GPU engine's set-up (one sampling batch)
+  std::vector<std::string> device_notes;    ///< free memory of the devices present, and whether the plan fits
+};
+
+struct SummaryOptions {
+  bool frames = true;  ///< the run writes frames (the GPU keeps each body's frame on the device)
+};
+
+/// Counts every body's particles (deterministically, without storing them) and computes the time step and memory
+/// estimates.
+SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options = {});
+
+struct RunOptions {
+  bool quiet = false;              ///< no progress lines
+  std::ostream* log = nullptr;     ///< progress and failure reports; nullptr = std::cout
+};
+
+struct RunResult {
+  int exit_code = 0;               ///< 0 success, 2 run-time failure (SCHEMA.md), 128 + signal when stopped by one
+  std::string message;             ///< failure report: body, step, time, what happened
+  long long steps = 0;
+  double end_time = 0.0;           ///< [s]
+  int frames_written = -1;         ///< the last frame written (0: the initial state); -1: none
+  int stop_signal = 0;             ///< SIGINT / SIGTERM that stopped the run (stop_request.h), or 0
+};
+
+/// Runs the scene on the CPU reference engine, writing frames to scene.simulation.save_path.
+RunResult run_cpu(const Scene& scene, const RunOptions& options);
+
+/// Calls run() and turns what it throws into a RunResult: SceneError and std::invalid_argument (the scene asks for
+/// what the engine cannot do) give exit code 1, any other exception 2, with the exception's message.
+RunResult run_guarded(const std::function<RunResult()>& run);
+
+}  // namespace fbar

@@ -1,0 +1,147 @@
+// GpuEngine<T, TG> (forwarding to the per-device MgspBenchmark<T, TG>) and run_gpu() (the GPU engine in run_loop.h).
+#include "engine/gpu/gpu_engine.h"
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <stdexcept>
+#include <string>
+#include <type_traits>
+
+#include "MnSystem/IO/async_writer.h"
+#include "engine/run_loop.h"
+#include "geometry/geometry.h"
+#include "engine/gpu/mgsp_benchmark.cuh"
+#include "scene/scene_error.h"
+#include "scene/scene_parse.h"
+
+namespace fbar {
+template <typename T, typename TG>
+GpuEngine<T, TG>::GpuEngine(const Scene& scene, const GpuEngineOptions& options)
+    : impl_(std::make_unique<MgspBenchmark<T, TG>>(scene, nullptr, options)) {}
+template <typename T, typename TG>
+GpuEngine<T, TG>::GpuEngine(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions,
+                        const GpuEngineOptions& options)
+    : impl_(std::make_unique<MgspBenchmark<T, TG>>(scene, &positions, options)) {}
+template <typename T, typename TG>
+GpuEngine<T, TG>::~GpuEngine() = default;
+
+template <typename T, typename TG>
+StepReport GpuEngine<T, TG>::step() {
+  return impl_->step_impl(impl_->next_dt(), true, std::numeric_limits<double>::infinity());
+}
+template <typename T, typename TG>
+StepReport GpuEngine<T, TG>::step(double dt) {
+  return impl_->step_impl(dt, false, std::numeric_limits<double>::infinity());
+}
+template <typename T, typename TG>
+StepReport GpuEngine<T, TG>::advance_to(double t_end) {
+  return impl_->advance_to(t_end);
+}
+template <typename T, typename TG>
+StepReport GpuEngine<T, TG>::step_toward(double t_end) {
+  return impl_->step_toward(t_end);
+}
+template <typename T, typename TG>
+double GpuEngine<T, TG>::time() const { return impl_->time(); }
+template <typename T, typename TG>
+long long GpuEngine<T, TG>::steps() const { return impl_->steps(); }
+template <typename T, typename TG>
+double GpuEngine<T, TG>::last_dt() const { return impl_->last_dt(); }
+template <typename T, typename TG>
+double GpuEngine<T, TG>::next_dt() const { return impl_->next_dt(); }
+template <typename T, typename TG>
+double GpuEngine<T, TG>::max_grid_speed() const { return impl_->max_grid_speed(); }
+template <typename T, typename TG>
+void GpuEngine<T, TG>::set_log(std::ostream* log) { impl_->set_log(log); }
+template <typename T, typename TG>
+void GpuEngine<T, TG>::set_record_velocities(bool on) { impl_->set_record_velocities(on); }
+template <typename T, typename TG>
+void GpuEngine<T, TG>::set_kernel_timing(bool on) { impl_->set_kernel_timing(on); }
+template <typename T, typename TG>
+KernelTimes GpuEngine<T, TG>::kernel_times() const { return impl_->kernel_times(); }
+template <typename T, typename TG>
+long long GpuEngine<T, TG>::p2g_range_repeats() const { return impl_->p2g_range_repeats(); }
+template <typename T, typename TG>
+int GpuEngine<T, TG>::body_count() const { return impl_->body_count(); }
+template <typename T, typename TG>
+std::size_t GpuEngine<T, TG>::particle_count(int body) const { return impl_->particle_count(body); }
+template <typename T, typename TG>
+std::size_t GpuEngine<T, TG>::particle_count() const { return impl_->particle_count(); }
+template <typename T, typename TG>
+ParticleSnapshot<T> GpuEngine<T, TG>::snapshot(int body) const { return impl_->snapshot(body); }
+template <typename T, typename TG>
+io::ParticleFrame GpuEngine<T, TG>::frame(int body) const { return impl_->frame(body); }
+template <typename T, typename TG>
+void GpuEngine<T, TG>::set_frame_capture(bool on) { impl_->set_frame_capture(on); }
+template <typename T, typename TG>
+double GpuEngine<T, TG>::output_wait_seconds() const { return impl_->output_wait_seconds(); }
+template <typename T, typename TG>
+const DeviceMemoryPlan& GpuEngine<T, TG>::memory_plan() const { return impl_->memory_plan(); }
+template <typename T, typename TG>
+std::size_t GpuEngine<T, TG>::peak_device_bytes() const { return impl_->peak_device_bytes(); }
+template <typename T, typename TG>
+std::string GpuEngine<T, TG>::resource_note() const {
+  return "device memory " + format_bytes(static_cast<double>(device_bytes())) + ", peak " +
+         format_bytes(static_cast<double>(peak_device_bytes()));
+}
+template <typename T, typename TG>
+void GpuEngine<T, TG>::submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer) {
+  impl_->submit_frame(body, path, writer);
+}
+template <typename T, typename TG>
+double GpuEngine<T, TG>::particle_mass(int body) const { return impl_->particle_mass(body); }
+template <typename T, typename TG>
+double GpuEngine<T, TG>::particle_volume(int body) const { return impl_->particle_volume(body); }
+template <typename T, typename TG>
+double GpuEngine<T, TG>::total_mass() const { return impl_->total_mass(); }
+template <typename T, typename TG>
+double GpuEngine<T, TG>::elastic_energy() const { return impl_->elastic_energy(); }
+template <typename T, typename TG>
+double GpuEngine<T, TG>::grid_mass() const { return impl_->grid_mass(); }
+template <typename T, typename TG>
+std::size_t GpuEngine<T, TG>::active_grid_blocks() const { return impl_->active_grid_blocks(); }
+template <typename T, typename TG>
+std::size_t GpuEngine<T, TG>::device_bytes() const { return impl_->device_bytes(); }
+
+template class GpuEngine<float, float>;
+template class GpuEngine<double, double>;
+template class GpuEngine<double, float>;
+
+namespace {
+
+template <typename T, typename TG>
+RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& log) {
+  if (scene.simulation.particles_output_exterior_only)
+    throw std::invalid_argument("simulation.particles_output_exterior_only: not implemented by the GPU engine");
+  GpuEngineOptions engine_options;
+  engine_options.frames = true;
+  const auto setup_start = std::chrono::steady_clock::now();
+  GpuEngine<T, TG> engine(scene, engine_options);
+  const double setup_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - setup_start).count();
+  engine.set_log(&log);
+  const std::string line =
+      std::string("fbar: GPU engine (") + precision_description(scene.simulation.precision) + "), " +
+      std::to_string(engine.particle_count()) + " particles, " + std::to_string(engine.body_count()) + " bodies, " +
+      format_bytes(static_cast<double>(engine.device_bytes())) + " on the device (" +
+      format_bytes(static_cast<double>(engine.memory_plan().total())) + " planned), set-up " +
+      mgsp_detail::format_g(setup_s) + " s";
+  return run_frames(engine, scene, options, log, line);
+}
+
+}  // namespace
+
+RunResult run_gpu(const Scene& scene, const RunOptions& options) {
+  std::ostream& log = options.log ? *options.log : std::cout;
+  return run_guarded([&] {
+    switch (scene.simulation.precision) {
+      case Precision::Single: return run_with<float, float>(scene, options, log);
+      case Precision::Double: return run_with<double, double>(scene, options, log);
+      case Precision::Mixed: return run_with<double, float>(scene, options, log);
+    }
+    throw std::invalid_argument("simulation.precision: unknown value");
+  });
+}
+
+}  // namespace fbar

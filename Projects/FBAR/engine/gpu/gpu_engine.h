@@ -1,0 +1,140 @@
+// The GPU engine's public interface (host code may include it): GpuEngine<T> and run_gpu().
+//
+// Claymore's sparse MLS-MPM on one GPU (mgsp_benchmark.cuh holds the per-device state and the step; the kernels
+// are in mgmpm_kernels.cuh). It runs the same physics functions as the CPU reference engine and reports failures
+// with the same FailureReport / StepReport types, so tests compare the two engines particle by particle (by ID).
+// Precision: GpuEngine<float> (simulation.precision "single"), GpuEngine<double> ("double") or
+// GpuEngine<double, float> ("mixed": particle state and transfers in double, grid storage, the shared P2G arena and
+// the grid update in single).
+#pragma once
+
+#include <cstddef>
+#include <filesystem>
+#include <iosfwd>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "MnBase/Math/vec.h"
+#include "MnSystem/IO/async_writer.h"
+#include "MnSystem/IO/particle_io.h"
+#include "engine/cpu/cpu_engine.h"
+#include "engine/engine_api.h"
+#include "engine/gpu/memory_plan.h"
+#include "scene/scene.h"
+
+namespace fbar {
+
+/// One body's particles in ID order, copied from the device.
+template <typename T>
+struct ParticleSnapshot {
+  std::vector<Vec3<T>> x;   ///< [m]
+  std::vector<Vec3<T>> v;   ///< [m/s] G2P velocity of the last step (zero unless velocities are recorded)
+  std::vector<Mat3<T>> C;   ///< [1/s] APIC affine matrix of the last step (idem)
+  std::vector<T> J;         ///< [-] volume ratio of the stored state
+  std::vector<Mat3<T>> F;   ///< [-] deformation gradient (materials that store F; empty otherwise)
+  std::vector<T> logJp;     ///< [-] plastic state (materials that store logJp; empty otherwise)
+  std::vector<Mat3<T>> sigma;  ///< [Pa] Cauchy stress of the stored state (with the recorded C for rate terms)
+};
+
+/// Accumulated device time per kernel family (CUDA events, when timing is on) [ms].
+struct KernelTimes {
+  double grid_update_ms = 0.0;  ///< grid update + dt
+  double g2p2g_ms = 0.0;        ///< fused G2P2G, all bodies
+  double partition_ms = 0.0;    ///< footprint activation, scan, src scatter
+  long long steps = 0;          ///< steps timed
+};
+
+/// Starting capacities (0: sized from the scene). Both grow at run time; tests start them small to exercise that.
+struct GpuEngineOptions {
+  int block_capacity = 0;  ///< grid blocks (hash table, grid buffers, per-block partition arrays)
+  int bin_capacity = 0;    ///< particle bins per body (at least what the initial upload needs)
+  /// Per body, per particle (ID order) initial velocities [m/s], as CpuEngine::set_velocities gives them (tests,
+  /// restarts); a body without an entry, or with an empty one, starts at its scene velocity.
+  std::vector<std::vector<Vec3d>> initial_velocities;
+  /// Plan and keep every body's output frame on the device (submit_frame); the run loop sets it.
+  bool frames = false;
+  /// Treat the device as having at most this much free memory [bytes] when checking the plan (0: what it has).
+  std::size_t memory_limit = 0;
+  /// Particles sampled and uploaded per batch at start (host memory is O(batch)); tests make it small.
+  long long sample_batch = kSampleBatchParticles;
+};
+
+template <typename T, typename TG>
+class MgspBenchmark;
+
+/// T: particle scalar type (stored state, snapshots, frames); TG: grid scalar type (grid buffers, P2G sums, grid
+/// update). GpuEngine<float> is "single", GpuEngine<double> "double", GpuEngine<double, float> "mixed".
+template <typename T, typename TG = T>
+class GpuEngine {
+ public:
+  /// Samples every body (geometry.h) and starts the device state on the current CUDA device. Throws
+  /// std::invalid_argument for what the GPU engine does not implement, std::runtime_error for CUDA failures.
+  explicit GpuEngine(const Scene& scene, const GpuEngineOptions& options = {});
+  /// As above with given initial positions [m] per body (tests).
+  GpuEngine(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions,
+            const GpuEngineOptions& options = {});
+  ~GpuEngine();
+  GpuEngine(const GpuEngine&) = delete;
+  GpuEngine& operator=(const GpuEngine&) = delete;
+
+  StepReport step();                     ///< one step with the CFL time step (next_dt())
+  StepReport step(double dt);            ///< one step of exactly dt [s] (reduce_dt may still halve it)
+  StepReport advance_to(double t_end);   ///< CFL steps until time() == t_end (the last one shortened)
+  StepReport step_toward(double t_end);  ///< one CFL step of advance_to(t_end)
+
+  double time() const;
+  long long steps() const;
+  double last_dt() const;
+  double next_dt() const;
+  double max_grid_speed() const;         ///< [m/s] of the last grid update
+  void set_log(std::ostream* log);
+  /// G2P2G also writes v and C per particle (12 scalars) for snapshots and frames (off: bins only).
+  void set_record_velocities(bool on);
+  /// Times each kernel family with CUDA events (adds a few microseconds per step).
+  void set_kernel_timing(bool on);
+  KernelTimes kernel_times() const;
+  /// Steps repeated because P2G contributions outgrew the fixed-point bound of the last step (single precision).
+  long long p2g_range_repeats() const;
+
+  int body_count() const;
+  std::size_t particle_count(int body) const;
+  std::size_t particle_count() const;
+  ParticleSnapshot<T> snapshot(int body) const;
+  /// The body's output_attribs (canonical names), as the CPU engine writes them.
+  io::ParticleFrame frame(int body) const;
+  /// The next step writes every body's output frame on the device (needs GpuEngineOptions::frames): set it for
+  /// the step that lands on a frame time.
+  void set_frame_capture(bool on);
+  /// Queues the body's frame on `writer`: the frame the last step captured (or, before the first step, the
+  /// initial state's) is downloaded on the copy stream into the body's pinned buffer, and the writer thread builds
+  /// and writes the file. The step loop waits only while the previous frame's buffer is still being read.
+  void submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer);
+  double output_wait_seconds() const;      ///< [s] spent waiting in submit_frame for the writer
+  const DeviceMemoryPlan& memory_plan() const;  ///< what the engine planned and allocated at start
+  std::size_t peak_device_bytes() const;   ///< most device memory the engine's buffers held so far
+  std::string resource_note() const;       ///< device memory now and at its peak, for progress lines
+
+  double particle_mass(int body) const;    ///< [kg] every particle of the body (rho dx^3 / ppc, as CpuEngine)
+  double particle_volume(int body) const;  ///< [m^3] reference volume V0 of every particle of the body
+  double total_mass() const;             ///< [kg] particles x per-body mass
+  double elastic_energy() const;         ///< [J] sum V0 psi(state), in double on the host (as CpuEngine)
+  double grid_mass() const;              ///< [kg] sum of node masses of the current grid (P2G of this state)
+  std::size_t active_grid_blocks() const;
+  std::size_t device_bytes() const;      ///< device memory held by the engine's buffers
+
+ private:
+  std::unique_ptr<MgspBenchmark<T, TG>> impl_;
+};
+
+extern template class GpuEngine<float, float>;
+extern template class GpuEngine<double, double>;
+extern template class GpuEngine<double, float>;
+/// Mixed precision (simulation.precision "mixed"): particles in double, the grid in single (ClaymoreUW's choice).
+using MixedGpuEngine = GpuEngine<double, float>;
+
+/// Runs the scene on the GPU engine (device 0), writing frames like run_cpu. Exit code 1: scene not supported;
+/// 2: run-time failure (CFL, NaN, left domain, CUDA error).
+RunResult run_gpu(const Scene& scene, const RunOptions& options);
+
+}  // namespace fbar

@@ -1,0 +1,673 @@
+// The fused G2P2G kernel (Wang et al. 2020): one template for every material, one CUDA block per particle block.
+//
+// Off-by-2 (the arena a particle block needs). A particle at x has the stencil base node base = floor(x/dx - 0.5)
+// (per axis) and touches nodes base .. base + 2 in G2P. The CFL check guarantees a move of at most one cell, so
+// the new base' lies in [base - 1, base + 1] and P2G touches nodes base - 1 .. base + 3. A block-aligned arena of
+// nodes [4B, 4B + 8) (2x2x2 grid blocks starting at block B) holds all of them iff 4B <= base - 1 and
+// base + 3 <= 4B + 7, i.e. base - 1 in [4B, 4B + 3]: B = floor((base - 1) / 4). That is the particle block of the
+// particle (partition_domain.h). In the arena the G2P stencil starts at l = base - 4B in [1, 4] and the P2G
+// stencil at l' = base' - 4B in [0, 5]; the kernel checks l' and counts a violation (never writes outside).
+//
+// Per CUDA block (particle block b, 8x8x8-node arena):
+//   1. look up the 8 grid blocks of the arena, load their velocities into shared memory (arena_v);
+//   2. each warp takes bins of the block: read particles through the layout (fused reorder), G2P (v, C),
+//      advection, state update (material advance), checks (NaN/Inf, left domain, CFL), store the particle in
+//      layout order, stress (material kirchhoff_stress with the new C), P2G into arena_p with shared atomics,
+//      record the particle's next block and rank (hash-table insert deduplicated per warp);
+//   3. add arena_p into the next grid with global atomics (nodes no particle touched are skipped).
+// The P2G impulse uses the next step's dt (read from the device: compute_next_dt ran before this kernel), so the
+// next grid holds exactly what the CPU engine's P2G of the next step computes.
+// kInitial: the P2G of the initial state (v = initial velocity, C = 0, no motion): how the driver starts.
+//
+// Fixed-point arena (every launch but the initial one). On sm_90 a shared-memory float or double atomicAdd is a
+// compare-and-swap loop (LDS, FADD, ATOMS.CAST.SPIN, branch; tools/benchmark/shared_atomics.cu): 108 of them per
+// particle were ~90 % of this kernel. 32-bit integer shared atomics are native (ATOMS.ADD), 3.6x faster on the same
+// scatter, so the arena accumulates integers in units of a per-block quantum q (FixedArena: int32 for float, int64
+// as two 32-bit words with a carry for double, since 64-bit shared atomics are CAS loops too) and the flush adds
+// sum x q into the grid. The quantum makes overflow impossible: a node's sum is bounded by
+// sum_p w_ip |c_p| <= 0.75^3 count B, with count the block's particles and B a bound on every contribution per unit
+// weight (mass: m_p; momentum: p2g_momentum_bound of every particle), so q = 0.75^3 count B / R keeps every sum,
+// rounding included, inside the integer (R = 2^31 - 2^24 or 2^63 - 2^40). The momentum bound B is the previous
+// try's measured maximum times kP2GHeadroom; a particle above it flags the try (StepStats::p2g_range) and the driver
+// repeats the step with the bound it just measured, which then holds for every particle. Rounding: |error| <= q/2
+// per contribution, about 1e-7 B (float) or 2e-16 B (double) at 512 particles per block: the size of the
+// floating-point round-off of the same sums. Summation becomes order-independent within a block.
+#pragma once
+
+#include <cuda_runtime.h>
+
+#include <climits>
+#include <type_traits>
+
+#include "MnBase/Math/bspline.h"
+#include "MnBase/Math/vec.h"
+#include "physics/constitutive_models.cuh"
+#include "io/frame_columns.h"
+#include "engine/gpu/grid_buffer.cuh"
+#include "engine/gpu/hash_table.cuh"
+#include "engine/gpu/kernels/kernel_common.cuh"
+#include "engine/gpu/particle_buffer.cuh"
+#include "engine/gpu/partition_domain.h"
+#include "settings.h"
+#include "physics/transfer.cuh"
+
+namespace fbar {
+
+static_assert(settings::kBinSize == 32, "one warp processes one bin: lane = particle");
+static_assert(settings::kArenaSide == 8 && settings::kBlockSide == 4, "the arena is 2x2x2 blocks of 4x4x4 nodes");
+
+inline constexpr int kG2P2GThreads = 128;                 ///< 4 warps per particle block
+inline constexpr int kArenaSide = settings::kArenaSide;  ///< nodes per axis of the shared arena (2 grid blocks)
+inline constexpr int kArenaNodes = kArenaSide * kArenaSide * kArenaSide;
+/// Shared-memory stride of one x-plane of the arena: 64 nodes + 4. Unpadded, nodes one x apart are 64 words apart
+/// (the same bank), so lanes of one bin in cells that differ only in x hit one bank; +4 shifts each plane by 4
+/// banks. Storage per channel: 8 x 68 words.
+inline constexpr int kArenaPlane = kArenaSide * kArenaSide + 4;
+inline constexpr int kArenaStorage = kArenaSide * kArenaPlane;
+/// Scalars written per slot when velocities are recorded: v (3) then C row-major (9).
+inline constexpr int kAuxScalars = 12;
+/// Fixed-point arena: headroom of the momentum bound over the previous try's maximum, and the largest weight of a
+/// quadratic B-spline stencil node (0.75^3).
+inline constexpr double kP2GHeadroom = 2.0;
+inline constexpr double kMaxNodeWeight = 0.421875;
+
+/// A body's output frame on the device (ID order), written by the G2P2G of the step that lands on a frame time and
+/// by capture_frame_state before the first step: positions in T, then one float per attribute (frame_columns.h).
+template <typename T>
+struct FrameCapture {
+  T* x = nullptr;            ///< (ID, 3) [m], nullptr: this launch captures nothing
+  float* columns = nullptr;  ///< (column, ID)
+  int particles = 0;
+  int column_count = 0;
+  bool sigma = false;        ///< some column reads the Cauchy stress
+  FrameColumn column[kMaxFrameColumns];
+};
+
+/// Writes particle `id`'s frame entry from its new state (out of line: only capture steps pay its registers).
+template <typename M, typename T>
+__device__ __noinline__ void capture_particle(const FrameCapture<T>& cap, int id, const Vec3<T>& x, const Vec3<T>& v,
+                                              const Mat3<T>& C, const material_state_t<M, T>& s,
+                                              const material_params_t<M, T>& material, T mass, T volume) {
+  if (id < 0 || id >= cap.particles) return;
+  FrameInputs<T> in{};
+  in.x = x;
+  in.v = v;
+  in.mass = mass;
+  in.volume0 = volume;
+  in.J = M::volume_ratio(s);
+  in.logJp = T(0);
+  in.F = Mat3<T>::identity();
+  if constexpr (M::kOutputs.deformation_gradient) in.F = s.F;
+  if constexpr (M::kOutputs.log_jp) in.logJp = s.logJp;
+  if (cap.sigma) in.sigma = cauchy_stress(M::kirchhoff_stress(material, s, C));
+  const std::size_t i = static_cast<std::size_t>(id);
+  cap.x[3 * i + 0] = x[0];
+  cap.x[3 * i + 1] = x[1];
+  cap.x[3 * i + 2] = x[2];
+  for (int c = 0; c < cap.column_count; ++c)
+    cap.columns[static_cast<std::size_t>(c) * cap.particles + i] = static_cast<float>(frame_value(cap.column[c], in));
+}
+
+template <typename M, typename T, typename TG>
+struct G2P2GParams {
+  using Bins = typename ParticleLayout<M, T>::Buffer;
+  Bins in;                   ///< particles of this step (storage order)
+  Bins out;                  ///< particles of the next step, written in this layout's order
+  LayoutView layout;         ///< this step's layout
+  int* next_count;           ///< (block) particles per block of the next layout (zeroed before)
+  ParticleDest* dest;        ///< (slot) next block and rank of each particle
+  BlockHashTableView table;
+  typename GridLayout<TG>::VelocityBuffer velocity;  ///< grid velocities of this step
+  typename GridLayout<TG>::Buffer grid_next;         ///< P2G target (zeroed on blocks [0, block count))
+  typename GridLayout<TG>::Buffer grid_this;         ///< this step's P2G sums: a new block is zeroed here as well
+  T* aux;                    ///< (slot, kAuxScalars) v and C, or nullptr
+  FrameCapture<T> capture;   ///< this body's frame (capture.x != nullptr on a frame step)
+  /// ASFLIP (transfer.cuh). Every body adds its transported momentum m (v + C (x_i - x_p)) to `transported_next`
+  /// when any body uses ASFLIP (non-null); a body that uses it also reads v^n (`old_velocity`) and its particles'
+  /// velocities (`particle_v_in` at the storage slot, `particle_v_out` at the layout slot; 3 scalars per slot).
+  typename GridLayout<TG>::VelocityBuffer transported_next;
+  typename GridLayout<TG>::VelocityBuffer old_velocity;
+  const T* particle_v_in;
+  T* particle_v_out;
+  bool asflip;                ///< this body uses PIC-FLIP / ASFLIP
+  AsflipParams<T> asflip_params;
+  typename GridLayout<TG>::FbarBuffer fbar_sums;  ///< F-bar cell sums of this body (fbar_divergence), when fbar_psi > 0
+  T fbar_psi;                ///< [-] F-bar blend, 0: off (transfer.cuh)
+  material_params_t<M, T> material;
+  T mass;                    ///< [kg] per particle
+  T volume;                  ///< [m^3] reference volume per particle
+  Vec3<T> initial_velocity;  ///< [m/s] (kInitial)
+  const T* initial_v;        ///< (particle ID, 3) per-particle initial velocities [m/s] (kInitial), or nullptr
+  T dt;                      ///< [s] this step
+  T dx, inv_dx, d_inv;       ///< [m], [1/m], [1/m^2]
+  Vec3<T> domain;            ///< [m]
+  const double* dt_next;     ///< [s] impulse dt of the P2G (device, from compute_next_dt)
+  StepStats* stats;
+  BodyStepStats* body_stats;
+  unsigned long long* wave_speed;  ///< (this body) bits of the largest wave speed of the new state
+  const unsigned long long* p2g_bound_in;  ///< (this body) bits of the momentum bound B of the last try [kg m/s]
+  unsigned long long* p2g_bound_out;       ///< (this body) bits of the largest p2g_momentum_bound of this try
+};
+
+/// Dynamic shared memory of a g2p2g launch [bytes]: the P2G arena of 4 channels, or 7 when transported momentum
+/// is summed (ASFLIP), in the grid scalar type TG.
+template <typename TG>
+constexpr std::size_t g2p2g_arena_bytes(bool transported) {
+  return static_cast<std::size_t>(transported ? 7 : 4) * kArenaStorage * sizeof(TG);
+}
+
+namespace g2p2g_detail {
+
+/// One arena node's grid velocity, padded to 4 scalars so G2P reads a node with one 16-byte (float) or two
+/// 16-byte (double) shared loads instead of three scalar loads.
+template <typename T>
+struct alignas(4 * sizeof(T)) ArenaVelocity {
+  T x, y, z, pad;
+};
+
+/// Integer view of the arena's (channel, node) sums for the fixed-point P2G. kRange: the magnitude a node's sum may
+/// use; the rounding of up to 2^24 (float) or 2^40 (double) contributions stays inside the integer.
+template <typename T>
+struct FixedArena;
+template <>
+struct FixedArena<float> {
+  static constexpr double kRange = 2147483648.0 - 16777216.0;  // 2^31 - 2^24
+  unsigned* words;                                               // (channel, node): int32
+  int channels;                                                  // 4, or 7 with ASFLIP's transported momentum
+  /// units: in the particle scalar type (float, or double in mixed precision: rounded once, to the integer).
+  template <typename U>
+  FBAR_DEVICE FBAR_FORCE_INLINE void add(int ch, int a, U units) const {
+    int v;
+    if constexpr (std::is_same_v<U, double>) v = __double2int_rn(units);
+    else v = __float2int_rn(units);
+    atomicAdd(reinterpret_cast<int*>(words) + ch * kArenaStorage + a, v);
+  }
+  FBAR_DEVICE FBAR_FORCE_INLINE float units(int ch, int a) const {
+    return static_cast<float>(static_cast<int>(words[ch * kArenaStorage + a]));
+  }
+};
+template <>
+struct FixedArena<double> {
+  static constexpr double kRange = 9223372036854775808.0 - 1099511627776.0;  // 2^63 - 2^40
+  unsigned* words;  // (half, channel, node): low then high 32 bits of an int64
+  int channels;     // 4, or 7 with ASFLIP's transported momentum
+  /// 64-bit add from two native 32-bit ones: a low word that wraps carries exactly once into the high word, so the
+  /// pair holds the exact sum modulo 2^64 whatever the interleaving.
+  FBAR_DEVICE FBAR_FORCE_INLINE void add(int ch, int a, double units) const {
+    const long long v = __double2ll_rn(units);
+    const unsigned lo = static_cast<unsigned>(v), hi = static_cast<unsigned>(static_cast<unsigned long long>(v) >> 32);
+    const unsigned old = atomicAdd(words + ch * kArenaStorage + a, lo);
+    atomicAdd(words + (channels + ch) * kArenaStorage + a, hi + (old + lo < old ? 1u : 0u));
+  }
+  FBAR_DEVICE FBAR_FORCE_INLINE double units(int ch, int a) const {
+    const unsigned long long bits = (static_cast<unsigned long long>(words[(channels + ch) * kArenaStorage + a]) << 32) |
+                                    words[ch * kArenaStorage + a];
+    return static_cast<double>(static_cast<long long>(bits));
+  }
+};
+
+/// Shared-memory index of arena node (a, b, c) (x-planes padded, see kArenaPlane).
+FBAR_DEVICE FBAR_FORCE_INLINE int arena_index(int a, int b, int c) { return a * kArenaPlane + b * kArenaSide + c; }
+/// Which of the arena's 2x2x2 grid blocks holds arena node (a, b, c) (neighbour = (di * 2 + dj) * 2 + dk), and the
+/// node's index inside that block.
+FBAR_DEVICE FBAR_FORCE_INLINE int arena_neighbour(int a, int b, int c) {
+  return ((a >> 2) * 2 + (b >> 2)) * 2 + (c >> 2);
+}
+FBAR_DEVICE FBAR_FORCE_INLINE int arena_node_in_block(int a, int b, int c) {
+  return ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
+}
+
+/// Threads 0..7 of the CUDA block: the hash-table index of each of the arena's 2x2x2 grid blocks (-1 and an internal
+/// error when one is missing). The caller synchronises.
+FBAR_DEVICE FBAR_FORCE_INLINE void find_arena_blocks(const BlockHashTableView& table, const Vec3i& origin,
+                                                     int* arena_blocks, StepStats* stats) {
+  if (threadIdx.x < 8) {
+    const int di = threadIdx.x >> 2, dj = (threadIdx.x >> 1) & 1, dk = threadIdx.x & 1;
+    const int found = table.find(BlockKey::pack(origin[0] + di, origin[1] + dj, origin[2] + dk));
+    arena_blocks[threadIdx.x] = found;
+    if (found < 0) atomicAdd(&stats->internal_error, 1);
+  }
+}
+
+/// The grid velocities of the arena's 8x8x8 nodes into shared memory (zero in a missing block). The caller
+/// synchronises before and after.
+template <typename TG>
+FBAR_DEVICE FBAR_FORCE_INLINE void load_arena_velocities(const typename GridLayout<TG>::VelocityBuffer& velocity,
+                                                         const int* arena_blocks, ArenaVelocity<TG>* arena_v) {
+  for (int i = threadIdx.x; i < kArenaNodes; i += blockDim.x) {
+    const int a = i >> 6, b = (i >> 3) & 7, c = i & 7;
+    const int nb = arena_blocks[arena_neighbour(a, b, c)];
+    const int node = arena_node_in_block(a, b, c);
+    TG vx = TG(0), vy = TG(0), vz = TG(0);
+    if (nb >= 0) {
+      vx = block_val(velocity, grid_velocity_x, nb, node);
+      vy = block_val(velocity, grid_velocity_y, nb, node);
+      vz = block_val(velocity, grid_velocity_z, nb, node);
+    }
+    arena_v[arena_index(a, b, c)] = ArenaVelocity<TG>{vx, vy, vz, TG(0)};
+  }
+}
+
+/// Zeroes block `index` of a grid buffer (one thread, a new block: rare).
+template <typename T>
+FBAR_DEVICE void zero_block(const typename GridLayout<T>::Buffer& grid, int index) {
+  for (int n = 0; n < 64; ++n) {
+    block_val(grid, grid_mass, index, n) = T(0);
+    block_val(grid, grid_momentum_x, index, n) = T(0);
+    block_val(grid, grid_momentum_y, index, n) = T(0);
+    block_val(grid, grid_momentum_z, index, n) = T(0);
+  }
+}
+
+/// transfer.cuh's for_each_stencil_node with the 27 nodes unrolled: the same weights in the same order
+/// (w0 w1, then x w2), so the stencil arrays stay in registers (the rolled loop put them in local memory).
+template <typename T, typename F>
+FBAR_DEVICE FBAR_FORCE_INLINE void for_each_stencil_node_unrolled(const QuadraticBspline<T>& s, T dx, F&& f) {
+#if FBAR_IN_DEVICE_CODE
+#pragma unroll
+#endif
+  for (int i = 0; i < 3; ++i)
+#if FBAR_IN_DEVICE_CODE
+#pragma unroll
+#endif
+    for (int j = 0; j < 3; ++j) {
+      const T wij = s.w[0][i] * s.w[1][j];
+#if FBAR_IN_DEVICE_CODE
+#pragma unroll
+#endif
+      for (int k = 0; k < 3; ++k) f(i, j, k, wij * s.w[2][k], s.node_offset(i, j, k, dx));
+    }
+}
+
+template <typename T, int N, typename State>
+FBAR_DEVICE FBAR_FORCE_INLINE bool state_finite(const State& state) {
+  const T* s = reinterpret_cast<const T*>(&state);
+  bool ok = true;
+#if FBAR_IN_DEVICE_CODE
+#pragma unroll
+#endif
+  for (int i = 0; i < N; ++i) ok = ok && isfinite(s[i]);
+  return ok;
+}
+
+/// Warp-cooperative: every lane with has_key inserts/finds its block once per distinct key (one leader per key),
+/// reserves ranks for all lanes sharing it and returns {block, rank}; {-1, -1} for lanes without a key or when the
+/// table overflowed. grid_a/grid_b: new blocks are zeroed there. Must be called by all 32 lanes.
+template <typename T>
+FBAR_DEVICE ParticleDest claim_block_rank(bool has_key, std::uint64_t key, const BlockHashTableView& table,
+                                          int* next_count, const typename GridLayout<T>::Buffer& grid_a,
+                                          const typename GridLayout<T>::Buffer& grid_b) {
+  ParticleDest d{-1, -1};
+  const unsigned keyed = __ballot_sync(0xffffffffu, has_key);
+  if (has_key) {
+    const unsigned peers = __match_any_sync(keyed, static_cast<unsigned long long>(key));
+    const int leader = __ffs(peers) - 1;
+    const int lane = threadIdx.x % 32;
+    int index = -1, base = 0;
+    if (lane == leader) {
+      bool inserted = false;
+      index = table.insert(key, inserted);
+      if (inserted) {
+        zero_block<T>(grid_a, index);
+        zero_block<T>(grid_b, index);
+      }
+      if (index >= 0) base = atomicAdd(&next_count[index], __popc(peers));
+    }
+    index = __shfl_sync(peers, index, leader);
+    base = __shfl_sync(peers, base, leader);
+    if (index >= 0) d = ParticleDest{index, base + __popc(peers & lanemask_lt())};
+  }
+  return d;
+}
+
+}  // namespace g2p2g_detail
+
+/// kTransport: the arena also sums the transported momentum (some body uses ASFLIP). A separate instantiation, so
+/// that APIC scenes run a kernel without that code: with the ASFLIP code present behind run-time branches, APIC
+/// steps in double took 5.03 / 7.09 ms (dam_break / falling_block, 16M particles, H100) against 3.33 / 4.83 ms
+/// without (two runs, docs/benchmarks/2026-11-23-h100-asflip-arena.md). The initial P2G decides at run time.
+/// kCapture: this launch also writes the body's output frame (a separate instantiation: a run-time branch to the
+/// capture call, even out of line, doubled the APIC kernel's time on an H100).
+template <typename M, typename T, typename TG, bool kInitial, bool kTransport, bool kCapture = false>
+__global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) {
+  using State = material_state_t<M, T>;
+  constexpr int kStateScalars = ParticleLayout<M, T>::kStateScalars;
+  constexpr bool kFixed = !kInitial;  // the initial P2G has no bound yet: it adds T with CAS atomics
+  // (x, y, z) grid velocities of the 8x8x8-node arena (vx, vy, vz, pad per node), index arena_index(x, y, z) =
+  // 68 x + 8 y + z.
+  __shared__ g2p2g_detail::ArenaVelocity<TG> arena_v[kArenaStorage];
+  // (channel, x, y, z) P2G sums: mass, momentum x, y, z; same indexing. Fixed point: the same bytes as integers
+  // in units of q_mass, q_momentum (FixedArena).
+  // Dynamic shared memory (the launch gives g2p2g_arena_bytes): 4 channels, or 7 when a body uses ASFLIP (the
+  // transported momentum x, y, z as channels 4..6, transfer.cuh); in double 7 channels take 30.5 KB, which with
+  // arena_v stays inside the 48 KB a block may use without opting in.
+  extern __shared__ __align__(16) unsigned char g2p2g_dynamic_shared[];
+  TG* const arena_p = reinterpret_cast<TG*>(g2p2g_dynamic_shared);
+  const int channels = (kTransport || (kInitial && static_cast<bool>(p.transported_next))) ? 7 : 4;
+  // A body that uses ASFLIP runs in a kTransport launch (or the initial one): only those carry its code.
+  constexpr bool kMayAsflip = kTransport || kInitial;
+  const g2p2g_detail::FixedArena<TG> fixed{reinterpret_cast<unsigned*>(arena_p), channels};
+  // (neighbour) hash-table index of the arena's 2x2x2 grid blocks, neighbour = (di * 2 + dj) * 2 + dk.
+  __shared__ int arena_blocks[8];
+  // (quantity, warp) per-warp maxima of the wave speed and the P2G bound; whether a particle exceeded the bound.
+  __shared__ double block_max[2][kG2P2GThreads / 32];
+  __shared__ int block_over;
+
+  const int block = blockIdx.x;
+  const int count = p.layout.count[block];
+  if (count == 0) return;  // uniform per CUDA block: a stale or footprint-only block
+  const Vec3i origin = p.table.block_coords(block);
+  if (threadIdx.x == 0) block_over = 0;
+  g2p2g_detail::find_arena_blocks(p.table, origin, arena_blocks, p.stats);
+  for (int i = threadIdx.x; i < channels * kArenaStorage; i += blockDim.x) arena_p[i] = TG(0);
+  __syncthreads();
+  if constexpr (!kInitial) {
+    g2p2g_detail::load_arena_velocities<TG>(p.velocity, arena_blocks, arena_v);
+    __syncthreads();
+  }
+
+  const T dt_next = static_cast<T>(*p.dt_next);
+  // Fixed-point quanta of this block [kg], [kg m/s] and their inverses; limit: the bound every particle must meet.
+  const double span = kMaxNodeWeight * count / g2p2g_detail::FixedArena<TG>::kRange;
+  const double bound = kP2GHeadroom * __longlong_as_double(static_cast<long long>(*p.p2g_bound_in));
+  const T q_mass = static_cast<T>(static_cast<double>(p.mass) * span), inv_q_mass = T(1) / q_mass;
+  const T q_momentum = static_cast<T>(bound * span);
+  const T inv_q_momentum = bound > 0.0 ? static_cast<T>(1.0 / (bound * span)) : T(0);
+  const T limit = static_cast<T>(bound);
+  double bound_max = 0.0;
+  bool out_of_range = false;
+  const int lane = threadIdx.x % 32;
+  const int warp = threadIdx.x / 32;
+  const int bins = (count + 31) / 32;
+  const int first_bin = p.layout.bin_offset[block];
+  double wave_max = 0.0;
+  for (int bin = warp; bin < bins; bin += kG2P2GThreads / 32) {
+    const int slot = (first_bin + bin) * 32 + lane;
+    const int src = p.layout.src[slot];
+    const bool active = src >= 0;
+    int failed = -1;
+    bool has_key = false;
+    std::uint64_t key = 0;
+    int id = INT_MAX;
+    if (active) {
+      const ParticleRecord<M, T> in = load_particle<M, T>(p.in, src);
+      id = in.id;
+      Vec3<T> v, x_new;
+      Mat3<T> C;
+      State state_new;
+      if constexpr (kInitial) {
+        // The initial pass reads the flat upload: storage slot = particle ID.
+        v = p.initial_v ? Vec3<T>{{p.initial_v[3 * src], p.initial_v[3 * src + 1], p.initial_v[3 * src + 2]}}
+                        : p.initial_velocity;
+        C = Mat3<T>::zero();
+        x_new = in.x;
+        state_new = in.state;
+      } else {
+        const QuadraticBspline<T> s = quadratic_bspline_inv(in.x, p.inv_dx);
+        const int l0 = s.base[0] - 4 * origin[0], l1 = s.base[1] - 4 * origin[1], l2 = s.base[2] - 4 * origin[2];
+        if (l0 < 0 || l0 > 5 || l1 < 0 || l1 > 5 || l2 < 0 || l2 > 5) {
+          atomicAdd(&p.stats->internal_error, 1);  // a particle outside its block's arena: never expected
+        }
+        const int c0 = min(max(l0, 0), 5), c1 = min(max(l1, 0), 5), c2 = min(max(l2, 0), 5);
+        G2PSum<T> sum;
+        g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
+          const int a = g2p2g_detail::arena_index(c0 + i, c1 + j, c2 + k);
+          const g2p2g_detail::ArenaVelocity<TG> node_v = arena_v[a];
+          sum.add(w, Vec3<T>{{static_cast<T>(node_v.x), static_cast<T>(node_v.y), static_cast<T>(node_v.z)}}, xixp);
+        });
+        v = sum.velocity();
+        C = sum.affine(p.d_inv);
+        if (!(kMayAsflip && p.asflip)) x_new = advect(in.x, v, p.dt);
+        if (p.fbar_psi != T(0)) {  // F-bar: the state advances with the cell's volume rate (transfer.cuh)
+          const Vec3i cell = fbar_cell_offset(in.x, p.inv_dx, s.base);
+          const int a = c0 + cell[0], b = c1 + cell[1], c = c2 + cell[2];
+          const int nb = arena_blocks[g2p2g_detail::arena_neighbour(a, b, c)];
+          const int node = g2p2g_detail::arena_node_in_block(a, b, c);
+          const T d = nb < 0 ? T(0)
+                             : fbar_cell_divergence(static_cast<T>(block_val(p.fbar_sums, grid_fbar_volume_rate, nb, node)),
+                                                    static_cast<T>(block_val(p.fbar_sums, grid_fbar_volume, nb, node)));
+          state_new = M::advance(p.material, in.state, fbar_velocity_gradient(C, d, p.fbar_psi), p.dt);
+        } else {
+          state_new = M::advance(p.material, in.state, C, p.dt);
+        }
+        if (kMayAsflip && p.asflip) {  // FLIP increment from v^n at the stencil, the particle's own velocity
+          G2POldSum<T> old;
+          g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, [&](int i, int j, int k, T w, const Vec3<T>&) {
+            const int a = c0 + i, b = c1 + j, c = c2 + k;
+            const int nb = arena_blocks[g2p2g_detail::arena_neighbour(a, b, c)];
+            if (nb < 0) return;
+            const int node = g2p2g_detail::arena_node_in_block(a, b, c);
+            old.add(w, Vec3<T>{{static_cast<T>(block_val(p.old_velocity, grid_velocity_x, nb, node)),
+                                static_cast<T>(block_val(p.old_velocity, grid_velocity_y, nb, node)),
+                                static_cast<T>(block_val(p.old_velocity, grid_velocity_z, nb, node))}});
+          });
+          const T* vp = p.particle_v_in + static_cast<std::size_t>(src) * 3;
+          const AsflipUpdate<T> u = asflip_update(p.asflip_params, Vec3<T>{{vp[0], vp[1], vp[2]}}, v, old.v,
+                                                  M::volume_ratio(state_new), p.dt);
+          v = u.v;
+          x_new = in.x + u.move;
+        }
+        // Checks, in the CPU engine's order: non-finite, left the domain, moved more than a cell.
+        if (!(all_finite(x_new) && all_finite(v) && all_finite(C) &&
+              g2p2g_detail::state_finite<T, kStateScalars>(state_new))) {
+          failed = kFailNonFinite;
+        } else {
+          bool inside = true;
+          for (int a = 0; a < 3; ++a) inside = inside && x_new[a] >= T(0) && x_new[a] <= p.domain[a];
+          if (!inside)
+            failed = kFailLeftDomain;
+          else if (max_abs(x_new - in.x) > p.dx)
+            failed = kFailCfl;
+        }
+      }
+      ParticleRecord<M, T> out{x_new, state_new, in.id};
+      store_particle<M, T>(p.out, slot, out);
+      if (kMayAsflip && p.asflip) {
+        T* vp = p.particle_v_out + static_cast<std::size_t>(slot) * 3;
+        vp[0] = v[0];
+        vp[1] = v[1];
+        vp[2] = v[2];
+      }
+      if (p.aux != nullptr) {
+        T* a = p.aux + static_cast<std::size_t>(slot) * kAuxScalars;
+        a[0] = v[0];
+        a[1] = v[1];
+        a[2] = v[2];
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) a[3 + 3 * r + c] = C(r, c);
+      }
+      if constexpr (kCapture)
+        capture_particle<M, T>(p.capture, in.id, x_new, v, C, state_new, p.material, p.mass, p.volume);
+      if (failed < 0) {
+        const QuadraticBspline<T> s = quadratic_bspline_inv(x_new, p.inv_dx);
+        const int l0 = s.base[0] - 4 * origin[0], l1 = s.base[1] - 4 * origin[1], l2 = s.base[2] - 4 * origin[2];
+        if (l0 < 0 || l0 > 5 || l1 < 0 || l1 > 5 || l2 < 0 || l2 > 5) {
+          failed = kFailCfl;  // left the arena (rounding at exactly one cell): same meaning, never written
+        } else {
+          wave_max = fmax(wave_max, static_cast<double>(M::wave_speed(p.material, state_new)));
+          const StressResult<T> stress = M::kirchhoff_stress(p.material, state_new, C);
+          const P2GParticle<T> payload =
+              mls_p2g_particle(p.mass, p.volume, v, C, stress.kirchhoff, dt_next, p.d_inv);
+          // ASFLIP: the momentum the particle carries, without the stress impulse (v^n of the next step).
+          const bool transport = channels == 7;
+          const P2GParticle<T> carried =
+              transport ? mls_p2g_particle(p.mass, p.volume, v, C, Mat3<T>::zero(), dt_next, p.d_inv) : P2GParticle<T>{};
+          T b = p2g_momentum_bound(payload, p.dx);
+          if (transport) b = fmax(b, p2g_momentum_bound(carried, p.dx));
+          if (!isfinite(b)) {
+            failed = kFailNonFinite;  // a finite state whose stress overflowed
+          } else {
+            bound_max = fmax(bound_max, static_cast<double>(b));
+            if constexpr (kFixed) {
+              if (b > limit) out_of_range = true;  // this try is repeated with the measured bound
+              else {
+                // The payload in quanta: the per-node products then need no scaling (4 multiplies fewer per node).
+                const P2GParticle<T> units{payload.mass * inv_q_mass, payload.momentum * inv_q_momentum,
+                                           payload.affine * inv_q_momentum};
+                auto scatter = [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
+                  const int a = g2p2g_detail::arena_index(l0 + i, l1 + j, l2 + k);
+                  const Vec3<T> mv = p2g_node_momentum(units, w, xixp);
+                  fixed.add(0, a, w * units.mass);
+                  fixed.add(1, a, mv[0]);
+                  fixed.add(2, a, mv[1]);
+                  fixed.add(3, a, mv[2]);
+                };
+                g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, scatter);
+                if (transport) {
+                  const P2GParticle<T> carried_units{T(0), carried.momentum * inv_q_momentum,
+                                                     carried.affine * inv_q_momentum};
+                  auto scatter_carried = [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
+                    const int a = g2p2g_detail::arena_index(l0 + i, l1 + j, l2 + k);
+                    const Vec3<T> mv = p2g_node_momentum(carried_units, w, xixp);
+                    fixed.add(4, a, mv[0]);
+                    fixed.add(5, a, mv[1]);
+                    fixed.add(6, a, mv[2]);
+                  };
+                  g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, scatter_carried);
+                }
+              }
+            } else {
+              auto scatter = [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
+                const int a = g2p2g_detail::arena_index(l0 + i, l1 + j, l2 + k);
+                const Vec3<T> mv = p2g_node_momentum(payload, w, xixp);
+                atomicAdd(&arena_p[0 * kArenaStorage + a], static_cast<TG>(w * payload.mass));
+                atomicAdd(&arena_p[1 * kArenaStorage + a], static_cast<TG>(mv[0]));
+                atomicAdd(&arena_p[2 * kArenaStorage + a], static_cast<TG>(mv[1]));
+                atomicAdd(&arena_p[3 * kArenaStorage + a], static_cast<TG>(mv[2]));
+                if (transport) {
+                  const Vec3<T> cv = p2g_node_momentum(carried, w, xixp);
+                  atomicAdd(&arena_p[4 * kArenaStorage + a], static_cast<TG>(cv[0]));
+                  atomicAdd(&arena_p[5 * kArenaStorage + a], static_cast<TG>(cv[1]));
+                  atomicAdd(&arena_p[6 * kArenaStorage + a], static_cast<TG>(cv[2]));
+                }
+              };
+              g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, scatter);
+            }
+          }
+          const int b0 = floor_div4(s.base[0] - 1), b1 = floor_div4(s.base[1] - 1), b2 = floor_div4(s.base[2] - 1);
+          if (BlockKey::representable(b0, b1, b2)) {
+            has_key = true;
+            key = BlockKey::pack(b0, b1, b2);
+          } else {
+            failed = kFailLeftDomain;
+          }
+        }
+      }
+    }
+    // Failure counts: one atomic per warp and kind; the smallest failing ID for the report.
+    for (int kind = 0; kind < kFailKinds; ++kind) {
+      const unsigned mask = __ballot_sync(0xffffffffu, failed == kind);
+      if (mask != 0) {
+        if (lane == __ffs(mask) - 1) atomicAdd(&p.body_stats->failures[kind], __popc(mask));
+        if (failed == kind) atomicMin(&p.body_stats->first_id[kind], id);
+      }
+    }
+    const ParticleDest d =
+        g2p2g_detail::claim_block_rank<TG>(has_key, key, p.table, p.next_count, p.grid_next, p.grid_this);
+    if (active) p.dest[slot] = d;
+  }
+  // Per-body maxima: warp, then CUDA block, then one global atomic per block (per-warp atomics on one address
+  // serialise in L2).
+  wave_max = warp_max(wave_max);
+  bound_max = warp_max(bound_max);
+  const bool over = __any_sync(0xffffffffu, out_of_range);
+  if (lane == 0) {
+    block_max[0][warp] = wave_max;
+    block_max[1][warp] = bound_max;
+    if (over) block_over = 1;
+  }
+  __syncthreads();
+  if (threadIdx.x == 0) {
+    double wave = 0.0, bound = 0.0;
+    for (int w = 0; w < kG2P2GThreads / 32; ++w) {
+      wave = fmax(wave, block_max[0][w]);
+      bound = fmax(bound, block_max[1][w]);
+    }
+    if (wave > 0.0) atomic_max_nonneg(p.wave_speed, wave);
+    if (bound > 0.0) atomic_max_nonneg(p.p2g_bound_out, bound);
+    if (block_over) atomicAdd(&p.stats->p2g_range, 1);
+  }
+  // Flush: one thread per arena node; atomics into the (up to 8) grid blocks of the next grid.
+  for (int i = threadIdx.x; i < kArenaNodes; i += blockDim.x) {
+    const int a = i >> 6, b = (i >> 3) & 7, c = i & 7;
+    const int ai = g2p2g_detail::arena_index(a, b, c);
+    TG mass_units;
+    if constexpr (kFixed) mass_units = fixed.units(0, ai);
+    else mass_units = arena_p[ai];
+    if (mass_units == TG(0)) continue;  // no particle's stencil covers this node
+    const int nb = arena_blocks[g2p2g_detail::arena_neighbour(a, b, c)];
+    if (nb < 0) continue;  // counted above as an internal error
+    const int node = g2p2g_detail::arena_node_in_block(a, b, c);
+    TG sum[7];
+    if constexpr (kFixed) {
+      sum[0] = static_cast<TG>(mass_units * q_mass);
+      for (int ch = 1; ch < channels; ++ch) sum[ch] = static_cast<TG>(fixed.units(ch, ai) * q_momentum);
+    } else {
+      sum[0] = mass_units;
+      for (int ch = 1; ch < channels; ++ch) sum[ch] = arena_p[ch * kArenaStorage + ai];
+    }
+    atomicAdd(&block_val(p.grid_next, grid_mass, nb, node), sum[0]);
+    atomicAdd(&block_val(p.grid_next, grid_momentum_x, nb, node), sum[1]);
+    atomicAdd(&block_val(p.grid_next, grid_momentum_y, nb, node), sum[2]);
+    atomicAdd(&block_val(p.grid_next, grid_momentum_z, nb, node), sum[3]);
+    if (channels == 7) {
+      atomicAdd(&block_val(p.transported_next, grid_velocity_x, nb, node), sum[4]);
+      atomicAdd(&block_val(p.transported_next, grid_velocity_y, nb, node), sum[5]);
+      atomicAdd(&block_val(p.transported_next, grid_velocity_z, nb, node), sum[6]);
+    }
+  }
+}
+
+/// F-bar's cell sums of one body (transfer.cuh): per particle, G2P of C from this step's grid velocities, then
+/// V tr C and V (V = V0 J, current volume) added to the particle's cell, cell c stored at node c. Launched per body
+/// between the grid update and its G2P2G, into a zeroed buffer; one CUDA block per particle block, like g2p2g.
+template <typename M, typename T, typename TG>
+struct FbarDivergenceParams {
+  typename ParticleLayout<M, T>::Buffer in;         ///< particles of this step (storage order)
+  LayoutView layout;                                ///< this step's layout
+  BlockHashTableView table;
+  typename GridLayout<TG>::VelocityBuffer velocity;  ///< grid velocities of this step
+  typename GridLayout<TG>::FbarBuffer sums;          ///< target (zeroed on blocks [0, block count))
+  T volume;                                         ///< [m^3] reference volume per particle
+  T dx, inv_dx, d_inv;                              ///< [m], [1/m], [1/m^2]
+  StepStats* stats;
+};
+
+template <typename M, typename T, typename TG>
+__global__ void __launch_bounds__(kG2P2GThreads) fbar_divergence(FbarDivergenceParams<M, T, TG> p) {
+  __shared__ g2p2g_detail::ArenaVelocity<TG> arena_v[kArenaStorage];
+  __shared__ int arena_blocks[8];
+  const int block = blockIdx.x;
+  const int count = p.layout.count[block];
+  if (count == 0) return;
+  const Vec3i origin = p.table.block_coords(block);
+  g2p2g_detail::find_arena_blocks(p.table, origin, arena_blocks, p.stats);
+  __syncthreads();
+  g2p2g_detail::load_arena_velocities<TG>(p.velocity, arena_blocks, arena_v);
+  __syncthreads();
+  const int first_slot = p.layout.bin_offset[block] * 32;
+  for (int t = threadIdx.x; t < ((count + 31) / 32) * 32; t += blockDim.x) {
+    const int src = p.layout.src[first_slot + t];
+    if (src < 0) continue;
+    const ParticleRecord<M, T> in = load_particle<M, T>(p.in, src);
+    const QuadraticBspline<T> s = quadratic_bspline_inv(in.x, p.inv_dx);
+    const int c0 = min(max(s.base[0] - 4 * origin[0], 0), 5), c1 = min(max(s.base[1] - 4 * origin[1], 0), 5),
+              c2 = min(max(s.base[2] - 4 * origin[2], 0), 5);
+    G2PSum<T> sum;
+    g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
+      const g2p2g_detail::ArenaVelocity<TG> node_v = arena_v[g2p2g_detail::arena_index(c0 + i, c1 + j, c2 + k)];
+      sum.add(w, Vec3<T>{{static_cast<T>(node_v.x), static_cast<T>(node_v.y), static_cast<T>(node_v.z)}}, xixp);
+    });
+    const Mat3<T> C = sum.affine(p.d_inv);
+    const T V = p.volume * M::volume_ratio(in.state);
+    const Vec3i cell = fbar_cell_offset(in.x, p.inv_dx, s.base);
+    const int a = c0 + cell[0], b = c1 + cell[1], c = c2 + cell[2];
+    const int nb = arena_blocks[g2p2g_detail::arena_neighbour(a, b, c)];
+    if (nb < 0) continue;  // counted above
+    const int node = g2p2g_detail::arena_node_in_block(a, b, c);
+    atomicAdd(&block_val(p.sums, grid_fbar_volume_rate, nb, node), static_cast<TG>(V * (C(0, 0) + C(1, 1) + C(2, 2))));
+    atomicAdd(&block_val(p.sums, grid_fbar_volume, nb, node), static_cast<TG>(V));
+  }
+}
+
+}  // namespace fbar

@@ -1,0 +1,122 @@
+// Grid update kernels: v = p/m + dt g with the shared boundary projections, max |v| for the next dt, and the dt.
+#pragma once
+
+#include <cuda_runtime.h>
+
+#include "MnBase/Math/vec.h"
+#include "physics/boundary.cuh"
+#include "engine/gpu/grid_buffer.cuh"
+#include "physics/grid_update.cuh"
+#include "engine/gpu/hash_table.cuh"
+#include "engine/gpu/kernels/kernel_common.cuh"
+#include "physics/time_step.cuh"
+
+namespace fbar {
+
+/// Boundaries a grid update applies (those active at the step's start time), by value.
+template <typename T>
+struct BoundarySet {
+  static constexpr int kMax = 16;
+  int count;
+  BoundaryParams<T> b[kMax];
+};
+
+template <typename T>
+struct GridUpdateParams {
+  typename GridLayout<T>::Buffer grid;              ///< P2G sums of this step (read only: kept for a retry)
+  typename GridLayout<T>::VelocityBuffer velocity;  ///< written: node velocities
+  /// ASFLIP (when a body uses it, else null): the transported momentum the P2G summed apart (read), and v^n =
+  /// transported / m (written), what G2P's FLIP increment needs (transfer.cuh).
+  typename GridLayout<T>::VelocityBuffer transported;
+  typename GridLayout<T>::VelocityBuffer old_velocity;
+  const int* coords;                                ///< (block, axis) block coordinates (hash table)
+  int block_count;
+  T dt;         ///< [s]
+  T dx;         ///< [m]
+  Vec3<T> gravity;
+  BoundarySet<T> boundaries;
+  StepStats* stats;
+};
+
+inline constexpr int kGridUpdateThreads = 256;  ///< 4 blocks of 64 nodes per CUDA block
+
+/// One thread per node; velocity = grid_node_velocity + boundary projections (exactly the CPU engine's order).
+template <typename T>
+__global__ void __launch_bounds__(kGridUpdateThreads) update_grid_velocity_query_max(GridUpdateParams<T> p) {
+  const int block = blockIdx.x * (kGridUpdateThreads / 64) + threadIdx.x / 64;
+  const int node = threadIdx.x % 64;
+  double speed_sq = 0.0;
+  if (block < p.block_count) {
+    const T m = block_val(p.grid, grid_mass, block, node);
+    const Vec3<T> momentum{{block_val(p.grid, grid_momentum_x, block, node),
+                            block_val(p.grid, grid_momentum_y, block, node),
+                            block_val(p.grid, grid_momentum_z, block, node)}};
+    Vec3<T> v = grid_node_velocity(m, momentum, p.gravity, p.dt);
+    if (p.old_velocity) {
+      const Vec3<T> transported{{block_val(p.transported, grid_velocity_x, block, node),
+                                 block_val(p.transported, grid_velocity_y, block, node),
+                                 block_val(p.transported, grid_velocity_z, block, node)}};
+      const Vec3<T> v_old = grid_node_velocity(m, transported, Vec3<T>::zero(), p.dt);
+      block_val(p.old_velocity, grid_velocity_x, block, node) = v_old[0];
+      block_val(p.old_velocity, grid_velocity_y, block, node) = v_old[1];
+      block_val(p.old_velocity, grid_velocity_z, block, node) = v_old[2];
+    }
+    if (m > T(0)) {
+      const int i = node / 16, j = (node / 4) % 4, k = node % 4;
+      const Vec3<T> x_node{{static_cast<T>(p.coords[3 * block + 0] * 4 + i) * p.dx,
+                            static_cast<T>(p.coords[3 * block + 1] * 4 + j) * p.dx,
+                            static_cast<T>(p.coords[3 * block + 2] * 4 + k) * p.dx}};
+      for (int b = 0; b < p.boundaries.count; ++b) v = apply_boundary(p.boundaries.b[b], x_node, v);
+    }
+    block_val(p.velocity, grid_velocity_x, block, node) = v[0];
+    block_val(p.velocity, grid_velocity_y, block, node) = v[1];
+    block_val(p.velocity, grid_velocity_z, block, node) = v[2];
+    speed_sq = static_cast<double>(dot(v, v));
+  }
+  // Warp max, then one atomic per warp (a NaN never wins fmax, but a NaN velocity also NaNs its particles, which
+  // the G2P2G checks count).
+  speed_sq = warp_max(speed_sq);
+  if (threadIdx.x % 32 == 0 && speed_sq > 0.0) atomic_max_nonneg(&p.stats->max_speed_sq, speed_sq);
+}
+
+/// Per-body inputs of the time-step bound.
+struct DtBody {
+  double cfl;
+  double rest_wave_speed;  ///< [m/s] floor of the body's wave speed (the speed at rest)
+};
+
+struct DtParams {
+  static constexpr int kMaxBodies = 64;
+  int body_count;
+  DtBody bodies[kMaxBodies];
+  const unsigned long long* wave_speed;  ///< (body) bits of the largest wave speed of the current state [m/s]
+  double default_dt;                     ///< [s]
+  double dx;                             ///< [m]
+  double scale;                          ///< reduce_dt factor (1 when no step was repeated lately)
+  double fixed_dt;                       ///< > 0: the next step's dt is given (step(dt)); else the CFL bound
+  double t_next;                         ///< [s] time at the start of the next step
+  double t_target;                       ///< [s] the next step is shortened to land here (inf: no target)
+  StepStats* stats;
+};
+
+/// dt of the next step: min(default_dt, min_b CFL_b dx / (c_b + |v|max)) x scale, clamped to the target time.
+static __global__ void compute_next_dt(DtParams p) {
+  if (threadIdx.x != 0 || blockIdx.x != 0) return;
+  double dt;
+  if (p.fixed_dt > 0.0) {
+    dt = p.fixed_dt;
+  } else {
+    const double vmax = sqrt(__longlong_as_double(static_cast<long long>(p.stats->max_speed_sq)));
+    dt = p.default_dt;
+    for (int b = 0; b < p.body_count; ++b) {
+      const double c = fmax(__longlong_as_double(static_cast<long long>(p.wave_speed[b])), p.bodies[b].rest_wave_speed);
+      dt = min_time_step(dt, cfl_time_step(p.bodies[b].cfl, p.dx, c, vmax));
+    }
+    dt *= p.scale;
+  }
+  const double remaining = p.t_target - p.t_next;
+  if (remaining > 0.0 && dt >= remaining) dt = remaining;
+  p.stats->dt_next = dt;
+}
+
+}  // namespace fbar

@@ -1,0 +1,53 @@
+// Output kernels: gather a body's particles into ID order (positions, state, velocity, affine C) for frames/tests.
+#pragma once
+
+#include <cuda_runtime.h>
+
+#include "engine/gpu/kernels/g2p2g_kernel.cuh"
+#include "engine/gpu/particle_buffer.cuh"
+#include "engine/gpu/partition_domain.h"
+
+namespace fbar {
+
+inline constexpr int kOutputThreads = 256;
+
+/// out[id * (S + kAuxScalars) + ...] = x (3), state (S - 3), then v (3) and C (9) when aux != nullptr (else 0).
+/// One thread per slot of the current layout; particles are read through src (storage order).
+template <typename M, typename T>
+__global__ void __launch_bounds__(kOutputThreads)
+    gather_by_id(typename ParticleLayout<M, T>::Buffer bins, const int* src, int slots, const T* aux, int particles,
+                 T* out, int* missing) {
+  constexpr int S = ParticleLayout<M, T>::kScalars;
+  constexpr int W = S + kAuxScalars;
+  const int slot = blockIdx.x * blockDim.x + threadIdx.x;
+  if (slot >= slots) return;
+  const int s = src[slot];
+  if (s < 0) return;
+  const ParticleRecord<M, T> p = load_particle<M, T>(bins, s);
+  if (p.id < 0 || p.id >= particles) {
+    atomicAdd(missing, 1);
+    return;
+  }
+  T* o = out + static_cast<std::size_t>(p.id) * W;
+  o[0] = p.x[0];
+  o[1] = p.x[1];
+  o[2] = p.x[2];
+  memcpy(o + 3, &p.state, sizeof(p.state));
+  for (int i = 0; i < kAuxScalars; ++i) o[S + i] = aux ? aux[static_cast<std::size_t>(s) * kAuxScalars + i] : T(0);
+}
+
+/// The frame of the state before the first step (v = the body's initial velocity, C = 0): one thread per slot of
+/// the current layout, particles read through src.
+template <typename M, typename T>
+__global__ void __launch_bounds__(kOutputThreads)
+    capture_frame_state(typename ParticleLayout<M, T>::Buffer bins, const int* src, int slots, FrameCapture<T> capture,
+                        Vec3<T> velocity, material_params_t<M, T> material, T mass, T volume) {
+  const int slot = blockIdx.x * blockDim.x + threadIdx.x;
+  if (slot >= slots) return;
+  const int s = src[slot];
+  if (s < 0) return;
+  const ParticleRecord<M, T> p = load_particle<M, T>(bins, s);
+  capture_particle<M, T>(capture, p.id, p.x, velocity, Mat3<T>::zero(), p.state, material, mass, volume);
+}
+
+}  // namespace fbar

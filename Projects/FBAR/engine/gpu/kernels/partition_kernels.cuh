@@ -1,0 +1,158 @@
+// Partition kernels: next layout from the recorded (block, rank) of every particle, block activation, impulse fix.
+//
+// After G2P2G (which inserted every particle's next block and counted it), per body:
+//   activate_footprint   each block with particles inserts its 7 +x/+y/+z neighbours (the 2x2x2 arena of G2P2G)
+//   blocks_to_bins       ceil(count / 32) per block, then an exclusive scan (CUB) gives the bin offsets
+//   finalize_layout      total bins (and an overflow flag when the bins do not fit) into the step statistics
+//   scatter_src          src_next[offset(block) * 32 + rank] = slot: the gather indices of the next G2P2G
+//   pad_src              the unused lanes of each block's last bin get -1
+// All O(blocks) or O(particles) with coalesced reads; the only scattered writes are the 4-byte src indices.
+#pragma once
+
+#include <cuda_runtime.h>
+
+#include "MnBase/Math/bspline.h"
+#include "engine/gpu/grid_buffer.cuh"
+#include "engine/gpu/hash_table.cuh"
+#include "engine/gpu/kernels/g2p2g_kernel.cuh"
+#include "engine/gpu/kernels/kernel_common.cuh"
+#include "engine/gpu/particle_buffer.cuh"
+#include "engine/gpu/partition_domain.h"
+#include "physics/transfer.cuh"
+
+namespace fbar {
+
+inline constexpr int kPartitionThreads = 256;
+
+/// Records (block, rank) for particles at slots [0, slots) of `bins` from their positions (initial partition and
+/// the repeat of a partition after the table grew). valid: the slot holds a particle when valid[slot] >= 0
+/// (nullptr: when slot < particles).
+template <typename M, typename T, typename TG>
+__global__ void __launch_bounds__(kPartitionThreads)
+    dest_from_positions(typename ParticleLayout<M, T>::Buffer bins, const int* valid, int particles, int slots,
+                        T inv_dx, BlockHashTableView table, int* next_count, ParticleDest* dest,
+                        typename GridLayout<TG>::Buffer grid_a, typename GridLayout<TG>::Buffer grid_b,
+                        BodyStepStats* body_stats) {
+  const int slot = blockIdx.x * blockDim.x + threadIdx.x;  // whole warps run: claim_block_rank is collective
+  const bool in_range = slot < slots;
+  const bool active = in_range && (valid ? valid[slot] >= 0 : slot < particles);
+  bool has_key = false;
+  std::uint64_t key = 0;
+  if (active) {
+    const ParticleRecord<M, T> p = load_particle<M, T>(bins, slot);
+    const QuadraticBspline<T> s = quadratic_bspline_inv(p.x, inv_dx);
+    const int b0 = floor_div4(s.base[0] - 1), b1 = floor_div4(s.base[1] - 1), b2 = floor_div4(s.base[2] - 1);
+    if (all_finite(p.x) && BlockKey::representable(b0, b1, b2)) {
+      has_key = true;
+      key = BlockKey::pack(b0, b1, b2);
+    } else {
+      atomicAdd(&body_stats->failures[kFailLeftDomain], 1);
+      atomicMin(&body_stats->first_id[kFailLeftDomain], p.id);
+    }
+  }
+  const ParticleDest d = g2p2g_detail::claim_block_rank<TG>(has_key, key, table, next_count, grid_a, grid_b);
+  if (active) dest[slot] = d;
+}
+
+/// Every block holding particles of the body activates the other 7 blocks of its 2x2x2 arena.
+template <typename T>
+__global__ void __launch_bounds__(kPartitionThreads)
+    activate_footprint(const int* count, int block_limit, BlockHashTableView table,
+                       typename GridLayout<T>::Buffer grid_a, typename GridLayout<T>::Buffer grid_b) {
+  const int b = blockIdx.x * blockDim.x + threadIdx.x;
+  if (b >= block_limit || b >= table.counters->block_count || count[b] == 0) return;
+  const Vec3i c = table.block_coords(b);
+  for (int n = 1; n < 8; ++n) {
+    bool inserted = false;
+    const int index = table.insert(BlockKey::pack(c[0] + (n >> 2), c[1] + ((n >> 1) & 1), c[2] + (n & 1)), inserted);
+    if (inserted) {
+      g2p2g_detail::zero_block<T>(grid_a, index);
+      g2p2g_detail::zero_block<T>(grid_b, index);
+    }
+  }
+}
+
+/// bins[b] = ceil(count[b] / 32) for b < capacity, bins[capacity] = 0 (so the scan's last entry is the total).
+static __global__ void __launch_bounds__(kPartitionThreads) blocks_to_bins(const int* count, int* bins, int capacity) {
+  const int b = blockIdx.x * blockDim.x + threadIdx.x;
+  if (b < capacity) bins[b] = (count[b] + 31) / 32;
+  if (b == capacity) bins[b] = 0;
+}
+
+static __global__ void finalize_layout(const int* bin_offset, int capacity, int bin_capacity, BodyStepStats* body_stats,
+                                StepStats* stats, const TableCounters* counters) {
+  const int total = bin_offset[capacity];
+  body_stats->total_bins = total;
+  if (total > bin_capacity) atomicAdd(&stats->bin_overflow, 1);
+  stats->block_count = counters->block_count;
+  stats->table_overflow = counters->overflow;
+}
+
+/// src_next[offset(block) * 32 + rank] = slot for every particle of the previous layout (valid[slot] >= 0, or
+/// slot < particles when valid is nullptr).
+static __global__ void __launch_bounds__(kPartitionThreads)
+    scatter_src(const ParticleDest* dest, const int* valid, int particles, int slots, const int* bin_offset,
+                int* src_next, int bin_capacity, BodyStepStats* body_stats) {
+  const int slot = blockIdx.x * blockDim.x + threadIdx.x;
+  bool placed = false;
+  if (slot < slots && (valid ? valid[slot] >= 0 : slot < particles)) {
+    const ParticleDest d = dest[slot];
+    if (d.block >= 0) {
+      const long long target = static_cast<long long>(bin_offset[d.block]) * 32 + d.rank;
+      if (target < static_cast<long long>(bin_capacity) * 32) {
+        src_next[target] = slot;
+        placed = true;
+      }
+    }
+  }
+  // One atomic per CUDA block: a per-warp atomic on this one counter serialised in L2 and was most of this kernel.
+  const int block_placed = __syncthreads_count(placed);
+  if (threadIdx.x == 0 && block_placed) atomicAdd(&body_stats->particles, block_placed);
+}
+
+/// Lanes past the last particle of each block's last bin get src = -1.
+static __global__ void __launch_bounds__(kPartitionThreads)
+    pad_src(const int* count, const int* bin_offset, int capacity, int* src_next, int bin_capacity) {
+  const int b = blockIdx.x * blockDim.x + threadIdx.x;
+  if (b >= capacity) return;
+  const int c = count[b];
+  if (c % 32 == 0) return;
+  const int bin = bin_offset[b] + c / 32;
+  if (bin >= bin_capacity) return;
+  for (int lane = c % 32; lane < 32; ++lane) src_next[bin * 32 + lane] = -1;
+}
+
+/// Rescales the P2G impulse of a grid: adds w (-ddt V0 D^-1 tau)(x_i - x_p) per node for every particle of the
+/// layout, so a grid built with impulse dt_old holds the one of dt_old + ddt (a repeated step with a smaller dt,
+/// or step(dt) with a new dt). The stress is evaluated with C = 0: exact for rate-independent materials; the
+/// viscous part of a JFluid keeps its old dt (C is not stored between steps).
+template <typename M, typename T, typename TG>
+__global__ void __launch_bounds__(kPartitionThreads)
+    rescale_impulse(typename ParticleLayout<M, T>::Buffer bins, LayoutView layout, int slots,
+                    material_params_t<M, T> material, T volume, T ddt, T dx, T inv_dx, T d_inv,
+                    BlockHashTableView table, typename GridLayout<TG>::Buffer grid, StepStats* stats) {
+  const int slot = blockIdx.x * blockDim.x + threadIdx.x;
+  if (slot >= slots) return;
+  const int src = layout.src[slot];
+  if (src < 0) return;
+  const ParticleRecord<M, T> p = load_particle<M, T>(bins, src);
+  const StressResult<T> stress = M::kirchhoff_stress(material, p.state, Mat3<T>::zero());
+  const P2GParticle<T> payload =
+      mls_p2g_particle(T(0), volume, Vec3<T>::zero(), Mat3<T>::zero(), stress.kirchhoff, ddt, d_inv);
+  const QuadraticBspline<T> s = quadratic_bspline_inv(p.x, inv_dx);
+  for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
+    const int nx = s.base[0] + i, ny = s.base[1] + j, nz = s.base[2] + k;
+    const int b = table.find(BlockKey::pack(floor_div4(nx), floor_div4(ny), floor_div4(nz)));
+    if (b < 0) {
+      atomicAdd(&stats->internal_error, 1);
+      return;
+    }
+    const int node = ((nx & 3) * 4 + (ny & 3)) * 4 + (nz & 3);
+    const Vec3<T> mv = p2g_node_momentum(payload, w, xixp);
+    atomicAdd(&block_val(grid, grid_momentum_x, b, node), static_cast<TG>(mv[0]));
+    atomicAdd(&block_val(grid, grid_momentum_y, b, node), static_cast<TG>(mv[1]));
+    atomicAdd(&block_val(grid, grid_momentum_z, b, node), static_cast<TG>(mv[2]));
+  });
+}
+
+}  // namespace fbar

@@ -1,0 +1,149 @@
+// plan_device_memory(): the GPU engine's capacities and buffer sizes from a scene's counts (memory_plan.h).
+#include "engine/gpu/memory_plan.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdint>
+#include <sstream>
+#include <unordered_set>
+
+namespace fbar {
+namespace {
+
+std::size_t particle_scalar_bytes(Precision p) { return p == Precision::Single ? 4 : 8; }
+std::size_t grid_scalar_bytes(Precision p) { return p == Precision::Double ? 8 : 4; }
+
+/// Hash-table slots for a block capacity: the next power of two >= 2 x capacity, at least 1024 (hash_table.cuh).
+std::size_t table_slots(long long capacity) {
+  std::size_t p = 1024;
+  while (p < 2 * static_cast<std::size_t>(capacity)) p <<= 1;
+  return p;
+}
+
+/// Grid bytes at a block capacity (everything indexed by block, bodies' partition arrays excluded).
+std::size_t grid_bytes(long long capacity, Precision precision, bool asflip, bool fbar) {
+  const std::size_t c = static_cast<std::size_t>(capacity);
+  const std::size_t tg = grid_scalar_bytes(precision);
+  std::size_t bytes = table_slots(capacity) * (8 + 4) + c * 3 * 4 + 8;  // keys, values, coordinates, counters
+  bytes += 2 * c * 4 * 64 * tg;                                         // two P2G grids (mass, momentum)
+  bytes += c * 3 * 64 * tg;                                             // grid velocity
+  if (asflip) bytes += 3 * c * 3 * 64 * tg;                             // transported momentum x 2, v^n
+  if (fbar) bytes += c * 2 * 64 * tg;                                   // cell sums
+  return bytes;
+}
+
+/// Per-block partition arrays of one body (partition_domain.h): count and bin offset of two layouts, bins per
+/// block, halo tag.
+std::size_t partition_block_bytes(long long capacity) {
+  const std::size_t c = static_cast<std::size_t>(capacity);
+  return c * (2 * 2 * 4 + 4 + 1);
+}
+
+}  // namespace
+
+long long bins_needed(const SampleCount& count) {
+  long long bins = 0;
+  for (const BlockCount& c : count.blocks) bins += (c.particles + 31) / 32;
+  return bins;
+}
+
+long long footprint_blocks(const std::vector<const SampleCount*>& counts) {
+  // Keys pack the coordinates in 21 bits each with a bias of 2^20 (hash_table.cuh BlockKey's packing).
+  auto pack = [](long long x, long long y, long long z) {
+    constexpr long long bias = 1 << 20;
+    return (static_cast<std::uint64_t>(x + bias) << 42) | (static_cast<std::uint64_t>(y + bias) << 21) |
+           static_cast<std::uint64_t>(z + bias);
+  };
+  std::unordered_set<std::uint64_t> blocks;
+  for (const SampleCount* count : counts)
+    for (const BlockCount& c : count->blocks)
+      for (int n = 0; n < 8; ++n) blocks.insert(pack(c.bx + (n >> 2), c.by + ((n >> 1) & 1), c.bz + (n & 1)));
+  return static_cast<long long>(blocks.size());
+}
+
+std::size_t particle_record_bytes(int stored_scalars, std::size_t scalar_bytes) {
+  const std::size_t raw = static_cast<std::size_t>(stored_scalars) * scalar_bytes + 4;
+  return (raw + scalar_bytes - 1) / scalar_bytes * scalar_bytes;
+}
+
+long long DeviceMemoryPlan::total_particles() const {
+  long long n = 0;
+  for (long long p : particles) n += p;
+  return n;
+}
+
+DeviceMemoryPlan plan_device_memory(Precision precision, long long footprint_blocks,
+                                    const std::vector<BodyMemoryInput>& bodies) {
+  DeviceMemoryPlan plan;
+  plan.precision = precision;
+  plan.footprint_blocks = footprint_blocks;
+  plan.block_capacity = std::max<long long>(1024, 2 * footprint_blocks);
+  bool asflip = false, fbar = false;
+  for (const BodyMemoryInput& b : bodies) {
+    asflip = asflip || b.asflip;
+    fbar = fbar || b.fbar;
+  }
+  const std::size_t t = particle_scalar_bytes(precision);
+  plan.grid = grid_bytes(plan.block_capacity, precision, asflip, fbar);
+  const std::size_t grid_largest = static_cast<std::size_t>(plan.block_capacity) * 4 * 64 * grid_scalar_bytes(precision);
+  // Doubling: the bigger arrays, and one old grid array alive during its copy.
+  plan.grid_growth = grid_bytes(2 * plan.block_capacity, precision, asflip, fbar) - plan.grid + grid_largest;
+  for (const BodyMemoryInput& b : bodies) {
+    const long long flat = (b.particles + 31) / 32;
+    long long bins = std::max<long long>(64, std::max(flat, b.bins_needed * 3 / 2 + 16));
+    bins = std::min(bins, std::max(flat, DeviceLimits::kMaxSlots / 32));  // headroom never past the slot limit
+    plan.bin_capacity.push_back(bins);
+    plan.particles.push_back(b.particles);
+    const std::size_t slots = static_cast<std::size_t>(bins) * 32;
+    const std::size_t record = particle_record_bytes(b.stored_scalars, t);
+    std::size_t particle = 2 * slots * record;
+    if (b.asflip) particle += 2 * slots * 3 * t;
+    plan.particles_bytes += particle;
+    const std::size_t per_slot = slots * (2 * 4 + 8);
+    plan.partition += partition_block_bytes(plan.block_capacity) + per_slot;
+    plan.grid_growth += partition_block_bytes(plan.block_capacity);
+    // Growth by half: the new buffers, and one src array of the old size alive during its copy.
+    plan.bins_growth += (particle + per_slot) / 2 + slots * 4;
+    if (b.frame_columns >= 0)
+      plan.frames += static_cast<std::size_t>(b.particles) * (3 * t + 4 * static_cast<std::size_t>(b.frame_columns));
+  }
+  // Step statistics (a few hundred bytes per body), wave speeds and P2G bounds, the CUB scan's scratch for
+  // capacity + 1 integers (a tile descriptor per 2^11 items and a little fixed space).
+  plan.small = 4096 + bodies.size() * 256 + (static_cast<std::size_t>(plan.block_capacity) / 2048 + 2) * 16 + 1024;
+  return plan;
+}
+
+std::string format_bytes(double bytes) {
+  char buf[48];
+  if (bytes >= 1024.0 * 1024.0 * 1024.0)
+    std::snprintf(buf, sizeof(buf), "%.2f GiB", bytes / (1024.0 * 1024.0 * 1024.0));
+  else if (bytes >= 1024.0 * 1024.0)
+    std::snprintf(buf, sizeof(buf), "%.1f MiB", bytes / (1024.0 * 1024.0));
+  else
+    std::snprintf(buf, sizeof(buf), "%.0f KiB", bytes / 1024.0);
+  return buf;
+}
+
+std::string memory_fit_message(const DeviceMemoryPlan& plan, std::size_t free_bytes, std::size_t total_bytes,
+                               const Scene& scene, const std::string& where) {
+  const double need = static_cast<double>(plan.total());
+  const double have = static_cast<double>(free_bytes);
+  if (need <= have) return {};
+  // Memory is nearly proportional to the particle count: N ~ ppc / dx^3.
+  const double ratio = need / std::max(have, 1.0);
+  std::ostringstream os;
+  os << where << ": the scene needs " << format_bytes(need) << " of device memory for "
+     << plan.total_particles() << " particles, but " << format_bytes(have) << " of " << format_bytes(static_cast<double>(total_bytes))
+     << " are free. What would fit: simulation.default_dx " << scene.simulation.dx << " -> "
+     << scene.simulation.dx * std::cbrt(ratio * 1.05) << " m (coarser)";
+  double ppc = 0.0;
+  for (const BodySpec& b : scene.bodies) ppc = std::max(ppc, b.material.ppc);
+  if (ppc > 1.0) os << ", or material.ppc " << ppc << " -> " << std::max(1.0, std::floor(ppc / (ratio * 1.05)));
+  os << ", or " << static_cast<int>(std::ceil(ratio * 1.05))
+     << " GPUs of this size (one body spanning several GPUs: the multi-GPU release; today bodies[].gpu places whole "
+        "bodies)";
+  return os.str();
+}
+
+}  // namespace fbar

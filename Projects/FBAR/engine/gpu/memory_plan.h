@@ -1,0 +1,97 @@
+// Device memory of the GPU engine, planned before anything is allocated: one function that both the engine (to size
+// its buffers) and `fbar --check` (to report and refuse) use, so the estimate is the allocation.
+//
+// What one device holds (GpuEngine<T, TG>; mgsp_benchmark.cuh allocates exactly these):
+//   per grid block of capacity   hash table (2 slots of key u64 + value i32, power of two), block coordinates,
+//                                two P2G grids (4 channels x 64 nodes), the grid velocity (3 x 64), ASFLIP's
+//                                transported momentum (2 x 3 x 64) and v^n (3 x 64), F-bar's cell sums (2 x 64), and
+//                                per body the partition's per-block arrays (counts and bin offsets of two layouts,
+//                                bins per block, halo tag: 21 B)
+//   per particle slot of a body  two particle buffers (the fused G2P2G reads one and writes the other), ASFLIP's
+//                                particle velocities beside both, the partition's src of two layouts and dest (16 B)
+//   per particle of a body       its output frame on the device when frames are written (position in the particle
+//                                scalar type and one float per output attribute, ID order)
+// Capacities: grid blocks 2 x the blocks the particles' 2x2x2 footprints cover at start (at least 1024); bins
+// 1.5 x (+16) what the particle blocks need at start (at least 64 and the flat upload). Both grow at run time when a
+// scene outgrows them (the engine logs it; the plan reports what one growth costs).
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "geometry/geometry.h"
+#include "scene/scene.h"
+
+namespace fbar {
+
+/// Size limits of one device (docs/user_guide.md, "Limits").
+struct DeviceLimits {
+  /// Particle slots per body and device (bins x 32: particles plus the empty lanes of partly filled bins, headroom
+  /// included; slot indices and particle IDs are 32-bit signed integers). Headroom is clamped to it, so a body may
+  /// hold up to kMaxSlots slots of particles (about 2.0e9 particles of a compact 8 ppc body).
+  static constexpr long long kMaxSlots = 2147483647LL;
+  /// Grid blocks per device (block indices are 32-bit signed; the hash table has 2 x capacity slots, a power of two
+  /// below 2^32).
+  static constexpr long long kMaxBlocks = 1LL << 30;
+  /// Bodies per device (the time-step kernel's table, grid_update_kernels.cuh DtParams::kMaxBodies).
+  static constexpr int kMaxBodies = 64;
+};
+
+/// One body's inputs to the plan.
+struct BodyMemoryInput {
+  long long particles = 0;
+  long long bins_needed = 0;     ///< sum over particle blocks of ceil(count / 32) at start
+  int stored_scalars = 0;        ///< per particle in a bin: position (3) + the material's state
+  bool asflip = false;           ///< PIC-FLIP / ASFLIP (particle velocities, transported grid momentum)
+  bool fbar = false;             ///< F-bar (cell sums)
+  int frame_columns = -1;        ///< float attributes of its output frame, -1: no frames on the device
+};
+
+/// The plan for one device. Every figure in bytes unless named otherwise.
+struct DeviceMemoryPlan {
+  Precision precision = Precision::Single;
+  long long footprint_blocks = 0;  ///< grid blocks the particles' 2x2x2 footprints cover at start
+  long long block_capacity = 0;
+  std::vector<long long> bin_capacity;   ///< per body
+  std::vector<long long> particles;      ///< per body
+  std::size_t grid = 0;        ///< hash table, P2G grids, velocity, ASFLIP and F-bar channels
+  std::size_t partition = 0;   ///< per-block and per-slot partition arrays of every body
+  std::size_t particles_bytes = 0;  ///< particle buffers (both) and ASFLIP particle velocities
+  std::size_t frames = 0;      ///< output frames kept on the device for the asynchronous download
+  std::size_t small = 0;       ///< step statistics, scan scratch, per-body reductions
+  std::size_t total() const { return grid + partition + particles_bytes + frames + small; }
+  std::size_t grid_growth = 0;  ///< more device memory when the grid blocks double (transient copy included)
+  std::size_t bins_growth = 0;  ///< more when every body's bins grow by half (transient copy included)
+  long long total_particles() const;
+};
+
+/// Particles sampled and uploaded per batch by the GPU engine's set-up (host memory is O(batch), not O(N)).
+inline constexpr long long kSampleBatchParticles = 1LL << 23;
+
+/// CUDA context and runtime memory not in the plan (measured on an H100 with CUDA 13: 0.5-0.6 GiB).
+inline constexpr std::size_t kCudaContextBytes = std::size_t(600) << 20;
+
+/// Bytes of one particle in a bin: stored scalars and the 32-bit ID, padded to the scalar's alignment.
+std::size_t particle_record_bytes(int stored_scalars, std::size_t scalar_bytes);
+
+/// Bins of 32 the particle blocks of a count need: sum of ceil(count / 32).
+long long bins_needed(const SampleCount& count);
+
+/// Grid blocks covered by the 2x2x2 footprints (blocks B .. B + 1 per axis) of every particle block of `counts`.
+long long footprint_blocks(const std::vector<const SampleCount*>& counts);
+
+/// Grid-block and bin capacities and the bytes of every buffer (see the file comment).
+DeviceMemoryPlan plan_device_memory(Precision precision, long long footprint_blocks,
+                                    const std::vector<BodyMemoryInput>& bodies);
+
+/// Empty when the plan fits `free_bytes` (with the context reserve already taken out of free_bytes by the caller,
+/// or not: `free_bytes` is what cudaMemGetInfo reports before the engine allocates); otherwise a message that says
+/// by how much it does not fit and what would (a coarser dx, fewer ppc, more GPUs), for `where` ("GPU 0").
+std::string memory_fit_message(const DeviceMemoryPlan& plan, std::size_t free_bytes, std::size_t total_bytes,
+                               const Scene& scene, const std::string& where);
+
+/// "12.3 GiB" style.
+std::string format_bytes(double bytes);
+
+}  // namespace fbar

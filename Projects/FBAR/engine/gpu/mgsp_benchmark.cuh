@@ -1,0 +1,1473 @@
+// The GPU simulation driver (ClaymoreUW's mgsp_benchmark): all state of one device and the step, no globals.
+//
+// State between steps n-1 and n (cur, gc: which of the double buffers is current):
+//   bins[cur]          particles of state n (storage order), per body
+//   layout(cur)        their grouping by particle block (src: layout slot -> storage slot), per body
+//   grid[gc]           P2G of state n (mass, momentum with the internal-force impulse of dt_p2g_)
+//   table              every block any layout or grid uses (insert-only between growths; indices stable)
+// Step n (dt):
+//   0. dt != dt_p2g_ (a repeated step, or step(dt) with a new dt): rescale_impulse adds (dt - dt_p2g_) x the
+//      stress impulse to grid[gc] (exact for rate-independent stress; see partition_kernels.cuh)
+//   1. grid update: velocity = grid[gc] / m + dt g, boundaries -> velocity buffer; max |v|
+//   2. compute_next_dt: dt_{n+1} on the device (so the P2G impulse uses it without a host round trip); the JFluid
+//      wave speed in it is the one of state n (the CPU engine uses state n+1's: a one-step lag, documented)
+//   3. per body g2p2g: bins[cur] -> bins[1-cur] in layout(cur) order, P2G into grid[1-gc], next blocks and ranks
+//   4. per body partition: footprint activation, scan, src scatter -> layout(1-cur)
+//   5. one small copy of the step statistics to pinned memory and one stream synchronisation: failures, overflow,
+//      dt_{n+1}, block and bin counts. A failed step leaves cur/gc untouched (on_failure reduce_dt repeats it with
+//      dt/2 from the same buffers); an overflow grows the capacities and redoes step 4 from the new positions.
+#pragma once
+
+#include <cub/device/device_scan.cuh>
+#include <chrono>
+#include <condition_variable>
+#include <mutex>
+#include <cuda_runtime.h>
+
+#include <algorithm>
+#include <climits>
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
+#include <iostream>
+#include <limits>
+#include <memory>
+#include <numeric>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "MnBase/Math/bspline.h"
+#include "MnSystem/Cuda/device_query.h"
+#include "scene/attributes.h"
+#include "physics/boundary.cuh"
+#include "physics/constitutive_models.cuh"
+#include "engine/cpu/cpu_engine.h"
+#include "geometry/geometry.h"
+#include "engine/gpu/gpu_engine.h"
+#include "engine/gpu/grid_buffer.cuh"
+#include "engine/gpu/hash_table.cuh"
+#include "engine/gpu/memory_plan.h"
+#include "engine/gpu/mgmpm_kernels.cuh"
+#include "engine/gpu/particle_buffer.cuh"
+#include "io/particle_frame.h"
+#include "engine/gpu/partition_domain.h"
+#include "engine/run_constants.h"
+#include "physics/time_step.cuh"
+
+namespace fbar {
+
+namespace mgsp_detail {
+
+inline int grid_for(long long n, int threads) { return static_cast<int>((n + threads - 1) / threads); }
+
+inline void check_launch(const char* what) {
+  const cudaError_t e = cudaGetLastError();
+  if (e != cudaSuccess) throw std::runtime_error(std::string("CUDA launch of ") + what + " failed: " + cudaGetErrorString(e));
+}
+
+inline std::string format_g(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.6g", v);
+  return buf;
+}
+
+/// Pinned host memory owned by a unique_ptr (frames hand it to the writer thread).
+struct PinnedDeleter {
+  void operator()(void* p) const { cudaFreeHost(p); }
+};
+using PinnedBytes = std::unique_ptr<void, PinnedDeleter>;
+inline PinnedBytes pinned(std::size_t bytes) {
+  void* p = nullptr;
+  FBAR_CUDA_CHECK(cudaMallocHost(&p, bytes));
+  return PinnedBytes(p);
+}
+
+/// A device array of trivially copyable T (RAII, no copy).
+template <typename V>
+class DeviceArray {
+ public:
+  DeviceArray() = default;
+  DeviceArray(const DeviceArray&) = delete;
+  DeviceArray& operator=(const DeviceArray&) = delete;
+  ~DeviceArray() {
+    if (ptr_) cudaFree(ptr_);
+  }
+  void allocate(std::size_t n) {
+    if (ptr_) FBAR_CUDA_CHECK(cudaFree(ptr_));
+    ptr_ = nullptr;
+    size_ = n;
+    if (n) ptr_ = static_cast<V*>(cuda::device_malloc(sizeof(V) * n, "GPU engine buffer"));
+    // Zeroed: allocations are rare, and growth copies whole arrays whose unused slots were never written.
+    if (n) FBAR_CUDA_CHECK(cudaMemset(ptr_, 0, sizeof(V) * n));
+  }
+  V* get() const { return ptr_; }
+  void swap(DeviceArray& o) noexcept {
+    std::swap(ptr_, o.ptr_);
+    std::swap(size_, o.size_);
+  }
+  std::size_t size() const { return size_; }
+  std::size_t bytes() const { return size_ * sizeof(V); }
+
+ private:
+  V* ptr_ = nullptr;
+  std::size_t size_ = 0;
+};
+
+static __global__ void reset_step_stats(StepStats* stats, BodyStepStats* bodies, int body_count, bool partition_only) {
+  const int t = threadIdx.x;
+  if (t == 0) {
+    if (!partition_only) {
+      stats->max_speed_sq = 0;
+      stats->dt_next = 0.0;
+      stats->internal_error = 0;
+      stats->p2g_range = 0;
+    }
+    stats->bin_overflow = 0;
+    stats->block_count = 0;
+    stats->table_overflow = 0;
+  }
+  for (int b = t; b < body_count; b += blockDim.x) {
+    if (!partition_only)
+      for (int k = 0; k < kFailKinds; ++k) {
+        bodies[b].failures[k] = 0;
+        bodies[b].first_id[k] = INT_MAX;
+      }
+    bodies[b].total_bins = 0;
+    bodies[b].particles = 0;
+  }
+}
+
+}  // namespace mgsp_detail
+
+/// The device state of one GPU and its step (the engine behind GpuEngine<T, TG>). T: particle scalar type (stored
+/// state, transfers, material update); TG: grid scalar type (grid buffers, the shared P2G arena, the grid update).
+/// single: <float, float>; double: <double, double>; mixed: <double, float> (ClaymoreUW's choice).
+template <typename T, typename TG>
+class MgspBenchmark {
+ public:
+  /// positions: per body, given initial positions [m] (tests); nullptr: every body is sampled from the scene in
+  /// batches (geometry.h BodySampler), uploaded batch by batch.
+  MgspBenchmark(const Scene& scene, const std::vector<std::vector<Vec3d>>* positions,
+                const GpuEngineOptions& options = {});
+  ~MgspBenchmark();
+  MgspBenchmark(const MgspBenchmark&) = delete;
+  MgspBenchmark& operator=(const MgspBenchmark&) = delete;
+
+  StepReport step_impl(double dt, bool cfl_dt, double target);
+  StepReport advance_to(double t_end);
+  /// One CFL step, shortened to land on t_end when it would pass it (the device clamps the next dt likewise).
+  StepReport step_toward(double t_end);
+  double next_dt() const { return next_dt_ * (dt_scale_ / dt_scale_at_compute_); }
+
+  // --- state queries
+  double time() const { return time_; }
+  long long steps() const { return steps_; }
+  double last_dt() const { return last_dt_; }
+  double max_grid_speed() const { return max_grid_speed_; }
+  void set_log(std::ostream* log) { log_ = log; }
+  void set_record_velocities(bool on);
+  /// The next step writes every body's output frame on the device (GpuEngineOptions::frames).
+  void set_frame_capture(bool on) { capture_next_ = on; }
+  /// Seconds the step loop waited for the writer thread to release a frame's host buffer (output slower than the
+  /// simulation).
+  double output_wait_seconds() const { return output_wait_s_; }
+  const DeviceMemoryPlan& memory_plan() const { return plan_; }
+  std::size_t peak_device_bytes() const { return peak_bytes_; }
+  void set_kernel_timing(bool on) { timing_ = on; }
+  KernelTimes kernel_times() const { return times_; }
+  long long p2g_range_repeats() const { return p2g_range_repeats_; }
+  int body_count() const { return static_cast<int>(bodies_.size()); }
+  std::size_t particle_count(int body) const { return static_cast<std::size_t>(body_at(body).particles); }
+  std::size_t particle_count() const {
+    std::size_t n = 0;
+    for (const auto& b : bodies_) n += static_cast<std::size_t>(b->particles);
+    return n;
+  }
+  ParticleSnapshot<T> snapshot(int body) const;
+  io::ParticleFrame frame(int body) const;
+  void submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer);
+  double particle_mass(int body) const { return static_cast<double>(body_at(body).mass); }
+  double particle_volume(int body) const { return static_cast<double>(body_at(body).volume); }
+  double total_mass() const;
+  double elastic_energy() const;
+  double grid_mass() const;
+  std::size_t active_grid_blocks() const { return static_cast<std::size_t>(block_count_); }
+  std::size_t device_bytes() const;
+
+ private:
+  // ---------------------------------------------------------------- bodies (host-side polymorphism only)
+  struct BodyBase {
+    BodySpec spec;
+    int index = 0;
+    int particles = 0;
+    T mass = T(0), volume = T(0);
+    double rest_wave_speed = 0.0;
+    T fbar_psi = T(0);  ///< F-bar blend (transfer.cuh), 0: off
+    bool asflip = false;  ///< PIC-FLIP / ASFLIP (transfer.cuh)
+    AsflipParams<T> asflip_params{T(0), T(0), T(0)};
+    /// ASFLIP only: (slot, 3) particle velocities beside bins[0] / bins[1], same slots (empty otherwise).
+    mgsp_detail::DeviceArray<T> particle_v[2];
+    PartitionDomain partition;
+    int total_bins[2] = {0, 0};  ///< bins of layout 0 / 1
+    mgsp_detail::DeviceArray<T> aux;  ///< (slot, kAuxScalars) recorded v and C
+    /// Per-particle initial velocities (GpuEngineOptions::initial_velocities): (ID, 3) on the device for the initial
+    /// P2G, and on the host for snapshots before the first step; empty when the body starts at its scene velocity.
+    mgsp_detail::DeviceArray<T> initial_v;
+    std::vector<Vec3<T>> initial_v_host;
+    /// Output frame (GpuEngineOptions::frames): its attributes, the device copy a capture step writes (ID order),
+    /// the pinned host copy the writer thread reads, and whether that host copy is still being read.
+    std::vector<FrameAttributeSpec> frame_attrs;
+    FrameCapture<T> capture;
+    mgsp_detail::DeviceArray<T> frame_x;
+    mgsp_detail::DeviceArray<float> frame_columns;
+    mgsp_detail::PinnedBytes frame_host;
+    struct HostSlot {
+      std::mutex mutex;
+      std::condition_variable released;
+      bool busy = false;
+    };
+    std::shared_ptr<HostSlot> frame_slot = std::make_shared<HostSlot>();
+    cudaEvent_t frame_copied = nullptr;  ///< the last download of the frame finished (the next capture waits)
+    std::size_t frame_host_bytes() const {
+      return static_cast<std::size_t>(particles) * (3 * sizeof(T) + sizeof(float) * capture.column_count);
+    }
+    virtual ~BodyBase() {
+      if (frame_copied) cudaEventDestroy(frame_copied);
+    }
+    virtual void capture_state(MgspBenchmark& e) = 0;  ///< the frame of the current state (before the first step)
+    virtual bool stores_F() const = 0;
+    virtual int stored_scalars() const = 0;
+    virtual void allocate_bins(int bins) = 0;                   ///< both buffers, contents lost
+    virtual void reallocate_bins(int which, int bins) = 0;      ///< one buffer, contents lost
+    virtual int bins_capacity(int which) const = 0;
+    virtual std::size_t bins_bytes() const = 0;
+    /// Particles first_id .. first_id + x.size() into bins[0] (flat: slot = ID); first_id is a multiple of 32.
+    virtual void upload(const Vec3d* x, std::size_t n, long long first_id, cudaStream_t s) = 0;
+    virtual void g2p2g(MgspBenchmark& e, bool initial, T dt) = 0;
+    virtual void dest_from_positions(MgspBenchmark& e, int bins_which, const int* valid, int slots) = 0;
+    virtual void rescale_impulse(MgspBenchmark& e, T ddt) = 0;
+    virtual void gather(MgspBenchmark& e, T* out, int* missing, cudaStream_t s) = 0;
+    virtual bool stores_logJp() const = 0;
+    /// J, F, Cauchy stress and logJp of one gathered record (F and logJp left as they are for a material without).
+    virtual void state_of(const T* record, T& J, Mat3<T>& F, Mat3<T>& sigma, T& logJp, const Mat3<T>& C) const = 0;
+    /// psi(state) [J/m^3] of one gathered record.
+    virtual double energy_density_of(const T* record) const = 0;
+  };
+
+  template <typename M>
+  struct Body final : BodyBase {
+    using Layout = ParticleLayout<M, T>;
+    material_params_t<M, T> params;
+    ParticleBuffer<M, T> bins[2];
+
+    bool stores_F() const override { return M::kOutputs.deformation_gradient; }
+    bool stores_logJp() const override { return M::kOutputs.log_jp; }
+    int stored_scalars() const override { return Layout::kScalars; }
+    void allocate_bins(int n) override {
+      bins[0].allocate(n);
+      bins[1].allocate(n);
+      if (this->asflip) {
+        this->particle_v[0].allocate(static_cast<std::size_t>(n) * 32 * 3);
+        this->particle_v[1].allocate(static_cast<std::size_t>(n) * 32 * 3);
+      }
+    }
+    void reallocate_bins(int which, int n) override {
+      bins[which].allocate(n);
+      if (this->asflip) this->particle_v[which].allocate(static_cast<std::size_t>(n) * 32 * 3);
+    }
+    int bins_capacity(int which) const override { return bins[which].bin_capacity(); }
+    std::size_t bins_bytes() const override {
+      return bins[0].bytes() + bins[1].bytes() + this->particle_v[0].bytes() + this->particle_v[1].bytes();
+    }
+
+    void upload(const Vec3d* x, std::size_t n, long long first_id, cudaStream_t s) override {
+      // Flat bins of this batch on the host (slot = particle ID), one copy to their place in bins[0].
+      const std::size_t bins_n = (n + 31) / 32;
+      const std::size_t bytes = Layout::kBinBytes * bins_n;
+      std::vector<std::byte> host(bytes);
+      typename Layout::Buffer view(host.data(), bins_n);
+      const auto state = material_initial_state<M, T>(this->spec.material);
+      for (std::size_t i = 0; i < n; ++i) {
+        ParticleRecord<M, T> p{x[i].template cast<T>(), state, static_cast<int>(first_id + static_cast<long long>(i))};
+        store_particle<M, T>(view, static_cast<int>(i), p);
+      }
+      std::byte* target = bins[0].instance().data() + Layout::kBinBytes * static_cast<std::size_t>(first_id / 32);
+      if (bytes) FBAR_CUDA_CHECK(cudaMemcpyAsync(target, host.data(), bytes, cudaMemcpyHostToDevice, s));
+      FBAR_CUDA_CHECK(cudaStreamSynchronize(s));
+    }
+
+    void g2p2g(MgspBenchmark& e, bool initial, T dt) override {
+      G2P2GParams<M, T, TG> p;
+      p.in = bins[e.cur_].instance();
+      p.out = bins[1 - e.cur_].instance();
+      p.layout = this->partition.layout(e.cur_);
+      p.next_count = this->partition.layout(1 - e.cur_).count;
+      p.dest = this->partition.dest();
+      p.table = e.table_.view();
+      p.velocity = e.velocity_.instance();
+      p.grid_next = e.grid_[1 - e.gc_].instance();
+      p.grid_this = e.grid_[e.gc_].instance();
+      p.aux = e.record_ ? this->aux.get() : nullptr;
+      if (e.capture_next_ && this->capture.x) p.capture = this->capture;
+      if (e.asflip_) p.transported_next = e.transported_[1 - e.gc_].instance();
+      p.asflip = this->asflip;
+      p.asflip_params = this->asflip_params;
+      if (this->asflip) {
+        p.old_velocity = e.old_velocity_.instance();
+        p.particle_v_in = this->particle_v[e.cur_].get();
+        p.particle_v_out = this->particle_v[1 - e.cur_].get();
+      }
+      p.fbar_psi = initial ? T(0) : this->fbar_psi;
+      if (p.fbar_psi != T(0)) p.fbar_sums = e.fbar_sums_.instance();
+      p.material = params;
+      p.mass = this->mass;
+      p.volume = this->volume;
+      p.initial_velocity = Vec3<T>{{static_cast<T>(this->spec.velocity[0]), static_cast<T>(this->spec.velocity[1]),
+                                    static_cast<T>(this->spec.velocity[2])}};
+      p.initial_v = initial && this->initial_v.size() ? this->initial_v.get() : nullptr;
+      p.dt = dt;
+      p.dx = e.k_.dx;
+      p.inv_dx = e.k_.inv_dx;
+      p.d_inv = e.k_.d_inv;
+      p.domain = e.k_.domain;
+      p.dt_next = &e.stats_d_->dt_next;
+      p.stats = e.stats_d_;
+      p.body_stats = e.body_stats_d_ + this->index;
+      p.wave_speed = e.wave_d_.get() + (1 - e.wave_cur_) * e.bodies_.size() + this->index;
+      p.p2g_bound_in = e.p2g_bound_d_.get() + e.bound_cur_ * e.bodies_.size() + this->index;
+      p.p2g_bound_out = e.p2g_bound_d_.get() + (1 - e.bound_cur_) * e.bodies_.size() + this->index;
+      const int blocks = e.block_count_;
+      if (blocks == 0) return;
+      if (p.fbar_psi != T(0)) {  // F-bar: this body's cell sums first (kernels/g2p2g_kernel.cuh, fbar_divergence)
+        e.fbar_sums_.clear(0, blocks, e.stream_);
+        FbarDivergenceParams<M, T, TG> f;
+        f.in = p.in;
+        f.layout = p.layout;
+        f.table = p.table;
+        f.velocity = p.velocity;
+        f.sums = p.fbar_sums;
+        f.volume = p.volume;
+        f.dx = p.dx;
+        f.inv_dx = p.inv_dx;
+        f.d_inv = p.d_inv;
+        f.stats = p.stats;
+        fbar::fbar_divergence<M, T, TG><<<blocks, kG2P2GThreads, 0, e.stream_>>>(f);
+        mgsp_detail::check_launch("fbar_divergence");
+      }
+      const bool transport = static_cast<bool>(p.transported_next);
+      const std::size_t arena = g2p2g_arena_bytes<TG>(transport);
+      const bool capture = p.capture.x != nullptr;
+      if (initial)
+        fbar::g2p2g<M, T, TG, true, false><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
+      else if (transport && capture)
+        fbar::g2p2g<M, T, TG, false, true, true><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
+      else if (transport)
+        fbar::g2p2g<M, T, TG, false, true><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
+      else if (capture)
+        fbar::g2p2g<M, T, TG, false, false, true><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
+      else
+        fbar::g2p2g<M, T, TG, false, false><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
+      mgsp_detail::check_launch("g2p2g");
+    }
+
+    void capture_state(MgspBenchmark& e) override {
+      const int slots = this->total_bins[e.cur_] * 32;
+      if (slots == 0) return;
+      const Vec3<T> v0{{static_cast<T>(this->spec.velocity[0]), static_cast<T>(this->spec.velocity[1]),
+                        static_cast<T>(this->spec.velocity[2])}};
+      fbar::capture_frame_state<M, T><<<mgsp_detail::grid_for(slots, kOutputThreads), kOutputThreads, 0, e.stream_>>>(
+          bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, this->capture, v0, params, this->mass,
+          this->volume);
+      mgsp_detail::check_launch("capture_frame_state");
+    }
+
+    void dest_from_positions(MgspBenchmark& e, int which, const int* valid, int slots) override {
+      if (slots == 0) return;
+      fbar::dest_from_positions<M, T, TG><<<mgsp_detail::grid_for(slots, kPartitionThreads), kPartitionThreads, 0,
+                                        e.stream_>>>(
+          bins[which].instance(), valid, this->particles, slots, e.k_.inv_dx, e.table_.view(),
+          this->partition.layout(1 - e.cur_).count, this->partition.dest(), e.grid_[0].instance(),
+          e.grid_[1].instance(), e.body_stats_d_ + this->index);
+      mgsp_detail::check_launch("dest_from_positions");
+    }
+
+    void rescale_impulse(MgspBenchmark& e, T ddt) override {
+      const int slots = this->total_bins[e.cur_] * 32;
+      if (slots == 0) return;
+      fbar::rescale_impulse<M, T, TG><<<mgsp_detail::grid_for(slots, kPartitionThreads), kPartitionThreads, 0, e.stream_>>>(
+          bins[e.cur_].instance(), this->partition.layout(e.cur_), slots, params, this->volume, ddt, e.k_.dx, e.k_.inv_dx,
+          e.k_.d_inv, e.table_.view(), e.grid_[e.gc_].instance(), e.stats_d_);
+      mgsp_detail::check_launch("rescale_impulse");
+    }
+
+    void gather(MgspBenchmark& e, T* out, int* missing, cudaStream_t s) override {
+      const int slots = this->total_bins[e.cur_] * 32;
+      if (slots == 0) return;
+      // aux was written at the storage slots of bins[cur] (the previous G2P2G's layout order).
+      fbar::gather_by_id<M, T><<<mgsp_detail::grid_for(slots, kOutputThreads), kOutputThreads, 0, s>>>(
+          bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, e.aux_valid_ ? this->aux.get() : nullptr,
+          this->particles, out, missing);
+      mgsp_detail::check_launch("gather_by_id");
+    }
+
+    void state_of(const T* r, T& J, Mat3<T>& F, Mat3<T>& sigma, T& logJp, const Mat3<T>& C) const override {
+      material_state_t<M, T> s;
+      std::memcpy(&s, r + 3, sizeof(s));
+      J = M::volume_ratio(s);
+      if constexpr (M::kOutputs.deformation_gradient) F = s.F;
+      if constexpr (M::kOutputs.log_jp) logJp = s.logJp;
+      sigma = cauchy_stress(M::kirchhoff_stress(params, s, C));
+    }
+    double energy_density_of(const T* r) const override {
+      material_state_t<M, T> s;
+      std::memcpy(&s, r + 3, sizeof(s));
+      return static_cast<double>(M::energy_density(params, s));
+    }
+  };
+
+  BodyBase& body_at(int b) const {
+    if (b < 0 || b >= body_count()) throw std::out_of_range("GpuEngine: no body " + std::to_string(b));
+    return *bodies_[b];
+  }
+
+  // ---------------------------------------------------------------- step pieces
+  void reset_stats(bool partition_only);
+  void partition_after_g2p2g();          ///< footprint, scan, finalize, src scatter for every body
+  void read_stats();                     ///< the one small copy + synchronisation of a step
+  bool handle_overflow();                ///< grows what overflowed and redoes the partition; true if it did
+  void grow_blocks(int needed);
+  void grow_blocks_to(int capacity);
+  /// The error of a growth the device could not hold: step, time, what grew, memory held, what would help.
+  cuda::OutOfMemory growth_failure(const std::string& what, const cuda::OutOfMemory& e) const;
+  void grow_bins_to(BodyBase& b, int keep, int capacity);
+  void grow_bins(BodyBase& b, int layout_keep, int needed);
+  void ensure_aux();
+  void allocate_frames();
+  void initialize(const std::vector<std::vector<Vec3d>>* positions);
+  void upload_sampled(BodyBase& body);
+  std::vector<FailureReport> failures_of_try(double dt) const;
+  void commit(double dt);
+  /// Before a step: bins[1 - cur] (the G2P2G target) holds layout(cur); bins grown with headroom (after commit/init).
+  void ensure_step_capacity();
+  void event_record(int i) {
+    if (timing_) FBAR_CUDA_CHECK(cudaEventRecord(events_[i], stream_));
+  }
+  std::vector<T> gather_host(int body, cudaStream_t s) const;
+
+  static constexpr Precision kPrecision = !std::is_same_v<T, TG>      ? Precision::Mixed
+                                           : std::is_same_v<T, double> ? Precision::Double
+                                                                       : Precision::Single;
+  Scene scene_;
+  GpuEngineOptions options_;
+  DeviceMemoryPlan plan_;            ///< what the engine allocated at start (memory_plan.h)
+  std::vector<SampleCount> counts_;  ///< per body: particles per particle block at start (released after start)
+  std::size_t peak_bytes_ = 0;       ///< most device memory the engine's buffers held
+  RunConstants<T> k_;    ///< dx, gravity, domain, default dt, boundaries (from the scene): particle side
+  RunConstants<TG> kg_;  ///< the same in the grid scalar type: the grid update
+  std::vector<std::unique_ptr<BodyBase>> bodies_;
+
+  cudaStream_t stream_ = nullptr;       ///< compute stream
+  cudaStream_t copy_stream_ = nullptr;  ///< frame downloads
+  cudaEvent_t events_[4] = {};
+  BlockHashTable table_;
+  GridBuffer<TG> grid_[2];
+  GridVelocityBuffer<TG> velocity_;
+  GridFbarBuffer<TG> fbar_sums_;         ///< F-bar cell sums, allocated only when a body uses F-bar
+  /// ASFLIP, allocated only when a body uses it: transported momentum of each P2G (double-buffered like grid_) and
+  /// v^n from the grid update.
+  GridVelocityBuffer<TG> transported_[2];
+  GridVelocityBuffer<TG> old_velocity_;
+  bool asflip_ = false;
+  bool fbar_ = false;
+  int block_capacity_ = 0;
+  int block_count_ = 0;                 ///< table blocks after the last committed partition
+  mgsp_detail::DeviceArray<std::byte> stats_bytes_;
+  StepStats* stats_d_ = nullptr;
+  BodyStepStats* body_stats_d_ = nullptr;
+  mgsp_detail::PinnedBytes stats_h_;
+  StepStats* stats_ = nullptr;          ///< pinned mirror
+  BodyStepStats* body_stats_ = nullptr;
+  mgsp_detail::DeviceArray<unsigned long long> wave_d_;  ///< (2, body) wave-speed bits: current / being reduced
+  int wave_cur_ = 0;
+  /// (2, body) bits of the fixed-point P2G momentum bound: the one in use / the one measured by this try.
+  mgsp_detail::DeviceArray<unsigned long long> p2g_bound_d_;
+  int bound_cur_ = 0;
+  mgsp_detail::DeviceArray<std::byte> scan_temp_;
+  std::size_t scan_temp_bytes_ = 0;
+  mgsp_detail::DeviceArray<int> missing_d_;
+
+  int cur_ = 0;   ///< current particle buffer and layout
+  int gc_ = 0;    ///< current grid
+  bool record_ = false;
+  bool capture_next_ = false;     ///< the next step captures frames
+  long long captured_step_ = -1;  ///< the step whose state the device frames hold
+  double output_wait_s_ = 0.0;
+  bool flat_source_ = false;  ///< the partition reads the flat upload (slot = ID), not a layout
+  bool aux_valid_ = false;  ///< aux holds v, C of the current state
+  bool timing_ = false;
+  KernelTimes times_;
+  double time_ = 0.0;
+  long long steps_ = 0;
+  double last_dt_ = 0.0;
+  double next_dt_ = 0.0;
+  double dt_scale_at_compute_ = 1.0;
+  double dt_p2g_ = 0.0;        ///< impulse dt inside grid[gc]
+  double dt_scale_ = 1.0;
+  int clean_steps_ = 0;
+  long long p2g_range_repeats_ = 0;  ///< tries repeated because the fixed-point P2G bound was exceeded
+  double max_grid_speed_ = 0.0;
+  std::ostream* log_ = &std::cerr;
+};
+
+// =====================================================================================================================
+// Construction
+
+template <typename T, typename TG>
+MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::vector<Vec3d>>* positions,
+                                const GpuEngineOptions& options)
+    : scene_(scene), options_(options) {
+  if (cuda::device_count() == 0) throw std::runtime_error(cuda::no_device_reason());
+  const SimulationSpec& sim = scene_.simulation;
+  k_ = RunConstants<T>(scene_, "GPU engine");
+  kg_ = RunConstants<TG>(scene_, "GPU engine");
+  if (positions && positions->size() != scene_.bodies.size())
+    throw std::invalid_argument("GpuEngine: one position list per body");
+  if (scene_.bodies.size() > static_cast<std::size_t>(DtParams::kMaxBodies))
+    throw std::invalid_argument("GpuEngine: at most " + std::to_string(DtParams::kMaxBodies) + " bodies per device");
+  time_ = sim.time;
+  if (k_.boundaries.size() > static_cast<std::size_t>(BoundarySet<TG>::kMax))
+    throw std::invalid_argument("GpuEngine: at most " + std::to_string(BoundarySet<TG>::kMax) + " boundaries");
+
+  double max_speed = 0.0;
+  for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {
+    const BodySpec& spec = scene_.bodies[b];
+    const std::string where = "bodies[" + std::to_string(b) + "]";
+    const MaterialSpec& mat = spec.material;
+    if (material_index(mat.law) < 0)
+      throw std::invalid_argument(where + ".material.constitutive: not implemented by the GPU engine (implemented: " +
+                                  supported_material_names() + ")");
+    if (mat.type != "particles")
+      throw std::invalid_argument(where + ".material.type: \"" + mat.type + "\" bodies are not implemented");
+    const AlgorithmSpec& alg = spec.algorithm;
+    if (alg.use_fem) throw std::invalid_argument(where + ".algorithm.use_FEM: not implemented by the GPU engine");
+    for (const std::string& name : spec.output_attribs) {
+      const std::string canonical = canonical_attribute(name);
+      if (canonical.empty() || !cpu_engine_supports_attribute(mat.law, canonical))
+        throw std::invalid_argument(where + ".output_attribs: " + name + " is not available on the GPU engine");
+    }
+    if (!(mat.ppc > 0.0)) throw std::invalid_argument(where + ".material.ppc: must be positive");
+    if (positions) {
+      const std::vector<Vec3d>& x = (*positions)[b];
+      for (std::size_t p = 0; p < x.size(); ++p)
+        for (int a = 0; a < 3; ++a)
+          if (!(x[p][a] >= 0.0 && x[p][a] <= sim.domain[a]))
+            throw std::invalid_argument(where + ": particle " + std::to_string(p) + " lies outside the domain");
+      counts_.push_back(count_points(x, sim.dx));
+    } else {
+      // Counted without storing a point (throws SceneError for particles outside the domain, or none at all).
+      counts_.push_back(BodySampler(spec, sim, static_cast<int>(b)).count(sim.dx));
+    }
+    const long long slots_needed = 32 * bins_needed(counts_.back());
+    if (slots_needed > DeviceLimits::kMaxSlots)
+      throw std::invalid_argument(where + ": " + std::to_string(counts_.back().particles) + " particles need " +
+                                  std::to_string(slots_needed) + " particle slots on one device; at most " +
+                                  std::to_string(DeviceLimits::kMaxSlots) +
+                                  " (2^31 - 1, docs/user_guide.md \"Limits\"): use a coarser default_dx, fewer ppc, "
+                                  "or split the body with partition_start / partition_end");
+    visit_material(mat.law, [&](auto m) {
+      using M = decltype(m);
+      auto body = std::make_unique<Body<M>>();
+      body->params = M::template make_params<T>(mat);
+      body->rest_wave_speed = static_cast<double>(M::wave_speed(M::template make_params<double>(mat),
+                                                                M::template reference_state<double>()));
+      bodies_.push_back(std::move(body));
+    });
+    BodyBase& body = *bodies_.back();
+    body.spec = spec;
+    body.index = static_cast<int>(b);
+    body.particles = static_cast<int>(counts_.back().particles);
+    const double volume = sim.dx * sim.dx * sim.dx / mat.ppc;
+    body.volume = static_cast<T>(volume);
+    body.mass = static_cast<T>(mat.rho * volume);
+    body.asflip = alg.asflip_active();
+    body.asflip_params = AsflipParams<T>{static_cast<T>(alg.asflip_alpha), static_cast<T>(alg.asflip_beta_min),
+                                         static_cast<T>(alg.asflip_beta_max)};
+    asflip_ = asflip_ || body.asflip;
+    body.fbar_psi = static_cast<T>(alg.fbar_blend());
+    fbar_ = fbar_ || body.fbar_psi != T(0);
+    max_speed = std::max(max_speed, std::sqrt(spec.velocity[0] * spec.velocity[0] +
+                                              spec.velocity[1] * spec.velocity[1] +
+                                              spec.velocity[2] * spec.velocity[2]));
+    if (b < options.initial_velocities.size() && !options.initial_velocities[b].empty()) {
+      const std::vector<Vec3d>& v = options.initial_velocities[b];
+      if (v.size() != static_cast<std::size_t>(body.particles))
+        throw std::invalid_argument("GpuEngine: " + std::to_string(v.size()) + " initial velocities for the " +
+                                    std::to_string(body.particles) + " particles of body " + std::to_string(b));
+      std::vector<T> flat(3 * v.size());
+      body.initial_v_host.resize(v.size());
+      for (std::size_t p = 0; p < v.size(); ++p) {
+        body.initial_v_host[p] = v[p].template cast<T>();
+        for (int a = 0; a < 3; ++a) flat[3 * p + a] = static_cast<T>(v[p][a]);
+        max_speed = std::max(max_speed, std::sqrt(dot(v[p], v[p])));
+      }
+      body.initial_v.allocate(std::max<std::size_t>(flat.size(), 1));
+      if (!flat.empty())
+        FBAR_CUDA_CHECK(cudaMemcpy(body.initial_v.get(), flat.data(), sizeof(T) * flat.size(), cudaMemcpyHostToDevice));
+    }
+  }
+  max_grid_speed_ = max_speed;
+
+  // The plan (memory_plan.h): capacities and every buffer's size, from the counts; refused before anything is
+  // allocated or sampled when it does not fit the device.
+  {
+    std::vector<const SampleCount*> all;
+    std::vector<BodyMemoryInput> inputs;
+    for (std::size_t b = 0; b < bodies_.size(); ++b) {
+      BodyBase& body = *bodies_[b];
+      all.push_back(&counts_[b]);
+      BodyMemoryInput in;
+      in.particles = counts_[b].particles;
+      in.bins_needed = bins_needed(counts_[b]);
+      in.stored_scalars = body.stored_scalars();
+      in.asflip = body.asflip;
+      in.fbar = body.fbar_psi != T(0);
+      if (options_.frames) {
+        body.frame_attrs = frame_attributes(body.spec, body.index, "GPU engine");
+        in.frame_columns = frame_float_columns(body.frame_attrs);
+      }
+      inputs.push_back(in);
+    }
+    plan_ = plan_device_memory(kPrecision, footprint_blocks(all), inputs);
+    if (plan_.block_capacity > DeviceLimits::kMaxBlocks)
+      throw std::invalid_argument("GpuEngine: " + std::to_string(plan_.block_capacity) + " grid blocks of capacity; at most " +
+                                  std::to_string(DeviceLimits::kMaxBlocks) + " per device (docs/user_guide.md \"Limits\")");
+    std::size_t free_bytes = 0, total_bytes = 0;
+    cuda::memory_info(free_bytes, total_bytes);
+    if (options_.memory_limit > 0) free_bytes = std::min(free_bytes, options_.memory_limit);
+    const std::string fit = memory_fit_message(plan_, free_bytes, total_bytes, scene_, "GPU 0");
+    if (!fit.empty()) throw cuda::OutOfMemory("the scene does not fit: " + fit + " (fbar --check prints the plan)");
+  }
+  initialize(positions);
+  counts_.clear();
+  counts_.shrink_to_fit();
+  peak_bytes_ = device_bytes();
+}
+
+template <typename T, typename TG>
+MgspBenchmark<T, TG>::~MgspBenchmark() {
+  // Buffers free themselves; streams and events last (no throw from a destructor).
+  if (stream_) cudaStreamSynchronize(stream_);
+  if (copy_stream_) cudaStreamSynchronize(copy_stream_);
+  for (cudaEvent_t& e : events_)
+    if (e) cudaEventDestroy(e);
+  if (stream_) cudaStreamDestroy(stream_);
+  if (copy_stream_) cudaStreamDestroy(copy_stream_);
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* positions) {
+  FBAR_CUDA_CHECK(cudaStreamCreateWithFlags(&stream_, cudaStreamNonBlocking));
+  FBAR_CUDA_CHECK(cudaStreamCreateWithFlags(&copy_stream_, cudaStreamNonBlocking));
+  for (cudaEvent_t& e : events_) FBAR_CUDA_CHECK(cudaEventCreate(&e));
+
+  // Capacities from the plan (options may start them smaller: tests exercise growth).
+  block_capacity_ = options_.block_capacity > 0 ? options_.block_capacity : static_cast<int>(plan_.block_capacity);
+  table_.allocate(block_capacity_, stream_);
+  grid_[0].allocate(block_capacity_);
+  grid_[1].allocate(block_capacity_);
+  velocity_.allocate(block_capacity_);
+  if (fbar_) fbar_sums_.allocate(block_capacity_);
+  if (asflip_) {
+    transported_[0].allocate(block_capacity_);
+    transported_[1].allocate(block_capacity_);
+    old_velocity_.allocate(block_capacity_);
+  }
+  FBAR_CUDA_CHECK(cudaMemsetAsync(grid_[0].instance().data(), 0, grid_[0].bytes(), stream_));
+  FBAR_CUDA_CHECK(cudaMemsetAsync(grid_[1].instance().data(), 0, grid_[1].bytes(), stream_));
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    BodyBase& body = *bodies_[b];
+    // The flat upload needs ceil(N/32) bins; the grouped layouts need the plan's.
+    const long long flat = (body.particles + 31) / 32;
+    const int bins = options_.bin_capacity > 0 ? static_cast<int>(std::max<long long>(flat, options_.bin_capacity))
+                                               : static_cast<int>(plan_.bin_capacity[b]);
+    body.partition.allocate(block_capacity_, bins);
+    body.allocate_bins(bins);
+    if (positions)
+      body.upload((*positions)[b].data(), (*positions)[b].size(), 0, stream_);
+    else
+      upload_sampled(body);
+  }
+  allocate_frames();
+  std::size_t temp = 0;
+  FBAR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, temp, static_cast<int*>(nullptr), static_cast<int*>(nullptr),
+                                                block_capacity_ + 1, stream_));
+  scan_temp_.allocate(temp);
+  scan_temp_bytes_ = temp;
+  const std::size_t stats_bytes = sizeof(StepStats) + sizeof(BodyStepStats) * bodies_.size();
+  stats_bytes_.allocate(stats_bytes);  // zeroed: the per-step readback also copies the structs' padding
+  stats_d_ = reinterpret_cast<StepStats*>(stats_bytes_.get());
+  body_stats_d_ = reinterpret_cast<BodyStepStats*>(stats_bytes_.get() + sizeof(StepStats));
+  stats_h_ = mgsp_detail::pinned(stats_bytes);
+  stats_ = static_cast<StepStats*>(stats_h_.get());
+  body_stats_ = reinterpret_cast<BodyStepStats*>(static_cast<std::byte*>(stats_h_.get()) + sizeof(StepStats));
+  wave_d_.allocate(2 * bodies_.size());
+  p2g_bound_d_.allocate(2 * bodies_.size());  // zeroed
+  bound_cur_ = 0;  // the initial P2G (float atomics) measures the bound of the first step into slot 1
+  missing_d_.allocate(1);
+  {
+    std::vector<unsigned long long> bits(2 * bodies_.size());
+    for (std::size_t b = 0; b < bodies_.size(); ++b) {
+      double c = bodies_[b]->rest_wave_speed;
+      std::memcpy(&bits[b], &c, sizeof(double));
+      bits[bodies_.size() + b] = 0;
+    }
+    FBAR_CUDA_CHECK(cudaMemcpy(wave_d_.get(), bits.data(), sizeof(unsigned long long) * bits.size(),
+                               cudaMemcpyHostToDevice));
+  }
+
+  // Layout 0 from the flat upload (storage bins[0], slot = ID).
+  cur_ = 1;  // dest_from_positions and the partition write layout(1 - cur_) = layout(0)
+  gc_ = 0;
+  flat_source_ = true;
+  reset_stats(false);
+  for (auto& b : bodies_) {
+    FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(0).count, 0, sizeof(int) * block_capacity_, stream_));
+    b->dest_from_positions(*this, 0, nullptr, b->particles);
+  }
+  partition_after_g2p2g();
+  read_stats();
+  while (handle_overflow()) {
+  }
+  for (auto& b : bodies_) {
+    b->total_bins[0] = body_stats_[b->index].total_bins;
+    if (body_stats_[b->index].particles != b->particles)
+      throw std::runtime_error("GpuEngine: initial partition placed " + std::to_string(body_stats_[b->index].particles) +
+                               " of " + std::to_string(b->particles) + " particles of body " + std::to_string(b->index));
+  }
+  block_count_ = stats_->block_count;
+  flat_source_ = false;
+  for (auto& b : bodies_)  // the initial G2P2G writes bins[1] in layout(0) order
+    if (b->bins_capacity(1) < b->partition.bin_capacity()) b->reallocate_bins(1, b->partition.bin_capacity());
+
+  // The P2G of the initial state with dt_0 (the CPU engine's first next_dt()).
+  double dt0 = k_.default_dt;
+  for (const auto& b : bodies_)
+    dt0 = min_time_step(dt0, cfl_time_step(b->spec.material.cfl, scene_.simulation.dx, b->rest_wave_speed, max_grid_speed_));
+  cur_ = 0;
+  gc_ = 1;  // the initial P2G goes into grid[1 - gc_] = grid[0]
+  reset_stats(false);
+  {
+    // dt_next of the initial P2G is dt0: written by compute_next_dt with a fixed dt.
+    DtParams dp{};
+    dp.body_count = 0;
+    dp.wave_speed = wave_d_.get();
+    dp.fixed_dt = dt0;
+    dp.t_next = time_;
+    dp.t_target = std::numeric_limits<double>::infinity();
+    dp.stats = stats_d_;
+    dp.scale = 1.0;
+    compute_next_dt<<<1, 1, 0, stream_>>>(dp);
+    mgsp_detail::check_launch("compute_next_dt");
+  }
+  grid_[0].clear(0, block_capacity_, stream_);
+  if (asflip_) transported_[0].clear(0, block_capacity_, stream_);
+  for (auto& b : bodies_)
+    FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(1).count, 0, sizeof(int) * block_capacity_, stream_));
+  for (auto& b : bodies_) b->g2p2g(*this, true, T(0));
+  for (auto& b : bodies_) {  // read by the initial P2G only (cudaFree waits for it)
+    mgsp_detail::DeviceArray<T> done;
+    b->initial_v.swap(done);
+  }
+  partition_after_g2p2g();
+  read_stats();
+  while (handle_overflow()) {
+  }
+  if (stats_->internal_error) throw std::runtime_error("GpuEngine: internal error in the initial P2G");
+  for (auto& b : bodies_) b->total_bins[1] = body_stats_[b->index].total_bins;
+  block_count_ = stats_->block_count;
+  cur_ = 1;
+  gc_ = 0;
+  wave_cur_ = 0;
+  bound_cur_ = 1;
+  dt_p2g_ = dt0;
+  next_dt_ = dt0;
+  aux_valid_ = record_;
+  ensure_step_capacity();  // the first step writes bins[0], sized for the flat upload only
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::upload_sampled(BodyBase& body) {
+  // Batches of whole x-planes of about kSampleBatchParticles, uploaded in ID order; a batch ends on a multiple of
+  // 32 particles (the rest waits for the next), so every upload fills whole bins of the flat layout.
+  const BodySampler sampler(body.spec, scene_.simulation, body.index);
+  const std::vector<long long>& per_plane = counts_[body.index].per_plane;
+  std::vector<Vec3d> pending;
+  long long next_id = 0, plane = 0;
+  const long long planes = sampler.planes();
+  while (plane < planes) {
+    long long end = plane, n = static_cast<long long>(pending.size());
+    while (end < planes && (end == plane || n + per_plane[static_cast<std::size_t>(end)] <= options_.sample_batch))
+      n += per_plane[static_cast<std::size_t>(end++)];
+    sampler.sample_planes(plane, end, pending);
+    plane = end;
+    const std::size_t send = plane == planes ? pending.size() : pending.size() / 32 * 32;
+    if (next_id + static_cast<long long>(send) > body.particles)
+      throw std::runtime_error("GpuEngine: sampling body " + std::to_string(body.index) + " gave more particles than counted");
+    body.upload(pending.data(), send, next_id, stream_);
+    next_id += static_cast<long long>(send);
+    pending.erase(pending.begin(), pending.begin() + static_cast<std::ptrdiff_t>(send));
+  }
+  if (next_id != body.particles)
+    throw std::runtime_error("GpuEngine: sampling body " + std::to_string(body.index) + " gave " + std::to_string(next_id) +
+                             " particles, " + std::to_string(body.particles) + " counted");
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::set_record_velocities(bool on) {
+  record_ = on;
+  if (on) ensure_aux();
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::allocate_frames() {
+  if (!options_.frames) return;
+  for (auto& bp : bodies_) {
+    BodyBase& b = *bp;  // frame_attrs: resolved for the plan
+    const FrameNeeds needs = frame_needs(b.frame_attrs);
+    FrameCapture<T> cap;
+    for (const FrameAttributeSpec& a : b.frame_attrs)
+      if (a.column.quantity != FrameQuantity::Id) cap.column[cap.column_count++] = a.column;
+    cap.particles = b.particles;
+    cap.sigma = needs.sigma;
+    const std::size_t n = static_cast<std::size_t>(b.particles);
+    b.frame_x.allocate(3 * n);
+    b.frame_columns.allocate(static_cast<std::size_t>(cap.column_count) * n);
+    cap.x = b.frame_x.get();
+    cap.columns = b.frame_columns.get();
+    b.capture = cap;
+    FBAR_CUDA_CHECK(cudaEventCreateWithFlags(&b.frame_copied, cudaEventDisableTiming));
+  }
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::ensure_aux() {
+  for (auto& b : bodies_) {
+    const std::size_t need = b->partition.slots() * kAuxScalars;
+    if (b->aux.size() < need) b->aux.allocate(need);
+  }
+}
+
+// =====================================================================================================================
+// Step pieces
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::reset_stats(bool partition_only) {
+  mgsp_detail::reset_step_stats<<<1, 64, 0, stream_>>>(stats_d_, body_stats_d_, body_count(), partition_only);
+  mgsp_detail::check_launch("reset_step_stats");
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::partition_after_g2p2g() {
+  const int next = 1 - cur_;
+  for (auto& bp : bodies_) {
+    BodyBase& b = *bp;
+    const LayoutView nl = b.partition.layout(next);
+    activate_footprint<TG><<<mgsp_detail::grid_for(block_capacity_, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
+        nl.count, block_capacity_, table_.view(), grid_[0].instance(), grid_[1].instance());
+    mgsp_detail::check_launch("activate_footprint");
+  }
+  for (auto& bp : bodies_) {
+    BodyBase& b = *bp;
+    const LayoutView nl = b.partition.layout(next);
+    blocks_to_bins<<<mgsp_detail::grid_for(block_capacity_ + 1, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
+        nl.count, b.partition.bins_per_block(), block_capacity_);
+    mgsp_detail::check_launch("blocks_to_bins");
+    std::size_t temp = scan_temp_bytes_;
+    FBAR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(scan_temp_.get(), temp, b.partition.bins_per_block(), nl.bin_offset,
+                                                  block_capacity_ + 1, stream_));
+    finalize_layout<<<1, 1, 0, stream_>>>(nl.bin_offset, block_capacity_, b.partition.bin_capacity(),
+                                          body_stats_d_ + b.index, stats_d_, table_.counters());
+    mgsp_detail::check_launch("finalize_layout");
+    // The previous layout's slots: those of layout(cur) (a G2P2G wrote bins[next] in that order), or the flat
+    // upload before the first layout exists.
+    const bool flat = flat_source_;
+    const int* valid = flat ? nullptr : b.partition.layout(cur_).src;
+    const int slots = flat ? b.particles : b.total_bins[cur_] * 32;
+    if (slots > 0) {
+      scatter_src<<<mgsp_detail::grid_for(slots, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
+          b.partition.dest(), valid, b.particles, slots, nl.bin_offset, nl.src, b.partition.bin_capacity(),
+          body_stats_d_ + b.index);
+      mgsp_detail::check_launch("scatter_src");
+    }
+    pad_src<<<mgsp_detail::grid_for(block_capacity_, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
+        nl.count, nl.bin_offset, block_capacity_, nl.src, b.partition.bin_capacity());
+    mgsp_detail::check_launch("pad_src");
+  }
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::read_stats() {
+  FBAR_CUDA_CHECK(cudaMemcpyAsync(stats_h_.get(), stats_bytes_.get(), stats_bytes_.bytes(), cudaMemcpyDeviceToHost,
+                                  stream_));
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+}
+
+template <typename T, typename TG>
+cuda::OutOfMemory MgspBenchmark<T, TG>::growth_failure(const std::string& what, const cuda::OutOfMemory& e) const {
+  return cuda::OutOfMemory("GpuEngine: at step " + std::to_string(steps_ + 1) + " (t = " + mgsp_detail::format_g(time_) +
+                           " s) " + what + ", " + format_bytes(static_cast<double>(device_bytes())) + " held): " +
+                           e.what() +
+                           ". fbar --check plans the memory at start; a scene that spreads needs room to grow: "
+                           "coarser default_dx, fewer ppc, or more GPUs");
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::grow_blocks(int needed) {
+  long long wanted = block_capacity_;
+  while (wanted < needed) wanted *= 2;
+  if (wanted > DeviceLimits::kMaxBlocks)
+    throw std::runtime_error("GpuEngine: the active grid needs " + std::to_string(wanted) + " blocks at step " +
+                             std::to_string(steps_ + 1) + "; at most " + std::to_string(DeviceLimits::kMaxBlocks) +
+                             " per device (docs/user_guide.md \"Limits\")");
+  const int capacity = static_cast<int>(wanted);
+  try {
+    grow_blocks_to(capacity);
+  } catch (const cuda::OutOfMemory& e) {
+    throw growth_failure("the active grid outgrew its capacity (" + std::to_string(block_capacity_) + " -> " +
+                             std::to_string(capacity) + " blocks",
+                         e);
+  }
+  peak_bytes_ = std::max(peak_bytes_, device_bytes());
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::grow_blocks_to(int capacity) {
+  if (log_)
+    *log_ << "fbar: GPU engine: grid blocks " << block_capacity_ << " -> " << capacity << " (hash table, grids)\n";
+  const int keep = std::min(block_capacity_, std::max(block_count_, stats_->block_count));
+  table_.grow(capacity, stream_);
+  grid_[0].grow(capacity, keep, stream_);
+  grid_[1].grow(capacity, keep, stream_);
+  velocity_.grow(capacity, keep, stream_);
+  if (fbar_) fbar_sums_.grow(capacity, 0, stream_);  // refilled before every use
+  if (asflip_) {
+    transported_[0].grow(capacity, keep, stream_);
+    transported_[1].grow(capacity, keep, stream_);
+    old_velocity_.grow(capacity, keep, stream_);
+  }
+  grid_[0].clear(keep, capacity, stream_);
+  grid_[1].clear(keep, capacity, stream_);
+  for (auto& b : bodies_) b->partition.grow_blocks(capacity, cur_, stream_);
+  block_capacity_ = capacity;
+  std::size_t temp = 0;
+  FBAR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, temp, static_cast<int*>(nullptr), static_cast<int*>(nullptr),
+                                                block_capacity_ + 1, stream_));
+  scan_temp_.allocate(temp);
+  scan_temp_bytes_ = temp;
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::grow_bins(BodyBase& b, int keep, int needed) {
+  long long wanted = std::max(64, b.partition.bin_capacity());
+  while (wanted < needed) wanted = wanted + wanted / 2;
+  const long long max_bins = DeviceLimits::kMaxSlots / 32;
+  if (needed > max_bins)
+    throw std::runtime_error("GpuEngine: body " + std::to_string(b.index) + " needs " + std::to_string(32LL * needed) +
+                             " particle slots at step " + std::to_string(steps_ + 1) + "; at most " +
+                             std::to_string(DeviceLimits::kMaxSlots) + " per body and device (docs/user_guide.md \"Limits\")");
+  const int capacity = static_cast<int>(std::min(wanted, max_bins));
+  try {
+    grow_bins_to(b, keep, capacity);
+  } catch (const cuda::OutOfMemory& e) {
+    throw growth_failure("the particle bins of body " + std::to_string(b.index) + " outgrew their capacity (" +
+                             std::to_string(b.partition.bin_capacity()) + " -> " + std::to_string(capacity) + " bins",
+                         e);
+  }
+  peak_bytes_ = std::max(peak_bytes_, device_bytes());
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::grow_bins_to(BodyBase& b, int keep, int capacity) {
+  if (log_)
+    *log_ << "fbar: GPU engine: body " << b.index << " particle bins " << b.partition.bin_capacity() << " -> "
+          << capacity << "\n";
+  b.partition.grow_bins(capacity, keep, stream_);
+  if (record_ || b.aux.size() != 0) {
+    // Keep what the last G2P2G recorded (a frame may still read it).
+    mgsp_detail::DeviceArray<T> bigger;
+    bigger.allocate(b.partition.slots() * kAuxScalars);
+    if (b.aux.size())
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(bigger.get(), b.aux.get(), b.aux.bytes(), cudaMemcpyDeviceToDevice, stream_));
+    FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+    b.aux.swap(bigger);
+  }
+}
+
+/// After read_stats: grows the table/grids or the bins if the partition overflowed, then redoes the partition from
+/// the particles' new positions. Returns true when it did (read_stats() was called again).
+template <typename T, typename TG>
+bool MgspBenchmark<T, TG>::handle_overflow() {
+  bool grew = false;
+  if (stats_->table_overflow > 0 || stats_->block_count > block_capacity_) {
+    grow_blocks(2 * block_capacity_);
+    grew = true;
+  }
+  for (auto& b : bodies_)
+    if (body_stats_[b->index].total_bins > b->partition.bin_capacity()) {
+      grow_bins(*b, cur_, body_stats_[b->index].total_bins * 3 / 2);
+      grew = true;
+    }
+  if (!grew) return false;
+  // Redo: dest and counts of the next layout from the positions G2P2G wrote (bins[1 - cur] in layout(cur) order).
+  reset_stats(true);
+  const int next = 1 - cur_;
+  for (auto& b : bodies_) {
+    FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(next).count, 0, sizeof(int) * block_capacity_, stream_));
+    if (flat_source_)
+      b->dest_from_positions(*this, 0, nullptr, b->particles);
+    else
+      b->dest_from_positions(*this, next, b->partition.layout(cur_).src, b->total_bins[cur_] * 32);
+  }
+  partition_after_g2p2g();
+  read_stats();
+  return true;
+}
+
+template <typename T, typename TG>
+std::vector<FailureReport> MgspBenchmark<T, TG>::failures_of_try(double dt) const {
+  std::vector<FailureReport> out;
+  static constexpr FailureKind kKinds[kFailKinds] = {FailureKind::NonFinite, FailureKind::CflViolation,
+                                                     FailureKind::LeftDomain};
+  for (const auto& b : bodies_) {
+    const BodyStepStats& s = body_stats_[b->index];
+    for (int k = 0; k < kFailKinds; ++k) {
+      if (s.failures[k] == 0) continue;
+      FailureReport f;
+      f.kind = kKinds[k];
+      f.body = b->index;
+      f.step = steps_ + 1;
+      f.time = time_;
+      f.dt = static_cast<double>(static_cast<T>(dt));  // the step size the kernels used (as the CPU engine reports)
+      f.count = s.failures[k];
+      f.first_particle = s.first_id[k];
+      out.push_back(f);
+    }
+  }
+  return out;
+}
+
+template <typename T, typename TG>
+StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target) {
+  if (!(dt > 0.0) || !std::isfinite(dt)) throw std::invalid_argument("GpuEngine::step: dt must be positive");
+  StepReport report;
+  int range_repeats = 0;
+  for (;;) {
+    reset_stats(false);
+    // 0. the grid must hold the impulse of this dt
+    if (dt != dt_p2g_) {
+      for (auto& b : bodies_) b->rescale_impulse(*this, static_cast<T>(dt - dt_p2g_));
+      dt_p2g_ = dt;
+    }
+    event_record(0);
+    // 1. grid update
+    {
+      GridUpdateParams<TG> gp{};
+      gp.grid = grid_[gc_].instance();
+      gp.velocity = velocity_.instance();
+      if (asflip_) {
+        gp.transported = transported_[gc_].instance();
+        gp.old_velocity = old_velocity_.instance();
+      }
+      gp.coords = table_.view().coords;
+      gp.block_count = block_count_;
+      gp.dt = static_cast<TG>(dt);
+      gp.dx = kg_.dx;
+      gp.gravity = kg_.gravity;
+      gp.boundaries.count = 0;
+      for (const BoundaryParams<TG>& b : kg_.boundaries)
+        if (boundary_active(b, time_)) gp.boundaries.b[gp.boundaries.count++] = b;
+      gp.stats = stats_d_;
+      if (block_count_ > 0) {
+        update_grid_velocity_query_max<TG><<<mgsp_detail::grid_for(block_count_, kGridUpdateThreads / 64),
+                                            kGridUpdateThreads, 0, stream_>>>(gp);
+        mgsp_detail::check_launch("update_grid_velocity_query_max");
+      }
+    }
+    // 2. dt of the next step (its P2G impulse)
+    {
+      DtParams dp{};
+      dp.body_count = body_count();
+      for (const auto& b : bodies_) dp.bodies[b->index] = DtBody{b->spec.material.cfl, b->rest_wave_speed};
+      dp.wave_speed = wave_d_.get() + wave_cur_ * bodies_.size();
+      dp.default_dt = k_.default_dt;
+      dp.dx = scene_.simulation.dx;
+      dp.scale = dt_scale_;
+      dp.fixed_dt = cfl_dt ? 0.0 : dt;
+      dp.t_next = time_ + dt;
+      dp.t_target = target;
+      dp.stats = stats_d_;
+      compute_next_dt<<<1, 1, 0, stream_>>>(dp);
+      mgsp_detail::check_launch("compute_next_dt");
+    }
+    event_record(1);
+    // 3. G2P2G
+    grid_[1 - gc_].clear(0, block_count_, stream_);
+    // New blocks appear during G2P2G (its leader threads zero them in grid_); the transported sums are cleared whole.
+    if (asflip_) transported_[1 - gc_].clear(0, block_capacity_, stream_);
+    FBAR_CUDA_CHECK(cudaMemsetAsync(wave_d_.get() + (1 - wave_cur_) * bodies_.size(), 0,
+                                    sizeof(unsigned long long) * bodies_.size(), stream_));
+    FBAR_CUDA_CHECK(cudaMemsetAsync(p2g_bound_d_.get() + (1 - bound_cur_) * bodies_.size(), 0,
+                                    sizeof(unsigned long long) * bodies_.size(), stream_));
+    for (auto& b : bodies_)
+      FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(1 - cur_).count, 0, sizeof(int) * block_capacity_, stream_));
+    if (capture_next_)  // the device frames are overwritten: their last download must be done
+      for (auto& b : bodies_)
+        if (b->frame_copied) FBAR_CUDA_CHECK(cudaStreamWaitEvent(stream_, b->frame_copied, 0));
+    for (auto& b : bodies_) b->g2p2g(*this, false, static_cast<T>(dt));
+    event_record(2);
+    // 4. partition of the next step
+    partition_after_g2p2g();
+    event_record(3);
+    // 5. the step's one readback
+    read_stats();
+    if (stats_->internal_error)
+      throw std::runtime_error("GpuEngine: internal error (" + std::to_string(stats_->internal_error) +
+                               " arena lookups or particles outside their block) at step " +
+                               std::to_string(steps_ + 1));
+    std::vector<FailureReport> failures = failures_of_try(dt);
+    if (failures.empty() && stats_->p2g_range > 0) {
+      // Contributions grew past the fixed-point bound (kernels/g2p2g_kernel.cuh): repeat the try with the bound it
+      // measured, which covers every particle of the same state. Not a failure; twice in a row is an engine bug.
+      if (++range_repeats > 2)
+        throw std::runtime_error("GpuEngine: the fixed-point P2G bound did not converge at step " +
+                                 std::to_string(steps_ + 1));
+      bound_cur_ = 1 - bound_cur_;
+      ++p2g_range_repeats_;
+      block_count_ = std::max(block_count_, std::min(stats_->block_count, block_capacity_));
+      continue;
+    }
+    if (failures.empty()) {
+      while (handle_overflow()) {
+      }
+      for (const auto& b : bodies_)
+        if (body_stats_[b->index].particles != b->particles)
+          throw std::runtime_error("GpuEngine: the partition of body " + std::to_string(b->index) + " placed " +
+                                   std::to_string(body_stats_[b->index].particles) + " of " +
+                                   std::to_string(b->particles) + " particles at step " + std::to_string(steps_ + 1));
+      if (timing_) {
+        float ms = 0.f;
+        FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[0], events_[1]));
+        times_.grid_update_ms += ms;
+        FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[1], events_[2]));
+        times_.g2p2g_ms += ms;
+        FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[2], events_[3]));
+        times_.partition_ms += ms;
+        ++times_.steps;
+      }
+      commit(dt);
+      report.dt = dt;
+      report.steps = 1;
+      if (cfl_dt && dt_scale_ < 1.0 && ++clean_steps_ >= CpuEngine<T>::kRecoverSteps) {
+        dt_scale_ = std::min(1.0, 2.0 * dt_scale_);
+        clean_steps_ = 0;
+      }
+      return report;
+    }
+    if (scene_.simulation.on_failure == OnFailure::ReduceDt && report.retries < CpuEngine<T>::kMaxRetries) {
+      if (log_)
+        for (const FailureReport& f : failures)
+          *log_ << "fbar: " << f.describe() << "; retrying the step with dt = " << mgsp_detail::format_g(dt / 2)
+                << " s\n";
+      report.retried.insert(report.retried.end(), failures.begin(), failures.end());
+      ++report.retries;
+      dt *= 0.5;
+      if (cfl_dt) {
+        dt_scale_ *= 0.5;
+        clean_steps_ = 0;
+      }
+      // Blocks inserted by the failed try stay in the table (zeroed in both grids); count them from now on.
+      block_count_ = std::max(block_count_, std::min(stats_->block_count, block_capacity_));
+      continue;
+    }
+    report.ok = false;
+    report.dt = dt;
+    report.failures = std::move(failures);
+    return report;
+  }
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::commit(double dt) {
+  for (auto& b : bodies_) b->total_bins[1 - cur_] = body_stats_[b->index].total_bins;
+  cur_ = 1 - cur_;
+  gc_ = 1 - gc_;
+  wave_cur_ = 1 - wave_cur_;
+  bound_cur_ = 1 - bound_cur_;
+  time_ += dt;
+  ++steps_;
+  if (capture_next_) captured_step_ = steps_;
+  last_dt_ = dt;
+  dt_p2g_ = stats_->dt_next;
+  next_dt_ = stats_->dt_next;
+  dt_scale_at_compute_ = dt_scale_;
+  double max_speed_sq = 0.0;
+  std::memcpy(&max_speed_sq, &stats_->max_speed_sq, sizeof(double));
+  max_grid_speed_ = std::sqrt(max_speed_sq);
+  block_count_ = stats_->block_count;
+  aux_valid_ = record_;
+  // Headroom for the next step (grow between steps, never inside one): blocks at 3/4, bins at 9/10 of capacity.
+  if (block_count_ > block_capacity_ * 3 / 4) grow_blocks(2 * block_capacity_);
+  ensure_step_capacity();
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::ensure_step_capacity() {
+  for (auto& b : bodies_) {
+    const int need = b->total_bins[cur_];
+    if (need > b->partition.bin_capacity() * 9 / 10) grow_bins(*b, cur_, need * 3 / 2);
+    // The next G2P2G writes bins[1 - cur] (the previous state, free now) in layout(cur) order: it must hold every
+    // bin of that layout (the partition's bin capacity bounds it).
+    if (b->bins_capacity(1 - cur_) < b->partition.bin_capacity()) b->reallocate_bins(1 - cur_, b->partition.bin_capacity());
+  }
+  peak_bytes_ = std::max(peak_bytes_, device_bytes());
+}
+
+template <typename T, typename TG>
+StepReport MgspBenchmark<T, TG>::step_toward(double t_end) {
+  const double remaining = t_end - time_;
+  double dt = next_dt();
+  const bool last = dt >= remaining;
+  if (last) dt = remaining;
+  StepReport r = step_impl(dt, true, t_end);
+  if (r.ok && last && r.retries == 0) time_ = t_end;  // land on the target exactly, not t_end +- round-off
+  return r;
+}
+
+template <typename T, typename TG>
+StepReport MgspBenchmark<T, TG>::advance_to(double t_end) {
+  StepReport total;
+  while (time_ < t_end) {
+    StepReport r = step_toward(t_end);
+    total.steps += r.steps;
+    total.retries += r.retries;
+    total.retried.insert(total.retried.end(), r.retried.begin(), r.retried.end());
+    total.dt = r.dt;
+    if (!r.ok) {
+      total.ok = false;
+      total.failures = std::move(r.failures);
+      return total;
+    }
+  }
+  return total;
+}
+
+// =====================================================================================================================
+// Queries and output
+
+template <typename T, typename TG>
+std::vector<T> MgspBenchmark<T, TG>::gather_host(int body, cudaStream_t s) const {
+  BodyBase& b = body_at(body);
+  const int W = b.stored_scalars() + kAuxScalars;
+  const std::size_t n = static_cast<std::size_t>(b.particles) * W;
+  mgsp_detail::DeviceArray<T> out;
+  out.allocate(std::max<std::size_t>(n, 1));
+  FBAR_CUDA_CHECK(cudaMemsetAsync(missing_d_.get(), 0, sizeof(int), s));
+  auto* self = const_cast<MgspBenchmark*>(this);
+  b.gather(*self, out.get(), missing_d_.get(), s);
+  std::vector<T> host(n);
+  int missing = 0;
+  if (n) FBAR_CUDA_CHECK(cudaMemcpyAsync(host.data(), out.get(), sizeof(T) * n, cudaMemcpyDeviceToHost, s));
+  FBAR_CUDA_CHECK(cudaMemcpyAsync(&missing, missing_d_.get(), sizeof(int), cudaMemcpyDeviceToHost, s));
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(s));
+  if (missing) throw std::runtime_error("GpuEngine: " + std::to_string(missing) + " particles with an invalid ID");
+  return host;
+}
+
+template <typename T, typename TG>
+ParticleSnapshot<T> MgspBenchmark<T, TG>::snapshot(int body) const {
+  BodyBase& b = body_at(body);
+  const std::vector<T> r = gather_host(body, stream_);
+  const int S = b.stored_scalars();
+  const int W = S + kAuxScalars;
+  ParticleSnapshot<T> snap;
+  const std::size_t n = static_cast<std::size_t>(b.particles);
+  snap.x.resize(n);
+  snap.v.resize(n);
+  snap.C.resize(n);
+  snap.J.resize(n);
+  snap.sigma.resize(n);
+  if (b.stores_F()) snap.F.resize(n);
+  if (b.stores_logJp()) snap.logJp.resize(n);
+  const bool initial = steps_ == 0 && !aux_valid_;  // before the first step: v = initial velocity, C = 0 exactly
+  const Vec3<T> v0{{static_cast<T>(b.spec.velocity[0]), static_cast<T>(b.spec.velocity[1]),
+                    static_cast<T>(b.spec.velocity[2])}};
+  for (std::size_t p = 0; p < n; ++p) {
+    const T* q = r.data() + p * W;
+    snap.x[p] = Vec3<T>{{q[0], q[1], q[2]}};
+    snap.v[p] = !initial ? Vec3<T>{{q[S], q[S + 1], q[S + 2]}} : b.initial_v_host.empty() ? v0 : b.initial_v_host[p];
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) snap.C[p](i, j) = q[S + 3 + 3 * i + j];
+    Mat3<T> F = Mat3<T>::identity(), sigma;
+    T logJp = T(0);
+    b.state_of(q, snap.J[p], F, sigma, logJp, snap.C[p]);
+    snap.sigma[p] = sigma;
+    if (b.stores_F()) snap.F[p] = F;
+    if (b.stores_logJp()) snap.logJp[p] = logJp;
+  }
+  return snap;
+}
+
+template <typename T, typename TG>
+io::ParticleFrame MgspBenchmark<T, TG>::frame(int body) const {
+  const BodyBase& b = body_at(body);
+  const ParticleSnapshot<T> s = snapshot(body);
+  FrameSource<T> src;
+  src.x = &s.x;
+  src.v = &s.v;
+  src.mass = [&](std::size_t) { return b.mass; };
+  src.volume0 = [&](std::size_t) { return b.volume; };
+  src.J = [&] { return s.J; };
+  src.F = [&] {
+    if (!b.stores_F()) throw std::invalid_argument("DefGrad: the body's material stores no deformation gradient");
+    return s.F;
+  };
+  src.logJp = [&] {
+    if (!b.stores_logJp()) throw std::invalid_argument("logJp: the body's material stores no plastic state");
+    return s.logJp;
+  };
+  src.sigma = [&] { return s.sigma; };  // from the state and the recorded C (snapshot)
+  return build_frame(b.spec, body, src, "GPU engine");
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer) {
+  // The frame is on the device already (the capture step, or capture_state before the first step). Its download
+  // runs on the copy stream into the body's pinned buffer, which the writer thread turns into the file; the step
+  // loop waits only when that buffer is still being read from the previous frame (output slower than simulation).
+  BodyBase& b = body_at(body);
+  if (!b.capture.x)
+    throw std::logic_error("GpuEngine::submit_frame: frames were not planned (GpuEngineOptions::frames)");
+  if (captured_step_ != steps_) {
+    if (steps_ != 0 || !b.initial_v_host.empty())
+      throw std::logic_error("GpuEngine::submit_frame: step " + std::to_string(steps_) +
+                             " did not capture a frame (set_frame_capture(true) before the step that lands on it)");
+    b.capture_state(*this);
+  }
+  {
+    const auto t0 = std::chrono::steady_clock::now();
+    std::unique_lock<std::mutex> lock(b.frame_slot->mutex);
+    while (b.frame_slot->busy) {
+      b.frame_slot->released.wait_for(lock, std::chrono::milliseconds(50));
+      if (b.frame_slot->busy && writer.failed()) {
+        lock.unlock();
+        writer.flush();  // rethrows the writer's error
+        lock.lock();
+      }
+    }
+    b.frame_slot->busy = true;
+    output_wait_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
+  const std::size_t n = static_cast<std::size_t>(b.particles);
+  const int columns = b.capture.column_count;
+  if (!b.frame_host) b.frame_host = mgsp_detail::pinned(std::max<std::size_t>(b.frame_host_bytes(), 1));
+  cudaEvent_t ready;
+  FBAR_CUDA_CHECK(cudaEventCreateWithFlags(&ready, cudaEventDisableTiming));
+  FBAR_CUDA_CHECK(cudaEventRecord(ready, stream_));
+  FBAR_CUDA_CHECK(cudaStreamWaitEvent(copy_stream_, ready, 0));
+  FBAR_CUDA_CHECK(cudaEventDestroy(ready));
+  auto* host = static_cast<std::byte*>(b.frame_host.get());
+  if (n) {
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(host, b.frame_x.get(), 3 * n * sizeof(T), cudaMemcpyDeviceToHost, copy_stream_));
+    if (columns)
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(host + 3 * n * sizeof(T), b.frame_columns.get(), columns * n * sizeof(float),
+                                      cudaMemcpyDeviceToHost, copy_stream_));
+  }
+  FBAR_CUDA_CHECK(cudaEventRecord(b.frame_copied, copy_stream_));
+  const cudaEvent_t copied = b.frame_copied;
+  const std::vector<FrameAttributeSpec> attrs = b.frame_attrs;
+  const std::shared_ptr<typename BodyBase::HostSlot> slot = b.frame_slot;
+  writer.submit_job([=] {
+    // The host buffer goes back to the step loop once the frame is built, also when building throws.
+    struct Release {
+      std::shared_ptr<typename BodyBase::HostSlot> slot;
+      ~Release() {
+        {
+          std::lock_guard<std::mutex> lock(slot->mutex);
+          slot->busy = false;
+        }
+        slot->released.notify_all();
+      }
+    };
+    io::ParticleFrame f;
+    {
+      Release release{slot};
+      FBAR_CUDA_CHECK(cudaEventSynchronize(copied));
+      const T* x = reinterpret_cast<const T*>(host);
+      std::vector<Vec3<T>> positions(n);
+      for (std::size_t p = 0; p < n; ++p) positions[p] = Vec3<T>{{x[3 * p], x[3 * p + 1], x[3 * p + 2]}};
+      f.positions = std::move(positions);
+      const float* col = reinterpret_cast<const float*>(host + 3 * n * sizeof(T));
+      for (const FrameAttributeSpec& a : attrs) {
+        if (a.column.quantity == FrameQuantity::Id) {
+          std::vector<std::int32_t> ids(n);
+          std::iota(ids.begin(), ids.end(), 0);  // frames are in ID order
+          f.add(a.name, 1, std::move(ids));
+        } else {
+          f.add(a.name, 1, std::vector<float>(col, col + n), a.unit);
+          col += n;
+        }
+      }
+    }
+    io::write_frame(path, f);
+  });
+}
+
+template <typename T, typename TG>
+double MgspBenchmark<T, TG>::total_mass() const {
+  double m = 0.0;
+  for (const auto& b : bodies_) m += static_cast<double>(b->particles) * static_cast<double>(b->mass);
+  return m;
+}
+
+template <typename T, typename TG>
+double MgspBenchmark<T, TG>::elastic_energy() const {
+  double e = 0.0;
+  for (int body = 0; body < body_count(); ++body) {
+    const BodyBase& b = body_at(body);
+    const std::vector<T> r = gather_host(body, stream_);
+    const int W = b.stored_scalars() + kAuxScalars;
+    for (std::size_t p = 0; p < static_cast<std::size_t>(b.particles); ++p)
+      e += static_cast<double>(b.volume) * b.energy_density_of(r.data() + p * W);
+  }
+  return e;
+}
+
+template <typename T, typename TG>
+double MgspBenchmark<T, TG>::grid_mass() const {
+  using L = GridLayout<TG>;
+  const std::size_t bytes = GridBuffer<TG>::kBlockBytes * static_cast<std::size_t>(block_count_);
+  std::vector<std::byte> host(bytes);
+  if (bytes) FBAR_CUDA_CHECK(cudaMemcpy(host.data(), grid_[gc_].instance().data(), bytes, cudaMemcpyDeviceToHost));
+  typename L::Buffer view(host.data(), static_cast<std::size_t>(block_count_));
+  double m = 0.0;
+  for (int b = 0; b < block_count_; ++b) {
+    const auto g = view.ch(placeholder::_0, b);
+    for (int n = 0; n < 64; ++n) m += static_cast<double>(g.val_1d(fbar::grid_mass, n));
+  }
+  return m;
+}
+
+template <typename T, typename TG>
+std::size_t MgspBenchmark<T, TG>::device_bytes() const {
+  std::size_t bytes = table_.bytes() + grid_[0].bytes() + grid_[1].bytes() + velocity_.bytes() + fbar_sums_.bytes() +
+                      transported_[0].bytes() + transported_[1].bytes() + old_velocity_.bytes() +
+                      stats_bytes_.bytes() + wave_d_.bytes() + p2g_bound_d_.bytes() + scan_temp_.bytes();
+  for (const auto& b : bodies_)
+    bytes += b->bins_bytes() + b->partition.bytes() + b->aux.bytes() + b->frame_x.bytes() + b->frame_columns.bytes();
+  return bytes;
+}
+
+}  // namespace fbar

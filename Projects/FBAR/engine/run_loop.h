@@ -1,0 +1,135 @@
+// The run loop of every engine (CPU reference, GPU; later every rank of a multi-GPU run): frames every 1/fps,
+// progress lines, the stop request (stop_request.h) and the failure report, written once.
+//
+// What it asks of an engine (CpuEngine<T, TG> and GpuEngine<T, TG> provide it):
+//   double time(), next_dt(), last_dt();  long long steps();  int body_count();  std::size_t particle_count();
+//   StepReport step_toward(double t_end)        one step of at most next_dt() that lands on t_end exactly when it
+//                                               reaches it
+//   void set_frame_capture(bool)                the next step lands on a frame time (the GPU then writes the frame's
+//                                               attributes on the device during that step; the CPU needs nothing)
+//   void submit_frame(int body, const std::filesystem::path&, io::AsyncWriter&)
+//                                               queues the body's frame of the current state
+//   double output_wait_seconds()                time the loop spent waiting for the writer thread
+//   std::string resource_note()                 appended to progress lines ("" or e.g. device memory and peak)
+#pragma once
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <ostream>
+#include <stdexcept>
+#include <string>
+
+#include "MnSystem/IO/async_writer.h"
+#include "MnSystem/IO/particle_io.h"
+#include "engine/engine_api.h"
+#include "engine/stop_request.h"
+#include "scene/scene.h"
+#include "scene/scene_parse.h"
+
+namespace fbar {
+
+namespace run_detail {
+
+/// hh:mm:ss, or --:--:-- when unknown.
+inline std::string format_duration(double seconds) {
+  if (!std::isfinite(seconds) || seconds < 0) return "--:--:--";
+  const long long s = static_cast<long long>(seconds + 0.5);
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%02lld:%02lld:%02lld", s / 3600, (s / 60) % 60, s % 60);
+  return buf;
+}
+
+}  // namespace run_detail
+
+/// Runs `engine` (constructed from `scene`) for simulation.frames frames, writing frame 0 (the initial state) and
+/// every frame to simulation.save_path (model[m]_dev[d]_frame[f].suffix), with a progress line per frame and, when
+/// simulation.info_rate > 0, every info_rate steps. `engine_line` is logged first (which engine, particles, set-up).
+/// Stops at the first failure the engine does not repair (exit code 2, the engine's report: body, step, time) and
+/// at a stop request (exit code 128 + signal, at the next step boundary). Throws what the engine or the writer
+/// throws (run_guarded turns it into an exit code).
+template <class Engine>
+RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& options, std::ostream& log,
+                     const std::string& engine_line) {
+  RunResult result;
+  const SimulationSpec& sim = scene.simulation;
+  check_supported(scene);  // what neither engine implements is refused, also for scenes built in code
+  std::filesystem::create_directories(sim.save_path);
+  const std::string suffix = sim.save_suffix;
+  io::frame_format(suffix);  // throws for a suffix without a writer before anything runs
+  // One frame may wait while one is written: the engines' frame buffers bound the rest, so memory stays flat however
+  // slow the disk (the GPU engine downloads into one pinned buffer per body; the CPU engine builds its frame here).
+  io::AsyncWriter writer(1);
+  auto write_frame = [&](int frame) {
+    for (int b = 0; b < engine.body_count(); ++b) {
+      const BodySpec& spec = scene.bodies[b];
+      engine.submit_frame(b, io::frame_file_path(sim.save_path, spec.model, spec.gpu, frame, suffix), writer);
+    }
+    result.frames_written = frame;
+  };
+  auto finish = [&] {
+    result.steps = engine.steps();
+    result.end_time = engine.time();
+    writer.close();  // the frames already queued are written (and a writer error is thrown) before we return
+    return result;
+  };
+
+  const double t0 = engine.time();
+  const double t_end = t0 + sim.frames / sim.fps;
+  if (!options.quiet) log << engine_line << '\n';
+  write_frame(0);
+
+  const auto wall_start = std::chrono::steady_clock::now();
+  auto line = [&](const std::string& head) {
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+    const double done = engine.time() - t0;
+    const double eta = done > 0 ? elapsed * (t_end - engine.time()) / done : -1.0;
+    const double ms_per_step = engine.steps() > 0 ? 1e3 * elapsed / static_cast<double>(engine.steps()) : 0.0;
+    const std::string note = engine.resource_note();
+    char text[512];
+    std::snprintf(text, sizeof(text), "%s  t = %.6g s  dt = %.3g s  steps = %lld  particles = %zu  %.3g ms/step  ETA %s"
+                  "  (output wait %.3g s%s%s)\n", head.c_str(), engine.time(), engine.last_dt(), engine.steps(),
+                  engine.particle_count(), ms_per_step, run_detail::format_duration(eta).c_str(),
+                  engine.output_wait_seconds(), note.empty() ? "" : "; ", note.c_str());
+    log << text << std::flush;
+  };
+
+  long long steps_logged = engine.steps();
+  for (int frame = 1; frame <= sim.frames; ++frame) {
+    const double target = t0 + frame / sim.fps;
+    while (engine.time() < target) {
+      if (const int signal = stop_signal()) {
+        result.stop_signal = signal;
+        result.exit_code = 128 + signal;
+        char text[256];
+        std::snprintf(text, sizeof(text), "stopped by %s at step %lld, t = %.6g s; the last frame written is %d",
+                      signal_name(signal), engine.steps(), engine.time(), result.frames_written);
+        result.message = text;
+        return finish();
+      }
+      // The step that lands on the frame time writes the frame (on the device, for the GPU engine).
+      engine.set_frame_capture(engine.time() + engine.next_dt() >= target);
+      const StepReport r = engine.step_toward(target);
+      if (!r.ok) {
+        engine.set_frame_capture(false);
+        result.exit_code = 2;
+        result.message = r.message();  // the caller reports it (cli.cpp prints it to stderr)
+        return finish();
+      }
+      if (sim.info_rate > 0 && !options.quiet && engine.steps() - steps_logged >= sim.info_rate &&
+          engine.time() < target) {
+        steps_logged = engine.steps();
+        line("step " + std::to_string(engine.steps()));
+      }
+    }
+    engine.set_frame_capture(false);
+    write_frame(frame);
+    if (!options.quiet) line("frame " + std::to_string(frame) + "/" + std::to_string(sim.frames));
+    steps_logged = engine.steps();
+  }
+  return finish();
+}
+
+}  // namespace fbar

@@ -1,0 +1,516 @@
+// Body sampling: CSG point predicate over Box/Sphere/Cylinder entries and lattice / seeded-jitter point generation.
+#include "geometry/geometry.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <map>
+#include <memory>
+#include <tuple>
+#include <stdexcept>
+#include <string>
+
+#include "scene/scene_error.h"
+
+namespace fbar {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+/// Refuse candidate lattices above this many points: a typo in dx or span would otherwise exhaust memory.
+constexpr double kMaxCandidates = 68719476736.0;  // 2^36
+
+std::string fmt(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.6g", v);
+  return buf;
+}
+std::string fmt3(const Vec3d& v) { return "[" + fmt(v[0]) + ", " + fmt(v[1]) + ", " + fmt(v[2]) + "]"; }
+std::string fmt3(const Real3& v) { return "[" + fmt(v[0]) + ", " + fmt(v[1]) + ", " + fmt(v[2]) + "]"; }
+Vec3d to_vec(const Real3& a) { return Vec3d{{a[0], a[1], a[2]}}; }
+
+/// cos and sin of an angle in degrees; exact for multiples of 90 deg so grid-aligned shapes stay grid-aligned.
+void cos_sin_deg(double deg, double& c, double& s) {
+  const double quarter = deg / 90.0;
+  if (std::isfinite(quarter) && quarter == std::round(quarter) && std::fabs(quarter) < 1e15) {
+    const long long k = ((static_cast<long long>(std::round(quarter)) % 4) + 4) % 4;
+    static constexpr double kCos[4] = {1.0, 0.0, -1.0, 0.0};
+    static constexpr double kSin[4] = {0.0, 1.0, 0.0, -1.0};
+    c = kCos[k];
+    s = kSin[k];
+    return;
+  }
+  const double rad = deg * kPi / 180.0;
+  c = std::cos(rad);
+  s = std::sin(rad);
+}
+
+/// R = Rz(ez) * Ry(ey) * Rx(ex): rotation about X first, then Y, then Z (fixed world axes), angles in degrees.
+Mat3<double> euler_xyz(const Real3& deg) {
+  double cx, sx, cy, sy, cz, sz;
+  cos_sin_deg(deg[0], cx, sx);
+  cos_sin_deg(deg[1], cy, sy);
+  cos_sin_deg(deg[2], cz, sz);
+  const Mat3<double> rx{{{1, 0, 0}, {0, cx, -sx}, {0, sx, cx}}};
+  const Mat3<double> ry{{{cy, 0, sy}, {0, 1, 0}, {-sy, 0, cy}}};
+  const Mat3<double> rz{{{cz, -sz, 0}, {sz, cz, 0}, {0, 0, 1}}};
+  return rz * (ry * rx);
+}
+
+bool all_finite(const Real3& a) { return std::isfinite(a[0]) && std::isfinite(a[1]) && std::isfinite(a[2]); }
+
+void check_span(const Real3& span, const std::string& path, const char* object) {
+  for (int d = 0; d < 3; ++d)
+    if (!(span[d] > 0.0) || !std::isfinite(span[d]))
+      throw SceneError(path + ".span", fmt3(span), std::string("three positive numbers for a ") + object, "m");
+}
+
+// Counter-based random numbers (SplitMix64 finaliser, Steele, Lea & Flood 2014): the value for a counter depends
+// only on (seed, body, cell, counter), never on which thread asks or in which order.
+constexpr std::uint64_t kGolden = 0x9e3779b97f4a7c15ull;
+constexpr std::uint64_t mix64(std::uint64_t z) {
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+  return z ^ (z >> 31);
+}
+std::uint64_t cell_key(std::uint64_t seed, int body, long long cx, long long cy, long long cz) {
+  std::uint64_t h = mix64(seed + kGolden);
+  h = mix64(h ^ (static_cast<std::uint64_t>(static_cast<std::int64_t>(body)) + kGolden));
+  h = mix64(h ^ (static_cast<std::uint64_t>(cx) + 2 * kGolden));
+  h = mix64(h ^ (static_cast<std::uint64_t>(cy) + 3 * kGolden));
+  h = mix64(h ^ (static_cast<std::uint64_t>(cz) + 4 * kGolden));
+  return h;
+}
+/// Uniform in [0, 1) with 53 random bits: element `counter` of the SplitMix64 stream started at `key`.
+double uniform(std::uint64_t key, std::uint64_t counter) {
+  return static_cast<double>(mix64(key + (counter + 1) * kGolden) >> 11) * 0x1.0p-53;
+}
+
+bool in_closed_box(const Vec3d& p, const Vec3d& lo, const Vec3d& hi) {
+  return p[0] >= lo[0] && p[0] <= hi[0] && p[1] >= lo[1] && p[1] <= hi[1] && p[2] >= lo[2] && p[2] <= hi[2];
+}
+
+[[noreturn]] void throw_no_particles(const std::string& path) {
+  throw SceneError(path, "0 particles",
+                   "at least one particle: the geometry after its operations and the partition_start/partition_end "
+                   "clip must contain a sampling point");
+}
+
+}  // namespace
+
+SamplingPattern sampling_pattern(double ppc) {
+  if (!(ppc > 0.0) || !std::isfinite(ppc)) throw std::invalid_argument("ppc must be a positive finite number");
+  SamplingPattern p;
+  p.ppc = ppc;
+  const long long n = std::llround(std::cbrt(ppc));
+  if (n >= 1 && static_cast<double>(n * n * n) == ppc) {
+    p.lattice = true;
+    p.per_axis = static_cast<int>(n);
+  } else {
+    p.lattice = false;
+    p.per_axis = 0;
+  }
+  return p;
+}
+
+BodyShape::BodyShape(const std::vector<GeometrySpec>& geometry, int body_index) {
+  const double inf = std::numeric_limits<double>::infinity();
+  bounds_ = Aabb{Vec3d{{inf, inf, inf}}, Vec3d{{-inf, -inf, -inf}}};
+  entries_.reserve(geometry.size());
+  for (std::size_t j = 0; j < geometry.size(); ++j) {
+    const GeometrySpec& g = geometry[j];
+    const std::string path = "bodies[" + std::to_string(body_index) + "].geometry[" + std::to_string(j) + "]";
+    Entry e;
+    e.object = g.object;
+    e.operation = g.operation;
+    if (g.object == GeometryObject::File)
+      throw SceneError(path + ".object", "\"File\"",
+                       "\"Box\", \"Sphere\" or \"Cylinder\" (File geometry is not supported by the sampler yet)");
+    if (!all_finite(g.offset)) throw SceneError(path + ".offset", fmt3(g.offset), "three finite numbers", "m");
+    if (!all_finite(g.rotate)) throw SceneError(path + ".rotate", fmt3(g.rotate), "three finite numbers", "deg");
+    if (!all_finite(g.fulcrum)) throw SceneError(path + ".fulcrum", fmt3(g.fulcrum), "three finite numbers", "m");
+    if (!all_finite(g.spacing)) throw SceneError(path + ".spacing", fmt3(g.spacing), "three finite numbers", "m");
+    for (int d = 0; d < 3; ++d)
+      if (g.array[d] < 1)
+        throw SceneError(path + ".array",
+                         "[" + std::to_string(g.array[0]) + ", " + std::to_string(g.array[1]) + ", " +
+                             std::to_string(g.array[2]) + "]",
+                         "three integers >= 1");
+
+    const Vec3d offset = to_vec(g.offset);
+    switch (g.object) {
+      case GeometryObject::Box:
+        check_span(g.span, path, "Box");
+        e.lo = offset;
+        e.hi = offset + to_vec(g.span);
+        break;
+      case GeometryObject::Sphere: {
+        if (!(g.radius > 0.0) || !std::isfinite(g.radius))
+          throw SceneError(path + ".radius", fmt(g.radius), "a positive number for a Sphere", "m");
+        // offset = min corner of the bounding box (geometry.h); span is not used.
+        for (int d = 0; d < 3; ++d) {
+          e.lo[d] = offset[d];
+          e.hi[d] = offset[d] + 2.0 * g.radius;
+          e.centre[d] = offset[d] + g.radius;
+        }
+        e.radius_sq = g.radius * g.radius;
+        break;
+      }
+      case GeometryObject::Cylinder: {
+        if (g.axis < 0 || g.axis > 2) throw SceneError(path + ".axis", std::to_string(g.axis), "\"X\", \"Y\" or \"Z\"");
+        if (!(g.radius > 0.0) || !std::isfinite(g.radius))
+          throw SceneError(path + ".radius", fmt(g.radius), "a positive number for a Cylinder", "m");
+        const double length = g.span[g.axis];
+        if (!(length > 0.0) || !std::isfinite(length))
+          throw SceneError(path + ".span", fmt3(g.span),
+                           "a positive cylinder length span[" + std::to_string(g.axis) + "] along its axis", "m");
+        e.axis = g.axis;
+        e.radius_sq = g.radius * g.radius;
+        for (int d = 0; d < 3; ++d) {  // offset = min corner of the bounding box (geometry.h)
+          e.lo[d] = offset[d];
+          e.hi[d] = offset[d] + (d == g.axis ? length : 2.0 * g.radius);
+          e.centre[d] = offset[d] + (d == g.axis ? 0.5 * length : g.radius);
+        }
+        break;
+      }
+      case GeometryObject::File: break;  // refused above
+    }
+    for (int d = 0; d < 3; ++d) {
+      e.copies[d] = g.array[d];
+      e.spacing[d] = g.spacing[d];
+    }
+    e.fulcrum = to_vec(g.fulcrum);
+    e.rotated = g.rotate[0] != 0.0 || g.rotate[1] != 0.0 || g.rotate[2] != 0.0;
+    const Mat3<double> rot = euler_xyz(g.rotate);
+    e.world_to_local = transpose(rot);
+
+    if (g.operation == GeometryOperation::Add || g.operation == GeometryOperation::Union) {
+      // Box of all copies in the local frame, then its 8 corners rotated into the world.
+      Vec3d lo = e.lo, hi = e.hi;
+      for (int d = 0; d < 3; ++d) {
+        const double shift = (e.copies[d] - 1) * e.spacing[d];
+        lo[d] += std::min(0.0, shift);
+        hi[d] += std::max(0.0, shift);
+      }
+      for (int c = 0; c < 8; ++c) {
+        const Vec3d corner{{(c & 1) ? hi[0] : lo[0], (c & 2) ? hi[1] : lo[1], (c & 4) ? hi[2] : lo[2]}};
+        const Vec3d w = e.rotated ? rot * (corner - e.fulcrum) + e.fulcrum : corner;
+        for (int d = 0; d < 3; ++d) {
+          bounds_.lo[d] = std::min(bounds_.lo[d], w[d]);
+          bounds_.hi[d] = std::max(bounds_.hi[d], w[d]);
+        }
+      }
+    }
+    entries_.push_back(e);
+  }
+}
+
+bool BodyShape::entry_contains(const Entry& e, const Vec3d& p) {
+  const Vec3d q = e.rotated ? e.world_to_local * (p - e.fulcrum) + e.fulcrum : p;
+  // Copies that can hold q: solve lo <= q - a*s <= hi for a per axis. The range is widened by one on each side
+  // so that rounding in the division never drops a copy; the exact test below decides.
+  long long a_lo[3], a_hi[3];
+  for (int d = 0; d < 3; ++d) {
+    const double s = e.spacing[d];
+    if (e.copies[d] == 1 || s == 0.0) {
+      a_lo[d] = a_hi[d] = 0;
+      continue;
+    }
+    double t0 = (q[d] - e.hi[d]) / s, t1 = (q[d] - e.lo[d]) / s;
+    if (t0 > t1) std::swap(t0, t1);
+    a_lo[d] = std::max<long long>(0, static_cast<long long>(std::ceil(t0)) - 1);
+    a_hi[d] = std::min<long long>(e.copies[d] - 1, static_cast<long long>(std::floor(t1)) + 1);
+    if (a_lo[d] > a_hi[d]) return false;
+  }
+  for (long long a = a_lo[0]; a <= a_hi[0]; ++a)
+    for (long long b = a_lo[1]; b <= a_hi[1]; ++b)
+      for (long long c = a_lo[2]; c <= a_hi[2]; ++c) {
+        const Vec3d qs{{q[0] - a * e.spacing[0], q[1] - b * e.spacing[1], q[2] - c * e.spacing[2]}};
+        if (!in_closed_box(qs, e.lo, e.hi)) continue;
+        switch (e.object) {
+          case GeometryObject::Box: return true;
+          case GeometryObject::Sphere:
+            if (norm_squared(qs - e.centre) <= e.radius_sq) return true;
+            break;
+          case GeometryObject::Cylinder: {
+            double r2 = 0.0;
+            for (int d = 0; d < 3; ++d)
+              if (d != e.axis) r2 += (qs[d] - e.centre[d]) * (qs[d] - e.centre[d]);
+            if (r2 <= e.radius_sq) return true;
+            break;
+          }
+          case GeometryObject::File: break;
+        }
+      }
+  return false;
+}
+
+bool BodyShape::contains(const Vec3d& p) const {
+  bool inside = false;
+  for (const Entry& e : entries_) {
+    switch (e.operation) {
+      case GeometryOperation::Add:
+      case GeometryOperation::Union:
+        if (!inside) inside = entry_contains(e, p);
+        break;
+      case GeometryOperation::Subtract:
+      case GeometryOperation::Difference:
+        if (inside) inside = !entry_contains(e, p);
+        break;
+      case GeometryOperation::Intersection:
+        if (inside) inside = entry_contains(e, p);
+        break;
+    }
+  }
+  return inside;
+}
+
+namespace {
+
+/// Particle block of a coordinate (per axis): B = floor((base - 1) / 4), base = floor(x / dx - 0.5), as the GPU
+/// engine groups particles (partition_domain.h).
+long long particle_block(double x, double inv_dx) {
+  const long long base = static_cast<long long>(std::floor(x * inv_dx - 0.5));
+  return static_cast<long long>(std::floor(static_cast<double>(base - 1) / 4.0));
+}
+
+/// Particles per block in an ordered map (sparse bodies and given point lists).
+struct BlockTally {
+  std::map<std::tuple<long long, long long, long long>, long long> blocks;
+  void add(const Vec3d& p, double inv_dx) {
+    ++blocks[{particle_block(p[0], inv_dx), particle_block(p[1], inv_dx), particle_block(p[2], inv_dx)}];
+  }
+  void emit(SampleCount& c) const {
+    for (const auto& [key, n] : blocks)
+      c.blocks.push_back(BlockCount{static_cast<int>(std::get<0>(key)), static_cast<int>(std::get<1>(key)),
+                                    static_cast<int>(std::get<2>(key)), n});
+  }
+};
+
+}  // namespace
+
+BodySampler::BodySampler(const BodySpec& body, const SimulationSpec& sim, int body_index)
+    : body_index_(body_index), seed_(sim.seed), path_("bodies[" + std::to_string(body_index) + "].geometry") {
+  const std::string body_path = "bodies[" + std::to_string(body_index) + "]";
+  const std::string& path = path_;
+  if (!(sim.dx > 0.0) || !std::isfinite(sim.dx))
+    throw SceneError("simulation.default_dx", fmt(sim.dx), "a positive number", "m");
+  try {
+    pattern_ = sampling_pattern(body.material.ppc);
+  } catch (const std::invalid_argument&) {
+    throw SceneError(body_path + ".material.ppc", fmt(body.material.ppc), "a positive number of particles per cell");
+  }
+  if (body.geometry.empty()) throw SceneError(path, "[]", "at least one Box, Sphere or Cylinder entry");
+
+  shape_ = std::make_shared<BodyShape>(body.geometry, body_index);
+  part_lo_ = to_vec(body.partition_start);
+  part_hi_ = to_vec(body.partition_end);
+  domain_ = Vec3d{{sim.domain[0], sim.domain[1], sim.domain[2]}};
+  Aabb box = shape_->bounds();
+  for (int d = 0; d < 3; ++d) {
+    box.lo[d] = std::max(box.lo[d], part_lo_[d]);
+    box.hi[d] = std::min(box.hi[d], part_hi_[d]);
+  }
+  if (box.empty()) throw_no_particles(path);
+
+  // Candidate points: the lattice (spacing h) or cells (edge dx) covering `box`, one extra on each side so that
+  // rounding in the index computation never loses a point; the predicate decides.
+  h_ = pattern_.lattice ? sim.dx / pattern_.per_axis : sim.dx;
+  double candidates = 1.0;
+  for (int d = 0; d < 3; ++d) {
+    const double lo = pattern_.lattice ? box.lo[d] / h_ - 0.5 : box.lo[d] / h_;
+    const double hi = pattern_.lattice ? box.hi[d] / h_ - 0.5 : box.hi[d] / h_;
+    if (!std::isfinite(lo) || !std::isfinite(hi) || std::fabs(lo) > 9e15 || std::fabs(hi) > 9e15)
+      throw SceneError(path, "bounding box " + fmt3(box.lo) + " to " + fmt3(box.hi),
+                       "a finite geometry (clip it with partition_start/partition_end)", "m");
+    first_[d] = static_cast<long long>(std::floor(lo)) - 1;
+    count_[d] = static_cast<long long>(std::ceil(hi)) + 1 - first_[d] + 1;
+    candidates *= static_cast<double>(count_[d]);
+  }
+  if (candidates > kMaxCandidates)
+    throw SceneError(path, fmt(candidates) + " candidate sampling points in bounding box " + fmt3(box.lo) + " to " +
+                               fmt3(box.hi),
+                     "at most 2^36 (check default_dx, ppc and the geometry's span)");
+}
+
+template <typename F>
+void BodySampler::visit_plane(long long ix, F&& f) const {
+  // The partition box is half-open, [start, end): a body split between GPUs at a plane through lattice points
+  // (ClaymoreUW's inside_partition) gives each point to exactly one of them.
+  auto keep = [&](const Vec3d& p) {
+    return p[0] >= part_lo_[0] && p[0] < part_hi_[0] && p[1] >= part_lo_[1] && p[1] < part_hi_[1] &&
+           p[2] >= part_lo_[2] && p[2] < part_hi_[2] && shape_->contains(p);
+  };
+  const double ppc_floor = std::floor(pattern_.ppc);
+  const double ppc_frac = pattern_.ppc - ppc_floor;
+  const int base = static_cast<int>(ppc_floor);
+  const long long i = first_[0] + ix;
+  for (long long j = first_[1]; j < first_[1] + count_[1]; ++j)
+    for (long long k = first_[2]; k < first_[2] + count_[2]; ++k) {
+      if (pattern_.lattice) {
+        const Vec3d p{{(static_cast<double>(i) + 0.5) * h_, (static_cast<double>(j) + 0.5) * h_,
+                       (static_cast<double>(k) + 0.5) * h_}};
+        if (keep(p)) f(p);
+      } else {
+        const std::uint64_t key = cell_key(seed_, body_index_, i, j, k);
+        const int n = base + ((ppc_frac > 0.0 && uniform(key, 3ull * (base + 1)) < ppc_frac) ? 1 : 0);
+        for (int s = 0; s < n; ++s) {
+          const Vec3d p{{(static_cast<double>(i) + uniform(key, 3ull * s + 0)) * h_,
+                         (static_cast<double>(j) + uniform(key, 3ull * s + 1)) * h_,
+                         (static_cast<double>(k) + uniform(key, 3ull * s + 2)) * h_}};
+          if (keep(p)) f(p);
+        }
+      }
+    }
+}
+
+void BodySampler::sample_planes(long long first, long long last, std::vector<Vec3d>& out) const {
+  first = std::max(first, 0LL);
+  last = std::min(last, count_[0]);
+  if (first >= last) return;
+  // One output vector per x-plane, concatenated in plane order: deterministic for any thread count.
+  std::vector<std::vector<Vec3d>> planes(static_cast<std::size_t>(last - first));
+#pragma omp parallel for schedule(dynamic, 1)
+  for (long long ix = first; ix < last; ++ix) {
+    std::vector<Vec3d>& pl = planes[static_cast<std::size_t>(ix - first)];
+    visit_plane(ix, [&](const Vec3d& p) { pl.push_back(p); });
+  }
+  std::size_t total = out.size();
+  for (const auto& pl : planes) total += pl.size();
+  out.reserve(total);
+  for (auto& pl : planes) {
+    out.insert(out.end(), pl.begin(), pl.end());
+    std::vector<Vec3d>().swap(pl);
+  }
+}
+
+void BodySampler::check_inside_domain(std::size_t outside, std::size_t total, const Vec3d& first_outside) const {
+  if (outside == 0) return;
+  // The engine owns its boundary margins; here we only refuse particles outside the simulated box itself.
+  throw SceneError(path_,
+                   std::to_string(outside) + " of " + std::to_string(total) +
+                       " particles outside simulation.domain [0, " + fmt(domain_[0]) + "] x [0, " + fmt(domain_[1]) +
+                       "] x [0, " + fmt(domain_[2]) + "], first at " + fmt3(first_outside),
+                   "every particle inside simulation.domain (move or shrink the geometry, or clip it with "
+                   "partition_start/partition_end)",
+                   "m");
+}
+
+bool BodySampler::outside_domain(const Vec3d& p) const {
+  return p[0] < 0.0 || p[1] < 0.0 || p[2] < 0.0 || p[0] > domain_[0] || p[1] > domain_[1] || p[2] > domain_[2];
+}
+
+SampleCount BodySampler::count(double dx) const {
+  // Particle blocks as the GPU engine forms them (partition_domain.h): B = floor((base - 1) / 4) per axis with
+  // base = floor(x / dx - 0.5). Counted into a dense box of blocks (planes in parallel, atomic increments); every
+  // candidate point lies inside it, so no count is lost.
+  const double inv_dx = 1.0 / dx;
+  auto block_of = [&](double x) { return particle_block(x, inv_dx); };
+  long long blo[3], bn[3];
+  double dense = 1.0;
+  for (int d = 0; d < 3; ++d) {
+    const double lo = static_cast<double>(first_[d]) * h_ - h_, hi = static_cast<double>(first_[d] + count_[d]) * h_ + h_;
+    blo[d] = block_of(lo) - 1;
+    bn[d] = block_of(hi) + 2 - blo[d];
+    dense *= static_cast<double>(bn[d]);
+  }
+  if (dense > 268435456.0)  // 2^28 blocks (1 GiB of counters): a body this sparse is counted per plane in maps
+    return count_sparse(dx);
+  SampleCount c;
+  std::vector<std::uint32_t> counts(static_cast<std::size_t>(dense), 0u);
+  c.per_plane.assign(static_cast<std::size_t>(count_[0]), 0);
+  std::size_t particles = 0, outside = 0;
+  long long first_outside_plane = count_[0];
+  Vec3d first_outside{};
+#pragma omp parallel for schedule(dynamic, 1) reduction(+ : particles, outside)
+  for (long long ix = 0; ix < count_[0]; ++ix) {
+    bool plane_outside = false;
+    Vec3d plane_first{};
+    long long in_plane = 0;
+    visit_plane(ix, [&](const Vec3d& p) {
+      ++particles;
+      ++in_plane;
+      if (outside_domain(p)) {
+        if (!plane_outside) plane_first = p;
+        plane_outside = true;
+        ++outside;
+        return;
+      }
+      const long long b0 = block_of(p[0]) - blo[0], b1 = block_of(p[1]) - blo[1], b2 = block_of(p[2]) - blo[2];
+      std::uint32_t& slot = counts[static_cast<std::size_t>((b0 * bn[1] + b1) * bn[2] + b2)];
+#pragma omp atomic
+      ++slot;
+    });
+    c.per_plane[static_cast<std::size_t>(ix)] = in_plane;
+    if (plane_outside) {
+#pragma omp critical(fbar_count_outside)
+      if (ix < first_outside_plane) {
+        first_outside_plane = ix;
+        first_outside = plane_first;
+      }
+    }
+  }
+  if (particles == 0) throw_no_particles(path_);
+  check_inside_domain(outside, particles, first_outside);
+  c.particles = static_cast<long long>(particles);
+  for (long long i = 0; i < bn[0]; ++i)
+    for (long long j = 0; j < bn[1]; ++j)
+      for (long long k = 0; k < bn[2]; ++k) {
+        const std::uint32_t n = counts[static_cast<std::size_t>((i * bn[1] + j) * bn[2] + k)];
+        if (n == 0) continue;
+        c.blocks.push_back(BlockCount{static_cast<int>(blo[0] + i), static_cast<int>(blo[1] + j),
+                                      static_cast<int>(blo[2] + k), static_cast<long long>(n)});
+      }
+  return c;
+}
+
+SampleCount BodySampler::count_sparse(double dx) const {
+  SampleCount c;
+  BlockTally tally;
+  const double inv_dx = 1.0 / dx;
+  std::size_t outside = 0;
+  Vec3d first_outside{};
+  c.per_plane.assign(static_cast<std::size_t>(count_[0]), 0);
+  for (long long ix = 0; ix < count_[0]; ++ix) {
+    visit_plane(ix, [&](const Vec3d& p) {
+      ++c.particles;
+      ++c.per_plane[static_cast<std::size_t>(ix)];
+      if (outside_domain(p)) {
+        if (outside++ == 0) first_outside = p;
+        return;
+      }
+      tally.add(p, inv_dx);
+    });
+  }
+  if (c.particles == 0) throw_no_particles(path_);
+  check_inside_domain(outside, static_cast<std::size_t>(c.particles), first_outside);
+  tally.emit(c);
+  return c;
+}
+
+SampleCount count_points(const std::vector<Vec3d>& points, double dx) {
+  SampleCount c;
+  c.particles = static_cast<long long>(points.size());
+  BlockTally tally;
+  for (const Vec3d& p : points) tally.add(p, 1.0 / dx);
+  tally.emit(c);
+  return c;
+}
+
+std::vector<Vec3d> sample_body(const BodySpec& body, const SimulationSpec& sim, int body_index) {
+  const BodySampler sampler(body, sim, body_index);
+  std::vector<Vec3d> points;
+  sampler.sample_planes(0, sampler.planes(), points);
+  if (points.empty()) throw_no_particles(sampler.path());
+  std::size_t outside = 0;
+  const Vec3d* first_outside = nullptr;
+  for (const Vec3d& p : points)
+    if (sampler.outside_domain(p)) {
+      if (!first_outside) first_outside = &p;
+      ++outside;
+    }
+  if (outside > 0) sampler.check_inside_domain(outside, points.size(), *first_outside);
+  return points;
+}
+
+}  // namespace fbar

@@ -1,0 +1,163 @@
+// Initial particle positions of a body: its geometry[] list (Box / Sphere / Cylinder CSG) sampled at ppc per cell.
+//
+// Conventions (SCHEMA.md "bodies[].geometry[]", seed 0.4.2; SI units, metres and degrees). They follow ClaymoreUW
+// (read_scene_input.h: make_box / make_sphere / make_cylinder, inside_sphere / inside_cylinder,
+// elementaryToRotationMatrix, translate_rotate_translate_point, inside_partition), so its scenes keep their meaning:
+//  * offset is the MIN CORNER of the object's bounding box, for every object (as scene.h documents):
+//      Box       [offset, offset + span]
+//      Sphere    ball of `radius` centred at offset + (radius, radius, radius); span is not used
+//      Cylinder  length span[axis] along `axis` from offset[axis]; circular cross-section of `radius` centred at
+//                offset + radius in the two other axes (their span components are not used)
+//    ClaymoreUW's make_sphere / make_cylinder also clip the solid by the box [offset, offset + span] (span defaults
+//    to the domain there), which only matters when span < 2 radius; scene_parse.cpp declares span unused for
+//    spheres (with a warning) and uses only span[axis] for cylinders, and this sampler follows that contract.
+//  * array / spacing: copy (a, b, c), 0 <= a < array[0] ..., is the object shifted by (a*spacing[0], b*spacing[1],
+//    c*spacing[2]). A point is inside the entry when it is inside any copy.
+//  * rotate [deg] about fulcrum [m]: the whole entry (all its copies; the fulcrum does not move with the copies)
+//    is rotated rigidly about the world point `fulcrum` by R = Rz(rotate[2]) * Ry(rotate[1]) * Rx(rotate[0]):
+//    first about X, then Y, then Z, all about the fixed world axes, right-handed (positive = counter-clockwise
+//    looking down the axis towards the origin). Multiples of 90 deg are exact (no 6e-17 cosines), so a rotated
+//    grid-aligned box stays grid-aligned. (ClaymoreUW rotates its sampled points instead, so a rotated body there
+//    has a rotated lattice; here the lattice stays on the grid and the shape is rotated: same solid.)
+//  * operation, applied in list order to the set S (empty at the start):
+//      Add, Union            S = S ∪ G
+//      Subtract, Difference  S = S \ G
+//      Intersection          S = S ∩ G
+//    so an Add after a Subtract is "impervious to the prior subtraction" (seed 0.4.2). Every test is closed
+//    (a point on the surface is inside).
+//  * partition_start / partition_end clip the sampled points to the half-open box [start, end) (as ClaymoreUW's
+//    inside_partition, so a body split across GPUs at a shared plane has every point exactly once), before the
+//    domain check.
+//
+// Sampling (per grid cell of edge dx = simulation.default_dx):
+//  * ppc = n^3 (1, 8, 27, 64, ...): regular lattice of spacing h = dx/n aligned to the grid, cell-centred
+//    sub-lattice x_i = (i + 0.5) h per axis (i any integer), so each full cell holds exactly ppc points.
+//    (ClaymoreUW starts its lattice at the object's offset; for grid-aligned offsets the points are the same.)
+//  * any other ppc: seeded jitter. Each cell (cx, cy, cz) holds floor(ppc) points, plus one more with probability
+//    frac(ppc), each uniform in the cell. Every random number is a counter-based hash of
+//    (simulation.seed, body_index, cx, cy, cz, sample, axis), so the result depends neither on iteration order nor on
+//    the number of OpenMP threads.
+//  Points are then kept when the CSG predicate says inside. Output order: x-major over the candidate lattice (or
+//  cells), deterministic.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "MnBase/Math/vec.h"
+#include "scene/scene.h"
+
+namespace fbar {
+
+/// Axis-aligned box [lo, hi] [m]. Empty when lo > hi in any axis.
+struct Aabb {
+  Vec3d lo;
+  Vec3d hi;
+  bool empty() const { return lo[0] > hi[0] || lo[1] > hi[1] || lo[2] > hi[2]; }
+};
+
+/// How points are placed inside each grid cell.
+struct SamplingPattern {
+  bool lattice = true;   ///< true: regular sub-lattice; false: seeded jitter
+  int per_axis = 2;      ///< lattice: points per cell edge n (ppc = n^3); jitter: 0
+  double ppc = 8.0;      ///< particles per cell requested
+};
+
+/// Lattice when ppc is a perfect cube of an integer, jitter otherwise. Throws std::invalid_argument for ppc <= 0.
+SamplingPattern sampling_pattern(double ppc);
+
+/// The CSG solid of one body's geometry[] list, prepared for fast point queries (rotations precomputed).
+class BodyShape {
+ public:
+  /// Validates the entries (positive span / radius, array >= 1, no File objects) and precomputes transforms.
+  /// Throws SceneError naming bodies[body_index].geometry[j].<key>.
+  BodyShape(const std::vector<GeometrySpec>& geometry, int body_index);
+
+  /// True when p [m] is inside the result of the operation sequence.
+  bool contains(const Vec3d& p) const;
+
+  /// Bounding box of every Add/Union entry (rotated, all copies): no point outside it is ever inside.
+  /// Empty when the list holds no Add/Union entry.
+  const Aabb& bounds() const { return bounds_; }
+
+ private:
+  /// One geometry entry in its own frame: copy 0 unrotated, plus how to map a world point into that frame.
+  struct Entry {
+    GeometryObject object = GeometryObject::Box;
+    GeometryOperation operation = GeometryOperation::Add;
+    Vec3d lo{};               ///< [m] bounding box of copy 0, unrotated
+    Vec3d hi{};
+    Vec3d centre{};           ///< [m] sphere centre; cylinder: centre of the cross-section (axis component unused)
+    double radius_sq = 0.0;   ///< [m^2]
+    int axis = 0;             ///< cylinder axis
+    Int3 copies{1, 1, 1};
+    Vec3d spacing{};          ///< [m]
+    bool rotated = false;
+    Mat3<double> world_to_local = Mat3<double>::identity();  ///< R^T
+    Vec3d fulcrum{};          ///< [m]
+  };
+  static bool entry_contains(const Entry& e, const Vec3d& p);
+
+  std::vector<Entry> entries_;
+  Aabb bounds_;
+};
+
+/// Particles of one particle block (the GPU engine's grouping: B = floor((floor(x/dx - 0.5) - 1) / 4) per axis).
+struct BlockCount {
+  int bx, by, bz;
+  long long particles;
+};
+
+/// What sampling a body would produce, counted without storing a point: the particle count and the particles per
+/// particle block (the GPU engine sizes its buffers from it before it samples).
+struct SampleCount {
+  long long particles = 0;
+  std::vector<BlockCount> blocks;  ///< blocks holding particles, in (bx, by, bz) order
+  std::vector<long long> per_plane;  ///< particles of each x-plane of the candidate lattice (BodySampler::planes())
+};
+
+/// One body's sampling, split by x-plane of the candidate lattice so that it can be counted first and then produced
+/// in bounded batches (the GPU engine uploads each batch before sampling the next: host memory stays O(batch)).
+/// sample_planes(0, planes()) is exactly sample_body()'s output, in the same order.
+class BodySampler {
+ public:
+  /// Validates the body's sampling inputs; throws SceneError as sample_body does.
+  BodySampler(const BodySpec& body, const SimulationSpec& sim, int body_index);
+  long long planes() const { return count_[0]; }
+  /// Appends the points of planes [first, last) in order (OpenMP over planes, deterministic).
+  void sample_planes(long long first, long long last, std::vector<Vec3d>& out) const;
+  /// Counts particles and particles per block (OpenMP over planes). Throws SceneError, as sample_body, when no
+  /// particle remains or any lies outside simulation.domain.
+  SampleCount count(double dx) const;
+  bool outside_domain(const Vec3d& p) const;
+  void check_inside_domain(std::size_t outside, std::size_t total, const Vec3d& first_outside) const;
+  const std::string& path() const { return path_; }
+
+ private:
+  template <typename F>
+  void visit_plane(long long ix, F&& f) const;
+  SampleCount count_sparse(double dx) const;
+
+  int body_index_ = 0;
+  std::uint64_t seed_ = 0;
+  std::string path_;
+  SamplingPattern pattern_;
+  std::shared_ptr<BodyShape> shape_;
+  Vec3d part_lo_{}, part_hi_{}, domain_{};
+  double h_ = 0.0;
+  long long first_[3] = {0, 0, 0}, count_[3] = {0, 0, 0};
+};
+
+/// The same counts for given points (tests, restarts).
+SampleCount count_points(const std::vector<Vec3d>& points, double dx);
+
+/// Samples body `body_index` of a scene (see the file comment for every convention).
+/// Throws SceneError at "bodies[i].geometry" when any particle lies outside [0, simulation.domain] (the message
+/// counts them and names the first), when no particle remains, or when the candidate lattice is unreasonably large
+/// (> 2^36 points); invalid entries throw at "bodies[i].geometry[j].<key>"; a bad ppc throws at
+/// "bodies[i].material.ppc".
+std::vector<Vec3d> sample_body(const BodySpec& body, const SimulationSpec& sim, int body_index);
+
+}  // namespace fbar

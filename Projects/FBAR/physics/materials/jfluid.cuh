@@ -1,0 +1,131 @@
+// JFluid: a weakly compressible Tait-Murnaghan fluid with Newtonian viscosity, state = 1 - J (material header).
+//
+// Equation of state (VALIDATION.md): p = (K / gamma) (J^-gamma - 1), K = bulk modulus at rest, J = V / V0.
+// Cauchy stress sigma = -p I + 2 mu_visc dev(sym(grad v)), grad v = C (APIC affine matrix, see material_common).
+// Sound speed c^2 = dp/drho = (K / rho0) J^(1 - gamma)  (= (K + gamma p) / rho, rho = rho0 / J).
+//
+// Precision: a particle stores 1 - J, never J. Near rest 1 - J ~ p / K is tiny (water at 1 m depth: 5e-5), and
+// every formula below is written with log1p / expm1 on 1 - J so that the pressure keeps the relative accuracy of
+// the stored value in float: p = (K/gamma) expm1(-gamma log1p(-(1 - J))).
+#pragma once
+
+#include <cmath>
+
+#include "MnBase/Math/vec.h"
+#include "MnBase/Meta/config.h"
+#include "physics/materials/material_common.cuh"
+#include "physics/materials/material_parameters.h"
+#include "scene/scene.h"
+
+namespace fbar {
+
+/// JFluid parameters (trivially copyable; pass to kernels by value).
+template <typename T>
+struct JFluidParams {
+  T rho0;          ///< [kg/m^3] density at rest (J = 1)
+  T bulk_modulus;  ///< [Pa] K > 0
+  T gamma;         ///< [-] Tait-Murnaghan exponent, >= 1 (water: ~7)
+  T viscosity;     ///< [Pa s] dynamic viscosity mu_visc >= 0
+};
+
+/// Per-particle state of a JFluid particle besides its position.
+template <typename T>
+struct JFluidState {
+  T one_minus_J;  ///< [-] 1 - J (positive in compression)
+};
+
+struct JFluid {
+  /// Name of the law in scene files (material.constitutive) and its enumerator.
+  static constexpr const char* kJsonName = "JFluid";
+  static constexpr Constitutive kLaw = Constitutive::JFluid;
+  /// Other names scene files use for it (ClaymoreUW's).
+  static constexpr const char* kAliases[] = {"Water", "Fluid", "Liquid"};
+  /// Scene parameters (bodies[].material), besides rho, ppc and CFL which every material reads.
+  static constexpr MaterialParameter kParameters[] = {
+      number_parameter("bulk_modulus", "Pa", &MaterialSpec::bulk_modulus, kPositiveValue, 1.0,
+                       "bulk modulus K at rest"),
+      number_parameter("gamma", "-", &MaterialSpec::gamma, kPositiveValue, 0.0, "Tait-Murnaghan exponent"),
+      number_parameter("viscosity", "Pa s", &MaterialSpec::viscosity, kNonNegativeValue, 1.5, "dynamic viscosity"),
+  };
+  template <typename T>
+  using Params = JFluidParams<T>;
+  template <typename T>
+  using State = JFluidState<T>;
+  /// Scalars a particle stores: position (3) + 1 - J (1). Mass and volume are per body.
+  static constexpr int kStoredScalars = 4;
+  static constexpr MaterialOutputs kOutputs{false, false};
+
+  /// Parameters from the resolved scene (host only).
+  template <typename T>
+  static Params<T> make_params(const MaterialSpec& m) {
+    return Params<T>{static_cast<T>(m.rho), static_cast<T>(m.bulk_modulus), static_cast<T>(m.gamma),
+                     static_cast<T>(m.viscosity)};
+  }
+
+  /// Undeformed state (J = 1).
+  template <typename T>
+  FBAR_HOST_DEVICE static constexpr State<T> reference_state() {
+    return State<T>{T(0)};
+  }
+  /// State with a prescribed volume ratio J (e.g. hydrostatic initial conditions).
+  template <typename T>
+  FBAR_HOST_DEVICE static constexpr State<T> state_with_J(T J) {
+    return State<T>{T(1) - J};
+  }
+
+  template <typename T>
+  FBAR_HOST_DEVICE static constexpr T volume_ratio(const State<T>& s) {
+    return T(1) - s.one_minus_J;
+  }
+
+  /// Equation-of-state pressure p = (K/gamma)(J^-gamma - 1) [Pa], accurate in float near J = 1.
+  template <typename T>
+  FBAR_HOST_DEVICE static inline T pressure(const Params<T>& p, const State<T>& s) {
+    using std::expm1;
+    using std::log1p;
+    return p.bulk_modulus / p.gamma * expm1(-p.gamma * log1p(-s.one_minus_J));
+  }
+
+  /// Kirchhoff stress tau = J (-p I + 2 mu_visc dev(sym C)) [Pa]; C [1/s] is the particle's velocity gradient.
+  template <typename T>
+  FBAR_HOST_DEVICE static inline StressResult<T> kirchhoff_stress(const Params<T>& p, const State<T>& s,
+                                                                  const Mat3<T>& C) {
+    const T J = volume_ratio(s);
+    Mat3<T> sigma = deviatoric_part(symmetric_part(C)) * (T(2) * p.viscosity);
+    const T pr = pressure(p, s);
+    for (int i = 0; i < 3; ++i) sigma.m[i][i] -= pr;
+    return StressResult<T>{sigma * J, J};
+  }
+
+  /// State after one step: J <- (1 + dt tr C) J on 1 - J.
+  template <typename T>
+  FBAR_HOST_DEVICE static constexpr State<T> advance(const Params<T>& /*p*/, const State<T>& s, const Mat3<T>& C,
+                                                     T dt) {
+    return State<T>{advance_one_minus_J(s.one_minus_J, C, dt)};
+  }
+
+  /// Sound speed c = sqrt((K/rho0) J^(1-gamma)) [m/s] of the current state.
+  template <typename T>
+  FBAR_HOST_DEVICE static inline T wave_speed(const Params<T>& p, const State<T>& s) {
+    using std::exp;
+    using std::log1p;
+    using std::sqrt;
+    return sqrt(p.bulk_modulus / p.rho0 * exp((T(1) - p.gamma) * log1p(-s.one_minus_J)));
+  }
+
+  /// Stored energy per reference volume psi(J) = (K/gamma) [(J^(1-gamma) - 1)/(gamma - 1) + (J - 1)] [J/m^3],
+  /// the potential with -dpsi/dJ = p and psi(1) = 0 (gamma = 1: K (J - 1 - ln J)).
+  template <typename T>
+  FBAR_HOST_DEVICE static inline T energy_density(const Params<T>& p, const State<T>& s) {
+    using std::expm1;
+    using std::fabs;
+    using std::log1p;
+    const T log_J = log1p(-s.one_minus_J);
+    const T t = (T(1) - p.gamma) * log_J;
+    // (J^(1-gamma) - 1) / (gamma - 1) = -ln J * expm1(t) / t, finite as gamma -> 1.
+    const T expm1_over_t = fabs(t) > T(0) ? expm1(t) / t : T(1);
+    return p.bulk_modulus / p.gamma * (-log_J * expm1_over_t - s.one_minus_J);
+  }
+};
+
+}  // namespace fbar

@@ -1,0 +1,102 @@
+// Froude similitude: scales a whole resolved scene by the length factor s = simulation.froude_scaling.
+//
+// Froude similitude keeps Fr = U / sqrt(g L) fixed with gravity and density unchanged, so with lengths x s:
+//   length            x s        domain, default_dx, geometry span / offset / radius / spacing / fulcrum,
+//                                partition_start / partition_end, boundary domain / spacing / bathymetry points,
+//                                sensor domains; a File geometry's scaling_factor (its linear size)
+//   time              x s^0.5    simulation.time, default_dt (when given), boundary time windows
+//   velocity          x s^0.5    body initial velocity, boundary velocity
+//   frequency         x s^-0.5   fps, sensor output_frequency, motion-file output_frequency
+//                                (frames is unchanged, so the simulated duration frames / fps scales as s^0.5)
+//   mass              x s^3      (no scene key: particle mass follows from rho and the scaled particle volume)
+//   stress, modulus   x s        bulk_modulus, youngs_modulus: Cauchy similitude at equal density, so the
+//                                elastic wave speed sqrt(E / rho) scales like a Froude velocity
+//   dynamic viscosity x s^1.5    stress x time
+//   unchanged                    density, gravity, dimensionless parameters (gamma, poisson_ratio, CFL, ppc,
+//                                friction angles and coefficients, cohesion (a log-strain), logJp0, beta, xi,
+//                                ASFLIP / F-bar ratios), angles (rotate), counts (frames, array, info_rate)
+// A geometry entry with use_froude_scaling false keeps its lengths as written (ClaymoreUW uses this for particle
+// files that were produced at the target scale already). Motion-file contents are scaled by their loader
+// (positions x s, times and velocities x s^0.5) from simulation.froude_scaling.
+#include <cmath>
+
+#include "scene/scene_parse.h"
+
+#include "physics/constitutive_models.cuh"
+
+namespace fbar {
+
+namespace {
+
+void scale3(Real3& v, double k) {
+  for (double& c : v) c *= k;  // infinity (an open partition bound) stays infinite
+}
+
+}  // namespace
+
+void apply_froude_scaling(Scene& scene) {
+  SimulationSpec& sim = scene.simulation;
+  const double s = sim.froude_scaling;
+  if (sim.froude_scaling_applied || s == 1.0) return;  // s = 1 is the identity: nothing to record
+  sim.froude_scaling_applied = true;
+  const double length = s;
+  const double time = std::sqrt(s);
+  const double velocity = std::sqrt(s);
+  const double frequency = 1.0 / std::sqrt(s);
+
+  scale3(sim.domain, length);
+  sim.dx *= length;
+  sim.default_dt *= time;  // 0 (absent) stays 0 and is resolved to dx / 100 afterwards
+  sim.time *= time;
+  sim.fps *= frequency;
+
+  for (BodySpec& b : scene.bodies) {
+    scale3(b.velocity, velocity);
+    scale3(b.partition_start, length);
+    scale3(b.partition_end, length);
+    // Only the parameters the law reads, each by its own power of s (MaterialParameter::froude_power: stress 1,
+    // viscosity 1.5): the others keep their defaults (the written scene omits them).
+    for_each_material_parameter(b.material.law, [&](const MaterialParameter& p) {
+      if (!p.is_flag() && p.froude_power != 0.0) b.material.*(p.number) *= std::pow(s, p.froude_power);
+    });
+    for (GeometrySpec& g : b.geometry) {
+      if (!g.use_froude_scaling) continue;
+      scale3(g.offset, length);
+      scale3(g.spacing, length);
+      scale3(g.fulcrum, length);
+      switch (g.object) {  // shape sizes the object uses
+        case GeometryObject::Box: scale3(g.span, length); break;
+        case GeometryObject::Sphere: g.radius *= length; break;
+        case GeometryObject::Cylinder:
+          scale3(g.span, length);
+          g.radius *= length;
+          break;
+        case GeometryObject::File: g.scaling_factor *= length; break;
+      }
+    }
+  }
+  for (BoundarySpec& b : scene.boundaries) {
+    scale3(b.domain_start, length);
+    scale3(b.domain_end, length);
+    scale3(b.spacing, length);
+    scale3(b.velocity, velocity);
+    for (double& t : b.time) t *= time;
+    b.output_frequency *= frequency;
+    for (auto& p : b.bathymetry) {
+      p[0] *= length;
+      p[1] *= length;
+    }
+  }
+  for (GridSensorSpec& g : scene.grid_sensors) {
+    scale3(g.domain_start, length);
+    scale3(g.domain_end, length);
+    g.output_frequency *= frequency;
+  }
+  for (ParticleSensorSpec& p : scene.particle_sensors) {
+    scale3(p.domain_start, length);
+    scale3(p.domain_end, length);
+    p.output_frequency *= frequency;
+  }
+}
+
+}  // namespace fbar

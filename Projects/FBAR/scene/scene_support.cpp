@@ -1,0 +1,116 @@
+// The release policy, in one place: which parsed and validated scene features this build's engine can run.
+//
+// Both engines run every material of MaterialTypes (constitutive_models.cuh); APIC/MLS transfers, PIC-FLIP / ASFLIP
+// and F-bar; Box / Sphere / Cylinder geometry with every operation,
+// rotation and arrays; Walls and Box boundaries (Sticky / Slip / Separable, frictionless, static, any time window);
+// .bgeo / .geo / .csv frames with the attributes cpu_engine_supports_attribute() accepts. Everything else SCHEMA.md lists is parsed
+// and range-checked by scene_parse.cpp, then refused here. A later release enables a feature by deleting its line.
+#include <algorithm>
+#include <array>
+#include <iomanip>
+#include <sstream>
+#include <string>
+#include <string_view>
+
+#include "engine/cpu/cpu_engine.h"
+#include "scene/scene_parse.h"
+
+namespace fbar {
+
+namespace {
+
+std::string q(std::string_view s) { return "\"" + std::string(s) + "\""; }
+std::string n(double x) {
+  std::ostringstream os;
+  os << std::setprecision(15) << x;
+  return os.str();
+}
+std::string idx(const char* array, std::size_t i) { return std::string(array) + "[" + std::to_string(i) + "]"; }
+
+/// Throws the "not supported yet" error: `expected` says what this release runs, `key` names the feature.
+[[noreturn]] void refuse(const std::string& path, const std::string& value, const std::string& expected,
+                         const std::string& key, const char* unit = "") {
+  throw SceneError(path, value, expected + "; " + key + " is not supported yet in this release", unit);
+}
+
+}  // namespace
+
+void check_supported(const Scene& scene) {
+  const SimulationSpec& sim = scene.simulation;
+  if (sim.save_suffix == ".h5")
+    refuse("simulation.save_suffix", q(sim.save_suffix), "one of .bgeo, .geo, .csv", "save_suffix .h5 (HDF5 output)");
+  if (sim.particles_output_exterior_only)
+    refuse("simulation.particles_output_exterior_only", "true", "false", "particles_output_exterior_only");
+  if (scene.mesh_count > 0)
+    refuse("meshes", std::to_string(scene.mesh_count) + " mesh(es)", "no meshes", "meshes (FEM bodies)");
+
+  for (std::size_t i = 0; i < scene.bodies.size(); ++i) {
+    const BodySpec& b = scene.bodies[i];
+    const std::string p = idx("bodies", i);
+    const MaterialSpec& m = b.material;
+    const AlgorithmSpec& a = b.algorithm;
+    if (m.type != "particles") refuse(p + ".material.type", q(m.type), "\"particles\"", "material type mesh");
+    if (material_index(m.law) < 0)  // the laws of MaterialTypes (constitutive_models.cuh) run
+      refuse(p + ".material.constitutive", q(to_string(m.law)), "one of " + supported_material_names(),
+             std::string("constitutive ") + to_string(m.law));
+    if (a.type != "particles") refuse(p + ".algorithm.type", q(a.type), "\"particles\"", "algorithm type mesh");
+    if (a.use_fem) refuse(p + ".algorithm.use_FEM", "true", "false", "use_FEM");
+    // ASFLIP / PIC-FLIP (alpha, beta) and F-bar (FBAR_psi) run on both engines.
+    for (std::size_t j = 0; j < b.geometry.size(); ++j) {
+      const GeometrySpec& g = b.geometry[j];
+      const std::string gp = p + "." + idx("geometry", j);
+      if (g.object == GeometryObject::File)
+        refuse(gp + ".object", q("File"), "Box, Sphere or Cylinder", "geometry object File");
+      if (!g.track_particle_id.empty())
+        refuse(gp + ".track_particle_id", std::to_string(g.track_particle_id.size()) + " id(s)", "an empty list",
+               "track_particle_id (particle tracking)");
+    }
+    if (!b.track_particle_id.empty())
+      refuse(p + ".track_particle_id", std::to_string(b.track_particle_id.size()) + " id(s)", "an empty list",
+             "track_particle_id (particle tracking)");
+    if (!b.track_attribs.empty())
+      refuse(p + ".track_attribs", q(b.track_attribs.front()), "an empty list", "track_attribs (particle tracking)");
+    if (!b.target_attribs.empty())
+      refuse(p + ".target_attribs", q(b.target_attribs.front()), "an empty list", "target_attribs (particle sensors)");
+    for (std::size_t k = 0; k < b.output_attribs.size(); ++k) {
+      const std::string& name = b.output_attribs[k];
+      // The engine's own list decides (DefGrad_* only for a material that stores F), so --check and a run agree.
+      if (!cpu_engine_supports_attribute(m.law, name)) {
+        MaterialOutputs outputs{false, false};
+        visit_material(m.law, [&](auto law) { outputs = decltype(law)::kOutputs; });
+        refuse(p + "." + idx("output_attribs", k), q(name),
+               std::string("one of ID, Mass, Volume, Position_*, Velocity_*, Velocity_Magnitude, J, Pressure, "
+                           "StressCauchy_* (9), VonMisesStress") +
+                   (outputs.deformation_gradient ? ", DefGrad_* (9)" : "") + (outputs.log_jp ? ", logJp" : "") +
+                   " for " + to_string(m.law),
+               "output attribute " + name);
+      }
+    }
+  }
+
+  for (std::size_t i = 0; i < scene.boundaries.size(); ++i) {
+    const BoundarySpec& b = scene.boundaries[i];
+    const std::string p = idx("boundaries", i);
+    if (b.object != BoundaryObject::Walls && b.object != BoundaryObject::Box)
+      refuse(p + ".object", q(to_string(b.object)), "Walls or Box", std::string("boundary object ") + to_string(b.object));
+    if (b.friction_static != 0.0)
+      refuse(p + ".friction_static", n(b.friction_static), "0", "boundary friction (friction_static)", "-");
+    if (b.friction_dynamic != 0.0)
+      refuse(p + ".friction_dynamic", n(b.friction_dynamic), "0", "boundary friction (friction_dynamic)", "-");
+    if (b.velocity != Real3{0.0, 0.0, 0.0})
+      refuse(p + ".velocity", "[" + n(b.velocity[0]) + ", " + n(b.velocity[1]) + ", " + n(b.velocity[2]) + "]",
+             "[0, 0, 0] (a static boundary)", "moving boundaries (velocity)", "m/s");
+    if (!b.file.empty()) refuse(p + ".file", q(b.file), "no motion file", "moving boundaries (file)");
+    if (b.array != Int3{1, 1, 1})
+      refuse(p + ".array",
+             "[" + std::to_string(b.array[0]) + ", " + std::to_string(b.array[1]) + ", " + std::to_string(b.array[2]) + "]",
+             "[1, 1, 1]", "boundary arrays (array)");
+  }
+  if (!scene.grid_sensors.empty())
+    refuse("grid-sensors", std::to_string(scene.grid_sensors.size()) + " sensor(s)", "no grid-sensors", "grid-sensors");
+  if (!scene.particle_sensors.empty())
+    refuse("particle-sensors", std::to_string(scene.particle_sensors.size()) + " sensor(s)", "no particle-sensors",
+           "particle-sensors");
+}
+
+}  // namespace fbar
