@@ -231,6 +231,55 @@ TEST(TimeStep, EngineUsesCflFormula) {
   EXPECT_GT(summary.gpu_bytes[0], 0u);
 }
 
+// A very viscous fluid (nu = 10 m^2/s): the explicit viscous bound CFL rho dx^2 / (3 mu) (time_step.cuh) caps the
+// step of both engines (RunConstants) and of --check. Without it this cube, at dt = default_dt = 0.5 dx^2 / nu, loses
+// stability silently: its velocities grow and the CFL step collapses towards zero (measured before the bound: 2e5
+// steps for 0.01 s, no failure reported). With it, at CFL 1 (the largest allowed), the run reaches 0.05 s in t / bound
+// steps and the kinetic energy stays below the initial one plus all the potential energy the cube can release.
+TEST(TimeStep, ViscousBoundKeepsAVeryViscousFluidStable) {
+  const double dx = 0.02, mu = 1e4, rho = 1000, g = 9.81;
+  Scene scene = empty_scene(r3(0.4, 0.4, 0.4), dx, r3(0, -g, 0));
+  BodySpec body = box_body(Constitutive::JFluid, r3(0.15, 0.1, 0.15), r3(0.1, 0.1, 0.1), r3(0.3, -1.0, 0.2));
+  body.material.bulk_modulus = 2e5;
+  body.material.viscosity = mu;
+  body.material.cfl = 1.0;
+  scene.bodies.push_back(body);
+  BoundarySpec walls;
+  walls.object = BoundaryObject::Walls;
+  walls.contact = Contact::Separable;
+  walls.domain_start = r3(0.05, 0.05, 0.05);
+  walls.domain_end = r3(0.35, 0.35, 0.35);
+  scene.boundaries.push_back(walls);
+  scene.simulation.default_dt = 0.5 * dx * dx * rho / mu;
+  const double bound = 1.0 * rho * dx * dx / (3.0 * mu);
+
+  const SceneSummary summary = summarize_scene(scene);
+  EXPECT_NEAR(summary.bodies[0].viscous_dt, bound, 1e-15 * bound);
+  EXPECT_NEAR(summary.dt, bound, 1e-15 * bound);
+  std::ostringstream report;
+  print_scene_report(report, scene, summary);
+  EXPECT_NE(report.str().find("viscous bound"), std::string::npos) << report.str();
+
+  CpuEngine<double> engine(scene);
+  engine.set_log(nullptr);
+  EXPECT_LE(engine.next_dt(), bound * (1 + 1e-15));
+  double mass = 0.0;
+  for (double m : engine.masses(0)) mass += m;
+  const double energy_cap = engine.kinetic_energy() + mass * g * 0.35;
+  const double t_end = 0.05;
+  const long long step_cap = static_cast<long long>(1.1 * t_end / bound) + 2;
+  while (engine.time() < t_end && engine.steps() < step_cap) {
+    const StepReport r = engine.step_toward(t_end);
+    ASSERT_TRUE(r.ok) << r.message();
+  }
+  EXPECT_EQ(engine.time(), t_end) << "after " << engine.steps() << " steps";
+  EXPECT_LT(engine.kinetic_energy(), energy_cap);
+
+  // An inviscid body has no viscous bound.
+  scene.bodies[0].material.viscosity = 0.0;
+  EXPECT_TRUE(std::isinf(summarize_scene(scene).bodies[0].viscous_dt));
+}
+
 // --check names the scheme that runs: APIC, PIC-FLIP (0 < alpha < 1, beta 0), FLIP (alpha 1), ASFLIP (beta > 0),
 // each with " + F-bar" when FBAR_psi > 0.
 TEST(CheckReport, NamesTheTransferScheme) {

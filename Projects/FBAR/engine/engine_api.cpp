@@ -16,6 +16,7 @@
 #include "MnSystem/IO/async_writer.h"
 #include "physics/constitutive_models.cuh"
 #include "engine/cpu/cpu_engine.h"
+#include "engine/run_constants.h"
 #include "engine/run_loop.h"
 #include "geometry/geometry.h"
 #include "engine/gpu/memory_plan.h"
@@ -102,7 +103,8 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     const double v0 = std::sqrt(body.velocity[0] * body.velocity[0] + body.velocity[1] * body.velocity[1] +
                                 body.velocity[2] * body.velocity[2]);
     s.dt_bound = cfl_time_step(m.cfl, dx, facts.wave_speed, v0);
-    summary.dt = min_time_step(summary.dt, s.dt_bound);
+    s.viscous_dt = body_viscous_step_bound(body, dx);
+    summary.dt = min_time_step(min_time_step(summary.dt, s.dt_bound), s.viscous_dt);
     summary.bodies.push_back(s);
 
     BodyMemoryInput in;

@@ -19,12 +19,13 @@ struct BodySummary {
   double particle_mass = 0.0;     ///< [kg] rho * particle_volume
   double wave_speed = 0.0;        ///< [m/s] p-wave speed at rest (VALIDATION.md formulas)
   double dt_bound = 0.0;          ///< [s] CFL * dx / (wave_speed + |initial velocity|)
+  double viscous_dt = 0.0;        ///< [s] CFL rho dx^2 / (3 mu) (time_step.cuh); +infinity when inviscid
 };
 
 struct SceneSummary {
   std::vector<DeviceMemoryPlan> gpu_plans;  ///< the GPU engine's plan per GPU (index = gpu id)
   std::vector<BodySummary> bodies;
-  double dt = 0.0;                          ///< [s] min(default_dt, every body's dt_bound)
+  double dt = 0.0;                          ///< [s] min(default_dt, every body's dt_bound and viscous_dt)
   std::size_t cpu_bytes = 0;                ///< estimated host memory of the CPU engine
   std::vector<std::size_t> gpu_bytes;       ///< estimated device memory per GPU (index = gpu id): gpu_plans' totals
   std::size_t host_setup_bytes = 0;         ///< host memory of the GPU engine's set-up (one sampling batch)

@@ -1,17 +1,44 @@
 // Per-run constants both engines derive from the scene (SI units): grid spacing, gravity, domain, default dt, boundaries.
 #pragma once
 
+#include <algorithm>
+#include <limits>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "MnBase/Math/bspline.h"
 #include "MnBase/Math/vec.h"
 #include "physics/boundary.cuh"
+#include "physics/constitutive_models.cuh"
 #include "scene/scene.h"
 #include "physics/time_step.cuh"
 
 namespace fbar {
+
+/// The smallest explicit viscous bound of a scene (time_step.cuh) and its body (-1: no viscous body). A law is
+/// viscous when it reads the "viscosity" key (JFluid) and the body's value is positive.
+struct ViscousBound {
+  double dt = std::numeric_limits<double>::infinity();  ///< [s]
+  int body = -1;
+};
+inline double body_viscous_step_bound(const BodySpec& body, double dx) {
+  double bound = std::numeric_limits<double>::infinity();
+  for_each_material_parameter(body.material.law, [&](const MaterialParameter& p) {
+    if (std::string_view(p.key) == "viscosity")
+      bound = viscous_time_step(body.material.cfl, dx, body.material.rho, body.material.viscosity);
+  });
+  return bound;
+}
+inline ViscousBound viscous_step_bound(const Scene& scene) {
+  ViscousBound v;
+  for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
+    const double dt = body_viscous_step_bound(scene.bodies[b], scene.simulation.dx);
+    if (dt < v.dt) v = {dt, static_cast<int>(b)};
+  }
+  return v;
+}
 
 template <typename T>
 struct RunConstants {
@@ -20,7 +47,8 @@ struct RunConstants {
   T d_inv{};              ///< [1/m^2] APIC D_p^-1 = 4 / dx^2 (follows dx)
   Vec3<T> gravity{};      ///< [m/s^2]
   Vec3<T> domain{};       ///< [m] extent from the origin
-  double default_dt = 0;  ///< [s] simulation.default_dt, resolved (dx / 100 when absent)
+  double default_dt = 0;  ///< [s] largest step: simulation.default_dt, resolved (dx / 100 when absent), or the
+                          ///< smallest viscous bound (viscous_step_bound) when that is smaller
   std::vector<BoundaryParams<T>> boundaries;  ///< every boundary of the scene, in scene order
 
   RunConstants() = default;
@@ -36,7 +64,7 @@ struct RunConstants {
       gravity[a] = static_cast<T>(sim.gravity[a]);
       domain[a] = static_cast<T>(sim.domain[a]);
     }
-    default_dt = resolved_default_dt(sim);
+    default_dt = std::min(resolved_default_dt(sim), viscous_step_bound(scene).dt);
     for (std::size_t i = 0; i < scene.boundaries.size(); ++i) {
       BoundaryParams<T> p{};
       std::string error;

@@ -25,6 +25,7 @@
 #include "MnSystem/IO/async_writer.h"
 #include "MnSystem/IO/particle_io.h"
 #include "engine/engine_api.h"
+#include "engine/run_constants.h"
 #include "engine/stop_request.h"
 #include "scene/scene.h"
 #include "scene/scene_parse.h"
@@ -79,6 +80,11 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
   const double t0 = engine.time();
   const double t_end = t0 + sim.frames / sim.fps;
   if (!options.quiet) log << engine_line << '\n';
+  const ViscousBound viscous = viscous_step_bound(scene);
+  if (viscous.dt < resolved_default_dt(sim) && !options.quiet)
+    log << "fbar: note: the explicit viscous bound of body " << viscous.body << " limits every step to "
+        << viscous.dt << " s (CFL x rho x dx^2 / (3 x viscosity); default_dt " << resolved_default_dt(sim)
+        << " s)\n";
   write_frame(0);
 
   const auto wall_start = std::chrono::steady_clock::now();

@@ -133,6 +133,8 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
                                num(bs.particle_mass) + " kg each)");
       row(os, "p-wave speed", num(bs.wave_speed) + " m/s");
       row(os, "time step bound", num(bs.dt_bound) + " s (CFL x dx / (wave speed + |velocity|))");
+      if (std::isfinite(bs.viscous_dt))
+        row(os, "viscous bound", num(bs.viscous_dt) + " s (CFL x rho x dx^2 / (3 x viscosity), explicit viscosity)");
     }
   }
 
@@ -162,7 +164,7 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
 
   os << "summary\n";
   row(os, "particles", std::to_string(total) + " in " + std::to_string(scene.bodies.size()) + " body(ies)");
-  row(os, "time step", num(summary.dt) + " s (min of default_dt and every body's bound)");
+  row(os, "time step", num(summary.dt) + " s (min of default_dt and every body's bounds)");
   const double steps_per_frame = summary.dt > 0.0 ? std::ceil(1.0 / (s.fps * summary.dt)) : 0.0;
   row(os, "steps", "about " + num(steps_per_frame) + " per frame, " + num(steps_per_frame * s.frames) + " in all");
   row(os, "memory (CPU engine)", bytes(summary.cpu_bytes));
