@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -18,6 +19,7 @@
 
 #include "MnSystem/Cuda/device_query.h"
 #include "engine/engine_api.h"
+#include "comm/mpi_transport.h"
 #include "engine/stop_request.h"
 #include "engine/gpu/memory_plan.h"
 #include "scene/scene_parse.h"
@@ -182,7 +184,7 @@ std::string utc_now() {
 
 /// run.json: the resolved scene and how the run went, next to the frames.
 void write_run_json(const fs::path& path, const Scene& scene, const std::vector<std::string>& command_line,
-                    const std::string& started, double wall_s, const RunResult& result, bool gpu) {
+                    const std::string& started, double wall_s, const RunResult& result, bool gpu, int ranks) {
   rj::Document doc(rj::kObjectType);
   auto& a = doc.GetAllocator();
   auto str = [&](const std::string& s) { return rj::Value(s.c_str(), static_cast<rj::SizeType>(s.size()), a); };
@@ -190,6 +192,7 @@ void write_run_json(const fs::path& path, const Scene& scene, const std::vector<
   doc.AddMember("backend", str(gpu ? "gpu" : "cpu"), a);
   doc.AddMember("engine", str(gpu ? "GPU engine (device 0)" : "CPU reference engine"), a);
   doc.AddMember("precision", str(to_string(scene.simulation.precision)), a);
+  doc.AddMember("ranks", ranks, a);
   rj::Value cmd(rj::kArrayType);
   for (const auto& c : command_line) cmd.PushBack(str(c), a);
   doc.AddMember("command_line", cmd, a);
@@ -280,6 +283,27 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
     }
   }
 
+  // Ranks: under mpirun / srun one per process (MPI); otherwise one. The CPU engine decomposes the scene over them;
+  // the GPU engine runs one GPU per run in this release.
+  std::unique_ptr<comm::Transport> transport;
+  if (comm::launched_by_mpi()) {
+#ifdef FBAR_HAS_MPI
+    transport = std::make_unique<comm::MpiTransport>();
+#else
+    std::cerr << "fbar: error: started by an MPI launcher, but this build has no MPI (install an MPI development "
+                 "package, e.g. libopenmpi-dev, and configure again)\n";
+    return kExitRuntime;
+#endif
+  }
+  const int ranks = transport ? transport->size() : 1;
+  const int rank = transport ? transport->rank() : 0;
+  if (gpu && ranks > 1) {
+    if (rank == 0)
+      std::cerr << "fbar: error: " << ranks << " MPI ranks: the GPU engine runs on one GPU per run in this release; "
+                << "run one rank, or --backend=cpu to decompose the scene over the ranks\n";
+    return kExitInput;
+  }
+
   const fs::path out_dir(scene.simulation.save_path);
   std::error_code ec;
   fs::create_directories(out_dir, ec);
@@ -293,6 +317,7 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
   RunOptions ro;
   ro.quiet = o.quiet;
   ro.log = &std::cout;
+  ro.transport = transport.get();
   RunResult result;
   {
     // SIGINT / SIGTERM stop the run at the next step boundary; run.json below then says so (stop_request.h).
@@ -300,7 +325,15 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
     result = gpu ? engines.run_gpu(scene, ro) : run_cpu(scene, ro);
   }
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  write_run_json(out_dir / "run.json", scene, command_line, started, wall_s, result, gpu);
+  // The ranks agree on steps, failures and stops (the engine and the run loop reduce them); an exception (a CUDA or
+  // output error, a message from another rank cut short) may be one rank's alone: it ends the job, so that no rank
+  // waits for the others forever.
+  if (ranks > 1 && result.from_exception) {
+    std::cerr << "fbar: error: rank " << rank << ": " << result.message << '\n';
+    transport->abort(result.exit_code);
+  }
+  if (rank != 0) return result.exit_code;  // rank 0 writes run.json and the report
+  write_run_json(out_dir / "run.json", scene, command_line, started, wall_s, result, gpu, ranks);
   if (result.stop_signal != 0)
     std::cerr << "fbar: " << result.message << "; run.json written\n";
   else if (result.exit_code != kExitOk)

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
@@ -63,13 +64,20 @@ template <typename T, typename TG>
 RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& log) {
   if (scene.simulation.particles_output_exterior_only)
     throw std::invalid_argument("simulation.particles_output_exterior_only: not implemented by the CPU engine");
-  CpuEngine<T, TG> engine(scene);
-  engine.set_log(&log);
-  const std::string line = std::string("fbar: CPU reference engine (") + precision_description(scene.simulation.precision) +
-                           "), " + std::to_string(engine.particle_count()) + " particles, " +
-                           std::to_string(engine.body_count()) + " bodies, " + std::to_string(omp_get_max_threads()) +
-                           " threads";
-  return run_frames(engine, scene, options, log, line);
+  comm::Transport* transport = options.transport;
+  const bool decomposed = transport && transport->size() > 1;
+  std::unique_ptr<CpuEngine<T, TG>> engine =
+      decomposed ? std::make_unique<CpuEngine<T, TG>>(scene, *transport) : std::make_unique<CpuEngine<T, TG>>(scene);
+  engine->set_log(decomposed && transport->rank() != 0 ? nullptr : &log);
+  std::size_t particles = engine->particle_count();
+  if (decomposed) particles = static_cast<std::size_t>(transport->sum(static_cast<long long>(particles)));
+  std::string line = std::string("fbar: CPU reference engine (") + precision_description(scene.simulation.precision) +
+                     "), " + std::to_string(particles) + " particles, " + std::to_string(engine->body_count()) +
+                     " bodies, " + std::to_string(omp_get_max_threads()) + " threads";
+  if (decomposed)
+    line += " per rank; " + std::to_string(transport->size()) + " ranks, " + engine->slabs().describe() +
+            ", imbalance " + std::to_string(std::lround(100.0 * engine->imbalance())) + " %";
+  return run_frames(*engine, scene, options, log, line);
 }
 
 }  // namespace
@@ -160,6 +168,7 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
 
 RunResult run_guarded(const std::function<RunResult()>& run) {
   RunResult result;
+  result.from_exception = true;  // for every return below
   try {
     return run();
   } catch (const SceneError& e) {

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "engine/gpu/memory_plan.h"
+#include "comm/transport.h"
 #include "scene/scene.h"
 
 namespace fbar {
@@ -43,6 +44,9 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options =
 struct RunOptions {
   bool quiet = false;              ///< no progress lines
   std::ostream* log = nullptr;     ///< progress and failure reports; nullptr = std::cout
+  /// The ranks of a decomposed run (comm/transport.h; MPI under mpirun); nullptr or one rank: no decomposition.
+  /// Every rank runs the same loop; rank 0 logs.
+  comm::Transport* transport = nullptr;
 };
 
 struct RunResult {
@@ -52,9 +56,13 @@ struct RunResult {
   double end_time = 0.0;           ///< [s]
   int frames_written = -1;         ///< the last frame written (0: the initial state); -1: none
   int stop_signal = 0;             ///< SIGINT / SIGTERM that stopped the run (stop_request.h), or 0
+  /// The run ended by an exception (run_guarded), which may be this rank's alone; failures of a step and stop
+  /// requests are agreed on by every rank.
+  bool from_exception = false;
 };
 
-/// Runs the scene on the CPU reference engine, writing frames to scene.simulation.save_path.
+/// Runs the scene on the CPU reference engine, writing frames to scene.simulation.save_path; decomposed over the
+/// ranks of options.transport when it has several (each rank writes its particles as model[m]_dev[rank]_frame[f]).
 RunResult run_cpu(const Scene& scene, const RunOptions& options);
 
 /// Calls run() and turns what it throws into a RunResult: SceneError and std::invalid_argument (the scene asks for

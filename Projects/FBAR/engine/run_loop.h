@@ -48,6 +48,9 @@ inline std::string format_duration(double seconds) {
 /// Runs `engine` (constructed from `scene`) for simulation.frames frames, writing frame 0 (the initial state) and
 /// every frame to simulation.save_path (model[m]_dev[d]_frame[f].suffix), with a progress line per frame and, when
 /// simulation.info_rate > 0, every info_rate steps. `engine_line` is logged first (which engine, particles, set-up).
+/// With several ranks (options.transport) every rank runs this loop in step with the others: the engine agrees on
+/// dt and failures, the loop on a stop request; each rank writes its particles (model[m]_dev[rank]_frame[f]) and
+/// rank 0 logs.
 /// Stops at the first failure the engine does not repair (exit code 2, the engine's report: body, step, time) and
 /// at a stop request (exit code 128 + signal, at the next step boundary). Throws what the engine or the writer
 /// throws (run_guarded turns it into an exit code).
@@ -56,6 +59,10 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
                      const std::string& engine_line) {
   RunResult result;
   const SimulationSpec& sim = scene.simulation;
+  comm::Transport* transport = options.transport;
+  const int rank = transport ? transport->rank() : 0;
+  const bool decomposed = transport && transport->size() > 1;
+  const bool talk = !options.quiet && rank == 0;  // every rank runs the loop; rank 0 speaks for them
   check_supported(scene);  // what neither engine implements is refused, also for scenes built in code
   std::filesystem::create_directories(sim.save_path);
   const std::string suffix = sim.save_suffix;
@@ -66,7 +73,9 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
   auto write_frame = [&](int frame) {
     for (int b = 0; b < engine.body_count(); ++b) {
       const BodySpec& spec = scene.bodies[b];
-      engine.submit_frame(b, io::frame_file_path(sim.save_path, spec.model, spec.gpu, frame, suffix), writer);
+      // A decomposed body is written by every rank, its particles in the rank's file (ClaymoreUW's dev[d] names).
+      const int device = decomposed ? rank : spec.gpu;
+      engine.submit_frame(b, io::frame_file_path(sim.save_path, spec.model, device, frame, suffix), writer);
     }
     result.frames_written = frame;
   };
@@ -79,9 +88,9 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
 
   const double t0 = engine.time();
   const double t_end = t0 + sim.frames / sim.fps;
-  if (!options.quiet) log << engine_line << '\n';
+  if (talk) log << engine_line << '\n';
   const ViscousBound viscous = viscous_step_bound(scene);
-  if (viscous.dt < resolved_default_dt(sim) && !options.quiet)
+  if (viscous.dt < resolved_default_dt(sim) && talk)
     log << "fbar: note: the explicit viscous bound of body " << viscous.body << " limits every step to "
         << viscous.dt << " s (CFL x rho x dx^2 / (3 x viscosity); default_dt " << resolved_default_dt(sim)
         << " s)\n";
@@ -106,7 +115,9 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
   for (int frame = 1; frame <= sim.frames; ++frame) {
     const double target = t0 + frame / sim.fps;
     while (engine.time() < target) {
-      if (const int signal = stop_signal()) {
+      int signal = stop_signal();
+      if (decomposed) signal = static_cast<int>(transport->max(static_cast<double>(signal)));  // all stop together
+      if (signal != 0) {
         result.stop_signal = signal;
         result.exit_code = 128 + signal;
         char text[256];
@@ -124,7 +135,7 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
         result.message = r.message();  // the caller reports it (cli.cpp prints it to stderr)
         return finish();
       }
-      if (sim.info_rate > 0 && !options.quiet && engine.steps() - steps_logged >= sim.info_rate &&
+      if (sim.info_rate > 0 && talk && engine.steps() - steps_logged >= sim.info_rate &&
           engine.time() < target) {
         steps_logged = engine.steps();
         line("step " + std::to_string(engine.steps()));
@@ -132,7 +143,7 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
     }
     engine.set_frame_capture(false);
     write_frame(frame);
-    if (!options.quiet) line("frame " + std::to_string(frame) + "/" + std::to_string(sim.frames));
+    if (talk) line("frame " + std::to_string(frame) + "/" + std::to_string(sim.frames));
     steps_logged = engine.steps();
   }
   return finish();

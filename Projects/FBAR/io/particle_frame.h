@@ -27,12 +27,14 @@ inline bool tensor_component(std::string_view name, std::string_view prefix, int
   return row >= 0 && row < 3 && col >= 0 && col < 3;
 }
 
-/// What a frame reads of one body, particles in ID order (slot p = particle ID p). The per-particle arrays that
+/// What a frame reads of one body: particles in ID order (slot p = particle ID p) unless `id` gives each slot's ID
+/// (a rank of a decomposed run holds some particles, in any order). The per-particle arrays that
 /// cost work to produce (J, F, Cauchy stress) are asked for only when an attribute needs them, once each.
 template <typename T>
 struct FrameSource {
   const std::vector<Vec3<T>>* x = nullptr;       ///< [m]
   const std::vector<Vec3<T>>* v = nullptr;       ///< [m/s]
+  const std::vector<std::int64_t>* id = nullptr; ///< particle ID of each slot; nullptr: the slot index
   std::function<T(std::size_t)> mass;            ///< [kg] of particle p
   std::function<T(std::size_t)> volume0;         ///< [m^3] reference volume of particle p
   std::function<std::vector<T>()> J;             ///< [-]
@@ -134,7 +136,7 @@ io::ParticleFrame build_frame(const BodySpec& spec, int body, const FrameSource<
   for (const FrameAttributeSpec& a : attributes) {
     if (a.column.quantity == FrameQuantity::Id) {
       std::vector<std::int32_t> ids(n);
-      for (std::size_t p = 0; p < n; ++p) ids[p] = static_cast<std::int32_t>(p);
+      for (std::size_t p = 0; p < n; ++p) ids[p] = static_cast<std::int32_t>(src.id ? (*src.id)[p] : p);
       f.add(a.name, 1, std::move(ids));
       continue;
     }

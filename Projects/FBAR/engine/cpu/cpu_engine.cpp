@@ -165,6 +165,46 @@ CpuEngine<T, TG>::CpuEngine(const Scene& scene, const std::vector<std::vector<Ve
 }
 
 template <typename T, typename TG>
+CpuEngine<T, TG>::CpuEngine(const Scene& scene, comm::Transport& transport, double rebalance_threshold)
+    : scene_(scene), transport_(&transport), rebalance_threshold_(rebalance_threshold), log_(&std::cerr) {
+  std::vector<std::vector<Vec3d>> positions;
+  for (std::size_t b = 0; b < scene.bodies.size(); ++b)
+    positions.push_back(sample_body(scene.bodies[b], scene.simulation, static_cast<int>(b)));
+  init(positions);
+  if (ranks() > 1) {
+    // Every rank sampled every particle (deterministically): the slabs follow from the local counts, and each rank
+    // keeps the particles it owns.
+    choose_slabs_now(true);
+    for (Body& body : bodies_) {
+      std::vector<char> keep(body.x.size());
+      for (std::size_t p = 0; p < body.x.size(); ++p) keep[p] = owner_of(body.x[p]) == rank();
+      auto compact = [&](auto& v) {
+        std::size_t w = 0;
+        for (std::size_t p = 0; p < v.size(); ++p)
+          if (keep[p]) v[w++] = v[p];
+        v.resize(w);
+      };
+      compact(body.id);
+      compact(body.x);
+      compact(body.v);
+      compact(body.C);
+      compact(body.mass);
+      compact(body.volume);
+      std::visit([&](auto& mb) { compact(mb.state); }, body.material);
+      body.x_next.resize(body.x.size());
+      body.v_next.resize(body.x.size());
+      body.C_next.resize(body.x.size());
+      std::visit([&](auto& mb) { mb.next_state.resize(mb.state.size()); }, body.material);
+    }
+    std::vector<long long> per_rank(static_cast<std::size_t>(ranks()), 0);
+    per_rank[static_cast<std::size_t>(rank())] = static_cast<long long>(particle_count());
+    transport_->allreduce_sum(per_rank.data(), ranks());
+    imbalance_ = comm::imbalance(per_rank);
+    chosen_imbalance_ = imbalance_;
+  }
+}
+
+template <typename T, typename TG>
 CpuEngine<T, TG>::~CpuEngine() = default;
 
 template <typename T, typename TG>
@@ -172,6 +212,7 @@ void CpuEngine<T, TG>::init(const std::vector<std::vector<Vec3d>>& positions) {
   const SimulationSpec& sim = scene_.simulation;
   k_ = RunConstants<T>(scene_, "CPU engine");
   kg_ = RunConstants<TG>(scene_, "CPU engine");
+  slabs_ = comm::choose_slabs(comm::PlaneCounts{}, 1);  // all of space (a decomposed run chooses again)
   if (positions.size() != scene_.bodies.size())
     throw std::invalid_argument("CpuEngine: one position list per body expected");
   time_ = sim.time;
@@ -205,6 +246,8 @@ void CpuEngine<T, TG>::init(const std::vector<std::vector<Vec3d>>& positions) {
     const Vec3T v0{
         {static_cast<T>(spec.velocity[0]), static_cast<T>(spec.velocity[1]), static_cast<T>(spec.velocity[2])}};
     max_speed = std::max(max_speed, static_cast<double>(norm(v0)));
+    body.id.resize(n);
+    for (std::size_t p = 0; p < n; ++p) body.id[p] = static_cast<std::int64_t>(p);
     body.x.resize(n);
     for (std::size_t p = 0; p < n; ++p) {
       const Vec3d& q = positions[b][p];
@@ -434,10 +477,12 @@ double CpuEngine<T, TG>::update_grid(TG dt) {
           g.momentum[2][node] = v[2];
           max_speed_sq = std::max(max_speed_sq, dot(v, v));
         }
-    block_mass[gb] = mass_sum;
+    // A halo block is held by two ranks: its mass counts on the rank owning its plane.
+    block_mass[gb] = ranks() == 1 || slabs_.owner(c[0], c[1], c[2]) == rank() ? mass_sum : 0.0;
   }
   grid_mass_ = 0.0;
   for (double m : block_mass) grid_mass_ += m;
+  if (ranks() > 1) grid_mass_ = transport_->sum(grid_mass_);
   return std::sqrt(static_cast<double>(max_speed_sq));
 }
 
@@ -614,7 +659,7 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
               }
               if (failed >= 0) {
                 ++my_count[failed];
-                my_first[failed] = std::min<long long>(my_first[failed], p);
+                my_first[failed] = std::min<long long>(my_first[failed], body.id[p]);
               }
             }
           }
@@ -634,17 +679,44 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
 
   result.max_wave_speed[body_index] = max_wave;
   for (int k = 0; k < 3; ++k) {
-    if (count[k] == 0) continue;
-    FailureReport f;
-    f.kind = static_cast<FailureKind>(k);
-    f.body = body_index;
-    f.step = steps_ + 1;
-    f.time = time_;
-    f.dt = static_cast<double>(dt);
-    f.count = count[k];
-    f.first_particle = first[k];
-    result.failures.push_back(f);
+    result.count[body_index][k] = count[k];
+    result.first[body_index][k] = first[k];
   }
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::reduce_try(TryResult& result, double dt) {
+  const int nb = static_cast<int>(bodies_.size());
+  if (ranks() > 1) {
+    result.max_grid_speed = transport_->max(result.max_grid_speed);
+    transport_->allreduce_max(result.max_wave_speed.data(), nb);
+    std::vector<long long> counts, firsts;
+    for (int b = 0; b < nb; ++b)
+      for (int k = 0; k < 3; ++k) {
+        counts.push_back(result.count[b][k]);
+        firsts.push_back(result.first[b][k]);
+      }
+    transport_->allreduce_sum(counts.data(), static_cast<int>(counts.size()));
+    transport_->allreduce_min(firsts.data(), static_cast<int>(firsts.size()));
+    for (int b = 0; b < nb; ++b)
+      for (int k = 0; k < 3; ++k) {
+        result.count[b][k] = counts[static_cast<std::size_t>(3 * b + k)];
+        result.first[b][k] = firsts[static_cast<std::size_t>(3 * b + k)];
+      }
+  }
+  for (int b = 0; b < nb; ++b)
+    for (int k = 0; k < 3; ++k) {
+      if (result.count[b][k] == 0) continue;
+      FailureReport f;
+      f.kind = static_cast<FailureKind>(k);
+      f.body = b;
+      f.step = steps_ + 1;
+      f.time = time_;
+      f.dt = dt;
+      f.count = result.count[b][k];
+      f.first_particle = result.first[b][k];
+      result.failures.push_back(f);
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -655,6 +727,8 @@ typename CpuEngine<T, TG>::TryResult CpuEngine<T, TG>::try_step(double dt_in) {
   const T dt = static_cast<T>(dt_in);
   TryResult result;
   result.max_wave_speed.assign(bodies_.size(), 0.0);
+  result.count.assign(bodies_.size(), {0, 0, 0});
+  result.first.assign(bodies_.size(), {0, 0, 0});
   const int nblocks = static_cast<int>(grid_.blocks.size());
 #pragma omp parallel for schedule(static) if (nblocks >= kMinParallelBlocks)
   for (int gb = 0; gb < nblocks; ++gb) {
@@ -662,11 +736,16 @@ typename CpuEngine<T, TG>::TryResult CpuEngine<T, TG>::try_step(double dt_in) {
     if (asflip_) std::memset(&grid_.asflip[gb], 0, sizeof(AsflipBlock));
   }
   for (Body& body : bodies_) p2g(body, dt);
+  if (ranks() > 1) exchange_halo(false);
   result.max_grid_speed = update_grid(static_cast<TG>(dt_in));
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
-    if (bodies_[b].fbar_psi != T(0)) fbar_divergence(bodies_[b]);  // F-bar smooths within one body
+    if (bodies_[b].fbar_psi != T(0)) {
+      fbar_divergence(bodies_[b]);  // F-bar smooths within one body
+      if (ranks() > 1) exchange_halo(true);
+    }
     g2p(static_cast<int>(b), bodies_[b], dt, result);
   }
+  reduce_try(result, dt_in);
   return result;
 }
 
@@ -705,6 +784,7 @@ StepReport CpuEngine<T, TG>::step_impl(double dt, bool cfl_dt) {
     TryResult result = try_step(dt);
     if (result.failures.empty()) {
       commit(result, dt);
+      if (ranks() > 1) migrate();
       report.dt = dt;
       report.steps = 1;
       if (cfl_dt && dt_scale_ < 1.0 && ++clean_steps_ >= kRecoverSteps) {
@@ -790,7 +870,12 @@ void CpuEngine<T, TG>::submit_frame(int body, const std::filesystem::path& path,
 
 template <typename T, typename TG>
 std::string CpuEngine<T, TG>::resource_note() const {
-  return std::to_string(omp_get_max_threads()) + " threads";
+  std::string note = std::to_string(omp_get_max_threads()) + " threads";
+  if (ranks() > 1)
+    note += "; particles above are rank " + std::to_string(rank()) + "'s of " + std::to_string(ranks()) +
+            " ranks, imbalance " + format_g(100.0 * imbalance_) + " %, " + std::to_string(migrated_) +
+            " migrated from it, " + std::to_string(rebalances_) + " rebalances";
+  return note;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -820,6 +905,10 @@ std::size_t CpuEngine<T, TG>::particle_count() const {
 template <typename T, typename TG>
 Constitutive CpuEngine<T, TG>::law(int body) const {
   return body_at(body).spec.material.law;
+}
+template <typename T, typename TG>
+const std::vector<std::int64_t>& CpuEngine<T, TG>::ids(int body) const {
+  return body_at(body).id;
 }
 template <typename T, typename TG>
 const std::vector<Vec3<T>>& CpuEngine<T, TG>::positions(int body) const {
@@ -1050,6 +1139,7 @@ io::ParticleFrame CpuEngine<T, TG>::frame(int body) const {
   FrameSource<T> src;
   src.x = &b.x;
   src.v = &b.v;
+  src.id = &b.id;
   src.mass = [&](std::size_t p) { return b.mass[p]; };
   src.volume0 = [&](std::size_t p) { return b.volume[p]; };
   src.J = [&] { return volume_ratios(body); };
@@ -1065,7 +1155,7 @@ std::size_t CpuEngine<T, TG>::memory_bytes() const {
   for (const Body& b : bodies_) {
     bytes += (b.x.capacity() + b.v.capacity() + b.x_next.capacity() + b.v_next.capacity()) * sizeof(Vec3T);
     bytes += (b.C.capacity() + b.C_next.capacity()) * sizeof(Mat3T);
-    bytes += (b.mass.capacity() + b.volume.capacity()) * sizeof(T);
+    bytes += (b.mass.capacity() + b.volume.capacity()) * sizeof(T) + b.id.capacity() * sizeof(std::int64_t);
     std::visit([&](const auto& mb) { bytes += (mb.state.capacity() + mb.next_state.capacity()) * sizeof(mb.state[0]); },
                b.material);
     const Partition& part = b.partition;
@@ -1078,6 +1168,239 @@ std::size_t CpuEngine<T, TG>::memory_bytes() const {
            grid_.asflip.capacity() * sizeof(AsflipBlock) + grid_.fbar.capacity() * sizeof(FbarBlock);
   bytes += grid_.index.size() * (sizeof(std::uint64_t) + sizeof(int) + 2 * sizeof(void*));
   return bytes;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Decomposition over ranks (comm/slab_partition.h): halo planes, migration, slabs
+
+namespace {
+
+/// Appends the bytes of a trivially copyable value.
+template <typename V>
+void put(comm::Bytes& out, const V& v) {
+  static_assert(std::is_trivially_copyable_v<V>);
+  const auto* b = reinterpret_cast<const std::uint8_t*>(&v);
+  out.insert(out.end(), b, b + sizeof(V));
+}
+/// Reads a trivially copyable value at `at` and advances it.
+template <typename V>
+V take(const comm::Bytes& in, std::size_t& at) {
+  static_assert(std::is_trivially_copyable_v<V>);
+  if (at + sizeof(V) > in.size()) throw std::runtime_error("CpuEngine: a truncated message from another rank");
+  V v;
+  std::memcpy(&v, in.data() + at, sizeof(V));
+  at += sizeof(V);
+  return v;
+}
+
+}  // namespace
+
+template <typename T, typename TG>
+int CpuEngine<T, TG>::owner_of(const Vec3T& x) const {
+  const Vec3i b = block_of_node(quadratic_bspline_inv(x, k_.inv_dx).base);
+  return slabs_.owner(b[0], b[1], b[2]);
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::exchange_halo(bool fbar_sums) {
+  const int r = rank(), n = ranks();
+  std::vector<int> peers;
+  std::vector<int> planes;
+  if (r > 0) {
+    peers.push_back(r - 1);
+    planes.push_back(slabs_.halo_plane(r - 1));
+  }
+  if (r + 1 < n) {
+    peers.push_back(r + 1);
+    planes.push_back(slabs_.halo_plane(r));
+  }
+  const int axis = slabs_.axis;
+  std::vector<comm::Bytes> send(peers.size());
+  for (std::size_t i = 0; i < peers.size(); ++i)
+    for (std::size_t gb = 0; gb < grid_.coords.size(); ++gb) {
+      const Vec3i& c = grid_.coords[gb];
+      if (c[axis] != planes[i]) continue;
+      put(send[i], c);
+      if (fbar_sums) {
+        put(send[i], grid_.fbar[gb]);
+      } else {
+        put(send[i], grid_.blocks[gb]);
+        if (asflip_) put(send[i], grid_.asflip[gb]);
+      }
+    }
+  const std::vector<comm::Bytes> received = transport_->exchange(peers, send);
+  // Add what the neighbour scattered into the blocks this rank holds (a + b here, b + a there: the same sums). A
+  // block only the neighbour holds is none of this rank's particles' business.
+  auto add = [](TG* into, const TG* from, int count) {
+    for (int k = 0; k < count; ++k) into[k] += from[k];
+  };
+  for (const comm::Bytes& in : received) {
+    std::size_t at = 0;
+    while (at < in.size()) {
+      const Vec3i c = take<Vec3i>(in, at);
+      const auto it = grid_.index.find(pack_block(c));
+      if (fbar_sums) {
+        const FbarBlock f = take<FbarBlock>(in, at);
+        if (it != grid_.index.end()) add(&grid_.fbar[it->second].sums[0][0], &f.sums[0][0], 2 * 64);
+      } else {
+        const GridBlock g = take<GridBlock>(in, at);
+        AsflipBlock a{};
+        if (asflip_) a = take<AsflipBlock>(in, at);
+        if (it == grid_.index.end()) continue;
+        GridBlock& mine = grid_.blocks[it->second];
+        add(mine.mass, g.mass, 64);
+        add(&mine.momentum[0][0], &g.momentum[0][0], 3 * 64);
+        if (asflip_) add(&grid_.asflip[it->second].old_velocity[0][0], &a.old_velocity[0][0], 3 * 64);
+      }
+    }
+  }
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::migrate() {
+  const int r = rank(), n = ranks();
+  std::vector<int> peers;
+  for (int q = 0; q < n; ++q)
+    if (q != r) peers.push_back(q);
+  std::vector<comm::Bytes> send(peers.size());
+  auto peer_index = [&](int q) { return q < r ? q : q - 1; };
+  long long sent = 0;
+  for (Body& body : bodies_) {
+    const std::size_t count = body.x.size();
+    std::vector<int> dest(count);
+    for (std::size_t p = 0; p < count; ++p) dest[p] = owner_of(body.x[p]);
+    // Per peer: this body's particle count, then their records (ID, x, v, C, mass, V0, material state).
+    std::vector<std::uint64_t> per_peer(peers.size(), 0);
+    for (std::size_t p = 0; p < count; ++p)
+      if (dest[p] != r) ++per_peer[static_cast<std::size_t>(peer_index(dest[p]))];
+    for (std::size_t i = 0; i < peers.size(); ++i) put(send[i], per_peer[i]);
+    std::visit(
+        [&](auto& mb) {
+          std::size_t w = 0;
+          for (std::size_t p = 0; p < count; ++p) {
+            if (dest[p] != r) {
+              comm::Bytes& out = send[static_cast<std::size_t>(peer_index(dest[p]))];
+              put(out, body.id[p]);
+              put(out, body.x[p]);
+              put(out, body.v[p]);
+              put(out, body.C[p]);
+              put(out, body.mass[p]);
+              put(out, body.volume[p]);
+              put(out, mb.state[p]);
+              ++sent;
+              continue;
+            }
+            body.id[w] = body.id[p];
+            body.x[w] = body.x[p];
+            body.v[w] = body.v[p];
+            body.C[w] = body.C[p];
+            body.mass[w] = body.mass[p];
+            body.volume[w] = body.volume[p];
+            mb.state[w] = mb.state[p];
+            ++w;
+          }
+          body.id.resize(w);
+          body.x.resize(w);
+          body.v.resize(w);
+          body.C.resize(w);
+          body.mass.resize(w);
+          body.volume.resize(w);
+          mb.state.resize(w);
+        },
+        body.material);
+  }
+  const std::vector<comm::Bytes> received = transport_->exchange(peers, send);
+  // Unpack in peer (rank) order, body by body: the slot order after a migration does not depend on timing.
+  std::vector<std::size_t> at(received.size(), 0);
+  for (Body& body : bodies_) {
+    std::visit(
+        [&](auto& mb) {
+          using State = typename std::decay_t<decltype(mb.state)>::value_type;
+          for (std::size_t i = 0; i < received.size(); ++i) {
+            const auto k = take<std::uint64_t>(received[i], at[i]);
+            for (std::uint64_t j = 0; j < k; ++j) {
+              body.id.push_back(take<std::int64_t>(received[i], at[i]));
+              body.x.push_back(take<Vec3T>(received[i], at[i]));
+              body.v.push_back(take<Vec3T>(received[i], at[i]));
+              body.C.push_back(take<Mat3T>(received[i], at[i]));
+              body.mass.push_back(take<T>(received[i], at[i]));
+              body.volume.push_back(take<T>(received[i], at[i]));
+              mb.state.push_back(take<State>(received[i], at[i]));
+              if (owner_of(body.x.back()) != r)
+                throw std::runtime_error("particle " + std::to_string(body.id.back()) +
+                                         " crossed a whole slab in one step (rank " + std::to_string(r) + ")");
+            }
+          }
+          mb.next_state.resize(mb.state.size());
+        },
+        body.material);
+    body.x_next.resize(body.x.size());
+    body.v_next.resize(body.x.size());
+    body.C_next.resize(body.x.size());
+  }
+  migrated_ += sent;
+  partition_valid_ = false;
+
+  // Balance: the particles per rank, and new slabs when they drifted apart beyond the threshold.
+  std::vector<long long> per_rank(static_cast<std::size_t>(n), 0);
+  per_rank[static_cast<std::size_t>(r)] = static_cast<long long>(particle_count());
+  transport_->allreduce_sum(per_rank.data(), n);
+  imbalance_ = comm::imbalance(per_rank);
+  // New slabs when the counts drifted apart beyond the threshold, and beyond 1.5 x what whole block planes allowed
+  // at the last choice (a body a few planes wide cannot be split evenly; choosing again would not help).
+  if (rebalance_threshold_ > 0.0 && imbalance_ > rebalance_threshold_ && imbalance_ > 1.5 * chosen_imbalance_) {
+    const comm::SlabPartition before = slabs_;
+    const double drifted = imbalance_;
+    choose_slabs_now(false);
+    chosen_imbalance_ = drifted;  // unless the new cuts do better (below)
+    if (slabs_.cuts != before.cuts) {
+      ++rebalances_;
+      migrate();  // to the new owners; sets imbalance_ (and cannot rebalance again: the cuts are the best ones)
+      chosen_imbalance_ = imbalance_;
+      if (log_ && r == 0)
+        *log_ << "fbar: particles per rank drifted apart (imbalance " << format_g(100 * drifted) << " % > "
+              << format_g(100 * rebalance_threshold_) << " %) at step " << steps_ << ": new " << slabs_.describe()
+              << ", imbalance " << format_g(100 * imbalance_) << " %\n";
+    }
+  }
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::choose_slabs_now(bool replicated) {
+  // Particle-block bounds and the axis of the largest extent, over every rank.
+  double lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = std::numeric_limits<double>::infinity();
+    hi[a] = -std::numeric_limits<double>::infinity();
+  }
+  for (const Body& body : bodies_)
+    for (const Vec3T& x : body.x) {
+      const Vec3i b = block_of_node(quadratic_bspline_inv(x, k_.inv_dx).base);
+      for (int a = 0; a < 3; ++a) {
+        lo[a] = std::min(lo[a], static_cast<double>(b[a]));
+        hi[a] = std::max(hi[a], static_cast<double>(b[a]));
+      }
+    }
+  if (!replicated) {
+    transport_->allreduce_min(lo, 3);
+    transport_->allreduce_max(hi, 3);
+  }
+  comm::PlaneCounts planes;
+  if (!(lo[0] <= hi[0])) {
+    slabs_ = comm::choose_slabs(planes, 1);  // no particles anywhere: one slab
+    return;
+  }
+  for (int a = 1; a < 3; ++a)
+    if (hi[a] - lo[a] > hi[planes.axis] - lo[planes.axis]) planes.axis = a;
+  planes.first = static_cast<int>(lo[planes.axis]);
+  planes.counts.assign(static_cast<std::size_t>(hi[planes.axis] - lo[planes.axis]) + 1, 0);
+  for (const Body& body : bodies_)
+    for (const Vec3T& x : body.x) {
+      const Vec3i b = block_of_node(quadratic_bspline_inv(x, k_.inv_dx).base);
+      ++planes.counts[static_cast<std::size_t>(b[planes.axis] - planes.first)];
+    }
+  if (!replicated) transport_->allreduce_sum(planes.counts.data(), static_cast<int>(planes.counts.size()));
+  slabs_ = comm::choose_slabs(planes, ranks());
 }
 
 template class CpuEngine<double, double>;

@@ -56,6 +56,8 @@
 
 #include "MnBase/Math/vec.h"
 #include "MnSystem/IO/async_writer.h"
+#include "comm/slab_partition.h"
+#include "comm/transport.h"
 #include "MnSystem/IO/particle_io.h"
 #include "physics/boundary.cuh"
 #include "physics/constitutive_models.cuh"
@@ -122,6 +124,13 @@ class CpuEngine {
   explicit CpuEngine(const Scene& scene);
   /// As above with given initial positions [m] per body (tests, restarts); positions must lie inside the domain.
   CpuEngine(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions);
+  /// One rank of a decomposed run (comm/slab_partition.h): every rank samples the scene, keeps the particles of its
+  /// slab (slabs chosen from the particle distribution along its longest axis), sums the halo plane it shares with
+  /// each neighbour after P2G (and after F-bar's cell sums), agrees with the other ranks on the grid speed, wave
+  /// speeds and failures (so every rank takes the same dt and the same decision), and sends particles whose block
+  /// left its slab to their new owner after each step, with everything they carry. Every rank calls every step.
+  /// `rebalance_threshold`: the slabs are chosen again when imbalance() exceeds it (<= 0: never).
+  CpuEngine(const Scene& scene, comm::Transport& transport, double rebalance_threshold = 0.25);
   ~CpuEngine();
   CpuEngine(const CpuEngine&) = delete;
   CpuEngine& operator=(const CpuEngine&) = delete;
@@ -156,7 +165,18 @@ class CpuEngine {
   double output_wait_seconds() const { return output_wait_s_; }  ///< [s] waited in submit_frame
   std::string resource_note() const;                             ///< threads, for progress lines
 
-  // ------------------------------------------------------------------ particles (index = particle ID)
+  // ------------------------------------------------------------------ decomposition (one rank: trivial)
+  int rank() const { return transport_->rank(); }
+  int ranks() const { return transport_->size(); }
+  const comm::SlabPartition& slabs() const { return slabs_; }
+  /// max / mean - 1 of the particles per rank after the last step (0 on one rank).
+  double imbalance() const { return imbalance_; }
+  long long migrated() const { return migrated_; }      ///< particles this rank sent to others so far
+  int rebalances() const { return rebalances_; }        ///< times the slabs were chosen again
+  /// Particle IDs of this rank's particles of `body`, in slot order (one rank: 0, 1, 2, ...: slot = ID).
+  const std::vector<std::int64_t>& ids(int body) const;
+
+  // ------------------------------------------------------------------ particles (slot; on one rank slot = ID)
   int body_count() const { return static_cast<int>(bodies_.size()); }
   std::size_t particle_count(int body) const;
   std::size_t particle_count() const;  ///< all bodies
@@ -231,6 +251,7 @@ class CpuEngine {
 
   struct Body {
     BodySpec spec;
+    std::vector<std::int64_t> id;  // particle ID of each slot
     std::vector<Vec3T> x, v, x_next, v_next;
     std::vector<Mat3T> C, C_next;
     std::vector<T> mass, volume;
@@ -265,9 +286,11 @@ class CpuEngine {
   };
 
   struct TryResult {
-    std::vector<FailureReport> failures;
+    std::vector<FailureReport> failures;  // built from counts / first after the reduction over ranks
     double max_grid_speed = 0.0;
     std::vector<double> max_wave_speed;  // per body, of the new state
+    std::vector<std::array<long long, 3>> count;  // (body, FailureKind) failing particles
+    std::vector<std::array<long long, 3>> first;  // (body, FailureKind) smallest failing ID
   };
 
   void init(const std::vector<std::vector<Vec3d>>& positions);
@@ -278,11 +301,26 @@ class CpuEngine {
   void fbar_divergence(Body& body);
   void g2p(int body_index, Body& body, T dt, TryResult& result);
   void commit(const TryResult& result, double dt);
+  void exchange_halo(bool fbar_sums);  // sums the halo planes with the neighbours (P2G channels or F-bar sums)
+  void reduce_try(TryResult& result, double dt);  // over ranks: speeds, failure counts; builds the reports
+  void migrate();                      // particles whose block left this rank's slab go to their owner
+  /// Slabs from the particles: of this rank only when every rank holds every particle (`replicated`, at start),
+  /// else of every rank (to rebalance).
+  void choose_slabs_now(bool replicated);
+  int owner_of(const Vec3T& x) const;  // rank owning the particle block of x
   StepReport step_impl(double dt, bool cfl_dt);
   const Body& body_at(int body) const;
   Body& body_at(int body);
 
   Scene scene_;
+  comm::LocalTransport local_transport_;        // the transport of a one-rank engine
+  comm::Transport* transport_ = &local_transport_;
+  comm::SlabPartition slabs_;                   // one slab (all of space) on one rank
+  double rebalance_threshold_ = 0.0;
+  double imbalance_ = 0.0;
+  double chosen_imbalance_ = 0.0;               // imbalance right after the slabs were last chosen
+  long long migrated_ = 0;
+  int rebalances_ = 0;
   RunConstants<T> k_;    ///< dx, gravity, domain, default dt, boundaries (from the scene): particle side
   RunConstants<TG> kg_;  ///< the same in the grid scalar type: the grid update
   std::vector<Body> bodies_;
