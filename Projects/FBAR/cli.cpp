@@ -81,7 +81,7 @@ const char* kHelp =
     "exit codes: 0 success, 1 invalid scene, input file or option, 2 run-time failure (NaN, CFL violation,\n"
     "capacity, device or output error); messages go to stderr as `fbar: error: ...`. SIGINT (Ctrl-C) or SIGTERM\n"
     "stops the run at the next step, writes run.json (status \"interrupted\") and exits with 128 + the signal\n"
-    "number (130, 143); a second signal ends the process at once.\n";
+    "number (130, 143); a second Ctrl-C ends the process at once.\n";
 
 const std::vector<std::string_view> kLongOptions = {"--file",   "--check",  "--backend",           "--output",
                                                     "--frames", "--quiet",  "--allow-unknown-keys", "--data-dir",

@@ -231,8 +231,9 @@ TEST(Cli, RunWritesRunJsonWithTheResolvedScene) {
   EXPECT_TRUE(ran == expected) << sb.GetString();
 }
 
-// SIGTERM (a batch system's time limit, `kill`) stops the run at the next step: run.json says "interrupted" with the
-// signal, the step and the last frame written, and the exit code is 128 + 15 as a shell reports a killed process.
+// SIGTERM (a batch system's time limit, `kill`, `timeout`) stops the run at the next step: run.json says
+// "interrupted" with the signal, the step and the last frame written, and the exit code is 128 + 15 as a shell
+// reports a killed process. A repeated SIGTERM does not end the process.
 TEST(Cli, SigtermStopsTheRunAndWritesRunJson) {
   const fs::path dir = scratch("sigterm");
   const fs::path out = dir / "frames";
@@ -261,7 +262,11 @@ TEST(Cli, SigtermStopsTheRunAndWritesRunJson) {
   while (!fs::exists(out / "model0_dev0_frame1.csv") && std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   const bool started = fs::exists(out / "model0_dev0_frame1.csv");
-  if (started) std::raise(SIGTERM);  // only while the run (and its handler) is known to be there
+  if (started) {  // only while the run (and its handler) is known to be there
+    // Twice, as coreutils `timeout` does (the process, then its group): the second must not end the process.
+    std::raise(SIGTERM);
+    std::raise(SIGTERM);
+  }
   run.join();
   ASSERT_TRUE(started) << "frame 1 never appeared: " << r.err;
   EXPECT_EQ(r.code, 128 + SIGTERM) << r.err;

@@ -14,7 +14,9 @@ static_assert(std::atomic<int>::is_always_lock_free, "the signal handler needs a
 
 extern "C" void on_stop_signal(int signal) {
   g_stop_signal.store(signal, std::memory_order_relaxed);
-  std::signal(signal, SIG_DFL);  // a second signal ends the process
+  // A second Ctrl-C ends the process at once. SIGTERM stays graceful: senders repeat it (coreutils `timeout` signals
+  // the process and then its group, Slurm may forward it twice) and follow it with SIGKILL after their grace time.
+  if (signal == SIGINT) std::signal(SIGINT, SIG_DFL);
 }
 
 }  // namespace

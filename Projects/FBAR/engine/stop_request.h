@@ -2,8 +2,8 @@
 //
 // While a StopSignals object lives, the first SIGINT or SIGTERM only records the signal; the run loop sees it at
 // the next step boundary, stops there, and the command line writes run.json (status "interrupted") and exits with
-// 128 + the signal number, as a shell reports a process ended by that signal. The handler then restores the
-// default action, so a second signal ends the process at once.
+// 128 + the signal number, as a shell reports a process ended by that signal. A second SIGINT (Ctrl-C twice) ends
+// the process at once; a repeated SIGTERM does not (senders repeat it, and follow it with SIGKILL anyway).
 #pragma once
 
 namespace fbar {

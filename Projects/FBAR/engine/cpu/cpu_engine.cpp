@@ -745,7 +745,7 @@ typename CpuEngine<T, TG>::TryResult CpuEngine<T, TG>::try_step(double dt_in) {
     }
     g2p(static_cast<int>(b), bodies_[b], dt, result);
   }
-  reduce_try(result, dt_in);
+  reduce_try(result, static_cast<double>(dt));  // the dt the step ran with (float in single precision)
   return result;
 }
 
