@@ -239,14 +239,92 @@ TEST(Boundary, TimeWindowAndUnsupportedObjects) {
   EXPECT_TRUE(boundary_active(b, 0.5));
   EXPECT_TRUE(boundary_active(b, 1.5));
   EXPECT_FALSE(boundary_active(b, 1.51));
-  spec.object = BoundaryObject::Sphere;
+  spec.object = BoundaryObject::Bathymetry;
   EXPECT_FALSE(make_boundary_params(spec, unit_sim(0.1), b, error));
-  EXPECT_NE(error.find("Walls and Box"), std::string::npos);
+  EXPECT_NE(error.find("Sphere, Cylinder, Floor, Plane and Velocity"), std::string::npos) << error;
   spec.object = BoundaryObject::Box;  // without extents
   EXPECT_FALSE(make_boundary_params(spec, unit_sim(0.1), b, error));
   spec.object = BoundaryObject::Walls;
-  spec.velocity = {1, 0, 0};
+  spec.file = "paddle.csv";
   EXPECT_FALSE(make_boundary_params(spec, unit_sim(0.1), b, error));
+  EXPECT_NE(error.find("motion files"), std::string::npos) << error;
+}
+
+// Sphere (ClaymoreUW: center = box midpoint, radius = half the x extent): inside nodes get the radial normal.
+TEST(Boundary, SphereKeepsOutWithRadialNormal) {
+  const auto slip = make(BoundaryObject::Sphere, Contact::Slip, {0.3, 0.3, 0.3}, {0.7, 0.7, 0.7});
+  const auto stick = make(BoundaryObject::Sphere, Contact::Sticky, {0.3, 0.3, 0.3}, {0.7, 0.7, 0.7});
+  EXPECT_EQ(apply_boundary(slip, Vec3d{{0.5, 0.75, 0.5}}, kV), kV);  // above the ball (r = 0.25 > 0.2)
+  EXPECT_EQ(apply_boundary(stick, Vec3d{{0.5, 0.6, 0.5}}, kV), Vec3d::zero());
+  // On top (n = +y): falling is stopped, the tangential part kept.
+  EXPECT_EQ(apply_boundary(slip, Vec3d{{0.5, 0.65, 0.5}}, kV), (Vec3d{{0.3, 0.0, 0.2}}));
+  // On the +x side at 45 degrees in x-y: the normal (1, 1, 0)/sqrt(2) component is removed.
+  const double h = 0.1;
+  const Vec3d v = apply_boundary(slip, Vec3d{{0.5 + h, 0.5 + h, 0.5}}, Vec3d{{-1.0, -1.0, 0.5}});
+  EXPECT_NEAR(v[0], 0.0, 1e-15);
+  EXPECT_NEAR(v[1], 0.0, 1e-15);
+  EXPECT_EQ(v[2], 0.5);
+}
+
+// Cylinder (ClaymoreUW: along y from start_y to end_y, axis at the box center in x and z, radius half the x
+// extent), with caps: a node near the top gets +y, one near the side the radial normal.
+TEST(Boundary, CylinderAlongYWithCaps) {
+  const auto slip = make(BoundaryObject::Cylinder, Contact::Slip, {0.4, 0.0, 0.4}, {0.6, 0.5, 0.6});
+  EXPECT_EQ(apply_boundary(slip, Vec3d{{0.5, 0.55, 0.5}}, kV), kV);                         // above
+  EXPECT_EQ(apply_boundary(slip, Vec3d{{0.62, 0.2, 0.5}}, kV), kV);                         // beside
+  EXPECT_EQ(apply_boundary(slip, Vec3d{{0.5, 0.48, 0.5}}, kV), (Vec3d{{0.3, 0.0, 0.2}}));  // under the top cap
+  const Vec3d side = apply_boundary(slip, Vec3d{{0.59, 0.25, 0.5}}, kV);                    // near the +x side
+  EXPECT_NEAR(side[0], 0.0, 1e-15);
+  EXPECT_EQ(side[1], -0.7);
+  EXPECT_EQ(side[2], 0.2);
+}
+
+// Floor: every node in its box gets n = +y. Plane: the line from (lo_x, lo_y) to (hi_x, hi_y), nodes below it.
+TEST(Boundary, FloorAndDescendingPlane) {
+  const auto floor = make(BoundaryObject::Floor, Contact::Separable, {0.0, 0.0, 0.0}, {1.0, 0.1, 1.0});
+  EXPECT_EQ(apply_boundary(floor, Vec3d{{0.5, 0.05, 0.5}}, kV), (Vec3d{{0.3, 0.0, 0.2}}));
+  EXPECT_EQ(apply_boundary(floor, Vec3d{{0.5, 0.15, 0.5}}, kV), kV);
+  // A 45-degree ramp descending from (0, 1) to (1, 0): normal (1, 1)/sqrt(2).
+  const auto ramp = make(BoundaryObject::Plane, Contact::Slip, {0.0, 1.0, 0.0}, {1.0, 0.0, 1.0});
+  EXPECT_EQ(apply_boundary(ramp, Vec3d{{0.5, 0.6, 0.5}}, kV), kV);  // above the line
+  const Vec3d v = apply_boundary(ramp, Vec3d{{0.5, 0.4, 0.5}}, Vec3d{{-1.0, -1.0, 0.3}});
+  EXPECT_NEAR(v[0], 0.0, 1e-15);
+  EXPECT_NEAR(v[1], 0.0, 1e-15);
+  EXPECT_EQ(v[2], 0.3);
+  EXPECT_EQ(apply_boundary(ramp, Vec3d{{1.0, -0.5, 0.5}}, kV), kV);  // beyond its x range [0, 1)
+}
+
+// A moving boundary translates by v_b (t - t_begin), and contact acts on the velocity relative to it: a Sticky
+// box carries its nodes along, a Separable one pushes what is in front of it.
+TEST(Boundary, MovingBoundaryTranslatesAndActsOnRelativeVelocity) {
+  BoundarySpec spec;
+  spec.object = BoundaryObject::Box;
+  spec.contact = Contact::Separable;
+  spec.domain_start = {0.0, 0.0, 0.0};
+  spec.domain_end = {0.2, 1.0, 1.0};
+  spec.velocity = {0.5, 0.0, 0.0};
+  spec.time = {1.0, 10.0};
+  BoundaryParams<double> b{};
+  std::string error;
+  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1), b, error)) << error;
+  const BoundaryParams<double> at3 = boundary_at(b, 3.0);  // moved 1 m along x
+  EXPECT_NEAR(at3.lo[0], 1.0, 1e-15);
+  EXPECT_NEAR(at3.hi[0], 1.2, 1e-15);
+  EXPECT_EQ(boundary_at(b, 0.5).lo[0], 0.0);  // before its window: where it starts
+  const Vec3d node{{1.19, 0.5, 0.5}};         // just behind its +x face
+  // At rest in front of the piston: pushed to the piston's speed along x.
+  EXPECT_EQ(apply_boundary(at3, node, Vec3d::zero()), (Vec3d{{0.5, 0.0, 0.0}}));
+  // Faster than the piston, away from it: untouched.
+  EXPECT_EQ(apply_boundary(at3, node, Vec3d{{0.8, 0.1, 0.0}}), (Vec3d{{0.8, 0.1, 0.0}}));
+  spec.contact = Contact::Sticky;
+  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1), b, error));
+  EXPECT_EQ(apply_boundary(boundary_at(b, 3.0), node, kV), (Vec3d{{0.5, 0.0, 0.0}}));
+  // A Velocity region imposes its velocity.
+  spec.object = BoundaryObject::Velocity;
+  spec.velocity = {0.0, 0.0, -2.0};
+  spec.time = {0.0, 10.0};
+  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1), b, error));
+  EXPECT_EQ(apply_boundary(boundary_at(b, 0.0), Vec3d{{0.1, 0.5, 0.5}}, kV), (Vec3d{{0.0, 0.0, -2.0}}));
 }
 
 // ------------------------------------------------------------------------------------------------ time step

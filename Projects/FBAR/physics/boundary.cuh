@@ -1,23 +1,29 @@
-// Grid boundary projections: Walls (faces of a box that holds the material) and Box (an obstacle), host/device.
+// Grid boundary projections, host/device: a boundary is a shape (which nodes it holds, and the normal n there,
+// pointing out of the boundary into the material), a contact law and a velocity; both engines call apply_boundary()
+// on grid node velocities after v = p/m + dt g (grid_update.cuh), while its time window [t_begin, t_end] contains
+// the time t at the start of the step.
 //
-// A boundary acts on grid node velocities after v = p/m + dt g (grid_update.cuh), while its time window
-// [t_begin, t_end] contains the time t at the start of the step. Contact (scene "contact"):
-//   Sticky     v = 0 at the boundary nodes.
-//   Slip       the normal component is removed:             v <- v - (v.n) n
-//   Separable  only a normal component INTO the wall is removed:  v <- v - min(v.n, 0) n
-// n is the unit normal pointing out of the wall into the material. With friction (friction_dynamic mu_d,
-// friction_static mu_s, Slip/Separable only; Coulomb law on the grid as in Stomakhin et al. 2013), when the node
-// pushes into the wall (v.n < 0) the tangential velocity v_t is removed if |v_t| <= mu_s |v.n| and otherwise
-// shortened by mu_d |v.n|.
+// Contact (scene "contact"), on the velocity relative to the boundary's, v_rel = v - v_b:
+//   Sticky     v_rel = 0 at the boundary nodes.
+//   Slip       the normal component is removed:                v_rel <- v_rel - (v_rel.n) n
+//   Separable  only a normal component INTO the boundary is:    v_rel <- v_rel - min(v_rel.n, 0) n
+// Coulomb friction (friction_dynamic mu_d, friction_static mu_s; Slip and Separable, as on the grid in Stomakhin et
+// al. 2013): when the node pushes into the boundary (v_rel.n < 0) the tangential v_t is removed if
+// |v_t| <= mu_s |v_rel.n| and otherwise shortened by mu_d |v_rel.n|, so the friction impulse is mu_d x the normal one.
 //
-// Walls: the box [lo, hi] (the boundary's domain_start/domain_end, or the simulation domain when those are left at
-// 0) keeps the material inside. Along each axis a node belongs to the low wall when x_i - lo < 1.5 dx and to the
-// high wall when hi - x_i < 1.5 dx: the face node plane and the first plane inside it, i.e. a one-cell wall layer
-// at each face (ClaymoreUW's walls are a layer of cells at the domain boundary). Particles then settle about one
-// cell inside the face and their stencils never leave [lo - dx, hi + dx]. A node in several walls (edges, corners)
-// gets each wall's projection in turn (x, then y, then z).
-// Box: the obstacle [lo, hi] (closed) from domain_start to domain_end. Nodes inside it are projected with the
-// outward normal of the nearest face (ties: lowest axis, low face first); material may not enter.
+// Shapes (ClaymoreUW's, from domain_start = lo and domain_end = hi; "keeps out": material stays outside):
+//   Walls     keeps the material INSIDE the box [lo, hi] (the simulation domain when both are 0). Along each axis a
+//             node belongs to the low wall when x_i - lo < 1.5 dx and to the high wall when hi - x_i < 1.5 dx: the
+//             face node plane and the first plane inside it. A node in several walls gets each projection in turn.
+//   Box       keeps out of [lo, hi]; a node inside is projected with the outward normal of the nearest face.
+//   Sphere    keeps out of the ball of center (lo + hi) / 2 and radius (hi_x - lo_x) / 2; n radial.
+//   Cylinder  keeps out of the cylinder along y from lo_y to hi_y, axis at the box's center in x and z, radius
+//             (hi_x - lo_x) / 2; n radial, or +-y at the nearer cap (ClaymoreUW has no caps: material on top sank in).
+//   Floor     every node inside [lo, hi] is projected with n = +y.
+//   Plane     the line from (lo_x, lo_y) to (hi_x, hi_y), infinite in z, for lo_x <= x < hi_x: nodes below it are
+//             projected with its normal (-dy, dx) / |(dx, dy)| (pointing up for a line drawn left to right).
+//   Velocity  every node inside [lo, hi] takes the boundary's velocity (contact and friction do not apply).
+// A moving boundary (velocity v_b != 0) translates by v_b (t - t_begin): boundary_at() gives it at time t.
 #pragma once
 
 #include <cmath>
@@ -29,21 +35,36 @@
 
 namespace fbar {
 
-enum class BoundaryShape : int { Walls, Box };
+enum class BoundaryShape : int { Walls, Box, Sphere, Cylinder, Floor, Plane, Velocity };
 
 /// A boundary as kernels see it (trivially copyable; built on the host by make_boundary_params).
 template <typename T>
 struct BoundaryParams {
   BoundaryShape shape;
   Contact contact;
-  Vec3<T> lo;          ///< [m] box min corner
+  Vec3<T> lo;          ///< [m] box min corner (at time t_begin)
   Vec3<T> hi;          ///< [m] box max corner
+  Vec3<T> velocity;    ///< [m/s] v_b: the boundary moves with it, and contact acts on v - v_b
   T layer;             ///< [m] Walls: nodes closer than this to a face are wall nodes (1.5 dx)
   T friction_static;   ///< [-] mu_s
   T friction_dynamic;  ///< [-] mu_d
   double t_begin;      ///< [s] active window (double: compared with the simulation clock)
   double t_end;        ///< [s]
 };
+
+/// The boundary at time t [s]: translated by velocity (t - t_begin) (itself when it does not move).
+template <typename T>
+FBAR_HOST_DEVICE inline BoundaryParams<T> boundary_at(const BoundaryParams<T>& b, double t) {
+  BoundaryParams<T> m = b;
+  const double since = t - b.t_begin;
+  if (since > 0.0)
+    for (int a = 0; a < 3; ++a) {
+      const T shift = static_cast<T>(static_cast<double>(b.velocity[a]) * since);
+      m.lo[a] += shift;
+      m.hi[a] += shift;
+    }
+  return m;
+}
 
 /// Is the boundary active for the step that starts at time t [s]?
 template <typename T>
@@ -72,38 +93,104 @@ FBAR_HOST_DEVICE inline Vec3<T> project_contact(const BoundaryParams<T>& b, cons
   return vt;
 }
 
-/// The velocity of the grid node at x_node [m] after this boundary (assumed active).
+/// Contact on the velocity relative to the boundary's.
+template <typename T>
+FBAR_HOST_DEVICE inline Vec3<T> project_moving(const BoundaryParams<T>& b, const Vec3<T>& v, const Vec3<T>& n) {
+  return project_contact(b, v - b.velocity, n) + b.velocity;
+}
+
+/// The velocity of the grid node at x_node [m] after this boundary (assumed active; give boundary_at(b, t)).
 template <typename T>
 FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const Vec3<T>& x_node, Vec3<T> v) {
-  if (b.shape == BoundaryShape::Walls) {
-    for (int a = 0; a < 3; ++a) {
+  using std::sqrt;
+  const auto inside_box = [&] {
+    for (int a = 0; a < 3; ++a)
+      if (x_node[a] < b.lo[a] || x_node[a] > b.hi[a]) return false;
+    return true;
+  };
+  switch (b.shape) {
+    case BoundaryShape::Walls:
+      for (int a = 0; a < 3; ++a) {
+        Vec3<T> n = Vec3<T>::zero();
+        if (x_node[a] - b.lo[a] < b.layer) {
+          n[a] = T(1);
+          v = project_moving(b, v, n);
+        }
+        if (b.hi[a] - x_node[a] < b.layer) {
+          n[a] = T(-1);
+          v = project_moving(b, v, n);
+        }
+      }
+      return v;
+    case BoundaryShape::Box: {
+      if (!inside_box()) return v;
+      int axis = 0;
+      T sign = T(-1);
+      T nearest = x_node[0] - b.lo[0];
+      for (int a = 0; a < 3; ++a) {
+        const T to_lo = x_node[a] - b.lo[a];
+        const T to_hi = b.hi[a] - x_node[a];
+        if (to_lo < nearest) nearest = to_lo, axis = a, sign = T(-1);
+        if (to_hi < nearest) nearest = to_hi, axis = a, sign = T(1);
+      }
       Vec3<T> n = Vec3<T>::zero();
-      if (x_node[a] - b.lo[a] < b.layer) {
-        n[a] = T(1);
-        v = project_contact(b, v, n);
-      }
-      if (b.hi[a] - x_node[a] < b.layer) {
-        n[a] = T(-1);
-        v = project_contact(b, v, n);
-      }
+      n[axis] = sign;
+      return project_moving(b, v, n);
     }
-    return v;
+    case BoundaryShape::Sphere: {
+      const T radius = (b.hi[0] - b.lo[0]) * T(0.5);
+      const Vec3<T> d = x_node - (b.lo + b.hi) * T(0.5);
+      const T r = sqrt(dot(d, d));
+      if (r > radius) return v;
+      Vec3<T> n = Vec3<T>::zero();
+      if (r > T(0))
+        n = d * (T(1) / r);
+      else
+        n[1] = T(1);  // the center: straight up
+      return project_moving(b, v, n);
+    }
+    case BoundaryShape::Cylinder: {
+      if (x_node[1] < b.lo[1] || x_node[1] > b.hi[1]) return v;
+      const T radius = (b.hi[0] - b.lo[0]) * T(0.5);
+      const T dx = x_node[0] - (b.lo[0] + b.hi[0]) * T(0.5);
+      const T dz = x_node[2] - (b.lo[2] + b.hi[2]) * T(0.5);
+      const T r = sqrt(dx * dx + dz * dz);
+      if (r > radius) return v;
+      Vec3<T> n = Vec3<T>::zero();
+      const T to_side = radius - r, to_bottom = x_node[1] - b.lo[1], to_top = b.hi[1] - x_node[1];
+      if (to_top <= to_side && to_top <= to_bottom) {
+        n[1] = T(1);
+      } else if (to_bottom <= to_side) {
+        n[1] = T(-1);
+      } else if (r > T(0)) {
+        n[0] = dx / r;
+        n[2] = dz / r;
+      } else {
+        n[0] = T(1);
+      }
+      return project_moving(b, v, n);
+    }
+    case BoundaryShape::Floor: {
+      if (!inside_box()) return v;
+      Vec3<T> n = Vec3<T>::zero();
+      n[1] = T(1);
+      return project_moving(b, v, n);
+    }
+    case BoundaryShape::Plane: {
+      if (x_node[0] < b.lo[0] || x_node[0] >= b.hi[0]) return v;
+      const T ex = b.hi[0] - b.lo[0], ey = b.hi[1] - b.lo[1];
+      const T length = sqrt(ex * ex + ey * ey);
+      Vec3<T> n = Vec3<T>::zero();
+      n[0] = -ey / length;
+      n[1] = ex / length;
+      const T side = (x_node[0] - b.lo[0]) * n[0] + (x_node[1] - b.lo[1]) * n[1];
+      if (side > T(0)) return v;  // above the line: the material's side
+      return project_moving(b, v, n);
+    }
+    case BoundaryShape::Velocity:
+      return inside_box() ? b.velocity : v;
   }
-  // Box obstacle.
-  for (int a = 0; a < 3; ++a)
-    if (x_node[a] < b.lo[a] || x_node[a] > b.hi[a]) return v;  // outside: untouched
-  int axis = 0;
-  T sign = T(-1);
-  T nearest = x_node[0] - b.lo[0];
-  for (int a = 0; a < 3; ++a) {
-    const T to_lo = x_node[a] - b.lo[a];
-    const T to_hi = b.hi[a] - x_node[a];
-    if (to_lo < nearest) nearest = to_lo, axis = a, sign = T(-1);
-    if (to_hi < nearest) nearest = to_hi, axis = a, sign = T(1);
-  }
-  Vec3<T> n = Vec3<T>::zero();
-  n[axis] = sign;
-  return project_contact(b, v, n);
+  return v;
 }
 
 /// Builds the kernel parameters of a boundary on the host. Returns false and an explanation in `error` for a
@@ -111,12 +198,20 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
 template <typename T>
 inline bool make_boundary_params(const BoundarySpec& spec, const SimulationSpec& sim, BoundaryParams<T>& out,
                                  std::string& error) {
-  if (spec.object != BoundaryObject::Walls && spec.object != BoundaryObject::Box) {
-    error = "only the Walls and Box boundary objects are implemented";
-    return false;
+  switch (spec.object) {
+    case BoundaryObject::Walls: out.shape = BoundaryShape::Walls; break;
+    case BoundaryObject::Box: out.shape = BoundaryShape::Box; break;
+    case BoundaryObject::Sphere: out.shape = BoundaryShape::Sphere; break;
+    case BoundaryObject::Cylinder: out.shape = BoundaryShape::Cylinder; break;
+    case BoundaryObject::Floor: out.shape = BoundaryShape::Floor; break;
+    case BoundaryObject::Plane: out.shape = BoundaryShape::Plane; break;
+    case BoundaryObject::Velocity: out.shape = BoundaryShape::Velocity; break;
+    default:
+      error = "the boundary object is not implemented (Walls, Box, Sphere, Cylinder, Floor, Plane and Velocity are)";
+      return false;
   }
-  if (spec.velocity[0] != 0.0 || spec.velocity[1] != 0.0 || spec.velocity[2] != 0.0 || !spec.file.empty()) {
-    error = "moving boundaries (velocity, motion file) are not implemented";
+  if (!spec.file.empty()) {
+    error = "motion files are not implemented (a constant velocity is)";
     return false;
   }
   if (spec.array[0] != 1 || spec.array[1] != 1 || spec.array[2] != 1) {
@@ -125,15 +220,21 @@ inline bool make_boundary_params(const BoundarySpec& spec, const SimulationSpec&
   }
   bool has_box = true;
   for (int a = 0; a < 3; ++a) has_box = has_box && spec.domain_end[a] > spec.domain_start[a];
-  if (spec.object == BoundaryObject::Box && !has_box) {
-    error = "a Box boundary needs domain_end > domain_start in every axis";
+  if (spec.object == BoundaryObject::Plane) {
+    has_box = spec.domain_end[0] > spec.domain_start[0];  // a line in x, y (it may descend)
+    if (!has_box) {
+      error = "a Plane needs domain_end[0] > domain_start[0]";
+      return false;
+    }
+  } else if (spec.object != BoundaryObject::Walls && !has_box) {
+    error = "this boundary object needs domain_end > domain_start in every axis";
     return false;
   }
-  out.shape = spec.object == BoundaryObject::Walls ? BoundaryShape::Walls : BoundaryShape::Box;
   out.contact = spec.contact;
   for (int a = 0; a < 3; ++a) {
     out.lo[a] = static_cast<T>(has_box ? spec.domain_start[a] : 0.0);
     out.hi[a] = static_cast<T>(has_box ? spec.domain_end[a] : sim.domain[a]);
+    out.velocity[a] = static_cast<T>(spec.velocity[a]);
   }
   out.layer = static_cast<T>(1.5 * sim.dx);
   out.friction_static = static_cast<T>(spec.friction_static);

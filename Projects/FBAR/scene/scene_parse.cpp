@@ -857,7 +857,20 @@ BoundarySpec parse_boundary(const rj::Value& v, const std::string& path, const C
   if (auto* x = o.get("object")) b.object = read_enum(*x, o.sub("object"), kBoundaryObjects);
   else b.object = BoundaryObject::Box;  // ClaymoreUW's default
   if (auto* x = o.get("contact")) b.contact = read_enum(*x, o.sub("contact"), kContacts);
-  std::tie(b.domain_start, b.domain_end) = read_region(o, true);
+  if (b.object == BoundaryObject::Plane) {
+    // A Plane is the line from (start_x, start_y) to (end_x, end_y): it may descend (end_y < start_y); z is unused.
+    const rj::Value* st = o.get("domain_start");
+    const rj::Value* en = o.get("domain_end");
+    if (!st) o.missing("domain_start", "an array of 3 numbers (the line's first point in x, y)", "m");
+    if (!en) o.missing("domain_end", "an array of 3 numbers (the line's last point in x, y)", "m");
+    b.domain_start = read_real3(*st, o.sub("domain_start"), kAny, "m");
+    b.domain_end = read_real3(*en, o.sub("domain_end"), kAny, "m");
+    if (!(b.domain_end[0] > b.domain_start[0]))
+      throw SceneError(index_path(o.sub("domain_end"), 0), num_text(b.domain_end[0]),
+                       "a number > domain_start[0] (" + num_text(b.domain_start[0]) + "): a Plane runs along +x", "m");
+  } else {
+    std::tie(b.domain_start, b.domain_end) = read_region(o, true);
+  }
   if (auto* x = o.get("time")) {
     const auto t = read_reals<2>(*x, o.sub("time"), kAny, "s", true);
     if (std::isinf(t[0])) throw SceneError(index_path(o.sub("time"), 0), num_text(t[0]), "a finite number", "s");

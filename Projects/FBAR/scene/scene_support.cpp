@@ -2,7 +2,8 @@
 //
 // Both engines run every material of MaterialTypes (constitutive_models.cuh); APIC/MLS transfers, PIC-FLIP / ASFLIP
 // and F-bar; Box / Sphere / Cylinder geometry with every operation,
-// rotation and arrays; Walls and Box boundaries (Sticky / Slip / Separable, frictionless, static, any time window);
+// rotation and arrays; Walls, Box, Sphere, Cylinder, Floor, Plane and Velocity boundaries (Sticky / Slip / Separable, Coulomb friction,
+// constant velocity, any time window);
 // .bgeo / .geo / .csv frames with the attributes cpu_engine_supports_attribute() accepts. Everything else SCHEMA.md lists is parsed
 // and range-checked by scene_parse.cpp, then refused here. A later release enables a feature by deleting its line.
 #include <algorithm>
@@ -20,11 +21,6 @@ namespace fbar {
 namespace {
 
 std::string q(std::string_view s) { return "\"" + std::string(s) + "\""; }
-std::string n(double x) {
-  std::ostringstream os;
-  os << std::setprecision(15) << x;
-  return os.str();
-}
 std::string idx(const char* array, std::size_t i) { return std::string(array) + "[" + std::to_string(i) + "]"; }
 
 /// Throws the "not supported yet" error: `expected` says what this release runs, `key` names the feature.
@@ -91,16 +87,17 @@ void check_supported(const Scene& scene) {
   for (std::size_t i = 0; i < scene.boundaries.size(); ++i) {
     const BoundarySpec& b = scene.boundaries[i];
     const std::string p = idx("boundaries", i);
-    if (b.object != BoundaryObject::Walls && b.object != BoundaryObject::Box)
-      refuse(p + ".object", q(to_string(b.object)), "Walls or Box", std::string("boundary object ") + to_string(b.object));
-    if (b.friction_static != 0.0)
-      refuse(p + ".friction_static", n(b.friction_static), "0", "boundary friction (friction_static)", "-");
-    if (b.friction_dynamic != 0.0)
-      refuse(p + ".friction_dynamic", n(b.friction_dynamic), "0", "boundary friction (friction_dynamic)", "-");
-    if (b.velocity != Real3{0.0, 0.0, 0.0})
-      refuse(p + ".velocity", "[" + n(b.velocity[0]) + ", " + n(b.velocity[1]) + ", " + n(b.velocity[2]) + "]",
-             "[0, 0, 0] (a static boundary)", "moving boundaries (velocity)", "m/s");
-    if (!b.file.empty()) refuse(p + ".file", q(b.file), "no motion file", "moving boundaries (file)");
+    switch (b.object) {
+      case BoundaryObject::Walls: case BoundaryObject::Box: case BoundaryObject::Sphere:
+      case BoundaryObject::Cylinder: case BoundaryObject::Floor: case BoundaryObject::Plane:
+      case BoundaryObject::Velocity:
+        break;
+      default:
+        refuse(p + ".object", q(to_string(b.object)), "Walls, Box, Sphere, Cylinder, Floor, Plane or Velocity",
+               std::string("boundary object ") + to_string(b.object));
+    }
+    if (!b.file.empty())
+      refuse(p + ".file", q(b.file), "no motion file (a constant velocity is supported)", "motion files (file)");
     if (b.array != Int3{1, 1, 1})
       refuse(p + ".array",
              "[" + std::to_string(b.array[0]) + ", " + std::to_string(b.array[1]) + ", " + std::to_string(b.array[2]) + "]",

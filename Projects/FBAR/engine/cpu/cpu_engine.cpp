@@ -443,7 +443,7 @@ double CpuEngine<T, TG>::update_grid(TG dt) {
   using Vec3G = Vec3<TG>;
   std::vector<BoundaryParams<TG>> active;
   for (const BoundaryParams<TG>& b : kg_.boundaries)
-    if (boundary_active(b, time_)) active.push_back(b);
+    if (boundary_active(b, time_)) active.push_back(boundary_at(b, time_));
   const int nblocks = static_cast<int>(grid_.blocks.size());
   std::vector<double> block_mass(nblocks);
   TG max_speed_sq = TG(0);

@@ -1088,7 +1088,7 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
       gp.gravity = kg_.gravity;
       gp.boundaries.count = 0;
       for (const BoundaryParams<TG>& b : kg_.boundaries)
-        if (boundary_active(b, time_)) gp.boundaries.b[gp.boundaries.count++] = b;
+        if (boundary_active(b, time_)) gp.boundaries.b[gp.boundaries.count++] = boundary_at(b, time_);
       gp.stats = stats_d_;
       if (block_count_ > 0) {
         update_grid_velocity_query_max<TG><<<mgsp_detail::grid_for(block_count_, kGridUpdateThreads / 64),
