@@ -294,6 +294,29 @@ TEST(Boundary, FloorAndDescendingPlane) {
   EXPECT_EQ(apply_boundary(ramp, Vec3d{{1.0, -0.5, 0.5}}, kV), kV);  // beyond its x range [0, 1)
 }
 
+// Boundary arrays (ClaymoreUW's array / spacing): copies translated by (i sx, j sy, k sz).
+TEST(Boundary, ArraysRepeatTheObject) {
+  BoundarySpec spec;
+  spec.object = BoundaryObject::Cylinder;
+  spec.contact = Contact::Sticky;
+  spec.domain_start = {0.1, 0.0, 0.1};
+  spec.domain_end = {0.2, 0.5, 0.2};
+  spec.array = {3, 1, 2};
+  spec.spacing = {0.3, 0.0, 0.4};
+  BoundaryParams<double> b{};
+  std::string error;
+  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1), b, error)) << error;
+  const std::vector<BoundaryParams<double>> copies = boundary_array(b, spec);
+  ASSERT_EQ(copies.size(), 6u);
+  EXPECT_NEAR(copies[5].lo[0], 0.1 + 2 * 0.3, 1e-15);  // (i, k) = (2, 1)
+  EXPECT_NEAR(copies[5].lo[2], 0.1 + 0.4, 1e-15);
+  EXPECT_EQ(copies[5].lo[1], 0.0);
+  // The third column along x holds the node at its axis; the first one does not.
+  const Vec3d node{{0.75, 0.2, 0.55}};
+  EXPECT_EQ(apply_boundary(copies[5], node, kV), Vec3d::zero());
+  EXPECT_EQ(apply_boundary(copies[0], node, kV), kV);
+}
+
 // A moving boundary translates by v_b (t - t_begin), and contact acts on the velocity relative to it: a Sticky
 // box carries its nodes along, a Separable one pushes what is in front of it.
 TEST(Boundary, MovingBoundaryTranslatesAndActsOnRelativeVelocity) {

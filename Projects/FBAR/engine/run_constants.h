@@ -49,7 +49,7 @@ struct RunConstants {
   Vec3<T> domain{};       ///< [m] extent from the origin
   double default_dt = 0;  ///< [s] largest step: simulation.default_dt, resolved (dx / 100 when absent), or the
                           ///< smallest viscous bound (viscous_step_bound) when that is smaller
-  std::vector<BoundaryParams<T>> boundaries;  ///< every boundary of the scene, in scene order
+  std::vector<BoundaryParams<T>> boundaries;  ///< every boundary of the scene, in scene order, arrays expanded
 
   RunConstants() = default;
   /// Throws std::invalid_argument naming the key when dx is not positive or a boundary cannot be applied by
@@ -70,7 +70,7 @@ struct RunConstants {
       std::string error;
       if (!make_boundary_params(scene.boundaries[i], sim, p, error))
         throw std::invalid_argument("boundaries[" + std::to_string(i) + "]: " + error + " in the " + engine);
-      boundaries.push_back(p);
+      for (const BoundaryParams<T>& copy : boundary_array(p, scene.boundaries[i])) boundaries.push_back(copy);
     }
   }
 };

@@ -24,10 +24,12 @@
 //             projected with its normal (-dy, dx) / |(dx, dy)| (pointing up for a line drawn left to right).
 //   Velocity  every node inside [lo, hi] takes the boundary's velocity (contact and friction do not apply).
 // A moving boundary (velocity v_b != 0) translates by v_b (t - t_begin): boundary_at() gives it at time t.
+// `array` [nx, ny, nz] with `spacing` repeats a boundary nx x ny x nz times (boundary_array()).
 #pragma once
 
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "MnBase/Math/vec.h"
 #include "MnBase/Meta/config.h"
@@ -193,8 +195,29 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
   return v;
 }
 
+/// The copies of a boundary that `array` [nx, ny, nz] and `spacing` [m] ask for (ClaymoreUW's boundary arrays):
+/// copy (i, j, k) is translated by (i sx, j sy, k sz), in i-major order; [1, 1, 1] gives the boundary itself.
+template <typename T>
+inline std::vector<BoundaryParams<T>> boundary_array(const BoundaryParams<T>& b, const BoundarySpec& spec) {
+  std::vector<BoundaryParams<T>> out;
+  for (int i = 0; i < spec.array[0]; ++i)
+    for (int j = 0; j < spec.array[1]; ++j)
+      for (int k = 0; k < spec.array[2]; ++k) {
+        BoundaryParams<T> c = b;
+        const int n[3] = {i, j, k};
+        for (int a = 0; a < 3; ++a) {
+          const T shift = static_cast<T>(n[a] * spec.spacing[a]);
+          c.lo[a] += shift;
+          c.hi[a] += shift;
+        }
+        out.push_back(c);
+      }
+  return out;
+}
+
 /// Builds the kernel parameters of a boundary on the host. Returns false and an explanation in `error` for a
-/// boundary the engines do not implement yet (other objects, moving boundaries, arrays), never ignoring a key.
+/// boundary the engines do not implement yet (other objects, motion files), never ignoring a key. Arrays:
+/// boundary_array().
 template <typename T>
 inline bool make_boundary_params(const BoundarySpec& spec, const SimulationSpec& sim, BoundaryParams<T>& out,
                                  std::string& error) {
@@ -212,10 +235,6 @@ inline bool make_boundary_params(const BoundarySpec& spec, const SimulationSpec&
   }
   if (!spec.file.empty()) {
     error = "motion files are not implemented (a constant velocity is)";
-    return false;
-  }
-  if (spec.array[0] != 1 || spec.array[1] != 1 || spec.array[2] != 1) {
-    error = "boundary arrays (array != [1,1,1]) are not implemented";
     return false;
   }
   bool has_box = true;

@@ -98,10 +98,6 @@ void check_supported(const Scene& scene) {
     }
     if (!b.file.empty())
       refuse(p + ".file", q(b.file), "no motion file (a constant velocity is supported)", "motion files (file)");
-    if (b.array != Int3{1, 1, 1})
-      refuse(p + ".array",
-             "[" + std::to_string(b.array[0]) + ", " + std::to_string(b.array[1]) + ", " + std::to_string(b.array[2]) + "]",
-             "[1, 1, 1]", "boundary arrays (array)");
   }
   if (!scene.grid_sensors.empty())
     refuse("grid-sensors", std::to_string(scene.grid_sensors.size()) + " sensor(s)", "no grid-sensors", "grid-sensors");

@@ -539,7 +539,9 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
     throw std::invalid_argument("GpuEngine: at most " + std::to_string(DtParams::kMaxBodies) + " bodies per device");
   time_ = sim.time;
   if (k_.boundaries.size() > static_cast<std::size_t>(BoundarySet<TG>::kMax))
-    throw std::invalid_argument("GpuEngine: at most " + std::to_string(BoundarySet<TG>::kMax) + " boundaries");
+    throw std::invalid_argument("boundaries: " + std::to_string(k_.boundaries.size()) +
+                                " boundary objects (arrays counted copy by copy); the GPU engine applies at most " +
+                                std::to_string(BoundarySet<TG>::kMax) + " per run");
 
   double max_speed = 0.0;
   for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {

@@ -16,7 +16,7 @@ namespace fbar {
 /// Boundaries a grid update applies (those active at the step's start time), by value.
 template <typename T>
 struct BoundarySet {
-  static constexpr int kMax = 16;
+  static constexpr int kMax = 32;  ///< kernel parameter: 32 x ~100 B, within the 4 KiB limit
   int count;
   BoundaryParams<T> b[kMax];
 };
