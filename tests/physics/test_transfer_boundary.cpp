@@ -1,6 +1,9 @@
 // Transfer formulas (APIC/MLS-MPM moments, conservation), grid update, boundary projections and the time-step bound.
 #include <gtest/gtest.h>
 
+#include <cstdio>
+#include <fstream>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -8,6 +11,7 @@
 
 #include "physics/boundary.cuh"
 #include "physics/grid_update.cuh"
+#include "physics/motion_path.h"
 #include "physics_test_support.h"
 #include "physics/time_step.cuh"
 #include "physics/transfer.cuh"
@@ -244,10 +248,6 @@ TEST(Boundary, TimeWindowAndUnsupportedObjects) {
   EXPECT_NE(error.find("Sphere, Cylinder, Floor, Plane and Velocity"), std::string::npos) << error;
   spec.object = BoundaryObject::Box;  // without extents
   EXPECT_FALSE(make_boundary_params(spec, unit_sim(0.1), b, error));
-  spec.object = BoundaryObject::Walls;
-  spec.file = "paddle.csv";
-  EXPECT_FALSE(make_boundary_params(spec, unit_sim(0.1), b, error));
-  EXPECT_NE(error.find("motion files"), std::string::npos) << error;
 }
 
 // Sphere (ClaymoreUW: center = box midpoint, radius = half the x extent): inside nodes get the radial normal.
@@ -348,6 +348,42 @@ TEST(Boundary, MovingBoundaryTranslatesAndActsOnRelativeVelocity) {
   spec.time = {0.0, 10.0};
   ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1), b, error));
   EXPECT_EQ(apply_boundary(boundary_at(b, 0.0), Vec3d{{0.1, 0.5, 0.5}}, kV), (Vec3d{{0.0, 0.0, -2.0}}));
+}
+
+// Motion files (physics/motion_path.h): rows time, displacement, velocity; linear between rows, held outside them;
+// Froude scaling by s: times and velocities x sqrt(s), displacements x s; the scene's rate must match the rows.
+TEST(MotionPath, InterpolatesHoldsScalesAndChecks) {
+  const std::string file = ::testing::TempDir() + "fbar_motion_test.csv";
+  {
+    std::ofstream out(file);
+    out << "time,displacement,velocity\n0.0,0.0,0.0\n0.5,0.1,0.4\n1.0,0.3,0.4\n";
+  }
+  const MotionPath m = MotionPath::load(file, 1.0, 2.0, "boundaries[0].file");
+  double d = 0, v = 0;
+  m.at(0.25, d, v);
+  EXPECT_DOUBLE_EQ(d, 0.05);
+  EXPECT_DOUBLE_EQ(v, 0.2);
+  m.at(-1.0, d, v);
+  EXPECT_EQ(d, 0.0);
+  m.at(7.0, d, v);  // after the last row: held
+  EXPECT_EQ(d, 0.3);
+  EXPECT_EQ(v, 0.4);
+  const MotionPath f = MotionPath::load(file, 4.0, 1.0, "boundaries[0].file");  // s = 4: rows 1 s apart
+  EXPECT_DOUBLE_EQ(f.t[1], 1.0);
+  EXPECT_DOUBLE_EQ(f.d[2], 1.2);
+  EXPECT_DOUBLE_EQ(f.v[1], 0.8);
+  try {
+    MotionPath::load(file, 1.0, 120.0, "boundaries[0].file");
+    FAIL() << "a rate that does not match the rows must be refused";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("are 2 Hz apart"), std::string::npos) << e.what();
+  }
+  {
+    std::ofstream out(file);
+    out << "0,0,0\n0.5,0.1\n";
+  }
+  EXPECT_THROW(MotionPath::load(file, 1.0, 2.0, "boundaries[0].file"), std::invalid_argument);
+  std::remove(file.c_str());
 }
 
 // ------------------------------------------------------------------------------------------------ time step

@@ -12,6 +12,7 @@
 #include "MnBase/Math/vec.h"
 #include "physics/boundary.cuh"
 #include "physics/constitutive_models.cuh"
+#include "physics/motion_path.h"
 #include "scene/scene.h"
 #include "physics/time_step.cuh"
 
@@ -50,6 +51,21 @@ struct RunConstants {
   double default_dt = 0;  ///< [s] largest step: simulation.default_dt, resolved (dx / 100 when absent), or the
                           ///< smallest viscous bound (viscous_step_bound) when that is smaller
   std::vector<BoundaryParams<T>> boundaries;  ///< every boundary of the scene, in scene order, arrays expanded
+  std::vector<MotionPath> motions;            ///< (boundary) its motion file, or empty
+
+  /// Boundary i at time t [s]: moved by its motion file (displacement along x at t - time[0], the file's velocity)
+  /// or by its constant velocity (boundary_at).
+  BoundaryParams<T> boundary_at_time(std::size_t i, double t) const {
+    const MotionPath& m = motions[i];
+    if (m.empty()) return boundary_at(boundaries[i], t);
+    BoundaryParams<T> b = boundaries[i];
+    double d = 0, v = 0;
+    m.at(t - b.t_begin, d, v);
+    b.lo[0] += static_cast<T>(d);
+    b.hi[0] += static_cast<T>(d);
+    b.velocity = Vec3<T>{{static_cast<T>(v), T(0), T(0)}};
+    return b;
+  }
 
   RunConstants() = default;
   /// Throws std::invalid_argument naming the key when dx is not positive or a boundary cannot be applied by
@@ -70,7 +86,15 @@ struct RunConstants {
       std::string error;
       if (!make_boundary_params(scene.boundaries[i], sim, p, error))
         throw std::invalid_argument("boundaries[" + std::to_string(i) + "]: " + error + " in the " + engine);
-      for (const BoundaryParams<T>& copy : boundary_array(p, scene.boundaries[i])) boundaries.push_back(copy);
+      const BoundarySpec& spec = scene.boundaries[i];
+      MotionPath motion;
+      if (!spec.file.empty())
+        motion = MotionPath::load(spec.file, sim.froude_scaling, spec.output_frequency,
+                                  "boundaries[" + std::to_string(i) + "].file");
+      for (const BoundaryParams<T>& copy : boundary_array(p, spec)) {
+        boundaries.push_back(copy);
+        motions.push_back(motion);
+      }
     }
   }
 };

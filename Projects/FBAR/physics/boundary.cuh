@@ -23,7 +23,8 @@
 //   Plane     the line from (lo_x, lo_y) to (hi_x, hi_y), infinite in z, for lo_x <= x < hi_x: nodes below it are
 //             projected with its normal (-dy, dx) / |(dx, dy)| (pointing up for a line drawn left to right).
 //   Velocity  every node inside [lo, hi] takes the boundary's velocity (contact and friction do not apply).
-// A moving boundary (velocity v_b != 0) translates by v_b (t - t_begin): boundary_at() gives it at time t.
+// A moving boundary (velocity v_b != 0) translates by v_b (t - t_begin): boundary_at() gives it at time t; one with a
+// motion file (physics/motion_path.h) by the file's displacement along x, with the file's velocity.
 // `array` [nx, ny, nz] with `spacing` repeats a boundary nx x ny x nz times (boundary_array()).
 #pragma once
 
@@ -216,8 +217,8 @@ inline std::vector<BoundaryParams<T>> boundary_array(const BoundaryParams<T>& b,
 }
 
 /// Builds the kernel parameters of a boundary on the host. Returns false and an explanation in `error` for a
-/// boundary the engines do not implement yet (other objects, motion files), never ignoring a key. Arrays:
-/// boundary_array().
+/// boundary the engines do not implement yet (other objects), never ignoring a key. Arrays: boundary_array();
+/// motion files: MotionPath (RunConstants::boundary_at_time).
 template <typename T>
 inline bool make_boundary_params(const BoundarySpec& spec, const SimulationSpec& sim, BoundaryParams<T>& out,
                                  std::string& error) {
@@ -232,10 +233,6 @@ inline bool make_boundary_params(const BoundarySpec& spec, const SimulationSpec&
     default:
       error = "the boundary object is not implemented (Walls, Box, Sphere, Cylinder, Floor, Plane and Velocity are)";
       return false;
-  }
-  if (!spec.file.empty()) {
-    error = "motion files are not implemented (a constant velocity is)";
-    return false;
   }
   bool has_box = true;
   for (int a = 0; a < 3; ++a) has_box = has_box && spec.domain_end[a] > spec.domain_start[a];

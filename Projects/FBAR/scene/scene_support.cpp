@@ -14,6 +14,7 @@
 #include <string_view>
 
 #include "engine/cpu/cpu_engine.h"
+#include "physics/motion_path.h"
 #include "scene/scene_parse.h"
 
 namespace fbar {
@@ -87,6 +88,16 @@ void check_supported(const Scene& scene) {
   for (std::size_t i = 0; i < scene.boundaries.size(); ++i) {
     const BoundarySpec& b = scene.boundaries[i];
     const std::string p = idx("boundaries", i);
+    if (!b.file.empty()) {  // the file must hold what the scene says (read here so that --check tells)
+      try {
+        MotionPath::load(b.file, sim.froude_scaling, b.output_frequency, p + ".file");
+      } catch (const std::invalid_argument& e) {
+        const std::string why = e.what();
+        throw SceneError(p + ".file", q(b.file),
+                         "a motion file of rows 'time, displacement, velocity' at output_frequency (" +
+                             why.substr(why.find(": ") + 2) + ")");
+      }
+    }
     switch (b.object) {
       case BoundaryObject::Walls: case BoundaryObject::Box: case BoundaryObject::Sphere:
       case BoundaryObject::Cylinder: case BoundaryObject::Floor: case BoundaryObject::Plane:
@@ -96,8 +107,7 @@ void check_supported(const Scene& scene) {
         refuse(p + ".object", q(to_string(b.object)), "Walls, Box, Sphere, Cylinder, Floor, Plane or Velocity",
                std::string("boundary object ") + to_string(b.object));
     }
-    if (!b.file.empty())
-      refuse(p + ".file", q(b.file), "no motion file (a constant velocity is supported)", "motion files (file)");
+
   }
   if (!scene.grid_sensors.empty())
     refuse("grid-sensors", std::to_string(scene.grid_sensors.size()) + " sensor(s)", "no grid-sensors", "grid-sensors");

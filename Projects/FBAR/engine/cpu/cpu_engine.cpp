@@ -442,8 +442,8 @@ template <typename T, typename TG>
 double CpuEngine<T, TG>::update_grid(TG dt) {
   using Vec3G = Vec3<TG>;
   std::vector<BoundaryParams<TG>> active;
-  for (const BoundaryParams<TG>& b : kg_.boundaries)
-    if (boundary_active(b, time_)) active.push_back(boundary_at(b, time_));
+  for (std::size_t i = 0; i < kg_.boundaries.size(); ++i)
+    if (boundary_active(kg_.boundaries[i], time_)) active.push_back(kg_.boundary_at_time(i, time_));
   const int nblocks = static_cast<int>(grid_.blocks.size());
   std::vector<double> block_mass(nblocks);
   TG max_speed_sq = TG(0);

@@ -1089,8 +1089,8 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
       gp.dx = kg_.dx;
       gp.gravity = kg_.gravity;
       gp.boundaries.count = 0;
-      for (const BoundaryParams<TG>& b : kg_.boundaries)
-        if (boundary_active(b, time_)) gp.boundaries.b[gp.boundaries.count++] = boundary_at(b, time_);
+      for (std::size_t i = 0; i < kg_.boundaries.size(); ++i)
+        if (boundary_active(kg_.boundaries[i], time_)) gp.boundaries.b[gp.boundaries.count++] = kg_.boundary_at_time(i, time_);
       gp.stats = stats_d_;
       if (block_count_ > 0) {
         update_grid_velocity_query_max<TG><<<mgsp_detail::grid_for(block_count_, kGridUpdateThreads / 64),
