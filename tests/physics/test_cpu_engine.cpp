@@ -563,6 +563,43 @@ TEST(Boundary, MotionFilePistonEqualsConstantVelocity) {
   std::remove(file.c_str());
 }
 
+// A Bathymetry bed holds material as a floor does: a block dropped onto a flat bed at y = 0.1 m comes to rest on it
+// (lowest particle within one cell above the bed, never below it), and on a 1:1 slope rising to +x a frictionless
+// block is pushed back down it (its x velocity turns negative).
+TEST(Boundary, BathymetryBedHoldsAndDeflects) {
+  Scene scene = empty_scene(r3(1, 0.6, 0.3), 0.02, r3(0, -9.81, 0));
+  scene.bodies.push_back(box_body(Constitutive::FixedCorotated, r3(0.2, 0.2, 0.1), r3(0.1, 0.1, 0.1)));
+  BoundarySpec bed;
+  bed.object = BoundaryObject::Bathymetry;
+  bed.contact = Contact::Separable;
+  bed.bathymetry = {{0.0, 0.1}, {1.0, 0.1}};
+  bed.domain_start = r3(0, 0, 0);
+  bed.domain_end = r3(1, 0.6, 0.3);
+  scene.boundaries.push_back(bed);
+  {
+    CpuEngine<double> engine(scene);
+    engine.set_log(nullptr);
+    double y_min = 1.0;
+    while (engine.time() < 0.4) {
+      ASSERT_TRUE(engine.step().ok);
+      for (const Vec3d& x : engine.positions(0)) y_min = std::min(y_min, x[1]);
+    }
+    EXPECT_GT(y_min, 0.1);
+    EXPECT_LT(y_min, 0.1 + 0.02 + 1e-9);
+  }
+  scene.bodies[0] = box_body(Constitutive::FixedCorotated, r3(0.45, 0.3, 0.1), r3(0.1, 0.1, 0.1));
+  scene.boundaries[0].bathymetry = {{0.0, 0.0}, {0.4, 0.0}, {0.8, 0.4}, {1.0, 0.4}};  // 45 degrees up from x = 0.4
+  CpuEngine<double> engine(scene);
+  engine.set_log(nullptr);
+  ASSERT_TRUE(engine.advance_to(0.3).ok);
+  double m = 0, p = 0;
+  for (std::size_t i = 0; i < engine.particle_count(0); ++i) {
+    m += engine.masses(0)[i];
+    p += engine.masses(0)[i] * engine.velocities(0)[i][0];
+  }
+  EXPECT_LT(p / m, -0.1) << "the slope must send the block back towards -x";
+}
+
 // ------------------------------------------------------------------------------------------------ failures
 
 Scene two_body_scene() {

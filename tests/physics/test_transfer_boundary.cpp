@@ -243,9 +243,9 @@ TEST(Boundary, TimeWindowAndUnsupportedObjects) {
   EXPECT_TRUE(boundary_active(b, 0.5));
   EXPECT_TRUE(boundary_active(b, 1.5));
   EXPECT_FALSE(boundary_active(b, 1.51));
-  spec.object = BoundaryObject::Bathymetry;
+  spec.object = BoundaryObject::USGS_GATE;
   EXPECT_FALSE(make_boundary_params(spec, unit_sim(0.1), b, error));
-  EXPECT_NE(error.find("Sphere, Cylinder, Floor, Plane and Velocity"), std::string::npos) << error;
+  EXPECT_NE(error.find("Floor, Plane, Velocity and Bathymetry"), std::string::npos) << error;
   spec.object = BoundaryObject::Box;  // without extents
   EXPECT_FALSE(make_boundary_params(spec, unit_sim(0.1), b, error));
 }
@@ -315,6 +315,37 @@ TEST(Boundary, ArraysRepeatTheObject) {
   const Vec3d node{{0.75, 0.2, 0.55}};
   EXPECT_EQ(apply_boundary(copies[5], node, kV), Vec3d::zero());
   EXPECT_EQ(apply_boundary(copies[0], node, kV), kV);
+}
+
+// Bathymetry: the bed through its points (flat beyond the ends), material above, the segment's normal below it.
+TEST(Boundary, BathymetryFollowsItsProfile) {
+  BoundarySpec spec;
+  spec.object = BoundaryObject::Bathymetry;
+  spec.contact = Contact::Slip;
+  spec.bathymetry = {{0.2, 0.1}, {0.6, 0.3}, {0.8, 0.3}};  // flat, a 1:2 slope up, flat
+  BoundaryParams<double> b{};
+  std::string error;
+  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1), b, error)) << error;
+  BoundaryProfiles<double> profiles;
+  b.profile_first = 0;
+  b.profile_count = 3;
+  for (int i = 0; i < 3; ++i) {
+    profiles.x[i] = spec.bathymetry[static_cast<std::size_t>(i)][0];
+    profiles.y[i] = spec.bathymetry[static_cast<std::size_t>(i)][1];
+  }
+  profiles.count = 3;
+  EXPECT_EQ(apply_boundary(b, Vec3d{{0.1, 0.15, 0.5}}, kV, &profiles), kV);  // above the flat start
+  EXPECT_EQ(apply_boundary(b, Vec3d{{0.1, 0.05, 0.5}}, kV, &profiles), (Vec3d{{0.3, 0.0, 0.2}}));
+  EXPECT_EQ(apply_boundary(b, Vec3d{{0.4, 0.25, 0.5}}, kV, &profiles), kV);  // above the slope (bed 0.2 there)
+  // Below the slope: moving along +x runs into it; the component along its normal (-1, 2)/sqrt(5) is removed:
+  // (2, 0) - (-2/sqrt(5)) (-1, 2)/sqrt(5) = (1.6, 0.8), along the slope.
+  const Vec3d v = apply_boundary(b, Vec3d{{0.4, 0.15, 0.5}}, Vec3d{{2.0, 0.0, 0.3}}, &profiles);
+  EXPECT_NEAR(v[0], 1.6, 1e-15);
+  EXPECT_NEAR(v[1], 0.8, 1e-15);
+  EXPECT_EQ(v[2], 0.3);
+  EXPECT_EQ(apply_boundary(b, Vec3d{{0.9, 0.35, 0.5}}, kV, &profiles), kV);   // above the flat end
+  spec.bathymetry.resize(1);
+  EXPECT_FALSE(make_boundary_params(spec, unit_sim(0.1), b, error));
 }
 
 // A moving boundary translates by v_b (t - t_begin), and contact acts on the velocity relative to it: a Sticky

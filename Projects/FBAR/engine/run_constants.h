@@ -52,6 +52,7 @@ struct RunConstants {
                           ///< smallest viscous bound (viscous_step_bound) when that is smaller
   std::vector<BoundaryParams<T>> boundaries;  ///< every boundary of the scene, in scene order, arrays expanded
   std::vector<MotionPath> motions;            ///< (boundary) its motion file, or empty
+  BoundaryProfiles<T> profiles;               ///< the points of every Bathymetry boundary
 
   /// Boundary i at time t [s]: moved by its motion file (displacement along x at t - time[0], the file's velocity)
   /// or by its constant velocity (boundary_at).
@@ -87,6 +88,19 @@ struct RunConstants {
       if (!make_boundary_params(scene.boundaries[i], sim, p, error))
         throw std::invalid_argument("boundaries[" + std::to_string(i) + "]: " + error + " in the " + engine);
       const BoundarySpec& spec = scene.boundaries[i];
+      if (p.shape == BoundaryShape::Bathymetry) {
+        if (profiles.count + static_cast<int>(spec.bathymetry.size()) > BoundaryProfiles<T>::kMax)
+          throw std::invalid_argument("boundaries[" + std::to_string(i) + "].bathymetry: more than " +
+                                      std::to_string(BoundaryProfiles<T>::kMax) +
+                                      " bathymetry points in all boundaries of the scene");
+        p.profile_first = profiles.count;
+        p.profile_count = static_cast<int>(spec.bathymetry.size());
+        for (const auto& point : spec.bathymetry) {
+          profiles.x[profiles.count] = static_cast<T>(point[0]);
+          profiles.y[profiles.count] = static_cast<T>(point[1]);
+          ++profiles.count;
+        }
+      }
       MotionPath motion;
       if (!spec.file.empty())
         motion = MotionPath::load(spec.file, sim.froude_scaling, spec.output_frequency,

@@ -23,6 +23,9 @@
 //   Plane     the line from (lo_x, lo_y) to (hi_x, hi_y), infinite in z, for lo_x <= x < hi_x: nodes below it are
 //             projected with its normal (-dy, dx) / |(dx, dy)| (pointing up for a line drawn left to right).
 //   Velocity  every node inside [lo, hi] takes the boundary's velocity (contact and friction do not apply).
+//   Bathymetry  keeps the material above the bed y_s(x): the piecewise-linear profile through its `bathymetry`
+//             points (flat beyond the first and last), over all z; nodes at or below it are projected with the
+//             normal of their segment (BoundaryProfiles holds the points).
 // A moving boundary (velocity v_b != 0) translates by v_b (t - t_begin): boundary_at() gives it at time t; one with a
 // motion file (physics/motion_path.h) by the file's displacement along x, with the file's velocity.
 // `array` [nx, ny, nz] with `spacing` repeats a boundary nx x ny x nz times (boundary_array()).
@@ -38,7 +41,16 @@
 
 namespace fbar {
 
-enum class BoundaryShape : int { Walls, Box, Sphere, Cylinder, Floor, Plane, Velocity };
+enum class BoundaryShape : int { Walls, Box, Sphere, Cylinder, Floor, Plane, Velocity, Bathymetry };
+
+/// The points of every Bathymetry boundary of a run, one table (a boundary holds its first point and count).
+template <typename T>
+struct BoundaryProfiles {
+  static constexpr int kMax = 128;  ///< points over all Bathymetry boundaries (ClaymoreUW: 32 per boundary)
+  int count = 0;
+  T x[kMax];  ///< [m] strictly increasing within a boundary
+  T y[kMax];  ///< [m] surface height at x
+};
 
 /// A boundary as kernels see it (trivially copyable; built on the host by make_boundary_params).
 template <typename T>
@@ -53,6 +65,8 @@ struct BoundaryParams {
   T friction_dynamic;  ///< [-] mu_d
   double t_begin;      ///< [s] active window (double: compared with the simulation clock)
   double t_end;        ///< [s]
+  int profile_first;   ///< Bathymetry: its first point in BoundaryProfiles
+  int profile_count;   ///< Bathymetry: its number of points (>= 2)
 };
 
 /// The boundary at time t [s]: translated by velocity (t - t_begin) (itself when it does not move).
@@ -104,7 +118,8 @@ FBAR_HOST_DEVICE inline Vec3<T> project_moving(const BoundaryParams<T>& b, const
 
 /// The velocity of the grid node at x_node [m] after this boundary (assumed active; give boundary_at(b, t)).
 template <typename T>
-FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const Vec3<T>& x_node, Vec3<T> v) {
+FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const Vec3<T>& x_node, Vec3<T> v,
+                                               const BoundaryProfiles<T>* profiles = nullptr) {
   using std::sqrt;
   const auto inside_box = [&] {
     for (int a = 0; a < 3; ++a)
@@ -192,6 +207,31 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
     }
     case BoundaryShape::Velocity:
       return inside_box() ? b.velocity : v;
+    case BoundaryShape::Bathymetry: {
+      if (!profiles || b.profile_count < 2) return v;
+      // The segment over x (the first / last one extended flat beyond the ends), its height and normal.
+      const T* px = profiles->x + b.profile_first;
+      const T* py = profiles->y + b.profile_first;
+      const int last = b.profile_count - 1;
+      T surface, ex = T(1), ey = T(0);
+      if (x_node[0] <= px[0]) {
+        surface = py[0];
+      } else if (x_node[0] >= px[last]) {
+        surface = py[last];
+      } else {
+        int i = 0;
+        while (i + 1 < last && x_node[0] >= px[i + 1]) ++i;
+        ex = px[i + 1] - px[i];
+        ey = py[i + 1] - py[i];
+        surface = py[i] + (x_node[0] - px[i]) / ex * ey;
+      }
+      if (x_node[1] > surface) return v;  // above the bed: the material's side
+      const T length = sqrt(ex * ex + ey * ey);
+      Vec3<T> n = Vec3<T>::zero();
+      n[0] = -ey / length;
+      n[1] = ex / length;
+      return project_moving(b, v, n);
+    }
   }
   return v;
 }
@@ -230,13 +270,23 @@ inline bool make_boundary_params(const BoundarySpec& spec, const SimulationSpec&
     case BoundaryObject::Floor: out.shape = BoundaryShape::Floor; break;
     case BoundaryObject::Plane: out.shape = BoundaryShape::Plane; break;
     case BoundaryObject::Velocity: out.shape = BoundaryShape::Velocity; break;
+    case BoundaryObject::Bathymetry: out.shape = BoundaryShape::Bathymetry; break;
     default:
-      error = "the boundary object is not implemented (Walls, Box, Sphere, Cylinder, Floor, Plane and Velocity are)";
+      error = "the boundary object is not implemented (Walls, Box, Sphere, Cylinder, Floor, Plane, Velocity and "
+              "Bathymetry are)";
       return false;
+  }
+  out.profile_first = 0;
+  out.profile_count = 0;
+  if (spec.object == BoundaryObject::Bathymetry && spec.bathymetry.size() < 2) {
+    error = "a Bathymetry boundary needs at least two bathymetry points [[x, y], ...]";
+    return false;
   }
   bool has_box = true;
   for (int a = 0; a < 3; ++a) has_box = has_box && spec.domain_end[a] > spec.domain_start[a];
-  if (spec.object == BoundaryObject::Plane) {
+  if (spec.object == BoundaryObject::Bathymetry) {
+    has_box = false;  // the profile spans the domain; domain_start / domain_end are not used
+  } else if (spec.object == BoundaryObject::Plane) {
     has_box = spec.domain_end[0] > spec.domain_start[0];  // a line in x, y (it may descend)
     if (!has_box) {
       error = "a Plane needs domain_end[0] > domain_start[0]";

@@ -911,6 +911,9 @@ BoundarySpec parse_boundary(const rj::Value& v, const std::string& path, const C
         b.bathymetry.push_back({pt[0], pt[1]});
       }
     }
+    if (b.object == BoundaryObject::Bathymetry && b.bathymetry.size() < 2)  // ClaymoreUW: silently nothing
+      throw SceneError(o.sub("bathymetry"), b.bathymetry.empty() ? "(missing)" : "1 point",
+                       "at least 2 [x, y] points: a Bathymetry boundary is the bed through them", "m");
     if (b.use_custom_bathymetry && b.bathymetry.size() < 2)
       throw SceneError(o.sub("bathymetry"), b.bathymetry.empty() ? "(missing)" : "1 point",
                        "at least 2 [x, y] points when use_custom_bathymetry is true", "m");

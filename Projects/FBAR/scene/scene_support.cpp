@@ -101,10 +101,11 @@ void check_supported(const Scene& scene) {
     switch (b.object) {
       case BoundaryObject::Walls: case BoundaryObject::Box: case BoundaryObject::Sphere:
       case BoundaryObject::Cylinder: case BoundaryObject::Floor: case BoundaryObject::Plane:
-      case BoundaryObject::Velocity:
+      case BoundaryObject::Velocity: case BoundaryObject::Bathymetry:
         break;
       default:
-        refuse(p + ".object", q(to_string(b.object)), "Walls, Box, Sphere, Cylinder, Floor, Plane or Velocity",
+        refuse(p + ".object", q(to_string(b.object)),
+               "Walls, Box, Sphere, Cylinder, Floor, Plane, Velocity or Bathymetry",
                std::string("boundary object ") + to_string(b.object));
     }
 

@@ -470,7 +470,7 @@ double CpuEngine<T, TG>::update_grid(TG dt) {
             const Vec3G x_node{{static_cast<TG>(c[0] * kBlockSide + i) * kg_.dx,
                                 static_cast<TG>(c[1] * kBlockSide + j) * kg_.dx,
                                 static_cast<TG>(c[2] * kBlockSide + k) * kg_.dx}};
-            for (const BoundaryParams<TG>& b : active) v = apply_boundary(b, x_node, v);
+            for (const BoundaryParams<TG>& b : active) v = apply_boundary(b, x_node, v, &kg_.profiles);
           }
           g.momentum[0][node] = v[0];
           g.momentum[1][node] = v[1];

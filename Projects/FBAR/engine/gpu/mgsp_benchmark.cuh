@@ -1089,6 +1089,7 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
       gp.dx = kg_.dx;
       gp.gravity = kg_.gravity;
       gp.boundaries.count = 0;
+      gp.boundaries.profiles = kg_.profiles;
       for (std::size_t i = 0; i < kg_.boundaries.size(); ++i)
         if (boundary_active(kg_.boundaries[i], time_)) gp.boundaries.b[gp.boundaries.count++] = kg_.boundary_at_time(i, time_);
       gp.stats = stats_d_;

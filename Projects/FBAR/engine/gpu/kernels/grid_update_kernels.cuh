@@ -16,9 +16,10 @@ namespace fbar {
 /// Boundaries a grid update applies (those active at the step's start time), by value.
 template <typename T>
 struct BoundarySet {
-  static constexpr int kMax = 32;  ///< kernel parameter: 32 x ~100 B, within the 4 KiB limit
+  static constexpr int kMax = 32;  ///< a kernel parameter with the profiles: 6-7 KiB (CUDA 12.1+: up to 32 KiB)
   int count;
   BoundaryParams<T> b[kMax];
+  BoundaryProfiles<T> profiles;  ///< the points of the Bathymetry boundaries
 };
 
 template <typename T>
@@ -66,7 +67,8 @@ __global__ void __launch_bounds__(kGridUpdateThreads) update_grid_velocity_query
       const Vec3<T> x_node{{static_cast<T>(p.coords[3 * block + 0] * 4 + i) * p.dx,
                             static_cast<T>(p.coords[3 * block + 1] * 4 + j) * p.dx,
                             static_cast<T>(p.coords[3 * block + 2] * 4 + k) * p.dx}};
-      for (int b = 0; b < p.boundaries.count; ++b) v = apply_boundary(p.boundaries.b[b], x_node, v);
+      for (int b = 0; b < p.boundaries.count; ++b)
+        v = apply_boundary(p.boundaries.b[b], x_node, v, &p.boundaries.profiles);
     }
     block_val(p.velocity, grid_velocity_x, block, node) = v[0];
     block_val(p.velocity, grid_velocity_y, block, node) = v[1];
