@@ -9,6 +9,7 @@
 #include <limits>
 #include <random>
 
+#include "engine/run_constants.h"
 #include "physics/boundary.cuh"
 #include "physics/grid_update.cuh"
 #include "physics/motion_path.h"
@@ -346,6 +347,33 @@ TEST(Boundary, BathymetryFollowsItsProfile) {
   EXPECT_EQ(apply_boundary(b, Vec3d{{0.9, 0.35, 0.5}}, kV, &profiles), kV);   // above the flat end
   spec.bathymetry.resize(1);
   EXPECT_FALSE(make_boundary_params(spec, unit_sim(0.1), b, error));
+}
+
+// The OSU Large Wave Flume bed (OSU_LWF_RAMP without custom points): VALIDATION.md's stations, placed with the
+// wave-maker's neutral position at domain_start (x, y) and Froude-scaled with the scene.
+TEST(Boundary, OsuLwfRampIsTheFlumeBed) {
+  for (const double s : {1.0, 0.1}) {
+    Scene scene;
+    scene.simulation.dx = 0.05 * s;
+    scene.simulation.domain = {100.0 * s + 2.0, 5.0, 1.0};
+    scene.simulation.froude_scaling = s;
+    BoundarySpec ramp;
+    ramp.object = BoundaryObject::OSU_LWF_RAMP;
+    ramp.contact = Contact::Slip;
+    ramp.domain_start = {1.0, 0.5, 0.0};
+    ramp.domain_end = {100.0 * s + 1.0, 4.0, 1.0};
+    scene.boundaries.push_back(ramp);
+    const RunConstants<double> k(scene, "test");
+    ASSERT_EQ(k.boundaries.size(), 1u);
+    const BoundaryParams<double>& b = k.boundaries[0];
+    // (station x, bed height) from VALIDATION.md; a node 1 mm below the bed is projected, 1 mm above is not.
+    for (const auto& [x, y] : std::vector<std::pair<double, double>>{
+             {10.0, 0.0}, {28.9, 0.9144}, {36.2125, 0.9144 + (1.524 - 0.9144) / 2}, {60.0, 1.524}, {95.0, 2.1336}}) {
+      const double xs = 1.0 + x * s, ys = 0.5 + y * s;
+      EXPECT_EQ(apply_boundary(b, Vec3d{{xs, ys + 1e-3 * s, 0.5}}, kV, &k.profiles), kV) << s << " " << x;
+      EXPECT_FALSE(apply_boundary(b, Vec3d{{xs, ys - 1e-3 * s, 0.5}}, kV, &k.profiles) == kV) << s << " " << x;
+    }
+  }
 }
 
 // A moving boundary translates by v_b (t - t_begin), and contact acts on the velocity relative to it: a Sticky

@@ -89,13 +89,14 @@ struct RunConstants {
         throw std::invalid_argument("boundaries[" + std::to_string(i) + "]: " + error + " in the " + engine);
       const BoundarySpec& spec = scene.boundaries[i];
       if (p.shape == BoundaryShape::Bathymetry) {
-        if (profiles.count + static_cast<int>(spec.bathymetry.size()) > BoundaryProfiles<T>::kMax)
+        const std::vector<std::array<double, 2>> bed = boundary_bed_points(spec, sim);
+        if (profiles.count + static_cast<int>(bed.size()) > BoundaryProfiles<T>::kMax)
           throw std::invalid_argument("boundaries[" + std::to_string(i) + "].bathymetry: more than " +
                                       std::to_string(BoundaryProfiles<T>::kMax) +
                                       " bathymetry points in all boundaries of the scene");
         p.profile_first = profiles.count;
-        p.profile_count = static_cast<int>(spec.bathymetry.size());
-        for (const auto& point : spec.bathymetry) {
+        p.profile_count = static_cast<int>(bed.size());
+        for (const auto& point : bed) {
           profiles.x[profiles.count] = static_cast<T>(point[0]);
           profiles.y[profiles.count] = static_cast<T>(point[1]);
           ++profiles.count;

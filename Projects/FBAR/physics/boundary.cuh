@@ -31,6 +31,7 @@
 // `array` [nx, ny, nz] with `spacing` repeats a boundary nx x ny x nz times (boundary_array()).
 #pragma once
 
+#include <array>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -236,6 +237,30 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
   return v;
 }
 
+/// The bed of the OSU Large Wave Flume (VALIDATION.md, from the ClaymoreUW validation): [x, y] in metres, x from
+/// the wave-maker's neutral position, y above the flume floor: flat to 17.925 m (VALIDATION.md also lists a break at
+/// 14.275 m, kept as a point), 1:12 up to 3 ft (0.9144 m) at 28.9 m, 1:24 up to 5 ft (1.524 m) at 43.525 m, flat to
+/// 80.1 m, 1:12 up to 7 ft (2.1336 m) at 87.45 m, flat beyond. Approximate: straight segments between the published
+/// stations (the as-built bed differs by centimetres), the same across the flume's width.
+inline std::vector<std::array<double, 2>> osu_lwf_bathymetry() {
+  return {{0.0, 0.0},       {14.275, 0.0},   {17.925, 0.0},  {28.9, 0.9144},
+          {43.525, 1.524},  {80.1, 1.524},   {87.45, 2.1336}};
+}
+
+/// The bed points of a Bathymetry-like boundary in scene coordinates: its `bathymetry` points, or for the OSU LWF
+/// ramp without custom points the flume's bed scaled by the Froude factor s and placed with the wave-maker's
+/// neutral position at (domain_start x, y).
+inline std::vector<std::array<double, 2>> boundary_bed_points(const BoundarySpec& spec, const SimulationSpec& sim) {
+  if (spec.object != BoundaryObject::OSU_LWF_RAMP || (spec.use_custom_bathymetry && !spec.bathymetry.empty()))
+    return spec.bathymetry;
+  std::vector<std::array<double, 2>> bed = osu_lwf_bathymetry();
+  for (auto& p : bed) {
+    p[0] = spec.domain_start[0] + p[0] * sim.froude_scaling;
+    p[1] = spec.domain_start[1] + p[1] * sim.froude_scaling;
+  }
+  return bed;
+}
+
 /// The copies of a boundary that `array` [nx, ny, nz] and `spacing` [m] ask for (ClaymoreUW's boundary arrays):
 /// copy (i, j, k) is translated by (i sx, j sy, k sz), in i-major order; [1, 1, 1] gives the boundary itself.
 template <typename T>
@@ -270,7 +295,8 @@ inline bool make_boundary_params(const BoundarySpec& spec, const SimulationSpec&
     case BoundaryObject::Floor: out.shape = BoundaryShape::Floor; break;
     case BoundaryObject::Plane: out.shape = BoundaryShape::Plane; break;
     case BoundaryObject::Velocity: out.shape = BoundaryShape::Velocity; break;
-    case BoundaryObject::Bathymetry: out.shape = BoundaryShape::Bathymetry; break;
+    case BoundaryObject::Bathymetry:
+    case BoundaryObject::OSU_LWF_RAMP: out.shape = BoundaryShape::Bathymetry; break;
     default:
       error = "the boundary object is not implemented (Walls, Box, Sphere, Cylinder, Floor, Plane, Velocity and "
               "Bathymetry are)";
@@ -278,13 +304,13 @@ inline bool make_boundary_params(const BoundarySpec& spec, const SimulationSpec&
   }
   out.profile_first = 0;
   out.profile_count = 0;
-  if (spec.object == BoundaryObject::Bathymetry && spec.bathymetry.size() < 2) {
+  if (spec.object == BoundaryObject::Bathymetry && spec.bathymetry.size() < 2) {  // the OSU ramp has its own bed
     error = "a Bathymetry boundary needs at least two bathymetry points [[x, y], ...]";
     return false;
   }
   bool has_box = true;
   for (int a = 0; a < 3; ++a) has_box = has_box && spec.domain_end[a] > spec.domain_start[a];
-  if (spec.object == BoundaryObject::Bathymetry) {
+  if (spec.object == BoundaryObject::Bathymetry || spec.object == BoundaryObject::OSU_LWF_RAMP) {
     has_box = false;  // the profile spans the domain; domain_start / domain_end are not used
   } else if (spec.object == BoundaryObject::Plane) {
     has_box = spec.domain_end[0] > spec.domain_start[0];  // a line in x, y (it may descend)

@@ -101,11 +101,11 @@ void check_supported(const Scene& scene) {
     switch (b.object) {
       case BoundaryObject::Walls: case BoundaryObject::Box: case BoundaryObject::Sphere:
       case BoundaryObject::Cylinder: case BoundaryObject::Floor: case BoundaryObject::Plane:
-      case BoundaryObject::Velocity: case BoundaryObject::Bathymetry:
+      case BoundaryObject::Velocity: case BoundaryObject::Bathymetry: case BoundaryObject::OSU_LWF_RAMP:
         break;
       default:
         refuse(p + ".object", q(to_string(b.object)),
-               "Walls, Box, Sphere, Cylinder, Floor, Plane, Velocity or Bathymetry",
+               "Walls, Box, Sphere, Cylinder, Floor, Plane, Velocity, Bathymetry or OSU_LWF_RAMP",
                std::string("boundary object ") + to_string(b.object));
     }
 
