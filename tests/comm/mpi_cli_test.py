@@ -3,7 +3,7 @@
 
 usage: mpi_cli_test.py FBAR MPIEXEC SCENE WORKDIR
 
-Runs the scene on 1 rank (no launcher), 2 and 3 MPI ranks; each rank writes model0_dev[rank]_frame[f].csv. Checks
+Runs the scene on 1 rank (no launcher), 2, 3 and 4 MPI ranks; each rank writes model0_dev[rank]_frame[f].csv. Checks
 that every run completes (exit 0, run.json: status completed, ranks N, the same step count), that the merged last
 frame holds every particle ID exactly once, and that positions and velocities agree with one rank's to 1e-12
 (double precision; the unit test tests/physics/test_decomposition.cpp measures 2e-16 m and 5e-15 m/s).
@@ -51,7 +51,7 @@ def run(ranks):
 
 
 steps1, one = run(1)
-for n in (2, 3):
+for n in (2, 3, 4):
     steps, many = run(n)
     assert steps == steps1, f"{n} ranks: {steps} steps, one rank {steps1}"
     assert many.keys() == one.keys(), f"{n} ranks: particle IDs differ ({len(many)} vs {len(one)})"
