@@ -36,8 +36,7 @@ PlaneCounts plane_counts(const std::vector<const SampleCount*>& counts) {
     }
   PlaneCounts p;
   if (lo[0] > hi[0]) return p;  // no particles
-  for (int a = 1; a < 3; ++a)
-    if (hi[a] - lo[a] > hi[p.axis] - lo[p.axis]) p.axis = a;
+  p.axis = longest_axis(lo, hi);
   p.first = lo[p.axis];
   p.counts.assign(static_cast<std::size_t>(hi[p.axis] - lo[p.axis] + 1), 0);
   for (const SampleCount* c : counts)

@@ -43,6 +43,15 @@ struct PlaneCounts {
   std::vector<long long> counts;  ///< particles per plane
   long long total() const;
 };
+/// The axis of the largest extent of the block range [lo, hi] (ties: x, then y, then z).
+template <typename V>
+int longest_axis(const V (&lo)[3], const V (&hi)[3]) {
+  int axis = 0;
+  for (int a = 1; a < 3; ++a)
+    if (hi[a] - lo[a] > hi[axis] - lo[axis]) axis = a;
+  return axis;
+}
+
 /// The planes of `counts` along the axis of their largest extent (in blocks; ties: x, then y, then z).
 PlaneCounts plane_counts(const std::vector<const SampleCount*>& counts);
 

@@ -62,8 +62,6 @@ std::size_t grid_scalar_bytes(Precision p) { return p == Precision::Double ? 8 :
 
 template <typename T, typename TG>
 RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& log) {
-  if (scene.simulation.particles_output_exterior_only)
-    throw std::invalid_argument("simulation.particles_output_exterior_only: not implemented by the CPU engine");
   comm::Transport* transport = options.transport;
   const bool decomposed = transport && transport->size() > 1;
   std::unique_ptr<CpuEngine<T, TG>> engine =
@@ -187,6 +185,7 @@ RunResult run_guarded(const std::function<RunResult()>& run) {
 RunResult run_cpu(const Scene& scene, const RunOptions& options) {
   std::ostream& log = options.log ? *options.log : std::cout;
   return run_guarded([&] {
+    check_supported(scene);  // before any sampling: also scenes built in code get the release policy's errors
     switch (scene.simulation.precision) {
       case Precision::Single: return run_with<float, float>(scene, options, log);
       case Precision::Mixed: return run_with<double, float>(scene, options, log);

@@ -28,7 +28,6 @@
 #include "engine/run_constants.h"
 #include "engine/stop_request.h"
 #include "scene/scene.h"
-#include "scene/scene_parse.h"
 
 namespace fbar {
 
@@ -63,7 +62,6 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
   const int rank = transport ? transport->rank() : 0;
   const bool decomposed = transport && transport->size() > 1;
   const bool talk = !options.quiet && rank == 0;  // every rank runs the loop; rank 0 speaks for them
-  check_supported(scene);  // what neither engine implements is refused, also for scenes built in code
   std::filesystem::create_directories(sim.save_path);
   const std::string suffix = sim.save_suffix;
   io::frame_format(suffix);  // throws for a suffix without a writer before anything runs

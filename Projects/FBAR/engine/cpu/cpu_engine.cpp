@@ -130,6 +130,18 @@ std::string FailureReport::describe() const {
   return s.str();
 }
 
+bool StepReport::absorb(StepReport r) {
+  steps += r.steps;
+  retries += r.retries;
+  retried.insert(retried.end(), r.retried.begin(), r.retried.end());
+  dt = r.dt;
+  if (!r.ok) {
+    ok = false;
+    failures = std::move(r.failures);
+  }
+  return r.ok;
+}
+
 std::string StepReport::message() const {
   std::string m;
   for (const FailureReport& f : failures) m += (m.empty() ? "" : "\n") + f.describe();
@@ -176,30 +188,11 @@ CpuEngine<T, TG>::CpuEngine(const Scene& scene, comm::Transport& transport, doub
     // keeps the particles it owns.
     choose_slabs_now(true);
     for (Body& body : bodies_) {
-      std::vector<char> keep(body.x.size());
-      for (std::size_t p = 0; p < body.x.size(); ++p) keep[p] = owner_of(body.x[p]) == rank();
-      auto compact = [&](auto& v) {
-        std::size_t w = 0;
-        for (std::size_t p = 0; p < v.size(); ++p)
-          if (keep[p]) v[w++] = v[p];
-        v.resize(w);
-      };
-      compact(body.id);
-      compact(body.x);
-      compact(body.v);
-      compact(body.C);
-      compact(body.mass);
-      compact(body.volume);
-      std::visit([&](auto& mb) { compact(mb.state); }, body.material);
-      body.x_next.resize(body.x.size());
-      body.v_next.resize(body.x.size());
-      body.C_next.resize(body.x.size());
-      std::visit([&](auto& mb) { mb.next_state.resize(mb.state.size()); }, body.material);
+      std::vector<int> owner(body.x.size());
+      for (std::size_t p = 0; p < body.x.size(); ++p) owner[p] = owner_of(body.x[p]);
+      keep_own_particles(body, owner);
     }
-    std::vector<long long> per_rank(static_cast<std::size_t>(ranks()), 0);
-    per_rank[static_cast<std::size_t>(rank())] = static_cast<long long>(particle_count());
-    transport_->allreduce_sum(per_rank.data(), ranks());
-    imbalance_ = comm::imbalance(per_rank);
+    measure_balance();
     chosen_imbalance_ = imbalance_;
   }
 }
@@ -845,17 +838,7 @@ StepReport CpuEngine<T, TG>::step_toward(double t_end) {
 template <typename T, typename TG>
 StepReport CpuEngine<T, TG>::advance_to(double t_end) {
   StepReport total;
-  while (time_ < t_end) {
-    StepReport r = step_toward(t_end);
-    total.steps += r.steps;
-    total.retries += r.retries;
-    total.retried.insert(total.retried.end(), r.retried.begin(), r.retried.end());
-    total.dt = r.dt;
-    if (!r.ok) {
-      total.ok = false;
-      total.failures = std::move(r.failures);
-      return total;
-    }
+  while (time_ < t_end && total.absorb(step_toward(t_end))) {
   }
   return total;
 }
@@ -1257,6 +1240,51 @@ void CpuEngine<T, TG>::exchange_halo(bool fbar_sums) {
 }
 
 template <typename T, typename TG>
+void CpuEngine<T, TG>::keep_own_particles(Body& body, const std::vector<int>& owner) {
+  const int r = rank();
+  std::visit(
+      [&](auto& mb) {
+        std::size_t w = 0;
+        for (std::size_t p = 0; p < owner.size(); ++p) {
+          if (owner[p] != r) continue;
+          body.id[w] = body.id[p];
+          body.x[w] = body.x[p];
+          body.v[w] = body.v[p];
+          body.C[w] = body.C[p];
+          body.mass[w] = body.mass[p];
+          body.volume[w] = body.volume[p];
+          mb.state[w] = mb.state[p];
+          ++w;
+        }
+        body.id.resize(w);
+        body.x.resize(w);
+        body.v.resize(w);
+        body.C.resize(w);
+        body.mass.resize(w);
+        body.volume.resize(w);
+        mb.state.resize(w);
+      },
+      body.material);
+  resize_scratch(body);
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::resize_scratch(Body& body) {
+  body.x_next.resize(body.x.size());
+  body.v_next.resize(body.x.size());
+  body.C_next.resize(body.x.size());
+  std::visit([](auto& mb) { mb.next_state.resize(mb.state.size()); }, body.material);
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::measure_balance() {
+  std::vector<long long> per_rank(static_cast<std::size_t>(ranks()), 0);
+  per_rank[static_cast<std::size_t>(rank())] = static_cast<long long>(particle_count());
+  transport_->allreduce_sum(per_rank.data(), ranks());
+  imbalance_ = comm::imbalance(per_rank);
+}
+
+template <typename T, typename TG>
 void CpuEngine<T, TG>::migrate() {
   const int r = rank(), n = ranks();
   std::vector<int> peers;
@@ -1275,39 +1303,22 @@ void CpuEngine<T, TG>::migrate() {
       if (dest[p] != r) ++per_peer[static_cast<std::size_t>(peer_index(dest[p]))];
     for (std::size_t i = 0; i < peers.size(); ++i) put(send[i], per_peer[i]);
     std::visit(
-        [&](auto& mb) {
-          std::size_t w = 0;
+        [&](const auto& mb) {
           for (std::size_t p = 0; p < count; ++p) {
-            if (dest[p] != r) {
-              comm::Bytes& out = send[static_cast<std::size_t>(peer_index(dest[p]))];
-              put(out, body.id[p]);
-              put(out, body.x[p]);
-              put(out, body.v[p]);
-              put(out, body.C[p]);
-              put(out, body.mass[p]);
-              put(out, body.volume[p]);
-              put(out, mb.state[p]);
-              ++sent;
-              continue;
-            }
-            body.id[w] = body.id[p];
-            body.x[w] = body.x[p];
-            body.v[w] = body.v[p];
-            body.C[w] = body.C[p];
-            body.mass[w] = body.mass[p];
-            body.volume[w] = body.volume[p];
-            mb.state[w] = mb.state[p];
-            ++w;
+            if (dest[p] == r) continue;
+            comm::Bytes& out = send[static_cast<std::size_t>(peer_index(dest[p]))];
+            put(out, body.id[p]);
+            put(out, body.x[p]);
+            put(out, body.v[p]);
+            put(out, body.C[p]);
+            put(out, body.mass[p]);
+            put(out, body.volume[p]);
+            put(out, mb.state[p]);
+            ++sent;
           }
-          body.id.resize(w);
-          body.x.resize(w);
-          body.v.resize(w);
-          body.C.resize(w);
-          body.mass.resize(w);
-          body.volume.resize(w);
-          mb.state.resize(w);
         },
         body.material);
+    keep_own_particles(body, dest);
   }
   const std::vector<comm::Bytes> received = transport_->exchange(peers, send);
   // Unpack in peer (rank) order, body by body: the slot order after a migration does not depend on timing.
@@ -1331,21 +1342,15 @@ void CpuEngine<T, TG>::migrate() {
                                          " crossed a whole slab in one step (rank " + std::to_string(r) + ")");
             }
           }
-          mb.next_state.resize(mb.state.size());
         },
         body.material);
-    body.x_next.resize(body.x.size());
-    body.v_next.resize(body.x.size());
-    body.C_next.resize(body.x.size());
+    resize_scratch(body);
   }
   migrated_ += sent;
   partition_valid_ = false;
 
   // Balance: the particles per rank, and new slabs when they drifted apart beyond the threshold.
-  std::vector<long long> per_rank(static_cast<std::size_t>(n), 0);
-  per_rank[static_cast<std::size_t>(r)] = static_cast<long long>(particle_count());
-  transport_->allreduce_sum(per_rank.data(), n);
-  imbalance_ = comm::imbalance(per_rank);
+  measure_balance();
   // New slabs when the counts drifted apart beyond the threshold, and beyond 1.5 x what whole block planes allowed
   // at the last choice (a body a few planes wide cannot be split evenly; choosing again would not help).
   if (rebalance_threshold_ > 0.0 && imbalance_ > rebalance_threshold_ && imbalance_ > 1.5 * chosen_imbalance_) {
@@ -1390,8 +1395,7 @@ void CpuEngine<T, TG>::choose_slabs_now(bool replicated) {
     slabs_ = comm::choose_slabs(planes, 1);  // no particles anywhere: one slab
     return;
   }
-  for (int a = 1; a < 3; ++a)
-    if (hi[a] - lo[a] > hi[planes.axis] - lo[planes.axis]) planes.axis = a;
+  planes.axis = comm::longest_axis(lo, hi);
   planes.first = static_cast<int>(lo[planes.axis]);
   planes.counts.assign(static_cast<std::size_t>(hi[planes.axis] - lo[planes.axis]) + 1, 0);
   for (const Body& body : bodies_)

@@ -99,6 +99,9 @@ struct StepReport {
   std::vector<FailureReport> retried;   ///< failures that were repaired by halving dt (reduce_dt)
   /// All failures, one line each (empty when ok).
   std::string message() const;
+  /// Adds the report of a later step of the same call (advance_to): steps, retries and repaired failures summed,
+  /// dt and failures the later one's. Returns r.ok.
+  bool absorb(StepReport r);
 };
 
 /// Output attributes (canonical names, attributes.h) the CPU engine can write for a body of material `law`.
@@ -304,6 +307,9 @@ class CpuEngine {
   void exchange_halo(bool fbar_sums);  // sums the halo planes with the neighbours (P2G channels or F-bar sums)
   void reduce_try(TryResult& result, double dt);  // over ranks: speeds, failure counts; builds the reports
   void migrate();                      // particles whose block left this rank's slab go to their owner
+  void keep_own_particles(Body& body, const std::vector<int>& owner);  // drops those of other ranks, in order
+  void resize_scratch(Body& body);     // the next-state arrays follow the particle count
+  void measure_balance();              // imbalance_ from every rank's particle count (collective)
   /// Slabs from the particles: of this rank only when every rank holds every particle (`replicated`, at start),
   /// else of every rank (to rebalance).
   void choose_slabs_now(bool replicated);

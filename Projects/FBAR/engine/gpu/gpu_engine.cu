@@ -113,8 +113,6 @@ namespace {
 
 template <typename T, typename TG>
 RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& log) {
-  if (scene.simulation.particles_output_exterior_only)
-    throw std::invalid_argument("simulation.particles_output_exterior_only: not implemented by the GPU engine");
   GpuEngineOptions engine_options;
   engine_options.frames = true;
   const auto setup_start = std::chrono::steady_clock::now();
@@ -135,6 +133,7 @@ RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& 
 RunResult run_gpu(const Scene& scene, const RunOptions& options) {
   std::ostream& log = options.log ? *options.log : std::cout;
   return run_guarded([&] {
+    check_supported(scene);  // before any sampling: also scenes built in code get the release policy's errors
     switch (scene.simulation.precision) {
       case Precision::Single: return run_with<float, float>(scene, options, log);
       case Precision::Double: return run_with<double, double>(scene, options, log);

@@ -1252,17 +1252,7 @@ StepReport MgspBenchmark<T, TG>::step_toward(double t_end) {
 template <typename T, typename TG>
 StepReport MgspBenchmark<T, TG>::advance_to(double t_end) {
   StepReport total;
-  while (time_ < t_end) {
-    StepReport r = step_toward(t_end);
-    total.steps += r.steps;
-    total.retries += r.retries;
-    total.retried.insert(total.retried.end(), r.retried.begin(), r.retried.end());
-    total.dt = r.dt;
-    if (!r.ok) {
-      total.ok = false;
-      total.failures = std::move(r.failures);
-      return total;
-    }
+  while (time_ < t_end && total.absorb(step_toward(t_end))) {
   }
   return total;
 }
