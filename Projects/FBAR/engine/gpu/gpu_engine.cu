@@ -104,6 +104,16 @@ template <typename T, typename TG>
 std::size_t GpuEngine<T, TG>::active_grid_blocks() const { return impl_->active_grid_blocks(); }
 template <typename T, typename TG>
 std::size_t GpuEngine<T, TG>::device_bytes() const { return impl_->device_bytes(); }
+template <typename T, typename TG>
+int GpuEngine<T, TG>::rank() const { return impl_->rank(); }
+template <typename T, typename TG>
+int GpuEngine<T, TG>::ranks() const { return impl_->ranks(); }
+template <typename T, typename TG>
+const comm::SlabPartition& GpuEngine<T, TG>::slabs() const { return impl_->slabs(); }
+template <typename T, typename TG>
+long long GpuEngine<T, TG>::migrated() const { return impl_->migrated(); }
+template <typename T, typename TG>
+std::size_t GpuEngine<T, TG>::halo_blocks() const { return impl_->halo_blocks(); }
 
 template class GpuEngine<float, float>;
 template class GpuEngine<double, double>;

@@ -24,6 +24,11 @@
 #include "scene/scene.h"
 
 namespace fbar {
+namespace comm {
+class Transport;
+class DeviceTransport;
+struct SlabPartition;
+}  // namespace comm
 
 /// One body's particles in ID order, copied from the device.
 template <typename T>
@@ -35,6 +40,9 @@ struct ParticleSnapshot {
   std::vector<Mat3<T>> F;   ///< [-] deformation gradient (materials that store F; empty otherwise)
   std::vector<T> logJp;     ///< [-] plastic state (materials that store logJp; empty otherwise)
   std::vector<Mat3<T>> sigma;  ///< [Pa] Cauchy stress of the stored state (with the recorded C for rate terms)
+  /// Decomposed runs: present[id] says whether this rank holds particle `id` (the arrays are indexed by ID over the
+  /// whole body; absent entries are NaN). Empty: every particle is present.
+  std::vector<char> present;
 };
 
 /// Accumulated device time per kernel family (CUDA events, when timing is on) [ms].
@@ -58,10 +66,16 @@ struct GpuEngineOptions {
   std::size_t memory_limit = 0;
   /// Particles sampled and uploaded per batch at start (host memory is O(batch)); tests make it small.
   long long sample_batch = kSampleBatchParticles;
+  /// A decomposed run (comm/slab_partition.h): this rank's host transport (agreement on the host) and device
+  /// transport (halo blocks, migrating particles, the time step). Both or neither; neither: one GPU runs the scene.
+  /// Every rank is constructed with the same scene and options and steps in lockstep.
+  comm::Transport* ranks = nullptr;
+  comm::DeviceTransport* device_ranks = nullptr;
 };
 
 template <typename T, typename TG>
 class MgspBenchmark;
+
 
 /// T: particle scalar type (stored state, snapshots, frames); TG: grid scalar type (grid buffers, P2G sums, grid
 /// update). GpuEngine<float> is "single", GpuEngine<double> "double", GpuEngine<double, float> "mixed".
@@ -122,6 +136,13 @@ class GpuEngine {
   double grid_mass() const;              ///< [kg] sum of node masses of the current grid (P2G of this state)
   std::size_t active_grid_blocks() const;
   std::size_t device_bytes() const;      ///< device memory held by the engine's buffers
+
+  // Decomposed runs (GpuEngineOptions::ranks); one rank otherwise.
+  int rank() const;
+  int ranks() const;
+  const comm::SlabPartition& slabs() const;  ///< the particle-block planes of every rank
+  long long migrated() const;               ///< particles this rank sent to others so far
+  std::size_t halo_blocks() const;          ///< grid blocks this rank shares with its neighbours now
 
  private:
   std::unique_ptr<MgspBenchmark<T, TG>> impl_;

@@ -6,3 +6,4 @@
 #include "engine/gpu/kernels/g2p2g_kernel.cuh"
 #include "engine/gpu/kernels/partition_kernels.cuh"
 #include "engine/gpu/kernels/output_kernels.cuh"
+#include "engine/gpu/kernels/halo_kernels.cuh"

@@ -16,6 +16,18 @@
 //   5. one small copy of the step statistics to pinned memory and one stream synchronisation: failures, overflow,
 //      dt_{n+1}, block and bin counts. A failed step leaves cur/gc untouched (on_failure reduce_dt repeats it with
 //      dt/2 from the same buffers); an overflow grows the capacities and redoes step 4 from the new positions.
+// Decomposed (GpuEngineOptions::ranks; comm/slab_partition.h): each rank holds the particles of its slab of
+// particle-block planes and the grid blocks they touch; step n adds
+//   0'. after a rescale: a delta exchange of the halo blocks of grid[gc]
+//   2'. dt_{n+1} from the largest grid speed and wave speeds over ranks (DeviceTransport::allreduce_max on the
+//       device, before compute_next_dt): every rank computes the same dt (min over ranks of each rank's dt would not
+//       do: the fastest node and the stiffest particle may sit on different ranks)
+//   3'. F-bar: the cell sums' halo exchange between fbar_divergence and G2P2G; after G2P2G: the halo exchange of
+//       grid[1 - gc] (and the transported momentum), then migration: G2P2G marked the particles whose next block a
+//       neighbour owns (kEmigrant); their records go to the neighbour, which appends the ones it receives behind
+//       its own slots and records their (block, rank) before the partition
+//   5'. agreement on the host: failures, repeats and the grid speed over ranks (so every rank takes the same
+//       decision), and a rebuild of the halo lists when a rank has new blocks in a halo plane.
 #pragma once
 
 #include <cub/device/device_scan.cuh>
@@ -25,6 +37,7 @@
 #include <cuda_runtime.h>
 
 #include <algorithm>
+#include <array>
 #include <climits>
 #include <cmath>
 #include <cstdint>
@@ -41,6 +54,8 @@
 
 #include "MnBase/Math/bspline.h"
 #include "MnSystem/Cuda/device_query.h"
+#include "comm/device_transport.h"
+#include "comm/slab_partition.h"
 #include "scene/attributes.h"
 #include "physics/boundary.cuh"
 #include "physics/constitutive_models.cuh"
@@ -100,8 +115,12 @@ class DeviceArray {
     ptr_ = nullptr;
     size_ = n;
     if (n) ptr_ = static_cast<V*>(cuda::device_malloc(sizeof(V) * n, "GPU engine buffer"));
-    // Zeroed: allocations are rare, and growth copies whole arrays whose unused slots were never written.
-    if (n) FBAR_CUDA_CHECK(cudaMemset(ptr_, 0, sizeof(V) * n));
+    // Zeroed: allocations are rare, and growth copies whole arrays whose unused slots were never written. The
+    // memset runs on the legacy stream, which the engine's non-blocking streams do not wait for: finish it here.
+    if (n) {
+      FBAR_CUDA_CHECK(cudaMemset(ptr_, 0, sizeof(V) * n));
+      FBAR_CUDA_CHECK(cudaDeviceSynchronize());
+    }
   }
   V* get() const { return ptr_; }
   void swap(DeviceArray& o) noexcept {
@@ -125,6 +144,8 @@ static __global__ void reset_step_stats(StepStats* stats, BodyStepStats* bodies,
       stats->internal_error = 0;
       stats->p2g_range = 0;
     }
+    stats->halo_new[0] = 0;
+    stats->halo_new[1] = 0;
     stats->bin_overflow = 0;
     stats->block_count = 0;
     stats->table_overflow = 0;
@@ -196,13 +217,22 @@ class MgspBenchmark {
   double grid_mass() const;
   std::size_t active_grid_blocks() const { return static_cast<std::size_t>(block_count_); }
   std::size_t device_bytes() const;
+  int rank() const { return host_ ? host_->rank() : 0; }
+  int ranks() const { return host_ ? host_->size() : 1; }
+  const comm::SlabPartition& slabs() const { return slabs_; }
+  long long migrated() const { return migrated_; }
+  std::size_t halo_blocks() const { return halo_[0].keys.size() + halo_[1].keys.size(); }
 
  private:
   // ---------------------------------------------------------------- bodies (host-side polymorphism only)
   struct BodyBase {
     BodySpec spec;
     int index = 0;
-    int particles = 0;
+    int particles = 0;             ///< on this rank (all of the body on one GPU)
+    long long global_particles = 0;  ///< of the body over all ranks: IDs are 0 .. global_particles - 1
+    /// Slots of bins[1 - cur] the partition reads: the G2P2G's layout slots, then the particles received this try.
+    int source_slots = 0;
+    int pending_particles = 0;     ///< particles on this rank after this try's migration
     T mass = T(0), volume = T(0);
     double rest_wave_speed = 0.0;
     T fbar_psi = T(0);  ///< F-bar blend (transfer.cuh), 0: off
@@ -245,9 +275,15 @@ class MgspBenchmark {
     virtual int bins_capacity(int which) const = 0;
     virtual std::size_t bins_bytes() const = 0;
     /// Particles first_id .. first_id + x.size() into bins[0] (flat: slot = ID); first_id is a multiple of 32.
-    virtual void upload(const Vec3d* x, std::size_t n, long long first_id, cudaStream_t s) = 0;
+    /// ids: the particles' IDs (nullptr: first_id + i).
+    virtual void upload(const Vec3d* x, const int* ids, std::size_t n, long long first_id, cudaStream_t s) = 0;
     virtual void g2p2g(MgspBenchmark& e, bool initial, T dt) = 0;
-    virtual void dest_from_positions(MgspBenchmark& e, int bins_which, const int* valid, int slots) = 0;
+    virtual void dest_from_positions(MgspBenchmark& e, int bins_which, const int* valid, int first, int slots) = 0;
+    virtual std::size_t migrant_bytes(const MgspBenchmark& e) const = 0;
+    /// Emigrants among the first `slots` slots of bins[1 - cur] into out[0] / out[1] (count: 2 device ints).
+    virtual void pack_emigrants(MgspBenchmark& e, int slots, std::byte* lo, std::byte* hi, int capacity, int* count) = 0;
+    /// n received records into slots first .. first + n - 1 of bins[1 - cur].
+    virtual void unpack_immigrants(MgspBenchmark& e, int first, const std::byte* in, int n) = 0;
     virtual void rescale_impulse(MgspBenchmark& e, T ddt) = 0;
     virtual void gather(MgspBenchmark& e, T* out, int* missing, cudaStream_t s) = 0;
     virtual bool stores_logJp() const = 0;
@@ -283,7 +319,7 @@ class MgspBenchmark {
       return bins[0].bytes() + bins[1].bytes() + this->particle_v[0].bytes() + this->particle_v[1].bytes();
     }
 
-    void upload(const Vec3d* x, std::size_t n, long long first_id, cudaStream_t s) override {
+    void upload(const Vec3d* x, const int* ids, std::size_t n, long long first_id, cudaStream_t s) override {
       // Flat bins of this batch on the host (slot = particle ID), one copy to their place in bins[0].
       const std::size_t bins_n = (n + 31) / 32;
       const std::size_t bytes = Layout::kBinBytes * bins_n;
@@ -291,7 +327,8 @@ class MgspBenchmark {
       typename Layout::Buffer view(host.data(), bins_n);
       const auto state = material_initial_state<M, T>(this->spec.material);
       for (std::size_t i = 0; i < n; ++i) {
-        ParticleRecord<M, T> p{x[i].template cast<T>(), state, static_cast<int>(first_id + static_cast<long long>(i))};
+        const int id = ids ? ids[i] : static_cast<int>(first_id + static_cast<long long>(i));
+        ParticleRecord<M, T> p{x[i].template cast<T>(), state, id};
         store_particle<M, T>(view, static_cast<int>(i), p);
       }
       std::byte* target = bins[0].instance().data() + Layout::kBinBytes * static_cast<std::size_t>(first_id / 32);
@@ -336,6 +373,7 @@ class MgspBenchmark {
       p.dt_next = &e.stats_d_->dt_next;
       p.stats = e.stats_d_;
       p.body_stats = e.body_stats_d_ + this->index;
+      p.slab = e.slab_;
       p.wave_speed = e.wave_d_.get() + (1 - e.wave_cur_) * e.bodies_.size() + this->index;
       p.p2g_bound_in = e.p2g_bound_d_.get() + e.bound_cur_ * e.bodies_.size() + this->index;
       p.p2g_bound_out = e.p2g_bound_d_.get() + (1 - e.bound_cur_) * e.bodies_.size() + this->index;
@@ -356,6 +394,7 @@ class MgspBenchmark {
         f.stats = p.stats;
         fbar::fbar_divergence<M, T, TG><<<blocks, kG2P2GThreads, 0, e.stream_>>>(f);
         mgsp_detail::check_launch("fbar_divergence");
+        if (e.decomposed()) e.halo_exchange({{e.fbar_sums_.instance().data(), GridFbarBuffer<TG>::kBlockBytes}}, -1);
       }
       const bool transport = static_cast<bool>(p.transported_next);
       const std::size_t arena = g2p2g_arena_bytes<TG>(transport);
@@ -384,14 +423,33 @@ class MgspBenchmark {
       mgsp_detail::check_launch("capture_frame_state");
     }
 
-    void dest_from_positions(MgspBenchmark& e, int which, const int* valid, int slots) override {
-      if (slots == 0) return;
-      fbar::dest_from_positions<M, T, TG><<<mgsp_detail::grid_for(slots, kPartitionThreads), kPartitionThreads, 0,
-                                        e.stream_>>>(
-          bins[which].instance(), valid, this->particles, slots, e.k_.inv_dx, e.table_.view(),
+    void dest_from_positions(MgspBenchmark& e, int which, const int* valid, int first, int slots) override {
+      if (slots <= first) return;
+      fbar::dest_from_positions<M, T, TG><<<mgsp_detail::grid_for(slots - first, kPartitionThreads), kPartitionThreads,
+                                        0, e.stream_>>>(
+          bins[which].instance(), valid, this->particles, first, slots, e.k_.inv_dx, e.slab_, e.table_.view(),
           this->partition.layout(1 - e.cur_).count, this->partition.dest(), e.grid_[0].instance(),
           e.grid_[1].instance(), e.body_stats_d_ + this->index);
       mgsp_detail::check_launch("dest_from_positions");
+    }
+
+    std::size_t migrant_bytes(const MgspBenchmark& e) const override {
+      return fbar::migrant_bytes<M, T>(this->asflip, e.record_);
+    }
+    void pack_emigrants(MgspBenchmark& e, int slots, std::byte* lo, std::byte* hi, int capacity, int* count) override {
+      if (slots == 0) return;
+      fbar::pack_emigrants<M, T><<<mgsp_detail::grid_for(slots, kHaloThreads), kHaloThreads, 0, e.stream_>>>(
+          bins[1 - e.cur_].instance(), this->partition.layout(e.cur_).src, slots, this->partition.dest(),
+          this->asflip ? this->particle_v[1 - e.cur_].get() : nullptr, e.record_ ? this->aux.get() : nullptr, lo, hi,
+          capacity, count);
+      mgsp_detail::check_launch("pack_emigrants");
+    }
+    void unpack_immigrants(MgspBenchmark& e, int first, const std::byte* in, int n) override {
+      if (n == 0) return;
+      fbar::unpack_immigrants<M, T><<<mgsp_detail::grid_for(n, kHaloThreads), kHaloThreads, 0, e.stream_>>>(
+          bins[1 - e.cur_].instance(), first, in, n, this->asflip ? this->particle_v[1 - e.cur_].get() : nullptr,
+          e.record_ ? this->aux.get() : nullptr, this->partition.layout(e.cur_).src);
+      mgsp_detail::check_launch("unpack_immigrants");
     }
 
     void rescale_impulse(MgspBenchmark& e, T ddt) override {
@@ -409,7 +467,7 @@ class MgspBenchmark {
       // aux was written at the storage slots of bins[cur] (the previous G2P2G's layout order).
       fbar::gather_by_id<M, T><<<mgsp_detail::grid_for(slots, kOutputThreads), kOutputThreads, 0, s>>>(
           bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, e.aux_valid_ ? this->aux.get() : nullptr,
-          this->particles, out, missing);
+          static_cast<int>(this->global_particles), out, missing);
       mgsp_detail::check_launch("gather_by_id");
     }
 
@@ -456,6 +514,27 @@ class MgspBenchmark {
     if (timing_) FBAR_CUDA_CHECK(cudaEventRecord(events_[i], stream_));
   }
   std::vector<T> gather_host(int body, cudaStream_t s) const;
+
+  // ---------------------------------------------------------------- decomposition (GpuEngineOptions::ranks)
+  bool decomposed() const { return device_ != nullptr; }
+  /// Chooses the slabs from every body's counts (the same on every rank: each counted the whole scene) and keeps
+  /// this rank's part of each count.
+  void choose_slabs(const std::vector<std::vector<Vec3d>>* positions);
+  /// Whether this rank owns the particle at x (the device's arithmetic: x in T, its particle block).
+  bool owns(const Vec3d& x) const;
+  /// Sums the listed block buffers' halo blocks with the neighbours (data, bytes per block). grid >= 0: the first
+  /// buffer is grid_[grid], whose summed halo is kept for a later delta exchange; delta: add (mine + theirs) - saved.
+  void halo_exchange(std::initializer_list<std::pair<std::byte*, std::size_t>> buffers, int grid, bool delta = false);
+  /// After the partition: the table blocks [halo_scanned_, count) in a halo plane (keys and counts into stats).
+  void collect_halo();
+  /// Collective: every rank's new halo blocks go to its neighbours; both sides then hold (and list, sorted) the
+  /// union of the plane's blocks. summed_grid: the grid holding summed P2G values (saved for delta exchanges), or
+  /// -1 before the first P2G.
+  void rebuild_halo(int summed_grid);
+  /// Collective, after G2P2G and the halo sums: emigrants out, immigrants in (behind the G2P2G's slots).
+  void migrate_particles();
+  /// Collective, after read_stats: failure counts, first IDs, repeats, grid speed and new halo blocks over ranks.
+  void agree_on_try();
 
   static constexpr Precision kPrecision = !std::is_same_v<T, TG>      ? Precision::Mixed
                                            : std::is_same_v<T, double> ? Precision::Double
@@ -520,6 +599,30 @@ class MgspBenchmark {
   long long p2g_range_repeats_ = 0;  ///< tries repeated because the fixed-point P2G bound was exceeded
   double max_grid_speed_ = 0.0;
   std::ostream* log_ = &std::cerr;
+
+  // Decomposition (null transports: one GPU, the slab is all of space).
+  comm::Transport* host_ = nullptr;
+  comm::DeviceTransport* device_ = nullptr;
+  comm::SlabPartition slabs_;
+  SlabBounds slab_;
+  /// The halo with the lower (0) and upper (1) neighbour: the union of both ranks' blocks of the shared plane.
+  struct HaloSide {
+    int peer = -1;                              ///< -1: no neighbour on this side
+    int plane = 0;                              ///< grid-block coordinate of the shared plane along the axis
+    std::vector<unsigned long long> keys;       ///< sorted union (the same list on both ranks)
+    mgsp_detail::DeviceArray<int> index;        ///< table index of each key here
+    mgsp_detail::DeviceArray<TG> send, recv;    ///< message buffers (every exchanged buffer's blocks, in turn)
+    mgsp_detail::DeviceArray<TG> saved[2];      ///< grid[g]'s summed halo blocks (delta exchanges)
+    mgsp_detail::DeviceArray<unsigned long long> fresh;  ///< new local halo keys of the last collect_halo
+    mgsp_detail::DeviceArray<std::byte> migrants_out, migrants_in;
+  };
+  std::array<HaloSide, 2> halo_;
+  int halo_scanned_ = 0;                        ///< table blocks already looked at for the halo planes
+  int halo_fresh_capacity_ = 0;
+  mgsp_detail::DeviceArray<int> migrant_count_d_;  ///< (body, side) emigrants packed this try
+  long long migrated_ = 0;
+  long long pending_migrated_ = 0;
+  int local_halo_new_[2] = {0, 0};  ///< this rank's new halo keys of the try (stats_->halo_new: the agreed sums)
 };
 
 // =====================================================================================================================
@@ -533,6 +636,18 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
   const SimulationSpec& sim = scene_.simulation;
   k_ = RunConstants<T>(scene_, "GPU engine");
   kg_ = RunConstants<TG>(scene_, "GPU engine");
+  if (static_cast<bool>(options.ranks) != static_cast<bool>(options.device_ranks))
+    throw std::invalid_argument("GpuEngine: a decomposed run needs both a host and a device transport");
+  if (options.ranks && options.ranks->size() != options.device_ranks->size())
+    throw std::invalid_argument("GpuEngine: the host and device transports have different rank counts");
+  if (options.ranks && options.ranks->size() > 1) {
+    host_ = options.ranks;
+    device_ = options.device_ranks;
+    if (options.frames)
+      throw std::invalid_argument("GpuEngine: output frames of a decomposed GPU run are not implemented yet "
+                                  "(run on one GPU, or with --backend=cpu under mpirun)");
+  }
+  slabs_ = comm::choose_slabs(comm::PlaneCounts{}, 1);  // all of space (a decomposed run chooses below)
   if (positions && positions->size() != scene_.bodies.size())
     throw std::invalid_argument("GpuEngine: one position list per body");
   if (scene_.bodies.size() > static_cast<std::size_t>(DtParams::kMaxBodies))
@@ -591,6 +706,7 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
     body.spec = spec;
     body.index = static_cast<int>(b);
     body.particles = static_cast<int>(counts_.back().particles);
+    body.global_particles = counts_.back().particles;
     const double volume = sim.dx * sim.dx * sim.dx / mat.ppc;
     body.volume = static_cast<T>(volume);
     body.mass = static_cast<T>(mat.rho * volume);
@@ -605,9 +721,9 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
                                               spec.velocity[2] * spec.velocity[2]));
     if (b < options.initial_velocities.size() && !options.initial_velocities[b].empty()) {
       const std::vector<Vec3d>& v = options.initial_velocities[b];
-      if (v.size() != static_cast<std::size_t>(body.particles))
+      if (v.size() != static_cast<std::size_t>(body.global_particles))
         throw std::invalid_argument("GpuEngine: " + std::to_string(v.size()) + " initial velocities for the " +
-                                    std::to_string(body.particles) + " particles of body " + std::to_string(b));
+                                    std::to_string(body.global_particles) + " particles of body " + std::to_string(b));
       std::vector<T> flat(3 * v.size());
       body.initial_v_host.resize(v.size());
       for (std::size_t p = 0; p < v.size(); ++p) {
@@ -621,6 +737,7 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
     }
   }
   max_grid_speed_ = max_speed;
+  if (decomposed()) choose_slabs(positions);
 
   // The plan (memory_plan.h): capacities and every buffer's size, from the counts; refused before anything is
   // allocated or sampled when it does not fit the device.
@@ -697,10 +814,21 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
                                                : static_cast<int>(plan_.bin_capacity[b]);
     body.partition.allocate(block_capacity_, bins);
     body.allocate_bins(bins);
-    if (positions)
-      body.upload((*positions)[b].data(), (*positions)[b].size(), 0, stream_);
-    else
+    if (positions && decomposed()) {
+      std::vector<Vec3d> mine;
+      std::vector<int> ids;
+      const std::vector<Vec3d>& x = (*positions)[b];
+      for (std::size_t p = 0; p < x.size(); ++p)
+        if (owns(x[p])) {
+          mine.push_back(x[p]);
+          ids.push_back(static_cast<int>(p));
+        }
+      body.upload(mine.data(), ids.data(), mine.size(), 0, stream_);
+    } else if (positions) {
+      body.upload((*positions)[b].data(), nullptr, (*positions)[b].size(), 0, stream_);
+    } else {
       upload_sampled(body);
+    }
   }
   allocate_frames();
   std::size_t temp = 0;
@@ -737,7 +865,7 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
   reset_stats(false);
   for (auto& b : bodies_) {
     FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(0).count, 0, sizeof(int) * block_capacity_, stream_));
-    b->dest_from_positions(*this, 0, nullptr, b->particles);
+    b->dest_from_positions(*this, 0, nullptr, 0, b->particles);
   }
   partition_after_g2p2g();
   read_stats();
@@ -750,6 +878,11 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
                                " of " + std::to_string(b->particles) + " particles of body " + std::to_string(b->index));
   }
   block_count_ = stats_->block_count;
+  if (decomposed()) {  // the initial P2G writes the footprints of layout 0: halo lists first
+    local_halo_new_[0] = stats_->halo_new[0];
+    local_halo_new_[1] = stats_->halo_new[1];
+    rebuild_halo(-1);
+  }
   flat_source_ = false;
   for (auto& b : bodies_)  // the initial G2P2G writes bins[1] in layout(0) order
     if (b->bins_capacity(1) < b->partition.bin_capacity()) b->reallocate_bins(1, b->partition.bin_capacity());
@@ -776,9 +909,21 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
   }
   grid_[0].clear(0, block_capacity_, stream_);
   if (asflip_) transported_[0].clear(0, block_capacity_, stream_);
-  for (auto& b : bodies_)
+  for (auto& b : bodies_) {
     FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(1).count, 0, sizeof(int) * block_capacity_, stream_));
+    b->source_slots = b->total_bins[0] * 32;
+    b->pending_particles = b->particles;
+  }
   for (auto& b : bodies_) b->g2p2g(*this, true, T(0));
+  if (decomposed()) {
+    if (asflip_)
+      halo_exchange({{grid_[0].instance().data(), GridBuffer<TG>::kBlockBytes},
+                     {transported_[0].instance().data(), GridVelocityBuffer<TG>::kBlockBytes}},
+                    0);
+    else
+      halo_exchange({{grid_[0].instance().data(), GridBuffer<TG>::kBlockBytes}}, 0);
+    migrate_particles();
+  }
   for (auto& b : bodies_) {  // read by the initial P2G only (cudaFree waits for it)
     mgsp_detail::DeviceArray<T> done;
     b->initial_v.swap(done);
@@ -787,9 +932,19 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
   read_stats();
   while (handle_overflow()) {
   }
+  if (decomposed()) agree_on_try();
   if (stats_->internal_error) throw std::runtime_error("GpuEngine: internal error in the initial P2G");
-  for (auto& b : bodies_) b->total_bins[1] = body_stats_[b->index].total_bins;
+  for (auto& b : bodies_) {
+    b->total_bins[1] = body_stats_[b->index].total_bins;
+    if (body_stats_[b->index].particles != b->pending_particles)
+      throw std::runtime_error("GpuEngine: the initial P2G's partition placed " +
+                               std::to_string(body_stats_[b->index].particles) + " of " +
+                               std::to_string(b->pending_particles) + " particles of body " + std::to_string(b->index));
+    b->particles = b->pending_particles;
+  }
+  migrated_ += pending_migrated_;
   block_count_ = stats_->block_count;
+  if (decomposed() && (stats_->halo_new[0] > 0 || stats_->halo_new[1] > 0)) rebuild_halo(0);
   cur_ = 1;
   gc_ = 0;
   wave_cur_ = 0;
@@ -803,28 +958,47 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::upload_sampled(BodyBase& body) {
   // Batches of whole x-planes of about kSampleBatchParticles, uploaded in ID order; a batch ends on a multiple of
-  // 32 particles (the rest waits for the next), so every upload fills whole bins of the flat layout.
+  // 32 particles (the rest waits for the next), so every upload fills whole bins of the flat layout. A decomposed
+  // run keeps the particles of its slab (with their IDs: the sampling order over the whole body).
   const BodySampler sampler(body.spec, scene_.simulation, body.index);
   const std::vector<long long>& per_plane = counts_[body.index].per_plane;
-  std::vector<Vec3d> pending;
-  long long next_id = 0, plane = 0;
+  std::vector<Vec3d> sampled, pending;  // sampled: a decomposed rank's batch before it keeps its slab's points
+  std::vector<int> pending_ids;         // a decomposed rank's IDs (one GPU: slot = ID, no list)
+  long long next_id = 0, next_slot = 0, plane = 0;
   const long long planes = sampler.planes();
   while (plane < planes) {
     long long end = plane, n = static_cast<long long>(pending.size());
     while (end < planes && (end == plane || n + per_plane[static_cast<std::size_t>(end)] <= options_.sample_batch))
       n += per_plane[static_cast<std::size_t>(end++)];
-    sampler.sample_planes(plane, end, pending);
+    if (decomposed()) {
+      sampled.clear();
+      sampler.sample_planes(plane, end, sampled);
+      for (const Vec3d& x : sampled) {
+        if (owns(x)) {
+          pending.push_back(x);
+          pending_ids.push_back(static_cast<int>(next_id));
+        }
+        ++next_id;
+      }
+    } else {
+      const std::size_t before = pending.size();
+      sampler.sample_planes(plane, end, pending);
+      next_id += static_cast<long long>(pending.size() - before);
+    }
     plane = end;
     const std::size_t send = plane == planes ? pending.size() : pending.size() / 32 * 32;
-    if (next_id + static_cast<long long>(send) > body.particles)
+    if (next_slot + static_cast<long long>(send) > body.particles)
       throw std::runtime_error("GpuEngine: sampling body " + std::to_string(body.index) + " gave more particles than counted");
-    body.upload(pending.data(), send, next_id, stream_);
-    next_id += static_cast<long long>(send);
+    body.upload(pending.data(), decomposed() ? pending_ids.data() : nullptr, send, next_slot, stream_);
+    next_slot += static_cast<long long>(send);
     pending.erase(pending.begin(), pending.begin() + static_cast<std::ptrdiff_t>(send));
+    if (decomposed()) pending_ids.erase(pending_ids.begin(), pending_ids.begin() + static_cast<std::ptrdiff_t>(send));
   }
-  if (next_id != body.particles)
-    throw std::runtime_error("GpuEngine: sampling body " + std::to_string(body.index) + " gave " + std::to_string(next_id) +
-                             " particles, " + std::to_string(body.particles) + " counted");
+  if (next_slot != body.particles || next_id != body.global_particles)
+    throw std::runtime_error("GpuEngine: sampling body " + std::to_string(body.index) + " gave " +
+                             std::to_string(next_slot) + " of " + std::to_string(next_id) + " particles here, " +
+                             std::to_string(body.particles) + " of " + std::to_string(body.global_particles) +
+                             " counted");
 }
 
 template <typename T, typename TG>
@@ -897,7 +1071,7 @@ void MgspBenchmark<T, TG>::partition_after_g2p2g() {
     // upload before the first layout exists.
     const bool flat = flat_source_;
     const int* valid = flat ? nullptr : b.partition.layout(cur_).src;
-    const int slots = flat ? b.particles : b.total_bins[cur_] * 32;
+    const int slots = flat ? b.particles : b.source_slots;
     if (slots > 0) {
       scatter_src<<<mgsp_detail::grid_for(slots, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
           b.partition.dest(), valid, b.particles, slots, nl.bin_offset, nl.src, b.partition.bin_capacity(),
@@ -908,6 +1082,7 @@ void MgspBenchmark<T, TG>::partition_after_g2p2g() {
         nl.count, nl.bin_offset, block_capacity_, nl.src, b.partition.bin_capacity());
     mgsp_detail::check_launch("pad_src");
   }
+  if (decomposed()) collect_halo();
 }
 
 template <typename T, typename TG>
@@ -1029,9 +1204,9 @@ bool MgspBenchmark<T, TG>::handle_overflow() {
   for (auto& b : bodies_) {
     FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(next).count, 0, sizeof(int) * block_capacity_, stream_));
     if (flat_source_)
-      b->dest_from_positions(*this, 0, nullptr, b->particles);
+      b->dest_from_positions(*this, 0, nullptr, 0, b->particles);
     else
-      b->dest_from_positions(*this, next, b->partition.layout(cur_).src, b->total_bins[cur_] * 32);
+      b->dest_from_positions(*this, next, b->partition.layout(cur_).src, 0, b->source_slots);
   }
   partition_after_g2p2g();
   read_stats();
@@ -1068,9 +1243,15 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
   int range_repeats = 0;
   for (;;) {
     reset_stats(false);
+    for (auto& b : bodies_) {
+      b->source_slots = b->total_bins[cur_] * 32;
+      b->pending_particles = b->particles;
+    }
+    pending_migrated_ = 0;
     // 0. the grid must hold the impulse of this dt
     if (dt != dt_p2g_) {
       for (auto& b : bodies_) b->rescale_impulse(*this, static_cast<T>(dt - dt_p2g_));
+      if (decomposed()) halo_exchange({{grid_[gc_].instance().data(), GridBuffer<TG>::kBlockBytes}}, gc_, true);
       dt_p2g_ = dt;
     }
     event_record(0);
@@ -1112,6 +1293,11 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
       dp.t_next = time_ + dt;
       dp.t_target = target;
       dp.stats = stats_d_;
+      if (decomposed()) {  // the maxima are stored as the bits of non-negative doubles: reduce them as doubles
+        device_->allreduce_max(reinterpret_cast<double*>(&stats_d_->max_speed_sq), 1, stream_);
+        device_->allreduce_max(reinterpret_cast<double*>(wave_d_.get() + wave_cur_ * bodies_.size()), body_count(),
+                               stream_);
+      }
       compute_next_dt<<<1, 1, 0, stream_>>>(dp);
       mgsp_detail::check_launch("compute_next_dt");
     }
@@ -1130,12 +1316,22 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
       for (auto& b : bodies_)
         if (b->frame_copied) FBAR_CUDA_CHECK(cudaStreamWaitEvent(stream_, b->frame_copied, 0));
     for (auto& b : bodies_) b->g2p2g(*this, false, static_cast<T>(dt));
+    if (decomposed()) {
+      if (asflip_)
+        halo_exchange({{grid_[1 - gc_].instance().data(), GridBuffer<TG>::kBlockBytes},
+                       {transported_[1 - gc_].instance().data(), GridVelocityBuffer<TG>::kBlockBytes}},
+                      1 - gc_);
+      else
+        halo_exchange({{grid_[1 - gc_].instance().data(), GridBuffer<TG>::kBlockBytes}}, 1 - gc_);
+      migrate_particles();
+    }
     event_record(2);
     // 4. partition of the next step
     partition_after_g2p2g();
     event_record(3);
     // 5. the step's one readback
     read_stats();
+    if (decomposed()) agree_on_try();
     if (stats_->internal_error)
       throw std::runtime_error("GpuEngine: internal error (" + std::to_string(stats_->internal_error) +
                                " arena lookups or particles outside their block) at step " +
@@ -1156,10 +1352,11 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
       while (handle_overflow()) {
       }
       for (const auto& b : bodies_)
-        if (body_stats_[b->index].particles != b->particles)
+        if (body_stats_[b->index].particles != b->pending_particles)
           throw std::runtime_error("GpuEngine: the partition of body " + std::to_string(b->index) + " placed " +
                                    std::to_string(body_stats_[b->index].particles) + " of " +
-                                   std::to_string(b->particles) + " particles at step " + std::to_string(steps_ + 1));
+                                   std::to_string(b->pending_particles) + " particles at step " +
+                                   std::to_string(steps_ + 1));
       if (timing_) {
         float ms = 0.f;
         FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[0], events_[1]));
@@ -1204,7 +1401,11 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
 
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::commit(double dt) {
-  for (auto& b : bodies_) b->total_bins[1 - cur_] = body_stats_[b->index].total_bins;
+  for (auto& b : bodies_) {
+    b->total_bins[1 - cur_] = body_stats_[b->index].total_bins;
+    b->particles = b->pending_particles;
+  }
+  migrated_ += pending_migrated_;
   cur_ = 1 - cur_;
   gc_ = 1 - gc_;
   wave_cur_ = 1 - wave_cur_;
@@ -1221,6 +1422,7 @@ void MgspBenchmark<T, TG>::commit(double dt) {
   max_grid_speed_ = std::sqrt(max_speed_sq);
   block_count_ = stats_->block_count;
   aux_valid_ = record_;
+  if (decomposed() && (stats_->halo_new[0] > 0 || stats_->halo_new[1] > 0)) rebuild_halo(gc_);  // agreed: all or none
   // Headroom for the next step (grow between steps, never inside one): blocks at 3/4, bins at 9/10 of capacity.
   if (block_count_ > block_capacity_ * 3 / 4) grow_blocks(2 * block_capacity_);
   ensure_step_capacity();
@@ -1264,9 +1466,11 @@ template <typename T, typename TG>
 std::vector<T> MgspBenchmark<T, TG>::gather_host(int body, cudaStream_t s) const {
   BodyBase& b = body_at(body);
   const int W = b.stored_scalars() + kAuxScalars;
-  const std::size_t n = static_cast<std::size_t>(b.particles) * W;
+  // By ID over the whole body; a decomposed rank holds some IDs only (the others stay NaN: all bits set).
+  const std::size_t n = static_cast<std::size_t>(b.global_particles) * W;
   mgsp_detail::DeviceArray<T> out;
   out.allocate(std::max<std::size_t>(n, 1));
+  if (decomposed() && n) FBAR_CUDA_CHECK(cudaMemsetAsync(out.get(), 0xff, sizeof(T) * n, s));
   FBAR_CUDA_CHECK(cudaMemsetAsync(missing_d_.get(), 0, sizeof(int), s));
   auto* self = const_cast<MgspBenchmark*>(this);
   b.gather(*self, out.get(), missing_d_.get(), s);
@@ -1286,7 +1490,8 @@ ParticleSnapshot<T> MgspBenchmark<T, TG>::snapshot(int body) const {
   const int S = b.stored_scalars();
   const int W = S + kAuxScalars;
   ParticleSnapshot<T> snap;
-  const std::size_t n = static_cast<std::size_t>(b.particles);
+  const std::size_t n = static_cast<std::size_t>(b.global_particles);
+  if (decomposed()) snap.present.assign(n, 0);
   snap.x.resize(n);
   snap.v.resize(n);
   snap.C.resize(n);
@@ -1299,6 +1504,10 @@ ParticleSnapshot<T> MgspBenchmark<T, TG>::snapshot(int body) const {
                     static_cast<T>(b.spec.velocity[2])}};
   for (std::size_t p = 0; p < n; ++p) {
     const T* q = r.data() + p * W;
+    if (decomposed()) {
+      if (std::isnan(q[0])) continue;
+      snap.present[p] = 1;
+    }
     snap.x[p] = Vec3<T>{{q[0], q[1], q[2]}};
     snap.v[p] = !initial ? Vec3<T>{{q[S], q[S + 1], q[S + 2]}} : b.initial_v_host.empty() ? v0 : b.initial_v_host[p];
     for (int i = 0; i < 3; ++i)
@@ -1315,6 +1524,7 @@ ParticleSnapshot<T> MgspBenchmark<T, TG>::snapshot(int body) const {
 
 template <typename T, typename TG>
 io::ParticleFrame MgspBenchmark<T, TG>::frame(int body) const {
+  if (decomposed()) throw std::logic_error("GpuEngine::frame: frames of a decomposed run are not implemented yet");
   const BodyBase& b = body_at(body);
   const ParticleSnapshot<T> s = snapshot(body);
   FrameSource<T> src;
@@ -1432,8 +1642,9 @@ double MgspBenchmark<T, TG>::elastic_energy() const {
     const BodyBase& b = body_at(body);
     const std::vector<T> r = gather_host(body, stream_);
     const int W = b.stored_scalars() + kAuxScalars;
-    for (std::size_t p = 0; p < static_cast<std::size_t>(b.particles); ++p)
-      e += static_cast<double>(b.volume) * b.energy_density_of(r.data() + p * W);
+    for (std::size_t p = 0; p < static_cast<std::size_t>(b.global_particles); ++p)
+      if (!decomposed() || !std::isnan(r[p * W]))
+        e += static_cast<double>(b.volume) * b.energy_density_of(r.data() + p * W);
   }
   return e;
 }
@@ -1461,6 +1672,365 @@ std::size_t MgspBenchmark<T, TG>::device_bytes() const {
   for (const auto& b : bodies_)
     bytes += b->bins_bytes() + b->partition.bytes() + b->aux.bytes() + b->frame_x.bytes() + b->frame_columns.bytes();
   return bytes;
+}
+
+// =====================================================================================================================
+// Decomposition (comm/slab_partition.h, comm/device_transport.h)
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::choose_slabs(const std::vector<std::vector<Vec3d>>* positions) {
+  std::vector<const SampleCount*> all;
+  for (const SampleCount& c : counts_) all.push_back(&c);
+  const int n = ranks(), r = rank();
+  slabs_ = comm::choose_slabs(comm::plane_counts(all), n);
+  slab_.axis = slabs_.axis;
+  slab_.lo = slabs_.cuts[static_cast<std::size_t>(r)];
+  slab_.hi = slabs_.cuts[static_cast<std::size_t>(r) + 1];
+  for (int side = 0; side < 2; ++side) {
+    HaloSide& h = halo_[static_cast<std::size_t>(side)];
+    h.peer = side == 0 ? (r > 0 ? r - 1 : -1) : (r + 1 < n ? r + 1 : -1);
+    h.plane = side == 0 ? slab_.lo : slab_.hi;  // rank r's particles scatter into grid planes [lo, hi]
+  }
+  // This rank's share of every count: the plan, the upload and the particle checks use it.
+  for (std::size_t b = 0; b < counts_.size(); ++b) {
+    SampleCount mine;
+    mine.per_plane = counts_[b].per_plane;  // the sampler's batching (whole planes, every rank samples them all)
+    for (const BlockCount& c : counts_[b].blocks)
+      if (slab_.owns(c.bx, c.by, c.bz)) {
+        mine.blocks.push_back(c);
+        mine.particles += c.particles;
+      }
+    counts_[b] = std::move(mine);
+  }
+  // The counts above used the host's block of each point; the upload uses the device arithmetic (owns()), which
+  // can differ for a point on a block face: count again exactly when positions are sampled.
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    BodyBase& body = *bodies_[b];
+    long long mine = 0;
+    if (positions) {
+      for (const Vec3d& p : (*positions)[b]) mine += owns(p) ? 1 : 0;
+      body.particles = static_cast<int>(mine);
+      continue;
+    }
+    const BodySampler sampler(body.spec, scene_.simulation, body.index);
+    std::vector<Vec3d> x;
+    for (long long plane = 0; plane < sampler.planes();) {
+      const long long end = std::min(sampler.planes(), plane + 64);
+      x.clear();
+      sampler.sample_planes(plane, end, x);
+      for (const Vec3d& p : x) mine += owns(p) ? 1 : 0;
+      plane = end;
+    }
+    body.particles = static_cast<int>(mine);
+  }
+  if (log_ && r == 0) *log_ << "fbar: GPU ranks " << n << ": " << slabs_.describe() << " (" << device_->describe() << ")\n";
+}
+
+template <typename T, typename TG>
+bool MgspBenchmark<T, TG>::owns(const Vec3d& x) const {
+  const QuadraticBspline<T> s = quadratic_bspline_inv(x.template cast<T>(), k_.inv_dx);
+  return slab_.owns(floor_div4(s.base[0] - 1), floor_div4(s.base[1] - 1), floor_div4(s.base[2] - 1));
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::halo_exchange(std::initializer_list<std::pair<std::byte*, std::size_t>> buffers, int grid,
+                                         bool delta) {
+  const bool save = grid >= 0;
+  std::size_t per_block = 0;  // scalars of every listed buffer's block
+  for (const auto& [data, bytes] : buffers) per_block += bytes / sizeof(TG);
+  std::vector<comm::DeviceTransport::Message> messages;
+  for (HaloSide& h : halo_) {
+    if (h.peer < 0) continue;
+    const int n = static_cast<int>(h.keys.size());
+    const std::size_t scalars = static_cast<std::size_t>(n) * per_block;
+    if (h.send.size() < scalars) {
+      h.send.allocate(scalars);
+      h.recv.allocate(scalars);
+    }
+    std::size_t offset = 0;
+    for (const auto& [data, bytes] : buffers) {
+      const int block_scalars = static_cast<int>(bytes / sizeof(TG));
+      if (n > 0) {
+        pack_halo<TG><<<mgsp_detail::grid_for(static_cast<long long>(n) * block_scalars, kHaloThreads), kHaloThreads, 0,
+                        stream_>>>(reinterpret_cast<const TG*>(data), block_scalars, h.index.get(), n,
+                                   h.send.get() + offset);
+        mgsp_detail::check_launch("pack_halo");
+      }
+      offset += static_cast<std::size_t>(n) * block_scalars;
+    }
+    comm::DeviceTransport::Message m;
+    m.peer = h.peer;
+    m.send = h.send.get();
+    m.recv = h.recv.get();
+    m.send_bytes = m.recv_bytes = scalars * sizeof(TG);
+    messages.push_back(m);
+  }
+  device_->exchange(messages, stream_);
+  for (HaloSide& h : halo_) {
+    if (h.peer < 0 || h.keys.empty()) continue;
+    const int n = static_cast<int>(h.keys.size());
+    std::size_t offset = 0;
+    bool first = true;
+    for (const auto& [data, bytes] : buffers) {
+      const int block_scalars = static_cast<int>(bytes / sizeof(TG));
+      TG* target = reinterpret_cast<TG*>(data);
+      const std::size_t count = static_cast<std::size_t>(n) * block_scalars;
+      const bool saved = first && delta;
+      if (saved && h.saved[grid].size() < count) throw std::logic_error("GpuEngine: a delta exchange before any sum");
+      add_halo<TG><<<mgsp_detail::grid_for(static_cast<long long>(count), kHaloThreads), kHaloThreads, 0, stream_>>>(
+          target, block_scalars, h.index.get(), n, h.recv.get() + offset, saved ? h.saved[grid].get() : nullptr);
+      mgsp_detail::check_launch("add_halo");
+      if (first && save) {  // the sums both ranks now hold, for a later delta exchange
+        if (h.saved[grid].size() < count) h.saved[grid].allocate(count);
+        pack_halo<TG><<<mgsp_detail::grid_for(static_cast<long long>(count), kHaloThreads), kHaloThreads, 0, stream_>>>(
+            target, block_scalars, h.index.get(), n, h.saved[grid].get());
+        mgsp_detail::check_launch("pack_halo");
+      }
+      offset += count;
+      first = false;
+    }
+  }
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::collect_halo() {
+  if (halo_fresh_capacity_ == 0) {
+    halo_fresh_capacity_ = 1024;
+    for (HaloSide& h : halo_) h.fresh.allocate(static_cast<std::size_t>(halo_fresh_capacity_));
+  }
+  const int limit = block_capacity_ - halo_scanned_;
+  if (limit <= 0) return;
+  collect_halo_blocks<<<mgsp_detail::grid_for(limit, kHaloThreads), kHaloThreads, 0, stream_>>>(
+      table_.view(), halo_scanned_, slab_.axis, halo_[0].peer >= 0 ? halo_[0].plane : INT_MIN,
+      halo_[1].peer >= 0 ? halo_[1].plane : INT_MIN, halo_[0].fresh.get(), halo_[1].fresh.get(), halo_fresh_capacity_,
+      stats_d_->halo_new);
+  mgsp_detail::check_launch("collect_halo_blocks");
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::rebuild_halo(int summed_grid) {
+  // 1. This rank's new keys per side (collected after the last partition; collected again when they overflowed).
+  std::array<std::vector<unsigned long long>, 2> fresh;
+  const int fresh_count[2] = {local_halo_new_[0], local_halo_new_[1]};
+  if (std::max(fresh_count[0], fresh_count[1]) > halo_fresh_capacity_) {
+    while (halo_fresh_capacity_ < std::max(fresh_count[0], fresh_count[1])) halo_fresh_capacity_ *= 2;
+    for (HaloSide& h : halo_) h.fresh.allocate(static_cast<std::size_t>(halo_fresh_capacity_));
+    FBAR_CUDA_CHECK(cudaMemsetAsync(stats_d_->halo_new, 0, sizeof(stats_d_->halo_new), stream_));
+    collect_halo();
+  }
+  for (int side = 0; side < 2; ++side) {
+    fresh[side].resize(static_cast<std::size_t>(fresh_count[side]));
+    if (fresh_count[side] > 0)
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(fresh[side].data(), halo_[side].fresh.get(),
+                                      sizeof(unsigned long long) * fresh[side].size(), cudaMemcpyDeviceToHost, stream_));
+  }
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+  halo_scanned_ = std::max(halo_scanned_, std::min(stats_->block_count, block_capacity_));
+  // 2. To the neighbours, and theirs back.
+  std::vector<int> peers;
+  std::vector<comm::Bytes> send;
+  for (int side = 0; side < 2; ++side) {
+    if (halo_[side].peer < 0) continue;
+    peers.push_back(halo_[side].peer);
+    const auto* b = reinterpret_cast<const std::uint8_t*>(fresh[side].data());
+    send.emplace_back(b, b + sizeof(unsigned long long) * fresh[side].size());
+  }
+  const std::vector<comm::Bytes> received = host_->exchange(peers, send);
+  // 3. The union, sorted (the same list on both sides), inserted here where absent, and its table indices.
+  std::size_t i = 0;
+  for (int side = 0; side < 2; ++side) {
+    HaloSide& h = halo_[side];
+    if (h.peer < 0) continue;
+    const comm::Bytes& theirs = received[i++];
+    std::vector<unsigned long long> all = h.keys;
+    all.insert(all.end(), fresh[side].begin(), fresh[side].end());
+    const std::size_t k = theirs.size() / sizeof(unsigned long long);
+    const std::size_t at = all.size();
+    all.resize(at + k);
+    if (k) std::memcpy(all.data() + at, theirs.data(), theirs.size());
+    std::sort(all.begin(), all.end());
+    all.erase(std::unique(all.begin(), all.end()), all.end());
+    if (all.size() == h.keys.size()) continue;
+    h.keys = std::move(all);
+    const int n = static_cast<int>(h.keys.size());
+    mgsp_detail::DeviceArray<unsigned long long> keys;
+    keys.allocate(h.keys.size());
+    h.index.allocate(h.keys.size());
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(keys.get(), h.keys.data(), sizeof(unsigned long long) * h.keys.size(),
+                                    cudaMemcpyHostToDevice, stream_));
+    for (;;) {
+      insert_halo_blocks<TG><<<mgsp_detail::grid_for(n, kHaloThreads), kHaloThreads, 0, stream_>>>(
+          table_.view(), keys.get(), n, h.index.get(), grid_[0].instance(), grid_[1].instance());
+      mgsp_detail::check_launch("insert_halo_blocks");
+      TableCounters c{};
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(&c, table_.counters(), sizeof(c), cudaMemcpyDeviceToHost, stream_));
+      FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+      if (c.overflow == 0 && c.block_count <= block_capacity_) {
+        block_count_ = std::max(block_count_, c.block_count);
+        break;
+      }
+      grow_blocks(2 * block_capacity_);  // keeps every block; the inserts are repeated (existing ones are found)
+    }
+    // The summed values both ranks hold, in the new list's order (a block new to the list is zero on both sides:
+    // it was created after the P2G that filled the grid), for a delta exchange before the next sum.
+    constexpr int kScalars = static_cast<int>(GridBuffer<TG>::kBlockBytes / sizeof(TG));
+    const std::size_t count = static_cast<std::size_t>(n) * kScalars;
+    for (int g = 0; g < 2; ++g) h.saved[g].allocate(count);  // the other grid is summed (and saved) before its use
+    if (summed_grid >= 0) {
+      pack_halo<TG><<<mgsp_detail::grid_for(static_cast<long long>(count), kHaloThreads), kHaloThreads, 0, stream_>>>(
+          reinterpret_cast<const TG*>(grid_[summed_grid].instance().data()), kScalars, h.index.get(), n,
+          h.saved[summed_grid].get());
+      mgsp_detail::check_launch("pack_halo");
+    }
+  }
+  // Blocks inserted here are halo blocks already listed: not new for the next collect.
+  halo_scanned_ = std::max(halo_scanned_, block_count_);
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::migrate_particles() {
+  const int nb = body_count();
+  if (migrant_count_d_.size() < static_cast<std::size_t>(2 * nb)) migrant_count_d_.allocate(static_cast<std::size_t>(2 * nb));
+  std::vector<std::size_t> record(static_cast<std::size_t>(nb));
+  std::size_t widest = 0;
+  for (auto& b : bodies_) widest = std::max(widest, record[b->index] = b->migrant_bytes(*this));
+  // 1. Pack (repeated once, with room for all, when a side's buffer was too small). Per side: nb areas of
+  // `capacity` records of `widest` bytes.
+  std::vector<int> counts(static_cast<std::size_t>(2 * nb));
+  auto capacity_now = [&] { return halo_[0].migrants_out.size() / (widest * static_cast<std::size_t>(nb)); };
+  auto allocate = [&](std::size_t records) {
+    for (HaloSide& h : halo_) h.migrants_out.allocate(records * widest * static_cast<std::size_t>(nb));
+  };
+  if (capacity_now() < 1024) allocate(1024);
+  for (int attempt = 0;; ++attempt) {
+    const std::size_t capacity = capacity_now();
+    FBAR_CUDA_CHECK(cudaMemsetAsync(migrant_count_d_.get(), 0, sizeof(int) * 2 * nb, stream_));
+    for (auto& b : bodies_) {
+      const std::size_t at = capacity * widest * static_cast<std::size_t>(b->index);
+      b->pack_emigrants(*this, b->source_slots, halo_[0].migrants_out.get() + at, halo_[1].migrants_out.get() + at,
+                        static_cast<int>(capacity), migrant_count_d_.get() + 2 * b->index);
+    }
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(counts.data(), migrant_count_d_.get(), sizeof(int) * 2 * nb,
+                                    cudaMemcpyDeviceToHost, stream_));
+    FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+    const int most = *std::max_element(counts.begin(), counts.end());
+    if (static_cast<std::size_t>(most) <= capacity) break;
+    if (attempt == 1) throw std::logic_error("GpuEngine: emigrants do not fit the buffer sized for them");
+    allocate(static_cast<std::size_t>(most) * 2);
+  }
+  const std::size_t capacity = capacity_now();
+  // 2. Counts to the neighbours (host), then the records (device): per side one message, body after body.
+  std::vector<int> peers;
+  std::vector<comm::Bytes> send;
+  for (int side = 0; side < 2; ++side) {
+    if (halo_[side].peer < 0) continue;
+    peers.push_back(halo_[side].peer);
+    comm::Bytes c(sizeof(int) * static_cast<std::size_t>(nb));
+    for (int b = 0; b < nb; ++b) std::memcpy(c.data() + sizeof(int) * b, &counts[2 * b + side], sizeof(int));
+    send.push_back(std::move(c));
+  }
+  const std::vector<comm::Bytes> received = host_->exchange(peers, send);
+  std::array<std::vector<int>, 2> incoming;
+  std::vector<comm::DeviceTransport::Message> messages;
+  std::size_t i = 0;
+  for (int side = 0; side < 2; ++side) {
+    HaloSide& h = halo_[side];
+    if (h.peer < 0) continue;
+    incoming[side].resize(static_cast<std::size_t>(nb));
+    std::memcpy(incoming[side].data(), received[i++].data(), sizeof(int) * static_cast<std::size_t>(nb));
+    std::size_t in_bytes = 0;
+    for (int b = 0; b < nb; ++b) in_bytes += record[b] * static_cast<std::size_t>(incoming[side][b]);
+    if (h.migrants_in.size() < in_bytes) h.migrants_in.allocate(in_bytes * 2);
+    // The records of body b sit at b x (capacity x widest) in the packed buffer: send them body by body, packed
+    // tight, in one message (a device-to-device compaction first when several bodies migrate).
+    std::size_t out_bytes = 0;
+    for (int b = 0; b < nb; ++b) out_bytes += record[b] * static_cast<std::size_t>(counts[2 * b + side]);
+    comm::DeviceTransport::Message m;
+    m.peer = h.peer;
+    m.send_bytes = out_bytes;
+    m.recv_bytes = in_bytes;
+    m.recv = h.migrants_in.get();
+    if (nb == 1) {
+      m.send = h.migrants_out.get();
+    } else {
+      if (h.migrants_in.size() < in_bytes + out_bytes) {  // the compacted send goes behind the receive area
+        mgsp_detail::DeviceArray<std::byte> bigger;
+        bigger.allocate(2 * (in_bytes + out_bytes));
+        h.migrants_in.swap(bigger);
+        m.recv = h.migrants_in.get();
+      }
+      std::byte* tight = h.migrants_in.get() + in_bytes;
+      std::size_t at = 0;
+      for (int b = 0; b < nb; ++b) {
+        const std::size_t bytes = record[b] * static_cast<std::size_t>(counts[2 * b + side]);
+        if (bytes)
+          FBAR_CUDA_CHECK(cudaMemcpyAsync(tight + at, h.migrants_out.get() + capacity * widest * b, bytes,
+                                          cudaMemcpyDeviceToDevice, stream_));
+        at += bytes;
+      }
+      m.send = tight;
+    }
+    messages.push_back(m);
+  }
+  device_->exchange(messages, stream_);
+  // 3. Immigrants behind the G2P2G's slots, lower neighbour's first; their (block, rank) before the partition.
+  for (auto& bp : bodies_) {
+    BodyBase& b = *bp;
+    int arriving = 0;
+    for (int side = 0; side < 2; ++side)
+      if (halo_[side].peer >= 0) arriving += incoming[side][b.index];
+    const int leaving = counts[2 * b.index] + counts[2 * b.index + 1];
+    pending_migrated_ += leaving;
+    b.pending_particles = b.particles - leaving + arriving;
+    if (arriving == 0) continue;
+    const int first = b.source_slots;
+    const long long room = 32LL * std::min(b.bins_capacity(1 - cur_), b.partition.bin_capacity());
+    if (first + static_cast<long long>(arriving) > room)
+      throw std::runtime_error("GpuEngine: rank " + std::to_string(rank()) + " receives " + std::to_string(arriving) +
+                               " particles of body " + std::to_string(b.index) + " at step " +
+                               std::to_string(steps_ + 1) + " beyond its " + std::to_string(room) +
+                               " particle slots (engine limit of this release: more headroom per rank is needed)");
+    int slot = first;
+    for (int side = 0; side < 2; ++side) {
+      if (halo_[side].peer < 0 || incoming[side][b.index] == 0) continue;
+      std::size_t at = 0;
+      for (int o = 0; o < b.index; ++o) at += record[o] * static_cast<std::size_t>(incoming[side][o]);
+      b.unpack_immigrants(*this, slot, halo_[side].migrants_in.get() + at, incoming[side][b.index]);
+      slot += incoming[side][b.index];
+    }
+    b.source_slots = slot;
+    b.dest_from_positions(*this, 1 - cur_, b.partition.layout(cur_).src, first, slot);
+  }
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::agree_on_try() {
+  const int nb = body_count();
+  local_halo_new_[0] = stats_->halo_new[0];
+  local_halo_new_[1] = stats_->halo_new[1];
+  std::vector<long long> sums = {stats_->internal_error, stats_->p2g_range,
+                                 static_cast<long long>(stats_->halo_new[0]) + stats_->halo_new[1]};
+  std::vector<long long> firsts;
+  for (int b = 0; b < nb; ++b)
+    for (int k = 0; k < kFailKinds; ++k) {
+      sums.push_back(body_stats_[b].failures[k]);
+      firsts.push_back(body_stats_[b].first_id[k]);
+    }
+  host_->allreduce_sum(sums.data(), static_cast<int>(sums.size()));
+  host_->allreduce_min(firsts.data(), static_cast<int>(firsts.size()));
+  double speed_sq = 0.0;
+  std::memcpy(&speed_sq, &stats_->max_speed_sq, sizeof(double));
+  speed_sq = host_->max(speed_sq);
+  std::memcpy(&stats_->max_speed_sq, &speed_sq, sizeof(double));
+  stats_->internal_error = static_cast<int>(sums[0]);
+  stats_->p2g_range = static_cast<int>(sums[1]);
+  stats_->halo_new[0] = static_cast<int>(sums[2]);  // any rank's: every rank rebuilds (a collective)
+  stats_->halo_new[1] = 0;
+  for (int b = 0; b < nb; ++b)
+    for (int k = 0; k < kFailKinds; ++k) {
+      body_stats_[b].failures[k] = static_cast<int>(sums[3 + kFailKinds * b + k]);
+      body_stats_[b].first_id[k] = static_cast<int>(firsts[static_cast<std::size_t>(kFailKinds * b + k)]);
+    }
 }
 
 }  // namespace fbar

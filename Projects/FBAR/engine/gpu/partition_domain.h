@@ -24,9 +24,11 @@ namespace fbar {
 
 /// The next block and the rank inside it that G2P2G records for the particle at a layout slot.
 struct ParticleDest {
-  int block;  ///< hash-table block index, -1 when the particle failed a check or the table overflowed
+  int block;  ///< hash-table block index, -1 when the particle failed a check or the table overflowed,
+              ///< kEmigrant when another rank owns its next block (rank: 0 the lower neighbour, 1 the upper)
   int rank;   ///< 0-based rank among the block's particles (arbitrary order: atomic arrival)
 };
+inline constexpr int kEmigrant = -2;
 
 /// Device arrays of one layout, as kernels see them (passed by value).
 struct LayoutView {

@@ -144,6 +144,7 @@ struct G2P2GParams {
   const double* dt_next;     ///< [s] impulse dt of the P2G (device, from compute_next_dt)
   StepStats* stats;
   BodyStepStats* body_stats;
+  SlabBounds slab;           ///< the particle blocks this rank owns: a particle leaving them is an emigrant
   unsigned long long* wave_speed;  ///< (this body) bits of the largest wave speed of the new state
   const unsigned long long* p2g_bound_in;  ///< (this body) bits of the momentum bound B of the last try [kg m/s]
   unsigned long long* p2g_bound_out;       ///< (this body) bits of the largest p2g_momentum_bound of this try
@@ -386,6 +387,7 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
     const int src = p.layout.src[slot];
     const bool active = src >= 0;
     int failed = -1;
+    int emigrant = -1;  // 0 / 1: the lower / upper neighbour owns the particle's next block
     bool has_key = false;
     std::uint64_t key = 0;
     int id = INT_MAX;
@@ -396,9 +398,8 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
       Mat3<T> C;
       State state_new;
       if constexpr (kInitial) {
-        // The initial pass reads the flat upload: storage slot = particle ID.
-        v = p.initial_v ? Vec3<T>{{p.initial_v[3 * src], p.initial_v[3 * src + 1], p.initial_v[3 * src + 2]}}
-                        : p.initial_velocity;
+        const std::size_t i = 3 * static_cast<std::size_t>(in.id);  // by ID: a rank uploads a subset of the IDs
+        v = p.initial_v ? Vec3<T>{{p.initial_v[i], p.initial_v[i + 1], p.initial_v[i + 2]}} : p.initial_velocity;
         C = Mat3<T>::zero();
         x_new = in.x;
         state_new = in.state;
@@ -545,11 +546,13 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
             }
           }
           const int b0 = floor_div4(s.base[0] - 1), b1 = floor_div4(s.base[1] - 1), b2 = floor_div4(s.base[2] - 1);
-          if (BlockKey::representable(b0, b1, b2)) {
+          if (!BlockKey::representable(b0, b1, b2)) {
+            failed = kFailLeftDomain;
+          } else if (p.slab.owns(b0, b1, b2)) {
             has_key = true;
             key = BlockKey::pack(b0, b1, b2);
           } else {
-            failed = kFailLeftDomain;
+            emigrant = p.slab.side(b0, b1, b2);
           }
         }
       }
@@ -564,7 +567,7 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
     }
     const ParticleDest d =
         g2p2g_detail::claim_block_rank<TG>(has_key, key, p.table, p.next_count, p.grid_next, p.grid_this);
-    if (active) p.dest[slot] = d;
+    if (active) p.dest[slot] = emigrant >= 0 ? ParticleDest{kEmigrant, emigrant} : d;
   }
   // Per-body maxima: warp, then CUDA block, then one global atomic per block (per-warp atomics on one address
   // serialise in L2).

@@ -20,6 +20,20 @@ struct BodyStepStats {
   int particles;             ///< particles placed in the next layout
 };
 
+/// The particle blocks a rank owns (comm/slab_partition.h): planes [lo, hi) along `axis`; one rank owns all.
+struct SlabBounds {
+  int axis = 0;
+  int lo = -2147483647 - 1;
+  int hi = 2147483647;
+  FBAR_HOST_DEVICE int along(int b0, int b1, int b2) const { return axis == 0 ? b0 : axis == 1 ? b1 : b2; }
+  FBAR_HOST_DEVICE bool owns(int b0, int b1, int b2) const {
+    const int b = along(b0, b1, b2);
+    return b >= lo && b < hi;
+  }
+  /// The neighbour a block outside the slab belongs to: 0 the lower (rank - 1), 1 the upper (rank + 1).
+  FBAR_HOST_DEVICE int side(int b0, int b1, int b2) const { return along(b0, b1, b2) < lo ? 0 : 1; }
+};
+
 /// Whole-device counters of one step try; followed in memory by one BodyStepStats per body, so the host reads
 /// everything it needs each step with one small copy.
 struct StepStats {
@@ -30,6 +44,7 @@ struct StepStats {
   int block_count;                  ///< copy of the table's block count after the partition update
   int table_overflow;               ///< copy of the table's overflow counter
   int p2g_range;                    ///< particle blocks with a particle above the fixed-point P2G bound: repeat
+  int halo_new[2];                  ///< decomposed runs: new table blocks in the halo plane shared with rank -/+ 1
 };
 
 /// atomicMax on a non-negative double stored as its bit pattern (IEEE order = integer order for x >= 0).

@@ -24,34 +24,40 @@ namespace fbar {
 
 inline constexpr int kPartitionThreads = 256;
 
-/// Records (block, rank) for particles at slots [0, slots) of `bins` from their positions (initial partition and
-/// the repeat of a partition after the table grew). valid: the slot holds a particle when valid[slot] >= 0
-/// (nullptr: when slot < particles).
+/// Records (block, rank) for particles at slots [first, slots) of `bins` from their positions (initial partition,
+/// the repeat of a partition after the table grew, particles received from another rank). valid: the slot holds a
+/// particle when valid[slot] >= 0 (nullptr: when slot < particles). A particle whose block lies outside `slab` is
+/// marked kEmigrant (a repeat after it was sent), as G2P2G marks it.
 template <typename M, typename T, typename TG>
 __global__ void __launch_bounds__(kPartitionThreads)
-    dest_from_positions(typename ParticleLayout<M, T>::Buffer bins, const int* valid, int particles, int slots,
-                        T inv_dx, BlockHashTableView table, int* next_count, ParticleDest* dest,
-                        typename GridLayout<TG>::Buffer grid_a, typename GridLayout<TG>::Buffer grid_b,
-                        BodyStepStats* body_stats) {
-  const int slot = blockIdx.x * blockDim.x + threadIdx.x;  // whole warps run: claim_block_rank is collective
+    dest_from_positions(typename ParticleLayout<M, T>::Buffer bins, const int* valid, int particles, int first,
+                        int slots, T inv_dx, SlabBounds slab, BlockHashTableView table, int* next_count,
+                        ParticleDest* dest, typename GridLayout<TG>::Buffer grid_a,
+                        typename GridLayout<TG>::Buffer grid_b, BodyStepStats* body_stats) {
+  const int slot = first + blockIdx.x * blockDim.x + threadIdx.x;  // whole warps run: claim_block_rank is collective
   const bool in_range = slot < slots;
   const bool active = in_range && (valid ? valid[slot] >= 0 : slot < particles);
   bool has_key = false;
+  int emigrant = -1;
   std::uint64_t key = 0;
   if (active) {
     const ParticleRecord<M, T> p = load_particle<M, T>(bins, slot);
     const QuadraticBspline<T> s = quadratic_bspline_inv(p.x, inv_dx);
     const int b0 = floor_div4(s.base[0] - 1), b1 = floor_div4(s.base[1] - 1), b2 = floor_div4(s.base[2] - 1);
     if (all_finite(p.x) && BlockKey::representable(b0, b1, b2)) {
-      has_key = true;
-      key = BlockKey::pack(b0, b1, b2);
+      if (slab.owns(b0, b1, b2)) {
+        has_key = true;
+        key = BlockKey::pack(b0, b1, b2);
+      } else {
+        emigrant = slab.side(b0, b1, b2);
+      }
     } else {
       atomicAdd(&body_stats->failures[kFailLeftDomain], 1);
       atomicMin(&body_stats->first_id[kFailLeftDomain], p.id);
     }
   }
   const ParticleDest d = g2p2g_detail::claim_block_rank<TG>(has_key, key, table, next_count, grid_a, grid_b);
-  if (active) dest[slot] = d;
+  if (active) dest[slot] = emigrant >= 0 ? ParticleDest{kEmigrant, emigrant} : d;
 }
 
 /// Every block holding particles of the body activates the other 7 blocks of its 2x2x2 arena.

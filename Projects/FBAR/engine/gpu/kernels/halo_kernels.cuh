@@ -1,0 +1,140 @@
+// Kernels of a decomposed GPU run (comm/slab_partition.h): the halo blocks two ranks share and the particles that
+// move from one rank to another.
+//
+// Halo: rank r and rank r + 1 both scatter into the grid blocks of plane cuts[r + 1]. Both hold the union of their
+// blocks of that plane (insert_halo_blocks), listed in the same order (sorted keys) so that a message is the
+// blocks' scalars in list order: pack_halo copies them out, add_halo adds the neighbour's in (a + b here, b + a
+// there: the same sums, bit for bit). A delta exchange (the impulse rescaled after the sums were taken) adds the
+// neighbour's new values minus the sums both already hold: (mine + theirs) - saved, the same on both sides.
+// Migration: G2P2G marks a particle whose next particle block another rank owns (ParticleDest kEmigrant, the side
+// in rank); pack_emigrants copies its record (stored scalars and ID, the ASFLIP velocity, the recorded v and C) into
+// the message for that side; unpack_immigrants appends the records a neighbour sent behind the slots G2P2G wrote.
+#pragma once
+
+#include <cuda_runtime.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+
+#include "engine/gpu/grid_buffer.cuh"
+#include "engine/gpu/hash_table.cuh"
+#include "engine/gpu/kernels/g2p2g_kernel.cuh"
+#include "engine/gpu/kernels/kernel_common.cuh"
+#include "engine/gpu/particle_buffer.cuh"
+#include "engine/gpu/partition_domain.h"
+
+namespace fbar {
+
+inline constexpr int kHaloThreads = 256;
+
+/// out[k, i] = buffer[index[k], i] for the n listed blocks of `scalars` scalars each.
+template <typename TG>
+__global__ void __launch_bounds__(kHaloThreads)
+    pack_halo(const TG* buffer, int scalars, const int* index, int n, TG* out) {
+  const long long t = static_cast<long long>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (t >= static_cast<long long>(n) * scalars) return;
+  const int k = static_cast<int>(t / scalars), i = static_cast<int>(t % scalars);
+  out[t] = buffer[static_cast<std::size_t>(index[k]) * scalars + i];
+}
+
+/// buffer[index[k], i] = buffer + in (saved == nullptr), or (buffer + in) - saved (a delta exchange).
+template <typename TG>
+__global__ void __launch_bounds__(kHaloThreads)
+    add_halo(TG* buffer, int scalars, const int* index, int n, const TG* in, const TG* saved) {
+  const long long t = static_cast<long long>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (t >= static_cast<long long>(n) * scalars) return;
+  const int k = static_cast<int>(t / scalars), i = static_cast<int>(t % scalars);
+  TG& v = buffer[static_cast<std::size_t>(index[k]) * scalars + i];
+  const TG sum = v + in[t];
+  v = saved ? sum - saved[t] : sum;
+}
+
+/// Keys of the table blocks [first, block count) that lie in the halo planes (plane[0]: shared with rank - 1,
+/// plane[1]: with rank + 1; INT_MIN when there is no such neighbour), appended to keys[side] (at most `capacity`
+/// each; count[side] counts them all, so the host can tell an overflow).
+static __global__ void __launch_bounds__(kHaloThreads)
+    collect_halo_blocks(BlockHashTableView table, int first, int axis, int plane_lo, int plane_hi,
+                        unsigned long long* keys_lo, unsigned long long* keys_hi, int capacity, int* count) {
+  const int b = first + blockIdx.x * blockDim.x + threadIdx.x;
+  if (b >= table.counters->block_count || b >= table.block_capacity) return;
+  const Vec3i c = table.block_coords(b);
+  const int along = c[axis];
+  for (int side = 0; side < 2; ++side) {
+    if (along != (side == 0 ? plane_lo : plane_hi)) continue;
+    const int k = atomicAdd(&count[side], 1);
+    if (k < capacity) (side == 0 ? keys_lo : keys_hi)[k] = BlockKey::pack(c[0], c[1], c[2]);
+  }
+}
+
+/// Inserts the listed blocks (zeroed in both grids when new) and writes their table indices (-1: overflow).
+template <typename TG>
+__global__ void __launch_bounds__(kHaloThreads)
+    insert_halo_blocks(BlockHashTableView table, const unsigned long long* keys, int n, int* index,
+                       typename GridLayout<TG>::Buffer grid_a, typename GridLayout<TG>::Buffer grid_b) {
+  const int k = blockIdx.x * blockDim.x + threadIdx.x;
+  if (k >= n) return;
+  bool inserted = false;
+  const int b = table.insert(keys[k], inserted);
+  if (inserted) {
+    g2p2g_detail::zero_block<TG>(grid_a, b);
+    g2p2g_detail::zero_block<TG>(grid_b, b);
+  }
+  index[k] = b;
+}
+
+/// Bytes of one migrating particle's record: its stored scalars and ID, then 3 ASFLIP velocity scalars, then the
+/// recorded v and C (each when present).
+template <typename M, typename T>
+constexpr std::size_t migrant_bytes(bool asflip, bool aux) {
+  return sizeof(ParticleRecord<M, T>) + sizeof(T) * ((asflip ? 3 : 0) + (aux ? kAuxScalars : 0));
+}
+
+/// Copies every emigrant among slots [0, slots) of `bins` (valid[slot] >= 0, dest kEmigrant) into the message of
+/// its side (at most `capacity` records each; count[side] counts them all).
+template <typename M, typename T>
+__global__ void __launch_bounds__(kHaloThreads)
+    pack_emigrants(typename ParticleLayout<M, T>::Buffer bins, const int* valid, int slots, const ParticleDest* dest,
+                   const T* particle_v, const T* aux, std::byte* out_lo, std::byte* out_hi, int capacity, int* count) {
+  const int slot = blockIdx.x * blockDim.x + threadIdx.x;
+  if (slot >= slots || valid[slot] < 0) return;
+  const ParticleDest d = dest[slot];
+  if (d.block != kEmigrant) return;
+  const int k = atomicAdd(&count[d.rank], 1);
+  if (k >= capacity) return;
+  const std::size_t bytes = migrant_bytes<M, T>(particle_v != nullptr, aux != nullptr);
+  std::byte* o = (d.rank == 0 ? out_lo : out_hi) + bytes * static_cast<std::size_t>(k);
+  const ParticleRecord<M, T> p = load_particle<M, T>(bins, slot);
+  memcpy(o, &p, sizeof(p));
+  o += sizeof(p);
+  if (particle_v) {
+    memcpy(o, particle_v + 3 * static_cast<std::size_t>(slot), 3 * sizeof(T));
+    o += 3 * sizeof(T);
+  }
+  if (aux) memcpy(o, aux + kAuxScalars * static_cast<std::size_t>(slot), kAuxScalars * sizeof(T));
+}
+
+/// Writes n received records to slots first .. first + n - 1 of `bins` (and of particle_v / aux), and marks the
+/// slots valid (valid[slot] = slot) for the partition.
+template <typename M, typename T>
+__global__ void __launch_bounds__(kHaloThreads)
+    unpack_immigrants(typename ParticleLayout<M, T>::Buffer bins, int first, const std::byte* in, int n, T* particle_v,
+                      T* aux, int* valid) {
+  const int k = blockIdx.x * blockDim.x + threadIdx.x;
+  if (k >= n) return;
+  const int slot = first + k;
+  const std::size_t bytes = migrant_bytes<M, T>(particle_v != nullptr, aux != nullptr);
+  const std::byte* r = in + bytes * static_cast<std::size_t>(k);
+  ParticleRecord<M, T> p;
+  memcpy(&p, r, sizeof(p));
+  r += sizeof(p);
+  store_particle<M, T>(bins, slot, p);
+  if (particle_v) {
+    memcpy(particle_v + 3 * static_cast<std::size_t>(slot), r, 3 * sizeof(T));
+    r += 3 * sizeof(T);
+  }
+  if (aux) memcpy(aux + kAuxScalars * static_cast<std::size_t>(slot), r, kAuxScalars * sizeof(T));
+  valid[slot] = slot;
+}
+
+}  // namespace fbar
