@@ -50,6 +50,8 @@ struct KernelTimes {
   double grid_update_ms = 0.0;  ///< grid update + dt
   double g2p2g_ms = 0.0;        ///< fused G2P2G, all bodies
   double partition_ms = 0.0;    ///< footprint activation, scan, src scatter
+  double halo_ms = 0.0;         ///< decomposed runs: the halo sums after G2P2G (pack, exchange, add)
+  double migration_ms = 0.0;    ///< decomposed runs: emigrants packed, counts and records exchanged, arrivals placed
   long long steps = 0;          ///< steps timed
 };
 

@@ -550,7 +550,7 @@ class MgspBenchmark {
 
   cudaStream_t stream_ = nullptr;       ///< compute stream
   cudaStream_t copy_stream_ = nullptr;  ///< frame downloads
-  cudaEvent_t events_[4] = {};
+  cudaEvent_t events_[6] = {};  ///< step phases (kernel timing): grid | dt + G2P2G | halo | migration | partition
   BlockHashTable table_;
   GridBuffer<TG> grid_[2];
   GridVelocityBuffer<TG> velocity_;
@@ -1316,6 +1316,7 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
       for (auto& b : bodies_)
         if (b->frame_copied) FBAR_CUDA_CHECK(cudaStreamWaitEvent(stream_, b->frame_copied, 0));
     for (auto& b : bodies_) b->g2p2g(*this, false, static_cast<T>(dt));
+    event_record(2);
     if (decomposed()) {
       if (asflip_)
         halo_exchange({{grid_[1 - gc_].instance().data(), GridBuffer<TG>::kBlockBytes},
@@ -1323,9 +1324,13 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
                       1 - gc_);
       else
         halo_exchange({{grid_[1 - gc_].instance().data(), GridBuffer<TG>::kBlockBytes}}, 1 - gc_);
+      event_record(4);
       migrate_particles();
+      event_record(5);
+    } else {
+      event_record(4);
+      event_record(5);
     }
-    event_record(2);
     // 4. partition of the next step
     partition_after_g2p2g();
     event_record(3);
@@ -1363,7 +1368,11 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
         times_.grid_update_ms += ms;
         FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[1], events_[2]));
         times_.g2p2g_ms += ms;
-        FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[2], events_[3]));
+        FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[2], events_[4]));
+        times_.halo_ms += ms;
+        FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[4], events_[5]));
+        times_.migration_ms += ms;
+        FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[5], events_[3]));
         times_.partition_ms += ms;
         ++times_.steps;
       }
