@@ -6,6 +6,7 @@
 #include <rapidjson/stringbuffer.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <ctime>
 #include <exception>
 #include <filesystem>
@@ -15,10 +16,12 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "MnSystem/Cuda/device_query.h"
 #include "engine/engine_api.h"
+#include "comm/device_transport.h"
 #include "comm/mpi_transport.h"
 #include "engine/stop_request.h"
 #include "engine/gpu/memory_plan.h"
@@ -52,6 +55,7 @@ struct CliOptions {
   std::optional<std::string> output;
   std::optional<int> frames;
   bool quiet = false;
+  int gpus = 1;  ///< GPU ranks of one process (threads); under mpirun each process is one rank
   bool allow_unknown_keys = false;
   std::string data_dir;
   bool version = false;
@@ -72,6 +76,10 @@ const char* kHelp =
     "  --output=DIR            write frames and run.json to DIR (overrides simulation.save_path; created if missing)\n"
     "  --frames=N              number of frames to simulate (overrides simulation.frames; N >= 1)\n"
     "  --quiet                 no progress lines (warnings and errors are still printed)\n"
+    "  --gpus=N                decompose the scene over N GPU ranks of this process, one thread per rank on\n"
+    "                          GPU (rank mod visible GPUs), NCCL between them (default 1; more ranks than GPUs\n"
+    "                          share them through host-ordered peer copies: for testing). Under mpirun / srun\n"
+    "                          each process is one rank on its node's GPU (local rank mod visible GPUs)\n"
     "  --allow-unknown-keys    unknown keys (and parameters the chosen law does not use) are warnings, not errors\n"
     "  --data-dir=DIR          where geometry and motion files are looked up first (then $AssetDirPath, the\n"
     "                          scene's folder and the source tree's Data/)\n"
@@ -85,7 +93,7 @@ const char* kHelp =
 
 const std::vector<std::string_view> kLongOptions = {"--file",   "--check",  "--backend",           "--output",
                                                     "--frames", "--quiet",  "--allow-unknown-keys", "--data-dir",
-                                                    "--version", "--help"};
+                                                    "--version", "--help",  "--gpus"};
 
 CliOptions parse_arguments(int argc, char** argv) {
   CliOptions o;
@@ -152,6 +160,18 @@ CliOptions parse_arguments(int argc, char** argv) {
     } else if (name == "--quiet") {
       no_value();
       o.quiet = true;
+    } else if (name == "--gpus") {
+      const std::string v = take_value();
+      std::size_t used = 0;
+      long long n = 0;
+      try {
+        n = std::stoll(v, &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (used != v.size() || v.empty() || n < 1 || n > 1024)
+        throw UsageError("--gpus: got '" + v + "'; expected an integer from 1 to 1024");
+      o.gpus = static_cast<int>(n);
     } else if (name == "--allow-unknown-keys") {
       no_value();
       o.allow_unknown_keys = true;
@@ -295,14 +315,50 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
     return kExitRuntime;
 #endif
   }
-  const int ranks = transport ? transport->size() : 1;
+  const int mpi_ranks = transport ? transport->size() : 1;
   const int rank = transport ? transport->rank() : 0;
-  if (gpu && ranks > 1) {
+  if (o.gpus > 1 && (mpi_ranks > 1 || !gpu)) {
     if (rank == 0)
-      std::cerr << "fbar: error: " << ranks << " MPI ranks: the GPU engine runs on one GPU per run in this release; "
-                << "run one rank, or --backend=cpu to decompose the scene over the ranks\n";
+      std::cerr << "fbar: error: --gpus=" << o.gpus
+                << (mpi_ranks > 1 ? ": under an MPI launcher every process is one GPU rank (drop --gpus)"
+                                  : ": the scene runs on the CPU reference engine (use --backend=gpu on a machine "
+                                    "with a CUDA device)")
+                << '\n';
     return kExitInput;
   }
+  const int devices = gpu ? cuda::device_count() : 0;
+  int local_gpu = -1;
+  if (gpu && mpi_ranks > 1) {  // one MPI rank per GPU of its node, NCCL between them
+    auto env_int = [](std::initializer_list<const char*> names, int fallback) {
+      for (const char* n : names)
+        if (const char* v = std::getenv(n)) return std::atoi(v);
+      return fallback;
+    };
+    const int local_rank = env_int({"OMPI_COMM_WORLD_LOCAL_RANK", "SLURM_LOCALID", "MPI_LOCALRANKID"}, rank);
+    const int local_size =
+        env_int({"OMPI_COMM_WORLD_LOCAL_SIZE", "SLURM_NTASKS_PER_NODE", "MPI_LOCALNRANKS"}, mpi_ranks);
+    std::string why;
+    if (!comm::nccl_available()) why = "this build has no NCCL (install it and configure again)";
+    else if (local_size > devices)
+      why = std::to_string(local_size) + " ranks on this node and " + std::to_string(devices) +
+            " visible GPUs: start one rank per GPU (or --backend=cpu)";
+    if (!why.empty()) {
+      if (rank == 0) std::cerr << "fbar: error: " << mpi_ranks << " MPI ranks on the GPU engine: " << why << '\n';
+      return kExitInput;
+    }
+    local_gpu = local_rank % devices;
+  }
+  const bool thread_ranks = gpu && o.gpus > 1;
+  const bool shared_gpus = thread_ranks && o.gpus > devices;
+  if (thread_ranks && !shared_gpus && !comm::nccl_available()) {
+    std::cerr << "fbar: error: --gpus=" << o.gpus << ": this build has no NCCL (install it and configure again)\n";
+    return kExitInput;
+  }
+  if (shared_gpus)
+    std::cerr << "fbar: warning: --gpus=" << o.gpus << " with " << devices
+              << " visible GPU(s): ranks share GPUs and exchange through the host (for testing; slower than one "
+                 "rank per GPU)\n";
+  const int ranks = thread_ranks ? o.gpus : mpi_ranks;
 
   const fs::path out_dir(scene.simulation.save_path);
   std::error_code ec;
@@ -322,13 +378,40 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
   {
     // SIGINT / SIGTERM stop the run at the next step boundary; run.json below then says so (stop_request.h).
     const StopSignals stop_signals;
-    result = gpu ? engines.run_gpu(scene, ro) : run_cpu(scene, ro);
+    if (thread_ranks) {
+      // One thread per GPU rank; a rank that ends by an exception releases the others from their collectives.
+      std::vector<std::unique_ptr<comm::Transport>> hosts = comm::make_thread_transports(ranks);
+      std::vector<RunResult> results(static_cast<std::size_t>(ranks));
+      std::vector<std::thread> threads;
+      for (int r = 0; r < ranks; ++r)
+        threads.emplace_back([&, r] {
+          RunOptions mine = ro;
+          mine.transport = hosts[static_cast<std::size_t>(r)].get();
+          mine.gpu = r % devices;
+          mine.shared_gpus = shared_gpus;
+          RunResult& out = results[static_cast<std::size_t>(r)];
+          out = engines.run_gpu(scene, mine);
+          if (out.from_exception) mine.transport->abort(out.exit_code);
+        });
+      for (std::thread& t : threads) t.join();
+      result = results[0];
+      for (int r = 0; r < ranks; ++r)  // the first rank that failed on its own explains the stop
+        if (results[static_cast<std::size_t>(r)].from_exception &&
+            results[static_cast<std::size_t>(r)].message.find("another rank") == std::string::npos) {
+          result = results[static_cast<std::size_t>(r)];
+          result.message = "rank " + std::to_string(r) + ": " + result.message;
+          break;
+        }
+    } else {
+      ro.gpu = local_gpu;
+      result = gpu ? engines.run_gpu(scene, ro) : run_cpu(scene, ro);
+    }
   }
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   // The ranks agree on steps, failures and stops (the engine and the run loop reduce them); an exception (a CUDA or
   // output error, a message from another rank cut short) may be one rank's alone: it ends the job, so that no rank
   // waits for the others forever.
-  if (ranks > 1 && result.from_exception) {
+  if (mpi_ranks > 1 && result.from_exception) {
     std::cerr << "fbar: error: rank " << rank << ": " << result.message << '\n';
     transport->abort(result.exit_code);
   }

@@ -130,7 +130,7 @@ TEST(GpuDecomposition, NcclTravellingBlockOnEveryGpu) {
   expect_same_run(travelling_block(), 120, true, visible_gpus());
 }
 
-TEST(GpuDecomposition, RefusesFramesAndOneSidedTransports) {
+TEST(GpuDecomposition, RefusesOneSidedTransports) {
   FBAR_REQUIRE_DEVICE();
   std::vector<std::unique_ptr<comm::Transport>> hosts = comm::make_thread_transports(1);
   GpuEngineOptions options;

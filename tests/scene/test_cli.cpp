@@ -128,7 +128,7 @@ TEST(Cli, HelpListsEveryOption) {
   const CliResult r = run_cli({"--help"});
   EXPECT_EQ(r.code, 0);
   for (const char* o : {"--file", "-f FILE", "--check", "--backend=auto|gpu|cpu", "--output", "--frames", "--quiet",
-                        "--allow-unknown-keys", "--data-dir", "--version", "--help"})
+                        "--allow-unknown-keys", "--data-dir", "--version", "--help", "--gpus=N"})
     EXPECT_NE(r.out.find(o), std::string::npos) << o;
 }
 
@@ -152,6 +152,18 @@ TEST(Cli, BadOptionsExitOne) {
   EXPECT_NE(r.err.find("more than one scene file"), std::string::npos) << r.err;
   r = run_cli({"--check=yes"});
   EXPECT_EQ(r.code, 1);
+  r = run_cli({"--gpus=0", "x.json"});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--gpus: got '0'; expected an integer from 1 to 1024"), std::string::npos) << r.err;
+}
+
+// GPU ranks need the GPU engine: with the CPU engine (--backend=cpu, or a build without the GPU engine) --gpus=2 is
+// refused before anything runs, with the reason.
+TEST(Cli, GpuRanksNeedTheGpuEngine) {
+  const CliResult r = run_cli({"--backend=cpu", "--gpus=2", "--quiet", "--file",
+                               (kScenes / "good" / "tiny_fluid.json").string()});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--gpus=2: the scene runs on the CPU reference engine"), std::string::npos) << r.err;
 }
 
 TEST(Cli, GpuBackendIsNotInThisBuild) {

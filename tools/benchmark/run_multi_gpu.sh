@@ -5,7 +5,8 @@
 # 1. the decomposition tests, NCCL ones included (one rank per visible GPU, threads)
 # 2. the MPI check: 2 processes, NCCL; then again with NCCL's peer-to-peer and shared-memory transports off, so
 #    the network path (sockets / IB) runs as between nodes
-# 3. fbar_scaling: strong (STRONG M on 1 and 2 GPUs) and weak (WEAK M per GPU), threads; then the same under mpirun
+# 3. the command line: --gpus=1|2|3 and mpirun -np 2 fbar --backend=gpu against one rank, by particle ID
+# 4. fbar_scaling: strong (STRONG M on 1 and 2 GPUs) and weak (WEAK M per GPU), threads; then the same under mpirun
 set -uo pipefail
 OUT=${OUT:-$PWD/out}
 mkdir -p "$OUT"
@@ -23,11 +24,15 @@ echo "MPI check (NCCL default transports) rc=$?" | tee -a "$OUT/summary.txt"
 NCCL_P2P_DISABLE=1 NCCL_SHM_DISABLE=1 timeout 300 "${MPIRUN[@]}" -x NCCL_P2P_DISABLE -x NCCL_SHM_DISABLE "$CHECK" \
   > "$OUT/mpi_check_net.log" 2>&1
 echo "MPI check (P2P and SHM off: network path) rc=$?" | tee -a "$OUT/summary.txt"
+FBAR=$(find_bin fbar)
+timeout 600 python3 "$ROOT/tests/gpu_engine/gpu_cli_ranks_test.py" "$FBAR" mpirun \
+  "$ROOT/tests/scenes/good/decomposed_dam_break.json" /tmp/fbar_gpu_cli_ranks > "$OUT/cli_ranks.log" 2>&1
+echo "command line --gpus=1|2|3 and mpirun -np 2 rc=$?" | tee -a "$OUT/summary.txt"
 timeout 600 "$SCALING" --ranks=1,2 --strong="${STRONG:-32}" --weak="${WEAK:-16}" --steps="${STEPS:-50}" \
   --csv="$OUT/scaling_threads.csv" > "$OUT/scaling_threads.log" 2>&1
 timeout 300 "${MPIRUN[@]}" "$SCALING" --strong="${STRONG:-32}" --weak="${WEAK:-16}" --steps="${STEPS:-50}" \
   --csv="$OUT/scaling_mpi.csv" > "$OUT/scaling_mpi.log" 2>&1
 grep -E "GPU ranks|OK \]|FAILED|SKIPPED" "$OUT/decomposition_tests.log" | tail -20
 grep -h "MPI ranks" "$OUT/mpi_check.log" "$OUT/mpi_check_net.log"
-cat "$OUT/scaling_threads.log" "$OUT/scaling_mpi.log"
+cat "$OUT/cli_ranks.log" "$OUT/scaling_threads.log" "$OUT/scaling_mpi.log"
 cat "$OUT/summary.txt"

@@ -23,15 +23,24 @@ class ThreadHub {
 
   void barrier() {
     std::unique_lock<std::mutex> lock(mutex_);
+    if (aborted_) throw std::runtime_error(kAborted);
     const long long generation = generation_;
     if (++waiting_ == n_) {
       waiting_ = 0;
       ++generation_;
       cv_.notify_all();
     } else {
-      cv_.wait(lock, [&] { return generation_ != generation; });
+      cv_.wait(lock, [&] { return generation_ != generation || aborted_; });
+      if (generation_ == generation) throw std::runtime_error(kAborted);
     }
   }
+  /// Another rank ended by an exception: every rank waiting in (or entering) a collective throws instead.
+  void abort() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    aborted_ = true;
+    cv_.notify_all();
+  }
+  static constexpr const char* kAborted = "another rank of this process stopped with an error";
   Bytes& slot(int rank) { return slots_[static_cast<std::size_t>(rank)]; }
   Bytes& mail(int from, int to) { return mail_[static_cast<std::size_t>(from * n_ + to)]; }
 
@@ -41,6 +50,7 @@ class ThreadHub {
   std::condition_variable cv_;
   int waiting_ = 0;
   long long generation_ = 0;
+  bool aborted_ = false;
   std::vector<Bytes> slots_;  // (rank) this collective's contribution
   std::vector<Bytes> mail_;   // (from, to) this exchange's message
 };
@@ -119,6 +129,7 @@ std::vector<Bytes> ThreadTransport::allgather(const Bytes& mine) {
 }
 
 void ThreadTransport::barrier() { hub_->barrier(); }
+void ThreadTransport::abort(int) { hub_->abort(); }
 
 std::vector<std::unique_ptr<Transport>> make_thread_transports(int n) {
   if (n < 1) throw std::invalid_argument("make_thread_transports: at least one rank");

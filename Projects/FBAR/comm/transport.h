@@ -80,6 +80,8 @@ class ThreadTransport final : public Transport {
   std::vector<Bytes> exchange(const std::vector<int>& peers, const std::vector<Bytes>& send) override;
   std::vector<Bytes> allgather(const Bytes& mine) override;
   void barrier() override;
+  /// The other ranks' collectives throw std::runtime_error from now on (no rank waits for this one forever).
+  void abort(int code) override;
 
  private:
   std::shared_ptr<ThreadHub> hub_;

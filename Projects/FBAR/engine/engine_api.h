@@ -47,6 +47,10 @@ struct RunOptions {
   /// The ranks of a decomposed run (comm/transport.h; MPI under mpirun); nullptr or one rank: no decomposition.
   /// Every rank runs the same loop; rank 0 logs.
   comm::Transport* transport = nullptr;
+  /// GPU engine: the CUDA device of this rank (-1: the current one), and whether ranks share GPUs (then their
+  /// device data moves by peer copies between threads; otherwise through NCCL).
+  int gpu = -1;
+  bool shared_gpus = false;
 };
 
 struct RunResult {

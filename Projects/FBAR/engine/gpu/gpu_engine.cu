@@ -1,6 +1,9 @@
 // GpuEngine<T, TG> (forwarding to the per-device MgspBenchmark<T, TG>) and run_gpu() (the GPU engine in run_loop.h).
 #include "engine/gpu/gpu_engine.h"
 
+#include "comm/device_transport.h"
+#include "comm/transport.h"
+
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -125,13 +128,22 @@ template <typename T, typename TG>
 RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& log) {
   GpuEngineOptions engine_options;
   engine_options.frames = true;
+  std::unique_ptr<comm::DeviceTransport> device;  // a decomposed run: NCCL, or peer copies when ranks share GPUs
+  if (options.transport && options.transport->size() > 1) {
+    device = options.shared_gpus ? comm::make_thread_device_transport(*options.transport)
+                                 : comm::make_nccl_transport(*options.transport);
+    engine_options.ranks = options.transport;
+    engine_options.device_ranks = device.get();
+  }
   const auto setup_start = std::chrono::steady_clock::now();
   GpuEngine<T, TG> engine(scene, engine_options);
   const double setup_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - setup_start).count();
   engine.set_log(&log);
   const std::string line =
       std::string("fbar: GPU engine (") + precision_description(scene.simulation.precision) + "), " +
-      std::to_string(engine.particle_count()) + " particles, " + std::to_string(engine.body_count()) + " bodies, " +
+      std::to_string(engine.particle_count()) + " particles" +
+      (engine.ranks() > 1 ? " on rank 0 of " + std::to_string(engine.ranks()) : std::string()) + ", " +
+      std::to_string(engine.body_count()) + " bodies, " +
       format_bytes(static_cast<double>(engine.device_bytes())) + " on the device (" +
       format_bytes(static_cast<double>(engine.memory_plan().total())) + " planned), set-up " +
       mgsp_detail::format_g(setup_s) + " s";
@@ -144,6 +156,7 @@ RunResult run_gpu(const Scene& scene, const RunOptions& options) {
   std::ostream& log = options.log ? *options.log : std::cout;
   return run_guarded([&] {
     check_supported(scene);  // before any sampling: also scenes built in code get the release policy's errors
+    if (options.gpu >= 0) FBAR_CUDA_CHECK(cudaSetDevice(options.gpu));
     switch (scene.simulation.precision) {
       case Precision::Single: return run_with<float, float>(scene, options, log);
       case Precision::Double: return run_with<double, double>(scene, options, log);

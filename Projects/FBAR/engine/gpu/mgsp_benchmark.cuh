@@ -264,10 +264,19 @@ class MgspBenchmark {
     std::size_t frame_host_bytes() const {
       return static_cast<std::size_t>(particles) * (3 * sizeof(T) + sizeof(float) * capture.column_count);
     }
+    /// Decomposed runs: the ID directory of the captured frame (FrameCapture::id_bits / id_offset), its scan space,
+    /// the particles the last capture wrote, and the sizes of the frame buffers (they grow with arrivals).
+    mgsp_detail::DeviceArray<unsigned> id_bits;
+    mgsp_detail::DeviceArray<int> id_offset, id_counts;
+    mgsp_detail::DeviceArray<std::byte> id_scan_temp;
+    int captured_particles = 0;
+    std::size_t frame_capacity = 0;
+    std::size_t frame_host_size = 0;
     virtual ~BodyBase() {
       if (frame_copied) cudaEventDestroy(frame_copied);
     }
     virtual void capture_state(MgspBenchmark& e) = 0;  ///< the frame of the current state (before the first step)
+    virtual void mark_ids(MgspBenchmark& e) = 0;       ///< id_bits of the particles of layout(cur)
     virtual bool stores_F() const = 0;
     virtual int stored_scalars() const = 0;
     virtual void allocate_bins(int bins) = 0;                   ///< both buffers, contents lost
@@ -423,6 +432,14 @@ class MgspBenchmark {
       mgsp_detail::check_launch("capture_frame_state");
     }
 
+    void mark_ids(MgspBenchmark& e) override {
+      const int slots = this->total_bins[e.cur_] * 32;
+      if (slots == 0) return;
+      fbar::mark_ids<M, T><<<mgsp_detail::grid_for(slots, kOutputThreads), kOutputThreads, 0, e.stream_>>>(
+          bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, this->id_bits.get());
+      mgsp_detail::check_launch("mark_ids");
+    }
+
     void dest_from_positions(MgspBenchmark& e, int which, const int* valid, int first, int slots) override {
       if (slots <= first) return;
       fbar::dest_from_positions<M, T, TG><<<mgsp_detail::grid_for(slots - first, kPartitionThreads), kPartitionThreads,
@@ -504,6 +521,8 @@ class MgspBenchmark {
   void grow_bins(BodyBase& b, int layout_keep, int needed);
   void ensure_aux();
   void allocate_frames();
+  /// Decomposed runs, before a capture: frame buffers for the rank's particles, and the ID directory of layout(cur).
+  void prepare_capture(BodyBase& b);
   void initialize(const std::vector<std::vector<Vec3d>>* positions);
   void upload_sampled(BodyBase& body);
   std::vector<FailureReport> failures_of_try(double dt) const;
@@ -643,9 +662,6 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
   if (options.ranks && options.ranks->size() > 1) {
     host_ = options.ranks;
     device_ = options.device_ranks;
-    if (options.frames)
-      throw std::invalid_argument("GpuEngine: output frames of a decomposed GPU run are not implemented yet "
-                                  "(run on one GPU, or with --backend=cpu under mpirun)");
   }
   slabs_ = comm::choose_slabs(comm::PlaneCounts{}, 1);  // all of space (a decomposed run chooses below)
   if (positions && positions->size() != scene_.bodies.size())
@@ -1016,9 +1032,25 @@ void MgspBenchmark<T, TG>::allocate_frames() {
     FrameCapture<T> cap;
     for (const FrameAttributeSpec& a : b.frame_attrs)
       if (a.column.quantity != FrameQuantity::Id) cap.column[cap.column_count++] = a.column;
-    cap.particles = b.particles;
     cap.sigma = needs.sigma;
-    const std::size_t n = static_cast<std::size_t>(b.particles);
+    // One GPU: one entry per ID. A decomposed rank: its particles now, with room for arrivals (prepare_capture
+    // grows it), in ID order through the directory.
+    const std::size_t n = decomposed() ? static_cast<std::size_t>(b.particles) * 5 / 4 + 1024
+                                       : static_cast<std::size_t>(b.particles);
+    cap.particles = static_cast<int>(n);
+    b.frame_capacity = n;
+    if (decomposed()) {
+      const std::size_t words = static_cast<std::size_t>((b.global_particles + 31) / 32);
+      b.id_bits.allocate(std::max<std::size_t>(words, 1));
+      b.id_offset.allocate(words + 1);
+      b.id_counts.allocate(words + 1);
+      std::size_t temp = 0;
+      FBAR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, temp, static_cast<int*>(nullptr), static_cast<int*>(nullptr),
+                                                    static_cast<int>(words) + 1, stream_));
+      b.id_scan_temp.allocate(std::max<std::size_t>(temp, 1));
+      cap.id_bits = b.id_bits.get();
+      cap.id_offset = b.id_offset.get();
+    }
     b.frame_x.allocate(3 * n);
     b.frame_columns.allocate(static_cast<std::size_t>(cap.column_count) * n);
     cap.x = b.frame_x.get();
@@ -1313,8 +1345,10 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
     for (auto& b : bodies_)
       FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(1 - cur_).count, 0, sizeof(int) * block_capacity_, stream_));
     if (capture_next_)  // the device frames are overwritten: their last download must be done
-      for (auto& b : bodies_)
+      for (auto& b : bodies_) {
         if (b->frame_copied) FBAR_CUDA_CHECK(cudaStreamWaitEvent(stream_, b->frame_copied, 0));
+        if (decomposed() && b->capture.x) prepare_capture(*b);
+      }
     for (auto& b : bodies_) b->g2p2g(*this, false, static_cast<T>(dt));
     event_record(2);
     if (decomposed()) {
@@ -1566,6 +1600,7 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
     if (steps_ != 0 || !b.initial_v_host.empty())
       throw std::logic_error("GpuEngine::submit_frame: step " + std::to_string(steps_) +
                              " did not capture a frame (set_frame_capture(true) before the step that lands on it)");
+    if (decomposed()) prepare_capture(b);
     b.capture_state(*this);
   }
   {
@@ -1582,9 +1617,15 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
     b.frame_slot->busy = true;
     output_wait_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   }
-  const std::size_t n = static_cast<std::size_t>(b.particles);
+  const bool by_directory = decomposed();
+  const std::size_t n = static_cast<std::size_t>(by_directory ? b.captured_particles : b.particles);
   const int columns = b.capture.column_count;
-  if (!b.frame_host) b.frame_host = mgsp_detail::pinned(std::max<std::size_t>(b.frame_host_bytes(), 1));
+  const std::size_t words = by_directory ? static_cast<std::size_t>((b.global_particles + 31) / 32) : 0;
+  const std::size_t host_bytes = n * (3 * sizeof(T) + sizeof(float) * columns) + words * sizeof(unsigned);
+  if (!b.frame_host || b.frame_host_size < host_bytes) {  // the writer has released it (busy was false)
+    b.frame_host = mgsp_detail::pinned(std::max<std::size_t>(host_bytes, 1));
+    b.frame_host_size = std::max<std::size_t>(host_bytes, 1);
+  }
   cudaEvent_t ready;
   FBAR_CUDA_CHECK(cudaEventCreateWithFlags(&ready, cudaEventDisableTiming));
   FBAR_CUDA_CHECK(cudaEventRecord(ready, stream_));
@@ -1593,10 +1634,17 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
   auto* host = static_cast<std::byte*>(b.frame_host.get());
   if (n) {
     FBAR_CUDA_CHECK(cudaMemcpyAsync(host, b.frame_x.get(), 3 * n * sizeof(T), cudaMemcpyDeviceToHost, copy_stream_));
+    // Column c of the device frame starts at c x capture.particles (a decomposed rank's frame has room for
+    // arrivals); the host copy packs them at c x n.
     if (columns)
-      FBAR_CUDA_CHECK(cudaMemcpyAsync(host + 3 * n * sizeof(T), b.frame_columns.get(), columns * n * sizeof(float),
-                                      cudaMemcpyDeviceToHost, copy_stream_));
+      FBAR_CUDA_CHECK(cudaMemcpy2DAsync(host + 3 * n * sizeof(T), n * sizeof(float), b.frame_columns.get(),
+                                        static_cast<std::size_t>(b.capture.particles) * sizeof(float),
+                                        n * sizeof(float), static_cast<std::size_t>(columns), cudaMemcpyDeviceToHost,
+                                        copy_stream_));
   }
+  if (words)  // the IDs of the rank's entries: the directory's set bits, in order
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(host + n * (3 * sizeof(T) + sizeof(float) * columns), b.id_bits.get(),
+                                    words * sizeof(unsigned), cudaMemcpyDeviceToHost, copy_stream_));
   FBAR_CUDA_CHECK(cudaEventRecord(b.frame_copied, copy_stream_));
   const cudaEvent_t copied = b.frame_copied;
   const std::vector<FrameAttributeSpec> attrs = b.frame_attrs;
@@ -1625,7 +1673,15 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
       for (const FrameAttributeSpec& a : attrs) {
         if (a.column.quantity == FrameQuantity::Id) {
           std::vector<std::int32_t> ids(n);
-          std::iota(ids.begin(), ids.end(), 0);  // frames are in ID order
+          if (words) {  // a decomposed rank's IDs, ascending
+            const auto* bits = reinterpret_cast<const unsigned*>(host + n * (3 * sizeof(T) + sizeof(float) * columns));
+            std::size_t k = 0;
+            for (std::size_t w = 0; w < words && k < n; ++w)
+              for (unsigned m = bits[w]; m != 0 && k < n; m &= m - 1)
+                ids[k++] = static_cast<std::int32_t>(32 * w + static_cast<std::size_t>(__builtin_ctz(m)));
+          } else {
+            std::iota(ids.begin(), ids.end(), 0);  // frames are in ID order
+          }
           f.add(a.name, 1, std::move(ids));
         } else {
           f.add(a.name, 1, std::vector<float>(col, col + n), a.unit);
@@ -1814,6 +1870,31 @@ void MgspBenchmark<T, TG>::collect_halo() {
       halo_[1].peer >= 0 ? halo_[1].plane : INT_MIN, halo_[0].fresh.get(), halo_[1].fresh.get(), halo_fresh_capacity_,
       stats_d_->halo_new);
   mgsp_detail::check_launch("collect_halo_blocks");
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::prepare_capture(BodyBase& b) {
+  if (static_cast<std::size_t>(b.particles) > b.frame_capacity) {  // arrivals outgrew the frame: the download first
+    if (b.frame_copied) FBAR_CUDA_CHECK(cudaEventSynchronize(b.frame_copied));
+    const std::size_t n = static_cast<std::size_t>(b.particles) * 5 / 4 + 1024;
+    b.frame_x.allocate(3 * n);
+    b.frame_columns.allocate(static_cast<std::size_t>(b.capture.column_count) * n);
+    b.capture.x = b.frame_x.get();
+    b.capture.columns = b.frame_columns.get();
+    b.capture.particles = static_cast<int>(n);
+    b.frame_capacity = n;
+    peak_bytes_ = std::max(peak_bytes_, device_bytes());
+  }
+  const int words = static_cast<int>((b.global_particles + 31) / 32);
+  FBAR_CUDA_CHECK(cudaMemsetAsync(b.id_bits.get(), 0, sizeof(unsigned) * std::max(words, 1), stream_));
+  b.mark_ids(*this);
+  count_id_bits<<<mgsp_detail::grid_for(words + 1, kOutputThreads), kOutputThreads, 0, stream_>>>(
+      b.id_bits.get(), words, b.id_counts.get());
+  mgsp_detail::check_launch("count_id_bits");
+  std::size_t temp = b.id_scan_temp.size();
+  FBAR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(b.id_scan_temp.get(), temp, b.id_counts.get(), b.id_offset.get(),
+                                                words + 1, stream_));
+  b.captured_particles = b.particles;
 }
 
 template <typename T, typename TG>

@@ -77,7 +77,12 @@ template <typename T>
 struct FrameCapture {
   T* x = nullptr;            ///< (ID, 3) [m], nullptr: this launch captures nothing
   float* columns = nullptr;  ///< (column, ID)
-  int particles = 0;
+  int particles = 0;         ///< entries of x and of each column
+  /// A decomposed rank's directory (nullptr: one GPU, entry = ID): bit id % 32 of id_bits[id / 32] is set when the
+  /// rank holds particle id, id_offset[w] counts the set bits of the words before w; the entry of particle id is
+  /// its rank among the rank's IDs, so a rank's frame is in ID order and as long as its particle count.
+  const unsigned* id_bits = nullptr;
+  const int* id_offset = nullptr;
   int column_count = 0;
   bool sigma = false;        ///< some column reads the Cauchy stress
   FrameColumn column[kMaxFrameColumns];
@@ -88,6 +93,10 @@ template <typename M, typename T>
 __device__ __noinline__ void capture_particle(const FrameCapture<T>& cap, int id, const Vec3<T>& x, const Vec3<T>& v,
                                               const Mat3<T>& C, const material_state_t<M, T>& s,
                                               const material_params_t<M, T>& material, T mass, T volume) {
+  if (cap.id_bits) {
+    if (id < 0) return;
+    id = cap.id_offset[id >> 5] + __popc(cap.id_bits[id >> 5] & ((1u << (id & 31)) - 1u));
+  }
   if (id < 0 || id >= cap.particles) return;
   FrameInputs<T> in{};
   in.x = x;

@@ -50,4 +50,23 @@ __global__ void __launch_bounds__(kOutputThreads)
   capture_particle<M, T>(capture, p.id, p.x, velocity, Mat3<T>::zero(), p.state, material, mass, volume);
 }
 
+/// A decomposed rank's ID directory (FrameCapture::id_bits): sets the bit of every particle of the layout.
+template <typename M, typename T>
+__global__ void __launch_bounds__(kOutputThreads)
+    mark_ids(typename ParticleLayout<M, T>::Buffer bins, const int* src, int slots, unsigned* bits) {
+  const int slot = blockIdx.x * blockDim.x + threadIdx.x;
+  if (slot >= slots) return;
+  const int s = src[slot];
+  if (s < 0) return;
+  const int id = load_particle<M, T>(bins, s).id;
+  atomicOr(&bits[id >> 5], 1u << (id & 31));
+}
+
+/// counts[w] = set bits of bits[w] for w < words, counts[words] = 0 (an exclusive scan then gives the offsets).
+static __global__ void __launch_bounds__(kOutputThreads) count_id_bits(const unsigned* bits, int words, int* counts) {
+  const int w = blockIdx.x * blockDim.x + threadIdx.x;
+  if (w < words) counts[w] = __popc(bits[w]);
+  if (w == words) counts[w] = 0;
+}
+
 }  // namespace fbar
