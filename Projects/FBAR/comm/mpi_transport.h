@@ -1,5 +1,6 @@
 // One rank per MPI process (mpirun, srun): the Transport of a batch job (transport.h). Built when CMake finds MPI
-// (FBAR_HAS_MPI); the halo and migration payloads of a GPU run will go through NCCL, sized and agreed here.
+// (FBAR_HAS_MPI); the halo and migration payloads of a GPU run go through NCCL (device_transport.h), sized and
+// agreed here.
 #pragma once
 
 #include "comm/transport.h"
