@@ -95,7 +95,12 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
   write_frame(0);
 
   const auto wall_start = std::chrono::steady_clock::now();
-  auto line = [&](const std::string& head) {
+  // The particles of every rank (a collective: every rank calls it at the same points, rank 0 prints).
+  auto all_particles = [&]() -> std::size_t {
+    const auto mine = static_cast<long long>(engine.particle_count());
+    return static_cast<std::size_t>(decomposed ? transport->sum(mine) : mine);
+  };
+  auto line = [&](const std::string& head, std::size_t particles) {
     const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
     const double done = engine.time() - t0;
     const double eta = done > 0 ? elapsed * (t_end - engine.time()) / done : -1.0;
@@ -104,7 +109,7 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
     char text[512];
     std::snprintf(text, sizeof(text), "%s  t = %.6g s  dt = %.3g s  steps = %lld  particles = %zu  %.3g ms/step  ETA %s"
                   "  (output wait %.3g s%s%s)\n", head.c_str(), engine.time(), engine.last_dt(), engine.steps(),
-                  engine.particle_count(), ms_per_step, run_detail::format_duration(eta).c_str(),
+                  particles, ms_per_step, run_detail::format_duration(eta).c_str(),
                   engine.output_wait_seconds(), note.empty() ? "" : "; ", note.c_str());
     log << text << std::flush;
   };
@@ -133,15 +138,19 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
         result.message = r.message();  // the caller reports it (cli.cpp prints it to stderr)
         return finish();
       }
-      if (sim.info_rate > 0 && talk && engine.steps() - steps_logged >= sim.info_rate &&
-          engine.time() < target) {
+      if (sim.info_rate > 0 && !options.quiet && engine.steps() - steps_logged >= sim.info_rate &&
+          engine.time() < target) {  // the same decision on every rank
         steps_logged = engine.steps();
-        line("step " + std::to_string(engine.steps()));
+        const std::size_t particles = all_particles();
+        if (talk) line("step " + std::to_string(engine.steps()), particles);
       }
     }
     engine.set_frame_capture(false);
     write_frame(frame);
-    if (talk) line("frame " + std::to_string(frame) + "/" + std::to_string(sim.frames));
+    if (!options.quiet) {
+      const std::size_t particles = all_particles();
+      if (talk) line("frame " + std::to_string(frame) + "/" + std::to_string(sim.frames), particles);
+    }
     steps_logged = engine.steps();
   }
   return finish();

@@ -855,9 +855,9 @@ template <typename T, typename TG>
 std::string CpuEngine<T, TG>::resource_note() const {
   std::string note = std::to_string(omp_get_max_threads()) + " threads";
   if (ranks() > 1)
-    note += "; particles above are rank " + std::to_string(rank()) + "'s of " + std::to_string(ranks()) +
-            " ranks, imbalance " + format_g(100.0 * imbalance_) + " %, " + std::to_string(migrated_) +
-            " migrated from it, " + std::to_string(rebalances_) + " rebalances";
+    note += "; " + std::to_string(ranks()) + " ranks, rank " + std::to_string(rank()) + " holds " +
+            std::to_string(particle_count()) + " particles, imbalance " + format_g(100.0 * imbalance_) + " %, " +
+            std::to_string(migrated_) + " migrated from it, " + std::to_string(rebalances_) + " rebalances";
   return note;
 }
 

@@ -86,8 +86,13 @@ template <typename T, typename TG>
 std::size_t GpuEngine<T, TG>::peak_device_bytes() const { return impl_->peak_device_bytes(); }
 template <typename T, typename TG>
 std::string GpuEngine<T, TG>::resource_note() const {
-  return "device memory " + format_bytes(static_cast<double>(device_bytes())) + ", peak " +
-         format_bytes(static_cast<double>(peak_device_bytes()));
+  std::string note = "device memory " + format_bytes(static_cast<double>(device_bytes())) + ", peak " +
+                     format_bytes(static_cast<double>(peak_device_bytes()));
+  if (ranks() > 1)
+    note = std::to_string(ranks()) + " GPU ranks, rank " + std::to_string(rank()) + ": " +
+           std::to_string(particle_count()) + " particles, " + std::to_string(migrated()) + " migrated from it, " +
+           note;
+  return note;
 }
 template <typename T, typename TG>
 void GpuEngine<T, TG>::submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer) {
