@@ -42,6 +42,13 @@ inline std::string format_duration(double seconds) {
   return buf;
 }
 
+/// 0.123 -> "12.3 %".
+inline std::string format_percent(double fraction) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.3g %%", 100.0 * fraction);
+  return buf;
+}
+
 }  // namespace run_detail
 
 /// Runs `engine` (constructed from `scene`) for simulation.frames frames, writing frame 0 (the initial state) and
@@ -95,12 +102,22 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
   write_frame(0);
 
   const auto wall_start = std::chrono::steady_clock::now();
-  // The particles of every rank (a collective: every rank calls it at the same points, rank 0 prints).
-  auto all_particles = [&]() -> std::size_t {
-    const auto mine = static_cast<long long>(engine.particle_count());
-    return static_cast<std::size_t>(decomposed ? transport->sum(mine) : mine);
+  // The particles of every rank and their imbalance, max / mean - 1 (a collective: every rank calls it at the same
+  // points, rank 0 prints).
+  struct Count {
+    std::size_t particles;
+    double imbalance;
   };
-  auto line = [&](const std::string& head, std::size_t particles) {
+  auto all_particles = [&]() -> Count {
+    const auto mine = static_cast<long long>(engine.particle_count());
+    if (!decomposed) return {static_cast<std::size_t>(mine), 0.0};
+    const long long total = transport->sum(mine);
+    const double most = transport->max(static_cast<double>(mine));
+    const double mean = static_cast<double>(total) / transport->size();
+    return {static_cast<std::size_t>(total), mean > 0 ? most / mean - 1.0 : 0.0};
+  };
+  auto line = [&](const std::string& head, Count count) {
+    const std::size_t particles = count.particles;
     const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
     const double done = engine.time() - t0;
     const double eta = done > 0 ? elapsed * (t_end - engine.time()) / done : -1.0;
@@ -111,7 +128,10 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
                   "  (output wait %.3g s%s%s)\n", head.c_str(), engine.time(), engine.last_dt(), engine.steps(),
                   particles, ms_per_step, run_detail::format_duration(eta).c_str(),
                   engine.output_wait_seconds(), note.empty() ? "" : "; ", note.c_str());
-    log << text << std::flush;
+    log << text;
+    if (decomposed)
+      log << "  particles per rank: imbalance " << run_detail::format_percent(count.imbalance) << " (max / mean - 1)\n";
+    log << std::flush;
   };
 
   long long steps_logged = engine.steps();
@@ -141,15 +161,15 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
       if (sim.info_rate > 0 && !options.quiet && engine.steps() - steps_logged >= sim.info_rate &&
           engine.time() < target) {  // the same decision on every rank
         steps_logged = engine.steps();
-        const std::size_t particles = all_particles();
-        if (talk) line("step " + std::to_string(engine.steps()), particles);
+        const Count count = all_particles();
+        if (talk) line("step " + std::to_string(engine.steps()), count);
       }
     }
     engine.set_frame_capture(false);
     write_frame(frame);
     if (!options.quiet) {
-      const std::size_t particles = all_particles();
-      if (talk) line("frame " + std::to_string(frame) + "/" + std::to_string(sim.frames), particles);
+      const Count count = all_particles();
+      if (talk) line("frame " + std::to_string(frame) + "/" + std::to_string(sim.frames), count);
     }
     steps_logged = engine.steps();
   }
