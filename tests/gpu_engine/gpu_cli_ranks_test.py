@@ -9,13 +9,13 @@ model0_dev[rank]_frame[f].csv. Checks that every run completes (run.json: status
 count), that the merged last frame holds every particle ID exactly once, and that positions (double) agree with one
 rank's to 1e-9 m and velocities (float frame columns) to 1e-5 m/s. Exit 77 (skipped) without a CUDA device.
 """
-import csv
-import glob
-import json
 import os
 import shutil
 import subprocess
 import sys
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+import frames_by_id  # noqa: E402
 
 fbar, mpiexec, scene, work = sys.argv[1:5]
 try:
@@ -36,23 +36,8 @@ def run(label, ranks, prefix, extra):
     p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
     if p.returncode != 0:
         sys.exit(f"{label}: exit {p.returncode}\n{p.stdout}\n{p.stderr}")
-    with open(os.path.join(out, "run.json")) as f:
-        meta = json.load(f)
-    assert meta["status"] == "completed" and meta["ranks"] == ranks and meta["backend"] == "gpu", meta
-    frame = meta["frames_written"]
-    files = sorted(glob.glob(os.path.join(out, f"model0_dev*_frame{frame}.csv")))
-    assert len(files) == ranks, f"{label}: wrote {files}"
-    particles = {}
-    for name in files:
-        with open(name) as f:
-            rows = csv.reader(f)
-            header = next(rows)
-            col = {h.split(" [")[0]: i for i, h in enumerate(header)}
-            for row in rows:
-                pid = int(row[col["ID"]])
-                assert pid not in particles, f"{label}: particle {pid} written twice"
-                particles[pid] = [float(row[col[k]]) for k in
-                                  ("Position_X", "Position_Y", "Position_Z", "Velocity_X", "Velocity_Y", "Velocity_Z")]
+    meta, particles = frames_by_id.read_run(out, ranks, label)
+    assert meta["backend"] == "gpu", meta
     return meta["steps"], particles
 
 
@@ -64,8 +49,7 @@ for label, n, prefix, extra in cases:
     steps, many = run(label, n, prefix, extra)
     assert steps == steps1, f"{label}: {steps} steps, one rank {steps1}"
     assert many.keys() == one.keys(), f"{label}: particle IDs differ ({len(many)} vs {len(one)})"
-    dx = max(max(abs(a - b) for a, b in zip(many[k][:3], one[k][:3])) for k in one)
-    dv = max(max(abs(a - b) for a, b in zip(many[k][3:], one[k][3:])) for k in one)
+    dx, dv = frames_by_id.max_differences(many, one)
     print(f"{label}: {len(many)} particles, {steps} steps, max |dx| {dx:.3g} m, max |dv| {dv:.3g} m/s")
     assert dx < 1e-9 and dv < 1e-5, "states differ"
 print("ok")

@@ -70,20 +70,9 @@ int check(const char* name, const Scene& scene, comm::Transport& mpi, int steps)
   }
   const test::RunResult one = test::run_rank(scene, nullptr, steps, 0, false);
   if (!one.error.empty()) problems += "one GPU: " + one.error + "; ";
-  double max_dx = 0, max_dv = 0, scale = 0;
-  Vec3d pa = Vec3d::zero(), pb = Vec3d::zero();
   if (merged.size() != one.states.size()) problems += "particles lost or doubled; ";
-  for (const auto& [key, a] : one.states) {
-    const auto it = merged.find(key);
-    if (it == merged.end()) continue;
-    const double m = one.mass[static_cast<std::size_t>(key.first)];
-    max_dx = std::max(max_dx, max_abs(a.x - it->second.x));
-    max_dv = std::max(max_dv, max_abs(a.v - it->second.v));
-    pa = pa + a.v * m;
-    pb = pb + it->second.v * m;
-    scale += m * norm(a.v);
-  }
-  const double momentum = scale > 0 ? max_abs(pa - pb) / scale : 0.0;
+  const test::Comparison c = test::compare(one, merged);
+  const double max_dx = c.max_dx, max_dv = c.max_dv, momentum = c.momentum;
   const double dt_rel = std::fabs(mine.time - one.time) / one.time;
   if (!(max_dx < test::kPositionTolerance)) problems += "positions; ";
   if (!(max_dv < test::kVelocityTolerance)) problems += "velocities; ";

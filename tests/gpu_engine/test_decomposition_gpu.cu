@@ -27,7 +27,6 @@ namespace fbar {
 namespace {
 
 using test::dam_break;
-using test::ParticleState;
 using test::run_rank;
 using test::RunResult;
 using test::travelling_block;
@@ -83,18 +82,8 @@ void expect_same_run(const Scene& scene, int steps, bool expect_migration, int g
     if (expect_migration) {
       EXPECT_GT(many.migrated, 0);
     }
-    double max_dx = 0, max_dv = 0, scale = 0;
-    Vec3d pa = Vec3d::zero(), pb = Vec3d::zero();
-    for (const auto& [key, a] : one.states) {
-      const ParticleState& b = many.states.at(key);
-      const double m = one.mass[static_cast<std::size_t>(key.first)];
-      max_dx = std::max(max_dx, max_abs(a.x - b.x));
-      max_dv = std::max(max_dv, max_abs(a.v - b.v));
-      pa = pa + a.v * m;
-      pb = pb + b.v * m;
-      scale += m * norm(a.v);
-    }
-    const double momentum = scale > 0 ? max_abs(pa - pb) / scale : 0.0;
+    const test::Comparison c = test::compare(one, many.states);
+    const double max_dx = c.max_dx, max_dv = c.max_dv, momentum = c.momentum;
     std::printf("[ GPU ranks %d%s ] %lld steps, t = %.6g s, migrated %lld, halo blocks %zu, max |dx| %.3g m, "
                 "max |dv| %.3g m/s, momentum %.3g\n",
                 ranks, gpus > 1 ? " NCCL" : "", many.steps, many.time, many.migrated, many.halo_blocks, max_dx, max_dv, momentum);

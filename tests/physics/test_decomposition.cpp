@@ -13,14 +13,14 @@
 
 #include "comm/transport.h"
 #include "engine/cpu/cpu_engine.h"
+#include "decomposition_scenes.h"
 #include "physics_test_support.h"
 
 namespace fbar {
 namespace {
 
-using test::box_body;
-using test::empty_scene;
-using test::r3;
+using test::dam_break;
+using test::travelling_block;
 
 struct ParticleState {
   Vec3d x, v;
@@ -128,40 +128,6 @@ Comparison compare(const RankResult& a, const RankResult& b) {
   return c;
 }
 
-/// A water column (0.3 m wide along x, 0.2 m tall) collapsing in a 0.6 m tank: slabs along x, the water of the left
-/// slabs flows across the cuts. `schemes`: also ASFLIP (alpha 0.9, beta 0 / 0.2) and F-bar (psi 1), whose grid
-/// channels (v^n, the cell sums) cross the halo too.
-Scene dam_break(bool schemes) {
-  Scene scene = empty_scene(r3(0.64, 0.4, 0.2), 0.02, r3(0, -9.81, 0));
-  BodySpec water = box_body(Constitutive::JFluid, r3(0.04, 0.04, 0.04), r3(0.3, 0.2, 0.12));
-  water.material.bulk_modulus = 2e5;
-  water.material.viscosity = 1e-3;
-  if (schemes) {
-    water.algorithm.use_asflip = true;
-    water.algorithm.asflip_alpha = 0.9;
-    water.algorithm.asflip_beta_min = 0.0;
-    water.algorithm.asflip_beta_max = 0.2;
-    water.algorithm.use_fbar = true;
-    water.algorithm.fbar_psi = 1.0;
-  }
-  scene.bodies.push_back(water);
-  BoundarySpec walls;
-  walls.object = BoundaryObject::Walls;
-  walls.contact = Contact::Slip;
-  walls.domain_start = r3(0.02, 0.02, 0.02);
-  walls.domain_end = r3(0.62, 0.38, 0.18);
-  scene.boundaries.push_back(walls);
-  return scene;
-}
-
-/// A soft block (E 1e4 Pa) travelling at 2 m/s along x without gravity: every particle crosses one or more cuts.
-Scene travelling_block() {
-  Scene scene = empty_scene(r3(0.8, 0.2, 0.2), 0.01, r3(0, 0, 0));
-  BodySpec block = box_body(Constitutive::FixedCorotated, r3(0.06, 0.06, 0.06), r3(0.16, 0.08, 0.08), r3(2, 0, 0));
-  block.material.youngs_modulus = 1e4;
-  scene.bodies.push_back(block);
-  return scene;
-}
 
 // Tolerances: the ranks sum a halo node's contributions in two parts (each rank's, then the neighbour's), so node
 // values can differ from one rank's in the last bits. Measured (double, 1 and 2 OpenMP threads): max |dx| <= 1.9e-16 m,

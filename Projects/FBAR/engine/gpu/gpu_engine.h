@@ -117,7 +117,8 @@ class GpuEngine {
   std::size_t particle_count(int body) const;
   std::size_t particle_count() const;
   ParticleSnapshot<T> snapshot(int body) const;
-  /// The body's output_attribs (canonical names), as the CPU engine writes them.
+  /// The body's output_attribs (canonical names), as the CPU engine writes them; a decomposed rank's frame holds
+  /// its particles in ID order (the ID column, when asked for, says which).
   io::ParticleFrame frame(int body) const;
   /// The next step writes every body's output frame on the device (needs GpuEngineOptions::frames): set it for
   /// the step that lands on a frame time.

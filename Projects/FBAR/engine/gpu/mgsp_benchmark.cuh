@@ -641,7 +641,7 @@ class MgspBenchmark {
   mgsp_detail::DeviceArray<int> migrant_count_d_;  ///< (body, side) emigrants packed this try
   long long migrated_ = 0;
   long long pending_migrated_ = 0;
-  int local_halo_new_[2] = {0, 0};  ///< this rank's new halo keys of the try (stats_->halo_new: the agreed sums)
+  bool halo_grew_ = false;  ///< agree_on_try: some rank has new halo blocks (every rank then calls rebuild_halo)
 };
 
 // =====================================================================================================================
@@ -895,8 +895,6 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
   }
   block_count_ = stats_->block_count;
   if (decomposed()) {  // the initial P2G writes the footprints of layout 0: halo lists first
-    local_halo_new_[0] = stats_->halo_new[0];
-    local_halo_new_[1] = stats_->halo_new[1];
     rebuild_halo(-1);
   }
   flat_source_ = false;
@@ -960,7 +958,7 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
   }
   migrated_ += pending_migrated_;
   block_count_ = stats_->block_count;
-  if (decomposed() && (stats_->halo_new[0] > 0 || stats_->halo_new[1] > 0)) rebuild_halo(0);
+  if (decomposed() && halo_grew_) rebuild_halo(0);
   cur_ = 1;
   gc_ = 0;
   wave_cur_ = 0;
@@ -1465,7 +1463,7 @@ void MgspBenchmark<T, TG>::commit(double dt) {
   max_grid_speed_ = std::sqrt(max_speed_sq);
   block_count_ = stats_->block_count;
   aux_valid_ = record_;
-  if (decomposed() && (stats_->halo_new[0] > 0 || stats_->halo_new[1] > 0)) rebuild_halo(gc_);  // agreed: all or none
+  if (decomposed() && halo_grew_) rebuild_halo(gc_);  // agreed: all ranks or none
   // Headroom for the next step (grow between steps, never inside one): blocks at 3/4, bins at 9/10 of capacity.
   if (block_count_ > block_capacity_ * 3 / 4) grow_blocks(2 * block_capacity_);
   ensure_step_capacity();
@@ -1567,10 +1565,32 @@ ParticleSnapshot<T> MgspBenchmark<T, TG>::snapshot(int body) const {
 
 template <typename T, typename TG>
 io::ParticleFrame MgspBenchmark<T, TG>::frame(int body) const {
-  if (decomposed()) throw std::logic_error("GpuEngine::frame: frames of a decomposed run are not implemented yet");
   const BodyBase& b = body_at(body);
-  const ParticleSnapshot<T> s = snapshot(body);
+  ParticleSnapshot<T> s = snapshot(body);
+  // A decomposed rank's frame: its particles only, in ID order, with their IDs.
+  std::vector<std::int64_t> ids;
+  if (!s.present.empty()) {
+    std::size_t w = 0;
+    for (std::size_t p = 0; p < s.present.size(); ++p) {
+      if (!s.present[p]) continue;
+      ids.push_back(static_cast<std::int64_t>(p));
+      s.x[w] = s.x[p];
+      s.v[w] = s.v[p];
+      s.C[w] = s.C[p];
+      s.J[w] = s.J[p];
+      s.sigma[w] = s.sigma[p];
+      if (!s.F.empty()) s.F[w] = s.F[p];
+      if (!s.logJp.empty()) s.logJp[w] = s.logJp[p];
+      ++w;
+    }
+    for (auto* v : {&s.x, &s.v}) v->resize(w);
+    for (auto* v : {&s.C, &s.sigma}) v->resize(w);
+    s.J.resize(w);
+    if (!s.F.empty()) s.F.resize(w);
+    if (!s.logJp.empty()) s.logJp.resize(w);
+  }
   FrameSource<T> src;
+  if (!s.present.empty()) src.id = &ids;
   src.x = &s.x;
   src.v = &s.v;
   src.mass = [&](std::size_t) { return b.mass; };
@@ -1901,7 +1921,7 @@ template <typename T, typename TG>
 void MgspBenchmark<T, TG>::rebuild_halo(int summed_grid) {
   // 1. This rank's new keys per side (collected after the last partition; collected again when they overflowed).
   std::array<std::vector<unsigned long long>, 2> fresh;
-  const int fresh_count[2] = {local_halo_new_[0], local_halo_new_[1]};
+  const int fresh_count[2] = {stats_->halo_new[0], stats_->halo_new[1]};
   if (std::max(fresh_count[0], fresh_count[1]) > halo_fresh_capacity_) {
     while (halo_fresh_capacity_ < std::max(fresh_count[0], fresh_count[1])) halo_fresh_capacity_ *= 2;
     for (HaloSide& h : halo_) h.fresh.allocate(static_cast<std::size_t>(halo_fresh_capacity_));
@@ -2096,8 +2116,6 @@ void MgspBenchmark<T, TG>::migrate_particles() {
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::agree_on_try() {
   const int nb = body_count();
-  local_halo_new_[0] = stats_->halo_new[0];
-  local_halo_new_[1] = stats_->halo_new[1];
   std::vector<long long> sums = {stats_->internal_error, stats_->p2g_range,
                                  static_cast<long long>(stats_->halo_new[0]) + stats_->halo_new[1]};
   std::vector<long long> firsts;
@@ -2114,8 +2132,7 @@ void MgspBenchmark<T, TG>::agree_on_try() {
   std::memcpy(&stats_->max_speed_sq, &speed_sq, sizeof(double));
   stats_->internal_error = static_cast<int>(sums[0]);
   stats_->p2g_range = static_cast<int>(sums[1]);
-  stats_->halo_new[0] = static_cast<int>(sums[2]);  // any rank's: every rank rebuilds (a collective)
-  stats_->halo_new[1] = 0;
+  halo_grew_ = sums[2] > 0;  // stats_->halo_new stays this rank's: rebuild_halo sends those
   for (int b = 0; b < nb; ++b)
     for (int k = 0; k < kFailKinds; ++k) {
       body_stats_[b].failures[k] = static_cast<int>(sums[3 + kFailKinds * b + k]);
