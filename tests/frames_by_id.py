@@ -2,7 +2,7 @@
 tests/gpu_engine/gpu_cli_ranks_test.py).
 
 read_run(out, ranks, label) checks run.json (status completed, `ranks` ranks), finds the last frame's CSV files
-(model0_dev[rank]_frame[f].csv, one per rank) and returns (run.json as a dict, {ID: [x, y, z, vx, vy, vz]}); a
+(model[0]_dev[rank]_frame[f].csv, one per rank) and returns (run.json as a dict, {ID: [x, y, z, vx, vy, vz]}); a
 particle written twice is an error.
 """
 import csv
@@ -16,7 +16,8 @@ def read_run(out, ranks, label):
         meta = json.load(f)
     assert meta["status"] == "completed" and meta["ranks"] == ranks, meta
     frame = meta["frames_written"]
-    files = sorted(glob.glob(os.path.join(out, f"model0_dev*_frame{frame}.csv")))
+    # glob.escape: the brackets of ClaymoreUW's names are literal, not character classes
+    files = sorted(glob.glob(os.path.join(glob.escape(out), "model[[]0]_dev[[]*]_frame" + glob.escape(f"[{frame}].csv"))))
     assert len(files) == ranks, f"{label}: wrote {files}"
     particles = {}
     for name in files:

@@ -70,7 +70,7 @@ TEST(CliGpu, AutoAndGpuRunTheGpuEngine) {
     EXPECT_EQ(r.code, 0) << r.err;
     EXPECT_EQ(r.err.find("warning"), std::string::npos) << r.err;
     EXPECT_EQ(backend_in_run_json(out), "gpu") << backend;
-    EXPECT_TRUE(fs::exists(out / "model0_dev0_frame1.csv")) << backend;
+    EXPECT_TRUE(fs::exists(out / "model[0]_dev[0]_frame[1].csv")) << backend;
     fs::remove_all(out.parent_path());
   }
 }

@@ -67,9 +67,9 @@ void append_be16(std::string& s, std::uint16_t v) {
 }
 
 TEST(FrameNames, ClaymoreUwPattern) {
-  EXPECT_EQ(frame_file_name(0, 0, 12, ".bgeo"), "model0_dev0_frame12.bgeo");
-  EXPECT_EQ(frame_file_name(3, 1, 0, ".csv"), "model3_dev1_frame0.csv");
-  EXPECT_EQ(frame_file_path("out/run", 1, 2, 345, ".geo"), fs::path("out/run/model1_dev2_frame345.geo"));
+  EXPECT_EQ(frame_file_name(0, 0, 12, ".bgeo"), "model[0]_dev[0]_frame[12].bgeo");
+  EXPECT_EQ(frame_file_name(3, 1, 0, ".csv"), "model[3]_dev[1]_frame[0].csv");
+  EXPECT_EQ(frame_file_path("out/run", 1, 2, 345, ".geo"), fs::path("out/run/model[1]_dev[2]_frame[345].geo"));
   EXPECT_EQ(frame_format(".bgeo"), FrameFormat::Bgeo);
   EXPECT_EQ(frame_format(".geo"), FrameFormat::Geo);
   EXPECT_EQ(frame_format(".csv"), FrameFormat::Csv);
@@ -337,7 +337,7 @@ TEST_F(IoTest, AsyncWriterDestructorDrainsTheQueue) {
 
 TEST_F(IoTest, AsyncWriterReportsErrors) {
   AsyncWriter writer(4);
-  const fs::path bad = dir_ / "missing" / "model0_dev0_frame0.bgeo";
+  const fs::path bad = dir_ / "missing" / "model[0]_dev[0]_frame[0].bgeo";
   writer.submit(bad, small_frame());
   std::atomic<bool> later_job_ran{false};
   try {
@@ -349,7 +349,7 @@ TEST_F(IoTest, AsyncWriterReportsErrors) {
     writer.flush();
     FAIL() << "flush() did not report the failed write";
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("missing/model0_dev0_frame0.bgeo"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("missing/model[0]_dev[0]_frame[0].bgeo"), std::string::npos) << e.what();
   }
   EXPECT_FALSE(later_job_ran);  // jobs after a failure are skipped
   // The writer stays failed: later calls keep saying so, with the original message.

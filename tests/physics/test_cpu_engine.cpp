@@ -769,8 +769,8 @@ TEST(Api, RunCpuWritesFramesAndReportsFailures) {
   EXPECT_EQ(r.exit_code, 0) << r.message << log.str();
   EXPECT_NEAR(r.end_time, 0.02, 1e-15);
   for (int f = 0; f <= 2; ++f) {
-    EXPECT_TRUE(std::filesystem::exists(dir / ("model0_dev0_frame" + std::to_string(f) + ".csv")));
-    EXPECT_TRUE(std::filesystem::exists(dir / ("model1_dev0_frame" + std::to_string(f) + ".csv")));
+    EXPECT_TRUE(std::filesystem::exists(dir / ("model[0]_dev[0]_frame[" + std::to_string(f) + "].csv")));
+    EXPECT_TRUE(std::filesystem::exists(dir / ("model[1]_dev[0]_frame[" + std::to_string(f) + "].csv")));
   }
   EXPECT_NE(log.str().find("frame 2/2"), std::string::npos) << log.str();
 

@@ -271,9 +271,9 @@ TEST(Cli, SigtermStopsTheRunAndWritesRunJson) {
   });
   // Wait for frame 1 (the run loop, and so the handler, is running), then send the signal.
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
-  while (!fs::exists(out / "model0_dev0_frame1.csv") && std::chrono::steady_clock::now() < deadline)
+  while (!fs::exists(out / "model[0]_dev[0]_frame[1].csv") && std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  const bool started = fs::exists(out / "model0_dev0_frame1.csv");
+  const bool started = fs::exists(out / "model[0]_dev[0]_frame[1].csv");
   if (started) {  // only while the run (and its handler) is known to be there
     // Twice, as coreutils `timeout` does (the process, then its group): the second must not end the process.
     std::raise(SIGTERM);
@@ -296,8 +296,8 @@ TEST(Cli, SigtermStopsTheRunAndWritesRunJson) {
   const int written = doc["frames_written"].GetInt();
   EXPECT_GE(written, 1);
   EXPECT_LT(written, 1000);
-  EXPECT_TRUE(fs::exists(out / ("model0_dev0_frame" + std::to_string(written) + ".csv")));
-  EXPECT_FALSE(fs::exists(out / ("model0_dev0_frame" + std::to_string(written + 1) + ".csv")));
+  EXPECT_TRUE(fs::exists(out / ("model[0]_dev[0]_frame[" + std::to_string(written) + "].csv")));
+  EXPECT_FALSE(fs::exists(out / ("model[0]_dev[0]_frame[" + std::to_string(written + 1) + "].csv")));
   EXPECT_GT(doc["steps"].GetInt64(), 0);
   // The handler is gone after the run: the default action is back.
   struct sigaction now {};

@@ -314,9 +314,9 @@ TEST(SceneParse, ReleasePolicyRejectsWhatTheEngineCannotRun) {
        "bodies[0].track_particle_id"},
       {scene_with(body(), R"("boundaries": [{"object": "USGS_GATE", "domain_start": [0,0,0], "domain_end": [1,1,1]}])"),
        "boundaries[0].object"},
-      {scene_with(body(), R"("grid-sensors": [{"attribute": "Force", "direction": "X+", "domain_start": [0,0,0],
+      {scene_with(body(), R"("grid-sensors": [{"attribute": "Volume", "domain_start": [0,0,0],
                                               "domain_end": [1,1,1]}])"),
-       "grid-sensors"},
+       "grid-sensors[0].attribute"},
       {R"({"simulation": {"save_suffix": ".h5"}, "bodies": [)" + body() + "]}", "simulation.save_suffix"},
   };
   for (const Case& c : cases) {

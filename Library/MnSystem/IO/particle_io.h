@@ -139,10 +139,11 @@ inline FrameFormat frame_format(std::string_view suffix) {
                               "\" (expected .bgeo, .geo or .csv)");
 }
 
-/// ClaymoreUW's frame file name: "model<m>_dev<d>_frame<f><suffix>", e.g. model0_dev0_frame12.bgeo (SCHEMA.md).
+/// ClaymoreUW's frame file name: "model[<m>]_dev[<d>]_frame[<f>]<suffix>", e.g. model[0]_dev[0]_frame[12].bgeo
+/// (SCHEMA.md; its mgsp_benchmark.cuh writes these, and its resume scenes read them).
 inline std::string frame_file_name(int model, int device, int frame, std::string_view suffix) {
-  return "model" + std::to_string(model) + "_dev" + std::to_string(device) + "_frame" + std::to_string(frame) +
-         std::string(suffix);
+  return "model[" + std::to_string(model) + "]_dev[" + std::to_string(device) + "]_frame[" + std::to_string(frame) +
+         "]" + std::string(suffix);
 }
 
 /// save_path / frame_file_name(...).

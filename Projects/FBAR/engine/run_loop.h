@@ -11,6 +11,10 @@
 //                                               queues the body's frame of the current state
 //   double output_wait_seconds()                time the loop spent waiting for the writer thread
 //   std::string resource_note()                 appended to progress lines ("" or e.g. device memory and peak)
+//   void set_grid_sensors(specs)                the grid sensors (io/sensor_recorder.h) a sampling step evaluates
+//   void set_grid_sample(int slot)              the next step starts at a sample time: its grid update writes
+//                                               every sensor's reduction into `slot` (-1: no sample)
+//   std::vector<SensorAccum> grid_samples(n)    this rank's values of slots [0, n)
 #pragma once
 
 #include <algorithm>
@@ -27,6 +31,7 @@
 #include "engine/engine_api.h"
 #include "engine/run_constants.h"
 #include "engine/stop_request.h"
+#include "io/sensor_recorder.h"
 #include "scene/scene.h"
 
 namespace fbar {
@@ -52,7 +57,8 @@ inline std::string format_percent(double fraction) {
 }  // namespace run_detail
 
 /// Runs `engine` (constructed from `scene`) for simulation.frames frames, writing frame 0 (the initial state) and
-/// every frame to simulation.save_path (model[m]_dev[d]_frame[f].suffix), with a progress line per frame and, when
+/// every frame to simulation.save_path (model[m]_dev[d]_frame[f].suffix), and the grid sensors' CSVs (steps start
+/// on every sample time; rows are written at each frame), with a progress line per frame and, when
 /// simulation.info_rate > 0, every info_rate steps. `engine_line` is logged first (which engine, particles, set-up).
 /// With several ranks (options.transport) every rank runs this loop in step with the others: the engine agrees on
 /// dt and failures, the loop on a stop request; each rank writes its particles (model[m]_dev[rank]_frame[f]) and
@@ -84,15 +90,22 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
     }
     result.frames_written = frame;
   };
+  const double t0 = engine.time();
+  const double t_end = t0 + sim.frames / sim.fps;
+  SensorRecorder sensors(scene, transport, t0, t_end);
+  engine.set_grid_sensors(sensors.grid_sensors());
+  engine.set_grid_sample(-1);
+  auto flush_sensors = [&] {
+    if (!sensors.empty()) sensors.flush(engine.grid_samples(sensors.pending()));
+  };
   auto finish = [&] {
     result.steps = engine.steps();
     result.end_time = engine.time();
-    writer.close();  // the frames already queued are written (and a writer error is thrown) before we return
+    flush_sensors();  // the samples taken so far, also when the run stops early
+    writer.close();   // the frames already queued are written (and a writer error is thrown) before we return
     return result;
   };
 
-  const double t0 = engine.time();
-  const double t_end = t0 + sim.frames / sim.fps;
   if (talk) log << engine_line << '\n';
   const ViscousBound viscous = viscous_step_bound(scene);
   if (viscous.dt < resolved_default_dt(sim) && talk)
@@ -149,15 +162,24 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
         result.message = text;
         return finish();
       }
+      // Steps start on every sensor sample time; the one starting there samples the grid.
+      const double start = engine.time();
+      double step_target = target;
+      const double sample = sensors.next_time_after(start);
+      if (sample < target - sensors.tolerance()) step_target = sample;
+      const int slot = sensors.slot_for(start);
+      engine.set_grid_sample(slot);
       // The step that lands on the frame time writes the frame (on the device, for the GPU engine).
-      engine.set_frame_capture(engine.time() + engine.next_dt() >= target);
-      const StepReport r = engine.step_toward(target);
+      engine.set_frame_capture(step_target == target && engine.time() + engine.next_dt() >= target);
+      const StepReport r = engine.step_toward(step_target);
       if (!r.ok) {
         engine.set_frame_capture(false);
+        engine.set_grid_sample(-1);
         result.exit_code = 2;
         result.message = r.message();  // the caller reports it (cli.cpp prints it to stderr)
         return finish();
       }
+      if (slot >= 0) sensors.taken(start);
       if (sim.info_rate > 0 && !options.quiet && engine.steps() - steps_logged >= sim.info_rate &&
           engine.time() < target) {  // the same decision on every rank
         steps_logged = engine.steps();
@@ -166,7 +188,9 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
       }
     }
     engine.set_frame_capture(false);
+    engine.set_grid_sample(-1);
     write_frame(frame);
+    flush_sensors();
     if (!options.quiet) {
       const Count count = all_particles();
       if (talk) line("frame " + std::to_string(frame) + "/" + std::to_string(sim.frames), count);

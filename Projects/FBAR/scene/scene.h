@@ -153,6 +153,8 @@ struct BoundarySpec {
 enum class SensorOperation { Sum, Max, Min, Count, Average, STDEV, Variance };
 
 struct GridSensorSpec {
+  std::string name;                     ///< label (ClaymoreUW's "name"; files are named by index)
+  bool toggle = true;                   ///< false: the sensor is switched off (no file)
   std::string attribute;                ///< Force, Acceleration, Momentum, Velocity, Mass, Volume, JBar
   SensorOperation operation = SensorOperation::Sum;
   Real3 direction{1.0, 0.0, 0.0};       ///< unit projection direction
@@ -163,6 +165,8 @@ struct GridSensorSpec {
 };
 
 struct ParticleSensorSpec {
+  std::string name;                     ///< label (ClaymoreUW's "name")
+  bool toggle = true;                   ///< false: the sensor is switched off
   std::string attribute;
   SensorOperation operation = SensorOperation::Sum;
   double output_frequency = 60.0;

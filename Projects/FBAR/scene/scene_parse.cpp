@@ -353,10 +353,10 @@ const Keys kBoundaryKeys = {"object",   "contact",  "domain_start",   "domain_en
                             "friction_static", "friction_dynamic", "velocity", "file", "output_frequency",
                             "output_freq", "array", "spacing",        "bathymetry",  "use_custom_bathymetry",
                             "type",     "name"};
-const Keys kGridSensorKeys = {"attribute",   "operation",    "direction", "output_frequency", "output_freq",
-                              "domain_start", "domain_end", "type",      "name"};
+const Keys kGridSensorKeys = {"attribute",   "operation",  "direction", "output_frequency", "output_freq",
+                              "domain_start", "domain_end", "type",      "name",             "toggle"};
 const Keys kParticleSensorKeys = {"attribute",    "operation",  "output_frequency", "output_freq",
-                                  "domain_start", "domain_end", "type",             "name"};
+                                  "domain_start", "domain_end", "type",             "name", "toggle"};
 
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -843,12 +843,14 @@ std::pair<Real3, Real3> read_region(ObjectReader& o, bool strict) {
 }
 
 /// ClaymoreUW's "type" label on boundaries ("grid") and sensors ("grid" / "particles"): accepted when it matches.
-void read_type_label(ObjectReader& o, const char* expected) {
+/// Returns the object's "name" ("" when absent).
+std::string read_type_label(ObjectReader& o, const char* expected) {
   if (auto* x = o.get("type")) {
     const std::string t = read_string(*x, o.sub("type"), expected);
     if (lower(t) != expected) throw SceneError(o.sub("type"), json_text(*x), in_quotes(expected) + " (or no type)");
   }
-  if (auto* x = o.get("name")) read_string(*x, o.sub("name"));
+  if (auto* x = o.get("name")) return read_string(*x, o.sub("name"));
+  return "";
 }
 
 BoundarySpec parse_boundary(const rj::Value& v, const std::string& path, const Context& ctx) {
@@ -949,18 +951,25 @@ GridSensorSpec parse_grid_sensor(const rj::Value& v, const std::string& path, co
       const char* choices = "one of X, X+, X-, Y, Y+, Y-, Z, Z+, Z-, or a vector of 3 numbers";
       const std::string t = read_string(*x, dp, choices);
       const std::string u = lower(t);
-      if (u.empty() || u.size() > 2 || (u[0] != 'x' && u[0] != 'y' && u[0] != 'z') ||
+      const bool scalar = s.attribute == "Mass" || s.attribute == "Volume" || s.attribute == "JBar";
+      if (u == "n/a") {  // ClaymoreUW's "no direction", meaningful for a scalar attribute only
+        if (!scalar)
+          throw SceneError(dp, json_text(*x), std::string(choices) + " (attribute " + s.attribute + " is a vector)");
+      } else if (u.empty() || u.size() > 2 || (u[0] != 'x' && u[0] != 'y' && u[0] != 'z') ||
           (u.size() == 2 && u[1] != '+' && u[1] != '-'))
         throw SceneError(dp, json_text(*x), choices);
-      s.direction = {0.0, 0.0, 0.0};
-      s.direction[u[0] - 'x'] = 1.0;
-      s.direction_sign = u.size() == 1 ? 0 : (u[1] == '+' ? 1 : -1);
+      if (u != "n/a") {
+        s.direction = {0.0, 0.0, 0.0};
+        s.direction[u[0] - 'x'] = 1.0;
+        s.direction_sign = u.size() == 1 ? 0 : (u[1] == '+' ? 1 : -1);
+      }
     }
   }
   if (auto f = o.get_any({"output_frequency", "output_freq"}))
     s.output_frequency = read_number(*f.value, f.path, kPositive, "Hz");
   std::tie(s.domain_start, s.domain_end) = read_region(o, false);
-  read_type_label(o, "grid");
+  s.name = read_type_label(o, "grid");
+  if (auto* x = o.get("toggle")) s.toggle = read_bool(*x, o.sub("toggle"));
   o.finish();
   return s;
 }
@@ -975,7 +984,8 @@ ParticleSensorSpec parse_particle_sensor(const rj::Value& v, const std::string& 
   if (auto f = o.get_any({"output_frequency", "output_freq"}))
     s.output_frequency = read_number(*f.value, f.path, kPositive, "Hz");
   std::tie(s.domain_start, s.domain_end) = read_region(o, false);
-  read_type_label(o, "particles");
+  s.name = read_type_label(o, "particles");
+  if (auto* x = o.get("toggle")) s.toggle = read_bool(*x, o.sub("toggle"));
   o.finish();
   return s;
 }

@@ -4,7 +4,8 @@
 // and F-bar; Box / Sphere / Cylinder geometry with every operation,
 // rotation and arrays; Walls, Box, Sphere, Cylinder, Floor, Plane and Velocity boundaries (Sticky / Slip / Separable, Coulomb friction,
 // constant velocity, any time window);
-// .bgeo / .geo / .csv frames with the attributes cpu_engine_supports_attribute() accepts. Everything else SCHEMA.md lists is parsed
+// .bgeo / .geo / .csv frames with the attributes cpu_engine_supports_attribute() accepts; grid sensors of Force,
+// Acceleration, Momentum, Velocity and Mass. Everything else SCHEMA.md lists is parsed
 // and range-checked by scene_parse.cpp, then refused here. A later release enables a feature by deleting its line.
 #include <algorithm>
 #include <array>
@@ -15,6 +16,7 @@
 
 #include "engine/cpu/cpu_engine.h"
 #include "physics/motion_path.h"
+#include "physics/sensors.cuh"
 #include "scene/scene_parse.h"
 
 namespace fbar {
@@ -110,8 +112,19 @@ void check_supported(const Scene& scene) {
     }
 
   }
-  if (!scene.grid_sensors.empty())
-    refuse("grid-sensors", std::to_string(scene.grid_sensors.size()) + " sensor(s)", "no grid-sensors", "grid-sensors");
+  int enabled = 0;
+  for (std::size_t i = 0; i < scene.grid_sensors.size(); ++i) {
+    const GridSensorSpec& g = scene.grid_sensors[i];
+    if (!g.toggle) continue;
+    ++enabled;
+    if (g.attribute == "Volume" || g.attribute == "JBar")
+      refuse(idx("grid-sensors", i) + ".attribute", q(g.attribute),
+             "one of Force, Acceleration, Momentum, Velocity, Mass (the grid stores no volume)",
+             "grid-sensor attribute " + g.attribute);
+  }
+  if (enabled > GridSensorSet<double>::kMax)
+    throw SceneError("grid-sensors", std::to_string(enabled) + " enabled sensors",
+                     "at most " + std::to_string(GridSensorSet<double>::kMax) + " (switch some off with toggle: false)");
   if (!scene.particle_sensors.empty())
     refuse("particle-sensors", std::to_string(scene.particle_sensors.size()) + " sensor(s)", "no particle-sensors",
            "particle-sensors");

@@ -334,6 +334,8 @@ class SceneWriter {
 
   void grid_sensor(const GridSensorSpec& g) {
     w_.StartObject();
+    if (!g.name.empty()) str("name", g.name);
+    if (!g.toggle) boolean("toggle", false);
     str("attribute", g.attribute);
     str("operation", to_string(g.operation));
     // Axis directions in ClaymoreUW's spelling (X, X+, X-), any other direction as a vector.
@@ -355,6 +357,8 @@ class SceneWriter {
 
   void particle_sensor(const ParticleSensorSpec& p) {
     w_.StartObject();
+    if (!p.name.empty()) str("name", p.name);
+    if (!p.toggle) boolean("toggle", false);
     str("attribute", p.attribute);
     str("operation", to_string(p.operation));
     num("output_frequency", p.output_frequency);
@@ -509,13 +513,14 @@ bool operator==(const BoundarySpec& a, const BoundarySpec& b) {
          a.bathymetry == b.bathymetry && a.use_custom_bathymetry == b.use_custom_bathymetry;
 }
 bool operator==(const GridSensorSpec& a, const GridSensorSpec& b) {
-  return a.attribute == b.attribute && a.operation == b.operation && a.direction == b.direction &&
+  return a.name == b.name && a.toggle == b.toggle && a.attribute == b.attribute && a.operation == b.operation &&
+         a.direction == b.direction &&
          a.direction_sign == b.direction_sign && a.output_frequency == b.output_frequency &&
          a.domain_start == b.domain_start && a.domain_end == b.domain_end;
 }
 bool operator==(const ParticleSensorSpec& a, const ParticleSensorSpec& b) {
-  return a.attribute == b.attribute && a.operation == b.operation && a.output_frequency == b.output_frequency &&
-         a.domain_start == b.domain_start && a.domain_end == b.domain_end;
+  return a.name == b.name && a.toggle == b.toggle && a.attribute == b.attribute && a.operation == b.operation &&
+         a.output_frequency == b.output_frequency && a.domain_start == b.domain_start && a.domain_end == b.domain_end;
 }
 bool operator==(const Scene& a, const Scene& b) {
   return a.simulation == b.simulation && a.bodies == b.bodies && a.boundaries == b.boundaries &&

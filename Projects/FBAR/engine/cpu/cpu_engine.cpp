@@ -21,6 +21,7 @@
 #include "io/particle_frame.h"
 #include "settings.h"
 #include "physics/time_step.cuh"
+#include "io/sensor_recorder.h"
 #include "physics/transfer.cuh"
 
 namespace fbar {
@@ -439,11 +440,16 @@ double CpuEngine<T, TG>::update_grid(TG dt) {
     if (boundary_active(kg_.boundaries[i], time_)) active.push_back(kg_.boundary_at_time(i, time_));
   const int nblocks = static_cast<int>(grid_.blocks.size());
   std::vector<double> block_mass(nblocks);
+  // Grid sensors: each block's reduction apart, merged in block order below (independent of the thread count).
+  const int sensors = grid_sample_slot_ >= 0 ? grid_sensors_.count : 0;
+  std::vector<SensorAccum> block_sensors(static_cast<std::size_t>(nblocks) * sensors);
   TG max_speed_sq = TG(0);
 #pragma omp parallel for schedule(static) reduction(max : max_speed_sq) if (nblocks >= kMinParallelBlocks)
   for (int gb = 0; gb < nblocks; ++gb) {
     GridBlock& g = grid_.blocks[gb];
     const Vec3i& c = grid_.coords[gb];
+    // A halo block is held by two ranks: its nodes count (mass, sensors) on the rank owning its plane.
+    const bool owned = ranks() == 1 || slabs_.owner(c[0], c[1], c[2]) == rank();
     double mass_sum = 0.0;
     for (int i = 0; i < kBlockSide; ++i)
       for (int j = 0; j < kBlockSide; ++j)
@@ -463,15 +469,27 @@ double CpuEngine<T, TG>::update_grid(TG dt) {
             const Vec3G x_node{{static_cast<TG>(c[0] * kBlockSide + i) * kg_.dx,
                                 static_cast<TG>(c[1] * kBlockSide + j) * kg_.dx,
                                 static_cast<TG>(c[2] * kBlockSide + k) * kg_.dx}};
+            const Vec3G v_free = v;
             for (const BoundaryParams<TG>& b : active) v = apply_boundary(b, x_node, v, &kg_.profiles);
+            if (sensors > 0 && owned)
+              accumulate_grid_sensors(grid_sensors_, x_node, m, v_free, v, dt,
+                                      &block_sensors[static_cast<std::size_t>(gb) * sensors]);
           }
           g.momentum[0][node] = v[0];
           g.momentum[1][node] = v[1];
           g.momentum[2][node] = v[2];
           max_speed_sq = std::max(max_speed_sq, dot(v, v));
         }
-    // A halo block is held by two ranks: its mass counts on the rank owning its plane.
-    block_mass[gb] = ranks() == 1 || slabs_.owner(c[0], c[1], c[2]) == rank() ? mass_sum : 0.0;
+    block_mass[gb] = owned ? mass_sum : 0.0;
+  }
+  if (sensors > 0) {
+    const std::size_t first = static_cast<std::size_t>(grid_sample_slot_) * sensors;
+    if (grid_samples_.size() < first + sensors) grid_samples_.resize(first + sensors);
+    for (int i = 0; i < sensors; ++i) {
+      SensorAccum total;
+      for (int gb = 0; gb < nblocks; ++gb) total.merge(block_sensors[static_cast<std::size_t>(gb) * sensors + i]);
+      grid_samples_[first + i] = total;
+    }
   }
   grid_mass_ = 0.0;
   for (double m : block_mass) grid_mass_ += m;
@@ -849,6 +867,23 @@ void CpuEngine<T, TG>::submit_frame(int body, const std::filesystem::path& path,
   const auto t0 = std::chrono::steady_clock::now();
   writer.submit(path, std::move(f));
   output_wait_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::set_grid_sensors(const std::vector<GridSensorSpec>& sensors) {
+  if (sensors.size() > static_cast<std::size_t>(GridSensorSet<TG>::kMax))
+    throw std::invalid_argument("grid-sensors: " + std::to_string(sensors.size()) + " enabled sensors; at most " +
+                                std::to_string(GridSensorSet<TG>::kMax) + " per run");
+  grid_sensors_ = GridSensorSet<TG>{};
+  for (const GridSensorSpec& spec : sensors) grid_sensors_.s[grid_sensors_.count++] = make_grid_sensor_params<TG>(spec);
+  grid_samples_.clear();
+}
+
+template <typename T, typename TG>
+std::vector<SensorAccum> CpuEngine<T, TG>::grid_samples(int slots) const {
+  const std::size_t n = static_cast<std::size_t>(slots) * grid_sensors_.count;
+  if (grid_samples_.size() < n) throw std::logic_error("CpuEngine::grid_samples: fewer slots were sampled");
+  return std::vector<SensorAccum>(grid_samples_.begin(), grid_samples_.begin() + static_cast<std::ptrdiff_t>(n));
 }
 
 template <typename T, typename TG>

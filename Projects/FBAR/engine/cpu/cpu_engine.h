@@ -61,6 +61,7 @@
 #include "MnSystem/IO/particle_io.h"
 #include "physics/boundary.cuh"
 #include "physics/constitutive_models.cuh"
+#include "physics/sensors.cuh"
 #include "engine/run_constants.h"
 #include "scene/scene.h"
 #include "physics/transfer.cuh"
@@ -167,6 +168,15 @@ class CpuEngine {
   void submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer);
   double output_wait_seconds() const { return output_wait_s_; }  ///< [s] waited in submit_frame
   std::string resource_note() const;                             ///< threads, for progress lines
+
+  // ------------------------------------------------------------------ grid sensors (physics/sensors.cuh)
+  /// The grid sensors a sampling step evaluates (at most GridSensorSet::kMax), in this order.
+  void set_grid_sensors(const std::vector<GridSensorSpec>& sensors);
+  /// The next steps' grid updates write every grid sensor's reduction over the nodes this rank owns into `slot`
+  /// (-1: they do not sample). A retried step overwrites the slot with its successful try.
+  void set_grid_sample(int slot) { grid_sample_slot_ = slot; }
+  /// This rank's values of slots [0, slots), slot-major (values[slot * sensors + i]).
+  std::vector<SensorAccum> grid_samples(int slots) const;
 
   // ------------------------------------------------------------------ decomposition (one rank: trivial)
   int rank() const { return transport_->rank(); }
@@ -342,6 +352,9 @@ class CpuEngine {
   bool partition_valid_ = false;
   bool asflip_ = false;  // some body uses ASFLIP: the grid update keeps v^n
   bool fbar_ = false;    // some body uses F-bar: the grid has cell sums
+  GridSensorSet<TG> grid_sensors_;         // evaluated by update_grid when grid_sample_slot_ >= 0
+  int grid_sample_slot_ = -1;
+  std::vector<SensorAccum> grid_samples_;  // (slot, sensor)
   std::ostream* log_;
 };
 

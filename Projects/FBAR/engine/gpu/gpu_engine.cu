@@ -81,6 +81,12 @@ void GpuEngine<T, TG>::set_frame_capture(bool on) { impl_->set_frame_capture(on)
 template <typename T, typename TG>
 double GpuEngine<T, TG>::output_wait_seconds() const { return impl_->output_wait_seconds(); }
 template <typename T, typename TG>
+void GpuEngine<T, TG>::set_grid_sensors(const std::vector<GridSensorSpec>& sensors) { impl_->set_grid_sensors(sensors); }
+template <typename T, typename TG>
+void GpuEngine<T, TG>::set_grid_sample(int slot) { impl_->set_grid_sample(slot); }
+template <typename T, typename TG>
+std::vector<SensorAccum> GpuEngine<T, TG>::grid_samples(int slots) const { return impl_->grid_samples(slots); }
+template <typename T, typename TG>
 const DeviceMemoryPlan& GpuEngine<T, TG>::memory_plan() const { return impl_->memory_plan(); }
 template <typename T, typename TG>
 std::size_t GpuEngine<T, TG>::peak_device_bytes() const { return impl_->peak_device_bytes(); }

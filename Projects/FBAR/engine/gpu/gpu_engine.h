@@ -128,6 +128,11 @@ class GpuEngine {
   /// and writes the file. The step loop waits only while the previous frame's buffer is still being read.
   void submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer);
   double output_wait_seconds() const;      ///< [s] spent waiting in submit_frame for the writer
+  /// Grid sensors (as CpuEngine): the sensors a sampling step evaluates; the slot the next steps sample into
+  /// (-1: none); this rank's values of slots [0, slots), slot-major (one download).
+  void set_grid_sensors(const std::vector<GridSensorSpec>& sensors);
+  void set_grid_sample(int slot);
+  std::vector<SensorAccum> grid_samples(int slots) const;
   const DeviceMemoryPlan& memory_plan() const;  ///< what the engine planned and allocated at start
   std::size_t peak_device_bytes() const;   ///< most device memory the engine's buffers held so far
   std::string resource_note() const;       ///< device memory now and at its peak, for progress lines

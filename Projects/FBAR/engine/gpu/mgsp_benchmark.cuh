@@ -68,6 +68,7 @@
 #include "engine/gpu/mgmpm_kernels.cuh"
 #include "engine/gpu/particle_buffer.cuh"
 #include "io/particle_frame.h"
+#include "io/sensor_recorder.h"
 #include "engine/gpu/partition_domain.h"
 #include "engine/run_constants.h"
 #include "physics/time_step.cuh"
@@ -199,6 +200,11 @@ class MgspBenchmark {
   std::size_t peak_device_bytes() const { return peak_bytes_; }
   void set_kernel_timing(bool on) { timing_ = on; }
   KernelTimes kernel_times() const { return times_; }
+  /// Grid sensors (physics/sensors.cuh): evaluated after the grid update of a step that samples (set_grid_sample),
+  /// into a device slot; grid_samples() downloads the slots (one copy per flush, not per sample).
+  void set_grid_sensors(const std::vector<GridSensorSpec>& sensors);
+  void set_grid_sample(int slot);
+  std::vector<SensorAccum> grid_samples(int slots) const;
   long long p2g_range_repeats() const { return p2g_range_repeats_; }
   int body_count() const { return static_cast<int>(bodies_.size()); }
   std::size_t particle_count(int body) const { return static_cast<std::size_t>(body_at(body).particles); }
@@ -596,6 +602,9 @@ class MgspBenchmark {
   mgsp_detail::DeviceArray<std::byte> scan_temp_;
   std::size_t scan_temp_bytes_ = 0;
   mgsp_detail::DeviceArray<int> missing_d_;
+  GridSensorSet<TG> grid_sensors_;
+  int grid_sample_slot_ = -1;
+  mgsp_detail::DeviceArray<SensorAccum> grid_samples_d_;  ///< (slot, sensor)
 
   int cur_ = 0;   ///< current particle buffer and layout
   int gc_ = 0;    ///< current grid
@@ -1309,6 +1318,27 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
                                             kGridUpdateThreads, 0, stream_>>>(gp);
         mgsp_detail::check_launch("update_grid_velocity_query_max");
       }
+      if (grid_sample_slot_ >= 0 && grid_sensors_.count > 0) {  // a sample step (each try overwrites the slot)
+        SensorAccum* out = grid_samples_d_.get() + static_cast<std::size_t>(grid_sample_slot_) * grid_sensors_.count;
+        reset_sensor_slot<<<1, GridSensorSet<TG>::kMax, 0, stream_>>>(out, grid_sensors_.count);
+        mgsp_detail::check_launch("reset_sensor_slot");
+        if (block_count_ > 0) {
+          GridSensorSampleParams<TG> sp{};
+          sp.grid = gp.grid;
+          sp.velocity = gp.velocity;
+          sp.coords = gp.coords;
+          sp.block_count = block_count_;
+          sp.dt = gp.dt;
+          sp.dx = gp.dx;
+          sp.gravity = gp.gravity;
+          sp.slab = slab_;
+          sp.sensors = grid_sensors_;
+          sp.out = out;
+          sample_grid_sensors<TG><<<mgsp_detail::grid_for(block_count_, kGridUpdateThreads / 64), kGridUpdateThreads, 0,
+                                    stream_>>>(sp);
+          mgsp_detail::check_launch("sample_grid_sensors");
+        }
+      }
     }
     // 2. dt of the next step (its P2G impulse)
     {
@@ -1482,11 +1512,52 @@ void MgspBenchmark<T, TG>::ensure_step_capacity() {
 }
 
 template <typename T, typename TG>
+void MgspBenchmark<T, TG>::set_grid_sensors(const std::vector<GridSensorSpec>& sensors) {
+  if (sensors.size() > static_cast<std::size_t>(GridSensorSet<TG>::kMax))
+    throw std::invalid_argument("grid-sensors: " + std::to_string(sensors.size()) + " enabled sensors; at most " +
+                                std::to_string(GridSensorSet<TG>::kMax) + " per run");
+  grid_sensors_ = GridSensorSet<TG>{};
+  for (const GridSensorSpec& spec : sensors) grid_sensors_.s[grid_sensors_.count++] = make_grid_sensor_params<TG>(spec);
+  grid_sample_slot_ = -1;
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::set_grid_sample(int slot) {
+  grid_sample_slot_ = slot;
+  if (slot < 0 || grid_sensors_.count == 0) return;
+  const std::size_t need = static_cast<std::size_t>(slot + 1) * grid_sensors_.count;
+  if (grid_samples_d_.size() >= need) return;
+  // Grow (rare: the slots of one frame interval), keeping the slots already sampled.
+  mgsp_detail::DeviceArray<SensorAccum> bigger;
+  bigger.allocate(std::max(need, 2 * grid_samples_d_.size()));
+  if (grid_samples_d_.size())
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(bigger.get(), grid_samples_d_.get(), sizeof(SensorAccum) * grid_samples_d_.size(),
+                                    cudaMemcpyDeviceToDevice, stream_));
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+  grid_samples_d_.swap(bigger);
+}
+
+template <typename T, typename TG>
+std::vector<SensorAccum> MgspBenchmark<T, TG>::grid_samples(int slots) const {
+  const std::size_t n = static_cast<std::size_t>(slots) * grid_sensors_.count;
+  std::vector<SensorAccum> host(n);
+  if (n == 0) return host;
+  if (grid_samples_d_.size() < n) throw std::logic_error("GpuEngine::grid_samples: fewer slots were sampled");
+  FBAR_CUDA_CHECK(cudaMemcpyAsync(host.data(), grid_samples_d_.get(), sizeof(SensorAccum) * n, cudaMemcpyDeviceToHost,
+                                  stream_));
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+  return host;
+}
+
+template <typename T, typename TG>
 StepReport MgspBenchmark<T, TG>::step_toward(double t_end) {
   const double remaining = t_end - time_;
   double dt = next_dt();
   const bool last = dt >= remaining;
-  if (last) dt = remaining;
+  if (last)
+    dt = remaining;
+  else if (2.0 * dt > remaining)
+    dt = 0.5 * remaining;  // two equal steps rather than a full one and a sliver (as the CPU engine)
   StepReport r = step_impl(dt, true, t_end);
   if (r.ok && last && r.retries == 0) time_ = t_end;  // land on the target exactly, not t_end +- round-off
   return r;

@@ -7,6 +7,7 @@
 #include "physics/boundary.cuh"
 #include "engine/gpu/grid_buffer.cuh"
 #include "physics/grid_update.cuh"
+#include "physics/sensors.cuh"
 #include "engine/gpu/hash_table.cuh"
 #include "engine/gpu/kernels/kernel_common.cuh"
 #include "physics/time_step.cuh"
@@ -81,6 +82,94 @@ __global__ void __launch_bounds__(kGridUpdateThreads) update_grid_velocity_query
   if (threadIdx.x % 32 == 0 && speed_sq > 0.0) atomic_max_nonneg(&p.stats->max_speed_sq, speed_sq);
 }
 
+/// The grid sensors of a sampling step (physics/sensors.cuh), evaluated after the grid update from the same P2G sums
+/// (v* = p/m + dt g again, bit for bit the update's) and the velocities it wrote, on the nodes this rank owns.
+template <typename T>
+struct GridSensorSampleParams {
+  typename GridLayout<T>::Buffer grid;              ///< P2G sums of the step
+  typename GridLayout<T>::VelocityBuffer velocity;  ///< node velocities after the boundary projections
+  const int* coords;
+  int block_count;
+  T dt;
+  T dx;
+  Vec3<T> gravity;
+  SlabBounds slab;
+  GridSensorSet<T> sensors;
+  SensorAccum* out;  ///< (sensor) this sample's slot, reset beforehand (reset_sensor_slot)
+};
+
+static __global__ void reset_sensor_slot(SensorAccum* out, int count) {
+  if (threadIdx.x < count) out[threadIdx.x] = SensorAccum{};
+}
+
+/// A non-negative or negative double's atomic max / min (compare-and-swap; a few calls per warp and sample).
+FBAR_DEVICE inline void atomic_max_double(double* address, double value) {
+  unsigned long long* a = reinterpret_cast<unsigned long long*>(address);
+  unsigned long long old = *a;
+  while (value > __longlong_as_double(static_cast<long long>(old))) {
+    const unsigned long long seen = atomicCAS(a, old, static_cast<unsigned long long>(__double_as_longlong(value)));
+    if (seen == old) break;
+    old = seen;
+  }
+}
+FBAR_DEVICE inline void atomic_min_double(double* address, double value) {
+  unsigned long long* a = reinterpret_cast<unsigned long long*>(address);
+  unsigned long long old = *a;
+  while (value < __longlong_as_double(static_cast<long long>(old))) {
+    const unsigned long long seen = atomicCAS(a, old, static_cast<unsigned long long>(__double_as_longlong(value)));
+    if (seen == old) break;
+    old = seen;
+  }
+}
+
+/// One thread per node; per sensor a warp reduction, then one set of atomics per warp.
+template <typename T>
+__global__ void __launch_bounds__(kGridUpdateThreads) sample_grid_sensors(GridSensorSampleParams<T> p) {
+  const int block = blockIdx.x * (kGridUpdateThreads / 64) + threadIdx.x / 64;
+  const int node = threadIdx.x % 64;
+  bool active = false;
+  T m = T(0);
+  Vec3<T> x_node{}, v_free{}, v{};
+  if (block < p.block_count && p.slab.owns(p.coords[3 * block], p.coords[3 * block + 1], p.coords[3 * block + 2])) {
+    m = block_val(p.grid, grid_mass, block, node);
+    if (m > T(0)) {
+      active = true;
+      const Vec3<T> momentum{{block_val(p.grid, grid_momentum_x, block, node),
+                              block_val(p.grid, grid_momentum_y, block, node),
+                              block_val(p.grid, grid_momentum_z, block, node)}};
+      v_free = grid_node_velocity(m, momentum, p.gravity, p.dt);
+      v = Vec3<T>{{block_val(p.velocity, grid_velocity_x, block, node), block_val(p.velocity, grid_velocity_y, block, node),
+                   block_val(p.velocity, grid_velocity_z, block, node)}};
+      const int i = node / 16, j = (node / 4) % 4, k = node % 4;
+      x_node = Vec3<T>{{static_cast<T>(p.coords[3 * block + 0] * 4 + i) * p.dx,
+                        static_cast<T>(p.coords[3 * block + 1] * 4 + j) * p.dx,
+                        static_cast<T>(p.coords[3 * block + 2] * 4 + k) * p.dx}};
+    }
+  }
+  for (int s = 0; s < p.sensors.count; ++s) {
+    const GridSensorParams<T>& g = p.sensors.s[s];
+    SensorAccum a;
+    if (active && sensor_box_contains(g.lo, g.hi, x_node)) a.add(static_cast<double>(grid_sensor_value(g, m, v_free, v, p.dt)));
+    for (int offset = 16; offset > 0; offset /= 2) {
+      SensorAccum o;
+      o.sum = __shfl_down_sync(0xffffffffu, a.sum, offset);
+      o.sum_sq = __shfl_down_sync(0xffffffffu, a.sum_sq, offset);
+      o.count = __shfl_down_sync(0xffffffffu, a.count, offset);
+      o.max = __shfl_down_sync(0xffffffffu, a.max, offset);
+      o.min = __shfl_down_sync(0xffffffffu, a.min, offset);
+      a.merge(o);
+    }
+    if (threadIdx.x % 32 == 0 && a.count > 0.0) {
+      SensorAccum* out = p.out + s;
+      atomicAdd(&out->sum, a.sum);
+      atomicAdd(&out->sum_sq, a.sum_sq);
+      atomicAdd(&out->count, a.count);
+      atomic_max_double(&out->max, a.max);
+      atomic_min_double(&out->min, a.min);
+    }
+  }
+}
+
 /// Per-body inputs of the time-step bound.
 struct DtBody {
   double cfl;
@@ -116,8 +205,13 @@ static __global__ void compute_next_dt(DtParams p) {
     }
     dt *= p.scale;
   }
+  // Land on the target; when one more step would leave a sliver, two equal steps share what remains (as the
+  // host's step_toward), so no step is shorter than half of the CFL dt.
   const double remaining = p.t_target - p.t_next;
-  if (remaining > 0.0 && dt >= remaining) dt = remaining;
+  if (remaining > 0.0 && dt >= remaining)
+    dt = remaining;
+  else if (remaining > 0.0 && 2.0 * dt > remaining)
+    dt = 0.5 * remaining;
   p.stats->dt_next = dt;
 }
 

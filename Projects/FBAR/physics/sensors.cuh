@@ -1,0 +1,108 @@
+// Grid sensors (load cells), host and device: the value a node contributes to a sensor and the running reduction of
+// one sample. Both engines evaluate grid_sensor_value() in their grid update, on the nodes they own, and the run loop
+// reduces the ranks' SensorAccum (io/sensor_recorder.h) into one value per sensor and sample.
+//
+// What a node contributes (node of mass m > 0 whose position lies in [domain_start, domain_end], both ends included;
+// v* = p/m + dt g is its velocity before the boundary projections of this step, v the velocity after them):
+//   Force         [N]     m (v* - v) / dt: the force the material exerts on the boundaries at the node, i.e. minus
+//                         the momentum change the boundary projections cause divided by dt (zero at nodes no
+//                         boundary touches). A wall pushed by water in +x reads positive along X.
+//   Acceleration  [m/s^2] (v* - v) / dt: that force per unit node mass.
+//   Momentum      [kg m/s] m v
+//   Velocity      [m/s]   v
+//   Mass          [kg]    m (no direction)
+// A vector quantity is projected on the sensor's unit direction; a direction with a sign keeps only that side of the
+// projection, as a magnitude (ClaymoreUW's X+ / X-): X+ gives max(q.x, 0), X- gives max(-q.x, 0).
+#pragma once
+
+#include <cmath>
+#include <limits>
+
+#include "MnBase/Math/vec.h"
+#include "MnBase/Meta/config.h"
+
+namespace fbar {
+
+enum class GridSensorQuantity : int { Force, Acceleration, Momentum, Velocity, Mass };
+
+/// One grid sensor as the grid update sees it (trivially copyable; built by make_grid_sensor_params).
+template <typename T>
+struct GridSensorParams {
+  GridSensorQuantity quantity = GridSensorQuantity::Mass;
+  Vec3<T> direction{};  ///< unit vector (vector quantities)
+  int sign = 0;         ///< +1: positive side only, -1: negative side only (as a magnitude), 0: signed projection
+  Vec3<T> lo{};         ///< [m] box, inclusive
+  Vec3<T> hi{};         ///< [m]
+};
+
+/// The grid sensors of one grid update (a kernel parameter).
+template <typename T>
+struct GridSensorSet {
+  static constexpr int kMax = 16;
+  int count = 0;
+  GridSensorParams<T> s[kMax];
+};
+
+/// Running reduction of one sensor's values in one sample: Sum, Count, Average, STDEV, Max and Min follow from it.
+struct SensorAccum {
+  double sum = 0.0;
+  double sum_sq = 0.0;
+  double count = 0.0;
+  double max = -std::numeric_limits<double>::infinity();
+  double min = std::numeric_limits<double>::infinity();
+
+  FBAR_HOST_DEVICE void add(double v) {
+    sum += v;
+    sum_sq += v * v;
+    count += 1.0;
+    max = v > max ? v : max;
+    min = v < min ? v : min;
+  }
+  FBAR_HOST_DEVICE void merge(const SensorAccum& o) {
+    sum += o.sum;
+    sum_sq += o.sum_sq;
+    count += o.count;
+    max = o.max > max ? o.max : max;
+    min = o.min < min ? o.min : min;
+  }
+};
+
+template <typename T>
+FBAR_HOST_DEVICE inline bool sensor_box_contains(const Vec3<T>& lo, const Vec3<T>& hi, const Vec3<T>& x) {
+  return x[0] >= lo[0] && x[0] <= hi[0] && x[1] >= lo[1] && x[1] <= hi[1] && x[2] >= lo[2] && x[2] <= hi[2];
+}
+
+/// A vector quantity seen by a sensor: its projection on the direction, one-sided when sign != 0.
+template <typename T>
+FBAR_HOST_DEVICE inline T sensor_projection(const GridSensorParams<T>& s, const Vec3<T>& q) {
+  const T p = dot(q, s.direction);
+  if (s.sign > 0) return p > T(0) ? p : T(0);
+  if (s.sign < 0) return p < T(0) ? -p : T(0);
+  return p;
+}
+
+/// What a node (mass m > 0 inside the sensor's box) contributes: m, the velocity v* before and v after the boundary
+/// projections of a step of dt.
+template <typename T>
+FBAR_HOST_DEVICE inline T grid_sensor_value(const GridSensorParams<T>& s, T m, const Vec3<T>& v_free, const Vec3<T>& v,
+                                            T dt) {
+  switch (s.quantity) {
+    case GridSensorQuantity::Force: return sensor_projection(s, (v_free - v) * (m / dt));
+    case GridSensorQuantity::Acceleration: return sensor_projection(s, (v_free - v) / dt);
+    case GridSensorQuantity::Momentum: return sensor_projection(s, v * m);
+    case GridSensorQuantity::Velocity: return sensor_projection(s, v);
+    case GridSensorQuantity::Mass: return m;
+  }
+  return T(0);
+}
+
+/// Adds a node to every sensor of `set` whose box holds it (mass m > 0, position x).
+template <typename T>
+FBAR_HOST_DEVICE inline void accumulate_grid_sensors(const GridSensorSet<T>& set, const Vec3<T>& x, T m,
+                                                     const Vec3<T>& v_free, const Vec3<T>& v, T dt, SensorAccum* acc) {
+  for (int i = 0; i < set.count; ++i)
+    if (sensor_box_contains(set.s[i].lo, set.s[i].hi, x))
+      acc[i].add(static_cast<double>(grid_sensor_value(set.s[i], m, v_free, v, dt)));
+}
+
+}  // namespace fbar

@@ -1,0 +1,233 @@
+// Grid sensors (physics/sensors.cuh, io/sensor_recorder.h) on the CPU engine: the reductions, what a node
+// contributes, the exact sample times of the run loop, a moving block's momentum and mass, and the same sums on 1
+// and 2 ranks. The hydrostatic load cell (a wall's force against rho g h^2 / 2) is in tests/validation.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "comm/transport.h"
+#include "decomposition_scenes.h"
+#include "engine/cpu/cpu_engine.h"
+#include "engine/engine_api.h"
+#include "io/sensor_recorder.h"
+#include "physics_test_support.h"
+
+namespace fbar {
+namespace {
+
+GridSensorSpec sensor(const std::string& attribute, SensorOperation op, Real3 lo, Real3 hi, Real3 direction = {1, 0, 0},
+                      int sign = 0) {
+  GridSensorSpec s;
+  s.attribute = attribute;
+  s.operation = op;
+  s.domain_start = lo;
+  s.domain_end = hi;
+  s.direction = direction;
+  s.direction_sign = sign;
+  return s;
+}
+
+TEST(SensorReduction, OperationsFromTheAccumulator) {
+  SensorAccum a;
+  for (double v : {2.0, -1.0, 4.0, 3.0}) a.add(v);
+  EXPECT_DOUBLE_EQ(sensor_result(SensorOperation::Sum, a), 8.0);
+  EXPECT_DOUBLE_EQ(sensor_result(SensorOperation::Count, a), 4.0);
+  EXPECT_DOUBLE_EQ(sensor_result(SensorOperation::Average, a), 2.0);
+  EXPECT_DOUBLE_EQ(sensor_result(SensorOperation::Max, a), 4.0);
+  EXPECT_DOUBLE_EQ(sensor_result(SensorOperation::Min, a), -1.0);
+  // population variance: ((0)^2 + 3^2 + 2^2 + 1^2) / 4 = 3.5
+  EXPECT_NEAR(sensor_result(SensorOperation::Variance, a), 3.5, 1e-14);
+  EXPECT_NEAR(sensor_result(SensorOperation::STDEV, a), std::sqrt(3.5), 1e-14);
+  // Merging two halves gives the whole.
+  SensorAccum lo, hi;
+  lo.add(2.0);
+  lo.add(-1.0);
+  hi.add(4.0);
+  hi.add(3.0);
+  lo.merge(hi);
+  EXPECT_DOUBLE_EQ(lo.sum, a.sum);
+  EXPECT_DOUBLE_EQ(lo.max, a.max);
+  EXPECT_DOUBLE_EQ(lo.min, a.min);
+  // No node: Sum and Count are 0, the rest undefined.
+  const SensorAccum none;
+  EXPECT_EQ(sensor_result(SensorOperation::Sum, none), 0.0);
+  EXPECT_EQ(sensor_result(SensorOperation::Count, none), 0.0);
+  EXPECT_TRUE(std::isnan(sensor_result(SensorOperation::Max, none)));
+  EXPECT_TRUE(std::isnan(sensor_result(SensorOperation::Average, none)));
+}
+
+TEST(SensorReduction, NodeValuesAndDirections) {
+  GridSensorParams<double> s = make_grid_sensor_params<double>(
+      sensor("Force", SensorOperation::Sum, {0, 0, 0}, {1, 1, 1}, {1, 0, 0}, 0));
+  const double m = 2.0, dt = 0.5;
+  const Vec3d v_free{{3.0, -1.0, 0.0}}, v{{1.0, -1.0, 0.0}};  // the boundary took 2 m/s of x velocity
+  EXPECT_DOUBLE_EQ(grid_sensor_value(s, m, v_free, v, dt), 2.0 * 2.0 / 0.5);  // m (v* - v) / dt, along +x
+  s.sign = -1;
+  EXPECT_DOUBLE_EQ(grid_sensor_value(s, m, v_free, v, dt), 0.0);  // X-: only the negative side, as a magnitude
+  s.sign = 1;
+  EXPECT_DOUBLE_EQ(grid_sensor_value(s, m, v_free, v, dt), 8.0);
+  s = make_grid_sensor_params<double>(sensor("Momentum", SensorOperation::Sum, {0, 0, 0}, {1, 1, 1}, {0, 1, 0}, -1));
+  EXPECT_DOUBLE_EQ(grid_sensor_value(s, m, v_free, v, dt), 2.0);  // Y-: |m v_y| of a downward velocity
+  s = make_grid_sensor_params<double>(
+      sensor("Velocity", SensorOperation::Sum, {0, 0, 0}, {1, 1, 1}, {std::sqrt(0.5), std::sqrt(0.5), 0}, 0));
+  EXPECT_NEAR(grid_sensor_value(s, m, v_free, v, dt), 0.0, 1e-15);
+  s = make_grid_sensor_params<double>(sensor("Acceleration", SensorOperation::Sum, {0, 0, 0}, {1, 1, 1}));
+  EXPECT_DOUBLE_EQ(grid_sensor_value(s, m, v_free, v, dt), 4.0);
+  s = make_grid_sensor_params<double>(sensor("Mass", SensorOperation::Sum, {0, 0, 0}, {1, 1, 1}));
+  EXPECT_DOUBLE_EQ(grid_sensor_value(s, m, v_free, v, dt), 2.0);
+  // The box includes its faces.
+  EXPECT_TRUE(sensor_box_contains(s.lo, s.hi, Vec3d{{1.0, 0.0, 0.5}}));
+  EXPECT_FALSE(sensor_box_contains(s.lo, s.hi, Vec3d{{1.0 + 1e-12, 0.0, 0.5}}));
+}
+
+TEST(SensorRecorder, SampleTimesAreExactAndEndBeforeTheRunsEnd) {
+  Scene scene = test::empty_scene(test::r3(1, 1, 1), 0.1, test::r3(0, 0, 0));
+  scene.simulation.save_path = (std::filesystem::path(::testing::TempDir()) / "fbar_sensor_schedule").string();
+  scene.simulation.fps = 2.0;
+  GridSensorSpec a = sensor("Mass", SensorOperation::Sum, {0, 0, 0}, {1, 1, 1});
+  a.output_frequency = 4.0;
+  GridSensorSpec off = a;
+  off.toggle = false;
+  GridSensorSpec b = a;
+  b.output_frequency = 3.0;
+  scene.grid_sensors = {a, off, b};
+  SensorRecorder r(scene, nullptr, 0.0, 1.0);
+  ASSERT_EQ(r.grid_sensors().size(), 2u);  // the switched-off one is skipped
+  std::vector<double> times;
+  while (std::isfinite(r.next_time())) {
+    const double t = r.next_time();
+    ASSERT_GE(r.slot_for(t), 0);
+    times.push_back(t);
+    r.taken(t);
+    if (r.pending() == r.capacity()) r.flush(std::vector<SensorAccum>(r.pending() * 2));
+  }
+  // 4 Hz: 0, .25, .5, .75; 3 Hz: 0, 1/3, 2/3 (1.0 is the end: no step starts there); shared slot at 0.
+  const std::vector<double> expected{0.0, 0.25, 1.0 / 3.0, 0.5, 2.0 / 3.0, 0.75};
+  ASSERT_EQ(times.size(), expected.size());
+  for (std::size_t i = 0; i < times.size(); ++i) EXPECT_DOUBLE_EQ(times[i], expected[i]);
+  EXPECT_EQ(r.slot_for(0.1), -1);
+}
+
+/// A block at 1.5 m/s along x without gravity or boundaries: the grid's momentum is the particles' (partition of
+/// unity; the internal forces of an unstressed block are zero and sum to zero anyway), m v along X, 0 along Y.
+TEST(GridSensors, MovingBlockMomentumAndMass) {
+  Scene scene = test::empty_scene(test::r3(1, 0.5, 0.5), 0.02, test::r3(0, 0, 0));
+  scene.bodies.push_back(
+      test::box_body(Constitutive::FixedCorotated, test::r3(0.2, 0.1, 0.1), test::r3(0.2, 0.2, 0.2), test::r3(1.5, 0, 0)));
+  CpuEngine<double> engine(scene);
+  engine.set_log(nullptr);
+  const Real3 lo{0, 0, 0}, hi{1, 0.5, 0.5};
+  engine.set_grid_sensors({sensor("Momentum", SensorOperation::Sum, lo, hi, {1, 0, 0}),
+                           sensor("Mass", SensorOperation::Sum, lo, hi),
+                           sensor("Momentum", SensorOperation::Sum, lo, hi, {0, 1, 0}),
+                           sensor("Velocity", SensorOperation::Max, lo, hi, {1, 0, 0}),
+                           sensor("Velocity", SensorOperation::Min, lo, hi, {1, 0, 0}),
+                           sensor("Force", SensorOperation::Sum, lo, hi, {1, 0, 0})});
+  const double m = engine.total_mass();
+  for (int step = 0; step < 20; ++step) {
+    engine.set_grid_sample(step % 3);
+    ASSERT_TRUE(engine.step().ok);
+    const std::vector<SensorAccum> s = engine.grid_samples(step % 3 + 1);
+    const SensorAccum* now = &s[(step % 3) * 6];
+    EXPECT_NEAR(sensor_result(SensorOperation::Sum, now[0]), 1.5 * m, 1e-12 * m);
+    EXPECT_NEAR(sensor_result(SensorOperation::Sum, now[1]), m, 1e-12 * m);
+    EXPECT_NEAR(sensor_result(SensorOperation::Sum, now[2]), 0.0, 1e-12 * m);
+    EXPECT_NEAR(sensor_result(SensorOperation::Max, now[3]), 1.5, 1e-12);
+    EXPECT_NEAR(sensor_result(SensorOperation::Min, now[4]), 1.5, 1e-12);
+    EXPECT_EQ(sensor_result(SensorOperation::Sum, now[5]), 0.0);  // no boundary: no force
+  }
+}
+
+/// Reads a sensor CSV: its header and rows (time, value).
+struct Csv {
+  std::string header;
+  std::vector<std::pair<double, double>> rows;
+};
+Csv read_csv(const std::filesystem::path& path) {
+  Csv c;
+  std::ifstream in(path);
+  EXPECT_TRUE(in.good()) << path;
+  std::getline(in, c.header);
+  std::string line;
+  while (std::getline(in, line)) {
+    std::istringstream ss(line);
+    std::string t, v;
+    std::getline(ss, t, ',');
+    std::getline(ss, v, ',');
+    c.rows.emplace_back(std::stod(t), std::stod(v));
+  }
+  return c;
+}
+
+/// The dam break of the decomposition tests with two load cells (the floor's force, the water's mass) run
+/// through the run loop on `ranks` ranks (threads).
+std::filesystem::path run_dam_break_with_sensors(int ranks) {
+  Scene scene = test::dam_break(false);
+  scene.simulation.fps = 50.0;
+  scene.simulation.frames = 3;
+  scene.simulation.save_path =
+      (std::filesystem::path(::testing::TempDir()) / ("fbar_sensors_ranks" + std::to_string(ranks))).string();
+  std::filesystem::remove_all(scene.simulation.save_path);
+  // The floor's load cell: the Walls' bottom nodes (y < 0.02 + 1.5 dx); water pushes down, read as Y-.
+  GridSensorSpec force = sensor("Force", SensorOperation::Sum, {0, 0, 0}, {0.64, 0.05, 0.2}, {0, 1, 0}, -1);
+  force.output_frequency = 200.0;
+  GridSensorSpec mass = sensor("Mass", SensorOperation::Sum, {0, 0, 0}, {0.64, 0.4, 0.2});
+  mass.output_frequency = 120.0;
+  scene.grid_sensors = {force, mass};
+  std::vector<std::unique_ptr<comm::Transport>> transports = comm::make_thread_transports(ranks);
+  std::vector<RunResult> results(ranks);
+  std::vector<std::thread> threads;
+  for (int r = 0; r < ranks; ++r)
+    threads.emplace_back([&, r] {
+      RunOptions o;
+      o.quiet = true;
+      o.transport = ranks > 1 ? transports[r].get() : nullptr;
+      results[r] = run_cpu(scene, o);
+    });
+  for (auto& t : threads) t.join();
+  for (const RunResult& r : results) EXPECT_EQ(r.exit_code, 0) << r.message;
+  return scene.simulation.save_path;
+}
+
+TEST(GridSensors, RunLoopWritesExactSampleTimesAndRanksAgree) {
+  const std::filesystem::path one = run_dam_break_with_sensors(1);
+  const std::filesystem::path two = run_dam_break_with_sensors(2);
+  const Csv f1 = read_csv(one / "gridTarget[0]_dev[0].csv"), f2 = read_csv(two / "gridTarget[0]_dev[0].csv");
+  const Csv m1 = read_csv(one / "gridTarget[1]_dev[0].csv"), m2 = read_csv(two / "gridTarget[1]_dev[0].csv");
+  EXPECT_EQ(f1.header, "Time [s],Force [N]");
+  EXPECT_EQ(m1.header, "Time [s],Mass [kg]");
+  // 3 frames at 50 fps = 0.06 s: 200 Hz gives 12 samples (t = k / 200, k < 12), 120 Hz gives 8 (k / 120, k < 8; 7.2).
+  ASSERT_EQ(f1.rows.size(), 12u);
+  ASSERT_EQ(m1.rows.size(), 8u);
+  for (std::size_t k = 0; k < f1.rows.size(); ++k) EXPECT_NEAR(f1.rows[k].first, k / 200.0, 1e-12);
+  for (std::size_t k = 0; k < m1.rows.size(); ++k) EXPECT_NEAR(m1.rows[k].first, k / 120.0, 1e-12);
+  // The water's mass on the grid: 0.3 x 0.2 x 0.12 m of rho 1000 (partition of unity).
+  for (const auto& row : m1.rows) EXPECT_NEAR(row.second, 1000.0 * 0.3 * 0.2 * 0.12, 1e-9);
+  // Two ranks: the same rows; the sums differ by summation order only (halo nodes count once).
+  ASSERT_EQ(f2.rows.size(), f1.rows.size());
+  ASSERT_EQ(m2.rows.size(), m1.rows.size());
+  for (std::size_t k = 0; k < f1.rows.size(); ++k) {
+    EXPECT_EQ(f2.rows[k].first, f1.rows[k].first);
+    EXPECT_NEAR(f2.rows[k].second, f1.rows[k].second, 1e-9 * (1.0 + std::fabs(f1.rows[k].second)));
+  }
+  for (std::size_t k = 0; k < m1.rows.size(); ++k) EXPECT_NEAR(m2.rows[k].second, m1.rows[k].second, 1e-12);
+  // The floor carries the water: a positive load, first only the weight of the mass at the floor's nodes (the
+  // column starts stress-free), then of the order of the whole weight as the pressure builds.
+  const double weight = 1000.0 * 0.3 * 0.2 * 0.12 * 9.81;
+  for (const auto& row : f1.rows) {
+    EXPECT_GT(row.second, 0.0);
+    EXPECT_LT(row.second, 3.0 * weight);
+  }
+  EXPECT_GT(f1.rows.back().second, 0.3 * weight);
+}
+
+}  // namespace
+}  // namespace fbar
