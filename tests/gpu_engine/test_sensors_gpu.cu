@@ -48,13 +48,16 @@ constexpr int kSteps = 60;
 /// Per step, per sensor: the reduced value (allreduced over the ranks of `host`).
 using Series = std::vector<std::vector<double>>;
 
+/// Fixed steps of kDt (the engines' CFL steps are compared elsewhere: here the sensors are).
+constexpr double kDt = 2e-4;
+
 template <class Engine>
 Series sample_every_step(Engine& engine, comm::Transport* host, const std::vector<GridSensorSpec>& sensors) {
   Series out;
   engine.set_grid_sensors(sensors);
   for (int s = 0; s < kSteps; ++s) {
     engine.set_grid_sample(0);
-    const StepReport r = engine.step();
+    const StepReport r = engine.step(kDt);
     if (!r.ok) throw std::runtime_error(r.message());
     std::vector<SensorAccum> a = engine.grid_samples(1);
     std::vector<double> row;
@@ -97,8 +100,8 @@ TEST(GpuGridSensors, MatchTheCpuEngine) {
   gpu.set_log(nullptr);
   const Series c = sample_every_step(cpu, nullptr, sensors);
   const Series g = sample_every_step(gpu, nullptr, sensors);
-  // Double precision; the engines' states agree to ~1e-12 m after these steps (test_gpu_vs_cpu.cu), node sums to
-  // summation order: 1e-9 of each sensor's range. The node count is exact.
+  // Double precision, the same fixed steps: the engines' states agree to ~1e-16 m (test_gpu_vs_cpu.cu), node sums
+  // to summation order: 1e-9 of each sensor's range. The node count is exact.
   expect_series_near(c, g, 1e-9, "GPU vs CPU");
   for (int s = 0; s < kSteps; ++s) EXPECT_EQ(c[s][5], g[s][5]) << "node count, step " << s + 1;
   EXPECT_GT(c.back()[0], 0.0);  // the floor carries the water
@@ -144,6 +147,107 @@ TEST(GpuGridSensors, RanksSumToOneRank) {
     expect_series_near(s1, sn, 1e-9, ranks == 2 ? "2 ranks" : "3 ranks");
     for (int s = 0; s < kSteps; ++s) EXPECT_EQ(s1[s][5], sn[s][5]) << "halo nodes counted once, step " << s + 1;
   }
+}
+
+/// The dam break's particle sensors: a gauge (Position_Y Max) over the column, the water's Velocity_X Average, the
+/// Pressure Average and the Count over the whole tank, the speed's Max.
+std::vector<ParticleSensorSpec> dam_break_particle_sensors() {
+  auto make = [](const char* attribute, SensorOperation op, Real3 lo, Real3 hi) {
+    ParticleSensorSpec s;
+    s.attribute = attribute;
+    s.operation = op;
+    s.domain_start = lo;
+    s.domain_end = hi;
+    return s;
+  };
+  const Real3 lo{0, 0, 0}, hi{0.64, 0.4, 0.2};
+  return {make("Position_Y", SensorOperation::Max, {0.1, 0, 0}, {0.2, 0.4, 0.2}),
+          make("Velocity_X", SensorOperation::Average, lo, hi), make("Pressure", SensorOperation::Average, lo, hi),
+          make("Mass", SensorOperation::Count, lo, hi), make("Velocity_Magnitude", SensorOperation::Max, lo, hi)};
+}
+
+/// Per sample (the initial state, then after every step), per sensor: the value, reduced over the ranks of `host`.
+template <class Engine>
+Series sample_particles_every_step(Engine& engine, comm::Transport* host, const std::vector<ParticleSensorSpec>& sensors) {
+  Series out;
+  engine.set_particle_sensors(sensors);
+  auto take = [&](int slot) {
+    engine.sample_particles(slot);
+    std::vector<SensorAccum> a = engine.particle_samples(slot + 1);
+    std::vector<double> row;
+    for (std::size_t i = 0; i < sensors.size(); ++i) {
+      SensorAccum x = a[static_cast<std::size_t>(slot) * sensors.size() + i];  // one body
+      if (host && host->size() > 1) {
+        double sums[3] = {x.sum, x.sum_sq, x.count};
+        host->allreduce_sum(sums, 3);
+        host->allreduce_max(&x.max, 1);
+        host->allreduce_min(&x.min, 1);
+        x.sum = sums[0];
+        x.sum_sq = sums[1];
+        x.count = sums[2];
+      }
+      row.push_back(sensor_result(sensors[i].operation, x));
+    }
+    out.push_back(row);
+  };
+  take(0);
+  for (int s = 0; s < kSteps; ++s) {
+    engine.keep_particle_inputs(true);
+    const StepReport r = engine.step(kDt);
+    if (!r.ok) throw std::runtime_error(r.message());
+    take(s % 4 + 1);  // slots reused as between two flushes
+  }
+  return out;
+}
+
+TEST(GpuParticleSensors, MatchTheCpuEngine) {
+  FBAR_REQUIRE_DEVICE();
+  const Scene scene = test::dam_break(false);
+  const std::vector<ParticleSensorSpec> sensors = dam_break_particle_sensors();
+  CpuEngine<double> cpu(scene);
+  cpu.set_log(nullptr);
+  GpuEngine<double> gpu(scene);
+  gpu.set_log(nullptr);
+  const Series c = sample_particles_every_step(cpu, nullptr, sensors);
+  const Series g = sample_particles_every_step(gpu, nullptr, sensors);
+  expect_series_near(c, g, 1e-9, "particle sensors, GPU vs CPU");
+  for (std::size_t s = 0; s < c.size(); ++s) EXPECT_EQ(g[s][3], 7200.0) << "every particle counted, sample " << s;
+  EXPECT_NEAR(c.front()[0], 0.24 - 0.005, 1e-12);  // the still column's top particle row
+  EXPECT_GT(c.back()[1], 0.005);                     // the water flows along +x (measured 0.009 m/s)
+}
+
+TEST(GpuParticleSensors, RanksSumToOneRank) {
+  FBAR_REQUIRE_DEVICE();
+  const Scene scene = test::dam_break(false);
+  const std::vector<ParticleSensorSpec> sensors = dam_break_particle_sensors();
+  GpuEngine<double> one(scene);
+  one.set_log(nullptr);
+  const Series s1 = sample_particles_every_step(one, nullptr, sensors);
+  const int ranks = 2;
+  std::vector<std::unique_ptr<comm::Transport>> hosts = comm::make_thread_transports(ranks);
+  std::vector<Series> series(ranks);
+  std::vector<std::string> errors(ranks);
+  std::vector<std::thread> threads;
+  for (int r = 0; r < ranks; ++r)
+    threads.emplace_back([&, r] {
+      try {
+        FBAR_CUDA_CHECK(cudaSetDevice(0));
+        std::unique_ptr<comm::DeviceTransport> device = comm::make_thread_device_transport(*hosts[r]);
+        GpuEngineOptions options;
+        options.ranks = hosts[r].get();
+        options.device_ranks = device.get();
+        GpuEngine<double> engine(scene, options);
+        engine.set_log(nullptr);
+        series[r] = sample_particles_every_step(engine, hosts[r].get(), sensors);
+      } catch (const std::exception& e) {
+        errors[r] = e.what();
+        hosts[r]->abort(2);
+      }
+    });
+  for (auto& t : threads) t.join();
+  for (int r = 0; r < ranks; ++r) ASSERT_EQ(errors[r], "") << "rank " << r;
+  EXPECT_EQ(series[1], series[0]) << "every rank reduces to the same values";
+  expect_series_near(s1, series[0], 1e-9, "particle sensors, 2 ranks");
 }
 
 }  // namespace

@@ -102,18 +102,21 @@ TEST(SensorRecorder, SampleTimesAreExactAndEndBeforeTheRunsEnd) {
   SensorRecorder r(scene, nullptr, 0.0, 1.0);
   ASSERT_EQ(r.grid_sensors().size(), 2u);  // the switched-off one is skipped
   std::vector<double> times;
-  while (std::isfinite(r.next_time())) {
-    const double t = r.next_time();
-    ASSERT_GE(r.slot_for(t), 0);
-    times.push_back(t);
-    r.taken(t);
-    if (r.pending() == r.capacity()) r.flush(std::vector<SensorAccum>(r.pending() * 2));
+  double t = 0.0;
+  while (std::isfinite(t)) {
+    if (r.grid_slot_for(t) >= 0) {
+      times.push_back(t);
+      r.grid_taken(t);
+      if (r.grid_pending() == 3) r.flush_grid(std::vector<SensorAccum>(r.grid_pending() * 2));
+    }
+    t = r.next_time_after(t);
   }
   // 4 Hz: 0, .25, .5, .75; 3 Hz: 0, 1/3, 2/3 (1.0 is the end: no step starts there); shared slot at 0.
   const std::vector<double> expected{0.0, 0.25, 1.0 / 3.0, 0.5, 2.0 / 3.0, 0.75};
   ASSERT_EQ(times.size(), expected.size());
   for (std::size_t i = 0; i < times.size(); ++i) EXPECT_DOUBLE_EQ(times[i], expected[i]);
-  EXPECT_EQ(r.slot_for(0.1), -1);
+  EXPECT_EQ(r.grid_slot_for(0.1), -1);
+  EXPECT_EQ(r.particle_slot_for(0.0), -1);  // no particle sensor
 }
 
 /// A block at 1.5 m/s along x without gravity or boundaries: the grid's momentum is the particles' (partition of
@@ -144,6 +147,43 @@ TEST(GridSensors, MovingBlockMomentumAndMass) {
     EXPECT_NEAR(sensor_result(SensorOperation::Min, now[4]), 1.5, 1e-12);
     EXPECT_EQ(sensor_result(SensorOperation::Sum, now[5]), 0.0);  // no boundary: no force
   }
+}
+
+ParticleSensorSpec particle_sensor(const std::string& attribute, SensorOperation op, Real3 lo, Real3 hi) {
+  ParticleSensorSpec s;
+  s.attribute = attribute;
+  s.operation = op;
+  s.domain_start = lo;
+  s.domain_end = hi;
+  return s;
+}
+
+/// A still water block (8 ppc: particle rows at dx/4 and 3dx/4 of each cell): a gauge (Position_Y, Max) over it
+/// reads the top row, surface - dx/4, exactly; Count the particles in its column; a moving block's Velocity_X
+/// Average its speed and Mass Sum its mass.
+TEST(ParticleSensors, GaugeCountVelocityAndMass) {
+  Scene scene = test::empty_scene(test::r3(1, 0.5, 0.5), 0.02, test::r3(0, 0, 0));
+  scene.bodies.push_back(
+      test::box_body(Constitutive::JFluid, test::r3(0.2, 0.1, 0.1), test::r3(0.2, 0.2, 0.2), test::r3(1.5, 0, 0)));
+  CpuEngine<double> engine(scene);
+  engine.set_log(nullptr);
+  // The gauge's column: x in [0.25, 0.29] holds 4 particle columns of the block along x, 20 along z, 20 along y.
+  engine.set_particle_sensors({particle_sensor("Position_Y", SensorOperation::Max, {0.25, 0, 0}, {0.29, 1, 1}),
+                               particle_sensor("Mass", SensorOperation::Count, {0.25, 0, 0}, {0.29, 1, 1}),
+                               particle_sensor("Velocity_X", SensorOperation::Average, {0, 0, 0}, {1, 1, 1}),
+                               particle_sensor("Mass", SensorOperation::Sum, {0, 0, 0}, {1, 1, 1})});
+  engine.sample_particles(0);
+  ASSERT_TRUE(engine.step().ok);
+  engine.sample_particles(1);
+  const std::vector<SensorAccum> s = engine.particle_samples(2);
+  ASSERT_EQ(s.size(), 8u);
+  EXPECT_NEAR(sensor_result(SensorOperation::Max, s[0]), 0.3 - 0.005, 1e-12);
+  EXPECT_EQ(sensor_result(SensorOperation::Count, s[1]), 4.0 * 20 * 20);
+  EXPECT_NEAR(sensor_result(SensorOperation::Average, s[2]), 1.5, 1e-12);
+  EXPECT_NEAR(sensor_result(SensorOperation::Sum, s[3]), engine.total_mass(), 1e-12 * engine.total_mass());
+  // After a step the block moved 1.5 dt along x: still 1.5 m/s, the same mass.
+  EXPECT_NEAR(sensor_result(SensorOperation::Average, s[6]), 1.5, 1e-12);
+  EXPECT_NEAR(sensor_result(SensorOperation::Sum, s[7]), engine.total_mass(), 1e-12 * engine.total_mass());
 }
 
 /// Reads a sensor CSV: its header and rows (time, value).
@@ -182,6 +222,12 @@ std::filesystem::path run_dam_break_with_sensors(int ranks) {
   GridSensorSpec mass = sensor("Mass", SensorOperation::Sum, {0, 0, 0}, {0.64, 0.4, 0.2});
   mass.output_frequency = 120.0;
   scene.grid_sensors = {force, mass};
+  // A wave gauge in the column's middle (water surface: 0.24 m at the start, falling) and the particles' count.
+  ParticleSensorSpec gauge = particle_sensor("Position_Y", SensorOperation::Max, {0.1, 0, 0}, {0.2, 0.4, 0.2});
+  gauge.output_frequency = 100.0;
+  ParticleSensorSpec count = particle_sensor("Pressure", SensorOperation::Count, {0, 0, 0}, {0.64, 0.4, 0.2});
+  count.output_frequency = 100.0;
+  scene.particle_sensors = {gauge, count};
   std::vector<std::unique_ptr<comm::Transport>> transports = comm::make_thread_transports(ranks);
   std::vector<RunResult> results(ranks);
   std::vector<std::thread> threads;
@@ -219,6 +265,23 @@ TEST(GridSensors, RunLoopWritesExactSampleTimesAndRanksAgree) {
     EXPECT_NEAR(f2.rows[k].second, f1.rows[k].second, 1e-9 * (1.0 + std::fabs(f1.rows[k].second)));
   }
   for (std::size_t k = 0; k < m1.rows.size(); ++k) EXPECT_NEAR(m2.rows[k].second, m1.rows[k].second, 1e-12);
+  // Particle sensors: 100 Hz over 0.06 s = 6 samples of the state at t = k / 100 (the initial state first).
+  const Csv g1 = read_csv(one / "particleTarget[0]_model[0]_dev[0].csv"), g2 = read_csv(two / "particleTarget[0]_model[0]_dev[0].csv");
+  const Csv c1 = read_csv(one / "particleTarget[1]_model[0]_dev[0].csv"), c2 = read_csv(two / "particleTarget[1]_model[0]_dev[0].csv");
+  EXPECT_EQ(g1.header, "Time [s],Position_Y [m]");
+  EXPECT_EQ(c1.header, "Time [s],Count [-]");
+  ASSERT_EQ(g1.rows.size(), 6u);
+  ASSERT_EQ(g2.rows.size(), 6u);
+  ASSERT_EQ(c2.rows.size(), 6u);
+  EXPECT_NEAR(g1.rows[0].second, 0.24 - 0.005, 1e-9);  // the top particle row of the still column
+  for (std::size_t k = 0; k < g1.rows.size(); ++k) {
+    EXPECT_NEAR(g1.rows[k].first, k / 100.0, 1e-12);
+    EXPECT_EQ(g2.rows[k].first, g1.rows[k].first);
+    EXPECT_NEAR(g2.rows[k].second, g1.rows[k].second, 1e-12);  // the same particles, states to round-off
+    EXPECT_EQ(c1.rows[k].second, 7200.0);                         // 0.3 x 0.2 x 0.12 m at 8 ppc, dx 0.02
+    EXPECT_EQ(c2.rows[k].second, 7200.0);
+  }
+  EXPECT_LT(g1.rows.back().second, g1.rows.front().second - 1e-3);  // the collapsing column's top has fallen
   // The floor carries the water: a positive load, first only the weight of the mass at the floor's nodes (the
   // column starts stress-free), then of the order of the whole weight as the pressure builds.
   const double weight = 1000.0 * 0.3 * 0.2 * 0.12 * 9.81;

@@ -22,6 +22,7 @@
 #include "geometry/geometry.h"
 #include "engine/gpu/memory_plan.h"
 #include "io/particle_frame.h"
+#include "io/sensor_recorder.h"
 #include "scene/scene_error.h"
 #include "scene/scene_parse.h"
 #include "physics/time_step.cuh"
@@ -119,6 +120,7 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     in.stored_scalars = facts.stored_scalars;
     in.asflip = body.algorithm.asflip_active();
     in.fbar = body.algorithm.fbar_blend() != 0.0;
+    in.record = particle_sensors_read_velocity(scene);
     if (options.frames) {
       try {
         in.frame_columns = frame_float_columns(frame_attributes(body, static_cast<int>(i), "GPU engine"));
@@ -159,6 +161,7 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     for (std::size_t i = 0; i < counts.size(); ++i)
       if (scene.bodies[i].gpu == g) on_gpu.push_back(&counts[i]);
     summary.gpu_plans.push_back(plan_device_memory(sim.precision, footprint_blocks(on_gpu), gpu_inputs[g]));
+    summary.gpu_plans.back().small += sensor_device_bytes(scene);
     summary.gpu_bytes[g] = summary.gpu_plans.back().total();
   }
   return summary;

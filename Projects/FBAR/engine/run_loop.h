@@ -3,8 +3,9 @@
 //
 // What it asks of an engine (CpuEngine<T, TG> and GpuEngine<T, TG> provide it):
 //   double time(), next_dt(), last_dt();  long long steps();  int body_count();  std::size_t particle_count();
-//   StepReport step_toward(double t_end)        one step of at most next_dt() that lands on t_end exactly when it
-//                                               reaches it
+//   StepReport step_toward(double t_end, double t_following)
+//                                               one step of at most next_dt() that lands on t_end exactly when it
+//                                               reaches it; t_following: where the next step heads then
 //   void set_frame_capture(bool)                the next step lands on a frame time (the GPU then writes the frame's
 //                                               attributes on the device during that step; the CPU needs nothing)
 //   void submit_frame(int body, const std::filesystem::path&, io::AsyncWriter&)
@@ -15,6 +16,11 @@
 //   void set_grid_sample(int slot)              the next step starts at a sample time: its grid update writes
 //                                               every sensor's reduction into `slot` (-1: no sample)
 //   std::vector<SensorAccum> grid_samples(n)    this rank's values of slots [0, n)
+//   void set_particle_sensors(specs)            the particle sensors sample_particles() evaluates
+//   void keep_particle_inputs(bool)             the next step's end state will be sampled (the GPU then records
+//                                               each particle's v and C in that step; the CPU needs nothing)
+//   void sample_particles(int slot)             reduces the current particle state into `slot`
+//   std::vector<SensorAccum> particle_samples(n) this rank's values of particle slots [0, n)
 #pragma once
 
 #include <algorithm>
@@ -22,6 +28,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <ostream>
 #include <stdexcept>
 #include <string>
@@ -57,8 +64,8 @@ inline std::string format_percent(double fraction) {
 }  // namespace run_detail
 
 /// Runs `engine` (constructed from `scene`) for simulation.frames frames, writing frame 0 (the initial state) and
-/// every frame to simulation.save_path (model[m]_dev[d]_frame[f].suffix), and the grid sensors' CSVs (steps start
-/// on every sample time; rows are written at each frame), with a progress line per frame and, when
+/// every frame to simulation.save_path (model[m]_dev[d]_frame[f].suffix), and the sensors' CSVs (steps start and
+/// end on every sample time; rows are written at each frame), with a progress line per frame and, when
 /// simulation.info_rate > 0, every info_rate steps. `engine_line` is logged first (which engine, particles, set-up).
 /// With several ranks (options.transport) every rank runs this loop in step with the others: the engine agrees on
 /// dt and failures, the loop on a stop request; each rank writes its particles (model[m]_dev[rank]_frame[f]) and
@@ -95,8 +102,18 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
   SensorRecorder sensors(scene, transport, t0, t_end);
   engine.set_grid_sensors(sensors.grid_sensors());
   engine.set_grid_sample(-1);
+  engine.set_particle_sensors(sensors.particle_sensors());
   auto flush_sensors = [&] {
-    if (!sensors.empty()) sensors.flush(engine.grid_samples(sensors.pending()));
+    if (!sensors.grid_sensors().empty()) sensors.flush_grid(engine.grid_samples(sensors.grid_pending()));
+    if (!sensors.particle_sensors().empty())
+      sensors.flush_particles(engine.particle_samples(sensors.particle_pending()));
+  };
+  // Particle sensors read the state a step lands on (or the initial state).
+  auto sample_particles_at = [&](double t) {
+    const int slot = sensors.particle_slot_for(t);
+    if (slot < 0) return;
+    engine.sample_particles(slot);
+    sensors.particle_taken(t);
   };
   auto finish = [&] {
     result.steps = engine.steps();
@@ -113,6 +130,7 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
         << viscous.dt << " s (CFL x rho x dx^2 / (3 x viscosity); default_dt " << resolved_default_dt(sim)
         << " s)\n";
   write_frame(0);
+  sample_particles_at(t0);
 
   const auto wall_start = std::chrono::steady_clock::now();
   // The particles of every rank and their imbalance, max / mean - 1 (a collective: every rank calls it at the same
@@ -147,6 +165,12 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
     log << std::flush;
   };
 
+  // Where a step starting at `start` heads: the next sample time, or the frame time `target` (a sample time within
+  // the tolerance of it counts as the frame time).
+  auto head_for = [&](double start, double target) {
+    const double sample = sensors.next_time_after(start);
+    return sample < target - sensors.tolerance() ? sample : target;
+  };
   long long steps_logged = engine.steps();
   for (int frame = 1; frame <= sim.frames; ++frame) {
     const double target = t0 + frame / sim.fps;
@@ -164,14 +188,20 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
       }
       // Steps start on every sensor sample time; the one starting there samples the grid.
       const double start = engine.time();
-      double step_target = target;
-      const double sample = sensors.next_time_after(start);
-      if (sample < target - sensors.tolerance()) step_target = sample;
-      const int slot = sensors.slot_for(start);
+      const double step_target = head_for(start, target);
+      const int slot = sensors.grid_slot_for(start);
       engine.set_grid_sample(slot);
+      // The step that may land on a particle sample time keeps what the particle sensors read (the last two steps
+      // before it: the CPU engine may split what remains in two).
+      engine.keep_particle_inputs(sensors.particle_due(step_target) &&
+                                  engine.time() + 2.0 * engine.next_dt() >= step_target);
       // The step that lands on the frame time writes the frame (on the device, for the GPU engine).
       engine.set_frame_capture(step_target == target && engine.time() + engine.next_dt() >= target);
-      const StepReport r = engine.step_toward(step_target);
+      // Where the step after a landing heads: the next sample or frame time (the GPU fixes that step's dt now).
+      const double following = step_target < target          ? head_for(step_target, target)
+                                : frame < sim.frames ? head_for(step_target, t0 + (frame + 1) / sim.fps)
+                                                     : std::numeric_limits<double>::infinity();
+      const StepReport r = engine.step_toward(step_target, following);
       if (!r.ok) {
         engine.set_frame_capture(false);
         engine.set_grid_sample(-1);
@@ -179,7 +209,8 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
         result.message = r.message();  // the caller reports it (cli.cpp prints it to stderr)
         return finish();
       }
-      if (slot >= 0) sensors.taken(start);
+      if (slot >= 0) sensors.grid_taken(start);
+      sample_particles_at(engine.time());
       if (sim.info_rate > 0 && !options.quiet && engine.steps() - steps_logged >= sim.info_rate &&
           engine.time() < target) {  // the same decision on every rank
         steps_logged = engine.steps();

@@ -1,13 +1,15 @@
-// Grid-sensor schedule, reduction over ranks and CSV rows (sensor_recorder.h).
+// Sensor schedules, reduction over ranks and CSV rows (sensor_recorder.h).
 #include "io/sensor_recorder.h"
 
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
-#include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <system_error>
+
+#include "io/particle_frame.h"
+#include "physics/constitutive_models.cuh"
 
 namespace fbar {
 
@@ -34,6 +36,32 @@ const char* unit_of(GridSensorQuantity q) {
   return "-";
 }
 
+/// A particle sensor's attribute as a frame attribute (name, unit, column): the frames' own resolution.
+FrameAttributeSpec particle_attribute(const ParticleSensorSpec& spec) {
+  BodySpec probe;
+  probe.output_attribs = {spec.attribute};
+  const std::vector<FrameAttributeSpec> a = frame_attributes(probe, 0, "particle sensors");
+  if (a.size() != 1 || a[0].column.quantity == FrameQuantity::Id)
+    throw std::invalid_argument("particle sensor attribute \"" + spec.attribute + "\" is not a particle quantity");
+  return a[0];
+}
+
+/// Whether a body of material `law` has the quantity (F and logJp only where the law stores them).
+bool material_has(Constitutive law, const FrameColumn& c) {
+  MaterialOutputs outputs{false, false};
+  visit_material(law, [&](auto m) { outputs = decltype(m)::kOutputs; });
+  if (c.quantity == FrameQuantity::DefGrad) return outputs.deformation_gradient;
+  if (c.quantity == FrameQuantity::LogJp) return outputs.log_jp;
+  return true;
+}
+
+std::string column_header(SensorOperation op, const std::string& name, const std::string& unit) {
+  if (op == SensorOperation::Count) return "Count [-]";
+  const std::string u = unit.empty() ? "-" : unit;
+  if (op == SensorOperation::Variance) return name + " variance [(" + u + ")^2]";
+  return name + " [" + u + "]";
+}
+
 }  // namespace
 
 template <typename T>
@@ -50,6 +78,44 @@ GridSensorParams<T> make_grid_sensor_params(const GridSensorSpec& spec) {
 }
 template GridSensorParams<float> make_grid_sensor_params<float>(const GridSensorSpec&);
 template GridSensorParams<double> make_grid_sensor_params<double>(const GridSensorSpec&);
+
+template <typename T>
+ParticleSensorParams<T> make_particle_sensor_params(const ParticleSensorSpec& spec) {
+  ParticleSensorParams<T> p;
+  p.column = particle_attribute(spec).column;
+  for (int a = 0; a < 3; ++a) {
+    p.lo[a] = static_cast<T>(spec.domain_start[a]);
+    p.hi[a] = static_cast<T>(spec.domain_end[a]);
+  }
+  return p;
+}
+template ParticleSensorParams<float> make_particle_sensor_params<float>(const ParticleSensorSpec&);
+template ParticleSensorParams<double> make_particle_sensor_params<double>(const ParticleSensorSpec&);
+
+bool particle_sensors_read_velocity(const Scene& scene) {
+  for (const ParticleSensorSpec& s : scene.particle_sensors)
+    if (s.toggle && particle_sensor_reads_velocity(particle_attribute(s).column)) return true;
+  return false;
+}
+
+std::size_t sensor_device_bytes(const Scene& scene) {
+  const double frame = 1.0 / scene.simulation.fps;
+  std::size_t grid = 0, grid_slots = 0, particle = 0, particle_slots = 0;
+  for (const GridSensorSpec& s : scene.grid_sensors)
+    if (s.toggle) {
+      ++grid;
+      grid_slots += static_cast<std::size_t>(std::ceil(frame * s.output_frequency)) + 2;
+    }
+  for (const ParticleSensorSpec& s : scene.particle_sensors)
+    if (s.toggle) {
+      ++particle;
+      particle_slots += static_cast<std::size_t>(std::ceil(frame * s.output_frequency)) + 2;
+    }
+  if (grid + particle == 0) return 0;
+  const std::size_t partials = static_cast<std::size_t>(GridSensorSet<double>::kMax) * 512;  // kSensorBlocks
+  const std::size_t slots = 2 * (grid_slots * grid + particle_slots * particle * scene.bodies.size());
+  return (partials + slots) * sizeof(SensorAccum);
+}
 
 double sensor_result(SensorOperation op, const SensorAccum& a) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
@@ -71,103 +137,94 @@ double sensor_result(SensorOperation op, const SensorAccum& a) {
 }
 
 std::string grid_sensor_column(const GridSensorSpec& spec) {
-  if (spec.operation == SensorOperation::Count) return "Count [-]";
-  const char* unit = unit_of(quantity_of(spec.attribute));
-  if (spec.operation == SensorOperation::Variance) return spec.attribute + " variance [(" + unit + ")^2]";
-  return spec.attribute + " [" + unit + "]";
+  return column_header(spec.operation, spec.attribute, unit_of(quantity_of(spec.attribute)));
 }
 
-SensorRecorder::SensorRecorder(const Scene& scene, comm::Transport* transport, double t0, double t_end)
-    : transport_(transport), t0_(t0), t_end_(t_end) {
-  const SimulationSpec& sim = scene.simulation;
-  const bool writer = !transport || transport->rank() == 0;
-  double shortest = std::numeric_limits<double>::infinity();
-  for (std::size_t i = 0; i < scene.grid_sensors.size(); ++i) {
-    const GridSensorSpec& spec = scene.grid_sensors[i];
-    if (!spec.toggle) continue;
-    quantity_of(spec.attribute);  // throws for what the grid cannot measure
-    Sensor s;
-    s.scene_index = i;
-    s.interval = 1.0 / spec.output_frequency;
-    s.path = std::filesystem::path(sim.save_path) / ("gridTarget[" + std::to_string(i) + "]_dev[0].csv");
-    shortest = std::min(shortest, s.interval);
-    // Slots between two flushes: each sensor samples at most ceil(frame interval / its interval) + 1 times in one.
-    capacity_ += static_cast<int>(std::ceil((1.0 / sim.fps) / s.interval)) + 1;
-    if (writer) {
-      std::filesystem::create_directories(sim.save_path);
-      s.file = std::fopen(s.path.c_str(), "w");
-      if (!s.file)
-        throw std::runtime_error("cannot write grid sensor file " + s.path.string() + ": " +
-                                 std::error_code(errno, std::generic_category()).message());
-      std::fprintf(s.file, "Time [s],%s\n", grid_sensor_column(spec).c_str());
-    }
-    specs_.push_back(spec);
-    grid_.push_back(s);
+std::string particle_sensor_column(const ParticleSensorSpec& spec) {
+  const FrameAttributeSpec a = particle_attribute(spec);
+  return column_header(spec.operation, a.name, a.unit);
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Schedule
+
+SensorRecorder::Schedule::~Schedule() {
+  for (Output& o : outputs_)
+    if (o.file) std::fclose(o.file);
+}
+
+void SensorRecorder::Schedule::add_sensor(double interval) {
+  intervals_.push_back(interval);
+  next_.push_back(0);
+}
+
+void SensorRecorder::Schedule::add_output(Output o, const std::string& header, bool writer) {
+  if (writer) {
+    o.file = std::fopen(o.path.c_str(), "w");
+    if (!o.file)
+      throw std::runtime_error("cannot write sensor file " + o.path.string() + ": " +
+                               std::error_code(errno, std::generic_category()).message());
+    std::fprintf(o.file, "Time [s],%s\n", header.c_str());
   }
-  tolerance_ = std::isfinite(shortest) ? 1e-9 * shortest : 0.0;
+  outputs_.push_back(o);
 }
 
-SensorRecorder::~SensorRecorder() {
-  for (Sensor& s : grid_)
-    if (s.file) std::fclose(s.file);
+void SensorRecorder::Schedule::finish(double t0, double t_end, double tolerance, double frame_interval,
+                                      std::size_t values_per_slot) {
+  (void)frame_interval;
+  t0_ = t0;
+  t_end_ = t_end;
+  tolerance_ = tolerance;
+  values_per_slot_ = values_per_slot;
 }
 
-bool SensorRecorder::due(const Sensor& s, double t) const {
-  const double ts = sample_time(s, s.next);
+bool SensorRecorder::Schedule::due(std::size_t i, double t) const {
+  const double ts = sample_time(i, next_[i]);
   return ts < t_end_ - tolerance_ && t >= ts - tolerance_;
 }
 
-double SensorRecorder::next_time() const {
+double SensorRecorder::Schedule::next_time_after(double t) const {
   double next = std::numeric_limits<double>::infinity();
-  for (const Sensor& s : grid_) {
-    const double ts = sample_time(s, s.next);
+  for (std::size_t i = 0; i < sensors(); ++i) {
+    long long k = next_[i];
+    while (sample_time(i, k) <= t + tolerance_) ++k;
+    const double ts = sample_time(i, k);
     if (ts < t_end_ - tolerance_) next = std::min(next, ts);
   }
   return next;
 }
 
-double SensorRecorder::next_time_after(double t) const {
-  double next = std::numeric_limits<double>::infinity();
-  for (const Sensor& s : grid_) {
-    long long k = s.next;
-    while (sample_time(s, k) <= t + tolerance_) ++k;
-    const double ts = sample_time(s, k);
-    if (ts < t_end_ - tolerance_) next = std::min(next, ts);
-  }
-  return next;
-}
-
-int SensorRecorder::slot_for(double t) const {
-  for (const Sensor& s : grid_)
-    if (due(s, t)) return static_cast<int>(slots_.size());
+int SensorRecorder::Schedule::slot_for(double t) const {
+  for (std::size_t i = 0; i < sensors(); ++i)
+    if (due(i, t)) return pending();
   return -1;
 }
 
-void SensorRecorder::taken(double t) {
-  Slot slot;
-  slot.due.assign(grid_.size(), 0);
+void SensorRecorder::Schedule::taken(double t) {
+  std::vector<char> due_now(sensors(), 0);
   bool any = false;
-  for (std::size_t i = 0; i < grid_.size(); ++i) {
-    Sensor& s = grid_[i];
-    if (!due(s, t)) continue;
-    // The time written is the sample time (t equals it up to the tolerance), and every sample time the step
-    // covered is consumed (none is: steps start on each).
-    if (!any) slot.time = sample_time(s, s.next);
+  double time = t;
+  for (std::size_t i = 0; i < sensors(); ++i) {
+    if (!due(i, t)) continue;
+    // The time written is the sample time (t equals it up to the tolerance); every sample time up to t is consumed.
+    if (!any) time = sample_time(i, next_[i]);
     any = true;
-    slot.due[i] = 1;
-    while (sample_time(s, s.next) <= t + tolerance_) ++s.next;
+    due_now[i] = 1;
+    while (sample_time(i, next_[i]) <= t + tolerance_) ++next_[i];
   }
-  if (!any) throw std::logic_error("SensorRecorder::taken: no sensor samples at this time");
-  if (static_cast<int>(slots_.size()) >= capacity_)
-    throw std::logic_error("SensorRecorder: more samples than slots between two flushes");
-  slots_.push_back(std::move(slot));
+  if (!any) throw std::logic_error("SensorRecorder: no sensor samples at this time");
+  slot_times_.push_back(time);
+  slot_due_.push_back(std::move(due_now));
 }
 
-void SensorRecorder::flush(const std::vector<SensorAccum>& values) {
-  const std::size_t n = grid_.size();
-  const std::size_t count = slots_.size() * n;
+void SensorRecorder::Schedule::flush(const std::vector<SensorAccum>& values, comm::Transport* transport) {
+  const std::size_t count = slot_times_.size() * values_per_slot_;
+  if (count == 0) {
+    slot_times_.clear();
+    slot_due_.clear();
+    return;
+  }
   if (values.size() < count) throw std::logic_error("SensorRecorder::flush: fewer values than pending samples");
-  if (count == 0) return;
   std::vector<double> sums(3 * count), maxima(count), minima(count);
   for (std::size_t k = 0; k < count; ++k) {
     sums[3 * k + 0] = values[k].sum;
@@ -176,30 +233,90 @@ void SensorRecorder::flush(const std::vector<SensorAccum>& values) {
     maxima[k] = values[k].max;
     minima[k] = values[k].min;
   }
-  if (transport_ && transport_->size() > 1) {
-    transport_->allreduce_sum(sums.data(), static_cast<int>(sums.size()));
-    transport_->allreduce_max(maxima.data(), static_cast<int>(maxima.size()));
-    transport_->allreduce_min(minima.data(), static_cast<int>(minima.size()));
+  if (transport && transport->size() > 1) {
+    transport->allreduce_sum(sums.data(), static_cast<int>(sums.size()));
+    transport->allreduce_max(maxima.data(), static_cast<int>(maxima.size()));
+    transport->allreduce_min(minima.data(), static_cast<int>(minima.size()));
   }
-  for (std::size_t slot = 0; slot < slots_.size(); ++slot)
-    for (std::size_t i = 0; i < n; ++i) {
-      Sensor& s = grid_[i];
-      if (!slots_[slot].due[i] || !s.file) continue;
-      const std::size_t k = slot * n + i;
+  for (std::size_t slot = 0; slot < slot_times_.size(); ++slot)
+    for (Output& o : outputs_) {
+      if (!slot_due_[slot][o.sensor] || !o.file) continue;
+      const std::size_t k = slot * values_per_slot_ + o.value;
       SensorAccum a;
       a.sum = sums[3 * k + 0];
       a.sum_sq = sums[3 * k + 1];
       a.count = sums[3 * k + 2];
       a.max = maxima[k];
       a.min = minima[k];
-      const double v = sensor_result(specs_[i].operation, a);
-      std::fprintf(s.file, "%.12g,%.9g\n", slots_[slot].time, v);
+      std::fprintf(o.file, "%.12g,%.9g\n", slot_times_[slot], sensor_result(o.op, a));
     }
-  for (Sensor& s : grid_)
-    if (s.file && std::fflush(s.file) != 0)
-      throw std::runtime_error("cannot write grid sensor file " + s.path.string() + ": " +
+  for (Output& o : outputs_)
+    if (o.file && std::fflush(o.file) != 0)
+      throw std::runtime_error("cannot write sensor file " + o.path.string() + ": " +
                                std::error_code(errno, std::generic_category()).message());
-  slots_.clear();
+  slot_times_.clear();
+  slot_due_.clear();
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// SensorRecorder
+
+SensorRecorder::SensorRecorder(const Scene& scene, comm::Transport* transport, double t0, double t_end)
+    : transport_(transport) {
+  const SimulationSpec& sim = scene.simulation;
+  const bool writer = !transport || transport->rank() == 0;
+  const std::filesystem::path dir(sim.save_path);
+  double shortest = std::numeric_limits<double>::infinity();
+  bool any = false;
+  for (const GridSensorSpec& s : scene.grid_sensors) any = any || s.toggle;
+  for (const ParticleSensorSpec& s : scene.particle_sensors) any = any || s.toggle;
+  if (any && writer) std::filesystem::create_directories(dir);
+
+  for (std::size_t i = 0; i < scene.grid_sensors.size(); ++i) {
+    const GridSensorSpec& spec = scene.grid_sensors[i];
+    if (!spec.toggle) continue;
+    Schedule::Output o;
+    o.sensor = grid_specs_.size();
+    o.value = grid_specs_.size();
+    o.op = spec.operation;
+    o.path = dir / ("gridTarget[" + std::to_string(i) + "]_dev[0].csv");
+    grid_.add_output(o, grid_sensor_column(spec), writer);
+    grid_.add_sensor(1.0 / spec.output_frequency);
+    shortest = std::min(shortest, 1.0 / spec.output_frequency);
+    grid_specs_.push_back(spec);
+  }
+
+  const std::size_t bodies = scene.bodies.size();
+  std::size_t enabled = 0;
+  for (const ParticleSensorSpec& spec : scene.particle_sensors) enabled += spec.toggle;
+  for (std::size_t i = 0; i < scene.particle_sensors.size(); ++i) {
+    const ParticleSensorSpec& spec = scene.particle_sensors[i];
+    if (!spec.toggle) continue;
+    const FrameColumn column = particle_attribute(spec).column;
+    const std::size_t n = particle_specs_.size();
+    for (std::size_t b = 0; b < bodies; ++b) {
+      if (!material_has(scene.bodies[b].material.law, column)) continue;  // the body has no such quantity
+      Schedule::Output o;
+      o.sensor = n;
+      o.value = b * enabled + n;
+      o.op = spec.operation;
+      o.path = dir / ("particleTarget[" + std::to_string(i) + "]_model[" + std::to_string(scene.bodies[b].model) +
+                      "]_dev[0].csv");
+      particle_.add_output(o, particle_sensor_column(spec), writer);
+    }
+    particle_.add_sensor(1.0 / spec.output_frequency);
+    shortest = std::min(shortest, 1.0 / spec.output_frequency);
+    particle_specs_.push_back(spec);
+  }
+  tolerance_ = std::isfinite(shortest) ? 1e-9 * shortest : 0.0;
+  grid_.finish(t0, t_end, tolerance_, 1.0 / sim.fps, grid_specs_.size());
+  particle_.finish(t0, t_end, tolerance_, 1.0 / sim.fps, bodies * particle_specs_.size());
+}
+
+SensorRecorder::~SensorRecorder() = default;
+
+double SensorRecorder::next_time_after(double t) const {
+  return std::min(grid_.next_time_after(t), particle_.next_time_after(t));
 }
 
 }  // namespace fbar

@@ -1,24 +1,28 @@
-// Grid-sensor schedule, reduction over ranks and CSV files (the run loop's side of physics/sensors.cuh).
+// Sensor schedules, reduction over ranks and CSV files (the run loop's side of physics/sensors.cuh).
 //
 // Sample times. Sensor i samples at t0 + k / output_frequency_i (k = 0, 1, ...) for every such time before the run's
-// end. The run loop shortens steps so that one starts exactly at each sample time (next_time()); that step's grid
-// update evaluates every sensor on the nodes of the particles' state at the sample time (the engine writes one
-// SensorAccum per sensor into the sample's slot), and the row written holds the sample time itself. Samples of
-// several sensors at the same time share a slot.
+// end. The run loop shortens steps so that one starts exactly at each sample time (next_time_after()).
+//  * Grid sensors: the step starting at a sample time evaluates every grid sensor in its grid update, on the nodes of
+//    the particles' state at that time (the engine writes one SensorAccum per sensor into the sample's slot).
+//  * Particle sensors: the particles' state at the sample time (the initial state, or the state a step landed on)
+//    is reduced per body and sensor into the slot.
+// The row written holds the sample time itself; sensors of one kind sampling at the same time share a slot.
 //
-// Reduction. Each rank accumulates the nodes it owns (a halo node counts once, on the rank owning its plane); at
-// flush() (every frame, and when the run ends) the slots are summed (sum, sum of squares, count) and max/min-reduced
-// over ranks in rank order, so every rank computes the same values, and rank 0 appends one row per due sensor.
+// Reduction. Each rank reduces what it holds (its particles; the grid nodes it owns: a halo node counts once, on the
+// rank owning its plane); at flush (every frame, and when the run ends) the slots are summed (sum, sum of squares,
+// count) and max/min-reduced over ranks in rank order, so every rank computes the same values, and rank 0 appends
+// one row per due sensor.
 //
-// Files, in simulation.save_path, one per enabled sensor (ClaymoreUW's names; the index is the sensor's place in
-// the scene's grid-sensors array, and the device is 0 because every GPU's nodes are in it):
-//   gridTarget[i]_dev[0].csv    header "Time [s],<Attribute> [unit]" (Count: "Count [-]"), then "time,value" rows.
-// A sample with no node in the box writes 0 for Sum and Count and nan for the others.
+// Files, in simulation.save_path (ClaymoreUW's names; i is the sensor's index in its array, m the body's model, and
+// the device is 0 because every GPU's part is in the file):
+//   gridTarget[i]_dev[0].csv               one per enabled grid sensor
+//   particleTarget[i]_model[m]_dev[0].csv  one per enabled particle sensor and body whose material has the attribute
+// Header "Time [s],<attribute> [unit]" (Count: "Count [-]"), then "time,value" rows. A sample with nothing in the box
+// writes 0 for Sum and Count and nan for the others.
 #pragma once
 
 #include <cstdio>
 #include <filesystem>
-#include <memory>
 #include <string>
 #include <vector>
 
@@ -31,66 +35,100 @@ namespace fbar {
 /// The kernel parameters of grid sensor `spec` (domain box and direction in the grid scalar type T).
 template <typename T>
 GridSensorParams<T> make_grid_sensor_params(const GridSensorSpec& spec);
+/// The kernel parameters of particle sensor `spec` (its attribute as a frame column; box in T).
+template <typename T>
+ParticleSensorParams<T> make_particle_sensor_params(const ParticleSensorSpec& spec);
+
+/// Whether an enabled particle sensor of the scene reads velocities (particle_sensor_reads_velocity): the GPU engine
+/// then keeps v and C per particle (its memory plan counts them).
+bool particle_sensors_read_velocity(const Scene& scene);
+
+/// Device memory the GPU engine's sensors take [bytes]: the per-CUDA-block partials of one sample and the sample
+/// slots of one frame interval (their doubling included).
+std::size_t sensor_device_bytes(const Scene& scene);
 
 /// The value a sensor reports from its sample's reduction (SensorOperation of scene.h).
 double sensor_result(SensorOperation op, const SensorAccum& a);
 
 /// "Force [N]", "Count [-]", ...: the value column's header of a grid sensor.
 std::string grid_sensor_column(const GridSensorSpec& spec);
+/// "Position_Y [m]", "Count [-]", ...: the value column's header of a particle sensor.
+std::string particle_sensor_column(const ParticleSensorSpec& spec);
 
 class SensorRecorder {
  public:
-  /// The enabled grid sensors of `scene` (toggle true) for a run from t0 to t_end [s]. Rank 0 of `transport`
-  /// (nullptr: one rank) creates the files and writes their headers.
+  /// The enabled sensors of `scene` (toggle true) for a run from t0 to t_end [s]. Rank 0 of `transport` (nullptr:
+  /// one rank) creates the files and writes their headers.
   SensorRecorder(const Scene& scene, comm::Transport* transport, double t0, double t_end);
   ~SensorRecorder();
   SensorRecorder(const SensorRecorder&) = delete;
   SensorRecorder& operator=(const SensorRecorder&) = delete;
 
-  bool empty() const { return grid_.empty(); }
-  /// Enabled grid sensors, in scene order: what the engine evaluates (slot values come in this order).
-  const std::vector<GridSensorSpec>& grid_sensors() const { return specs_; }
-  /// Slots an engine must hold between two flushes (the samples of one frame interval, bounded from the rates).
-  int capacity() const { return capacity_; }
-
-  /// [s] the next sample time (+infinity when none is left before the end).
-  double next_time() const;
-  /// [s] the first sample time after t (beyond the tolerance): where a step starting at t must end at the latest.
-  double next_time_after(double t) const;
+  /// Enabled sensors, in scene order: what the engine evaluates (slot values come in this order).
+  const std::vector<GridSensorSpec>& grid_sensors() const { return grid_specs_; }
+  const std::vector<ParticleSensorSpec>& particle_sensors() const { return particle_specs_; }
   /// Times closer than this are the same time (a billionth of the shortest sample interval) [s].
   double tolerance() const { return tolerance_; }
-  /// The slot the step starting at time t must fill, or -1 when no sensor samples at t.
-  int slot_for(double t) const;
-  /// The step starting at t (slot_for(t) >= 0) was committed: its slot is taken and the due sensors move on.
-  void taken(double t);
-  /// Slots taken since the last flush.
-  int pending() const { return static_cast<int>(slots_.size()); }
-  /// Reduces this rank's values of the pending slots (slot-major: values[slot * sensors + i]) over ranks and writes
-  /// the rows (rank 0). Every rank calls it at the same points.
-  void flush(const std::vector<SensorAccum>& values);
+  /// [s] the first sample time of any sensor after t (beyond the tolerance), +infinity when none is left.
+  double next_time_after(double t) const;
+
+  /// The slot the step starting at time t must fill with its grid sample, or -1 when no grid sensor samples at t.
+  int grid_slot_for(double t) const { return grid_.slot_for(t); }
+  /// The step starting at t (grid_slot_for(t) >= 0) was committed: its slot is taken, the due sensors move on.
+  void grid_taken(double t) { grid_.taken(t); }
+  int grid_pending() const { return grid_.pending(); }
+  /// The slot the particle state at time t fills, or -1 when no particle sensor samples at t.
+  int particle_slot_for(double t) const { return particle_.slot_for(t); }
+  void particle_taken(double t) { particle_.taken(t); }
+  int particle_pending() const { return particle_.pending(); }
+  /// Whether a particle sensor samples at t (the step landing there must keep what the sensors read).
+  bool particle_due(double t) const { return particle_.slot_for(t) >= 0; }
+
+  /// Reduce this rank's values of the pending slots over ranks and write the rows (rank 0); every rank calls them at
+  /// the same points. Grid: values[slot * sensors + i]; particle: values[(slot * bodies + body) * sensors + i].
+  void flush_grid(const std::vector<SensorAccum>& values) { grid_.flush(values, transport_); }
+  void flush_particles(const std::vector<SensorAccum>& values) { particle_.flush(values, transport_); }
 
  private:
-  struct Sensor {
-    std::size_t scene_index = 0;
-    double interval = 0.0;  ///< [s]
-    long long next = 0;     ///< index k of the next sample
-    std::FILE* file = nullptr;
-    std::filesystem::path path;
+  /// One kind's sensors, slots and files.
+  class Schedule {
+   public:
+    struct Output {
+      std::size_t sensor = 0;  ///< in the schedule
+      std::size_t value = 0;   ///< index within a slot's values
+      SensorOperation op = SensorOperation::Sum;
+      std::filesystem::path path;
+      std::FILE* file = nullptr;  ///< rank 0 only
+    };
+    ~Schedule();
+    void add_sensor(double interval);
+    void add_output(Output o, const std::string& header, bool writer);
+    void finish(double t0, double t_end, double tolerance, double frame_interval, std::size_t values_per_slot);
+    std::size_t sensors() const { return intervals_.size(); }
+    double next_time_after(double t) const;
+    int slot_for(double t) const;
+    void taken(double t);
+    int pending() const { return static_cast<int>(slot_times_.size()); }
+    void flush(const std::vector<SensorAccum>& values, comm::Transport* transport);
+
+   private:
+    double sample_time(std::size_t i, long long k) const { return t0_ + static_cast<double>(k) * intervals_[i]; }
+    bool due(std::size_t i, double t) const;
+    double t0_ = 0.0, t_end_ = 0.0, tolerance_ = 0.0;
+    int capacity_ = 0;
+    std::size_t values_per_slot_ = 0;
+    std::vector<double> intervals_;           ///< (sensor) [s]
+    std::vector<long long> next_;             ///< (sensor) index k of its next sample
+    std::vector<Output> outputs_;
+    std::vector<double> slot_times_;          ///< (pending slot) sample time
+    std::vector<std::vector<char>> slot_due_;  ///< (pending slot, sensor)
   };
-  struct Slot {
-    double time = 0.0;
-    std::vector<char> due;  ///< (sensor) whether it samples at this time
-  };
-  double sample_time(const Sensor& s, long long k) const { return t0_ + static_cast<double>(k) * s.interval; }
-  bool due(const Sensor& s, double t) const;
 
   comm::Transport* transport_;
-  double t0_, t_end_;
   double tolerance_ = 0.0;
-  int capacity_ = 0;
-  std::vector<GridSensorSpec> specs_;
-  std::vector<Sensor> grid_;
-  std::vector<Slot> slots_;
+  std::vector<GridSensorSpec> grid_specs_;
+  std::vector<ParticleSensorSpec> particle_specs_;
+  Schedule grid_, particle_;
 };
 
 }  // namespace fbar

@@ -1,6 +1,8 @@
-// Grid sensors (load cells), host and device: the value a node contributes to a sensor and the running reduction of
-// one sample. Both engines evaluate grid_sensor_value() in their grid update, on the nodes they own, and the run loop
-// reduces the ranks' SensorAccum (io/sensor_recorder.h) into one value per sensor and sample.
+// Grid sensors (load cells) and particle sensors (wave gauges), host and device: the value a node or a particle
+// contributes to a sensor and the running reduction of one sample. Both engines evaluate grid_sensor_value() in their
+// grid update, on the nodes they own, and particle sensors on their particles (frame_value() of io/frame_columns.h,
+// the formula frames use); the run loop reduces the ranks' SensorAccum (io/sensor_recorder.h) into one value per
+// sensor and sample.
 //
 // What a node contributes (node of mass m > 0 whose position lies in [domain_start, domain_end], both ends included;
 // v* = p/m + dt g is its velocity before the boundary projections of this step, v the velocity after them):
@@ -20,6 +22,7 @@
 
 #include "MnBase/Math/vec.h"
 #include "MnBase/Meta/config.h"
+#include "io/frame_columns.h"
 
 namespace fbar {
 
@@ -41,6 +44,29 @@ struct GridSensorSet {
   static constexpr int kMax = 16;
   int count = 0;
   GridSensorParams<T> s[kMax];
+};
+
+/// One particle sensor: the attribute it reduces (a frame column) and its box.
+template <typename T>
+struct ParticleSensorParams {
+  FrameColumn column;
+  Vec3<T> lo{};  ///< [m] box, inclusive
+  Vec3<T> hi{};
+};
+
+/// Whether a particle sensor's attribute reads the particle's velocity or velocity gradient (the stress of a rate
+/// law does): the GPU engine then records v and C on the steps that end on its sample times.
+FBAR_HOST_DEVICE inline bool particle_sensor_reads_velocity(const FrameColumn& c) {
+  return c.quantity == FrameQuantity::Velocity || c.quantity == FrameQuantity::VelocityMagnitude ||
+         c.quantity == FrameQuantity::Pressure || c.quantity == FrameQuantity::VonMises ||
+         c.quantity == FrameQuantity::Stress;
+}
+
+template <typename T>
+struct ParticleSensorSet {
+  static constexpr int kMax = 16;
+  int count = 0;
+  ParticleSensorParams<T> s[kMax];
 };
 
 /// Running reduction of one sensor's values in one sample: Sum, Count, Average, STDEV, Max and Min follow from it.

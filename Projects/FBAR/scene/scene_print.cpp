@@ -152,14 +152,18 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
   if (scene.boundaries.empty()) os << "boundaries  none (particles leaving the domain are reported)\n";
   for (std::size_t i = 0; i < scene.grid_sensors.size(); ++i) {
     const GridSensorSpec& g = scene.grid_sensors[i];
-    os << "grid-sensors[" << i << "]  " << to_string(g.operation) << " of " << g.attribute << " along " << vec(g.direction)
+    os << "grid-sensors[" << i << "]  " << (g.name.empty() ? "" : "\"" + g.name + "\": ") << to_string(g.operation)
+       << " of " << g.attribute << " along " << vec(g.direction)
        << (g.direction_sign > 0 ? " (positive part)" : g.direction_sign < 0 ? " (negative part)" : "") << " at "
-       << num(g.output_frequency) << " Hz in " << vec(g.domain_start) << " .. " << vec(g.domain_end) << " m\n";
+       << num(g.output_frequency) << " Hz in " << vec(g.domain_start) << " .. " << vec(g.domain_end) << " m"
+       << (g.toggle ? " -> gridTarget[" + std::to_string(i) + "]_dev[0].csv" : " (off)") << "\n";
   }
   for (std::size_t i = 0; i < scene.particle_sensors.size(); ++i) {
     const ParticleSensorSpec& p = scene.particle_sensors[i];
-    os << "particle-sensors[" << i << "]  " << to_string(p.operation) << " of " << p.attribute << " at "
-       << num(p.output_frequency) << " Hz in " << vec(p.domain_start) << " .. " << vec(p.domain_end) << " m\n";
+    os << "particle-sensors[" << i << "]  " << (p.name.empty() ? "" : "\"" + p.name + "\": ")
+       << to_string(p.operation) << " of " << p.attribute << " at " << num(p.output_frequency) << " Hz in "
+       << vec(p.domain_start) << " .. " << vec(p.domain_end) << " m"
+       << (p.toggle ? " -> particleTarget[" + std::to_string(i) + "]_model[m]_dev[0].csv per body" : " (off)") << "\n";
   }
 
   os << "summary\n";

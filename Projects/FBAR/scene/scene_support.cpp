@@ -5,7 +5,7 @@
 // rotation and arrays; Walls, Box, Sphere, Cylinder, Floor, Plane and Velocity boundaries (Sticky / Slip / Separable, Coulomb friction,
 // constant velocity, any time window);
 // .bgeo / .geo / .csv frames with the attributes cpu_engine_supports_attribute() accepts; grid sensors of Force,
-// Acceleration, Momentum, Velocity and Mass. Everything else SCHEMA.md lists is parsed
+// Acceleration, Momentum, Velocity and Mass; particle sensors of every particle quantity frames write. Everything else SCHEMA.md lists is parsed
 // and range-checked by scene_parse.cpp, then refused here. A later release enables a feature by deleting its line.
 #include <algorithm>
 #include <array>
@@ -17,6 +17,7 @@
 #include "engine/cpu/cpu_engine.h"
 #include "physics/motion_path.h"
 #include "physics/sensors.cuh"
+#include "io/sensor_recorder.h"
 #include "scene/scene_parse.h"
 
 namespace fbar {
@@ -125,9 +126,33 @@ void check_supported(const Scene& scene) {
   if (enabled > GridSensorSet<double>::kMax)
     throw SceneError("grid-sensors", std::to_string(enabled) + " enabled sensors",
                      "at most " + std::to_string(GridSensorSet<double>::kMax) + " (switch some off with toggle: false)");
-  if (!scene.particle_sensors.empty())
-    refuse("particle-sensors", std::to_string(scene.particle_sensors.size()) + " sensor(s)", "no particle-sensors",
-           "particle-sensors");
+  enabled = 0;
+  for (std::size_t i = 0; i < scene.particle_sensors.size(); ++i) {
+    const ParticleSensorSpec& s = scene.particle_sensors[i];
+    if (!s.toggle) continue;
+    ++enabled;
+    const std::string path = idx("particle-sensors", i) + ".attribute";
+    FrameColumn column;
+    try {
+      column = make_particle_sensor_params<double>(s).column;
+    } catch (const std::invalid_argument&) {
+      throw SceneError(path, q(s.attribute), "a particle quantity (Position_*, Velocity_*, Mass, Volume, J, Pressure, ...; not ID)");
+    }
+    bool some_body = false;
+    for (const BodySpec& b : scene.bodies) {
+      MaterialOutputs outputs{false, false};
+      visit_material(b.material.law, [&](auto m) { outputs = decltype(m)::kOutputs; });
+      some_body = some_body || (column.quantity == FrameQuantity::DefGrad ? outputs.deformation_gradient
+                                : column.quantity == FrameQuantity::LogJp ? outputs.log_jp
+                                                                          : true);
+    }
+    if (!some_body)
+      throw SceneError(path, q(s.attribute), "an attribute some body's material has (no body stores it)");
+  }
+  if (enabled > ParticleSensorSet<double>::kMax)
+    throw SceneError("particle-sensors", std::to_string(enabled) + " enabled sensors",
+                     "at most " + std::to_string(ParticleSensorSet<double>::kMax) +
+                         " (switch some off with toggle: false)");
 }
 
 }  // namespace fbar

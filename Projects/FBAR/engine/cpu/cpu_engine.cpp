@@ -887,6 +887,67 @@ std::vector<SensorAccum> CpuEngine<T, TG>::grid_samples(int slots) const {
 }
 
 template <typename T, typename TG>
+void CpuEngine<T, TG>::set_particle_sensors(const std::vector<ParticleSensorSpec>& sensors) {
+  if (sensors.size() > static_cast<std::size_t>(ParticleSensorSet<T>::kMax))
+    throw std::invalid_argument("particle-sensors: " + std::to_string(sensors.size()) + " enabled sensors; at most " +
+                                std::to_string(ParticleSensorSet<T>::kMax) + " per run");
+  particle_sensors_ = ParticleSensorSet<T>{};
+  for (const ParticleSensorSpec& spec : sensors)
+    particle_sensors_.s[particle_sensors_.count++] = make_particle_sensor_params<T>(spec);
+  particle_samples_.clear();
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::sample_particles(int slot) {
+  const int n = particle_sensors_.count;
+  if (n == 0) return;
+  const std::size_t first = static_cast<std::size_t>(slot) * bodies_.size() * n;
+  if (particle_samples_.size() < first + bodies_.size() * n) particle_samples_.resize(first + bodies_.size() * n);
+  bool need_J = false, need_F = false, need_sigma = false, need_logJp = false;
+  for (int i = 0; i < n; ++i) switch (particle_sensors_.s[i].column.quantity) {
+      case FrameQuantity::Volume: case FrameQuantity::J: need_J = true; break;
+      case FrameQuantity::DefGrad: need_F = true; break;
+      case FrameQuantity::LogJp: need_logJp = true; break;
+      case FrameQuantity::Pressure: case FrameQuantity::VonMises: case FrameQuantity::Stress: need_sigma = true; break;
+      default: break;
+    }
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    const Body& body = bodies_[b];
+    MaterialOutputs outputs{false, false};
+    std::visit([&](const auto& mb) { outputs = std::decay_t<decltype(mb)>::material_type::kOutputs; }, body.material);
+    const int bi = static_cast<int>(b);
+    const std::vector<T> J = need_J ? volume_ratios(bi) : std::vector<T>();
+    const std::vector<Mat3T> F = need_F && outputs.deformation_gradient ? deformation_gradients(bi) : std::vector<Mat3T>();
+    const std::vector<Mat3T> sigma = need_sigma ? cauchy_stresses(bi) : std::vector<Mat3T>();
+    const std::vector<T> logJp = need_logJp && outputs.log_jp ? plastic_log_volumes(bi) : std::vector<T>();
+    SensorAccum* acc = &particle_samples_[first + b * n];
+    for (int i = 0; i < n; ++i) acc[i] = SensorAccum{};
+    for (std::size_t p = 0; p < body.x.size(); ++p) {  // slot order: a fixed order on each rank
+      FrameInputs<T> in{};
+      in.x = body.x[p];
+      in.v = body.v[p];
+      in.mass = body.mass[p];
+      in.volume0 = body.volume[p];
+      in.J = J.empty() ? T(1) : J[p];
+      in.F = F.empty() ? Mat3T::identity() : F[p];
+      in.sigma = sigma.empty() ? Mat3T::zero() : sigma[p];
+      in.logJp = logJp.empty() ? T(0) : logJp[p];
+      for (int i = 0; i < n; ++i) {
+        const ParticleSensorParams<T>& s = particle_sensors_.s[i];
+        if (sensor_box_contains(s.lo, s.hi, in.x)) acc[i].add(static_cast<double>(frame_value(s.column, in)));
+      }
+    }
+  }
+}
+
+template <typename T, typename TG>
+std::vector<SensorAccum> CpuEngine<T, TG>::particle_samples(int slots) const {
+  const std::size_t n = static_cast<std::size_t>(slots) * bodies_.size() * particle_sensors_.count;
+  if (particle_samples_.size() < n) throw std::logic_error("CpuEngine::particle_samples: fewer slots were sampled");
+  return std::vector<SensorAccum>(particle_samples_.begin(), particle_samples_.begin() + static_cast<std::ptrdiff_t>(n));
+}
+
+template <typename T, typename TG>
 std::string CpuEngine<T, TG>::resource_note() const {
   std::string note = std::to_string(omp_get_max_threads()) + " threads";
   if (ranks() > 1)

@@ -151,6 +151,8 @@ class CpuEngine {
   /// One step of advance_to(t_end): the CFL step, or what remains when that reaches t_end (landing on it exactly),
   /// or half of what remains when one CFL step would leave a sliver.
   StepReport step_toward(double t_end);
+  /// The same (the CPU engine chooses each dt at the step's start: the following target changes nothing).
+  StepReport step_toward(double t_end, double /*t_following*/) { return step_toward(t_end); }
 
   double time() const { return time_; }        ///< [s]
   long long steps() const { return steps_; }   ///< committed steps
@@ -177,6 +179,14 @@ class CpuEngine {
   void set_grid_sample(int slot) { grid_sample_slot_ = slot; }
   /// This rank's values of slots [0, slots), slot-major (values[slot * sensors + i]).
   std::vector<SensorAccum> grid_samples(int slots) const;
+  /// Particle sensors (at most ParticleSensorSet::kMax): sample_particles(slot) reduces this rank's particles of
+  /// every body in each sensor's box (frame_value() of the sensor's attribute) into `slot`; particle_samples(n)
+  /// returns slots [0, n) as values[(slot * bodies + body) * sensors + i]. keep_particle_inputs: nothing to keep
+  /// (the CPU engine holds v and C of every particle).
+  void set_particle_sensors(const std::vector<ParticleSensorSpec>& sensors);
+  void keep_particle_inputs(bool) {}
+  void sample_particles(int slot);
+  std::vector<SensorAccum> particle_samples(int slots) const;
 
   // ------------------------------------------------------------------ decomposition (one rank: trivial)
   int rank() const { return transport_->rank(); }
@@ -355,6 +365,8 @@ class CpuEngine {
   GridSensorSet<TG> grid_sensors_;         // evaluated by update_grid when grid_sample_slot_ >= 0
   int grid_sample_slot_ = -1;
   std::vector<SensorAccum> grid_samples_;  // (slot, sensor)
+  ParticleSensorSet<T> particle_sensors_;
+  std::vector<SensorAccum> particle_samples_;  // (slot, body, sensor)
   std::ostream* log_;
 };
 

@@ -43,8 +43,8 @@ StepReport GpuEngine<T, TG>::advance_to(double t_end) {
   return impl_->advance_to(t_end);
 }
 template <typename T, typename TG>
-StepReport GpuEngine<T, TG>::step_toward(double t_end) {
-  return impl_->step_toward(t_end);
+StepReport GpuEngine<T, TG>::step_toward(double t_end, double t_following) {
+  return impl_->step_toward(t_end, t_following);
 }
 template <typename T, typename TG>
 double GpuEngine<T, TG>::time() const { return impl_->time(); }
@@ -86,6 +86,16 @@ template <typename T, typename TG>
 void GpuEngine<T, TG>::set_grid_sample(int slot) { impl_->set_grid_sample(slot); }
 template <typename T, typename TG>
 std::vector<SensorAccum> GpuEngine<T, TG>::grid_samples(int slots) const { return impl_->grid_samples(slots); }
+template <typename T, typename TG>
+void GpuEngine<T, TG>::set_particle_sensors(const std::vector<ParticleSensorSpec>& sensors) {
+  impl_->set_particle_sensors(sensors);
+}
+template <typename T, typename TG>
+void GpuEngine<T, TG>::keep_particle_inputs(bool on) { impl_->keep_particle_inputs(on); }
+template <typename T, typename TG>
+void GpuEngine<T, TG>::sample_particles(int slot) { impl_->sample_particles(slot); }
+template <typename T, typename TG>
+std::vector<SensorAccum> GpuEngine<T, TG>::particle_samples(int slots) const { return impl_->particle_samples(slots); }
 template <typename T, typename TG>
 const DeviceMemoryPlan& GpuEngine<T, TG>::memory_plan() const { return impl_->memory_plan(); }
 template <typename T, typename TG>

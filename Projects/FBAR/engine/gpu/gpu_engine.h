@@ -11,6 +11,7 @@
 #include <cstddef>
 #include <filesystem>
 #include <iosfwd>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -97,7 +98,9 @@ class GpuEngine {
   StepReport step();                     ///< one step with the CFL time step (next_dt())
   StepReport step(double dt);            ///< one step of exactly dt [s] (reduce_dt may still halve it)
   StepReport advance_to(double t_end);   ///< CFL steps until time() == t_end (the last one shortened)
-  StepReport step_toward(double t_end);  ///< one CFL step of advance_to(t_end)
+  /// One CFL step of advance_to(t_end). `t_following`: where the next step will head when this one lands on t_end
+  /// (the device fixes the next dt during this step; knowing it spares a rescaled P2G impulse).
+  StepReport step_toward(double t_end, double t_following = std::numeric_limits<double>::infinity());
 
   double time() const;
   long long steps() const;
@@ -133,6 +136,12 @@ class GpuEngine {
   void set_grid_sensors(const std::vector<GridSensorSpec>& sensors);
   void set_grid_sample(int slot);
   std::vector<SensorAccum> grid_samples(int slots) const;
+  /// Particle sensors (as CpuEngine): keep_particle_inputs(true) for the steps that may land on a sample time makes
+  /// them record v and C when a sensor reads them; sample_particles(slot) reduces the current state.
+  void set_particle_sensors(const std::vector<ParticleSensorSpec>& sensors);
+  void keep_particle_inputs(bool on);
+  void sample_particles(int slot);
+  std::vector<SensorAccum> particle_samples(int slots) const;
   const DeviceMemoryPlan& memory_plan() const;  ///< what the engine planned and allocated at start
   std::size_t peak_device_bytes() const;   ///< most device memory the engine's buffers held so far
   std::string resource_note() const;       ///< device memory now and at its peak, for progress lines

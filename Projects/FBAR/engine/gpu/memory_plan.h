@@ -46,6 +46,7 @@ struct BodyMemoryInput {
   bool asflip = false;           ///< PIC-FLIP / ASFLIP (particle velocities, transported grid momentum)
   bool fbar = false;             ///< F-bar (cell sums)
   int frame_columns = -1;        ///< float attributes of its output frame, -1: no frames on the device
+  bool record = false;           ///< v and C per particle slot (12 scalars: a particle sensor reads velocities)
 };
 
 /// The plan for one device. Every figure in bytes unless named otherwise.
@@ -57,7 +58,7 @@ struct DeviceMemoryPlan {
   std::vector<long long> particles;      ///< per body
   std::size_t grid = 0;        ///< hash table, P2G grids, velocity, ASFLIP and F-bar channels
   std::size_t partition = 0;   ///< per-block and per-slot partition arrays of every body
-  std::size_t particles_bytes = 0;  ///< particle buffers (both) and ASFLIP particle velocities
+  std::size_t particles_bytes = 0;  ///< particle buffers (both), ASFLIP particle velocities, recorded v and C
   std::size_t frames = 0;      ///< output frames kept on the device for the asynchronous download
   std::size_t small = 0;       ///< step statistics, scan scratch, per-body reductions
   std::size_t total() const { return grid + partition + particles_bytes + frames + small; }

@@ -178,10 +178,11 @@ class MgspBenchmark {
   MgspBenchmark(const MgspBenchmark&) = delete;
   MgspBenchmark& operator=(const MgspBenchmark&) = delete;
 
-  StepReport step_impl(double dt, bool cfl_dt, double target);
+  /// `following`: the target of the step after this one when this one reaches `target` (NaN: `target` itself).
+  StepReport step_impl(double dt, bool cfl_dt, double target, double following = std::numeric_limits<double>::quiet_NaN());
   StepReport advance_to(double t_end);
   /// One CFL step, shortened to land on t_end when it would pass it (the device clamps the next dt likewise).
-  StepReport step_toward(double t_end);
+  StepReport step_toward(double t_end, double t_following = std::numeric_limits<double>::infinity());
   double next_dt() const { return next_dt_ * (dt_scale_ / dt_scale_at_compute_); }
 
   // --- state queries
@@ -205,6 +206,12 @@ class MgspBenchmark {
   void set_grid_sensors(const std::vector<GridSensorSpec>& sensors);
   void set_grid_sample(int slot);
   std::vector<SensorAccum> grid_samples(int slots) const;
+  /// Particle sensors: sample_particles() reduces the current state (v and C from the step that landed here, which
+  /// keep_particle_inputs(true) made record them, when a sensor reads them) into a device slot.
+  void set_particle_sensors(const std::vector<ParticleSensorSpec>& sensors);
+  void keep_particle_inputs(bool on);
+  void sample_particles(int slot);
+  std::vector<SensorAccum> particle_samples(int slots) const;
   long long p2g_range_repeats() const { return p2g_range_repeats_; }
   int body_count() const { return static_cast<int>(bodies_.size()); }
   std::size_t particle_count(int body) const { return static_cast<std::size_t>(body_at(body).particles); }
@@ -301,6 +308,9 @@ class MgspBenchmark {
     virtual void unpack_immigrants(MgspBenchmark& e, int first, const std::byte* in, int n) = 0;
     virtual void rescale_impulse(MgspBenchmark& e, T ddt) = 0;
     virtual void gather(MgspBenchmark& e, T* out, int* missing, cudaStream_t s) = 0;
+    /// Particle sensors over this body's particles into partials (sensor, CUDA block); aux: v and C, or nullptr
+    /// (before the first step: the initial velocity, C = 0).
+    virtual void sample_sensors(MgspBenchmark& e, const T* aux, SensorAccum* partials, int per_sensor) = 0;
     virtual bool stores_logJp() const = 0;
     /// J, F, Cauchy stress and logJp of one gathered record (F and logJp left as they are for a material without).
     virtual void state_of(const T* record, T& J, Mat3<T>& F, Mat3<T>& sigma, T& logJp, const Mat3<T>& C) const = 0;
@@ -484,6 +494,16 @@ class MgspBenchmark {
       mgsp_detail::check_launch("rescale_impulse");
     }
 
+    void sample_sensors(MgspBenchmark& e, const T* aux, SensorAccum* partials, int per_sensor) override {
+      const int slots = this->total_bins[e.cur_] * 32;
+      const Vec3<T> v0{{static_cast<T>(this->spec.velocity[0]), static_cast<T>(this->spec.velocity[1]),
+                        static_cast<T>(this->spec.velocity[2])}};
+      fbar::sample_particle_sensors<M, T><<<dim3(per_sensor, e.particle_sensors_.count), kSensorThreads, 0, e.stream_>>>(
+          bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, aux, v0, params, this->mass, this->volume,
+          e.particle_sensors_, partials);
+      mgsp_detail::check_launch("sample_particle_sensors");
+    }
+
     void gather(MgspBenchmark& e, T* out, int* missing, cudaStream_t s) override {
       const int slots = this->total_bins[e.cur_] * 32;
       if (slots == 0) return;
@@ -604,7 +624,12 @@ class MgspBenchmark {
   mgsp_detail::DeviceArray<int> missing_d_;
   GridSensorSet<TG> grid_sensors_;
   int grid_sample_slot_ = -1;
-  mgsp_detail::DeviceArray<SensorAccum> grid_samples_d_;  ///< (slot, sensor)
+  mgsp_detail::DeviceArray<SensorAccum> grid_samples_d_;     ///< (slot, sensor)
+  mgsp_detail::DeviceArray<SensorAccum> sensor_partials_d_;  ///< (sensor, CUDA block) of one sample
+  ParticleSensorSet<T> particle_sensors_;
+  bool particle_sensors_read_v_ = false;  ///< some particle sensor reads v or C (the landing step records them)
+  bool record_user_ = false;              ///< set_record_velocities
+  mgsp_detail::DeviceArray<SensorAccum> particle_samples_d_;  ///< (slot, body, sensor)
 
   int cur_ = 0;   ///< current particle buffer and layout
   int gc_ = 0;    ///< current grid
@@ -778,6 +803,7 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
       in.stored_scalars = body.stored_scalars();
       in.asflip = body.asflip;
       in.fbar = body.fbar_psi != T(0);
+      in.record = particle_sensors_read_velocity(scene_);
       if (options_.frames) {
         body.frame_attrs = frame_attributes(body.spec, body.index, "GPU engine");
         in.frame_columns = frame_float_columns(body.frame_attrs);
@@ -785,6 +811,7 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
       inputs.push_back(in);
     }
     plan_ = plan_device_memory(kPrecision, footprint_blocks(all), inputs);
+    plan_.small += sensor_device_bytes(scene_);
     if (plan_.block_capacity > DeviceLimits::kMaxBlocks)
       throw std::invalid_argument("GpuEngine: " + std::to_string(plan_.block_capacity) + " grid blocks of capacity; at most " +
                                   std::to_string(DeviceLimits::kMaxBlocks) + " per device (docs/user_guide.md \"Limits\")");
@@ -1026,6 +1053,7 @@ void MgspBenchmark<T, TG>::upload_sampled(BodyBase& body) {
 
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::set_record_velocities(bool on) {
+  record_user_ = on;
   record_ = on;
   if (on) ensure_aux();
 }
@@ -1276,7 +1304,7 @@ std::vector<FailureReport> MgspBenchmark<T, TG>::failures_of_try(double dt) cons
 }
 
 template <typename T, typename TG>
-StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target) {
+StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target, double following) {
   if (!(dt > 0.0) || !std::isfinite(dt)) throw std::invalid_argument("GpuEngine::step: dt must be positive");
   StepReport report;
   int range_repeats = 0;
@@ -1320,24 +1348,25 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
       }
       if (grid_sample_slot_ >= 0 && grid_sensors_.count > 0) {  // a sample step (each try overwrites the slot)
         SensorAccum* out = grid_samples_d_.get() + static_cast<std::size_t>(grid_sample_slot_) * grid_sensors_.count;
-        reset_sensor_slot<<<1, GridSensorSet<TG>::kMax, 0, stream_>>>(out, grid_sensors_.count);
-        mgsp_detail::check_launch("reset_sensor_slot");
-        if (block_count_ > 0) {
-          GridSensorSampleParams<TG> sp{};
-          sp.grid = gp.grid;
-          sp.velocity = gp.velocity;
-          sp.coords = gp.coords;
-          sp.block_count = block_count_;
-          sp.dt = gp.dt;
-          sp.dx = gp.dx;
-          sp.gravity = gp.gravity;
-          sp.slab = slab_;
-          sp.sensors = grid_sensors_;
-          sp.out = out;
-          sample_grid_sensors<TG><<<mgsp_detail::grid_for(block_count_, kGridUpdateThreads / 64), kGridUpdateThreads, 0,
-                                    stream_>>>(sp);
-          mgsp_detail::check_launch("sample_grid_sensors");
-        }
+        GridSensorSampleParams<TG> sp{};
+        sp.grid = gp.grid;
+        sp.velocity = gp.velocity;
+        sp.coords = gp.coords;
+        sp.block_count = block_count_;
+        sp.dt = gp.dt;
+        sp.dx = gp.dx;
+        sp.gravity = gp.gravity;
+        sp.slab = slab_;
+        sp.sensors = grid_sensors_;
+        sp.partials = sensor_partials_d_.get();
+        const long long nodes = static_cast<long long>(block_count_) * 64;
+        const int per_sensor = static_cast<int>(
+            std::clamp<long long>((nodes + kSensorThreads - 1) / kSensorThreads, 1, kSensorBlocks));
+        sample_grid_sensors<TG><<<dim3(per_sensor, grid_sensors_.count), kSensorThreads, 0, stream_>>>(sp);
+        mgsp_detail::check_launch("sample_grid_sensors");
+        merge_sensor_partials<<<1, GridSensorSet<TG>::kMax, 0, stream_>>>(sp.partials, per_sensor, grid_sensors_.count,
+                                                                          out);
+        mgsp_detail::check_launch("merge_sensor_partials");
       }
     }
     // 2. dt of the next step (its P2G impulse)
@@ -1350,8 +1379,12 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
       dp.dx = scene_.simulation.dx;
       dp.scale = dt_scale_;
       dp.fixed_dt = cfl_dt ? 0.0 : dt;
-      dp.t_next = time_ + dt;
-      dp.t_target = target;
+      // A step that reaches the target ends exactly on it (step_toward sets the clock so): time_ + dt may miss it
+      // by an ulp, which would leave the next step a sliver of 1e-19 s.
+      const bool reaches = dt >= target - time_;
+      dp.t_next = reaches ? target : time_ + dt;
+      // Landing on the target, the next step heads for `following`: its dt is clamped for that one.
+      dp.t_target = reaches && !std::isnan(following) ? following : target;
       dp.stats = stats_d_;
       if (decomposed()) {  // the maxima are stored as the bits of non-negative doubles: reduce them as doubles
         device_->allreduce_max(reinterpret_cast<double*>(&stats_d_->max_speed_sq), 1, stream_);
@@ -1519,6 +1552,8 @@ void MgspBenchmark<T, TG>::set_grid_sensors(const std::vector<GridSensorSpec>& s
   grid_sensors_ = GridSensorSet<TG>{};
   for (const GridSensorSpec& spec : sensors) grid_sensors_.s[grid_sensors_.count++] = make_grid_sensor_params<TG>(spec);
   grid_sample_slot_ = -1;
+  if (grid_sensors_.count > 0 && sensor_partials_d_.size() == 0)
+    sensor_partials_d_.allocate(static_cast<std::size_t>(GridSensorSet<TG>::kMax) * kSensorBlocks);
 }
 
 template <typename T, typename TG>
@@ -1550,7 +1585,74 @@ std::vector<SensorAccum> MgspBenchmark<T, TG>::grid_samples(int slots) const {
 }
 
 template <typename T, typename TG>
-StepReport MgspBenchmark<T, TG>::step_toward(double t_end) {
+void MgspBenchmark<T, TG>::set_particle_sensors(const std::vector<ParticleSensorSpec>& sensors) {
+  if (sensors.size() > static_cast<std::size_t>(ParticleSensorSet<T>::kMax))
+    throw std::invalid_argument("particle-sensors: " + std::to_string(sensors.size()) + " enabled sensors; at most " +
+                                std::to_string(ParticleSensorSet<T>::kMax) + " per run");
+  particle_sensors_ = ParticleSensorSet<T>{};
+  particle_sensors_read_v_ = false;
+  for (const ParticleSensorSpec& spec : sensors) {
+    const ParticleSensorParams<T> p = make_particle_sensor_params<T>(spec);
+    particle_sensors_read_v_ = particle_sensors_read_v_ || particle_sensor_reads_velocity(p.column);
+    particle_sensors_.s[particle_sensors_.count++] = p;
+  }
+  if (particle_sensors_.count > 0 && sensor_partials_d_.size() == 0)
+    sensor_partials_d_.allocate(static_cast<std::size_t>(GridSensorSet<TG>::kMax) * kSensorBlocks);
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::keep_particle_inputs(bool on) {
+  // Only a sensor reading v or C pays for recording them, and only on the steps that may land on a sample time.
+  record_ = record_user_ || (on && particle_sensors_read_v_);
+  if (record_) ensure_aux();
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::sample_particles(int slot) {
+  const int n = particle_sensors_.count;
+  if (n == 0) return;
+  const std::size_t per_slot = bodies_.size() * static_cast<std::size_t>(n);
+  const std::size_t need = static_cast<std::size_t>(slot + 1) * per_slot;
+  if (particle_samples_d_.size() < need) {  // grow (rare), keeping the slots already sampled
+    mgsp_detail::DeviceArray<SensorAccum> bigger;
+    bigger.allocate(std::max(need, 2 * particle_samples_d_.size()));
+    if (particle_samples_d_.size())
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(bigger.get(), particle_samples_d_.get(),
+                                      sizeof(SensorAccum) * particle_samples_d_.size(), cudaMemcpyDeviceToDevice, stream_));
+    FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+    particle_samples_d_.swap(bigger);
+  }
+  const bool initial = steps_ == 0 && !aux_valid_;
+  if (particle_sensors_read_v_ && !initial && !aux_valid_)
+    throw std::logic_error("GpuEngine::sample_particles: the step that ended here did not record v and C "
+                           "(keep_particle_inputs was not set for it)");
+  for (auto& b : bodies_) {
+    const int slots = b->total_bins[cur_] * 32;
+    const int per_sensor = static_cast<int>(std::clamp<long long>((slots + kSensorThreads - 1) / kSensorThreads, 1,
+                                                                  kSensorBlocks));
+    SensorAccum* out = particle_samples_d_.get() + static_cast<std::size_t>(slot) * per_slot +
+                       static_cast<std::size_t>(b->index) * n;
+    b->sample_sensors(*this, aux_valid_ && particle_sensors_read_v_ ? b->aux.get() : nullptr, sensor_partials_d_.get(),
+                      per_sensor);
+    merge_sensor_partials<<<1, ParticleSensorSet<T>::kMax, 0, stream_>>>(sensor_partials_d_.get(), per_sensor, n, out);
+    mgsp_detail::check_launch("merge_sensor_partials");
+  }
+}
+
+template <typename T, typename TG>
+std::vector<SensorAccum> MgspBenchmark<T, TG>::particle_samples(int slots) const {
+  const std::size_t n = static_cast<std::size_t>(slots) * bodies_.size() * particle_sensors_.count;
+  std::vector<SensorAccum> host(n);
+  if (n == 0) return host;
+  if (particle_samples_d_.size() < n) throw std::logic_error("GpuEngine::particle_samples: fewer slots were sampled");
+  FBAR_CUDA_CHECK(cudaMemcpyAsync(host.data(), particle_samples_d_.get(), sizeof(SensorAccum) * n,
+                                  cudaMemcpyDeviceToHost, stream_));
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+  return host;
+}
+
+template <typename T, typename TG>
+StepReport MgspBenchmark<T, TG>::step_toward(double t_end, double t_following) {
   const double remaining = t_end - time_;
   double dt = next_dt();
   const bool last = dt >= remaining;
@@ -1558,7 +1660,7 @@ StepReport MgspBenchmark<T, TG>::step_toward(double t_end) {
     dt = remaining;
   else if (2.0 * dt > remaining)
     dt = 0.5 * remaining;  // two equal steps rather than a full one and a sliver (as the CPU engine)
-  StepReport r = step_impl(dt, true, t_end);
+  StepReport r = step_impl(dt, true, t_end, t_following);
   if (r.ok && last && r.retries == 0) time_ = t_end;  // land on the target exactly, not t_end +- round-off
   return r;
 }
@@ -1824,7 +1926,8 @@ template <typename T, typename TG>
 std::size_t MgspBenchmark<T, TG>::device_bytes() const {
   std::size_t bytes = table_.bytes() + grid_[0].bytes() + grid_[1].bytes() + velocity_.bytes() + fbar_sums_.bytes() +
                       transported_[0].bytes() + transported_[1].bytes() + old_velocity_.bytes() +
-                      stats_bytes_.bytes() + wave_d_.bytes() + p2g_bound_d_.bytes() + scan_temp_.bytes();
+                      stats_bytes_.bytes() + wave_d_.bytes() + p2g_bound_d_.bytes() + scan_temp_.bytes() +
+                      grid_samples_d_.bytes() + particle_samples_d_.bytes() + sensor_partials_d_.bytes();
   for (const auto& b : bodies_)
     bytes += b->bins_bytes() + b->partition.bytes() + b->aux.bytes() + b->frame_x.bytes() + b->frame_columns.bytes();
   return bytes;

@@ -88,16 +88,13 @@ struct FrameCapture {
   FrameColumn column[kMaxFrameColumns];
 };
 
-/// Writes particle `id`'s frame entry from its new state (out of line: only capture steps pay its registers).
+/// The inputs of frame_value() for one particle (frames and particle sensors): the stored state's J, F, logJp, and
+/// its Cauchy stress when `sigma` (rate terms read C).
 template <typename M, typename T>
-__device__ __noinline__ void capture_particle(const FrameCapture<T>& cap, int id, const Vec3<T>& x, const Vec3<T>& v,
-                                              const Mat3<T>& C, const material_state_t<M, T>& s,
-                                              const material_params_t<M, T>& material, T mass, T volume) {
-  if (cap.id_bits) {
-    if (id < 0) return;
-    id = cap.id_offset[id >> 5] + __popc(cap.id_bits[id >> 5] & ((1u << (id & 31)) - 1u));
-  }
-  if (id < 0 || id >= cap.particles) return;
+FBAR_HOST_DEVICE inline FrameInputs<T> particle_frame_inputs(const Vec3<T>& x, const Vec3<T>& v, const Mat3<T>& C,
+                                                             const material_state_t<M, T>& s,
+                                                             const material_params_t<M, T>& material, T mass, T volume,
+                                                             bool sigma) {
   FrameInputs<T> in{};
   in.x = x;
   in.v = v;
@@ -108,7 +105,21 @@ __device__ __noinline__ void capture_particle(const FrameCapture<T>& cap, int id
   in.F = Mat3<T>::identity();
   if constexpr (M::kOutputs.deformation_gradient) in.F = s.F;
   if constexpr (M::kOutputs.log_jp) in.logJp = s.logJp;
-  if (cap.sigma) in.sigma = cauchy_stress(M::kirchhoff_stress(material, s, C));
+  if (sigma) in.sigma = cauchy_stress(M::kirchhoff_stress(material, s, C));
+  return in;
+}
+
+/// Writes particle `id`'s frame entry from its new state (out of line: only capture steps pay its registers).
+template <typename M, typename T>
+__device__ __noinline__ void capture_particle(const FrameCapture<T>& cap, int id, const Vec3<T>& x, const Vec3<T>& v,
+                                              const Mat3<T>& C, const material_state_t<M, T>& s,
+                                              const material_params_t<M, T>& material, T mass, T volume) {
+  if (cap.id_bits) {
+    if (id < 0) return;
+    id = cap.id_offset[id >> 5] + __popc(cap.id_bits[id >> 5] & ((1u << (id & 31)) - 1u));
+  }
+  if (id < 0 || id >= cap.particles) return;
+  const FrameInputs<T> in = particle_frame_inputs<M, T>(x, v, C, s, material, mass, volume, cap.sigma);
   const std::size_t i = static_cast<std::size_t>(id);
   cap.x[3 * i + 0] = x[0];
   cap.x[3 * i + 1] = x[1];

@@ -95,79 +95,87 @@ struct GridSensorSampleParams {
   Vec3<T> gravity;
   SlabBounds slab;
   GridSensorSet<T> sensors;
-  SensorAccum* out;  ///< (sensor) this sample's slot, reset beforehand (reset_sensor_slot)
+  SensorAccum* partials;  ///< (sensor, CUDA block) partial reductions
 };
 
-static __global__ void reset_sensor_slot(SensorAccum* out, int count) {
-  if (threadIdx.x < count) out[threadIdx.x] = SensorAccum{};
-}
+inline constexpr int kSensorThreads = 256;
+inline constexpr int kSensorBlocks = 512;  ///< CUDA blocks per sensor at most (grid-stride beyond; sensor_device_bytes)
 
-/// A non-negative or negative double's atomic max / min (compare-and-swap; a few calls per warp and sample).
-FBAR_DEVICE inline void atomic_max_double(double* address, double value) {
-  unsigned long long* a = reinterpret_cast<unsigned long long*>(address);
-  unsigned long long old = *a;
-  while (value > __longlong_as_double(static_cast<long long>(old))) {
-    const unsigned long long seen = atomicCAS(a, old, static_cast<unsigned long long>(__double_as_longlong(value)));
-    if (seen == old) break;
-    old = seen;
+/// Reduces a block's SensorAccum onto thread 0 (warp shuffles, then the warps' results through shared memory).
+FBAR_DEVICE inline SensorAccum block_reduce_sensor(SensorAccum a) {
+  __shared__ double warps[kSensorThreads / 32][5];  // (warp, field): SensorAccum has initializers, __shared__ cannot
+  for (int offset = 16; offset > 0; offset /= 2) {
+    SensorAccum o;
+    o.sum = __shfl_down_sync(0xffffffffu, a.sum, offset);
+    o.sum_sq = __shfl_down_sync(0xffffffffu, a.sum_sq, offset);
+    o.count = __shfl_down_sync(0xffffffffu, a.count, offset);
+    o.max = __shfl_down_sync(0xffffffffu, a.max, offset);
+    o.min = __shfl_down_sync(0xffffffffu, a.min, offset);
+    a.merge(o);
   }
-}
-FBAR_DEVICE inline void atomic_min_double(double* address, double value) {
-  unsigned long long* a = reinterpret_cast<unsigned long long*>(address);
-  unsigned long long old = *a;
-  while (value < __longlong_as_double(static_cast<long long>(old))) {
-    const unsigned long long seen = atomicCAS(a, old, static_cast<unsigned long long>(__double_as_longlong(value)));
-    if (seen == old) break;
-    old = seen;
+  if (threadIdx.x % 32 == 0) {
+    double* w = warps[threadIdx.x / 32];
+    w[0] = a.sum;
+    w[1] = a.sum_sq;
+    w[2] = a.count;
+    w[3] = a.max;
+    w[4] = a.min;
   }
-}
-
-/// One thread per node; per sensor a warp reduction, then one set of atomics per warp.
-template <typename T>
-__global__ void __launch_bounds__(kGridUpdateThreads) sample_grid_sensors(GridSensorSampleParams<T> p) {
-  const int block = blockIdx.x * (kGridUpdateThreads / 64) + threadIdx.x / 64;
-  const int node = threadIdx.x % 64;
-  bool active = false;
-  T m = T(0);
-  Vec3<T> x_node{}, v_free{}, v{};
-  if (block < p.block_count && p.slab.owns(p.coords[3 * block], p.coords[3 * block + 1], p.coords[3 * block + 2])) {
-    m = block_val(p.grid, grid_mass, block, node);
-    if (m > T(0)) {
-      active = true;
-      const Vec3<T> momentum{{block_val(p.grid, grid_momentum_x, block, node),
-                              block_val(p.grid, grid_momentum_y, block, node),
-                              block_val(p.grid, grid_momentum_z, block, node)}};
-      v_free = grid_node_velocity(m, momentum, p.gravity, p.dt);
-      v = Vec3<T>{{block_val(p.velocity, grid_velocity_x, block, node), block_val(p.velocity, grid_velocity_y, block, node),
-                   block_val(p.velocity, grid_velocity_z, block, node)}};
-      const int i = node / 16, j = (node / 4) % 4, k = node % 4;
-      x_node = Vec3<T>{{static_cast<T>(p.coords[3 * block + 0] * 4 + i) * p.dx,
-                        static_cast<T>(p.coords[3 * block + 1] * 4 + j) * p.dx,
-                        static_cast<T>(p.coords[3 * block + 2] * 4 + k) * p.dx}};
-    }
-  }
-  for (int s = 0; s < p.sensors.count; ++s) {
-    const GridSensorParams<T>& g = p.sensors.s[s];
-    SensorAccum a;
-    if (active && sensor_box_contains(g.lo, g.hi, x_node)) a.add(static_cast<double>(grid_sensor_value(g, m, v_free, v, p.dt)));
-    for (int offset = 16; offset > 0; offset /= 2) {
+  __syncthreads();
+  if (threadIdx.x == 0)
+    for (int w = 1; w < kSensorThreads / 32; ++w) {
       SensorAccum o;
-      o.sum = __shfl_down_sync(0xffffffffu, a.sum, offset);
-      o.sum_sq = __shfl_down_sync(0xffffffffu, a.sum_sq, offset);
-      o.count = __shfl_down_sync(0xffffffffu, a.count, offset);
-      o.max = __shfl_down_sync(0xffffffffu, a.max, offset);
-      o.min = __shfl_down_sync(0xffffffffu, a.min, offset);
+      o.sum = warps[w][0];
+      o.sum_sq = warps[w][1];
+      o.count = warps[w][2];
+      o.max = warps[w][3];
+      o.min = warps[w][4];
       a.merge(o);
     }
-    if (threadIdx.x % 32 == 0 && a.count > 0.0) {
-      SensorAccum* out = p.out + s;
-      atomicAdd(&out->sum, a.sum);
-      atomicAdd(&out->sum_sq, a.sum_sq);
-      atomicAdd(&out->count, a.count);
-      atomic_max_double(&out->max, a.max);
-      atomic_min_double(&out->min, a.min);
-    }
+  return a;
+}
+
+/// blockIdx.y = sensor; a grid-stride loop over the nodes (blocks whose extent misses the sensor's box are skipped
+/// before any node is read), one partial per CUDA block. Fixed order: the sums are reproducible bit for bit.
+template <typename T>
+__global__ void __launch_bounds__(kSensorThreads) sample_grid_sensors(GridSensorSampleParams<T> p) {
+  const GridSensorParams<T>& g = p.sensors.s[blockIdx.y];
+  SensorAccum a;
+  const long long nodes = static_cast<long long>(p.block_count) * 64;
+  for (long long idx = static_cast<long long>(blockIdx.x) * blockDim.x + threadIdx.x; idx < nodes;
+       idx += static_cast<long long>(gridDim.x) * blockDim.x) {
+    const int block = static_cast<int>(idx / 64), node = static_cast<int>(idx % 64);
+    const int c0 = p.coords[3 * block], c1 = p.coords[3 * block + 1], c2 = p.coords[3 * block + 2];
+    if (!p.slab.owns(c0, c1, c2)) continue;
+    const int c[3] = {c0, c1, c2};
+    bool overlaps = true;
+    for (int d = 0; d < 3; ++d)
+      overlaps = overlaps && static_cast<T>(c[d] * 4 + 3) * p.dx >= g.lo[d] && static_cast<T>(c[d] * 4) * p.dx <= g.hi[d];
+    if (!overlaps) continue;
+    const T m = block_val(p.grid, grid_mass, block, node);
+    if (!(m > T(0))) continue;
+    const int i = node / 16, j = (node / 4) % 4, k = node % 4;
+    const Vec3<T> x_node{{static_cast<T>(c0 * 4 + i) * p.dx, static_cast<T>(c1 * 4 + j) * p.dx,
+                          static_cast<T>(c2 * 4 + k) * p.dx}};
+    if (!sensor_box_contains(g.lo, g.hi, x_node)) continue;
+    const Vec3<T> momentum{{block_val(p.grid, grid_momentum_x, block, node), block_val(p.grid, grid_momentum_y, block, node),
+                            block_val(p.grid, grid_momentum_z, block, node)}};
+    const Vec3<T> v_free = grid_node_velocity(m, momentum, p.gravity, p.dt);
+    const Vec3<T> v{{block_val(p.velocity, grid_velocity_x, block, node), block_val(p.velocity, grid_velocity_y, block, node),
+                     block_val(p.velocity, grid_velocity_z, block, node)}};
+    a.add(static_cast<double>(grid_sensor_value(g, m, v_free, v, p.dt)));
   }
+  a = block_reduce_sensor(a);
+  if (threadIdx.x == 0) p.partials[static_cast<std::size_t>(blockIdx.y) * gridDim.x + blockIdx.x] = a;
+}
+
+/// out[sensor] = the sensor's partials merged in CUDA-block order (one thread per sensor: at most kSensorBlocks).
+static __global__ void merge_sensor_partials(const SensorAccum* partials, int per_sensor, int sensors, SensorAccum* out) {
+  const int s = blockIdx.x * blockDim.x + threadIdx.x;
+  if (s >= sensors) return;
+  SensorAccum a;
+  for (int b = 0; b < per_sensor; ++b) a.merge(partials[static_cast<std::size_t>(s) * per_sensor + b]);
+  out[s] = a;
 }
 
 /// Per-body inputs of the time-step bound.

@@ -4,6 +4,7 @@
 #include <cuda_runtime.h>
 
 #include "engine/gpu/kernels/g2p2g_kernel.cuh"
+#include "engine/gpu/kernels/grid_update_kernels.cuh"
 #include "engine/gpu/particle_buffer.cuh"
 #include "engine/gpu/partition_domain.h"
 
@@ -48,6 +49,38 @@ __global__ void __launch_bounds__(kOutputThreads)
   if (s < 0) return;
   const ParticleRecord<M, T> p = load_particle<M, T>(bins, s);
   capture_particle<M, T>(capture, p.id, p.x, velocity, Mat3<T>::zero(), p.state, material, mass, volume);
+}
+
+/// Particle sensors (physics/sensors.cuh) of one body: blockIdx.y = sensor, a grid-stride loop over the slots of the
+/// current layout, one partial per CUDA block (merge_sensor_partials adds them in order: reproducible sums). v and C
+/// come from aux (the step that landed here recorded them), or are the initial velocity and 0 before the first step.
+template <typename M, typename T>
+__global__ void __launch_bounds__(kSensorThreads)
+    sample_particle_sensors(typename ParticleLayout<M, T>::Buffer bins, const int* src, int slots, const T* aux,
+                            Vec3<T> v0, material_params_t<M, T> material, T mass, T volume, ParticleSensorSet<T> sensors,
+                            SensorAccum* partials) {
+  const ParticleSensorParams<T>& g = sensors.s[blockIdx.y];
+  const FrameQuantity q = g.column.quantity;
+  const bool sigma = q == FrameQuantity::Pressure || q == FrameQuantity::VonMises || q == FrameQuantity::Stress;
+  SensorAccum a;
+  for (int slot = blockIdx.x * blockDim.x + threadIdx.x; slot < slots; slot += gridDim.x * blockDim.x) {
+    const int s = src[slot];
+    if (s < 0) continue;
+    const ParticleRecord<M, T> p = load_particle<M, T>(bins, s);
+    if (!sensor_box_contains(g.lo, g.hi, p.x)) continue;
+    Vec3<T> v = v0;
+    Mat3<T> C = Mat3<T>::zero();
+    if (aux) {
+      const T* r = aux + static_cast<std::size_t>(s) * kAuxScalars;
+      v = Vec3<T>{{r[0], r[1], r[2]}};
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) C(i, j) = r[3 + 3 * i + j];
+    }
+    const FrameInputs<T> in = particle_frame_inputs<M, T>(p.x, v, C, p.state, material, mass, volume, sigma);
+    a.add(static_cast<double>(frame_value(g.column, in)));
+  }
+  a = block_reduce_sensor(a);
+  if (threadIdx.x == 0) partials[static_cast<std::size_t>(blockIdx.y) * gridDim.x + blockIdx.x] = a;
 }
 
 /// A decomposed rank's ID directory (FrameCapture::id_bits): sets the bit of every particle of the layout.
