@@ -292,5 +292,79 @@ TEST(GridSensors, RunLoopWritesExactSampleTimesAndRanksAgree) {
   EXPECT_GT(f1.rows.back().second, 0.3 * weight);
 }
 
+/// Trackers follow particles by ID through migration: the travelling block (every particle crosses the cuts) on 1
+/// and 2 ranks writes the same rows, and each tracked particle moves at the block's 2 m/s.
+TEST(Trackers, FollowParticlesAcrossRanks) {
+  auto run = [](int ranks) {
+    Scene scene = test::travelling_block();
+    scene.simulation.fps = 25.0;
+    scene.simulation.frames = 3;
+    scene.simulation.save_path =
+        (std::filesystem::path(::testing::TempDir()) / ("fbar_trackers_ranks" + std::to_string(ranks))).string();
+    std::filesystem::remove_all(scene.simulation.save_path);
+    scene.bodies[0].track_particle_id = {100, 0, 4095};
+    scene.bodies[0].track_attribs = {"Position_X", "Velocity_X", "J"};
+    std::vector<std::unique_ptr<comm::Transport>> transports = comm::make_thread_transports(ranks);
+    std::vector<RunResult> results(ranks);
+    std::vector<std::thread> threads;
+    for (int r = 0; r < ranks; ++r)
+      threads.emplace_back([&, r] {
+        RunOptions o;
+        o.quiet = true;
+        o.transport = ranks > 1 ? transports[r].get() : nullptr;
+        results[r] = run_cpu(scene, o);
+      });
+    for (auto& t : threads) t.join();
+    for (const RunResult& r : results) EXPECT_EQ(r.exit_code, 0) << r.message;
+    return std::filesystem::path(scene.simulation.save_path) / "particleTrack_model[0]_dev[0].csv";
+  };
+  auto read = [](const std::filesystem::path& path) {
+    std::ifstream in(path);
+    EXPECT_TRUE(in.good()) << path;
+    std::string header, line;
+    std::getline(in, header);
+    std::vector<std::vector<double>> rows;
+    while (std::getline(in, line)) {
+      std::vector<double> row;
+      std::istringstream ss(line);
+      std::string cell;
+      while (std::getline(ss, cell, ',')) row.push_back(std::stod(cell));
+      rows.push_back(row);
+    }
+    return std::make_pair(header, rows);
+  };
+  const auto [h1, r1] = read(run(1));
+  const auto [h2, r2] = read(run(2));
+  // Attributes outer, IDs inner, in the scene's order (ClaymoreUW's layout).
+  EXPECT_EQ(h1, "Time [s],Position_X[100] [m],Position_X[0] [m],Position_X[4095] [m],Velocity_X[100] [m/s],"
+                "Velocity_X[0] [m/s],Velocity_X[4095] [m/s],J[100] [-],J[0] [-],J[4095] [-]");
+  EXPECT_EQ(h2, h1);
+  ASSERT_EQ(r1.size(), 4u);  // the start and 3 frames
+  ASSERT_EQ(r2.size(), r1.size());
+  for (std::size_t k = 0; k < r1.size(); ++k) {
+    EXPECT_NEAR(r1[k][0], k / 25.0, 1e-12);
+    for (std::size_t c = 0; c < r1[k].size(); ++c) EXPECT_NEAR(r2[k][c], r1[k][c], 1e-9) << "row " << k << ", column " << c;
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_NEAR(r1[k][1 + i] - r1[0][1 + i], 2.0 * r1[k][0], 1e-6);  // x(t) = x(0) + 2 t (float output)
+      EXPECT_NEAR(r1[k][4 + i], 2.0, 1e-6);
+      EXPECT_NEAR(r1[k][7 + i], 1.0, 1e-6);
+    }
+  }
+  // Three different particles: their starting positions differ.
+  EXPECT_NE(r1[0][1], r1[0][3]);
+}
+
+TEST(Trackers, AnIdNoParticleHasStopsTheRunNamingIt) {
+  Scene scene = test::travelling_block();
+  scene.simulation.frames = 1;
+  scene.simulation.save_path = (std::filesystem::path(::testing::TempDir()) / "fbar_trackers_missing").string();
+  scene.bodies[0].track_particle_id = {9999999};
+  RunOptions o;
+  o.quiet = true;
+  const RunResult r = run_cpu(scene, o);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.message.find("track_particle_id: particle ID 9999999 does not exist"), std::string::npos) << r.message;
+}
+
 }  // namespace
 }  // namespace fbar

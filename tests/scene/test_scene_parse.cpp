@@ -310,8 +310,7 @@ TEST(SceneParse, ReleasePolicyRejectsWhatTheEngineCannotRun) {
   const std::vector<Case> cases = {
       {scene_with(body(R"({})", R"("algorithm": {"use_FEM": true})")), "bodies[0].algorithm.use_FEM"},
       {scene_with(body(R"({})", R"("output_attribs": ["logJp"])")), "bodies[0].output_attribs[0]"},
-      {scene_with(body(R"({})", R"("track_particle_id": [0], "track_attribs": ["Position_Y"])")),
-       "bodies[0].track_particle_id"},
+      {scene_with(body(R"({})", R"("target_attribs": ["Position_Y"])")), "bodies[0].target_attribs"},
       {scene_with(body(), R"("boundaries": [{"object": "USGS_GATE", "domain_start": [0,0,0], "domain_end": [1,1,1]}])"),
        "boundaries[0].object"},
       {scene_with(body(), R"("grid-sensors": [{"attribute": "Volume", "domain_start": [0,0,0],
@@ -337,6 +336,27 @@ TEST(SceneParse, ReleasePolicyRejectsWhatTheEngineCannotRun) {
 // density, gravity, angles and dimensionless numbers unchanged. Each scaled value is one multiplication by an
 // exactly representable factor (4, 2, 0.5, 8), so it is the correctly rounded product: compared with
 // EXPECT_DOUBLE_EQ against the product written out.
+// Trackers: ClaymoreUW's two spellings (track_particle_id / track_attribs, and the trackers object), not both; an
+// attribute the body's material lacks and too many IDs are errors naming the key.
+TEST(SceneParse, TrackersInEitherSpelling) {
+  const Scene a = parse(scene_with(body(R"({})", R"("track_particle_id": [3, 1], "track_attribs": ["Velocity_X"])")));
+  const Scene b = parse(scene_with(body(R"({})", R"("trackers": {"ids": [3, 1], "attribs": ["Velocity_X"]})")));
+  EXPECT_EQ(a.bodies[0].track_particle_id, (std::vector<long long>{3, 1}));
+  EXPECT_EQ(b.bodies[0].track_particle_id, a.bodies[0].track_particle_id);
+  EXPECT_EQ(b.bodies[0].track_attribs, a.bodies[0].track_attribs);
+  const std::string both = error_of(scene_with(body(R"({})", R"("track_particle_id": [1], "trackers": {"ids": [2]})")));
+  EXPECT_EQ(both.rfind("bodies[0].trackers.ids: got", 0), 0u) << both;
+  EXPECT_NE(both.find("either trackers.ids or track_particle_id"), std::string::npos) << both;
+  EXPECT_EQ(error_of(scene_with(body(R"({})", R"("track_particle_id": [1], "track_attribs": ["DefGrad_XX"])")))
+                .rfind("bodies[0].track_attribs[0]", 0),
+            0u);  // JFluid stores no F
+  std::string many = "[";
+  for (int i = 0; i < 65; ++i) many += (i ? "," : "") + std::to_string(i);
+  EXPECT_EQ(error_of(scene_with(body(R"({})", R"("track_particle_id": )" + many + "]"))).rfind("bodies[0].track_particle_id", 0),
+            0u);
+  EXPECT_EQ(error_of(scene_with(body(R"({})", R"("track_attribs": ["J"])"))).rfind("bodies[0].track_attribs", 0), 0u);
+}
+
 TEST(SceneParse, FroudeScalingScalesEveryQuantityByItsExponent) {
   const std::string json = R"({
     "simulation": {"domain": [2, 1, 0.5], "default_dx": 0.05, "default_dt": 1e-3, "time": 1.5, "fps": 60,

@@ -120,7 +120,7 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     in.stored_scalars = facts.stored_scalars;
     in.asflip = body.algorithm.asflip_active();
     in.fbar = body.algorithm.fbar_blend() != 0.0;
-    in.record = particle_sensors_read_velocity(scene);
+    in.record = particle_sensors_read_velocity(scene) || trackers_read_velocity(scene);
     if (options.frames) {
       try {
         in.frame_columns = frame_float_columns(frame_attributes(body, static_cast<int>(i), "GPU engine"));

@@ -21,6 +21,8 @@
 //                                               each particle's v and C in that step; the CPU needs nothing)
 //   void sample_particles(int slot)             reduces the current particle state into `slot`
 //   std::vector<SensorAccum> particle_samples(n) this rank's values of particle slots [0, n)
+//   void set_tracker(int body, TrackerSet)      the particles of a body whose attributes track() reads by ID
+//   void track(int body, values, present)       the tracked particles this rank holds, now
 #pragma once
 
 #include <algorithm>
@@ -108,6 +110,21 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
     if (!sensors.particle_sensors().empty())
       sensors.flush_particles(engine.particle_samples(sensors.particle_pending()));
   };
+  TrackerRecorder trackers(scene, transport);
+  for (const BodyTracker& t : trackers.trackers()) engine.set_tracker(t.body, t.set);
+  const bool trackers_read_velocity = [&] {
+    for (const BodyTracker& t : trackers.trackers())
+      for (int a = 0; a < t.set.attribs; ++a)
+        if (particle_sensor_reads_velocity(t.set.column[a])) return true;
+    return false;
+  }();
+  auto record_trackers = [&] {  // at every frame (ClaymoreUW's rate), a collective
+    std::vector<double> values, present;
+    for (std::size_t k = 0; k < trackers.trackers().size(); ++k) {
+      engine.track(trackers.trackers()[k].body, values, present);
+      trackers.record(k, engine.time(), values, present);
+    }
+  };
   // Particle sensors read the state a step lands on (or the initial state).
   auto sample_particles_at = [&](double t) {
     const int slot = sensors.particle_slot_for(t);
@@ -131,6 +148,7 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
         << " s)\n";
   write_frame(0);
   sample_particles_at(t0);
+  record_trackers();
 
   const auto wall_start = std::chrono::steady_clock::now();
   // The particles of every rank and their imbalance, max / mean - 1 (a collective: every rank calls it at the same
@@ -193,8 +211,9 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
       engine.set_grid_sample(slot);
       // The step that may land on a particle sample time keeps what the particle sensors read (the last two steps
       // before it: the CPU engine may split what remains in two).
-      engine.keep_particle_inputs(sensors.particle_due(step_target) &&
-                                  engine.time() + 2.0 * engine.next_dt() >= step_target);
+      engine.keep_particle_inputs(
+          (sensors.particle_due(step_target) || (trackers_read_velocity && step_target == target)) &&
+          engine.time() + 2.0 * engine.next_dt() >= step_target);
       // The step that lands on the frame time writes the frame (on the device, for the GPU engine).
       engine.set_frame_capture(step_target == target && engine.time() + engine.next_dt() >= target);
       // Where the step after a landing heads: the next sample or frame time (the GPU fixes that step's dt now).
@@ -222,6 +241,7 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
     engine.set_grid_sample(-1);
     write_frame(frame);
     flush_sensors();
+    record_trackers();
     if (!options.quiet) {
       const Count count = all_particles();
       if (talk) line("frame " + std::to_string(frame) + "/" + std::to_string(sim.frames), count);

@@ -10,6 +10,8 @@
 
 #include "io/particle_frame.h"
 #include "physics/constitutive_models.cuh"
+#include "scene/scene_error.h"
+#include "scene/scene_parse.h"
 
 namespace fbar {
 
@@ -314,6 +316,111 @@ SensorRecorder::SensorRecorder(const Scene& scene, comm::Transport* transport, d
 }
 
 SensorRecorder::~SensorRecorder() = default;
+
+// ---------------------------------------------------------------------------------------------------------------
+// Trackers
+
+std::vector<BodyTracker> make_trackers(const Scene& scene) {
+  std::vector<BodyTracker> out;
+  for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
+    const BodySpec& body = scene.bodies[b];
+    if (body.track_particle_id.empty()) continue;
+    const std::string where = "bodies[" + std::to_string(b) + "]";
+    BodyTracker t;
+    t.body = static_cast<int>(b);
+    t.ids = body.track_particle_id;
+    std::vector<long long> sorted = t.ids;
+    std::sort(sorted.begin(), sorted.end());
+    sorted.erase(std::unique(sorted.begin(), sorted.end()), sorted.end());
+    if (sorted.size() > static_cast<std::size_t>(TrackerSet::kMaxIds))
+      throw SceneError(where + ".track_particle_id", std::to_string(sorted.size()) + " ids",
+                       "at most " + std::to_string(TrackerSet::kMaxIds) + " particle IDs per body");
+    for (long long id : sorted) {
+      if (id > std::numeric_limits<int>::max())
+        throw SceneError(where + ".track_particle_id", std::to_string(id), "a particle ID below 2^31");
+      t.set.id[t.set.ids++] = static_cast<int>(id);
+    }
+    std::vector<std::string> attribs = body.track_attribs;
+    if (attribs.empty()) attribs = {"Position_Y"};  // ClaymoreUW's default
+    BodySpec probe;
+    probe.output_attribs = attribs;
+    const std::vector<FrameAttributeSpec> a = frame_attributes(probe, static_cast<int>(b), "trackers");
+    if (a.size() > static_cast<std::size_t>(TrackerSet::kMaxAttribs))
+      throw SceneError(where + ".track_attribs", std::to_string(a.size()) + " attributes",
+                       "at most " + std::to_string(TrackerSet::kMaxAttribs));
+    for (std::size_t k = 0; k < a.size(); ++k) {
+      if (a[k].column.quantity == FrameQuantity::Id || !material_has(body.material.law, a[k].column))
+        throw SceneError(where + ".track_attribs[" + std::to_string(k) + "]", "\"" + a[k].name + "\"",
+                         std::string("an attribute of the body's material ") + to_string(body.material.law) + " (not ID)");
+      t.set.column[t.set.attribs++] = a[k].column;
+      t.names.push_back(a[k].name);
+      t.units.push_back(a[k].unit);
+    }
+    out.push_back(std::move(t));
+  }
+  return out;
+}
+
+bool trackers_read_velocity(const Scene& scene) {
+  for (const BodyTracker& t : make_trackers(scene))
+    for (int a = 0; a < t.set.attribs; ++a)
+      if (particle_sensor_reads_velocity(t.set.column[a])) return true;
+  return false;
+}
+
+TrackerRecorder::TrackerRecorder(const Scene& scene, comm::Transport* transport)
+    : transport_(transport), trackers_(make_trackers(scene)) {
+  const bool writer = !transport || transport->rank() == 0;
+  const std::filesystem::path dir(scene.simulation.save_path);
+  for (const BodyTracker& t : trackers_) {
+    paths_.push_back(dir / ("particleTrack_model[" + std::to_string(scene.bodies[t.body].model) + "]_dev[0].csv"));
+    std::FILE* f = nullptr;
+    if (writer) {
+      std::filesystem::create_directories(dir);
+      f = std::fopen(paths_.back().c_str(), "w");
+      if (!f)
+        throw std::runtime_error("cannot write tracker file " + paths_.back().string() + ": " +
+                                 std::error_code(errno, std::generic_category()).message());
+      std::fprintf(f, "Time [s]");
+      for (std::size_t a = 0; a < t.names.size(); ++a)
+        for (long long id : t.ids)
+          std::fprintf(f, ",%s[%lld] [%s]", t.names[a].c_str(), id, t.units[a].empty() ? "-" : t.units[a].c_str());
+      std::fprintf(f, "\n");
+    }
+    files_.push_back(f);
+  }
+}
+
+TrackerRecorder::~TrackerRecorder() {
+  for (std::FILE* f : files_)
+    if (f) std::fclose(f);
+}
+
+void TrackerRecorder::record(std::size_t k, double time, std::vector<double> values, std::vector<double> present) {
+  const BodyTracker& t = trackers_[k];
+  if (transport_ && transport_->size() > 1) {
+    transport_->allreduce_sum(values.data(), static_cast<int>(values.size()));
+    transport_->allreduce_sum(present.data(), static_cast<int>(present.size()));
+  }
+  for (int i = 0; i < t.set.ids; ++i)
+    if (present[i] != 1.0)
+      throw std::runtime_error("bodies[" + std::to_string(t.body) + "].track_particle_id: particle ID " +
+                               std::to_string(t.set.id[i]) +
+                               (present[i] == 0.0 ? " does not exist (the body has fewer particles)"
+                                                  : " is held by several ranks (an engine error)"));
+  std::FILE* f = files_[k];
+  if (!f) return;
+  std::fprintf(f, "%.12g", time);
+  for (int a = 0; a < t.set.attribs; ++a)
+    for (long long id : t.ids) {
+      const int i = tracker_index(t.set, static_cast<int>(id));
+      std::fprintf(f, ",%.9g", values[static_cast<std::size_t>(i) * t.set.attribs + a]);
+    }
+  std::fprintf(f, "\n");
+  if (std::fflush(f) != 0)
+    throw std::runtime_error("cannot write tracker file " + paths_[k].string() + ": " +
+                             std::error_code(errno, std::generic_category()).message());
+}
 
 double SensorRecorder::next_time_after(double t) const {
   return std::min(grid_.next_time_after(t), particle_.next_time_after(t));

@@ -55,6 +55,43 @@ std::string grid_sensor_column(const GridSensorSpec& spec);
 /// "Position_Y [m]", "Count [-]", ...: the value column's header of a particle sensor.
 std::string particle_sensor_column(const ParticleSensorSpec& spec);
 
+/// One body's tracker (bodies[].track_particle_id with track_attribs, or bodies[].trackers {ids, attribs}).
+struct BodyTracker {
+  int body = 0;
+  TrackerSet set;                  ///< what the engines evaluate (IDs sorted, without repeats)
+  std::vector<long long> ids;      ///< the scene's IDs, in its order (the file's column order)
+  std::vector<std::string> names;  ///< the attributes' canonical names
+  std::vector<std::string> units;
+};
+
+/// The trackers of `scene`: one per body with track_particle_id (attributes: track_attribs, Position_Y when none).
+/// Throws SceneError naming the key for too many IDs or attributes, and for an attribute the body does not have.
+std::vector<BodyTracker> make_trackers(const Scene& scene);
+/// Whether a tracker reads velocities (the GPU then records v and C on the steps that land on frame times).
+bool trackers_read_velocity(const Scene& scene);
+
+/// Tracker files, one per tracked body, in simulation.save_path: particleTrack_model[m]_dev[0].csv (ClaymoreUW's
+/// name; dev 0: every rank's particles are in it). Header "Time [s],<attr>[<id>] [unit],..." with the attributes as
+/// the outer and the IDs as the inner loop (ClaymoreUW's order); one row at the start and at every frame.
+class TrackerRecorder {
+ public:
+  TrackerRecorder(const Scene& scene, comm::Transport* transport);
+  ~TrackerRecorder();
+  TrackerRecorder(const TrackerRecorder&) = delete;
+  TrackerRecorder& operator=(const TrackerRecorder&) = delete;
+  const std::vector<BodyTracker>& trackers() const { return trackers_; }
+  /// Reduces tracker k's sample over ranks (values: set.ids x set.attribs in sorted-ID order, 0 where absent;
+  /// present: per sorted ID, 1 on the rank holding it) and writes its row (rank 0). Every rank calls it. Throws
+  /// std::runtime_error when an ID is on no rank (no such particle) or on several.
+  void record(std::size_t k, double time, std::vector<double> values, std::vector<double> present);
+
+ private:
+  comm::Transport* transport_;
+  std::vector<BodyTracker> trackers_;
+  std::vector<std::FILE*> files_;
+  std::vector<std::filesystem::path> paths_;
+};
+
 class SensorRecorder {
  public:
   /// The enabled sensors of `scene` (toggle true) for a run from t0 to t_end [s]. Rank 0 of `transport` (nullptr:

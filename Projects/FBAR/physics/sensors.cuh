@@ -69,6 +69,30 @@ struct ParticleSensorSet {
   ParticleSensorParams<T> s[kMax];
 };
 
+/// The particles one body's tracker follows (bodies[].track_particle_id, track_attribs): IDs sorted ascending and
+/// the attributes read of each. Particles keep their ID through bin reordering and migration between ranks, so a
+/// kernel finds them by ID wherever they are.
+struct TrackerSet {
+  static constexpr int kMaxIds = 64;      ///< ClaymoreUW's limit
+  static constexpr int kMaxAttribs = 16;
+  int ids = 0;
+  int id[kMaxIds];
+  int attribs = 0;
+  FrameColumn column[kMaxAttribs];
+};
+
+/// Index of `id` in the tracker's sorted IDs, or -1.
+FBAR_HOST_DEVICE inline int tracker_index(const TrackerSet& t, int id) {
+  int lo = 0, hi = t.ids - 1;
+  while (lo <= hi) {
+    const int mid = (lo + hi) / 2;
+    if (t.id[mid] == id) return mid;
+    if (t.id[mid] < id) lo = mid + 1;
+    else hi = mid - 1;
+  }
+  return -1;
+}
+
 /// Running reduction of one sensor's values in one sample: Sum, Count, Average, STDEV, Max and Min follow from it.
 struct SensorAccum {
   double sum = 0.0;

@@ -329,7 +329,8 @@ const Keys kSimulationKeys = {"domain",      "default_dx",  "default_dt", "gravi
 const Keys kBodyKeys = {"gpu",           "model",          "velocity",     "partition_start", "partition_end",
                         "partition",     "output",         "track_particle_id", "output_attribs", "track_attribs",
                         "target_attribs", "material",      "algorithm",    "geometry",        "constitutive",
-                        "type",          "name",           "color"};
+                        "type",          "name",           "color",         "trackers"};
+const Keys kTrackerKeys = {"ids", "attribs"};
 const Keys kPartitionKeys = {"gpu", "model", "partition_start", "partition_end"};
 const Keys kOutputKeys = {"output_attribs", "track_attribs", "target_attribs", "track_particle_id"};
 /// Keys of bodies[].material: the common ones, then every material's parameters (kParameters).
@@ -798,6 +799,21 @@ BodyRead parse_body(const rj::Value& v, const std::string& path, const Context& 
   if (auto a = read_either<std::vector<std::string>>(o, outp, "output_attribs", attribs)) b.output_attribs = *a;
   if (auto a = read_either<std::vector<std::string>>(o, outp, "track_attribs", attribs)) b.track_attribs = *a;
   if (auto a = read_either<std::vector<std::string>>(o, outp, "target_attribs", attribs)) b.target_attribs = *a;
+  // ClaymoreUW's newer spelling: "trackers": {"ids": [...], "attribs": [...]}.
+  if (auto* x = o.get("trackers")) {
+    ObjectReader tr(*x, o.sub("trackers"), kTrackerKeys, ctx, "bodies[].trackers");
+    if (auto* ids_value = tr.get("ids")) {
+      if (!b.track_particle_id.empty())
+        throw SceneError(tr.sub("ids"), json_text(*ids_value), "either trackers.ids or track_particle_id, not both");
+      b.track_particle_id = ids(*ids_value, tr.sub("ids"));
+    }
+    if (auto* a = tr.get("attribs")) {
+      if (!b.track_attribs.empty())
+        throw SceneError(tr.sub("attribs"), json_text(*a), "either trackers.attribs or track_attribs, not both");
+      b.track_attribs = attribs(*a, tr.sub("attribs"));
+    }
+    tr.finish();
+  }
 
   b.material = parse_material(o, algo, ctx);
   b.algorithm = parse_algorithm(algo);

@@ -65,11 +65,9 @@ void check_supported(const Scene& scene) {
         refuse(gp + ".track_particle_id", std::to_string(g.track_particle_id.size()) + " id(s)", "an empty list",
                "track_particle_id (particle tracking)");
     }
-    if (!b.track_particle_id.empty())
-      refuse(p + ".track_particle_id", std::to_string(b.track_particle_id.size()) + " id(s)", "an empty list",
-             "track_particle_id (particle tracking)");
-    if (!b.track_attribs.empty())
-      refuse(p + ".track_attribs", q(b.track_attribs.front()), "an empty list", "track_attribs (particle tracking)");
+    if (b.track_particle_id.empty() && !b.track_attribs.empty())
+      throw SceneError(p + ".track_attribs", q(b.track_attribs.front()),
+                       "track_particle_id as well (the particles whose attributes are tracked)");
     if (!b.target_attribs.empty())
       refuse(p + ".target_attribs", q(b.target_attribs.front()), "an empty list", "target_attribs (particle sensors)");
     for (std::size_t k = 0; k < b.output_attribs.size(); ++k) {
@@ -113,6 +111,7 @@ void check_supported(const Scene& scene) {
     }
 
   }
+  make_trackers(scene);  // throws for too many IDs or attributes, or an attribute a body does not have
   int enabled = 0;
   for (std::size_t i = 0; i < scene.grid_sensors.size(); ++i) {
     const GridSensorSpec& g = scene.grid_sensors[i];

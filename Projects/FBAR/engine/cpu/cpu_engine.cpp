@@ -941,6 +941,52 @@ void CpuEngine<T, TG>::sample_particles(int slot) {
 }
 
 template <typename T, typename TG>
+void CpuEngine<T, TG>::set_tracker(int body, const TrackerSet& set) {
+  body_at(body);
+  trackers_.resize(bodies_.size());
+  trackers_[body] = set;
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::track(int body, std::vector<double>& values, std::vector<double>& present) const {
+  const Body& b = body_at(body);
+  const TrackerSet empty{};
+  const TrackerSet& t = static_cast<std::size_t>(body) < trackers_.size() ? trackers_[body] : empty;
+  values.assign(static_cast<std::size_t>(t.ids) * t.attribs, 0.0);
+  present.assign(t.ids, 0.0);
+  std::vector<std::size_t> slots(t.ids, b.x.size());
+  for (std::size_t p = 0; p < b.x.size(); ++p) {
+    const int i = b.id[p] <= std::numeric_limits<int>::max() ? tracker_index(t, static_cast<int>(b.id[p])) : -1;
+    if (i >= 0) slots[i] = p;
+  }
+  bool any = false;
+  for (std::size_t s : slots) any = any || s < b.x.size();
+  if (!any) return;
+  const std::vector<T> J = volume_ratios(body);
+  MaterialOutputs outputs{false, false};
+  std::visit([&](const auto& mb) { outputs = std::decay_t<decltype(mb)>::material_type::kOutputs; }, b.material);
+  const std::vector<Mat3T> F = outputs.deformation_gradient ? deformation_gradients(body) : std::vector<Mat3T>();
+  const std::vector<T> logJp = outputs.log_jp ? plastic_log_volumes(body) : std::vector<T>();
+  const std::vector<Mat3T> sigma = cauchy_stresses(body);
+  for (int i = 0; i < t.ids; ++i) {
+    const std::size_t p = slots[i];
+    if (p >= b.x.size()) continue;
+    present[i] = 1.0;
+    FrameInputs<T> in{};
+    in.x = b.x[p];
+    in.v = b.v[p];
+    in.mass = b.mass[p];
+    in.volume0 = b.volume[p];
+    in.J = J[p];
+    in.F = F.empty() ? Mat3T::identity() : F[p];
+    in.logJp = logJp.empty() ? T(0) : logJp[p];
+    in.sigma = sigma[p];
+    for (int a = 0; a < t.attribs; ++a)
+      values[static_cast<std::size_t>(i) * t.attribs + a] = static_cast<double>(frame_value(t.column[a], in));
+  }
+}
+
+template <typename T, typename TG>
 std::vector<SensorAccum> CpuEngine<T, TG>::particle_samples(int slots) const {
   const std::size_t n = static_cast<std::size_t>(slots) * bodies_.size() * particle_sensors_.count;
   if (particle_samples_.size() < n) throw std::logic_error("CpuEngine::particle_samples: fewer slots were sampled");

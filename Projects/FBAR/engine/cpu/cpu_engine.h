@@ -187,6 +187,10 @@ class CpuEngine {
   void keep_particle_inputs(bool) {}
   void sample_particles(int slot);
   std::vector<SensorAccum> particle_samples(int slots) const;
+  /// Trackers (physics/sensors.cuh TrackerSet): track() evaluates the tracked particles of `body` this rank holds,
+  /// found by ID: values[i * attribs + a] (i: index in the sorted IDs) and present[i] = 1 (0 where absent).
+  void set_tracker(int body, const TrackerSet& set);
+  void track(int body, std::vector<double>& values, std::vector<double>& present) const;
 
   // ------------------------------------------------------------------ decomposition (one rank: trivial)
   int rank() const { return transport_->rank(); }
@@ -366,6 +370,7 @@ class CpuEngine {
   int grid_sample_slot_ = -1;
   std::vector<SensorAccum> grid_samples_;  // (slot, sensor)
   ParticleSensorSet<T> particle_sensors_;
+  std::vector<TrackerSet> trackers_;  // (body)
   std::vector<SensorAccum> particle_samples_;  // (slot, body, sensor)
   std::ostream* log_;
 };

@@ -97,6 +97,12 @@ void GpuEngine<T, TG>::sample_particles(int slot) { impl_->sample_particles(slot
 template <typename T, typename TG>
 std::vector<SensorAccum> GpuEngine<T, TG>::particle_samples(int slots) const { return impl_->particle_samples(slots); }
 template <typename T, typename TG>
+void GpuEngine<T, TG>::set_tracker(int body, const TrackerSet& set) { impl_->set_tracker(body, set); }
+template <typename T, typename TG>
+void GpuEngine<T, TG>::track(int body, std::vector<double>& values, std::vector<double>& present) {
+  impl_->track(body, values, present);
+}
+template <typename T, typename TG>
 const DeviceMemoryPlan& GpuEngine<T, TG>::memory_plan() const { return impl_->memory_plan(); }
 template <typename T, typename TG>
 std::size_t GpuEngine<T, TG>::peak_device_bytes() const { return impl_->peak_device_bytes(); }

@@ -142,6 +142,9 @@ class GpuEngine {
   void keep_particle_inputs(bool on);
   void sample_particles(int slot);
   std::vector<SensorAccum> particle_samples(int slots) const;
+  /// Trackers (as CpuEngine): the tracked particles of `body` this rank holds, found by ID on the device.
+  void set_tracker(int body, const TrackerSet& set);
+  void track(int body, std::vector<double>& values, std::vector<double>& present);
   const DeviceMemoryPlan& memory_plan() const;  ///< what the engine planned and allocated at start
   std::size_t peak_device_bytes() const;   ///< most device memory the engine's buffers held so far
   std::string resource_note() const;       ///< device memory now and at its peak, for progress lines

@@ -212,6 +212,9 @@ class MgspBenchmark {
   void keep_particle_inputs(bool on);
   void sample_particles(int slot);
   std::vector<SensorAccum> particle_samples(int slots) const;
+  /// Trackers (as CpuEngine): the particles of `body` with the tracked IDs, found on the device by ID.
+  void set_tracker(int body, const TrackerSet& set);
+  void track(int body, std::vector<double>& values, std::vector<double>& present);
   long long p2g_range_repeats() const { return p2g_range_repeats_; }
   int body_count() const { return static_cast<int>(bodies_.size()); }
   std::size_t particle_count(int body) const { return static_cast<std::size_t>(body_at(body).particles); }
@@ -311,6 +314,8 @@ class MgspBenchmark {
     /// Particle sensors over this body's particles into partials (sensor, CUDA block); aux: v and C, or nullptr
     /// (before the first step: the initial velocity, C = 0).
     virtual void sample_sensors(MgspBenchmark& e, const T* aux, SensorAccum* partials, int per_sensor) = 0;
+    /// The tracker's particles this rank holds into values / present (device, zeroed beforehand).
+    virtual void track(MgspBenchmark& e, const T* aux, const TrackerSet& t, double* values, double* present) = 0;
     virtual bool stores_logJp() const = 0;
     /// J, F, Cauchy stress and logJp of one gathered record (F and logJp left as they are for a material without).
     virtual void state_of(const T* record, T& J, Mat3<T>& F, Mat3<T>& sigma, T& logJp, const Mat3<T>& C) const = 0;
@@ -504,6 +509,17 @@ class MgspBenchmark {
       mgsp_detail::check_launch("sample_particle_sensors");
     }
 
+    void track(MgspBenchmark& e, const T* aux, const TrackerSet& t, double* values, double* present) override {
+      const int slots = this->total_bins[e.cur_] * 32;
+      if (slots == 0) return;
+      const Vec3<T> v0{{static_cast<T>(this->spec.velocity[0]), static_cast<T>(this->spec.velocity[1]),
+                        static_cast<T>(this->spec.velocity[2])}};
+      fbar::track_particles<M, T><<<mgsp_detail::grid_for(slots, kOutputThreads), kOutputThreads, 0, e.stream_>>>(
+          bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, aux, v0, params, this->mass, this->volume, t,
+          values, present);
+      mgsp_detail::check_launch("track_particles");
+    }
+
     void gather(MgspBenchmark& e, T* out, int* missing, cudaStream_t s) override {
       const int slots = this->total_bins[e.cur_] * 32;
       if (slots == 0) return;
@@ -630,6 +646,9 @@ class MgspBenchmark {
   bool particle_sensors_read_v_ = false;  ///< some particle sensor reads v or C (the landing step records them)
   bool record_user_ = false;              ///< set_record_velocities
   mgsp_detail::DeviceArray<SensorAccum> particle_samples_d_;  ///< (slot, body, sensor)
+  std::vector<TrackerSet> trackers_;     ///< (body)
+  bool trackers_read_v_ = false;          ///< a tracker reads v or C (the frame-landing steps record them)
+  mgsp_detail::DeviceArray<double> track_d_;  ///< values (kMaxIds x kMaxAttribs), then present (kMaxIds)
 
   int cur_ = 0;   ///< current particle buffer and layout
   int gc_ = 0;    ///< current grid
@@ -803,7 +822,7 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
       in.stored_scalars = body.stored_scalars();
       in.asflip = body.asflip;
       in.fbar = body.fbar_psi != T(0);
-      in.record = particle_sensors_read_velocity(scene_);
+      in.record = particle_sensors_read_velocity(scene_) || trackers_read_velocity(scene_);
       if (options_.frames) {
         body.frame_attrs = frame_attributes(body.spec, body.index, "GPU engine");
         in.frame_columns = frame_float_columns(body.frame_attrs);
@@ -1603,7 +1622,7 @@ void MgspBenchmark<T, TG>::set_particle_sensors(const std::vector<ParticleSensor
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::keep_particle_inputs(bool on) {
   // Only a sensor reading v or C pays for recording them, and only on the steps that may land on a sample time.
-  record_ = record_user_ || (on && particle_sensors_read_v_);
+  record_ = record_user_ || (on && (particle_sensors_read_v_ || trackers_read_v_));
   if (record_) ensure_aux();
 }
 
@@ -1637,6 +1656,36 @@ void MgspBenchmark<T, TG>::sample_particles(int slot) {
     merge_sensor_partials<<<1, ParticleSensorSet<T>::kMax, 0, stream_>>>(sensor_partials_d_.get(), per_sensor, n, out);
     mgsp_detail::check_launch("merge_sensor_partials");
   }
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::set_tracker(int body, const TrackerSet& set) {
+  body_at(body);
+  trackers_.resize(bodies_.size());
+  trackers_[body] = set;
+  for (int a = 0; a < set.attribs; ++a) trackers_read_v_ = trackers_read_v_ || particle_sensor_reads_velocity(set.column[a]);
+  if (track_d_.size() == 0) track_d_.allocate(static_cast<std::size_t>(TrackerSet::kMaxIds) * (TrackerSet::kMaxAttribs + 1));
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::track(int body, std::vector<double>& values, std::vector<double>& present) {
+  BodyBase& b = body_at(body);
+  const TrackerSet empty{};
+  const TrackerSet& t = static_cast<std::size_t>(body) < trackers_.size() ? trackers_[body] : empty;
+  values.assign(static_cast<std::size_t>(t.ids) * t.attribs, 0.0);
+  present.assign(t.ids, 0.0);
+  if (t.ids == 0) return;
+  const bool initial = steps_ == 0 && !aux_valid_;
+  if (trackers_read_v_ && !initial && !aux_valid_)
+    throw std::logic_error("GpuEngine::track: the step that ended here did not record v and C");
+  double* v_d = track_d_.get();
+  double* present_d = v_d + static_cast<std::size_t>(TrackerSet::kMaxIds) * TrackerSet::kMaxAttribs;
+  FBAR_CUDA_CHECK(cudaMemsetAsync(v_d, 0, track_d_.bytes(), stream_));
+  b.track(*this, aux_valid_ ? b.aux.get() : nullptr, t, v_d, present_d);
+  FBAR_CUDA_CHECK(cudaMemcpyAsync(values.data(), v_d, sizeof(double) * values.size(), cudaMemcpyDeviceToHost, stream_));
+  FBAR_CUDA_CHECK(cudaMemcpyAsync(present.data(), present_d, sizeof(double) * present.size(), cudaMemcpyDeviceToHost,
+                                  stream_));
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
 }
 
 template <typename T, typename TG>
@@ -1927,7 +1976,8 @@ std::size_t MgspBenchmark<T, TG>::device_bytes() const {
   std::size_t bytes = table_.bytes() + grid_[0].bytes() + grid_[1].bytes() + velocity_.bytes() + fbar_sums_.bytes() +
                       transported_[0].bytes() + transported_[1].bytes() + old_velocity_.bytes() +
                       stats_bytes_.bytes() + wave_d_.bytes() + p2g_bound_d_.bytes() + scan_temp_.bytes() +
-                      grid_samples_d_.bytes() + particle_samples_d_.bytes() + sensor_partials_d_.bytes();
+                      grid_samples_d_.bytes() + particle_samples_d_.bytes() + sensor_partials_d_.bytes() +
+                      track_d_.bytes();
   for (const auto& b : bodies_)
     bytes += b->bins_bytes() + b->partition.bytes() + b->aux.bytes() + b->frame_x.bytes() + b->frame_columns.bytes();
   return bytes;

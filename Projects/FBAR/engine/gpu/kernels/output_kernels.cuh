@@ -83,6 +83,32 @@ __global__ void __launch_bounds__(kSensorThreads)
   if (threadIdx.x == 0) partials[static_cast<std::size_t>(blockIdx.y) * gridDim.x + blockIdx.x] = a;
 }
 
+/// A tracker's particles (TrackerSet, found by ID): one thread per slot of the current layout; the particle with a
+/// tracked ID writes its attributes (values[i * attribs + a], i its index in the sorted IDs) and present[i] = 1.
+template <typename M, typename T>
+__global__ void __launch_bounds__(kOutputThreads)
+    track_particles(typename ParticleLayout<M, T>::Buffer bins, const int* src, int slots, const T* aux, Vec3<T> v0,
+                    material_params_t<M, T> material, T mass, T volume, TrackerSet t, double* values, double* present) {
+  const int slot = blockIdx.x * blockDim.x + threadIdx.x;
+  if (slot >= slots) return;
+  const int s = src[slot];
+  if (s < 0) return;
+  const ParticleRecord<M, T> p = load_particle<M, T>(bins, s);
+  const int i = tracker_index(t, p.id);
+  if (i < 0) return;
+  Vec3<T> v = v0;
+  Mat3<T> C = Mat3<T>::zero();
+  if (aux) {
+    const T* r = aux + static_cast<std::size_t>(s) * kAuxScalars;
+    v = Vec3<T>{{r[0], r[1], r[2]}};
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) C(a, b) = r[3 + 3 * a + b];
+  }
+  const FrameInputs<T> in = particle_frame_inputs<M, T>(p.x, v, C, p.state, material, mass, volume, true);
+  for (int a = 0; a < t.attribs; ++a) values[i * t.attribs + a] = static_cast<double>(frame_value(t.column[a], in));
+  present[i] = 1.0;
+}
+
 /// A decomposed rank's ID directory (FrameCapture::id_bits): sets the bit of every particle of the layout.
 template <typename M, typename T>
 __global__ void __launch_bounds__(kOutputThreads)
