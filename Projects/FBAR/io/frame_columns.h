@@ -2,6 +2,7 @@
 // engine's frames and the GPU engine's frame kernel evaluate the same function).
 #pragma once
 
+#include "MnBase/Math/svd.h"
 #include "MnBase/Math/vec.h"
 #include "MnBase/Meta/config.h"
 #include "physics/materials/material_common.cuh"
@@ -10,15 +11,52 @@ namespace fbar {
 
 /// What one output attribute is, resolved once from its name (both engines; the GPU evaluates it in a kernel).
 enum class FrameQuantity : int {
-  Id, Mass, Volume, Position, Velocity, VelocityMagnitude, J, LogJp, DefGrad, Pressure, VonMises, Stress
+  Id, Mass, Volume, Position, Velocity, VelocityMagnitude, J, LogJp, DefGrad, Pressure, VonMises, Stress,
+  StressPK1, StressPK2, StrainSmall, VonMisesStrain
 };
 
-/// One output attribute: quantity and component (axis for Position / Velocity, row and column for tensors).
+/// A tensor column's `row` when it is not a component: an invariant or a principal value (`col` = 0, 1, 2).
+inline constexpr int kTensorInvariant = -1;
+inline constexpr int kTensorPrincipal = -2;
+
+/// One output attribute: quantity and component (axis for Position / Velocity, row and column for tensors, or
+/// kTensorInvariant / kTensorPrincipal with the index in `col`).
 struct FrameColumn {
   FrameQuantity quantity = FrameQuantity::Id;
   int row = 0;
   int col = 0;
 };
+
+/// The tensor of a tensor quantity (DefGrad F, Stress = Cauchy sigma, StressPK1 P = J sigma F^-T, StressPK2
+/// S = F^-1 P, StrainSmall eps = (F + F^T)/2 - I).
+template <typename T>
+FBAR_HOST_DEVICE inline Mat3<T> frame_tensor(FrameQuantity q, const Mat3<T>& F, const Mat3<T>& sigma, T J) {
+  switch (q) {
+    case FrameQuantity::DefGrad: return F;
+    case FrameQuantity::StressPK1: return sigma * transpose(inverse(F)) * J;
+    case FrameQuantity::StressPK2: {
+      const Mat3<T> Finv = inverse(F);
+      return Finv * sigma * transpose(Finv) * J;
+    }
+    case FrameQuantity::StrainSmall: return (F + transpose(F)) * T(0.5) - Mat3<T>::identity();
+    default: return sigma;
+  }
+}
+
+/// Component, invariant (I1 = tr A, I2 = (tr(A)^2 - tr(A^2)) / 2, I3 = det A) or principal value of a tensor:
+/// eigenvalues of the symmetric tensors (Cauchy, PK2, small strain), singular values of F and PK1 (the principal
+/// stretches and nominal stresses; the last carries the sign of det), both largest first.
+template <typename T>
+FBAR_HOST_DEVICE inline T tensor_value(FrameQuantity q, const Mat3<T>& A, int row, int col) {
+  if (row >= 0) return A(row, col);
+  if (row == kTensorInvariant) {
+    if (col == 0) return trace(A);
+    if (col == 1) return T(0.5) * (trace(A) * trace(A) - trace(A * A));
+    return determinant(A);
+  }
+  if (q == FrameQuantity::DefGrad || q == FrameQuantity::StressPK1) return svd(A).sigma[col];
+  return symmetric_eigen(A).lambda[col];
+}
 
 /// The per-particle values an attribute may read.
 template <typename T>
@@ -44,16 +82,25 @@ FBAR_HOST_DEVICE inline T frame_value(const FrameColumn& c, const FrameInputs<T>
     case FrameQuantity::VelocityMagnitude: return norm(in.v);
     case FrameQuantity::J: return in.J;
     case FrameQuantity::LogJp: return in.logJp;
-    case FrameQuantity::DefGrad: return in.F(c.row, c.col);
+    case FrameQuantity::DefGrad:
+    case FrameQuantity::Stress:
+    case FrameQuantity::StressPK1:
+    case FrameQuantity::StressPK2:
+    case FrameQuantity::StrainSmall:
+      return tensor_value(c.quantity, frame_tensor(c.quantity, in.F, in.sigma, in.J), c.row, c.col);
+    case FrameQuantity::VonMisesStrain: {  // sqrt(2/3 e:e), e = dev(eps): the equivalent small strain
+      using std::sqrt;
+      const Mat3<T> e = deviatoric_part(frame_tensor(FrameQuantity::StrainSmall, in.F, in.sigma, in.J));
+      return sqrt(T(2) / T(3) * ddot(e, e));
+    }
     case FrameQuantity::Pressure: return mean_pressure(in.sigma);
     case FrameQuantity::VonMises: return von_mises_stress(in.sigma);
-    case FrameQuantity::Stress: return in.sigma(c.row, c.col);
     case FrameQuantity::Id: break;
   }
   return T(0);
 }
 
-/// Most float columns of one body's frame (every attribute of attributes.h but ID: 31).
+/// Most float columns of one body's frame (the GPU's capture table; scene_support.cpp refuses more).
 inline constexpr int kMaxFrameColumns = 32;
 
 }  // namespace fbar

@@ -55,6 +55,58 @@ struct FrameNeeds {
   bool J = false, F = false, sigma = false, logJp = false, velocity = false;
 };
 
+/// The column of a tensor attribute "<prefix>XX".."ZZ", "<prefix>Invariant1..3" or "<prefix>1..3".
+inline bool tensor_attribute(std::string_view name, std::string_view prefix, int& row, int& col) {
+  if (tensor_component(name, prefix, row, col)) return true;
+  if (name.substr(0, prefix.size()) != prefix) return false;
+  const std::string_view rest = name.substr(prefix.size());
+  if (rest.size() == 10 && rest.substr(0, 9) == "Invariant" && rest[9] >= '1' && rest[9] <= '3') {
+    row = kTensorInvariant;
+    col = rest[9] - '1';
+    return true;
+  }
+  if (rest.size() == 1 && rest[0] >= '1' && rest[0] <= '3') {
+    row = kTensorPrincipal;
+    col = rest[0] - '1';
+    return true;
+  }
+  return false;
+}
+
+/// The column and unit of a canonical attribute name (attributes.h); false for a name frames cannot hold.
+inline bool resolve_frame_attribute(const std::string& name, FrameAttributeSpec& a) {
+  a.name = name;
+  int row = 0, col = 0;
+  auto set = [&](FrameQuantity q, const char* unit, int r = 0, int c = 0) {
+    a.column = FrameColumn{q, r, c};
+    a.unit = unit;
+    return true;
+  };
+  if (name == "ID") return set(FrameQuantity::Id, "");
+  if (name == "Mass") return set(FrameQuantity::Mass, "kg");
+  if (name == "Volume") return set(FrameQuantity::Volume, "m^3");
+  if (name.rfind("Position_", 0) == 0) return set(FrameQuantity::Position, "m", name.back() - 'X');
+  if (name == "Velocity_Magnitude") return set(FrameQuantity::VelocityMagnitude, "m/s");
+  if (name.rfind("Velocity_", 0) == 0) return set(FrameQuantity::Velocity, "m/s", name.back() - 'X');
+  if (name == "J") return set(FrameQuantity::J, "");
+  if (name == "logJp") return set(FrameQuantity::LogJp, "");
+  if (name == "Pressure") return set(FrameQuantity::Pressure, "Pa");
+  if (name == "VonMisesStress") return set(FrameQuantity::VonMises, "Pa");
+  if (name == "VonMisesStrain") return set(FrameQuantity::VonMisesStrain, "");
+  if (tensor_attribute(name, "DefGrad_", row, col)) return set(FrameQuantity::DefGrad, "", row, col);
+  if (tensor_attribute(name, "StressCauchy_", row, col)) return set(FrameQuantity::Stress, "Pa", row, col);
+  if (tensor_attribute(name, "StressPK1_", row, col)) return set(FrameQuantity::StressPK1, "Pa", row, col);
+  if (tensor_attribute(name, "StressPK2_", row, col)) return set(FrameQuantity::StressPK2, "Pa", row, col);
+  if (tensor_attribute(name, "StrainSmall_", row, col)) return set(FrameQuantity::StrainSmall, "", row, col);
+  return false;  // JBar, PorePressure: quantities no engine keeps per particle
+}
+
+/// Whether a quantity reads the deformation gradient F (a material that stores F has it).
+inline bool frame_quantity_reads_F(FrameQuantity q) {
+  return q == FrameQuantity::DefGrad || q == FrameQuantity::StressPK1 || q == FrameQuantity::StressPK2 ||
+         q == FrameQuantity::StrainSmall || q == FrameQuantity::VonMisesStrain;
+}
+
 /// `spec.output_attribs` resolved in order (canonical names; an alias and its name count once). Throws
 /// std::invalid_argument naming bodies[body].output_attribs for a name no engine produces.
 inline std::vector<FrameAttributeSpec> frame_attributes(const BodySpec& spec, int body, const std::string& engine) {
@@ -64,25 +116,8 @@ inline std::vector<FrameAttributeSpec> frame_attributes(const BodySpec& spec, in
     bool seen = false;
     for (const auto& a : out) seen = seen || a.name == name;
     if (seen) continue;  // listed twice (e.g. an alias and its canonical name)
-    FrameAttributeSpec a{name, "", {}};
-    int row = 0, col = 0;
-    auto set = [&](FrameQuantity q, const char* unit, int r = 0, int c = 0) {
-      a.column = FrameColumn{q, r, c};
-      a.unit = unit;
-    };
-    if (name == "ID") set(FrameQuantity::Id, "");
-    else if (name == "Mass") set(FrameQuantity::Mass, "kg");
-    else if (name == "Volume") set(FrameQuantity::Volume, "m^3");
-    else if (name.rfind("Position_", 0) == 0) set(FrameQuantity::Position, "m", name.back() - 'X');
-    else if (name == "Velocity_Magnitude") set(FrameQuantity::VelocityMagnitude, "m/s");
-    else if (name.rfind("Velocity_", 0) == 0) set(FrameQuantity::Velocity, "m/s", name.back() - 'X');
-    else if (name == "J") set(FrameQuantity::J, "");
-    else if (name == "logJp") set(FrameQuantity::LogJp, "");
-    else if (tensor_component(name, "DefGrad_", row, col)) set(FrameQuantity::DefGrad, "", row, col);
-    else if (name == "Pressure") set(FrameQuantity::Pressure, "Pa");
-    else if (name == "VonMisesStress") set(FrameQuantity::VonMises, "Pa");
-    else if (tensor_component(name, "StressCauchy_", row, col)) set(FrameQuantity::Stress, "Pa", row, col);
-    else
+    FrameAttributeSpec a;
+    if (!resolve_frame_attribute(name, a))
       throw std::invalid_argument("bodies[" + std::to_string(body) + "].output_attribs: " + requested +
                                   " is not available on the " + engine);
     out.push_back(a);
@@ -96,7 +131,11 @@ inline FrameNeeds frame_needs(const std::vector<FrameAttributeSpec>& attributes)
       case FrameQuantity::Volume:
       case FrameQuantity::J: n.J = true; break;
       case FrameQuantity::LogJp: n.logJp = true; break;
-      case FrameQuantity::DefGrad: n.F = true; break;
+      case FrameQuantity::DefGrad:
+      case FrameQuantity::StrainSmall:
+      case FrameQuantity::VonMisesStrain: n.F = true; break;
+      case FrameQuantity::StressPK1:
+      case FrameQuantity::StressPK2: n.F = n.sigma = n.J = true; break;
       case FrameQuantity::Pressure:
       case FrameQuantity::VonMises:
       case FrameQuantity::Stress: n.sigma = true; break;

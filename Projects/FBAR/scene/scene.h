@@ -120,6 +120,8 @@ struct BodySpec {
                       std::numeric_limits<double>::infinity()};
   std::vector<long long> track_particle_id;
   std::vector<std::string> output_attribs{"ID"};  ///< canonical attribute names (see attributes.h)
+  bool output_exterior_only = false;  ///< output.exterior_only: write only surface particles (not run yet)
+  double exterior_threshold = 0.0;    ///< output.exterior_threshold (ClaymoreUW's surface test value)
   std::vector<std::string> track_attribs;
   std::vector<std::string> target_attribs;
   MaterialSpec material;

@@ -332,7 +332,8 @@ const Keys kBodyKeys = {"gpu",           "model",          "velocity",     "part
                         "type",          "name",           "color",         "trackers"};
 const Keys kTrackerKeys = {"ids", "attribs"};
 const Keys kPartitionKeys = {"gpu", "model", "partition_start", "partition_end"};
-const Keys kOutputKeys = {"output_attribs", "track_attribs", "target_attribs", "track_particle_id"};
+const Keys kOutputKeys = {"output_attribs", "attribs",         "track_attribs",     "target_attribs",
+                           "track_particle_id", "exterior_only", "exterior_threshold"};
 /// Keys of bodies[].material: the common ones, then every material's parameters (kParameters).
 Keys material_keys() {
   Keys keys = {"type", "constitutive", "ppc", "CFL", "rho"};
@@ -797,6 +798,18 @@ BodyRead parse_body(const rj::Value& v, const std::string& path, const Context& 
   if (auto t = read_either<std::vector<long long>>(o, outp, "track_particle_id", ids)) b.track_particle_id = *t;
   auto attribs = [](const rj::Value& x, const std::string& p) { return read_attribute_list(x, p); };
   if (auto a = read_either<std::vector<std::string>>(o, outp, "output_attribs", attribs)) b.output_attribs = *a;
+  if (outp && outp->get("attribs")) {  // ClaymoreUW's newer spelling, output: {attribs: [...]}
+    const std::vector<std::string> a = attribs(*outp->get("attribs"), outp->sub("attribs"));
+    if ((o.get("output_attribs") || outp->get("output_attribs")) && a != b.output_attribs)
+      throw SceneError(outp->sub("attribs"), json_text(*outp->get("attribs")),
+                       "the same list as output_attribs, or only one of the two");
+    b.output_attribs = a;
+  }
+  if (outp) {
+    if (auto* x = outp->get("exterior_only")) b.output_exterior_only = read_bool(*x, outp->sub("exterior_only"));
+    if (auto* x = outp->get("exterior_threshold"))
+      b.exterior_threshold = read_number(*x, outp->sub("exterior_threshold"), kNonNegative, "-");
+  }
   if (auto a = read_either<std::vector<std::string>>(o, outp, "track_attribs", attribs)) b.track_attribs = *a;
   if (auto a = read_either<std::vector<std::string>>(o, outp, "target_attribs", attribs)) b.target_attribs = *a;
   // ClaymoreUW's newer spelling: "trackers": {"ids": [...], "attribs": [...]}.

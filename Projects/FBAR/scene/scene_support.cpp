@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <array>
 #include <iomanip>
+#include <set>
 #include <sstream>
 #include <string>
 #include <string_view>
@@ -18,6 +19,7 @@
 #include "physics/motion_path.h"
 #include "physics/sensors.cuh"
 #include "io/sensor_recorder.h"
+#include "scene/attributes.h"
 #include "scene/scene_parse.h"
 
 namespace fbar {
@@ -65,6 +67,8 @@ void check_supported(const Scene& scene) {
         refuse(gp + ".track_particle_id", std::to_string(g.track_particle_id.size()) + " id(s)", "an empty list",
                "track_particle_id (particle tracking)");
     }
+    if (b.output_exterior_only)
+      refuse(p + ".output.exterior_only", "true", "false", "output.exterior_only (surface particles only)");
     if (b.track_particle_id.empty() && !b.track_attribs.empty())
       throw SceneError(p + ".track_attribs", q(b.track_attribs.front()),
                        "track_particle_id as well (the particles whose attributes are tracked)");
@@ -78,12 +82,22 @@ void check_supported(const Scene& scene) {
         visit_material(m.law, [&](auto law) { outputs = decltype(law)::kOutputs; });
         refuse(p + "." + idx("output_attribs", k), q(name),
                std::string("one of ID, Mass, Volume, Position_*, Velocity_*, Velocity_Magnitude, J, Pressure, "
-                           "StressCauchy_* (9), VonMisesStress") +
-                   (outputs.deformation_gradient ? ", DefGrad_* (9)" : "") + (outputs.log_jp ? ", logJp" : "") +
-                   " for " + to_string(m.law),
+                           "VonMisesStress, StressCauchy_* (components, Invariant1-3, 1-3)") +
+                   (outputs.deformation_gradient
+                        ? ", DefGrad_*, StressPK1_*, StressPK2_*, StrainSmall_* (each: components, Invariant1-3, "
+                          "1-3), Dilation, VonMisesStrain"
+                        : "") +
+                   (outputs.log_jp ? ", logJp" : "") + " for " + to_string(m.law),
                "output attribute " + name);
       }
     }
+    std::set<std::string> columns;  // an alias and its name are one column
+    for (const std::string& name : b.output_attribs)
+      if (canonical_attribute(name) != "ID") columns.insert(canonical_attribute(name));
+    const int float_columns = static_cast<int>(columns.size());
+    if (float_columns > kMaxFrameColumns)
+      throw SceneError(p + ".output_attribs", std::to_string(float_columns) + " attributes besides ID",
+                       "at most " + std::to_string(kMaxFrameColumns) + " per body (the GPU's frame table)");
   }
 
   for (std::size_t i = 0; i < scene.boundaries.size(); ++i) {

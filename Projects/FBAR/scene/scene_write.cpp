@@ -227,6 +227,13 @@ class SceneWriter {
     names("output_attribs", b.output_attribs);
     names("track_attribs", b.track_attribs);
     names("target_attribs", b.target_attribs);
+    if (b.output_exterior_only || b.exterior_threshold != 0.0) {
+      key("output");
+      w_.StartObject();
+      boolean("exterior_only", b.output_exterior_only);
+      num("exterior_threshold", b.exterior_threshold);
+      w_.EndObject();
+    }
     material(b.material);
     algorithm(b.algorithm);
     key("geometry");
@@ -501,7 +508,8 @@ bool operator==(const GeometrySpec& a, const GeometrySpec& b) {
 bool operator==(const BodySpec& a, const BodySpec& b) {
   return a.gpu == b.gpu && a.model == b.model && a.velocity == b.velocity && a.partition_start == b.partition_start &&
          a.partition_end == b.partition_end && a.track_particle_id == b.track_particle_id &&
-         a.output_attribs == b.output_attribs && a.track_attribs == b.track_attribs &&
+         a.output_attribs == b.output_attribs && a.output_exterior_only == b.output_exterior_only &&
+         a.exterior_threshold == b.exterior_threshold && a.track_attribs == b.track_attribs &&
          a.target_attribs == b.target_attribs && a.material == b.material && a.algorithm == b.algorithm &&
          a.geometry == b.geometry;
 }

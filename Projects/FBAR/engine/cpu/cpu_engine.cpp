@@ -83,32 +83,6 @@ std::string format_g(double v) {
   return buf;
 }
 
-/// Output attributes every material provides on the CPU engine.
-constexpr std::string_view kCommonAttributes[] = {"ID",
-                                                  "Mass",
-                                                  "Volume",
-                                                  "Position_X",
-                                                  "Position_Y",
-                                                  "Position_Z",
-                                                  "Velocity_X",
-                                                  "Velocity_Y",
-                                                  "Velocity_Z",
-                                                  "Velocity_Magnitude",
-                                                  "J",
-                                                  "Pressure",
-                                                  "StressCauchy_XX",
-                                                  "StressCauchy_XY",
-                                                  "StressCauchy_XZ",
-                                                  "StressCauchy_YX",
-                                                  "StressCauchy_YY",
-                                                  "StressCauchy_YZ",
-                                                  "StressCauchy_ZX",
-                                                  "StressCauchy_ZY",
-                                                  "StressCauchy_ZZ",
-                                                  "VonMisesStress"};
-constexpr std::string_view kDefGradAttributes[] = {"DefGrad_XX", "DefGrad_XY", "DefGrad_XZ", "DefGrad_YX", "DefGrad_YY",
-                                                   "DefGrad_YZ", "DefGrad_ZX", "DefGrad_ZY", "DefGrad_ZZ"};
-
 }  // namespace
 
 const char* to_string(FailureKind kind) {
@@ -150,14 +124,13 @@ std::string StepReport::message() const {
 }
 
 bool cpu_engine_supports_attribute(Constitutive law, std::string_view name) {
-  for (std::string_view a : kCommonAttributes)
-    if (a == name) return material_index(law) >= 0;
+  FrameAttributeSpec a;
+  if (material_index(law) < 0 || !resolve_frame_attribute(std::string(name), a)) return false;
   MaterialOutputs outputs{false, false};
   visit_material(law, [&](auto m) { outputs = decltype(m)::kOutputs; });
-  if (outputs.deformation_gradient)
-    for (std::string_view a : kDefGradAttributes)
-      if (a == name) return true;
-  return outputs.log_jp && name == "logJp";
+  if (frame_quantity_reads_F(a.column.quantity)) return outputs.deformation_gradient;
+  if (a.column.quantity == FrameQuantity::LogJp) return outputs.log_jp;
+  return true;
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -1084,6 +1084,9 @@ void MgspBenchmark<T, TG>::allocate_frames() {
     BodyBase& b = *bp;  // frame_attrs: resolved for the plan
     const FrameNeeds needs = frame_needs(b.frame_attrs);
     FrameCapture<T> cap;
+    if (frame_float_columns(b.frame_attrs) > kMaxFrameColumns)
+      throw std::invalid_argument("bodies[" + std::to_string(b.index) + "].output_attribs: more than " +
+                                  std::to_string(kMaxFrameColumns) + " attributes besides ID");
     for (const FrameAttributeSpec& a : b.frame_attrs)
       if (a.column.quantity != FrameQuantity::Id) cap.column[cap.column_count++] = a.column;
     cap.sigma = needs.sigma;
