@@ -157,7 +157,7 @@ enum class SensorOperation { Sum, Max, Min, Count, Average, STDEV, Variance };
 struct GridSensorSpec {
   std::string name;                     ///< label (ClaymoreUW's "name"; files are named by index)
   bool toggle = true;                   ///< false: the sensor is switched off (no file)
-  std::string attribute;                ///< Force, Acceleration, Momentum, Velocity, Mass, Volume, JBar
+  std::string attribute = "Force";      ///< Force, Acceleration, Momentum, Velocity, Mass, Volume, JBar
   SensorOperation operation = SensorOperation::Sum;
   Real3 direction{1.0, 0.0, 0.0};       ///< unit projection direction
   int direction_sign = 0;               ///< +1: only positive projections, -1: only negative, 0: both
@@ -169,8 +169,8 @@ struct GridSensorSpec {
 struct ParticleSensorSpec {
   std::string name;                     ///< label (ClaymoreUW's "name")
   bool toggle = true;                   ///< false: the sensor is switched off
-  std::string attribute;
-  SensorOperation operation = SensorOperation::Sum;
+  std::string attribute = "Position_Y";    ///< ClaymoreUW's default quantity (a wave gauge)
+  SensorOperation operation = SensorOperation::Max;  ///< ClaymoreUW's particle-sensor default
   double output_frequency = 60.0;
   Real3 domain_start{0.0, 0.0, 0.0};
   Real3 domain_end{0.0, 0.0, 0.0};

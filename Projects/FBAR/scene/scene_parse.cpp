@@ -961,9 +961,8 @@ BoundarySpec parse_boundary(const rj::Value& v, const std::string& path, const C
 GridSensorSpec parse_grid_sensor(const rj::Value& v, const std::string& path, const Context& ctx) {
   GridSensorSpec s;
   ObjectReader o(v, path, kGridSensorKeys, ctx, "grid-sensors[]");
-  const rj::Value* a = o.get("attribute");
-  if (!a) o.missing("attribute", enum_choices(kGridSensorAttributes));
-  s.attribute = read_enum(*a, o.sub("attribute"), kGridSensorAttributes);
+  if (const rj::Value* a = o.get("attribute"))  // ClaymoreUW's default: Force
+    s.attribute = read_enum(*a, o.sub("attribute"), kGridSensorAttributes);
   if (auto* x = o.get("operation")) s.operation = read_enum(*x, o.sub("operation"), kGridSensorOperations);
   if (auto* x = o.get("direction")) {
     const std::string dp = o.sub("direction");
@@ -1006,9 +1005,8 @@ GridSensorSpec parse_grid_sensor(const rj::Value& v, const std::string& path, co
 ParticleSensorSpec parse_particle_sensor(const rj::Value& v, const std::string& path, const Context& ctx) {
   ParticleSensorSpec s;
   ObjectReader o(v, path, kParticleSensorKeys, ctx, "particle-sensors[]");
-  const rj::Value* a = o.get("attribute");
-  if (!a) o.missing("attribute", "a particle attribute name");
-  s.attribute = read_attribute(*a, o.sub("attribute"), true);
+  if (const rj::Value* a = o.get("attribute"))  // ClaymoreUW's default: Position_Y (its target_attribs default)
+    s.attribute = read_attribute(*a, o.sub("attribute"), true);
   if (auto* x = o.get("operation")) s.operation = read_enum(*x, o.sub("operation"), kParticleSensorOperations);
   if (auto f = o.get_any({"output_frequency", "output_freq"}))
     s.output_frequency = read_number(*f.value, f.path, kPositive, "Hz");
