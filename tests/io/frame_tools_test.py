@@ -46,7 +46,7 @@ scene = {
                           "domain_start": [0, 0, 0], "domain_end": [0.4, 0.4, 0.4]}],
 }
 runs = {}
-for suffix in (".bgeo", ".csv"):
+for suffix in (".bgeo", ".csv", ".h5"):
     scene["simulation"]["save_suffix"] = suffix
     out = os.path.join(work, suffix[1:])
     path = os.path.join(work, f"scene{suffix}.json")
@@ -71,6 +71,31 @@ for name in ("Velocity_Y", "Pressure", "J"):
     assert np.array_equal(b[name][ib], c[name][ic].astype(np.float32)), name
 assert (b["Pressure"] != 0).any() and (np.abs(b["Velocity_Y"]).max() > 0), "a static frame proves nothing"
 
+# .h5 + .xdmf (what ParaView opens): read with h5py when installed (tools/plot/requirements.txt lists it), and the
+# .xdmf's references resolved against the file.
+try:
+    import h5py
+except ImportError:
+    h5py = None
+    print("note: h5py not installed: the .h5 frame is not read back")
+if h5py is not None:
+    import xml.etree.ElementTree as ET
+    h5_path = os.path.join(runs[".h5"], last + ".h5")
+    with h5py.File(h5_path, "r") as h:
+        assert set(h) == {"Position", "ID", "Velocity_Y", "Pressure", "J"}, sorted(h)
+        assert h["Pressure"].attrs["unit"] in (b"Pa", "Pa") and "unit" not in h["J"].attrs
+        ih = np.argsort(h["ID"][:])
+        assert np.array_equal(h["Position"][:][ih].astype(np.float32), b["P"][ib])
+        for name in ("Velocity_Y", "Pressure", "J"):
+            assert np.array_equal(h[name][:][ih], b[name][ib]), name
+        grid = ET.parse(os.path.join(runs[".h5"], last + ".xdmf")).getroot().find("Domain/Grid")
+        assert grid.find("Topology").get("NumberOfElements") == str(n)
+        items = [grid.find("Geometry/DataItem")] + [a.find("DataItem") for a in grid.findall("Attribute")]
+        for item in items:
+            file_name, dataset = item.text.split(":/")
+            assert file_name == last + ".h5" and dataset in h, item.text
+            assert tuple(int(d) for d in item.get("Dimensions").split()) == h[dataset].shape, item.text
+
 # The tracker's last row is the frame's particle 60 (float32 in the frame, 9 digits in the tracker file).
 times, cols = read_series(os.path.join(runs[".bgeo"], "particleTrack_model[0]_dev[0].csv"))
 assert len(times) == 4 and abs(times[-1] - 0.03) < 1e-12, times
@@ -87,4 +112,5 @@ assert len(pngs) == 4, pngs  # gridTarget[0], particleTarget[0], particleTrack, 
 for p in pngs:
     with open(p, "rb") as f:
         assert f.read(8) == b"\x89PNG\r\n\x1a\n", p
-print("ok:", n, "particles; bgeo and csv frames agree; plots:", ", ".join(os.path.basename(p) for p in pngs))
+print("ok:", n, "particles; bgeo, csv" + (" and h5/xdmf" if h5py else "") + " frames agree; plots:",
+      ", ".join(os.path.basename(p) for p in pngs))

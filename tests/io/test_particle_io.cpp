@@ -73,7 +73,8 @@ TEST(FrameNames, ClaymoreUwPattern) {
   EXPECT_EQ(frame_format(".bgeo"), FrameFormat::Bgeo);
   EXPECT_EQ(frame_format(".geo"), FrameFormat::Geo);
   EXPECT_EQ(frame_format(".csv"), FrameFormat::Csv);
-  EXPECT_THROW(frame_format(".h5"), std::invalid_argument);
+  EXPECT_EQ(frame_format(".h5"), FrameFormat::H5);
+  EXPECT_THROW(frame_format(".vtk"), std::invalid_argument);
 }
 
 // The expected file is assembled here byte by byte from the classic bgeo description (partio BGEO.cpp), with
@@ -260,8 +261,76 @@ TEST_F(IoTest, WriteFrameDispatchesOnSuffix) {
   EXPECT_EQ(slurp(dir_ / "a.bgeo").substr(0, 5), "BgeoV");
   EXPECT_EQ(slurp(dir_ / "a.geo").substr(0, 12), "PGEOMETRY V5");
   EXPECT_EQ(slurp(dir_ / "a.csv").substr(0, 14), "Position_X [m]");
-  EXPECT_THROW(write_frame(dir_ / "a.h5", f), std::invalid_argument);
-  EXPECT_FALSE(fs::exists(dir_ / "a.h5"));
+  write_frame(dir_ / "a.h5", f);
+  EXPECT_EQ(slurp(dir_ / "a.h5").substr(1, 3), "HDF");
+  EXPECT_TRUE(fs::exists(dir_ / "a.xdmf"));
+  EXPECT_THROW(write_frame(dir_ / "a.vtk", f), std::invalid_argument);
+  EXPECT_FALSE(fs::exists(dir_ / "a.vtk"));
+}
+
+/// Reads dataset `name` of an HDF5 file as doubles, with its dimensions and "unit" attribute (HDF5 C API).
+struct H5Data {
+  std::vector<double> values;
+  std::vector<hsize_t> dims;
+  std::string unit;
+};
+H5Data read_h5(const fs::path& path, const char* name) {
+  H5Data d;
+  const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  EXPECT_GE(file, 0);
+  const hid_t set = H5Dopen2(file, name, H5P_DEFAULT);
+  EXPECT_GE(set, 0) << name;
+  const hid_t space = H5Dget_space(set);
+  d.dims.resize(H5Sget_simple_extent_ndims(space));
+  H5Sget_simple_extent_dims(space, d.dims.data(), nullptr);
+  hsize_t n = 1;
+  for (hsize_t x : d.dims) n *= x;
+  d.values.resize(n);
+  if (n) H5Dread(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, d.values.data());
+  if (H5Aexists(set, "unit") > 0) {
+    const hid_t attr = H5Aopen(set, "unit", H5P_DEFAULT);
+    const hid_t type = H5Aget_type(attr);
+    std::string s(H5Tget_size(type), '\0');
+    H5Aread(attr, type, s.data());
+    d.unit = s;
+    H5Tclose(type);
+    H5Aclose(attr);
+  }
+  H5Sclose(space);
+  H5Dclose(set);
+  H5Fclose(file);
+  return d;
+}
+
+// .h5: one dataset per quantity with its unit, positions in the frame's precision; the .xdmf names them all.
+TEST_F(IoTest, H5DatasetsUnitsAndXdmf) {
+  ParticleFrame f = small_frame();
+  f.positions = std::vector<Vec3d>{Vec3d{{0.1, 0.2, 0.3}}, Vec3d{{1.0, 2.0, 3.0}}};  // double positions
+  write_frame(dir_ / "f.h5", f);
+  EXPECT_FALSE(fs::exists(dir_ / "f.h5.part"));
+  const H5Data x = read_h5(dir_ / "f.h5", "Position");
+  EXPECT_EQ(x.dims, (std::vector<hsize_t>{2, 3}));
+  EXPECT_EQ(x.values, (std::vector<double>{0.1, 0.2, 0.3, 1.0, 2.0, 3.0}));  // exact: stored as float64
+  EXPECT_EQ(x.unit, "m");
+  const H5Data id = read_h5(dir_ / "f.h5", "ID");
+  EXPECT_EQ(id.dims, (std::vector<hsize_t>{2}));
+  EXPECT_EQ(id.values, (std::vector<double>{7, 8}));
+  const H5Data v = read_h5(dir_ / "f.h5", "Velocity");
+  EXPECT_EQ(v.dims, (std::vector<hsize_t>{2, 3}));
+  EXPECT_EQ(v.values[1], -2.5);
+  EXPECT_EQ(v.values[3], static_cast<double>(0.1f));
+  EXPECT_EQ(v.unit, "m/s");
+  EXPECT_EQ(read_h5(dir_ / "f.h5", "J").unit, "");
+  const std::string xdmf = slurp(dir_ / "f.xdmf");
+  EXPECT_NE(xdmf.find("TopologyType=\"Polyvertex\" NumberOfElements=\"2\""), std::string::npos) << xdmf;
+  EXPECT_NE(xdmf.find("Precision=\"8\" Format=\"HDF\">f.h5:/Position"), std::string::npos) << xdmf;
+  EXPECT_NE(xdmf.find("<Attribute Name=\"Velocity\" AttributeType=\"Vector\""), std::string::npos) << xdmf;
+  EXPECT_NE(xdmf.find("Dimensions=\"2\" NumberType=\"Int\" Precision=\"4\" Format=\"HDF\">f.h5:/ID"), std::string::npos);
+  // An empty frame is a valid file too.
+  ParticleFrame empty;
+  empty.positions = std::vector<Vec3f>{};
+  write_frame(dir_ / "e.h5", empty);
+  EXPECT_EQ(read_h5(dir_ / "e.h5", "Position").dims, (std::vector<hsize_t>{0, 3}));
 }
 
 TEST_F(IoTest, InvalidFramesAreRefused) {

@@ -316,7 +316,6 @@ TEST(SceneParse, ReleasePolicyRejectsWhatTheEngineCannotRun) {
       {scene_with(body(), R"("grid-sensors": [{"attribute": "Volume", "domain_start": [0,0,0],
                                               "domain_end": [1,1,1]}])"),
        "grid-sensors[0].attribute"},
-      {R"({"simulation": {"save_suffix": ".h5"}, "bodies": [)" + body() + "]}", "simulation.save_suffix"},
   };
   for (const Case& c : cases) {
     const std::string e = error_of(c.json);

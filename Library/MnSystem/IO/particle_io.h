@@ -45,6 +45,7 @@
 #include <vector>
 
 #include "MnBase/Math/vec.h"
+#include "MnSystem/IO/h5_frame.h"
 
 namespace fbar::io {
 
@@ -127,16 +128,17 @@ inline void validate_frame(const ParticleFrame& frame) {
   }
 }
 
-enum class FrameFormat { Bgeo, Geo, Csv };
+enum class FrameFormat { Bgeo, Geo, Csv, H5 };
 
-/// ".bgeo", ".geo" or ".csv" (case-sensitive, as ClaymoreUW's save_suffix); anything else throws
+/// ".bgeo", ".geo", ".csv" or ".h5" (case-sensitive, as ClaymoreUW's save_suffix); anything else throws
 /// std::invalid_argument.
 inline FrameFormat frame_format(std::string_view suffix) {
   if (suffix == ".bgeo") return FrameFormat::Bgeo;
   if (suffix == ".geo") return FrameFormat::Geo;
   if (suffix == ".csv") return FrameFormat::Csv;
+  if (suffix == ".h5") return FrameFormat::H5;
   throw std::invalid_argument("no particle frame writer for suffix \"" + std::string(suffix) +
-                              "\" (expected .bgeo, .geo or .csv)");
+                              "\" (expected .bgeo, .geo, .csv or .h5)");
 }
 
 /// ClaymoreUW's frame file name: "model[<m>]_dev[<d>]_frame[<f>]<suffix>", e.g. model[0]_dev[0]_frame[12].bgeo
@@ -457,12 +459,57 @@ inline void write_csv(const std::filesystem::path& path, const ParticleFrame& fr
   file.commit();
 }
 
-/// Writes `frame` in the format named by path's extension (.bgeo, .geo, .csv).
+/// HDF5 frame and its XDMF description (h5_frame.h): `path` ends in .h5; the .xdmf goes next to it.
+inline void write_h5(const std::filesystem::path& path, const ParticleFrame& frame) {
+  validate_frame(frame);
+  const std::size_t n = frame.size();
+  const std::string file_name = path.filename().string();
+  std::filesystem::path temp = path;
+  temp += ".part";
+  {
+    std::lock_guard<std::mutex> lock(h5_detail::hdf5_mutex());
+    h5_detail::Handle file(H5Fcreate(temp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose,
+                           "create " + temp.string());
+    const bool dbl = frame.double_precision();
+    const void* x = std::visit([](const auto& v) { return static_cast<const void*>(v.data()); }, frame.positions);
+    h5_detail::write_dataset(file.get(), "Position", dbl ? H5T_NATIVE_DOUBLE : H5T_NATIVE_FLOAT, n, 3, x, "m",
+                             path.string());
+    for (const FrameAttribute& a : frame.attributes) {
+      const bool integer = a.type() == AttributeType::Int;
+      const void* data = integer ? static_cast<const void*>(a.ints().data()) : static_cast<const void*>(a.floats().data());
+      h5_detail::write_dataset(file.get(), a.name, integer ? H5T_NATIVE_INT32 : H5T_NATIVE_FLOAT, n, a.width, data,
+                               a.unit, path.string());
+    }
+    if (file.release() < 0) throw std::runtime_error("HDF5: cannot close " + temp.string());
+  }
+  std::error_code ec;
+  std::filesystem::rename(temp, path, ec);
+  if (ec) throw std::runtime_error("cannot rename " + temp.string() + " to " + path.string() + ": " + ec.message());
+
+  std::string x = "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n <Domain>\n  <Grid Name=\"particles\" GridType=\"Uniform\">\n";
+  x += "   <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" + std::to_string(n) + "\" NodesPerElement=\"1\"/>\n";
+  x += "   <Geometry GeometryType=\"XYZ\">\n    " +
+       h5_detail::data_item(n, 3, false, frame.double_precision() ? 8 : 4, file_name, "Position") + "\n   </Geometry>\n";
+  for (const FrameAttribute& a : frame.attributes) {
+    const char* kind = a.width == 1 ? "Scalar" : a.width == 3 ? "Vector" : "Matrix";
+    x += "   <Attribute Name=\"" + a.name + "\" AttributeType=\"" + kind + "\" Center=\"Node\">\n    " +
+         h5_detail::data_item(n, a.width, a.type() == AttributeType::Int, 4, file_name, a.name) + "\n   </Attribute>\n";
+  }
+  x += "  </Grid>\n </Domain>\n</Xdmf>\n";
+  std::filesystem::path xdmf = path;
+  xdmf.replace_extension(".xdmf");
+  detail::AtomicFile out(xdmf);
+  out.buffer() = x;
+  out.commit();
+}
+
+/// Writes `frame` in the format named by path's extension (.bgeo, .geo, .csv, .h5).
 inline void write_frame(const std::filesystem::path& path, const ParticleFrame& frame) {
   switch (frame_format(path.extension().string())) {
     case FrameFormat::Bgeo: write_bgeo(path, frame); break;
     case FrameFormat::Geo: write_geo(path, frame); break;
     case FrameFormat::Csv: write_csv(path, frame); break;
+    case FrameFormat::H5: write_h5(path, frame); break;
   }
 }
 

@@ -39,8 +39,6 @@ std::string idx(const char* array, std::size_t i) { return std::string(array) + 
 
 void check_supported(const Scene& scene) {
   const SimulationSpec& sim = scene.simulation;
-  if (sim.save_suffix == ".h5")
-    refuse("simulation.save_suffix", q(sim.save_suffix), "one of .bgeo, .geo, .csv", "save_suffix .h5 (HDF5 output)");
   if (sim.particles_output_exterior_only)
     refuse("simulation.particles_output_exterior_only", "true", "false", "particles_output_exterior_only");
   if (scene.mesh_count > 0)

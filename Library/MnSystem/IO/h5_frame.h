@@ -1,0 +1,87 @@
+// Particle frames as HDF5 with an XDMF description (ParaView opens the .xdmf directly).
+//
+// <name>.h5 holds one dataset per quantity, each with a string attribute "unit" (absent when dimensionless):
+//   /Position           N x 3, float32 or float64 (the frame's position precision)
+//   /<attribute>        N (width 1) or N x width, float32 (int32 for ID), as the bgeo and CSV writers write them
+// <name>.xdmf (XDMF 3) is written next to it: a Polyvertex grid of N points whose geometry and attributes point into
+// the .h5 by its file name (the two files stay together). The .h5 is written to <name>.h5.part and renamed, as the
+// other formats; the .xdmf last, so a reader that finds the .xdmf finds a complete .h5.
+// HDF5 calls are serialised by a process-wide mutex: several writer threads (one per rank of fbar --gpus) may write
+// at once, and a distribution's libhdf5 is usually not built thread-safe.
+#pragma once
+
+#include <hdf5.h>
+
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace fbar::io {
+
+struct ParticleFrame;
+
+namespace h5_detail {
+
+inline std::mutex& hdf5_mutex() {
+  static std::mutex m;
+  return m;
+}
+
+/// Closes an HDF5 handle on scope exit (close: H5Fclose, H5Dclose, ...).
+class Handle {
+ public:
+  Handle(hid_t id, herr_t (*close)(hid_t), const std::string& what) : id_(id), close_(close) {
+    if (id_ < 0) throw std::runtime_error("HDF5: cannot " + what);
+  }
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+  ~Handle() {
+    if (id_ >= 0) close_(id_);
+  }
+  hid_t get() const { return id_; }
+  herr_t release() {
+    const herr_t r = close_(id_);
+    id_ = -1;
+    return r;
+  }
+
+ private:
+  hid_t id_;
+  herr_t (*close_)(hid_t);
+};
+
+inline void write_dataset(hid_t file, const std::string& name, hid_t type, std::size_t n, int width, const void* data,
+                          const std::string& unit, const std::string& where) {
+  const hsize_t dims[2] = {static_cast<hsize_t>(n), static_cast<hsize_t>(width)};
+  Handle space(H5Screate_simple(width == 1 ? 1 : 2, dims, nullptr), H5Sclose, "create a dataspace for " + where);
+  Handle set(H5Dcreate2(file, name.c_str(), type, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Dclose,
+             "create dataset " + name + " in " + where);
+  if (n > 0 && H5Dwrite(set.get(), type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
+    throw std::runtime_error("HDF5: cannot write dataset " + name + " of " + where);
+  if (!unit.empty()) {
+    Handle str(H5Tcopy(H5T_C_S1), H5Tclose, "make a string type");
+    H5Tset_size(str.get(), unit.size());
+    Handle scalar(H5Screate(H5S_SCALAR), H5Sclose, "create a scalar dataspace");
+    Handle attr(H5Acreate2(set.get(), "unit", str.get(), scalar.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose,
+                "create the unit of " + name);
+    if (H5Awrite(attr.get(), str.get(), unit.c_str()) < 0)
+      throw std::runtime_error("HDF5: cannot write the unit of " + name + " in " + where);
+  }
+}
+
+/// The XDMF DataItem of a dataset: dimensions, number type and precision, and "<file>:/<name>".
+inline std::string data_item(std::size_t n, int width, bool integer, int bytes, const std::string& file,
+                             const std::string& name) {
+  std::string dims = std::to_string(n) + (width == 1 ? "" : " " + std::to_string(width));
+  return "<DataItem Dimensions=\"" + dims + "\" NumberType=\"" + (integer ? "Int" : "Float") + "\" Precision=\"" +
+         std::to_string(bytes) + "\" Format=\"HDF\">" + file + ":/" + name + "</DataItem>";
+}
+
+}  // namespace h5_detail
+
+}  // namespace fbar::io
