@@ -29,8 +29,12 @@
 // particle per row.
 #pragma once
 
+#include <algorithm>
 #include <cerrno>
 #include <charconv>
+#include <exception>
+#include <mutex>
+#include <thread>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
@@ -190,6 +194,12 @@ class AtomicFile {
       throw std::runtime_error("cannot write " + temp_.string() + ": " + errno_text(errno));
     buffer_.clear();
   }
+  /// Writes `n` bytes after what the buffer holds (large blocks go straight to the file).
+  void write(const char* data, std::size_t n) {
+    flush();
+    if (n && std::fwrite(data, 1, n, file_) != n)
+      throw std::runtime_error("cannot write " + temp_.string() + ": " + errno_text(errno));
+  }
   void commit() {
     flush();
     // fclose reports deferred write errors (a full disk): check it before the rename makes the file visible.
@@ -225,6 +235,38 @@ inline std::uint32_t bits_of(float f) {
   return u;
 }
 inline void put_be_float(std::string& out, float f) { put_be32(out, bits_of(f)); }
+/// Stores v big-endian at o (compilers turn the shifts into one byte swap and a store).
+inline void store_be32(char* o, std::uint32_t v) {
+  o[0] = static_cast<char>(v >> 24);
+  o[1] = static_cast<char>(v >> 16);
+  o[2] = static_cast<char>(v >> 8);
+  o[3] = static_cast<char>(v);
+}
+
+/// Runs body(lo, hi) over [0, n) split across up to `threads` threads (the calling one included).
+template <class Body>
+void parallel_ranges(std::size_t n, unsigned threads, const Body& body) {
+  const std::size_t parts = std::max<std::size_t>(1, std::min<std::size_t>(threads, n / 4096));
+  if (parts <= 1) {
+    body(std::size_t(0), n);
+    return;
+  }
+  std::vector<std::thread> pool;
+  std::exception_ptr error;
+  std::mutex error_mutex;
+  auto run = [&](std::size_t k) {
+    try {
+      body(n * k / parts, n * (k + 1) / parts);
+    } catch (...) {
+      std::lock_guard<std::mutex> lock(error_mutex);
+      if (!error) error = std::current_exception();
+    }
+  };
+  for (std::size_t k = 1; k < parts; ++k) pool.emplace_back(run, k);
+  run(0);
+  for (auto& t : pool) t.join();
+  if (error) std::rethrow_exception(error);
+}
 
 /// Shortest text that reads back to the same value (locale-independent).
 template <typename T>
@@ -339,23 +381,43 @@ inline void write_bgeo(const std::filesystem::path& path, const ParticleFrame& f
     detail::put_be32(out, static_cast<std::uint32_t>(detail::houdini_type(a)));
     for (int c = 0; c < a.width; ++c) detail::put_be32(out, 0);           // default value
   }
-  for (std::size_t p = 0; p < n; ++p) {
-    const Vec3f x = std::visit([p](const auto& v) { return v[p].template cast<float>(); }, frame.positions);
-    detail::put_be_float(out, x[0]);
-    detail::put_be_float(out, x[1]);
-    detail::put_be_float(out, x[2]);
-    detail::put_be_float(out, 1.0f);  // homogeneous w
-    for (const FrameAttribute& a : frame.attributes) {
-      const std::size_t base = p * static_cast<std::size_t>(a.width);
-      if (a.type() == AttributeType::Float) {
-        const float* v = a.floats().data() + base;
-        for (int c = 0; c < a.width; ++c) detail::put_be_float(out, v[c]);
-      } else {
-        const std::int32_t* v = a.ints().data() + base;
-        for (int c = 0; c < a.width; ++c) detail::put_be32(out, static_cast<std::uint32_t>(v[c]));
-      }
-    }
-    file.maybe_flush();
+  // The points: fixed-size records (x y z w, then every attribute's components), serialised in chunks by several
+  // threads into one buffer that is written whole (a 16M-particle frame with 4 attributes is 0.5 GB: byte by byte
+  // on one thread it took 1.3 s, longer than the 100 steps between two frames).
+  std::size_t record = 16;
+  for (const FrameAttribute& a : frame.attributes) record += 4 * static_cast<std::size_t>(a.width);
+  const std::size_t chunk = std::max<std::size_t>(1, (std::size_t(32) << 20) / record);  // ~32 MiB per chunk
+  std::vector<char> points(std::min(n, chunk) * record);
+  const unsigned threads = std::max(1u, std::min(8u, std::thread::hardware_concurrency() / 2));
+  for (std::size_t first = 0; first < n; first += chunk) {
+    const std::size_t count = std::min(chunk, n - first);
+    detail::parallel_ranges(count, threads, [&](std::size_t lo, std::size_t hi) {
+      std::visit(
+          [&](const auto& xs) {
+            for (std::size_t i = lo; i < hi; ++i) {
+              const std::size_t p = first + i;
+              char* o = points.data() + i * record;
+              const Vec3f x = xs[p].template cast<float>();
+              detail::store_be32(o, detail::bits_of(x[0]));
+              detail::store_be32(o + 4, detail::bits_of(x[1]));
+              detail::store_be32(o + 8, detail::bits_of(x[2]));
+              detail::store_be32(o + 12, detail::bits_of(1.0f));  // homogeneous w
+              o += 16;
+              for (const FrameAttribute& a : frame.attributes) {
+                const std::size_t base = p * static_cast<std::size_t>(a.width);
+                if (a.type() == AttributeType::Float) {
+                  const float* v = a.floats().data() + base;
+                  for (int c = 0; c < a.width; ++c, o += 4) detail::store_be32(o, detail::bits_of(v[c]));
+                } else {
+                  const std::int32_t* v = a.ints().data() + base;
+                  for (int c = 0; c < a.width; ++c, o += 4) detail::store_be32(o, static_cast<std::uint32_t>(v[c]));
+                }
+              }
+            }
+          },
+          frame.positions);
+    });
+    file.write(points.data(), count * record);
   }
   out.push_back(static_cast<char>(0x00));  // begin extra
   out.push_back(static_cast<char>(0xff));  // end extra
