@@ -34,6 +34,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
+#include <thread>
 #include <cuda_runtime.h>
 
 #include <algorithm>
@@ -1910,9 +1911,13 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
     {
       Release release{slot};
       FBAR_CUDA_CHECK(cudaEventSynchronize(copied));
+      // The copies out of the pinned buffer run on several threads (a 16M-particle frame is 0.4 GB of them).
+      const unsigned threads = std::max(1u, std::min(8u, std::thread::hardware_concurrency() / 2));
       const T* x = reinterpret_cast<const T*>(host);
       std::vector<Vec3<T>> positions(n);
-      for (std::size_t p = 0; p < n; ++p) positions[p] = Vec3<T>{{x[3 * p], x[3 * p + 1], x[3 * p + 2]}};
+      io::detail::parallel_ranges(n, threads, [&](std::size_t lo, std::size_t hi) {
+        for (std::size_t p = lo; p < hi; ++p) positions[p] = Vec3<T>{{x[3 * p], x[3 * p + 1], x[3 * p + 2]}};
+      });
       f.positions = std::move(positions);
       const float* col = reinterpret_cast<const float*>(host + 3 * n * sizeof(T));
       for (const FrameAttributeSpec& a : attrs) {
@@ -1925,11 +1930,17 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
               for (unsigned m = bits[w]; m != 0 && k < n; m &= m - 1)
                 ids[k++] = static_cast<std::int32_t>(32 * w + static_cast<std::size_t>(__builtin_ctz(m)));
           } else {
-            std::iota(ids.begin(), ids.end(), 0);  // frames are in ID order
+            io::detail::parallel_ranges(n, threads, [&](std::size_t lo, std::size_t hi) {  // frames are in ID order
+              std::iota(ids.begin() + lo, ids.begin() + hi, static_cast<std::int32_t>(lo));
+            });
           }
           f.add(a.name, 1, std::move(ids));
         } else {
-          f.add(a.name, 1, std::vector<float>(col, col + n), a.unit);
+          std::vector<float> values(n);
+          io::detail::parallel_ranges(n, threads, [&](std::size_t lo, std::size_t hi) {
+            std::copy(col + lo, col + hi, values.begin() + lo);
+          });
+          f.add(a.name, 1, std::move(values), a.unit);
           col += n;
         }
       }
