@@ -24,16 +24,7 @@ namespace {
 /// The dam break's load cells: floor force (Y-), the right half's x momentum, all mass, the largest x velocity,
 /// the average speed along y, the count of nodes with mass.
 std::vector<GridSensorSpec> dam_break_sensors() {
-  auto make = [](const char* attribute, SensorOperation op, Real3 lo, Real3 hi, Real3 dir, int sign) {
-    GridSensorSpec s;
-    s.attribute = attribute;
-    s.operation = op;
-    s.domain_start = lo;
-    s.domain_end = hi;
-    s.direction = dir;
-    s.direction_sign = sign;
-    return s;
-  };
+  const auto make = test::grid_sensor_spec;
   const Real3 all_lo{0, 0, 0}, all_hi{0.64, 0.4, 0.2};
   return {make("Force", SensorOperation::Sum, all_lo, {0.64, 0.05, 0.2}, {0, 1, 0}, -1),
           make("Momentum", SensorOperation::Sum, {0.2, 0, 0}, all_hi, {1, 0, 0}, 0),
@@ -108,7 +99,10 @@ TEST(GpuGridSensors, MatchTheCpuEngine) {
   EXPECT_GT(c.back()[0], 0.0);  // the floor carries the water
 }
 
-Series run_ranks(const Scene& scene, int ranks, const std::vector<GridSensorSpec>& sensors) {
+/// `ranks` GPU ranks as threads on device 0 (peer copies), each running sample(engine, host) on its engine; returns
+/// every rank's series (every rank must complete).
+template <class Sample>
+std::vector<Series> run_gpu_ranks(const Scene& scene, int ranks, const Sample& sample) {
   std::vector<std::unique_ptr<comm::Transport>> hosts = comm::make_thread_transports(ranks);
   std::vector<Series> series(ranks);
   std::vector<std::string> errors(ranks);
@@ -123,7 +117,7 @@ Series run_ranks(const Scene& scene, int ranks, const std::vector<GridSensorSpec
         options.device_ranks = device.get();
         GpuEngine<double> engine(scene, options);
         engine.set_log(nullptr);
-        series[r] = sample_every_step(engine, hosts[r].get(), sensors);
+        series[r] = sample(engine, hosts[r].get());
       } catch (const std::exception& e) {
         errors[r] = e.what();
         hosts[r]->abort(2);
@@ -131,8 +125,7 @@ Series run_ranks(const Scene& scene, int ranks, const std::vector<GridSensorSpec
     });
   for (auto& t : threads) t.join();
   for (int r = 0; r < ranks; ++r) EXPECT_EQ(errors[r], "") << "rank " << r;
-  for (int r = 1; r < ranks; ++r) EXPECT_EQ(series[r], series[0]) << "every rank reduces to the same values";
-  return series[0];
+  return series;
 }
 
 TEST(GpuGridSensors, RanksSumToOneRank) {
@@ -143,7 +136,10 @@ TEST(GpuGridSensors, RanksSumToOneRank) {
   one.set_log(nullptr);
   const Series s1 = sample_every_step(one, nullptr, sensors);
   for (int ranks : {2, 3}) {
-    const Series sn = run_ranks(scene, ranks, sensors);
+    const std::vector<Series> all = run_gpu_ranks(
+        scene, ranks, [&](GpuEngine<double>& e, comm::Transport* host) { return sample_every_step(e, host, sensors); });
+    for (int r = 1; r < ranks; ++r) EXPECT_EQ(all[r], all[0]) << "every rank reduces to the same values";
+    const Series& sn = all[0];
     if (sn.empty()) continue;
     expect_series_near(s1, sn, 1e-9, ranks == 2 ? "2 ranks" : "3 ranks");
     for (int s = 0; s < kSteps; ++s) EXPECT_EQ(s1[s][5], sn[s][5]) << "halo nodes counted once, step " << s + 1;
@@ -153,14 +149,7 @@ TEST(GpuGridSensors, RanksSumToOneRank) {
 /// The dam break's particle sensors: a gauge (Position_Y Max) over the column, the water's Velocity_X Average, the
 /// Pressure Average and the Count over the whole tank, the speed's Max.
 std::vector<ParticleSensorSpec> dam_break_particle_sensors() {
-  auto make = [](const char* attribute, SensorOperation op, Real3 lo, Real3 hi) {
-    ParticleSensorSpec s;
-    s.attribute = attribute;
-    s.operation = op;
-    s.domain_start = lo;
-    s.domain_end = hi;
-    return s;
-  };
+  const auto make = test::particle_sensor_spec;
   const Real3 lo{0, 0, 0}, hi{0.64, 0.4, 0.2};
   return {make("Position_Y", SensorOperation::Max, {0.1, 0, 0}, {0.2, 0.4, 0.2}),
           make("Velocity_X", SensorOperation::Average, lo, hi), make("Pressure", SensorOperation::Average, lo, hi),
@@ -217,6 +206,26 @@ TEST(GpuParticleSensors, MatchTheCpuEngine) {
   EXPECT_GT(c.back()[1], 0.005);                     // the water flows along +x (measured 0.009 m/s)
 }
 
+// Stress attributes derived from F and sigma (PK1, PK2) and strains of a solid block hitting the floor: the GPU
+// kernel must compute the stress for them too (it did only for the Cauchy quantities).
+TEST(GpuParticleSensors, SolidStressesMatchTheCpuEngine) {
+  FBAR_REQUIRE_DEVICE();
+  const Scene scene = test::small_scene(Constitutive::FixedCorotated, Precision::Double);
+  const Real3 lo{0, 0, 0}, hi{1, 1, 1};
+  const std::vector<ParticleSensorSpec> sensors = {test::particle_sensor_spec("StressPK1_YY", SensorOperation::Min, lo, hi),
+                                                   test::particle_sensor_spec("StressPK2_1", SensorOperation::Max, lo, hi),
+                                                   test::particle_sensor_spec("VonMisesStrain", SensorOperation::Average, lo, hi),
+                                                   test::particle_sensor_spec("StressCauchy_Invariant1", SensorOperation::Sum, lo, hi)};
+  CpuEngine<double> cpu(scene);
+  cpu.set_log(nullptr);
+  GpuEngine<double> gpu(scene);
+  gpu.set_log(nullptr);
+  const Series c = sample_particles_every_step(cpu, nullptr, sensors);
+  const Series g = sample_particles_every_step(gpu, nullptr, sensors);
+  expect_series_near(c, g, 1e-9, "solid stresses, GPU vs CPU");
+  EXPECT_LT(c.back()[0], -1.0);  // the impact compresses the block: a compressive nominal stress [Pa]
+}
+
 TEST(GpuParticleSensors, RanksSumToOneRank) {
   FBAR_REQUIRE_DEVICE();
   const Scene scene = test::dam_break(false);
@@ -224,29 +233,10 @@ TEST(GpuParticleSensors, RanksSumToOneRank) {
   GpuEngine<double> one(scene);
   one.set_log(nullptr);
   const Series s1 = sample_particles_every_step(one, nullptr, sensors);
-  const int ranks = 2;
-  std::vector<std::unique_ptr<comm::Transport>> hosts = comm::make_thread_transports(ranks);
-  std::vector<Series> series(ranks);
-  std::vector<std::string> errors(ranks);
-  std::vector<std::thread> threads;
-  for (int r = 0; r < ranks; ++r)
-    threads.emplace_back([&, r] {
-      try {
-        FBAR_CUDA_CHECK(cudaSetDevice(0));
-        std::unique_ptr<comm::DeviceTransport> device = comm::make_thread_device_transport(*hosts[r]);
-        GpuEngineOptions options;
-        options.ranks = hosts[r].get();
-        options.device_ranks = device.get();
-        GpuEngine<double> engine(scene, options);
-        engine.set_log(nullptr);
-        series[r] = sample_particles_every_step(engine, hosts[r].get(), sensors);
-      } catch (const std::exception& e) {
-        errors[r] = e.what();
-        hosts[r]->abort(2);
-      }
-    });
-  for (auto& t : threads) t.join();
-  for (int r = 0; r < ranks; ++r) ASSERT_EQ(errors[r], "") << "rank " << r;
+  const std::vector<Series> series = run_gpu_ranks(scene, 2, [&](GpuEngine<double>& e, comm::Transport* host) {
+    return sample_particles_every_step(e, host, sensors);
+  });
+  ASSERT_FALSE(series[0].empty());
   EXPECT_EQ(series[1], series[0]) << "every rank reduces to the same values";
   expect_series_near(s1, series[0], 1e-9, "particle sensors, 2 ranks");
 }
@@ -298,28 +288,9 @@ TEST(GpuTrackers, FollowParticlesThroughReorderingAndMigration) {
   // The unstressed block's pressure is round-off, E x 1e-16 ~ 1e-12 Pa, and differs with the summation order (ranks):
   // an absolute 1e-9 (Pa, and far below any position or velocity error that matters) covers it.
   expect_series_near(c, g, 1e-9, "trackers, GPU vs CPU", 1e-9);
-  std::vector<std::unique_ptr<comm::Transport>> hosts = comm::make_thread_transports(2);
-  std::vector<Series> series(2);
-  std::vector<std::string> errors(2);
-  std::vector<std::thread> threads;
-  for (int r = 0; r < 2; ++r)
-    threads.emplace_back([&, r] {
-      try {
-        FBAR_CUDA_CHECK(cudaSetDevice(0));
-        std::unique_ptr<comm::DeviceTransport> device = comm::make_thread_device_transport(*hosts[r]);
-        GpuEngineOptions options;
-        options.ranks = hosts[r].get();
-        options.device_ranks = device.get();
-        GpuEngine<double> engine(scene, options);
-        engine.set_log(nullptr);
-        series[r] = track_every_step(engine, hosts[r].get());
-      } catch (const std::exception& e) {
-        errors[r] = e.what();
-        hosts[r]->abort(2);
-      }
-    });
-  for (auto& t : threads) t.join();
-  for (int r = 0; r < 2; ++r) ASSERT_EQ(errors[r], "") << "rank " << r;
+  const std::vector<Series> series =
+      run_gpu_ranks(scene, 2, [](GpuEngine<double>& e, comm::Transport* host) { return track_every_step(e, host); });
+  ASSERT_FALSE(series[0].empty());
   expect_series_near(g, series[0], 1e-9, "trackers, 2 ranks", 1e-9);
   // The block moves at 2 m/s: each tracked particle too.
   for (int i = 0; i < 3; ++i) EXPECT_NEAR(g.back()[i * 3 + 1], 2.0, 1e-9);

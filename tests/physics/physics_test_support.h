@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "MnBase/Math/vec.h"
@@ -68,6 +69,30 @@ inline Scene empty_scene(Real3 domain, double dx, Real3 gravity) {
   s.simulation.default_dt = 1.0;
   s.simulation.gravity = gravity;
   s.simulation.precision = Precision::Double;
+  return s;
+}
+
+/// A grid sensor (load cell) of `attribute` reduced by `op` over the box [lo, hi] along `direction` (sign: +1 / -1
+/// the positive / negative side only, 0 signed).
+inline GridSensorSpec grid_sensor_spec(const std::string& attribute, SensorOperation op, Real3 lo, Real3 hi,
+                                       Real3 direction = r3(1, 0, 0), int sign = 0) {
+  GridSensorSpec s;
+  s.attribute = attribute;
+  s.operation = op;
+  s.domain_start = lo;
+  s.domain_end = hi;
+  s.direction = direction;
+  s.direction_sign = sign;
+  return s;
+}
+
+/// A particle sensor of `attribute` (a canonical frame attribute name) reduced by `op` over the box [lo, hi].
+inline ParticleSensorSpec particle_sensor_spec(const std::string& attribute, SensorOperation op, Real3 lo, Real3 hi) {
+  ParticleSensorSpec s;
+  s.attribute = attribute;
+  s.operation = op;
+  s.domain_start = lo;
+  s.domain_end = hi;
   return s;
 }
 

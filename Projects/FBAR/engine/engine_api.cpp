@@ -95,6 +95,7 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
   std::size_t cpu_particle_bytes = 0;
   bool asflip = false, fbar = false;  // some body uses ASFLIP / F-bar: the grids carry their channels
 
+  const bool record = sensors_read_velocity(scene);  // v and C kept for particle sensors or trackers
   for (std::size_t i = 0; i < scene.bodies.size(); ++i) {
     const BodySpec& body = scene.bodies[i];
     const MaterialSpec& m = body.material;
@@ -120,7 +121,7 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     in.stored_scalars = facts.stored_scalars;
     in.asflip = body.algorithm.asflip_active();
     in.fbar = body.algorithm.fbar_blend() != 0.0;
-    in.record = particle_sensors_read_velocity(scene) || trackers_read_velocity(scene);
+    in.record = record;
     if (options.frames) {
       try {
         in.frame_columns = frame_float_columns(frame_attributes(body, static_cast<int>(i), "GPU engine"));

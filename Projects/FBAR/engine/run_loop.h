@@ -112,12 +112,6 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
   };
   TrackerRecorder trackers(scene, transport);
   for (const BodyTracker& t : trackers.trackers()) engine.set_tracker(t.body, t.set);
-  const bool trackers_read_velocity = [&] {
-    for (const BodyTracker& t : trackers.trackers())
-      for (int a = 0; a < t.set.attribs; ++a)
-        if (particle_sensor_reads_velocity(t.set.column[a])) return true;
-    return false;
-  }();
   auto record_trackers = [&] {  // at every frame (ClaymoreUW's rate), a collective
     std::vector<double> values, present;
     for (std::size_t k = 0; k < trackers.trackers().size(); ++k) {
@@ -212,7 +206,7 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
       // The step that may land on a particle sample time keeps what the particle sensors read (the last two steps
       // before it: the CPU engine may split what remains in two).
       engine.keep_particle_inputs(
-          (sensors.particle_due(step_target) || (trackers_read_velocity && step_target == target)) &&
+          (sensors.particle_due(step_target) || (trackers.reads_velocity() && step_target == target)) &&
           engine.time() + 2.0 * engine.next_dt() >= step_target);
       // The step that lands on the frame time writes the frame (on the device, for the GPU engine).
       engine.set_frame_capture(step_target == target && engine.time() + engine.next_dt() >= target);

@@ -71,6 +71,34 @@ struct FrameInputs {
   Mat3<T> sigma;   ///< [Pa] Cauchy stress
 };
 
+/// Whether a quantity reads the Cauchy stress (then also C, through a rate law's viscous stress).
+FBAR_HOST_DEVICE constexpr bool frame_quantity_reads_stress(FrameQuantity q) {
+  return q == FrameQuantity::Pressure || q == FrameQuantity::VonMises || q == FrameQuantity::Stress ||
+         q == FrameQuantity::StressPK1 || q == FrameQuantity::StressPK2;
+}
+
+/// The inputs of frame_value() for one particle of material M (frames, particle sensors, trackers; both engines):
+/// the stored state's J, F (identity for a material without F) and logJp, and its Cauchy stress when `sigma` (rate
+/// terms read C).
+template <typename M, typename T>
+FBAR_HOST_DEVICE inline FrameInputs<T> particle_frame_inputs(const Vec3<T>& x, const Vec3<T>& v, const Mat3<T>& C,
+                                                             const typename M::template State<T>& s,
+                                                             const typename M::template Params<T>& material, T mass,
+                                                             T volume, bool sigma) {
+  FrameInputs<T> in{};
+  in.x = x;
+  in.v = v;
+  in.mass = mass;
+  in.volume0 = volume;
+  in.J = M::volume_ratio(s);
+  in.logJp = T(0);
+  in.F = Mat3<T>::identity();
+  if constexpr (M::kOutputs.deformation_gradient) in.F = s.F;
+  if constexpr (M::kOutputs.log_jp) in.logJp = s.logJp;
+  if (sigma) in.sigma = cauchy_stress(M::kirchhoff_stress(material, s, C));
+  return in;
+}
+
 /// The value of attribute `c` (not Id) of one particle: the one formula both engines write.
 template <typename T>
 FBAR_HOST_DEVICE inline T frame_value(const FrameColumn& c, const FrameInputs<T>& in) {

@@ -14,6 +14,7 @@
 #include "MnSystem/IO/particle_io.h"
 #include "scene/attributes.h"
 #include "io/frame_columns.h"
+#include "physics/constitutive_models.cuh"
 #include "physics/materials/material_common.cuh"
 #include "scene/scene.h"
 
@@ -107,6 +108,16 @@ inline bool frame_quantity_reads_F(FrameQuantity q) {
          q == FrameQuantity::StrainSmall || q == FrameQuantity::VonMisesStrain;
 }
 
+/// Whether a body of material `law` has quantity q: the F-derived ones need a law that stores F, logJp a plastic law
+/// (frames, particle sensors, trackers and the release policy ask this one function).
+inline bool material_has(Constitutive law, FrameQuantity q) {
+  MaterialOutputs outputs{false, false};
+  visit_material(law, [&](auto m) { outputs = decltype(m)::kOutputs; });
+  if (frame_quantity_reads_F(q)) return outputs.deformation_gradient;
+  if (q == FrameQuantity::LogJp) return outputs.log_jp;
+  return true;
+}
+
 /// `spec.output_attribs` resolved in order (canonical names; an alias and its name count once). Throws
 /// std::invalid_argument naming bodies[body].output_attribs for a name no engine produces.
 inline std::vector<FrameAttributeSpec> frame_attributes(const BodySpec& spec, int body, const std::string& engine) {
@@ -127,6 +138,7 @@ inline std::vector<FrameAttributeSpec> frame_attributes(const BodySpec& spec, in
 
 inline FrameNeeds frame_needs(const std::vector<FrameAttributeSpec>& attributes) {
   FrameNeeds n;
+  for (const auto& a : attributes) n.sigma = n.sigma || frame_quantity_reads_stress(a.column.quantity);
   for (const auto& a : attributes) switch (a.column.quantity) {
       case FrameQuantity::Volume:
       case FrameQuantity::J: n.J = true; break;
@@ -135,10 +147,7 @@ inline FrameNeeds frame_needs(const std::vector<FrameAttributeSpec>& attributes)
       case FrameQuantity::StrainSmall:
       case FrameQuantity::VonMisesStrain: n.F = true; break;
       case FrameQuantity::StressPK1:
-      case FrameQuantity::StressPK2: n.F = n.sigma = n.J = true; break;
-      case FrameQuantity::Pressure:
-      case FrameQuantity::VonMises:
-      case FrameQuantity::Stress: n.sigma = true; break;
+      case FrameQuantity::StressPK2: n.F = n.J = true; break;
       case FrameQuantity::Velocity:
       case FrameQuantity::VelocityMagnitude: n.velocity = true; break;
       default: break;

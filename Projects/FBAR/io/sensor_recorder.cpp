@@ -40,21 +40,10 @@ const char* unit_of(GridSensorQuantity q) {
 
 /// A particle sensor's attribute as a frame attribute (name, unit, column): the frames' own resolution.
 FrameAttributeSpec particle_attribute(const ParticleSensorSpec& spec) {
-  BodySpec probe;
-  probe.output_attribs = {spec.attribute};
-  const std::vector<FrameAttributeSpec> a = frame_attributes(probe, 0, "particle sensors");
-  if (a.size() != 1 || a[0].column.quantity == FrameQuantity::Id)
+  FrameAttributeSpec a;
+  if (!resolve_frame_attribute(canonical_attribute(spec.attribute), a) || a.column.quantity == FrameQuantity::Id)
     throw std::invalid_argument("particle sensor attribute \"" + spec.attribute + "\" is not a particle quantity");
-  return a[0];
-}
-
-/// Whether a body of material `law` has the quantity (F and logJp only where the law stores them).
-bool material_has(Constitutive law, const FrameColumn& c) {
-  MaterialOutputs outputs{false, false};
-  visit_material(law, [&](auto m) { outputs = decltype(m)::kOutputs; });
-  if (c.quantity == FrameQuantity::DefGrad) return outputs.deformation_gradient;
-  if (c.quantity == FrameQuantity::LogJp) return outputs.log_jp;
-  return true;
+  return a;
 }
 
 std::string column_header(SensorOperation op, const std::string& name, const std::string& unit) {
@@ -94,11 +83,6 @@ ParticleSensorParams<T> make_particle_sensor_params(const ParticleSensorSpec& sp
 template ParticleSensorParams<float> make_particle_sensor_params<float>(const ParticleSensorSpec&);
 template ParticleSensorParams<double> make_particle_sensor_params<double>(const ParticleSensorSpec&);
 
-bool particle_sensors_read_velocity(const Scene& scene) {
-  for (const ParticleSensorSpec& s : scene.particle_sensors)
-    if (s.toggle && particle_sensor_reads_velocity(particle_attribute(s).column)) return true;
-  return false;
-}
 
 std::size_t sensor_device_bytes(const Scene& scene) {
   const double frame = 1.0 / scene.simulation.fps;
@@ -171,9 +155,7 @@ void SensorRecorder::Schedule::add_output(Output o, const std::string& header, b
   outputs_.push_back(o);
 }
 
-void SensorRecorder::Schedule::finish(double t0, double t_end, double tolerance, double frame_interval,
-                                      std::size_t values_per_slot) {
-  (void)frame_interval;
+void SensorRecorder::Schedule::finish(double t0, double t_end, double tolerance, std::size_t values_per_slot) {
   t0_ = t0;
   t_end_ = t_end;
   tolerance_ = tolerance;
@@ -297,7 +279,7 @@ SensorRecorder::SensorRecorder(const Scene& scene, comm::Transport* transport, d
     const FrameColumn column = particle_attribute(spec).column;
     const std::size_t n = particle_specs_.size();
     for (std::size_t b = 0; b < bodies; ++b) {
-      if (!material_has(scene.bodies[b].material.law, column)) continue;  // the body has no such quantity
+      if (!material_has(scene.bodies[b].material.law, column.quantity)) continue;  // the body has no such quantity
       Schedule::Output o;
       o.sensor = n;
       o.value = b * enabled + n;
@@ -311,8 +293,8 @@ SensorRecorder::SensorRecorder(const Scene& scene, comm::Transport* transport, d
     particle_specs_.push_back(spec);
   }
   tolerance_ = std::isfinite(shortest) ? 1e-9 * shortest : 0.0;
-  grid_.finish(t0, t_end, tolerance_, 1.0 / sim.fps, grid_specs_.size());
-  particle_.finish(t0, t_end, tolerance_, 1.0 / sim.fps, bodies * particle_specs_.size());
+  grid_.finish(t0, t_end, tolerance_, grid_specs_.size());
+  particle_.finish(t0, t_end, tolerance_, bodies * particle_specs_.size());
 }
 
 SensorRecorder::~SensorRecorder() = default;
@@ -349,7 +331,7 @@ std::vector<BodyTracker> make_trackers(const Scene& scene) {
       throw SceneError(where + ".track_attribs", std::to_string(a.size()) + " attributes",
                        "at most " + std::to_string(TrackerSet::kMaxAttribs));
     for (std::size_t k = 0; k < a.size(); ++k) {
-      if (a[k].column.quantity == FrameQuantity::Id || !material_has(body.material.law, a[k].column))
+      if (a[k].column.quantity == FrameQuantity::Id || !material_has(body.material.law, a[k].column.quantity))
         throw SceneError(where + ".track_attribs[" + std::to_string(k) + "]", "\"" + a[k].name + "\"",
                          std::string("an attribute of the body's material ") + to_string(body.material.law) + " (not ID)");
       t.set.column[t.set.attribs++] = a[k].column;
@@ -361,15 +343,23 @@ std::vector<BodyTracker> make_trackers(const Scene& scene) {
   return out;
 }
 
-bool trackers_read_velocity(const Scene& scene) {
-  for (const BodyTracker& t : make_trackers(scene))
+namespace {
+bool any_reads_velocity(const std::vector<BodyTracker>& trackers) {
+  for (const BodyTracker& t : trackers)
     for (int a = 0; a < t.set.attribs; ++a)
       if (particle_sensor_reads_velocity(t.set.column[a])) return true;
   return false;
 }
+}  // namespace
+
+bool sensors_read_velocity(const Scene& scene) {
+  for (const ParticleSensorSpec& s : scene.particle_sensors)
+    if (s.toggle && particle_sensor_reads_velocity(particle_attribute(s).column)) return true;
+  return any_reads_velocity(make_trackers(scene));
+}
 
 TrackerRecorder::TrackerRecorder(const Scene& scene, comm::Transport* transport)
-    : transport_(transport), trackers_(make_trackers(scene)) {
+    : transport_(transport), trackers_(make_trackers(scene)), reads_velocity_(any_reads_velocity(trackers_)) {
   const bool writer = !transport || transport->rank() == 0;
   const std::filesystem::path dir(scene.simulation.save_path);
   for (const BodyTracker& t : trackers_) {

@@ -39,9 +39,10 @@ GridSensorParams<T> make_grid_sensor_params(const GridSensorSpec& spec);
 template <typename T>
 ParticleSensorParams<T> make_particle_sensor_params(const ParticleSensorSpec& spec);
 
-/// Whether an enabled particle sensor of the scene reads velocities (particle_sensor_reads_velocity): the GPU engine
-/// then keeps v and C per particle (its memory plan counts them).
-bool particle_sensors_read_velocity(const Scene& scene);
+/// Whether an enabled particle sensor or a tracker of the scene reads velocities (particle_sensor_reads_velocity):
+/// the GPU engine then keeps v and C per particle on the steps that land on their times (its memory plan counts
+/// them).
+bool sensors_read_velocity(const Scene& scene);
 
 /// Device memory the GPU engine's sensors take [bytes]: the per-CUDA-block partials of one sample and the sample
 /// slots of one frame interval (their doubling included).
@@ -67,8 +68,6 @@ struct BodyTracker {
 /// The trackers of `scene`: one per body with track_particle_id (attributes: track_attribs, Position_Y when none).
 /// Throws SceneError naming the key for too many IDs or attributes, and for an attribute the body does not have.
 std::vector<BodyTracker> make_trackers(const Scene& scene);
-/// Whether a tracker reads velocities (the GPU then records v and C on the steps that land on frame times).
-bool trackers_read_velocity(const Scene& scene);
 
 /// Tracker files, one per tracked body, in simulation.save_path: particleTrack_model[m]_dev[0].csv (ClaymoreUW's
 /// name; dev 0: every rank's particles are in it). Header "Time [s],<attr>[<id>] [unit],..." with the attributes as
@@ -80,6 +79,8 @@ class TrackerRecorder {
   TrackerRecorder(const TrackerRecorder&) = delete;
   TrackerRecorder& operator=(const TrackerRecorder&) = delete;
   const std::vector<BodyTracker>& trackers() const { return trackers_; }
+  /// Whether a tracker reads velocities (the steps landing on frame times must keep v and C).
+  bool reads_velocity() const { return reads_velocity_; }
   /// Reduces tracker k's sample over ranks (values: set.ids x set.attribs in sorted-ID order, 0 where absent;
   /// present: per sorted ID, 1 on the rank holding it) and writes its row (rank 0). Every rank calls it. Throws
   /// std::runtime_error when an ID is on no rank (no such particle) or on several.
@@ -88,6 +89,7 @@ class TrackerRecorder {
  private:
   comm::Transport* transport_;
   std::vector<BodyTracker> trackers_;
+  bool reads_velocity_ = false;
   std::vector<std::FILE*> files_;
   std::vector<std::filesystem::path> paths_;
 };
@@ -140,7 +142,7 @@ class SensorRecorder {
     ~Schedule();
     void add_sensor(double interval);
     void add_output(Output o, const std::string& header, bool writer);
-    void finish(double t0, double t_end, double tolerance, double frame_interval, std::size_t values_per_slot);
+    void finish(double t0, double t_end, double tolerance, std::size_t values_per_slot);
     std::size_t sensors() const { return intervals_.size(); }
     double next_time_after(double t) const;
     int slot_for(double t) const;

@@ -58,8 +58,7 @@ struct ParticleSensorParams {
 /// law does): the GPU engine then records v and C on the steps that end on its sample times.
 FBAR_HOST_DEVICE inline bool particle_sensor_reads_velocity(const FrameColumn& c) {
   return c.quantity == FrameQuantity::Velocity || c.quantity == FrameQuantity::VelocityMagnitude ||
-         c.quantity == FrameQuantity::Pressure || c.quantity == FrameQuantity::VonMises ||
-         c.quantity == FrameQuantity::Stress;
+         frame_quantity_reads_stress(c.quantity);
 }
 
 template <typename T>

@@ -983,10 +983,10 @@ GridSensorSpec parse_grid_sensor(const rj::Value& v, const std::string& path, co
       if (u == "n/a") {  // ClaymoreUW's "no direction", meaningful for a scalar attribute only
         if (!scalar)
           throw SceneError(dp, json_text(*x), std::string(choices) + " (attribute " + s.attribute + " is a vector)");
-      } else if (u.empty() || u.size() > 2 || (u[0] != 'x' && u[0] != 'y' && u[0] != 'z') ||
-          (u.size() == 2 && u[1] != '+' && u[1] != '-'))
-        throw SceneError(dp, json_text(*x), choices);
-      if (u != "n/a") {
+      } else {
+        if (u.empty() || u.size() > 2 || (u[0] != 'x' && u[0] != 'y' && u[0] != 'z') ||
+            (u.size() == 2 && u[1] != '+' && u[1] != '-'))
+          throw SceneError(dp, json_text(*x), choices);
         s.direction = {0.0, 0.0, 0.0};
         s.direction[u[0] - 'x'] = 1.0;
         s.direction_sign = u.size() == 1 ? 0 : (u[1] == '+' ? 1 : -1);

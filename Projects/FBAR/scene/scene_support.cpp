@@ -18,6 +18,7 @@
 #include "engine/cpu/cpu_engine.h"
 #include "physics/motion_path.h"
 #include "physics/sensors.cuh"
+#include "io/particle_frame.h"
 #include "io/sensor_recorder.h"
 #include "scene/attributes.h"
 #include "scene/scene_parse.h"
@@ -150,13 +151,7 @@ void check_supported(const Scene& scene) {
       throw SceneError(path, q(s.attribute), "a particle quantity (Position_*, Velocity_*, Mass, Volume, J, Pressure, ...; not ID)");
     }
     bool some_body = false;
-    for (const BodySpec& b : scene.bodies) {
-      MaterialOutputs outputs{false, false};
-      visit_material(b.material.law, [&](auto m) { outputs = decltype(m)::kOutputs; });
-      some_body = some_body || (column.quantity == FrameQuantity::DefGrad ? outputs.deformation_gradient
-                                : column.quantity == FrameQuantity::LogJp ? outputs.log_jp
-                                                                          : true);
-    }
+    for (const BodySpec& b : scene.bodies) some_body = some_body || material_has(b.material.law, column.quantity);
     if (!some_body)
       throw SceneError(path, q(s.attribute), "an attribute some body's material has (no body stores it)");
   }

@@ -125,12 +125,8 @@ std::string StepReport::message() const {
 
 bool cpu_engine_supports_attribute(Constitutive law, std::string_view name) {
   FrameAttributeSpec a;
-  if (material_index(law) < 0 || !resolve_frame_attribute(std::string(name), a)) return false;
-  MaterialOutputs outputs{false, false};
-  visit_material(law, [&](auto m) { outputs = decltype(m)::kOutputs; });
-  if (frame_quantity_reads_F(a.column.quantity)) return outputs.deformation_gradient;
-  if (a.column.quantity == FrameQuantity::LogJp) return outputs.log_jp;
-  return true;
+  return material_index(law) >= 0 && resolve_frame_attribute(std::string(name), a) &&
+         material_has(law, a.column.quantity);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -871,45 +867,42 @@ void CpuEngine<T, TG>::set_particle_sensors(const std::vector<ParticleSensorSpec
 }
 
 template <typename T, typename TG>
+template <class Accept, class Fn>
+void CpuEngine<T, TG>::each_particle_input(const Body& b, bool sigma, const Accept& accept, const Fn& fn) const {
+  std::visit(
+      [&](const auto& mb) {
+        using M = typename std::decay_t<decltype(mb)>::material_type;
+        for (std::size_t p = 0; p < b.x.size(); ++p)  // slot order: a fixed order on each rank
+          if (accept(p))
+            fn(p, particle_frame_inputs<M, T>(b.x[p], b.v[p], b.C[p], mb.state[p], mb.params, b.mass[p], b.volume[p],
+                                              sigma));
+      },
+      b.material);
+}
+
+template <typename T, typename TG>
 void CpuEngine<T, TG>::sample_particles(int slot) {
   const int n = particle_sensors_.count;
   if (n == 0) return;
   const std::size_t first = static_cast<std::size_t>(slot) * bodies_.size() * n;
   if (particle_samples_.size() < first + bodies_.size() * n) particle_samples_.resize(first + bodies_.size() * n);
-  bool need_J = false, need_F = false, need_sigma = false, need_logJp = false;
-  for (int i = 0; i < n; ++i) switch (particle_sensors_.s[i].column.quantity) {
-      case FrameQuantity::Volume: case FrameQuantity::J: need_J = true; break;
-      case FrameQuantity::DefGrad: need_F = true; break;
-      case FrameQuantity::LogJp: need_logJp = true; break;
-      case FrameQuantity::Pressure: case FrameQuantity::VonMises: case FrameQuantity::Stress: need_sigma = true; break;
-      default: break;
-    }
+  bool sigma = false;
+  for (int i = 0; i < n; ++i) sigma = sigma || frame_quantity_reads_stress(particle_sensors_.s[i].column.quantity);
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
-    const Body& body = bodies_[b];
-    MaterialOutputs outputs{false, false};
-    std::visit([&](const auto& mb) { outputs = std::decay_t<decltype(mb)>::material_type::kOutputs; }, body.material);
-    const int bi = static_cast<int>(b);
-    const std::vector<T> J = need_J ? volume_ratios(bi) : std::vector<T>();
-    const std::vector<Mat3T> F = need_F && outputs.deformation_gradient ? deformation_gradients(bi) : std::vector<Mat3T>();
-    const std::vector<Mat3T> sigma = need_sigma ? cauchy_stresses(bi) : std::vector<Mat3T>();
-    const std::vector<T> logJp = need_logJp && outputs.log_jp ? plastic_log_volumes(bi) : std::vector<T>();
     SensorAccum* acc = &particle_samples_[first + b * n];
     for (int i = 0; i < n; ++i) acc[i] = SensorAccum{};
-    for (std::size_t p = 0; p < body.x.size(); ++p) {  // slot order: a fixed order on each rank
-      FrameInputs<T> in{};
-      in.x = body.x[p];
-      in.v = body.v[p];
-      in.mass = body.mass[p];
-      in.volume0 = body.volume[p];
-      in.J = J.empty() ? T(1) : J[p];
-      in.F = F.empty() ? Mat3T::identity() : F[p];
-      in.sigma = sigma.empty() ? Mat3T::zero() : sigma[p];
-      in.logJp = logJp.empty() ? T(0) : logJp[p];
+    const Body& body = bodies_[b];
+    auto in_some_box = [&](std::size_t p) {
+      for (int i = 0; i < n; ++i)
+        if (sensor_box_contains(particle_sensors_.s[i].lo, particle_sensors_.s[i].hi, body.x[p])) return true;
+      return false;
+    };
+    each_particle_input(body, sigma, in_some_box, [&](std::size_t, const FrameInputs<T>& in) {
       for (int i = 0; i < n; ++i) {
         const ParticleSensorParams<T>& s = particle_sensors_.s[i];
         if (sensor_box_contains(s.lo, s.hi, in.x)) acc[i].add(static_cast<double>(frame_value(s.column, in)));
       }
-    }
+    });
   }
 }
 
@@ -927,36 +920,19 @@ void CpuEngine<T, TG>::track(int body, std::vector<double>& values, std::vector<
   const TrackerSet& t = static_cast<std::size_t>(body) < trackers_.size() ? trackers_[body] : empty;
   values.assign(static_cast<std::size_t>(t.ids) * t.attribs, 0.0);
   present.assign(t.ids, 0.0);
-  std::vector<std::size_t> slots(t.ids, b.x.size());
-  for (std::size_t p = 0; p < b.x.size(); ++p) {
-    const int i = b.id[p] <= std::numeric_limits<int>::max() ? tracker_index(t, static_cast<int>(b.id[p])) : -1;
-    if (i >= 0) slots[i] = p;
-  }
-  bool any = false;
-  for (std::size_t s : slots) any = any || s < b.x.size();
-  if (!any) return;
-  const std::vector<T> J = volume_ratios(body);
-  MaterialOutputs outputs{false, false};
-  std::visit([&](const auto& mb) { outputs = std::decay_t<decltype(mb)>::material_type::kOutputs; }, b.material);
-  const std::vector<Mat3T> F = outputs.deformation_gradient ? deformation_gradients(body) : std::vector<Mat3T>();
-  const std::vector<T> logJp = outputs.log_jp ? plastic_log_volumes(body) : std::vector<T>();
-  const std::vector<Mat3T> sigma = cauchy_stresses(body);
-  for (int i = 0; i < t.ids; ++i) {
-    const std::size_t p = slots[i];
-    if (p >= b.x.size()) continue;
-    present[i] = 1.0;
-    FrameInputs<T> in{};
-    in.x = b.x[p];
-    in.v = b.v[p];
-    in.mass = b.mass[p];
-    in.volume0 = b.volume[p];
-    in.J = J[p];
-    in.F = F.empty() ? Mat3T::identity() : F[p];
-    in.logJp = logJp.empty() ? T(0) : logJp[p];
-    in.sigma = sigma[p];
-    for (int a = 0; a < t.attribs; ++a)
-      values[static_cast<std::size_t>(i) * t.attribs + a] = static_cast<double>(frame_value(t.column[a], in));
-  }
+  if (t.ids == 0) return;
+  auto index = [&](std::size_t p) {
+    return b.id[p] <= std::numeric_limits<int>::max() ? tracker_index(t, static_cast<int>(b.id[p])) : -1;
+  };
+  // Only the tracked particles' inputs are computed (a few of a whole body).
+  each_particle_input(b, true, [&](std::size_t p) { return index(p) >= 0; },
+                      [&](std::size_t p, const FrameInputs<T>& in) {
+                        const int i = index(p);
+                        present[i] = 1.0;
+                        for (int a = 0; a < t.attribs; ++a)
+                          values[static_cast<std::size_t>(i) * t.attribs + a] =
+                              static_cast<double>(frame_value(t.column[a], in));
+                      });
 }
 
 template <typename T, typename TG>

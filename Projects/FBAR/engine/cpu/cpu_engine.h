@@ -338,6 +338,10 @@ class CpuEngine {
   /// else of every rank (to rebalance).
   void choose_slabs_now(bool replicated);
   int owner_of(const Vec3T& x) const;  // rank owning the particle block of x
+  /// fn(p, inputs) for every particle p of `b` that accept(p) takes, with frame_value()'s inputs of its current state
+  /// (particle_frame_inputs, the GPU's formula; the Cauchy stress only when `sigma`), in slot order.
+  template <class Accept, class Fn>
+  void each_particle_input(const Body& b, bool sigma, const Accept& accept, const Fn& fn) const;
   StepReport step_impl(double dt, bool cfl_dt);
   const Body& body_at(int body) const;
   Body& body_at(int body);

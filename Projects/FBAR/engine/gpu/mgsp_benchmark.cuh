@@ -563,6 +563,11 @@ class MgspBenchmark {
   void grow_bins_to(BodyBase& b, int keep, int capacity);
   void grow_bins(BodyBase& b, int layout_keep, int needed);
   void ensure_aux();
+  /// Sensor sample slots: at least `need` entries, the old ones kept.
+  void grow_samples(mgsp_detail::DeviceArray<SensorAccum>& samples, std::size_t need);
+  void ensure_sensor_partials();
+  /// The first n sensor sample values, on the host (one copy and a stream sync).
+  std::vector<SensorAccum> download_samples(const mgsp_detail::DeviceArray<SensorAccum>& samples, std::size_t n) const;
   void allocate_frames();
   /// Decomposed runs, before a capture: frame buffers for the rank's particles, and the ID directory of layout(cur).
   void prepare_capture(BodyBase& b);
@@ -814,6 +819,7 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
   {
     std::vector<const SampleCount*> all;
     std::vector<BodyMemoryInput> inputs;
+    const bool record = sensors_read_velocity(scene_);  // v and C kept for particle sensors or trackers
     for (std::size_t b = 0; b < bodies_.size(); ++b) {
       BodyBase& body = *bodies_[b];
       all.push_back(&counts_[b]);
@@ -823,7 +829,7 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
       in.stored_scalars = body.stored_scalars();
       in.asflip = body.asflip;
       in.fbar = body.fbar_psi != T(0);
-      in.record = particle_sensors_read_velocity(scene_) || trackers_read_velocity(scene_);
+      in.record = record;
       if (options_.frames) {
         body.frame_attrs = frame_attributes(body.spec, body.index, "GPU engine");
         in.frame_columns = frame_float_columns(body.frame_attrs);
@@ -1575,34 +1581,40 @@ void MgspBenchmark<T, TG>::set_grid_sensors(const std::vector<GridSensorSpec>& s
   grid_sensors_ = GridSensorSet<TG>{};
   for (const GridSensorSpec& spec : sensors) grid_sensors_.s[grid_sensors_.count++] = make_grid_sensor_params<TG>(spec);
   grid_sample_slot_ = -1;
-  if (grid_sensors_.count > 0 && sensor_partials_d_.size() == 0)
-    sensor_partials_d_.allocate(static_cast<std::size_t>(GridSensorSet<TG>::kMax) * kSensorBlocks);
+  if (grid_sensors_.count > 0) ensure_sensor_partials();
 }
 
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::set_grid_sample(int slot) {
   grid_sample_slot_ = slot;
   if (slot < 0 || grid_sensors_.count == 0) return;
-  const std::size_t need = static_cast<std::size_t>(slot + 1) * grid_sensors_.count;
-  if (grid_samples_d_.size() >= need) return;
+  grow_samples(grid_samples_d_, static_cast<std::size_t>(slot + 1) * grid_sensors_.count);
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::grow_samples(mgsp_detail::DeviceArray<SensorAccum>& samples, std::size_t need) {
+  if (samples.size() >= need) return;
   // Grow (rare: the slots of one frame interval), keeping the slots already sampled.
   mgsp_detail::DeviceArray<SensorAccum> bigger;
-  bigger.allocate(std::max(need, 2 * grid_samples_d_.size()));
-  if (grid_samples_d_.size())
-    FBAR_CUDA_CHECK(cudaMemcpyAsync(bigger.get(), grid_samples_d_.get(), sizeof(SensorAccum) * grid_samples_d_.size(),
-                                    cudaMemcpyDeviceToDevice, stream_));
+  bigger.allocate(std::max(need, 2 * samples.size()));
+  if (samples.size())
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(bigger.get(), samples.get(), samples.bytes(), cudaMemcpyDeviceToDevice, stream_));
   FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
-  grid_samples_d_.swap(bigger);
+  samples.swap(bigger);
 }
 
 template <typename T, typename TG>
 std::vector<SensorAccum> MgspBenchmark<T, TG>::grid_samples(int slots) const {
-  const std::size_t n = static_cast<std::size_t>(slots) * grid_sensors_.count;
+  return download_samples(grid_samples_d_, static_cast<std::size_t>(slots) * grid_sensors_.count);
+}
+
+template <typename T, typename TG>
+std::vector<SensorAccum> MgspBenchmark<T, TG>::download_samples(const mgsp_detail::DeviceArray<SensorAccum>& samples,
+                                                                std::size_t n) const {
   std::vector<SensorAccum> host(n);
   if (n == 0) return host;
-  if (grid_samples_d_.size() < n) throw std::logic_error("GpuEngine::grid_samples: fewer slots were sampled");
-  FBAR_CUDA_CHECK(cudaMemcpyAsync(host.data(), grid_samples_d_.get(), sizeof(SensorAccum) * n, cudaMemcpyDeviceToHost,
-                                  stream_));
+  if (samples.size() < n) throw std::logic_error("GpuEngine: fewer sensor slots were sampled than asked for");
+  FBAR_CUDA_CHECK(cudaMemcpyAsync(host.data(), samples.get(), sizeof(SensorAccum) * n, cudaMemcpyDeviceToHost, stream_));
   FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
   return host;
 }
@@ -1619,7 +1631,14 @@ void MgspBenchmark<T, TG>::set_particle_sensors(const std::vector<ParticleSensor
     particle_sensors_read_v_ = particle_sensors_read_v_ || particle_sensor_reads_velocity(p.column);
     particle_sensors_.s[particle_sensors_.count++] = p;
   }
-  if (particle_sensors_.count > 0 && sensor_partials_d_.size() == 0)
+  if (particle_sensors_.count > 0) ensure_sensor_partials();
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::ensure_sensor_partials() {
+  // One sample's per-CUDA-block partials, shared by the grid and the particle sensors (at most kMax of each).
+  static_assert(GridSensorSet<TG>::kMax == ParticleSensorSet<T>::kMax, "one partials buffer for both kinds");
+  if (sensor_partials_d_.size() == 0)
     sensor_partials_d_.allocate(static_cast<std::size_t>(GridSensorSet<TG>::kMax) * kSensorBlocks);
 }
 
@@ -1635,16 +1654,7 @@ void MgspBenchmark<T, TG>::sample_particles(int slot) {
   const int n = particle_sensors_.count;
   if (n == 0) return;
   const std::size_t per_slot = bodies_.size() * static_cast<std::size_t>(n);
-  const std::size_t need = static_cast<std::size_t>(slot + 1) * per_slot;
-  if (particle_samples_d_.size() < need) {  // grow (rare), keeping the slots already sampled
-    mgsp_detail::DeviceArray<SensorAccum> bigger;
-    bigger.allocate(std::max(need, 2 * particle_samples_d_.size()));
-    if (particle_samples_d_.size())
-      FBAR_CUDA_CHECK(cudaMemcpyAsync(bigger.get(), particle_samples_d_.get(),
-                                      sizeof(SensorAccum) * particle_samples_d_.size(), cudaMemcpyDeviceToDevice, stream_));
-    FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
-    particle_samples_d_.swap(bigger);
-  }
+  grow_samples(particle_samples_d_, static_cast<std::size_t>(slot + 1) * per_slot);
   const bool initial = steps_ == 0 && !aux_valid_;
   if (particle_sensors_read_v_ && !initial && !aux_valid_)
     throw std::logic_error("GpuEngine::sample_particles: the step that ended here did not record v and C "
@@ -1694,14 +1704,8 @@ void MgspBenchmark<T, TG>::track(int body, std::vector<double>& values, std::vec
 
 template <typename T, typename TG>
 std::vector<SensorAccum> MgspBenchmark<T, TG>::particle_samples(int slots) const {
-  const std::size_t n = static_cast<std::size_t>(slots) * bodies_.size() * particle_sensors_.count;
-  std::vector<SensorAccum> host(n);
-  if (n == 0) return host;
-  if (particle_samples_d_.size() < n) throw std::logic_error("GpuEngine::particle_samples: fewer slots were sampled");
-  FBAR_CUDA_CHECK(cudaMemcpyAsync(host.data(), particle_samples_d_.get(), sizeof(SensorAccum) * n,
-                                  cudaMemcpyDeviceToHost, stream_));
-  FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
-  return host;
+  return download_samples(particle_samples_d_,
+                          static_cast<std::size_t>(slots) * bodies_.size() * particle_sensors_.count);
 }
 
 template <typename T, typename TG>

@@ -88,27 +88,6 @@ struct FrameCapture {
   FrameColumn column[kMaxFrameColumns];
 };
 
-/// The inputs of frame_value() for one particle (frames and particle sensors): the stored state's J, F, logJp, and
-/// its Cauchy stress when `sigma` (rate terms read C).
-template <typename M, typename T>
-FBAR_HOST_DEVICE inline FrameInputs<T> particle_frame_inputs(const Vec3<T>& x, const Vec3<T>& v, const Mat3<T>& C,
-                                                             const material_state_t<M, T>& s,
-                                                             const material_params_t<M, T>& material, T mass, T volume,
-                                                             bool sigma) {
-  FrameInputs<T> in{};
-  in.x = x;
-  in.v = v;
-  in.mass = mass;
-  in.volume0 = volume;
-  in.J = M::volume_ratio(s);
-  in.logJp = T(0);
-  in.F = Mat3<T>::identity();
-  if constexpr (M::kOutputs.deformation_gradient) in.F = s.F;
-  if constexpr (M::kOutputs.log_jp) in.logJp = s.logJp;
-  if (sigma) in.sigma = cauchy_stress(M::kirchhoff_stress(material, s, C));
-  return in;
-}
-
 /// Writes particle `id`'s frame entry from its new state (out of line: only capture steps pay its registers).
 template <typename M, typename T>
 __device__ __noinline__ void capture_particle(const FrameCapture<T>& cap, int id, const Vec3<T>& x, const Vec3<T>& v,

@@ -60,8 +60,7 @@ __global__ void __launch_bounds__(kSensorThreads)
                             Vec3<T> v0, material_params_t<M, T> material, T mass, T volume, ParticleSensorSet<T> sensors,
                             SensorAccum* partials) {
   const ParticleSensorParams<T>& g = sensors.s[blockIdx.y];
-  const FrameQuantity q = g.column.quantity;
-  const bool sigma = q == FrameQuantity::Pressure || q == FrameQuantity::VonMises || q == FrameQuantity::Stress;
+  const bool sigma = frame_quantity_reads_stress(g.column.quantity);
   SensorAccum a;
   for (int slot = blockIdx.x * blockDim.x + threadIdx.x; slot < slots; slot += gridDim.x * blockDim.x) {
     const int s = src[slot];
