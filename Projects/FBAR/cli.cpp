@@ -58,6 +58,7 @@ struct CliOptions {
   int gpus = 1;  ///< GPU ranks of one process (threads); under mpirun each process is one rank
   bool allow_unknown_keys = false;
   std::string data_dir;
+  std::string restart;  ///< --restart=FILE: a checkpoint to continue from
   bool version = false;
   bool help = false;
 };
@@ -83,17 +84,21 @@ const char* kHelp =
     "  --allow-unknown-keys    unknown keys (and parameters the chosen law does not use) are warnings, not errors\n"
     "  --data-dir=DIR          where geometry and motion files are looked up first (then $AssetDirPath, the\n"
     "                          scene's folder and the source tree's Data/)\n"
+    "  --restart=FILE          continue the run from a checkpoint (checkpoint_frame[f]_dev[0].h5 or\n"
+    "                          checkpoint_step[s]_dev[0].h5 in the run's output; the other ranks' files are found\n"
+    "                          by their dev[d]): frames, sensor and tracker rows continue as if never stopped\n"
     "  --version               print the version and exit\n"
     "  -h, --help              print this help and exit\n"
     "\n"
     "exit codes: 0 success, 1 invalid scene, input file or option, 2 run-time failure (NaN, CFL violation,\n"
     "capacity, device or output error); messages go to stderr as `fbar: error: ...`. SIGINT (Ctrl-C) or SIGTERM\n"
-    "stops the run at the next step, writes run.json (status \"interrupted\") and exits with 128 + the signal\n"
-    "number (130, 143); a second Ctrl-C ends the process at once.\n";
+    "stops the run after the step in progress, writes a checkpoint (--restart continues from it) and run.json\n"
+    "(status \"interrupted\") and exits with 128 + the signal number (130, 143); a second signal ends the process\n"
+    "at once (a SIGTERM repeated within 2 s counts as the same one).\n";
 
 const std::vector<std::string_view> kLongOptions = {"--file",   "--check",  "--backend",           "--output",
                                                     "--frames", "--quiet",  "--allow-unknown-keys", "--data-dir",
-                                                    "--version", "--help",  "--gpus"};
+                                                    "--version", "--help",  "--gpus", "--restart"};
 
 CliOptions parse_arguments(int argc, char** argv) {
   CliOptions o;
@@ -177,6 +182,9 @@ CliOptions parse_arguments(int argc, char** argv) {
       o.allow_unknown_keys = true;
     } else if (name == "--data-dir") {
       o.data_dir = take_value();
+    } else if (name == "--restart") {
+      o.restart = take_value();
+      if (o.restart.empty()) throw UsageError("--restart: expected a checkpoint file");
     } else if (name == "--version") {
       no_value();
       o.version = true;
@@ -228,6 +236,8 @@ void write_run_json(const fs::path& path, const Scene& scene, const std::vector<
                                                         : "failed"),
                 a);
   if (result.stop_signal != 0) doc.AddMember("signal", str(signal_name(result.stop_signal)), a);
+  if (!result.checkpoint.empty()) doc.AddMember("checkpoint", str(result.checkpoint), a);
+  if (result.restarted_from_frame >= 0) doc.AddMember("restarted_from_frame", result.restarted_from_frame, a);
   doc.AddMember("exit_code", result.exit_code, a);
   doc.AddMember("message", str(result.message), a);
   rj::Document resolved(&a);
@@ -372,6 +382,14 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
   const auto t0 = std::chrono::steady_clock::now();
   RunOptions ro;
   ro.quiet = o.quiet;
+  if (!o.restart.empty()) {
+    std::error_code exists_ec;
+    if (!fs::is_regular_file(o.restart, exists_ec)) {
+      if (rank == 0) std::cerr << "fbar: error: --restart: " << o.restart << ": no such file\n";
+      return kExitInput;
+    }
+    ro.restart = o.restart;
+  }
   ro.log = &std::cout;
   ro.transport = transport.get();
   RunResult result;

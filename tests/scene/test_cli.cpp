@@ -3,6 +3,7 @@
 #include <rapidjson/document.h>
 #include <rapidjson/stringbuffer.h>
 #include <rapidjson/writer.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -20,6 +21,8 @@
 
 #include "cli.h"
 #include "cli_test_support.h"
+#include "engine/stop_request.h"
+#include "io/checkpoint.h"
 #include "scene/scene_parse.h"
 
 namespace fbar {
@@ -243,9 +246,10 @@ TEST(Cli, RunWritesRunJsonWithTheResolvedScene) {
   EXPECT_TRUE(ran == expected) << sb.GetString();
 }
 
-// SIGTERM (a batch system's time limit, `kill`, `timeout`) stops the run at the next step: run.json says
-// "interrupted" with the signal, the step and the last frame written, and the exit code is 128 + 15 as a shell
-// reports a killed process. A repeated SIGTERM does not end the process.
+// SIGTERM (a batch system's time limit, `kill`, `timeout`) stops the run at the next step with a checkpoint: run.json
+// says "interrupted" with the signal, the step, the last frame written and the checkpoint, and the exit code is
+// 128 + 15 as a shell reports a killed process. A SIGTERM repeated at once does not end the process. --restart from
+// the checkpoint continues to the frames asked for.
 TEST(Cli, SigtermStopsTheRunAndWritesRunJson) {
   const fs::path dir = scratch("sigterm");
   const fs::path out = dir / "frames";
@@ -299,10 +303,76 @@ TEST(Cli, SigtermStopsTheRunAndWritesRunJson) {
   EXPECT_TRUE(fs::exists(out / ("model[0]_dev[0]_frame[" + std::to_string(written) + "].csv")));
   EXPECT_FALSE(fs::exists(out / ("model[0]_dev[0]_frame[" + std::to_string(written + 1) + "].csv")));
   EXPECT_GT(doc["steps"].GetInt64(), 0);
+  ASSERT_TRUE(doc.HasMember("checkpoint")) << ss.str();
+  const std::string checkpoint = doc["checkpoint"].GetString();
+  EXPECT_EQ(checkpoint, (out / ("checkpoint_step[" + std::to_string(doc["steps"].GetInt64()) + "]_dev[0].h5")).string());
+  EXPECT_TRUE(fs::is_regular_file(checkpoint));
+  EXPECT_NE(r.err.find("--restart=" + checkpoint), std::string::npos) << r.err;
   // The handler is gone after the run: the default action is back.
   struct sigaction now {};
   sigaction(SIGTERM, nullptr, &now);
   EXPECT_EQ(now.sa_handler, SIG_DFL);
+  // Continue for two more frames from the checkpoint.
+  const CliResult more =
+      run_cli({"--backend=cpu", "--quiet", "--output=" + out.string(), "--frames=" + std::to_string(written + 2),
+               "--restart=" + checkpoint, "--file=" + (dir / "long.json").string()});
+  ASSERT_EQ(more.code, 0) << more.err;
+  EXPECT_TRUE(fs::exists(out / ("model[0]_dev[0]_frame[" + std::to_string(written + 2) + "].csv")));
+  std::ifstream again(out / "run.json");
+  std::stringstream text;
+  text << again.rdbuf();
+  EXPECT_NE(text.str().find("\"restarted_from_frame\": " + std::to_string(written)), std::string::npos) << text.str();
+  // A checkpoint that is not there: exit 1, named.
+  const CliResult missing = run_cli({"--backend=cpu", "--restart=" + (dir / "nope.h5").string(),
+                                     "--file=" + (dir / "long.json").string()});
+  EXPECT_EQ(missing.code, 1);
+  EXPECT_NE(missing.err.find("nope.h5: no such file"), std::string::npos) << missing.err;
+}
+
+/// Runs `body` in a child process; returns its wait status.
+int in_child(void (*body)()) {
+  const pid_t pid = fork();
+  if (pid == 0) {
+    body();
+    _exit(0);
+  }
+  int status = 0;
+  waitpid(pid, &status, 0);
+  return status;
+}
+
+// A second signal ends the process at once, by that signal; a SIGTERM repeated within 2 s is the same request.
+TEST(StopSignals, ASecondSignalEndsTheProcessAtOnce) {
+  int status = in_child([] {
+    const StopSignals handlers;
+    std::raise(SIGINT);
+    if (stop_signal() != SIGINT) _exit(3);  // recorded, not ended
+    std::raise(SIGINT);
+    _exit(4);  // not reached
+  });
+  EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGINT) << status;
+  status = in_child([] {
+    const StopSignals handlers;
+    std::raise(SIGTERM);
+    std::raise(SIGTERM);  // a sender's repeat: still the first request
+    if (stop_signal() != SIGTERM) _exit(3);
+  });
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << status;
+  status = in_child([] {
+    const StopSignals handlers;
+    std::raise(SIGTERM);
+    std::this_thread::sleep_for(std::chrono::milliseconds(2100));
+    std::raise(SIGTERM);
+    _exit(4);
+  });
+  EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGTERM) << status;
+  status = in_child([] {
+    const StopSignals handlers;
+    std::raise(SIGTERM);
+    std::raise(SIGINT);  // Ctrl-C after a SIGTERM
+    _exit(4);
+  });
+  EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGINT) << status;
 }
 
 }  // namespace

@@ -65,8 +65,14 @@ template <typename T, typename TG>
 RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& log) {
   comm::Transport* transport = options.transport;
   const bool decomposed = transport && transport->size() > 1;
+  std::unique_ptr<io::Checkpoint> restart;
+  if (!options.restart.empty())
+    restart = std::make_unique<io::Checkpoint>(
+        io::read_checkpoint_for(options.restart, decomposed ? transport->rank() : 0, decomposed ? transport->size() : 1));
   std::unique_ptr<CpuEngine<T, TG>> engine =
-      decomposed ? std::make_unique<CpuEngine<T, TG>>(scene, *transport) : std::make_unique<CpuEngine<T, TG>>(scene);
+      restart      ? std::make_unique<CpuEngine<T, TG>>(scene, *restart, transport)
+      : decomposed ? std::make_unique<CpuEngine<T, TG>>(scene, *transport)
+                   : std::make_unique<CpuEngine<T, TG>>(scene);
   engine->set_log(decomposed && transport->rank() != 0 ? nullptr : &log);
   std::size_t particles = engine->particle_count();
   if (decomposed) particles = static_cast<std::size_t>(transport->sum(static_cast<long long>(particles)));
@@ -76,7 +82,10 @@ RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& 
   if (decomposed)
     line += " per rank; " + std::to_string(transport->size()) + " ranks, " + engine->slabs().describe() +
             ", imbalance " + std::to_string(std::lround(100.0 * engine->imbalance())) + " %";
-  return run_frames(*engine, scene, options, log, line);
+  if (restart) {  // the particles are the engine's now; the loop needs the rest
+    for (io::CheckpointBody& b : restart->bodies) b = io::CheckpointBody{};
+  }
+  return run_frames(*engine, scene, options, log, line, restart.get());
 }
 
 }  // namespace
@@ -95,7 +104,8 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
   std::size_t cpu_particle_bytes = 0;
   bool asflip = false, fbar = false;  // some body uses ASFLIP / F-bar: the grids carry their channels
 
-  const bool record = sensors_read_velocity(scene);  // v and C kept for particle sensors or trackers
+  // v and C kept for particle sensors, trackers or checkpoints (on the steps landing on their times)
+  const bool record = sensors_read_velocity(scene) || sim.checkpoint_every > 0;
   for (std::size_t i = 0; i < scene.bodies.size(); ++i) {
     const BodySpec& body = scene.bodies[i];
     const MaterialSpec& m = body.material;

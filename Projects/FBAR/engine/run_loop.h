@@ -23,6 +23,10 @@
 //   std::vector<SensorAccum> particle_samples(n) this rank's values of particle slots [0, n)
 //   void set_tracker(int body, TrackerSet)      the particles of a body whose attributes track() reads by ID
 //   void track(int body, values, present)       the tracked particles this rank holds, now
+//   io::Checkpoint checkpoint()                 this rank's state (collective; io/checkpoint.h)
+//   bool checkpoint_ready()                     checkpoint() can be taken now (the GPU engine needs the particles'
+//                                               v and C, which it records only on the steps asked to)
+//   void keep_checkpoint_inputs(bool)           the next step records what checkpoint() needs
 #pragma once
 
 #include <algorithm>
@@ -31,6 +35,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <limits>
+#include <memory>
 #include <ostream>
 #include <stdexcept>
 #include <string>
@@ -40,6 +45,7 @@
 #include "engine/engine_api.h"
 #include "engine/run_constants.h"
 #include "engine/stop_request.h"
+#include "io/checkpoint.h"
 #include "io/sensor_recorder.h"
 #include "scene/scene.h"
 
@@ -75,9 +81,16 @@ inline std::string format_percent(double fraction) {
 /// Stops at the first failure the engine does not repair (exit code 2, the engine's report: body, step, time) and
 /// at a stop request (exit code 128 + signal, at the next step boundary). Throws what the engine or the writer
 /// throws (run_guarded turns it into an exit code).
+/// Checkpoints (io/checkpoint.h): every simulation.checkpoint_every frames (checkpoint_frame[f]_dev[d].h5), and when
+/// the run stops on a signal or a failure (checkpoint_step[s]_dev[d].h5, the state before the failed step). The GPU
+/// engine records the particles' v and C for them: on the step landing on a checkpoint frame, and on a signal one
+/// more step (the signal's checkpoint follows it); after a failure it writes one only when the step before had
+/// recorded them (the report names the last checkpoint otherwise).
+/// resume: the checkpoint the engine was built from (--restart): frames continue after resume->frame at the first
+/// run's frame times, the sensor and tracker files are continued, nothing is written for the restart's own state.
 template <class Engine>
 RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& options, std::ostream& log,
-                     const std::string& engine_line) {
+                     const std::string& engine_line, const io::Checkpoint* resume = nullptr) {
   RunResult result;
   const SimulationSpec& sim = scene.simulation;
   comm::Transport* transport = options.transport;
@@ -99,9 +112,9 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
     }
     result.frames_written = frame;
   };
-  const double t0 = engine.time();
+  const double t0 = resume ? resume->start_time : engine.time();
   const double t_end = t0 + sim.frames / sim.fps;
-  SensorRecorder sensors(scene, transport, t0, t_end);
+  SensorRecorder sensors(scene, transport, t0, t_end, resume);
   engine.set_grid_sensors(sensors.grid_sensors());
   engine.set_grid_sample(-1);
   engine.set_particle_sensors(sensors.particle_sensors());
@@ -110,7 +123,7 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
     if (!sensors.particle_sensors().empty())
       sensors.flush_particles(engine.particle_samples(sensors.particle_pending()));
   };
-  TrackerRecorder trackers(scene, transport);
+  TrackerRecorder trackers(scene, transport, resume);
   for (const BodyTracker& t : trackers.trackers()) engine.set_tracker(t.body, t.set);
   auto record_trackers = [&] {  // at every frame (ClaymoreUW's rate), a collective
     std::vector<double> values, present;
@@ -126,6 +139,26 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
     engine.sample_particles(slot);
     sensors.particle_taken(t);
   };
+  // A checkpoint of every rank's state (collective: the engine's state is taken now; each rank's writer thread
+  // writes its file while the run goes on, after the frames queued before it; rank 0 records its CSVs' lengths).
+  auto checkpoint = [&](const std::filesystem::path& path, const std::string& reason) {
+    flush_sensors();
+    auto c = std::make_shared<io::Checkpoint>(engine.checkpoint());
+    c->reason = reason;
+    c->start_time = t0;
+    c->frame = result.frames_written;
+    if (rank == 0) {
+      sensors.file_sizes(c->csv);
+      trackers.file_sizes(c->csv);
+    }
+    writer.submit_job([c, path] { io::write_checkpoint(path, *c); });
+    if (rank == 0) result.checkpoint = path.string();
+  };
+  const std::filesystem::path save_dir(sim.save_path);
+  auto step_checkpoint_path = [&] { return io::checkpoint_step_path(save_dir, engine.steps(), rank); };
+  auto frame_checkpoint_due = [&](int frame) {
+    return sim.checkpoint_every > 0 && frame % sim.checkpoint_every == 0;
+  };
   auto finish = [&] {
     result.steps = engine.steps();
     result.end_time = engine.time();
@@ -140,11 +173,23 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
     log << "fbar: note: the explicit viscous bound of body " << viscous.body << " limits every step to "
         << viscous.dt << " s (CFL x rho x dx^2 / (3 x viscosity); default_dt " << resolved_default_dt(sim)
         << " s)\n";
-  write_frame(0);
-  sample_particles_at(t0);
-  record_trackers();
+  int first_frame = 1;
+  if (resume) {  // the restart's own state was written and sampled by the run that made the checkpoint
+    first_frame = resume->frame + 1;
+    result.frames_written = resume->frame;
+    result.restarted_from_frame = resume->frame;
+    if (talk)
+      log << "fbar: restarted from a checkpoint at t = " << engine.time() << " s, step " << engine.steps()
+          << " (frame " << resume->frame << " written; " << resume->reason << ")\n";
+  } else {
+    write_frame(0);
+    sample_particles_at(t0);
+    record_trackers();
+  }
 
   const auto wall_start = std::chrono::steady_clock::now();
+  const long long first_step = engine.steps();
+  const double first_time = engine.time();
   // The particles of every rank and their imbalance, max / mean - 1 (a collective: every rank calls it at the same
   // points, rank 0 prints).
   struct Count {
@@ -162,9 +207,10 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
   auto line = [&](const std::string& head, Count count) {
     const std::size_t particles = count.particles;
     const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
-    const double done = engine.time() - t0;
+    const double done = engine.time() - first_time;
     const double eta = done > 0 ? elapsed * (t_end - engine.time()) / done : -1.0;
-    const double ms_per_step = engine.steps() > 0 ? 1e3 * elapsed / static_cast<double>(engine.steps()) : 0.0;
+    const long long stepped = engine.steps() - first_step;  // by this process (a restart starts at its step)
+    const double ms_per_step = stepped > 0 ? 1e3 * elapsed / static_cast<double>(stepped) : 0.0;
     const std::string note = engine.resource_note();
     char text[512];
     std::snprintf(text, sizeof(text), "%s  t = %.6g s  dt = %.3g s  steps = %lld  particles = %zu  %.3g ms/step  ETA %s"
@@ -184,17 +230,24 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
     return sample < target - sensors.tolerance() ? sample : target;
   };
   long long steps_logged = engine.steps();
-  for (int frame = 1; frame <= sim.frames; ++frame) {
+  bool stop_step = false;  // a signal came and the engine needs one more (recording) step before its checkpoint
+  for (int frame = first_frame; frame <= sim.frames; ++frame) {
     const double target = t0 + frame / sim.fps;
     while (engine.time() < target) {
       int signal = stop_signal();
       if (decomposed) signal = static_cast<int>(transport->max(static_cast<double>(signal)));  // all stop together
-      if (signal != 0) {
+      if (signal != 0 && !engine.checkpoint_ready() && !stop_step) {
+        stop_step = true;  // the same on every rank (checkpoint_ready() follows the steps every rank took)
+      } else if (signal != 0) {
         result.stop_signal = signal;
         result.exit_code = 128 + signal;
-        char text[256];
-        std::snprintf(text, sizeof(text), "stopped by %s at step %lld, t = %.6g s; the last frame written is %d",
-                      signal_name(signal), engine.steps(), engine.time(), result.frames_written);
+        checkpoint(step_checkpoint_path(), signal_name(signal));
+        char text[512];
+        std::snprintf(text, sizeof(text),
+                      "stopped by %s at step %lld, t = %.6g s; the last frame written is %d; checkpoint %s "
+                      "(fbar --restart=%s continues the run)",
+                      signal_name(signal), engine.steps(), engine.time(), result.frames_written,
+                      result.checkpoint.c_str(), result.checkpoint.c_str());
         result.message = text;
         return finish();
       }
@@ -209,7 +262,9 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
           (sensors.particle_due(step_target) || (trackers.reads_velocity() && step_target == target)) &&
           engine.time() + 2.0 * engine.next_dt() >= step_target);
       // The step that lands on the frame time writes the frame (on the device, for the GPU engine).
-      engine.set_frame_capture(step_target == target && engine.time() + engine.next_dt() >= target);
+      const bool lands = step_target == target && engine.time() + engine.next_dt() >= target;
+      engine.set_frame_capture(lands);
+      engine.keep_checkpoint_inputs(stop_step || (lands && frame_checkpoint_due(frame)));
       // Where the step after a landing heads: the next sample or frame time (the GPU fixes that step's dt now).
       const double following = step_target < target          ? head_for(step_target, target)
                                 : frame < sim.frames ? head_for(step_target, t0 + (frame + 1) / sim.fps)
@@ -218,8 +273,18 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
       if (!r.ok) {
         engine.set_frame_capture(false);
         engine.set_grid_sample(-1);
+        engine.keep_checkpoint_inputs(false);
         result.exit_code = 2;
         result.message = r.message();  // the caller reports it (cli.cpp prints it to stderr)
+        if (engine.checkpoint_ready()) {  // the state before the failed step
+          checkpoint(step_checkpoint_path(), "failure");
+          result.message += "\ncheckpoint of the state before the failed step: " + result.checkpoint;
+        } else {
+          result.message += "\nno checkpoint of this state (the GPU engine had not recorded the particles' "
+                            "velocities)" +
+                            (result.checkpoint.empty() ? std::string()
+                                                       : "; the last checkpoint is " + result.checkpoint);
+        }
         return finish();
       }
       if (slot >= 0) sensors.grid_taken(start);
@@ -233,9 +298,16 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
     }
     engine.set_frame_capture(false);
     engine.set_grid_sample(-1);
+    engine.keep_checkpoint_inputs(false);
     write_frame(frame);
     flush_sensors();
     record_trackers();
+    if (frame_checkpoint_due(frame)) {
+      if (!engine.checkpoint_ready())
+        throw std::logic_error("the step landing on frame " + std::to_string(frame) +
+                               " did not record what its checkpoint needs");
+      checkpoint(io::checkpoint_frame_path(save_dir, frame, rank), "frame");
+    }
     if (!options.quiet) {
       const Count count = all_particles();
       if (talk) line("frame " + std::to_string(frame) + "/" + std::to_string(sim.frames), count);

@@ -1,6 +1,8 @@
 // Stop requests by SIGINT / SIGTERM (stop_request.h).
 #include "engine/stop_request.h"
 
+#include <time.h>
+
 #include <atomic>
 #include <csignal>
 
@@ -10,13 +12,34 @@ namespace {
 // Lock-free, so the handler may store into it (a std::sig_atomic_t would do for one thread; the run loop may run on
 // another thread than the one the signal is delivered to).
 std::atomic<int> g_stop_signal{0};
+constexpr long long kRepeatWindowNs = 2000000000LL;
 static_assert(std::atomic<int>::is_always_lock_free, "the signal handler needs a lock-free atomic");
 
+// CLOCK_MONOTONIC of the first request [ns] (clock_gettime is async-signal-safe).
+std::atomic<long long> g_first_ns{0};
+static_assert(std::atomic<long long>::is_always_lock_free, "the signal handler needs a lock-free atomic");
+
+long long monotonic_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<long long>(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
+}
+
 extern "C" void on_stop_signal(int signal) {
-  g_stop_signal.store(signal, std::memory_order_relaxed);
-  // A second Ctrl-C ends the process at once. SIGTERM stays graceful: senders repeat it (coreutils `timeout` signals
-  // the process and then its group, Slurm may forward it twice) and follow it with SIGKILL after their grace time.
-  if (signal == SIGINT) std::signal(SIGINT, SIG_DFL);
+  const long long now = monotonic_ns();
+  const int first = g_stop_signal.load(std::memory_order_relaxed);
+  if (first == 0) {
+    g_first_ns.store(now, std::memory_order_relaxed);
+    g_stop_signal.store(signal, std::memory_order_relaxed);
+    return;
+  }
+  // A second signal ends the process at once, by that signal (the default action). A SIGTERM repeated within
+  // kRepeatWindowNs of the first is the same request: senders repeat it (coreutils `timeout` signals the process and
+  // then its group; srun forwards it to every task).
+  if (signal == SIGTERM && first == SIGTERM && now - g_first_ns.load(std::memory_order_relaxed) < kRepeatWindowNs)
+    return;
+  std::signal(signal, SIG_DFL);
+  std::raise(signal);
 }
 
 }  // namespace

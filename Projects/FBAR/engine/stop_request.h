@@ -1,9 +1,11 @@
 // A run asked to stop by a signal (SIGINT from Ctrl-C, SIGTERM from a batch system's time limit or `kill`).
 //
 // While a StopSignals object lives, the first SIGINT or SIGTERM only records the signal; the run loop sees it at
-// the next step boundary, stops there, and the command line writes run.json (status "interrupted") and exits with
-// 128 + the signal number, as a shell reports a process ended by that signal. A second SIGINT (Ctrl-C twice) ends
-// the process at once; a repeated SIGTERM does not (senders repeat it, and follow it with SIGKILL anyway).
+// the next step boundary, writes a checkpoint there (run_loop.h) and stops, and the command line writes run.json
+// (status "interrupted") and exits with 128 + the signal number, as a shell reports a process ended by that
+// signal. A second signal ends the process at once (by that signal), except a SIGTERM repeated within 2 s of the
+// first: senders repeat it (coreutils `timeout` signals the process and then its group; srun forwards it to every
+// task), and that is still the first request.
 #pragma once
 
 namespace fbar {

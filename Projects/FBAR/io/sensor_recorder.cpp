@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstdint>
+#include <iostream>
 #include <limits>
 #include <stdexcept>
 #include <system_error>
@@ -132,6 +134,46 @@ std::string particle_sensor_column(const ParticleSensorSpec& spec) {
 }
 
 // ---------------------------------------------------------------------------------------------------------------
+// Files
+
+namespace {
+
+/// A new CSV file with its header line, or (resume) the file of the run being continued, truncated to the length
+/// the checkpoint recorded and opened for appending.
+std::FILE* open_csv(const std::filesystem::path& path, const std::string& header, const char* what,
+                    const io::Checkpoint* resume) {
+  auto fail = [&] {
+    return std::runtime_error(std::string("cannot write ") + what + " file " + path.string() + ": " +
+                              std::error_code(errno, std::generic_category()).message());
+  };
+  if (resume) {
+    const std::string name = path.filename().string();
+    long long recorded = -1;
+    for (const auto& [file, bytes] : resume->csv)
+      if (file == name) recorded = bytes;
+    std::error_code ec;
+    const auto size = std::filesystem::file_size(path, ec);
+    if (recorded >= 0 && !ec && static_cast<long long>(size) >= recorded) {
+      std::filesystem::resize_file(path, static_cast<std::uintmax_t>(recorded), ec);
+      if (ec) throw std::runtime_error(std::string("cannot truncate ") + what + " file " + path.string() + ": " + ec.message());
+      std::FILE* f = std::fopen(path.c_str(), "a");
+      if (!f) throw fail();
+      return f;
+    }
+    std::cerr << "fbar: warning: " << path.string()
+              << (recorded < 0 ? " was not written by the checkpointed run"
+                               : ec ? " is missing" : " is shorter than when the checkpoint was written")
+              << ": it starts again with the restart's rows only\n";
+  }
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  if (!f) throw fail();
+  std::fprintf(f, "%s\n", header.c_str());
+  return f;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------------------------
 // Schedule
 
 SensorRecorder::Schedule::~Schedule() {
@@ -144,15 +186,26 @@ void SensorRecorder::Schedule::add_sensor(double interval) {
   next_.push_back(0);
 }
 
-void SensorRecorder::Schedule::add_output(Output o, const std::string& header, bool writer) {
-  if (writer) {
-    o.file = std::fopen(o.path.c_str(), "w");
-    if (!o.file)
-      throw std::runtime_error("cannot write sensor file " + o.path.string() + ": " +
-                               std::error_code(errno, std::generic_category()).message());
-    std::fprintf(o.file, "Time [s],%s\n", header.c_str());
-  }
+void SensorRecorder::Schedule::add_output(Output o, const std::string& header, bool writer,
+                                          const io::Checkpoint* resume) {
+  if (writer) o.file = open_csv(o.path, "Time [s]," + header, "sensor", resume);
   outputs_.push_back(o);
+}
+
+void SensorRecorder::Schedule::resume(double t, bool after) {
+  for (std::size_t i = 0; i < sensors(); ++i) {
+    long long k = 0;
+    while (after ? sample_time(i, k) <= t + tolerance_ : sample_time(i, k) < t - tolerance_) ++k;
+    next_[i] = k;
+  }
+}
+
+void SensorRecorder::Schedule::file_sizes(std::vector<std::pair<std::string, long long>>& out) const {
+  for (const Output& o : outputs_)
+    if (o.file) {
+      std::fflush(o.file);
+      out.emplace_back(o.path.filename().string(), static_cast<long long>(std::ftell(o.file)));
+    }
 }
 
 void SensorRecorder::Schedule::finish(double t0, double t_end, double tolerance, std::size_t values_per_slot) {
@@ -245,7 +298,8 @@ void SensorRecorder::Schedule::flush(const std::vector<SensorAccum>& values, com
 // ---------------------------------------------------------------------------------------------------------------
 // SensorRecorder
 
-SensorRecorder::SensorRecorder(const Scene& scene, comm::Transport* transport, double t0, double t_end)
+SensorRecorder::SensorRecorder(const Scene& scene, comm::Transport* transport, double t0, double t_end,
+                               const io::Checkpoint* resume)
     : transport_(transport) {
   const SimulationSpec& sim = scene.simulation;
   const bool writer = !transport || transport->rank() == 0;
@@ -264,7 +318,7 @@ SensorRecorder::SensorRecorder(const Scene& scene, comm::Transport* transport, d
     o.value = grid_specs_.size();
     o.op = spec.operation;
     o.path = dir / ("gridTarget[" + std::to_string(i) + "]_dev[0].csv");
-    grid_.add_output(o, grid_sensor_column(spec), writer);
+    grid_.add_output(o, grid_sensor_column(spec), writer, resume);
     grid_.add_sensor(1.0 / spec.output_frequency);
     shortest = std::min(shortest, 1.0 / spec.output_frequency);
     grid_specs_.push_back(spec);
@@ -286,7 +340,7 @@ SensorRecorder::SensorRecorder(const Scene& scene, comm::Transport* transport, d
       o.op = spec.operation;
       o.path = dir / ("particleTarget[" + std::to_string(i) + "]_model[" + std::to_string(scene.bodies[b].model) +
                       "]_dev[0].csv");
-      particle_.add_output(o, particle_sensor_column(spec), writer);
+      particle_.add_output(o, particle_sensor_column(spec), writer, resume);
     }
     particle_.add_sensor(1.0 / spec.output_frequency);
     shortest = std::min(shortest, 1.0 / spec.output_frequency);
@@ -295,6 +349,10 @@ SensorRecorder::SensorRecorder(const Scene& scene, comm::Transport* transport, d
   tolerance_ = std::isfinite(shortest) ? 1e-9 * shortest : 0.0;
   grid_.finish(t0, t_end, tolerance_, grid_specs_.size());
   particle_.finish(t0, t_end, tolerance_, bodies * particle_specs_.size());
+  if (resume) {
+    grid_.resume(resume->time, false);
+    particle_.resume(resume->time, true);
+  }
 }
 
 SensorRecorder::~SensorRecorder() = default;
@@ -358,7 +416,7 @@ bool sensors_read_velocity(const Scene& scene) {
   return any_reads_velocity(make_trackers(scene));
 }
 
-TrackerRecorder::TrackerRecorder(const Scene& scene, comm::Transport* transport)
+TrackerRecorder::TrackerRecorder(const Scene& scene, comm::Transport* transport, const io::Checkpoint* resume)
     : transport_(transport), trackers_(make_trackers(scene)), reads_velocity_(any_reads_velocity(trackers_)) {
   const bool writer = !transport || transport->rank() == 0;
   const std::filesystem::path dir(scene.simulation.save_path);
@@ -367,18 +425,22 @@ TrackerRecorder::TrackerRecorder(const Scene& scene, comm::Transport* transport)
     std::FILE* f = nullptr;
     if (writer) {
       std::filesystem::create_directories(dir);
-      f = std::fopen(paths_.back().c_str(), "w");
-      if (!f)
-        throw std::runtime_error("cannot write tracker file " + paths_.back().string() + ": " +
-                                 std::error_code(errno, std::generic_category()).message());
-      std::fprintf(f, "Time [s]");
+      std::string header = "Time [s]";
       for (std::size_t a = 0; a < t.names.size(); ++a)
         for (long long id : t.ids)
-          std::fprintf(f, ",%s[%lld] [%s]", t.names[a].c_str(), id, t.units[a].empty() ? "-" : t.units[a].c_str());
-      std::fprintf(f, "\n");
+          header += "," + t.names[a] + "[" + std::to_string(id) + "] [" + (t.units[a].empty() ? "-" : t.units[a]) + "]";
+      f = open_csv(paths_.back(), header, "tracker", resume);
     }
     files_.push_back(f);
   }
+}
+
+void TrackerRecorder::file_sizes(std::vector<std::pair<std::string, long long>>& out) const {
+  for (std::size_t k = 0; k < files_.size(); ++k)
+    if (files_[k]) {
+      std::fflush(files_[k]);
+      out.emplace_back(paths_[k].filename().string(), static_cast<long long>(std::ftell(files_[k])));
+    }
 }
 
 TrackerRecorder::~TrackerRecorder() {

@@ -24,9 +24,11 @@
 #include <cstdio>
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "comm/transport.h"
+#include "io/checkpoint.h"
 #include "physics/sensors.cuh"
 #include "scene/scene.h"
 
@@ -74,7 +76,8 @@ std::vector<BodyTracker> make_trackers(const Scene& scene);
 /// the outer and the IDs as the inner loop (ClaymoreUW's order); one row at the start and at every frame.
 class TrackerRecorder {
  public:
-  TrackerRecorder(const Scene& scene, comm::Transport* transport);
+  /// resume: a restarted run continues the files (truncated to the lengths the checkpoint recorded).
+  TrackerRecorder(const Scene& scene, comm::Transport* transport, const io::Checkpoint* resume = nullptr);
   ~TrackerRecorder();
   TrackerRecorder(const TrackerRecorder&) = delete;
   TrackerRecorder& operator=(const TrackerRecorder&) = delete;
@@ -85,6 +88,8 @@ class TrackerRecorder {
   /// present: per sorted ID, 1 on the rank holding it) and writes its row (rank 0). Every rank calls it. Throws
   /// std::runtime_error when an ID is on no rank (no such particle) or on several.
   void record(std::size_t k, double time, std::vector<double> values, std::vector<double> present);
+  /// Name and length [bytes] of every file this rank writes (for a checkpoint).
+  void file_sizes(std::vector<std::pair<std::string, long long>>& out) const;
 
  private:
   comm::Transport* transport_;
@@ -97,8 +102,14 @@ class TrackerRecorder {
 class SensorRecorder {
  public:
   /// The enabled sensors of `scene` (toggle true) for a run from t0 to t_end [s]. Rank 0 of `transport` (nullptr:
-  /// one rank) creates the files and writes their headers.
-  SensorRecorder(const Scene& scene, comm::Transport* transport, double t0, double t_end);
+  /// one rank) creates the files and writes their headers. resume: a run restarted at resume->time (t0 is then
+  /// the first run's start, so the sample times stay where they were): every file is truncated to the length the
+  /// checkpoint recorded and continued; grid samples restart at resume->time (the step starting there takes it),
+  /// particle samples after it (the state at resume->time was sampled before the checkpoint). A file that is
+  /// missing or shorter than recorded (a restart into another --output) starts again with its header, with a
+  /// warning on stderr.
+  SensorRecorder(const Scene& scene, comm::Transport* transport, double t0, double t_end,
+                 const io::Checkpoint* resume = nullptr);
   ~SensorRecorder();
   SensorRecorder(const SensorRecorder&) = delete;
   SensorRecorder& operator=(const SensorRecorder&) = delete;
@@ -127,6 +138,11 @@ class SensorRecorder {
   /// the same points. Grid: values[slot * sensors + i]; particle: values[(slot * bodies + body) * sensors + i].
   void flush_grid(const std::vector<SensorAccum>& values) { grid_.flush(values, transport_); }
   void flush_particles(const std::vector<SensorAccum>& values) { particle_.flush(values, transport_); }
+  /// Name and length [bytes] of every file this rank writes (for a checkpoint; call after the flushes).
+  void file_sizes(std::vector<std::pair<std::string, long long>>& out) const {
+    grid_.file_sizes(out);
+    particle_.file_sizes(out);
+  }
 
  private:
   /// One kind's sensors, slots and files.
@@ -141,7 +157,10 @@ class SensorRecorder {
     };
     ~Schedule();
     void add_sensor(double interval);
-    void add_output(Output o, const std::string& header, bool writer);
+    void add_output(Output o, const std::string& header, bool writer, const io::Checkpoint* resume);
+    /// A restarted run: the next sample of every sensor is the first at or after t (`after`: after t).
+    void resume(double t, bool after);
+    void file_sizes(std::vector<std::pair<std::string, long long>>& out) const;
     void finish(double t0, double t_end, double tolerance, std::size_t values_per_slot);
     std::size_t sensors() const { return intervals_.size(); }
     double next_time_after(double t) const;

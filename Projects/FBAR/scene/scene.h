@@ -36,6 +36,8 @@ struct SimulationSpec {
   /// write_scene_json carries `"froude_scaling_applied": true` so that re-reading it does not scale twice).
   bool froude_scaling_applied = false;
   int info_rate = 0;                    ///< log every N steps (0: once per frame)
+  /// Write a checkpoint (io/checkpoint.h) every N frames (0: only when a run stops on a signal or a failure).
+  int checkpoint_every = 0;
   Precision precision = Precision::Single;
   OnFailure on_failure = OnFailure::Stop;
   std::uint64_t seed = 0;               ///< seed for jittered particle sampling

@@ -324,7 +324,7 @@ const Keys kTopKeys = {"simulation", "bodies",           "models",  "boundaries"
 const Keys kSimulationKeys = {"domain",      "default_dx",  "default_dt", "gravity",
                               "time",        "fps",         "frames",     "save_path",
                               "save_suffix", "particles_output_exterior_only",
-                              "froude_scaling", "froude_scaling_applied", "info_rate", "precision",
+                              "froude_scaling", "froude_scaling_applied", "info_rate", "checkpoint_every", "precision",
                               "on_failure",  "seed",        "gpuid"};
 const Keys kBodyKeys = {"gpu",           "model",          "velocity",     "partition_start", "partition_end",
                         "partition",     "output",         "track_particle_id", "output_attribs", "track_attribs",
@@ -585,6 +585,8 @@ SimulationRead parse_simulation(const rj::Value* v, const Context& ctx) {
   if (auto* x = o.get("froude_scaling_applied"))
     s.froude_scaling_applied = read_bool(*x, o.sub("froude_scaling_applied"));
   if (auto* x = o.get("info_rate")) s.info_rate = read_int(*x, o.sub("info_rate"), kNonNegative, "steps");
+  if (auto* x = o.get("checkpoint_every"))
+    s.checkpoint_every = read_int(*x, o.sub("checkpoint_every"), kNonNegative, "frames");
   if (auto* x = o.get("precision")) s.precision = read_enum(*x, o.sub("precision"), kPrecisions);
   if (auto* x = o.get("on_failure")) s.on_failure = read_enum(*x, o.sub("on_failure"), kOnFailure);
   if (auto* x = o.get("seed")) {

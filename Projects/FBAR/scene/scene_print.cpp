@@ -108,6 +108,8 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
   row(os, "particles_output_exterior_only", yes_no(s.particles_output_exterior_only));
   row(os, "froude_scaling", num(s.froude_scaling) + (s.froude_scaling != 1.0 ? " (applied to every value shown)" : ""));
   row(os, "info_rate", std::to_string(s.info_rate) + " steps" + (s.info_rate == 0 ? " (log once per frame)" : ""));
+  row(os, "checkpoint_every", std::to_string(s.checkpoint_every) + " frames" +
+                                  (s.checkpoint_every == 0 ? " (checkpoints only when a run stops early)" : ""));
   row(os, "precision", to_string(s.precision));
   row(os, "on_failure", to_string(s.on_failure));
   row(os, "seed", std::to_string(s.seed));

@@ -208,6 +208,7 @@ class SceneWriter {
     num("froude_scaling", s.froude_scaling);
     boolean("froude_scaling_applied", s.froude_scaling_applied);
     integer("info_rate", s.info_rate);
+    integer("checkpoint_every", s.checkpoint_every);
     str("precision", to_string(s.precision));
     str("on_failure", to_string(s.on_failure));
     key("seed");
@@ -482,7 +483,7 @@ bool operator==(const SimulationSpec& a, const SimulationSpec& b) {
          a.time == b.time && a.fps == b.fps && a.frames == b.frames && a.save_path == b.save_path &&
          a.save_suffix == b.save_suffix && a.particles_output_exterior_only == b.particles_output_exterior_only &&
          a.froude_scaling == b.froude_scaling && a.froude_scaling_applied == b.froude_scaling_applied &&
-         a.info_rate == b.info_rate && a.precision == b.precision && a.on_failure == b.on_failure && a.seed == b.seed;
+         a.info_rate == b.info_rate && a.checkpoint_every == b.checkpoint_every && a.precision == b.precision && a.on_failure == b.on_failure && a.seed == b.seed;
 }
 bool operator==(const MaterialSpec& a, const MaterialSpec& b) {
   return a.law == b.law && a.type == b.type && a.ppc == b.ppc && a.cfl == b.cfl && a.rho == b.rho &&

@@ -22,6 +22,7 @@
 #include "settings.h"
 #include "physics/time_step.cuh"
 #include "io/sensor_recorder.h"
+#include "scene/scene_parse.h"
 #include "physics/transfer.cuh"
 
 namespace fbar {
@@ -168,7 +169,147 @@ CpuEngine<T, TG>::CpuEngine(const Scene& scene, comm::Transport& transport, doub
 }
 
 template <typename T, typename TG>
+CpuEngine<T, TG>::CpuEngine(const Scene& scene, const io::Checkpoint& cp, comm::Transport* transport,
+                            double rebalance_threshold)
+    : scene_(scene), rebalance_threshold_(rebalance_threshold), log_(&std::cerr) {
+  if (transport) transport_ = transport;
+  if (cp.bodies.size() != scene.bodies.size())
+    throw std::invalid_argument("--restart: the checkpoint holds " + std::to_string(cp.bodies.size()) +
+                                " bodies, the scene " + std::to_string(scene.bodies.size()));
+  std::vector<std::vector<Vec3d>> positions(cp.bodies.size());
+  for (std::size_t b = 0; b < cp.bodies.size(); ++b) {
+    const io::CheckpointBody& c = cp.bodies[b];
+    const std::string where = "bodies[" + std::to_string(b) + "]";
+    if (c.law != to_string(scene.bodies[b].material.law))
+      throw std::invalid_argument("--restart: " + where + ".material.constitutive is " +
+                                  to_string(scene.bodies[b].material.law) + ", the checkpoint's body " +
+                                  std::to_string(b) + " is " + c.law);
+    positions[b].resize(c.particles());
+    for (std::size_t p = 0; p < c.particles(); ++p) positions[b][p] = Vec3d{{c.x[3 * p], c.x[3 * p + 1], c.x[3 * p + 2]}};
+  }
+  init(positions);
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    const io::CheckpointBody& c = cp.bodies[b];
+    Body& body = bodies_[b];
+    const std::size_t n = c.particles();
+    for (std::size_t p = 0; p < n; ++p) {
+      body.id[p] = c.id[p];
+      for (int a = 0; a < 3; ++a) body.v[p][a] = static_cast<T>(c.v[3 * p + a]);
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) body.C[p](i, j) = static_cast<T>(c.C[9 * p + 3 * i + j]);
+      body.mass[p] = static_cast<T>(c.mass[p]);
+      body.volume[p] = static_cast<T>(c.volume[p]);
+    }
+    std::visit(
+        [&](auto& mb) {
+          using State = typename std::decay_t<decltype(mb.state)>::value_type;
+          constexpr int S = static_cast<int>(sizeof(State) / sizeof(T));
+          if (c.state_scalars != S)
+            throw std::invalid_argument("--restart: bodies[" + std::to_string(b) + "]: the checkpoint stores " +
+                                        std::to_string(c.state_scalars) + " state scalars per particle, " +
+                                        c.law + " has " + std::to_string(S));
+          for (std::size_t p = 0; p < n; ++p) {
+            T v[S];
+            for (int i = 0; i < S; ++i) v[i] = static_cast<T>(c.state[static_cast<std::size_t>(S) * p + i]);
+            std::memcpy(&mb.state[p], v, sizeof(State));
+          }
+        },
+        body.material);
+    body.max_wave_speed = c.max_wave_speed;
+  }
+  time_ = cp.time;
+  steps_ = cp.steps;
+  last_dt_ = cp.last_dt;
+  max_grid_speed_ = cp.max_grid_speed;
+  dt_scale_ = cp.dt_scale;
+  clean_steps_ = cp.clean_steps;
+  if (ranks() > 1) {
+    if (cp.ranks == ranks() && cp.rank == rank() && static_cast<int>(cp.slab_cuts.size()) == ranks() + 1) {
+      slabs_.axis = cp.slab_axis;  // this rank's own particles, in their slot order
+      slabs_.cuts = cp.slab_cuts;
+      measure_balance();
+      chosen_imbalance_ = cp.chosen_imbalance;
+    } else {  // every rank holds every particle (the merged set): divide them as at start
+      if (cp.ranks != 1)
+        throw std::invalid_argument("--restart: a checkpoint of rank " + std::to_string(cp.rank) + " of " +
+                                    std::to_string(cp.ranks) + " given to rank " + std::to_string(rank()) + " of " +
+                                    std::to_string(ranks()));
+      choose_slabs_now(true);
+      for (Body& body : bodies_) {
+        std::vector<int> owner(body.x.size());
+        for (std::size_t p = 0; p < body.x.size(); ++p) owner[p] = owner_of(body.x[p]);
+        keep_own_particles(body, owner);
+      }
+      measure_balance();
+      chosen_imbalance_ = imbalance_;
+    }
+  } else if (cp.ranks != 1) {
+    throw std::invalid_argument("--restart: a checkpoint of rank " + std::to_string(cp.rank) + " of " +
+                                std::to_string(cp.ranks) + " given to a one-rank run (merge the set first)");
+  }
+}
+
+template <typename T, typename TG>
 CpuEngine<T, TG>::~CpuEngine() = default;
+
+template <typename T, typename TG>
+io::Checkpoint CpuEngine<T, TG>::checkpoint() const {
+  io::Checkpoint c;
+  c.engine = "cpu";
+  c.precision = to_string(scene_.simulation.precision);
+  c.rank = rank();
+  c.ranks = ranks();
+  c.time = time_;
+  c.steps = steps_;
+  c.last_dt = last_dt_;
+  c.next_dt = next_dt();
+  c.max_grid_speed = max_grid_speed_;
+  c.dt_scale = dt_scale_;
+  c.clean_steps = clean_steps_;
+  if (ranks() > 1) {
+    c.slab_axis = slabs_.axis;
+    c.slab_cuts = slabs_.cuts;
+    c.chosen_imbalance = chosen_imbalance_;
+  }
+  std::vector<long long> counts;
+  for (const Body& body : bodies_) counts.push_back(static_cast<long long>(body.x.size()));
+  if (!counts.empty()) transport_->allreduce_sum(counts.data(), static_cast<int>(counts.size()));
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    const Body& body = bodies_[b];
+    io::CheckpointBody out;
+    out.law = to_string(body.spec.material.law);
+    out.global_particles = counts[b];
+    out.max_wave_speed = body.max_wave_speed;
+    const std::size_t n = body.x.size();
+    out.id = body.id;
+    out.x.resize(3 * n);
+    out.v.resize(3 * n);
+    out.C.resize(9 * n);
+    out.mass.assign(body.mass.begin(), body.mass.end());
+    out.volume.assign(body.volume.begin(), body.volume.end());
+    for (std::size_t p = 0; p < n; ++p)
+      for (int a = 0; a < 3; ++a) {
+        out.x[3 * p + a] = static_cast<double>(body.x[p][a]);
+        out.v[3 * p + a] = static_cast<double>(body.v[p][a]);
+        for (int j = 0; j < 3; ++j) out.C[9 * p + 3 * a + j] = static_cast<double>(body.C[p](a, j));
+      }
+    std::visit(
+        [&](const auto& mb) {
+          using State = typename std::decay_t<decltype(mb.state)>::value_type;
+          constexpr int S = static_cast<int>(sizeof(State) / sizeof(T));
+          out.state_scalars = S;
+          out.state.resize(static_cast<std::size_t>(S) * n);
+          for (std::size_t p = 0; p < n; ++p) {
+            T v[S];
+            std::memcpy(v, &mb.state[p], sizeof(State));
+            for (int i = 0; i < S; ++i) out.state[static_cast<std::size_t>(S) * p + i] = static_cast<double>(v[i]);
+          }
+        },
+        body.material);
+    c.bodies.push_back(std::move(out));
+  }
+  return c;
+}
 
 template <typename T, typename TG>
 void CpuEngine<T, TG>::init(const std::vector<std::vector<Vec3d>>& positions) {

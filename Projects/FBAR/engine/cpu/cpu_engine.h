@@ -59,6 +59,7 @@
 #include "comm/slab_partition.h"
 #include "comm/transport.h"
 #include "MnSystem/IO/particle_io.h"
+#include "io/checkpoint.h"
 #include "physics/boundary.cuh"
 #include "physics/constitutive_models.cuh"
 #include "physics/sensors.cuh"
@@ -135,6 +136,12 @@ class CpuEngine {
   /// left its slab to their new owner after each step, with everything they carry. Every rank calls every step.
   /// `rebalance_threshold`: the slabs are chosen again when imbalance() exceeds it (<= 0: never).
   CpuEngine(const Scene& scene, comm::Transport& transport, double rebalance_threshold = 0.25);
+  /// Continues from a checkpoint (io/checkpoint.h): this rank's own file when the run has as many ranks as the
+  /// one that wrote it (slot order, slabs, CFL inputs and reduce_dt state as they were, so the run goes on bit for
+  /// bit), otherwise the whole set merged in ID order (io::read_checkpoint_set), which the ranks divide anew.
+  /// Throws std::invalid_argument naming what does not match the scene (bodies, material laws, state size).
+  CpuEngine(const Scene& scene, const io::Checkpoint& checkpoint, comm::Transport* transport = nullptr,
+            double rebalance_threshold = 0.25);
   ~CpuEngine();
   CpuEngine(const CpuEngine&) = delete;
   CpuEngine& operator=(const CpuEngine&) = delete;
@@ -170,6 +177,14 @@ class CpuEngine {
   void submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer);
   double output_wait_seconds() const { return output_wait_s_; }  ///< [s] waited in submit_frame
   std::string resource_note() const;                             ///< threads, for progress lines
+
+  // ------------------------------------------------------------------ checkpoints (io/checkpoint.h)
+  /// This rank's state: particles in slot order, time, steps, dt, CFL inputs, reduce_dt state, slabs (engine
+  /// "cpu"; the run loop adds the frame, start time and sensor files). Collective on several ranks.
+  io::Checkpoint checkpoint() const;
+  /// Always: the CPU engine holds every particle's velocity and C (the GPU engine only after a recorded step).
+  bool checkpoint_ready() const { return true; }
+  void keep_checkpoint_inputs(bool) {}
 
   // ------------------------------------------------------------------ grid sensors (physics/sensors.cuh)
   /// The grid sensors a sampling step evaluates (at most GridSensorSet::kMax), in this order.

@@ -20,9 +20,44 @@
 #include "scene/scene_parse.h"
 
 namespace fbar {
+namespace {
+
+/// A restart's positions per body (ID order), and its velocities as the options' initial velocities.
+struct RestartInput {
+  std::vector<std::vector<Vec3d>> positions;
+  GpuEngineOptions options;
+};
+
+RestartInput restart_input(const GpuEngineOptions& options) {
+  RestartInput in;
+  in.options = options;
+  const io::Checkpoint& cp = *options.restart;
+  in.options.initial_velocities.assign(cp.bodies.size(), {});
+  for (std::size_t b = 0; b < cp.bodies.size(); ++b) {
+    const io::CheckpointBody& body = cp.bodies[b];
+    std::vector<Vec3d>& x = in.positions.emplace_back(body.particles());
+    std::vector<Vec3d>& v = in.options.initial_velocities[b];
+    v.resize(body.particles());
+    for (std::size_t p = 0; p < body.particles(); ++p) {
+      x[p] = Vec3d{{body.x[3 * p], body.x[3 * p + 1], body.x[3 * p + 2]}};
+      v[p] = Vec3d{{body.v[3 * p], body.v[3 * p + 1], body.v[3 * p + 2]}};
+    }
+  }
+  return in;
+}
+
+template <typename T, typename TG>
+std::unique_ptr<MgspBenchmark<T, TG>> make_engine(const Scene& scene, const GpuEngineOptions& options) {
+  if (!options.restart) return std::make_unique<MgspBenchmark<T, TG>>(scene, nullptr, options);
+  const RestartInput in = restart_input(options);
+  return std::make_unique<MgspBenchmark<T, TG>>(scene, &in.positions, in.options);
+}
+
+}  // namespace
+
 template <typename T, typename TG>
 GpuEngine<T, TG>::GpuEngine(const Scene& scene, const GpuEngineOptions& options)
-    : impl_(std::make_unique<MgspBenchmark<T, TG>>(scene, nullptr, options)) {}
+    : impl_(make_engine<T, TG>(scene, options)) {}
 template <typename T, typename TG>
 GpuEngine<T, TG>::GpuEngine(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions,
                         const GpuEngineOptions& options)
@@ -103,6 +138,12 @@ void GpuEngine<T, TG>::track(int body, std::vector<double>& values, std::vector<
   impl_->track(body, values, present);
 }
 template <typename T, typename TG>
+io::Checkpoint GpuEngine<T, TG>::checkpoint() const { return impl_->checkpoint(); }
+template <typename T, typename TG>
+bool GpuEngine<T, TG>::checkpoint_ready() const { return impl_->checkpoint_ready(); }
+template <typename T, typename TG>
+void GpuEngine<T, TG>::keep_checkpoint_inputs(bool on) { impl_->keep_checkpoint_inputs(on); }
+template <typename T, typename TG>
 const DeviceMemoryPlan& GpuEngine<T, TG>::memory_plan() const { return impl_->memory_plan(); }
 template <typename T, typename TG>
 std::size_t GpuEngine<T, TG>::peak_device_bytes() const { return impl_->peak_device_bytes(); }
@@ -163,7 +204,17 @@ RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& 
     engine_options.device_ranks = device.get();
   }
   const auto setup_start = std::chrono::steady_clock::now();
+  // A restart: every rank reads the whole set (in ID order) and keeps the particles of its slab.
+  std::unique_ptr<io::Checkpoint> restart;
+  if (!options.restart.empty()) {
+    restart = std::make_unique<io::Checkpoint>(io::read_checkpoint_set(options.restart));
+    engine_options.restart = restart.get();
+  }
   GpuEngine<T, TG> engine(scene, engine_options);
+  if (restart) {
+    for (io::CheckpointBody& b : restart->bodies) b = io::CheckpointBody{};  // on the device now
+    engine_options.restart = nullptr;
+  }
   const double setup_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - setup_start).count();
   engine.set_log(&log);
   const std::string line =
@@ -174,7 +225,7 @@ RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& 
       format_bytes(static_cast<double>(engine.device_bytes())) + " on the device (" +
       format_bytes(static_cast<double>(engine.memory_plan().total())) + " planned), set-up " +
       mgsp_detail::format_g(setup_s) + " s";
-  return run_frames(engine, scene, options, log, line);
+  return run_frames(engine, scene, options, log, line, restart.get());
 }
 
 }  // namespace

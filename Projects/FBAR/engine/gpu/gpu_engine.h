@@ -22,6 +22,7 @@
 #include "engine/cpu/cpu_engine.h"
 #include "engine/engine_api.h"
 #include "engine/gpu/memory_plan.h"
+#include "io/checkpoint.h"
 #include "scene/scene.h"
 
 namespace fbar {
@@ -74,6 +75,10 @@ struct GpuEngineOptions {
   /// Every rank is constructed with the same scene and options and steps in lockstep.
   comm::Transport* ranks = nullptr;
   comm::DeviceTransport* device_ranks = nullptr;
+  /// Continue from a checkpoint (io/checkpoint.h) holding every particle in ID order (io::read_checkpoint_set):
+  /// positions, velocities, C, state, time and the next dt from it, nothing sampled. The initial P2G then makes the
+  /// grid the continuous run had, to the order of its atomic sums. Must outlive the constructor only.
+  const io::Checkpoint* restart = nullptr;
 };
 
 template <typename T, typename TG>
@@ -145,6 +150,12 @@ class GpuEngine {
   /// Trackers (as CpuEngine): the tracked particles of `body` this rank holds, found by ID on the device.
   void set_tracker(int body, const TrackerSet& set);
   void track(int body, std::vector<double>& values, std::vector<double>& present);
+  /// Checkpoints (io/checkpoint.h; the run loop's interface): this rank's state, collective on several ranks; ready
+  /// when the last step recorded the particles' v and C (keep_checkpoint_inputs(true) before it) or before the
+  /// first step.
+  io::Checkpoint checkpoint() const;
+  bool checkpoint_ready() const;
+  void keep_checkpoint_inputs(bool on);
   const DeviceMemoryPlan& memory_plan() const;  ///< what the engine planned and allocated at start
   std::size_t peak_device_bytes() const;   ///< most device memory the engine's buffers held so far
   std::string resource_note() const;       ///< device memory now and at its peak, for progress lines

@@ -73,6 +73,7 @@
 #include "engine/gpu/partition_domain.h"
 #include "engine/run_constants.h"
 #include "physics/time_step.cuh"
+#include "scene/scene_parse.h"
 
 namespace fbar {
 
@@ -212,6 +213,11 @@ class MgspBenchmark {
   void set_particle_sensors(const std::vector<ParticleSensorSpec>& sensors);
   void keep_particle_inputs(bool on);
   void sample_particles(int slot);
+  /// Checkpoints (io/checkpoint.h): this rank's particles (with v and C of the last step, which must have recorded
+  /// them: keep_checkpoint_inputs(true) before it, or the initial state) and the step state.
+  io::Checkpoint checkpoint() const;
+  bool checkpoint_ready() const { return aux_valid_ || steps_ == 0; }
+  void keep_checkpoint_inputs(bool on);
   std::vector<SensorAccum> particle_samples(int slots) const;
   /// Trackers (as CpuEngine): the particles of `body` with the tracked IDs, found on the device by ID.
   void set_tracker(int body, const TrackerSet& set);
@@ -264,6 +270,10 @@ class MgspBenchmark {
     /// P2G, and on the host for snapshots before the first step; empty when the body starts at its scene velocity.
     mgsp_detail::DeviceArray<T> initial_v;
     std::vector<Vec3<T>> initial_v_host;
+    /// A restart (GpuEngineOptions::restart): per particle (ID order) the APIC C on the device for the initial P2G,
+    /// and the material state scalars on the host for the upload; empty otherwise.
+    mgsp_detail::DeviceArray<T> initial_C;
+    std::vector<T> restart_state;
     /// Output frame (GpuEngineOptions::frames): its attributes, the device copy a capture step writes (ID order),
     /// the pinned host copy the writer thread reads, and whether that host copy is still being read.
     std::vector<FrameAttributeSpec> frame_attrs;
@@ -322,6 +332,8 @@ class MgspBenchmark {
     virtual void state_of(const T* record, T& J, Mat3<T>& F, Mat3<T>& sigma, T& logJp, const Mat3<T>& C) const = 0;
     /// psi(state) [J/m^3] of one gathered record.
     virtual double energy_density_of(const T* record) const = 0;
+    /// The material's wave speed [m/s] in the state of one gathered record.
+    virtual double wave_speed_of(const T* record) const = 0;
   };
 
   template <typename M>
@@ -357,9 +369,12 @@ class MgspBenchmark {
       std::vector<std::byte> host(bytes);
       typename Layout::Buffer view(host.data(), bins_n);
       const auto state = material_initial_state<M, T>(this->spec.material);
+      constexpr std::size_t S = Layout::kStateScalars;
       for (std::size_t i = 0; i < n; ++i) {
         const int id = ids ? ids[i] : static_cast<int>(first_id + static_cast<long long>(i));
         ParticleRecord<M, T> p{x[i].template cast<T>(), state, id};
+        if (!this->restart_state.empty())
+          std::memcpy(&p.state, this->restart_state.data() + S * static_cast<std::size_t>(id), sizeof(p.state));
         store_particle<M, T>(view, static_cast<int>(i), p);
       }
       std::byte* target = bins[0].instance().data() + Layout::kBinBytes * static_cast<std::size_t>(first_id / 32);
@@ -396,6 +411,7 @@ class MgspBenchmark {
       p.initial_velocity = Vec3<T>{{static_cast<T>(this->spec.velocity[0]), static_cast<T>(this->spec.velocity[1]),
                                     static_cast<T>(this->spec.velocity[2])}};
       p.initial_v = initial && this->initial_v.size() ? this->initial_v.get() : nullptr;
+      p.initial_C = initial && this->initial_C.size() ? this->initial_C.get() : nullptr;
       p.dt = dt;
       p.dx = e.k_.dx;
       p.inv_dx = e.k_.inv_dx;
@@ -544,6 +560,11 @@ class MgspBenchmark {
       std::memcpy(&s, r + 3, sizeof(s));
       return static_cast<double>(M::energy_density(params, s));
     }
+    double wave_speed_of(const T* r) const override {
+      material_state_t<M, T> s;
+      std::memcpy(&s, r + 3, sizeof(s));
+      return static_cast<double>(M::wave_speed(params, s));
+    }
   };
 
   BodyBase& body_at(int b) const {
@@ -563,6 +584,10 @@ class MgspBenchmark {
   void grow_bins_to(BodyBase& b, int keep, int capacity);
   void grow_bins(BodyBase& b, int layout_keep, int needed);
   void ensure_aux();
+  void update_record();
+  /// A restart: every body's mass, volume, state and C from the checkpoint (positions and velocities came in as
+  /// the constructor's positions and GpuEngineOptions::initial_velocities); time and CFL inputs.
+  void restore_bodies(const io::Checkpoint& cp);  ///< record_ from the user's, the sensors' and the checkpoints' requests
   /// Sensor sample slots: at least `need` entries, the old ones kept.
   void grow_samples(mgsp_detail::DeviceArray<SensorAccum>& samples, std::size_t need);
   void ensure_sensor_partials();
@@ -651,6 +676,8 @@ class MgspBenchmark {
   ParticleSensorSet<T> particle_sensors_;
   bool particle_sensors_read_v_ = false;  ///< some particle sensor reads v or C (the landing step records them)
   bool record_user_ = false;              ///< set_record_velocities
+  bool sensor_keep_ = false;              ///< keep_particle_inputs: this step records v and C for sensors
+  bool checkpoint_keep_ = false;          ///< keep_checkpoint_inputs: this step records v and C for a checkpoint
   mgsp_detail::DeviceArray<SensorAccum> particle_samples_d_;  ///< (slot, body, sensor)
   std::vector<TrackerSet> trackers_;     ///< (body)
   bool trackers_read_v_ = false;          ///< a tracker reads v or C (the frame-landing steps record them)
@@ -812,6 +839,7 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
     }
   }
   max_grid_speed_ = max_speed;
+  if (const io::Checkpoint* cp = options.restart) restore_bodies(*cp);
   if (decomposed()) choose_slabs(positions);
 
   // The plan (memory_plan.h): capacities and every buffer's size, from the counts; refused before anything is
@@ -819,7 +847,8 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
   {
     std::vector<const SampleCount*> all;
     std::vector<BodyMemoryInput> inputs;
-    const bool record = sensors_read_velocity(scene_);  // v and C kept for particle sensors or trackers
+    // v and C kept for particle sensors, trackers or checkpoints (on the steps landing on their times)
+    const bool record = sensors_read_velocity(scene_) || sim.checkpoint_every > 0;
     for (std::size_t b = 0; b < bodies_.size(); ++b) {
       BodyBase& body = *bodies_[b];
       all.push_back(&counts_[b]);
@@ -963,10 +992,16 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
   for (auto& b : bodies_)  // the initial G2P2G writes bins[1] in layout(0) order
     if (b->bins_capacity(1) < b->partition.bin_capacity()) b->reallocate_bins(1, b->partition.bin_capacity());
 
-  // The P2G of the initial state with dt_0 (the CPU engine's first next_dt()).
+  // The P2G of the initial state with dt_0 (the CPU engine's first next_dt(); a restart's next dt).
   double dt0 = k_.default_dt;
   for (const auto& b : bodies_)
     dt0 = min_time_step(dt0, cfl_time_step(b->spec.material.cfl, scene_.simulation.dx, b->rest_wave_speed, max_grid_speed_));
+  const io::Checkpoint* restart = options_.restart;
+  if (restart) {
+    dt0 = restart->next_dt;
+    checkpoint_keep_ = true;  // the initial P2G records v and C: a checkpoint or snapshot may follow at once
+    update_record();
+  }
   cur_ = 0;
   gc_ = 1;  // the initial P2G goes into grid[1 - gc_] = grid[0]
   reset_stats(false);
@@ -1028,7 +1063,68 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
   dt_p2g_ = dt0;
   next_dt_ = dt0;
   aux_valid_ = record_;
+  if (restart) {
+    checkpoint_keep_ = false;
+    update_record();
+    steps_ = restart->steps;
+    last_dt_ = restart->last_dt;
+    dt_scale_ = restart->dt_scale;
+    dt_scale_at_compute_ = restart->dt_scale;
+    next_dt_ = restart->next_dt;
+    clean_steps_ = restart->clean_steps;
+    for (auto& b : bodies_) {  // uploaded and scattered: the host copies are not needed again
+      std::vector<T>().swap(b->restart_state);
+      std::vector<Vec3<T>>().swap(b->initial_v_host);
+      mgsp_detail::DeviceArray<T> done;
+      b->initial_C.swap(done);
+    }
+  }
   ensure_step_capacity();  // the first step writes bins[0], sized for the flat upload only
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::restore_bodies(const io::Checkpoint& cp) {
+  if (cp.bodies.size() != bodies_.size())
+    throw std::invalid_argument("--restart: the checkpoint holds " + std::to_string(cp.bodies.size()) +
+                                " bodies, the scene " + std::to_string(bodies_.size()));
+  for (auto& bp : bodies_) {
+    BodyBase& b = *bp;
+    const io::CheckpointBody& c = cp.bodies[static_cast<std::size_t>(b.index)];
+    const std::string where = "--restart: bodies[" + std::to_string(b.index) + "]";
+    if (c.law != to_string(b.spec.material.law))
+      throw std::invalid_argument(where + ".material.constitutive is " + to_string(b.spec.material.law) +
+                                  ", the checkpoint's body is " + c.law);
+    const int S = b.stored_scalars() - 3;
+    if (c.state_scalars != S)
+      throw std::invalid_argument(where + ": the checkpoint stores " + std::to_string(c.state_scalars) +
+                                  " state scalars per particle, " + c.law + " has " + std::to_string(S));
+    const std::size_t n = c.particles();
+    if (static_cast<long long>(n) != b.global_particles)
+      throw std::invalid_argument(where + ": " + std::to_string(n) + " particles in the checkpoint, " +
+                                  std::to_string(b.global_particles) + " given");
+    for (std::size_t p = 0; p < n; ++p)
+      if (c.id[p] != static_cast<std::int64_t>(p))
+        throw std::invalid_argument(where + ": the GPU engine restarts from particles in ID order "
+                                    "(io::read_checkpoint_set)");
+    if (n > 0) {
+      b.mass = static_cast<T>(c.mass[0]);
+      b.volume = static_cast<T>(c.volume[0]);
+      for (std::size_t p = 0; p < n; ++p)
+        if (static_cast<T>(c.mass[p]) != b.mass || static_cast<T>(c.volume[p]) != b.volume)
+          throw std::invalid_argument(where + ": particle " + std::to_string(p) +
+                                      " has its own mass or volume; the GPU engine keeps one per body (restart "
+                                      "this checkpoint on the CPU engine, --backend=cpu)");
+    }
+    b.restart_state.resize(static_cast<std::size_t>(S) * n);
+    for (std::size_t i = 0; i < b.restart_state.size(); ++i) b.restart_state[i] = static_cast<T>(c.state[i]);
+    std::vector<T> C(9 * n);
+    for (std::size_t i = 0; i < C.size(); ++i) C[i] = static_cast<T>(c.C[i]);
+    b.initial_C.allocate(std::max<std::size_t>(C.size(), 1));
+    if (!C.empty())
+      FBAR_CUDA_CHECK(cudaMemcpy(b.initial_C.get(), C.data(), sizeof(T) * C.size(), cudaMemcpyHostToDevice));
+  }
+  time_ = cp.time;
+  max_grid_speed_ = cp.max_grid_speed;
 }
 
 template <typename T, typename TG>
@@ -1080,8 +1176,13 @@ void MgspBenchmark<T, TG>::upload_sampled(BodyBase& body) {
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::set_record_velocities(bool on) {
   record_user_ = on;
-  record_ = on;
-  if (on) ensure_aux();
+  update_record();
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::update_record() {
+  record_ = record_user_ || sensor_keep_ || checkpoint_keep_;
+  if (record_) ensure_aux();
 }
 
 template <typename T, typename TG>
@@ -1528,6 +1629,7 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
     report.ok = false;
     report.dt = dt;
     report.failures = std::move(failures);
+    if (record_) aux_valid_ = false;  // the failed try wrote over the recorded v and C
     return report;
   }
 }
@@ -1645,8 +1747,80 @@ void MgspBenchmark<T, TG>::ensure_sensor_partials() {
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::keep_particle_inputs(bool on) {
   // Only a sensor reading v or C pays for recording them, and only on the steps that may land on a sample time.
-  record_ = record_user_ || (on && (particle_sensors_read_v_ || trackers_read_v_));
-  if (record_) ensure_aux();
+  sensor_keep_ = on && (particle_sensors_read_v_ || trackers_read_v_);
+  update_record();
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::keep_checkpoint_inputs(bool on) {
+  checkpoint_keep_ = on;
+  update_record();
+}
+
+template <typename T, typename TG>
+io::Checkpoint MgspBenchmark<T, TG>::checkpoint() const {
+  if (!checkpoint_ready())
+    throw std::logic_error("GpuEngine::checkpoint: the last step did not record the particles' v and C "
+                           "(keep_checkpoint_inputs(true) before it)");
+  io::Checkpoint c;
+  c.engine = "gpu";
+  c.precision = to_string(scene_.simulation.precision);
+  c.rank = rank();
+  c.ranks = ranks();
+  c.time = time_;
+  c.steps = steps_;
+  c.last_dt = last_dt_;
+  c.next_dt = next_dt();
+  c.max_grid_speed = max_grid_speed_;
+  c.dt_scale = dt_scale_;
+  c.clean_steps = clean_steps_;
+  if (decomposed()) {
+    c.slab_axis = slabs_.axis;
+    c.slab_cuts = slabs_.cuts;
+  }
+  const bool initial = steps_ == 0 && !aux_valid_;  // before the first step: v = initial velocity, C = 0 exactly
+  for (const auto& bp : bodies_) {
+    const BodyBase& b = *bp;
+    const std::vector<T> r = gather_host(b.index, stream_);
+    const int S = b.stored_scalars();
+    const int W = S + kAuxScalars;
+    io::CheckpointBody out;
+    out.law = to_string(b.spec.material.law);
+    out.state_scalars = S - 3;
+    out.global_particles = b.global_particles;
+    out.max_wave_speed = b.rest_wave_speed;
+    const Vec3d v0{{b.spec.velocity[0], b.spec.velocity[1], b.spec.velocity[2]}};
+    const std::size_t n = static_cast<std::size_t>(b.particles);  // this rank's
+    out.id.resize(n);
+    out.x.resize(3 * n);
+    out.v.resize(3 * n);
+    out.C.resize(9 * n);
+    out.mass.assign(n, static_cast<double>(b.mass));
+    out.volume.assign(n, static_cast<double>(b.volume));
+    out.state.resize(static_cast<std::size_t>(S - 3) * n);
+    std::size_t k = 0;
+    for (long long p = 0; p < b.global_particles; ++p) {
+      const T* q = r.data() + static_cast<std::size_t>(p) * W;
+      if (decomposed() && std::isnan(q[0])) continue;  // another rank's particle
+      if (k == n) throw std::runtime_error("GpuEngine::checkpoint: more particles by ID than the rank holds");
+      out.id[k] = p;
+      for (int a = 0; a < 3; ++a) {
+        out.x[3 * k + a] = static_cast<double>(q[a]);
+        out.v[3 * k + a] = !initial                    ? static_cast<double>(q[S + a])
+                           : b.initial_v_host.empty() ? v0[a]
+                                                       : static_cast<double>(b.initial_v_host[static_cast<std::size_t>(p)][a]);
+      }
+      for (int i = 0; i < 9; ++i) out.C[9 * k + i] = initial ? 0.0 : static_cast<double>(q[S + 3 + i]);
+      for (int i = 3; i < S; ++i) out.state[static_cast<std::size_t>(S - 3) * k + (i - 3)] = static_cast<double>(q[i]);
+      out.max_wave_speed = std::max(out.max_wave_speed, b.wave_speed_of(q));
+      ++k;
+    }
+    if (k != n)
+      throw std::runtime_error("GpuEngine::checkpoint: " + std::to_string(k) + " particles found by ID, " +
+                               std::to_string(n) + " held");
+    c.bodies.push_back(std::move(out));
+  }
+  return c;
 }
 
 template <typename T, typename TG>

@@ -17,7 +17,8 @@
 //   3. add arena_p into the next grid with global atomics (nodes no particle touched are skipped).
 // The P2G impulse uses the next step's dt (read from the device: compute_next_dt ran before this kernel), so the
 // next grid holds exactly what the CPU engine's P2G of the next step computes.
-// kInitial: the P2G of the initial state (v = initial velocity, C = 0, no motion): how the driver starts.
+// kInitial: the P2G of the initial state (v = initial velocity, C = 0 or a restart's, no motion): how the driver
+// starts.
 //
 // Fixed-point arena (every launch but the initial one). On sm_90 a shared-memory float or double atomicAdd is a
 // compare-and-swap loop (LDS, FADD, ATOMS.CAST.SPIN, branch; tools/benchmark/shared_atomics.cu): 108 of them per
@@ -137,6 +138,7 @@ struct G2P2GParams {
   T volume;                  ///< [m^3] reference volume per particle
   Vec3<T> initial_velocity;  ///< [m/s] (kInitial)
   const T* initial_v;        ///< (particle ID, 3) per-particle initial velocities [m/s] (kInitial), or nullptr
+  const T* initial_C;        ///< (particle ID, 9) per-particle APIC C [1/s] (kInitial; a restart), or nullptr: 0
   T dt;                      ///< [s] this step
   T dx, inv_dx, d_inv;       ///< [m], [1/m], [1/m^2]
   Vec3<T> domain;            ///< [m]
@@ -400,6 +402,11 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
         const std::size_t i = 3 * static_cast<std::size_t>(in.id);  // by ID: a rank uploads a subset of the IDs
         v = p.initial_v ? Vec3<T>{{p.initial_v[i], p.initial_v[i + 1], p.initial_v[i + 2]}} : p.initial_velocity;
         C = Mat3<T>::zero();
+        if (p.initial_C) {
+          const T* c = p.initial_C + 9 * static_cast<std::size_t>(in.id);
+          for (int r = 0; r < 3; ++r)
+            for (int cc = 0; cc < 3; ++cc) C(r, cc) = c[3 * r + cc];
+        }
         x_new = in.x;
         state_new = in.state;
       } else {

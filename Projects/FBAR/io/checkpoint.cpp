@@ -1,0 +1,370 @@
+// HDF5 checkpoints (checkpoint.h).
+#include "io/checkpoint.h"
+
+#include <hdf5.h>
+
+#include <algorithm>
+#include <cstring>
+#include <mutex>
+#include <numeric>
+#include <regex>
+#include <stdexcept>
+#include <system_error>
+
+#include "MnSystem/IO/h5_frame.h"
+
+namespace fbar::io {
+namespace {
+
+using h5_detail::Handle;
+
+std::string describe(const std::filesystem::path& path) { return "checkpoint " + path.string(); }
+
+// ------------------------------------------------------------------------------------------------ attributes
+void put_attr(hid_t where, const char* name, hid_t type, const void* value, const std::string& file) {
+  Handle space(H5Screate(H5S_SCALAR), H5Sclose, "create a scalar dataspace");
+  Handle attr(H5Acreate2(where, name, type, space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose,
+              std::string("create attribute ") + name + " in " + file);
+  if (H5Awrite(attr.get(), type, value) < 0)
+    throw std::runtime_error(std::string("HDF5: cannot write attribute ") + name + " of " + file);
+}
+void put_double(hid_t where, const char* name, double v, const std::string& file) {
+  put_attr(where, name, H5T_NATIVE_DOUBLE, &v, file);
+}
+void put_int(hid_t where, const char* name, long long v, const std::string& file) {
+  put_attr(where, name, H5T_NATIVE_LLONG, &v, file);
+}
+void put_string(hid_t where, const char* name, const std::string& v, const std::string& file) {
+  Handle str(H5Tcopy(H5T_C_S1), H5Tclose, "make a string type");
+  H5Tset_size(str.get(), std::max<std::size_t>(v.size(), 1));
+  const std::string padded = v.empty() ? std::string(1, '\0') : v;
+  put_attr(where, name, str.get(), padded.c_str(), file);
+}
+
+Handle open_attr(hid_t where, const char* name, const std::string& file) {
+  if (H5Aexists(where, name) <= 0)
+    throw std::runtime_error(file + ": attribute '" + std::string(name) + "' is missing (not an fbar checkpoint?)");
+  return Handle(H5Aopen(where, name, H5P_DEFAULT), H5Aclose, std::string("open attribute ") + name + " of " + file);
+}
+double get_double(hid_t where, const char* name, const std::string& file) {
+  Handle a = open_attr(where, name, file);
+  double v = 0;
+  if (H5Aread(a.get(), H5T_NATIVE_DOUBLE, &v) < 0)
+    throw std::runtime_error("HDF5: cannot read attribute " + std::string(name) + " of " + file);
+  return v;
+}
+long long get_int(hid_t where, const char* name, const std::string& file) {
+  Handle a = open_attr(where, name, file);
+  long long v = 0;
+  if (H5Aread(a.get(), H5T_NATIVE_LLONG, &v) < 0)
+    throw std::runtime_error("HDF5: cannot read attribute " + std::string(name) + " of " + file);
+  return v;
+}
+std::string get_string(hid_t where, const char* name, const std::string& file) {
+  Handle a = open_attr(where, name, file);
+  Handle type(H5Aget_type(a.get()), H5Tclose, "read the type of attribute " + std::string(name));
+  const std::size_t n = H5Tget_size(type.get());
+  std::string v(n, '\0');
+  Handle mem(H5Tcopy(H5T_C_S1), H5Tclose, "make a string type");
+  H5Tset_size(mem.get(), n);
+  if (H5Aread(a.get(), mem.get(), v.data()) < 0)
+    throw std::runtime_error("HDF5: cannot read attribute " + std::string(name) + " of " + file);
+  v.resize(std::strlen(v.c_str()));
+  return v;
+}
+
+// ------------------------------------------------------------------------------------------------ datasets
+template <class V>
+void put_array(hid_t where, const char* name, const std::vector<V>& data, std::size_t rows, int width, hid_t file_type,
+               hid_t mem_type, const std::string& file) {
+  if (data.size() != rows * static_cast<std::size_t>(width))
+    throw std::logic_error(std::string("checkpoint: ") + name + " has the wrong size");
+  const hsize_t dims[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(width)};
+  Handle space(H5Screate_simple(2, dims, nullptr), H5Sclose, "create a dataspace for " + file);
+  Handle set(H5Dcreate2(where, name, file_type, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Dclose,
+             std::string("create dataset ") + name + " in " + file);
+  if (rows > 0 && H5Dwrite(set.get(), mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data.data()) < 0)
+    throw std::runtime_error(std::string("HDF5: cannot write dataset ") + name + " of " + file);
+}
+
+/// A real array in the file's precision: float32 converted here (HDF5's own conversion is several times slower).
+void put_reals(hid_t where, const char* name, const std::vector<double>& data, std::size_t rows, int width,
+               bool single, const std::string& file) {
+  if (!single) {
+    put_array(where, name, data, rows, width, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, file);
+    return;
+  }
+  const std::vector<float> narrow(data.begin(), data.end());
+  put_array(where, name, narrow, rows, width, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, file);
+}
+
+template <class V>
+std::vector<V> get_array(hid_t where, const char* name, std::size_t rows, int width, hid_t mem_type,
+                         const std::string& file) {
+  if (H5Lexists(where, name, H5P_DEFAULT) <= 0)
+    throw std::runtime_error(file + ": dataset '" + std::string(name) + "' is missing");
+  Handle set(H5Dopen2(where, name, H5P_DEFAULT), H5Dclose, std::string("open dataset ") + name + " of " + file);
+  Handle space(H5Dget_space(set.get()), H5Sclose, "read the dataspace of " + std::string(name));
+  hsize_t dims[2] = {0, 0};
+  const int rank = H5Sget_simple_extent_ndims(space.get());
+  H5Sget_simple_extent_dims(space.get(), dims, nullptr);
+  if (rank != 2 || dims[0] != rows || dims[1] != static_cast<hsize_t>(width))
+    throw std::runtime_error(file + ": dataset '" + std::string(name) + "' has the wrong shape (expected " +
+                             std::to_string(rows) + " x " + std::to_string(width) + ")");
+  std::vector<V> out(rows * static_cast<std::size_t>(width));
+  if (rows > 0 && H5Dread(set.get(), mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()) < 0)
+    throw std::runtime_error(std::string("HDF5: cannot read dataset ") + name + " of " + file);
+  return out;
+}
+
+// HDF5 prints its own error stack to stderr on every failed call; our messages say what failed.
+struct QuietHdf5 {
+  H5E_auto2_t func = nullptr;
+  void* data = nullptr;
+  QuietHdf5() {
+    H5Eget_auto2(H5E_DEFAULT, &func, &data);
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  }
+  ~QuietHdf5() { H5Eset_auto2(H5E_DEFAULT, func, data); }
+};
+
+/// A real array stored as float32 or float64, as double.
+std::vector<double> get_reals(hid_t where, const char* name, std::size_t rows, int width, const std::string& file) {
+  std::size_t bytes = 8;
+  if (H5Lexists(where, name, H5P_DEFAULT) > 0) {
+    Handle set(H5Dopen2(where, name, H5P_DEFAULT), H5Dclose, std::string("open dataset ") + name + " of " + file);
+    Handle type(H5Dget_type(set.get()), H5Tclose, std::string("read the type of ") + name);
+    bytes = H5Tget_size(type.get());
+  }
+  if (bytes != 4) return get_array<double>(where, name, rows, width, H5T_NATIVE_DOUBLE, file);
+  const std::vector<float> narrow = get_array<float>(where, name, rows, width, H5T_NATIVE_FLOAT, file);
+  return std::vector<double>(narrow.begin(), narrow.end());
+}
+
+}  // namespace
+
+std::filesystem::path checkpoint_frame_path(const std::filesystem::path& dir, int frame, int rank) {
+  return dir / ("checkpoint_frame[" + std::to_string(frame) + "]_dev[" + std::to_string(rank) + "].h5");
+}
+
+std::filesystem::path checkpoint_step_path(const std::filesystem::path& dir, long long step, int rank) {
+  return dir / ("checkpoint_step[" + std::to_string(step) + "]_dev[" + std::to_string(rank) + "].h5");
+}
+
+std::filesystem::path checkpoint_rank_path(const std::filesystem::path& given, int rank) {
+  const std::string name = given.filename().string();
+  static const std::regex dev(R"(_dev\[(\d+)\])");
+  std::smatch m;
+  if (!std::regex_search(name, m, dev)) {
+    if (rank == 0) return given;
+    throw std::invalid_argument("--restart: " + given.string() +
+                                " has no _dev[d] part, so the files of the other ranks cannot be found");
+  }
+  return given.parent_path() /
+         (m.prefix().str() + "_dev[" + std::to_string(rank) + "]" + m.suffix().str());
+}
+
+void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c) {
+  const std::string file = describe(path);
+  const bool single = c.precision == "single";
+  std::filesystem::path part = path;
+  part += ".part";
+  {
+    std::lock_guard<std::mutex> lock(h5_detail::hdf5_mutex());
+    QuietHdf5 quiet;
+    Handle f(H5Fcreate(part.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose, "create " + part.string());
+    const hid_t root = f.get();
+    put_int(root, "format", c.format, file);
+    put_string(root, "precision", c.precision, file);
+    put_string(root, "engine", c.engine, file);
+    put_string(root, "reason", c.reason, file);
+    put_int(root, "rank", c.rank, file);
+    put_int(root, "ranks", c.ranks, file);
+    put_double(root, "start_time", c.start_time, file);
+    put_double(root, "time", c.time, file);
+    put_int(root, "steps", c.steps, file);
+    put_int(root, "frame", c.frame, file);
+    put_double(root, "last_dt", c.last_dt, file);
+    put_double(root, "next_dt", c.next_dt, file);
+    put_double(root, "max_grid_speed", c.max_grid_speed, file);
+    put_double(root, "dt_scale", c.dt_scale, file);
+    put_int(root, "clean_steps", c.clean_steps, file);
+    put_int(root, "slab_axis", c.slab_axis, file);
+    put_double(root, "chosen_imbalance", c.chosen_imbalance, file);
+    put_int(root, "bodies", static_cast<long long>(c.bodies.size()), file);
+    put_array(root, "slab_cuts", c.slab_cuts, c.slab_cuts.size(), 1, H5T_STD_I32LE, H5T_NATIVE_INT, file);
+    {
+      Handle g(H5Gcreate2(root, "csv", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose, "create group csv in " + file);
+      put_int(g.get(), "files", static_cast<long long>(c.csv.size()), file);
+      for (std::size_t i = 0; i < c.csv.size(); ++i) {
+        put_string(g.get(), ("name" + std::to_string(i)).c_str(), c.csv[i].first, file);
+        put_int(g.get(), ("bytes" + std::to_string(i)).c_str(), c.csv[i].second, file);
+      }
+    }
+    for (std::size_t b = 0; b < c.bodies.size(); ++b) {
+      const CheckpointBody& body = c.bodies[b];
+      const std::string group = "body" + std::to_string(b);
+      Handle g(H5Gcreate2(root, group.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose,
+               "create group " + group + " in " + file);
+      const hid_t w = g.get();
+      const std::size_t n = body.particles();
+      put_string(w, "law", body.law, file);
+      put_int(w, "state_scalars", body.state_scalars, file);
+      put_int(w, "particles", static_cast<long long>(n), file);
+      put_int(w, "global_particles", body.global_particles, file);
+      put_double(w, "max_wave_speed", body.max_wave_speed, file);
+      put_array(w, "ID", body.id, n, 1, H5T_STD_I64LE, H5T_NATIVE_INT64, file);
+      put_reals(w, "Position", body.x, n, 3, single, file);
+      put_reals(w, "Velocity", body.v, n, 3, single, file);
+      put_reals(w, "C", body.C, n, 9, single, file);
+      put_reals(w, "Mass", body.mass, n, 1, single, file);
+      put_reals(w, "Volume", body.volume, n, 1, single, file);
+      put_reals(w, "State", body.state, n, body.state_scalars, single, file);
+    }
+    if (f.release() < 0) throw std::runtime_error("HDF5: cannot close " + part.string());
+  }
+  std::error_code ec;
+  std::filesystem::rename(part, path, ec);
+  if (ec) throw std::runtime_error("cannot rename " + part.string() + " to " + path.string() + ": " + ec.message());
+}
+
+Checkpoint read_checkpoint(const std::filesystem::path& path) {
+  const std::string file = describe(path);
+  if (!std::filesystem::is_regular_file(path)) throw std::runtime_error(file + ": no such file");
+  std::lock_guard<std::mutex> lock(h5_detail::hdf5_mutex());
+  QuietHdf5 quiet;
+  if (H5Fis_hdf5(path.c_str()) <= 0) throw std::runtime_error(file + ": not an HDF5 file");
+  Handle f(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose, "open " + path.string());
+  const hid_t root = f.get();
+  Checkpoint c;
+  c.format = static_cast<int>(get_int(root, "format", file));
+  if (c.format != Checkpoint::kFormat)
+    throw std::runtime_error(file + ": checkpoint format " + std::to_string(c.format) + ", this fbar reads format " +
+                             std::to_string(Checkpoint::kFormat));
+  c.precision = get_string(root, "precision", file);
+  c.engine = get_string(root, "engine", file);
+  c.reason = get_string(root, "reason", file);
+  c.rank = static_cast<int>(get_int(root, "rank", file));
+  c.ranks = static_cast<int>(get_int(root, "ranks", file));
+  c.start_time = get_double(root, "start_time", file);
+  c.time = get_double(root, "time", file);
+  c.steps = get_int(root, "steps", file);
+  c.frame = static_cast<int>(get_int(root, "frame", file));
+  c.last_dt = get_double(root, "last_dt", file);
+  c.next_dt = get_double(root, "next_dt", file);
+  c.max_grid_speed = get_double(root, "max_grid_speed", file);
+  c.dt_scale = get_double(root, "dt_scale", file);
+  c.clean_steps = static_cast<int>(get_int(root, "clean_steps", file));
+  c.slab_axis = static_cast<int>(get_int(root, "slab_axis", file));
+  c.chosen_imbalance = get_double(root, "chosen_imbalance", file);
+  {
+    Handle set(H5Dopen2(root, "slab_cuts", H5P_DEFAULT), H5Dclose, "open dataset slab_cuts of " + file);
+    Handle space(H5Dget_space(set.get()), H5Sclose, "read the dataspace of slab_cuts");
+    hsize_t dims[2] = {0, 0};
+    H5Sget_simple_extent_dims(space.get(), dims, nullptr);
+    c.slab_cuts = get_array<int>(root, "slab_cuts", dims[0], 1, H5T_NATIVE_INT, file);
+  }
+  {
+    Handle g(H5Gopen2(root, "csv", H5P_DEFAULT), H5Gclose, "open group csv of " + file);
+    const long long n = get_int(g.get(), "files", file);
+    for (long long i = 0; i < n; ++i)
+      c.csv.emplace_back(get_string(g.get(), ("name" + std::to_string(i)).c_str(), file),
+                         get_int(g.get(), ("bytes" + std::to_string(i)).c_str(), file));
+  }
+  const long long bodies = get_int(root, "bodies", file);
+  for (long long b = 0; b < bodies; ++b) {
+    const std::string group = "body" + std::to_string(b);
+    if (H5Lexists(root, group.c_str(), H5P_DEFAULT) <= 0) throw std::runtime_error(file + ": group " + group + " is missing");
+    Handle g(H5Gopen2(root, group.c_str(), H5P_DEFAULT), H5Gclose, "open group " + group + " of " + file);
+    const hid_t w = g.get();
+    CheckpointBody body;
+    body.law = get_string(w, "law", file);
+    body.state_scalars = static_cast<int>(get_int(w, "state_scalars", file));
+    const auto n = static_cast<std::size_t>(get_int(w, "particles", file));
+    body.global_particles = get_int(w, "global_particles", file);
+    body.max_wave_speed = get_double(w, "max_wave_speed", file);
+    body.id = get_array<std::int64_t>(w, "ID", n, 1, H5T_NATIVE_INT64, file);
+    body.x = get_reals(w, "Position", n, 3, file);
+    body.v = get_reals(w, "Velocity", n, 3, file);
+    body.C = get_reals(w, "C", n, 9, file);
+    body.mass = get_reals(w, "Mass", n, 1, file);
+    body.volume = get_reals(w, "Volume", n, 1, file);
+    body.state = get_reals(w, "State", n, body.state_scalars, file);
+    c.bodies.push_back(std::move(body));
+  }
+  return c;
+}
+
+Checkpoint read_checkpoint_set(const std::filesystem::path& given) {
+  Checkpoint first = read_checkpoint(checkpoint_rank_path(given, 0));
+  std::vector<Checkpoint> parts;
+  parts.push_back(std::move(first));
+  for (int r = 1; r < parts[0].ranks; ++r) {
+    const std::filesystem::path p = checkpoint_rank_path(given, r);
+    Checkpoint c = read_checkpoint(p);
+    if (c.steps != parts[0].steps || c.time != parts[0].time || c.ranks != parts[0].ranks || c.rank != r ||
+        c.bodies.size() != parts[0].bodies.size())
+      throw std::runtime_error(describe(p) + ": not of the same checkpoint as rank 0's (step " +
+                               std::to_string(c.steps) + " vs " + std::to_string(parts[0].steps) + ")");
+    parts.push_back(std::move(c));
+  }
+  Checkpoint all = parts[0];
+  all.rank = 0;
+  all.ranks = 1;
+  all.slab_cuts.clear();
+  for (std::size_t b = 0; b < all.bodies.size(); ++b) {
+    CheckpointBody& out = all.bodies[b];
+    const int S = out.state_scalars;
+    std::vector<const CheckpointBody*> from;
+    std::size_t total = 0;
+    for (const Checkpoint& c : parts) {
+      from.push_back(&c.bodies[b]);
+      total += c.bodies[b].particles();
+      out.max_wave_speed = std::max(out.max_wave_speed, c.bodies[b].max_wave_speed);
+    }
+    if (total != static_cast<std::size_t>(out.global_particles))
+      throw std::runtime_error(describe(given) + ": body " + std::to_string(b) + " has " + std::to_string(total) +
+                               " particles over the ranks' files, " + std::to_string(out.global_particles) +
+                               " expected");
+    // Every particle by ID: slot = ID, as a one-rank run holds them.
+    out.id.assign(total, -1);
+    out.x.assign(3 * total, 0.0);
+    out.v.assign(3 * total, 0.0);
+    out.C.assign(9 * total, 0.0);
+    out.mass.assign(total, 0.0);
+    out.volume.assign(total, 0.0);
+    out.state.assign(static_cast<std::size_t>(S) * total, 0.0);
+    for (const CheckpointBody* src : from)
+      for (std::size_t p = 0; p < src->particles(); ++p) {
+        const std::int64_t id = src->id[p];
+        if (id < 0 || static_cast<std::size_t>(id) >= total || out.id[static_cast<std::size_t>(id)] >= 0)
+          throw std::runtime_error(describe(given) + ": body " + std::to_string(b) + ": particle ID " +
+                                   std::to_string(id) + " is out of range or on several ranks");
+        const auto q = static_cast<std::size_t>(id);
+        out.id[q] = id;
+        std::copy_n(src->x.begin() + 3 * p, 3, out.x.begin() + 3 * q);
+        std::copy_n(src->v.begin() + 3 * p, 3, out.v.begin() + 3 * q);
+        std::copy_n(src->C.begin() + 9 * p, 9, out.C.begin() + 9 * q);
+        out.mass[q] = src->mass[p];
+        out.volume[q] = src->volume[p];
+        std::copy_n(src->state.begin() + S * p, S, out.state.begin() + S * q);
+      }
+  }
+  return all;
+}
+
+Checkpoint read_checkpoint_for(const std::filesystem::path& given, int rank, int ranks) {
+  std::filesystem::path own;
+  try {
+    own = checkpoint_rank_path(given, rank);
+  } catch (const std::invalid_argument&) {
+    return read_checkpoint_set(given);
+  }
+  if (std::filesystem::is_regular_file(own)) {
+    Checkpoint c = read_checkpoint(own);
+    if (c.ranks == ranks && c.rank == rank) return c;
+  }
+  return read_checkpoint_set(given);
+}
+
+}  // namespace fbar::io

@@ -1,0 +1,93 @@
+// Checkpoints: the full state of one rank of a run, in an HDF5 file, and what `fbar --restart=FILE` reads back.
+//
+// A checkpoint holds everything the next step depends on, so that a run restarted from it writes the same frames
+// and sensor rows as the run that was never stopped (bitwise on the CPU engine with the same number of ranks; on the
+// GPU engine within the order of its atomic sums):
+//   * per body, per particle in this rank's slot order: ID, position, velocity and APIC matrix C of the last G2P
+//     (ASFLIP: the particle's own velocity), mass, reference volume and the material's stored state (the scalars
+//     of material_state_t<M, T> in member order: 1 - J for JFluid, F row-major, then logJp, ...), in the run's
+//     precision (float32 for "single", float64 for "double" and "mixed");
+//   * time, step count, the last dt and the next one, the largest grid speed and per body the largest wave speed
+//     (the CFL inputs), the reduce_dt state, the decomposition (slab axis and cuts);
+//   * the run's frame count and start time, and the byte length of every sensor and tracker CSV at that moment
+//     (a restart truncates the files there and appends).
+// Boundaries move as functions of time (motion_path.h), so the time is their state.
+//
+// Files, in simulation.save_path, one per rank d (ClaymoreUW's dev[d] naming):
+//   checkpoint_frame[f]_dev[d].h5   written at frame f every simulation.checkpoint_every frames
+//   checkpoint_step[s]_dev[d].h5    written when a run stops at step s (SIGINT / SIGTERM, or a failure)
+// Layout: root attributes (format, precision, engine, reason, rank, ranks, time, ...), per-body groups /body[b]
+// with attributes (law, state_scalars, particles, global_particles, max_wave_speed) and datasets ID (int64),
+// Position (N x 3), Velocity (N x 3), C (N x 9), Mass (N), Volume (N), State (N x state_scalars), and /csv with
+// the sensor files' names and lengths. Each file is written to <name>.part and renamed when complete.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace fbar::io {
+
+/// One body's particles on one rank, in slot order.
+struct CheckpointBody {
+  std::string law;                ///< the material law's name (law_name())
+  int state_scalars = 0;          ///< stored state scalars per particle
+  long long global_particles = 0; ///< particles of the body over every rank (IDs 0 .. global_particles - 1)
+  double max_wave_speed = 0.0;    ///< [m/s] over the body's particles (the next dt's CFL bound)
+  std::vector<std::int64_t> id;
+  std::vector<double> x;          ///< (particle, 3) [m]
+  std::vector<double> v;          ///< (particle, 3) [m/s]
+  std::vector<double> C;          ///< (particle, 9) [1/s] row-major
+  std::vector<double> mass;       ///< [kg]
+  std::vector<double> volume;     ///< [m^3] reference volume V0
+  std::vector<double> state;      ///< (particle, state_scalars)
+  std::size_t particles() const { return id.size(); }
+};
+
+struct Checkpoint {
+  static constexpr int kFormat = 1;
+  int format = kFormat;
+  std::string precision;          ///< "single", "double" or "mixed" (the run's)
+  std::string engine;             ///< "cpu" or "gpu" (which engine wrote it; either may read it)
+  std::string reason;             ///< "frame", "SIGTERM", "SIGINT", "failure"
+  int rank = 0, ranks = 1;
+  double start_time = 0.0;        ///< [s] the run's t0 (simulation.time of the first run): frame f is at t0 + f / fps
+  double time = 0.0;              ///< [s]
+  long long steps = 0;
+  int frame = 0;                  ///< the last frame written
+  double last_dt = 0.0;           ///< [s]
+  double next_dt = 0.0;           ///< [s] the dt of the next step (the GPU's P2G impulse was made with it)
+  double max_grid_speed = 0.0;    ///< [m/s] of the last grid update
+  double dt_scale = 1.0;          ///< reduce_dt: current halving factor
+  int clean_steps = 0;            ///< reduce_dt: clean steps since the last halving
+  int slab_axis = 0;              ///< decomposition: slab axis and cuts (ranks + 1 entries; empty on one rank)
+  std::vector<int> slab_cuts;
+  double chosen_imbalance = 0.0;  ///< decomposition: the imbalance when the slabs were last chosen (rebalancing)
+  std::vector<std::pair<std::string, long long>> csv;  ///< sensor / tracker file name and length [bytes] (rank 0)
+  std::vector<CheckpointBody> bodies;
+};
+
+/// checkpoint_frame[f]_dev[d].h5 / checkpoint_step[s]_dev[d].h5 in `dir`.
+std::filesystem::path checkpoint_frame_path(const std::filesystem::path& dir, int frame, int rank);
+std::filesystem::path checkpoint_step_path(const std::filesystem::path& dir, long long step, int rank);
+/// The file of rank `rank` of the checkpoint set `given` names (any rank's file of the set): "_dev[d]" replaced.
+/// Throws std::invalid_argument when `given` has no "_dev[d]" part and rank != its rank.
+std::filesystem::path checkpoint_rank_path(const std::filesystem::path& given, int rank);
+
+/// Writes `c` (positions and state in float32 when c.precision is "single"). Throws std::runtime_error.
+void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c);
+/// Reads a checkpoint; throws std::runtime_error naming the file and what is missing or inconsistent.
+Checkpoint read_checkpoint(const std::filesystem::path& path);
+
+/// Every rank's file of the set `given` belongs to (rank 0 .. ranks - 1, each checked to be of the same step), as
+/// one checkpoint whose bodies hold every particle in ID order (rank = 0, ranks = 1, no slabs): what a run with a
+/// different number of ranks starts from.
+Checkpoint read_checkpoint_set(const std::filesystem::path& given);
+
+/// What rank `rank` of a run of `ranks` ranks restarts from: its own file of the set when the set was written by as
+/// many ranks (the run then goes on as it was), otherwise read_checkpoint_set(given).
+Checkpoint read_checkpoint_for(const std::filesystem::path& given, int rank, int ranks);
+
+}  // namespace fbar::io
