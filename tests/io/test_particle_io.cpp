@@ -492,5 +492,42 @@ TEST_F(IoTest, AsyncWriterBoundsTheQueue) {
   EXPECT_EQ(writer.completed(), 3u);
 }
 
+// Surface-only frames (ExteriorFilter): a 5 x 5 x 5 cube of 1 m blocks with 8 points each; threshold 7 keeps the 98
+// blocks of its shell (each has an empty neighbour) and drops the 27 inner ones (every neighbour holds 8); attributes
+// follow their points; threshold 8 keeps every point; a lone far point is always kept.
+TEST_F(IoTest, ExteriorFilterKeepsTheSurfaceBlocks) {
+  ParticleFrame f;
+  std::vector<Vec3f> x;
+  std::vector<std::int32_t> id;
+  for (int i = 0; i < 10; ++i)
+    for (int j = 0; j < 10; ++j)
+      for (int k = 0; k < 10; ++k) {
+        x.push_back(Vec3f{{0.25f + 0.5f * i, 0.25f + 0.5f * j, 0.25f + 0.5f * k}});
+        id.push_back(static_cast<std::int32_t>(x.size() - 1));
+      }
+  x.push_back(Vec3f{{20.5f, 20.5f, 20.5f}});
+  id.push_back(1000);
+  f.positions = x;
+  f.add("ID", 1, id);
+  f.exterior = ExteriorFilter{1.0, 7.0};
+  const ParticleFrame kept = exterior_points(f);
+  EXPECT_FALSE(kept.exterior.on());
+  ASSERT_EQ(kept.size(), 98u * 8u + 1u);
+  const auto& ids = std::get<std::vector<std::int32_t>>(kept.attributes[0].values);
+  for (std::size_t r = 0; r < kept.size(); ++r) {
+    const Vec3d p = kept.position(r);
+    EXPECT_EQ(p, x[static_cast<std::size_t>(ids[r])].cast<double>());  // the attribute follows its point
+    bool shell = false;
+    for (int a = 0; a < 3; ++a) shell = shell || p[a] < 1.0 || p[a] > 4.0;
+    EXPECT_TRUE(shell) << p[0] << " " << p[1] << " " << p[2];
+  }
+  f.exterior.threshold = 8.0;
+  EXPECT_EQ(exterior_points(f).size(), f.size());
+  // write_frame applies it.
+  f.exterior.threshold = 7.0;
+  write_frame(dir_ / "surface.bgeo", f);
+  EXPECT_EQ(read_bgeo(dir_ / "surface.bgeo").size(), 98u * 8u + 1u);
+}
+
 }  // namespace
 }  // namespace fbar::io

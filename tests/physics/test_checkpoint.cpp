@@ -1,7 +1,8 @@
 // Checkpoints and restart (io/checkpoint.h, run_loop.h) on the CPU engine: the HDF5 file round-trips; a run
 // restarted from a frame checkpoint, from the checkpoint a stop request wrote mid-frame, or from a failure's writes
 // the same frames and sensor / tracker rows as the run that was never stopped (bit for bit, on 1 and 2 ranks); a
-// two-rank checkpoint continues on one rank; a scene that does not match the checkpoint is refused by name.
+// two-rank checkpoint continues on one rank; a scene that does not match the checkpoint is refused by name. Also
+// the run loop's surface-only frames (exterior_only).
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -343,6 +344,34 @@ TEST(Restart, ASceneThatDoesNotMatchIsRefused) {
   const RunResult r2 = run_ranks(fewer, 1, io::checkpoint_frame_path(dir, 1, 0).string());
   EXPECT_EQ(r2.exit_code, 1);
   EXPECT_NE(r2.message.find("the checkpoint holds 2 bodies, the scene 1"), std::string::npos) << r2.message;
+}
+
+// Surface-only frames through the run loop (output.exterior_only, or simulation.particles_output_exterior_only):
+// a 0.4 m cube on the 4-cell blocks (dx 0.025: 4 x 4 x 4 blocks of 512 particles) writes its 56 shell blocks and
+// drops the 8 inner ones, whose neighbours all hold 512 > 128 particles.
+TEST(Frames, ExteriorOnlyWritesTheSurfaceBlocks) {
+  const fs::path dir = scratch("exterior");
+  Scene scene = test::empty_scene(r3(1, 1, 1), 0.025, r3(0, 0, 0));
+  scene.bodies.push_back(test::box_body(Constitutive::JFluid, r3(0.1, 0.1, 0.1), r3(0.4, 0.4, 0.4)));
+  scene.bodies[0].output_attribs = {"ID"};
+  scene.simulation.frames = 1;
+  scene.simulation.save_suffix = ".csv";
+  auto rows = [&](const Scene& s) {
+    EXPECT_EQ(run_ranks(s, 1).exit_code, 0);
+    std::ifstream in(dir / "model[0]_dev[0]_frame[0].csv");
+    long long n = -1;  // the header
+    for (std::string line; std::getline(in, line);) ++n;
+    return n;
+  };
+  scene.simulation.save_path = dir.string();
+  EXPECT_EQ(rows(scene), 32768);
+  scene.bodies[0].output_exterior_only = true;
+  EXPECT_EQ(rows(scene), 56 * 512);
+  scene.bodies[0].output_exterior_only = false;
+  scene.simulation.particles_output_exterior_only = true;
+  EXPECT_EQ(rows(scene), 56 * 512);
+  scene.bodies[0].exterior_threshold = 512;  // every block qualifies
+  EXPECT_EQ(rows(scene), 32768);
 }
 
 }  // namespace

@@ -364,9 +364,11 @@ TEST(SceneParse, OutputObjectAttribsAndExterior) {
   const std::string both =
       error_of(scene_with(body(R"({})", R"("output_attribs": ["ID"], "output": {"attribs": ["Mass"]})")));
   EXPECT_EQ(both.rfind("bodies[0].output.attribs: got", 0), 0u) << both;
-  const std::string ext = error_of(scene_with(body(R"({})", R"("output": {"exterior_only": true})")));
-  EXPECT_EQ(ext.rfind("bodies[0].output.exterior_only: got true", 0), 0u) << ext;
-  EXPECT_NE(ext.find("is not supported yet in this release"), std::string::npos) << ext;
+  const Scene ext = parse(scene_with(body(R"({})", R"("output": {"exterior_only": true})")));
+  EXPECT_TRUE(ext.bodies[0].output_exterior_only);
+  EXPECT_EQ(ext.bodies[0].exterior_threshold, 128.0);  // ClaymoreUW's cutoff
+  const std::string negative = error_of(scene_with(body(R"({})", R"("output": {"exterior_threshold": -1})")));
+  EXPECT_EQ(negative.rfind("bodies[0].output.exterior_threshold: got -1", 0), 0u) << negative;
 }
 
 TEST(SceneParse, FroudeScalingScalesEveryQuantityByItsExponent) {

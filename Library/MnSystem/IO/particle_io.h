@@ -33,7 +33,9 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
+#include <cmath>
 #include <charconv>
 #include <exception>
 #include <mutex>
@@ -47,6 +49,7 @@
 #include <string_view>
 #include <system_error>
 #include <type_traits>
+#include <unordered_map>
 #include <utility>
 #include <variant>
 #include <vector>
@@ -74,9 +77,19 @@ struct FrameAttribute {
 };
 
 /// N particles: positions [m] in single or double precision, plus attributes.
+/// Surface-only output (ClaymoreUW's exterior_only): space is cut into cubes of edge `block` from the origin, and a
+/// point is written when its cube or one of the 26 around it holds at most `threshold` points of the frame (an
+/// empty cube holds 0: the points next to empty space are always written). block <= 0: every point is written.
+struct ExteriorFilter {
+  double block = 0.0;      ///< [m] cube edge (fbar: the 4-cell grid block, 4 dx)
+  double threshold = 0.0;  ///< [points per cube]
+  bool on() const { return block > 0.0; }
+};
+
 struct ParticleFrame {
   std::variant<std::vector<Vec3f>, std::vector<Vec3d>> positions;
   std::vector<FrameAttribute> attributes;
+  ExteriorFilter exterior;  ///< applied by write_frame
 
   std::size_t size() const {
     return std::visit([](const auto& v) { return v.size(); }, positions);
@@ -586,7 +599,69 @@ inline void write_h5(const std::filesystem::path& path, const ParticleFrame& fra
 }
 
 /// Writes `frame` in the format named by path's extension (.bgeo, .geo, .csv, .h5).
+/// The points of `frame` that frame.exterior keeps, with their attributes, in their order (the filter is off in the
+/// result).
+inline ParticleFrame exterior_points(const ParticleFrame& frame) {
+  const double inv = 1.0 / frame.exterior.block;
+  const std::size_t n = frame.size();
+  auto pack = [](long long i, long long j, long long k) {  // 21 bits per axis, offset to stay non-negative
+    const auto u = [](long long c) { return static_cast<std::uint64_t>(c + (1LL << 20)) & 0x1fffffULL; };
+    return (u(i) << 42) | (u(j) << 21) | u(k);
+  };
+  std::vector<std::array<long long, 3>> cube(n);
+  std::unordered_map<std::uint64_t, long long> count;
+  for (std::size_t p = 0; p < n; ++p) {
+    const Vec3d x = frame.position(p);
+    for (int a = 0; a < 3; ++a) cube[p][a] = static_cast<long long>(std::floor(x[a] * inv));
+    ++count[pack(cube[p][0], cube[p][1], cube[p][2])];
+  }
+  // One decision per occupied cube.
+  std::unordered_map<std::uint64_t, char> keep;
+  keep.reserve(count.size());
+  for (std::size_t p = 0; p < n; ++p) {
+    const std::uint64_t key = pack(cube[p][0], cube[p][1], cube[p][2]);
+    if (keep.count(key)) continue;
+    bool exterior = false;
+    for (int di = -1; di <= 1 && !exterior; ++di)
+      for (int dj = -1; dj <= 1 && !exterior; ++dj)
+        for (int dk = -1; dk <= 1 && !exterior; ++dk) {
+          const auto it = count.find(pack(cube[p][0] + di, cube[p][1] + dj, cube[p][2] + dk));
+          exterior = static_cast<double>(it == count.end() ? 0 : it->second) <= frame.exterior.threshold;
+        }
+    keep.emplace(key, exterior ? 1 : 0);
+  }
+  std::vector<std::size_t> rows;
+  for (std::size_t p = 0; p < n; ++p)
+    if (keep[pack(cube[p][0], cube[p][1], cube[p][2])]) rows.push_back(p);
+  ParticleFrame out;
+  std::visit(
+      [&](const auto& v) {
+        std::decay_t<decltype(v)> kept(rows.size());
+        for (std::size_t r = 0; r < rows.size(); ++r) kept[r] = v[rows[r]];
+        out.positions = std::move(kept);
+      },
+      frame.positions);
+  for (const FrameAttribute& a : frame.attributes) {
+    FrameAttribute b{a.name, a.width, a.unit, {}};
+    std::visit(
+        [&](const auto& values) {
+          std::decay_t<decltype(values)> kept(rows.size() * static_cast<std::size_t>(a.width));
+          for (std::size_t r = 0; r < rows.size(); ++r)
+            for (int c = 0; c < a.width; ++c)
+              kept[r * a.width + c] = values[rows[r] * static_cast<std::size_t>(a.width) + c];
+          b.values = std::move(kept);
+        },
+        a.values);
+    out.attributes.push_back(std::move(b));
+  }
+  return out;
+}
+
 inline void write_frame(const std::filesystem::path& path, const ParticleFrame& frame) {
+  if (frame.exterior.on()) {
+    write_frame(path, exterior_points(frame));
+    return;
+  }
   switch (frame_format(path.extension().string())) {
     case FrameFormat::Bgeo: write_bgeo(path, frame); break;
     case FrameFormat::Geo: write_geo(path, frame); break;

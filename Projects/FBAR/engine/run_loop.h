@@ -33,6 +33,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <iostream>
 #include <filesystem>
 #include <limits>
 #include <memory>
@@ -181,6 +182,9 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
     if (talk)
       log << "fbar: restarted from a checkpoint at t = " << engine.time() << " s, step " << engine.steps()
           << " (frame " << resume->frame << " written; " << resume->reason << ")\n";
+    if (first_frame > sim.frames && rank == 0)
+      std::cerr << "fbar: warning: --restart: the checkpoint is at frame " << resume->frame
+                << " and the scene asks for " << sim.frames << " frames: nothing to run (raise frames or --frames)\n";
   } else {
     write_frame(0);
     sample_particles_at(t0);

@@ -164,6 +164,15 @@ inline int frame_float_columns(const std::vector<FrameAttributeSpec>& attributes
 
 /// The frame of `spec.output_attribs` (canonical names; an alias and its name count once). `engine` names the
 /// engine in the error for an attribute it cannot produce (the release policy refuses those before a run).
+/// The surface-only filter of body `body` (io::ExteriorFilter): on when simulation.particles_output_exterior_only or
+/// bodies[].output.exterior_only is true; cubes of one grid block (4 dx); bodies[].output.exterior_threshold
+/// particles of the body per block (ClaymoreUW's 128 by default).
+inline io::ExteriorFilter exterior_filter(const Scene& scene, int body) {
+  const BodySpec& spec = scene.bodies[static_cast<std::size_t>(body)];
+  if (!scene.simulation.particles_output_exterior_only && !spec.output_exterior_only) return {};
+  return io::ExteriorFilter{4.0 * scene.simulation.dx, spec.exterior_threshold};
+}
+
 template <typename T>
 io::ParticleFrame build_frame(const BodySpec& spec, int body, const FrameSource<T>& src, const std::string& engine) {
   const std::size_t n = src.x->size();

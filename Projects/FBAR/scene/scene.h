@@ -122,8 +122,10 @@ struct BodySpec {
                       std::numeric_limits<double>::infinity()};
   std::vector<long long> track_particle_id;
   std::vector<std::string> output_attribs{"ID"};  ///< canonical attribute names (see attributes.h)
-  bool output_exterior_only = false;  ///< output.exterior_only: write only surface particles (not run yet)
-  double exterior_threshold = 0.0;    ///< output.exterior_threshold (ClaymoreUW's surface test value)
+  bool output_exterior_only = false;  ///< output.exterior_only: frames hold the surface particles (io::ExteriorFilter)
+  /// output.exterior_threshold: a particle is written when its grid block or a neighbour holds at most this many of
+  /// the body's particles (ClaymoreUW's compile-time cutoff, 128, by default)
+  double exterior_threshold = 128.0;
   std::vector<std::string> track_attribs;
   std::vector<std::string> target_attribs;
   MaterialSpec material;

@@ -810,7 +810,7 @@ BodyRead parse_body(const rj::Value& v, const std::string& path, const Context& 
   if (outp) {
     if (auto* x = outp->get("exterior_only")) b.output_exterior_only = read_bool(*x, outp->sub("exterior_only"));
     if (auto* x = outp->get("exterior_threshold"))
-      b.exterior_threshold = read_number(*x, outp->sub("exterior_threshold"), kNonNegative, "-");
+      b.exterior_threshold = read_number(*x, outp->sub("exterior_threshold"), kNonNegative, "particles per block");
   }
   if (auto a = read_either<std::vector<std::string>>(o, outp, "track_attribs", attribs)) b.track_attribs = *a;
   if (auto a = read_either<std::vector<std::string>>(o, outp, "target_attribs", attribs)) b.target_attribs = *a;

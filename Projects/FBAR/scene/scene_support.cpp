@@ -40,8 +40,6 @@ std::string idx(const char* array, std::size_t i) { return std::string(array) + 
 
 void check_supported(const Scene& scene) {
   const SimulationSpec& sim = scene.simulation;
-  if (sim.particles_output_exterior_only)
-    refuse("simulation.particles_output_exterior_only", "true", "false", "particles_output_exterior_only");
   if (scene.mesh_count > 0)
     refuse("meshes", std::to_string(scene.mesh_count) + " mesh(es)", "no meshes", "meshes (FEM bodies)");
 
@@ -66,8 +64,6 @@ void check_supported(const Scene& scene) {
         refuse(gp + ".track_particle_id", std::to_string(g.track_particle_id.size()) + " id(s)", "an empty list",
                "track_particle_id (particle tracking)");
     }
-    if (b.output_exterior_only)
-      refuse(p + ".output.exterior_only", "true", "false", "output.exterior_only (surface particles only)");
     if (b.track_particle_id.empty() && !b.track_attribs.empty())
       throw SceneError(p + ".track_attribs", q(b.track_attribs.front()),
                        "track_particle_id as well (the particles whose attributes are tracked)");

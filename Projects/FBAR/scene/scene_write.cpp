@@ -228,7 +228,7 @@ class SceneWriter {
     names("output_attribs", b.output_attribs);
     names("track_attribs", b.track_attribs);
     names("target_attribs", b.target_attribs);
-    if (b.output_exterior_only || b.exterior_threshold != 0.0) {
+    if (b.output_exterior_only || b.exterior_threshold != 128.0) {
       key("output");
       w_.StartObject();
       boolean("exterior_only", b.output_exterior_only);

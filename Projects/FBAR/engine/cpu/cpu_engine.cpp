@@ -974,6 +974,7 @@ StepReport CpuEngine<T, TG>::advance_to(double t_end) {
 template <typename T, typename TG>
 void CpuEngine<T, TG>::submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer) {
   io::ParticleFrame f = frame(body);
+  f.exterior = exterior_filter(scene_, body);
   const auto t0 = std::chrono::steady_clock::now();
   writer.submit(path, std::move(f));
   output_wait_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -2072,6 +2072,7 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
   FBAR_CUDA_CHECK(cudaEventRecord(b.frame_copied, copy_stream_));
   const cudaEvent_t copied = b.frame_copied;
   const std::vector<FrameAttributeSpec> attrs = b.frame_attrs;
+  const io::ExteriorFilter exterior = exterior_filter(scene_, body);
   const std::shared_ptr<typename BodyBase::HostSlot> slot = b.frame_slot;
   writer.submit_job([=] {
     // The host buffer goes back to the step loop once the frame is built, also when building throws.
@@ -2086,6 +2087,7 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
       }
     };
     io::ParticleFrame f;
+    f.exterior = exterior;
     {
       Release release{slot};
       FBAR_CUDA_CHECK(cudaEventSynchronize(copied));
