@@ -52,7 +52,7 @@ struct RunOptions {
   int gpu = -1;
   bool shared_gpus = false;
   /// --restart: a checkpoint file (io/checkpoint.h; any rank's file of the set) to continue from, or empty.
-  std::string restart;
+  std::string restart{};
 };
 
 struct RunResult {
@@ -62,7 +62,7 @@ struct RunResult {
   double end_time = 0.0;           ///< [s]
   int frames_written = -1;         ///< the last frame written (0: the initial state); -1: none
   int stop_signal = 0;             ///< SIGINT / SIGTERM that stopped the run (stop_request.h), or 0
-  std::string checkpoint;          ///< rank 0's file of the last checkpoint written, or empty
+  std::string checkpoint{};        ///< rank 0's file of the last checkpoint written, or empty
   int restarted_from_frame = -1;   ///< --restart: the checkpoint's last frame (the run wrote the frames after it)
   /// The run ended by an exception (run_guarded), which may be this rank's alone; failures of a step and stop
   /// requests are agreed on by every rank.
