@@ -4,14 +4,12 @@
 // after the request), and a restart from either writes the remaining frames of the uninterrupted run.
 #include <gtest/gtest.h>
 
-#include <chrono>
 #include <cmath>
 #include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "engine/engine_api.h"
@@ -20,6 +18,7 @@
 #include "io/checkpoint.h"
 #include "scene/scene_parse.h"
 #include "../physics/decomposition_scenes.h"
+#include "../physics/run_support.h"
 #include "gpu_test_support.h"
 
 namespace fbar {
@@ -159,24 +158,25 @@ TEST(GpuCheckpoint, RunGpuRestartsFromFrameAndSignalCheckpoints) {
   EXPECT_FALSE(fs::exists(b / io::frame_file_name(0, 0, 2, ".csv")));
   expect_same_frames(a, b, 3, 5);
 
-  // A stop request once frame 1 is written.
+  // A stop request when frame 1's progress line is written (as a signal arriving then): the next step records v and
+  // C, then the checkpoint.
   scene.simulation.save_path = c.string();
   scene.simulation.checkpoint_every = 0;
   options.restart.clear();
   clear_stop_request();
-  RunResult stopped;
-  std::thread run([&] { stopped = run_gpu(scene, options); });
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
-  while (!fs::exists(c / io::frame_file_name(0, 0, 1, ".csv")) && std::chrono::steady_clock::now() < deadline)
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  request_stop(SIGTERM);
-  run.join();
+  test::StopWhenLogged stop("frame 1/", SIGTERM);
+  std::ostream log(&stop);
+  RunOptions logged = options;
+  logged.quiet = false;
+  logged.log = &log;
+  const RunResult stopped = run_gpu(scene, logged);
   clear_stop_request();
-  if (stopped.exit_code == 0) GTEST_SKIP() << "the run ended before the request";
-  ASSERT_EQ(stopped.exit_code, 128 + SIGTERM) << stopped.message;
+  ASSERT_EQ(stopped.exit_code, 128 + SIGTERM) << stopped.message << stop.text();
+  EXPECT_EQ(stopped.frames_written, 1);
   ASSERT_FALSE(stopped.checkpoint.empty()) << stopped.message;
   const io::Checkpoint cp = io::read_checkpoint(stopped.checkpoint);
   EXPECT_EQ(cp.reason, "SIGTERM");
+  EXPECT_EQ(cp.steps, stopped.steps);  // one recording step after the request
   options.restart = stopped.checkpoint;
   const RunResult rest = run_gpu(scene, options);
   ASSERT_EQ(rest.exit_code, 0) << rest.message;

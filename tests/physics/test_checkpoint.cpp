@@ -5,26 +5,23 @@
 // the run loop's surface-only frames (exterior_only).
 #include <gtest/gtest.h>
 
-#include <chrono>
 #include <climits>
 #include <cmath>
 #include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
-#include <memory>
 #include <sstream>
 #include <string>
-#include <thread>
 #include <vector>
 
-#include "comm/transport.h"
 #include "decomposition_scenes.h"
 #include "engine/cpu/cpu_engine.h"
 #include "engine/engine_api.h"
 #include "engine/stop_request.h"
 #include "io/checkpoint.h"
 #include "physics_test_support.h"
+#include "run_support.h"
 
 namespace fbar {
 namespace {
@@ -49,19 +46,7 @@ std::string bytes_of(const fs::path& p) {
 /// Runs `scene` (save_path set by the caller) through run_cpu on `ranks` ranks (threads), restarting from
 /// `restart` when it is not empty; returns rank 0's result.
 RunResult run_ranks(const Scene& scene, int ranks, const std::string& restart = "") {
-  std::vector<std::unique_ptr<comm::Transport>> transports = comm::make_thread_transports(ranks);
-  std::vector<RunResult> results(ranks);
-  std::vector<std::thread> threads;
-  for (int r = 0; r < ranks; ++r)
-    threads.emplace_back([&, r] {
-      RunOptions o;
-      o.quiet = true;
-      o.transport = ranks > 1 ? transports[r].get() : nullptr;
-      o.restart = restart;
-      results[r] = run_cpu(scene, o);
-    });
-  for (auto& t : threads) t.join();
-  return results[0];
+  return test::run_cpu_ranks(scene, ranks, restart).front();
 }
 
 /// The dam break with ASFLIP and F-bar, a Drucker-Prager block (F and logJp) beside it, two grid sensors, two
@@ -269,24 +254,21 @@ TEST(Restart, TwoRankCheckpointContinuesOnOneRank) {
   }
 }
 
-// SIGTERM mid-run (request_stop, as the handler records it): the run stops after the step in progress, writes
-// checkpoint_step[s], and a restart from it writes what the uninterrupted run wrote.
+// SIGTERM mid-run (request_stop, as the handler records it, when frame 1's progress line is written): the run stops
+// after the step in progress, writes checkpoint_step[s], and a restart from it writes what the uninterrupted run
+// wrote.
 TEST(Restart, AfterAStopRequestContinuesBitForBit) {
   const fs::path a = scratch("stop_a"), b = scratch("stop_b");
   Scene scene = restart_scene(a);
   ASSERT_EQ(run_ranks(scene, 1).exit_code, 0);
   scene.simulation.save_path = b.string();
   clear_stop_request();
-  RunResult stopped;
-  std::thread run([&] { stopped = run_ranks(scene, 1); });
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
-  while (!fs::exists(b / "model[0]_dev[0]_frame[1].bgeo") && std::chrono::steady_clock::now() < deadline)
-    std::this_thread::sleep_for(std::chrono::milliseconds(2));
-  request_stop(SIGTERM);
-  run.join();
+  test::StopWhenLogged stop("frame 1/", SIGTERM);
+  std::ostream log(&stop);
+  const RunResult stopped = test::run_cpu_ranks(scene, 1, "", &log).front();
   clear_stop_request();
-  if (stopped.exit_code == 0) GTEST_SKIP() << "the run ended before the request (a very fast machine)";
-  ASSERT_EQ(stopped.exit_code, 128 + SIGTERM) << stopped.message;
+  ASSERT_EQ(stopped.exit_code, 128 + SIGTERM) << stopped.message << stop.text();
+  EXPECT_EQ(stopped.frames_written, 1);
   ASSERT_FALSE(stopped.checkpoint.empty());
   EXPECT_NE(stopped.checkpoint.find("checkpoint_step[" + std::to_string(stopped.steps) + "]_dev[0].h5"),
             std::string::npos)

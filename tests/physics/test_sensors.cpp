@@ -7,18 +7,16 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
-#include <memory>
 #include <sstream>
 #include <string>
-#include <thread>
 #include <vector>
 
-#include "comm/transport.h"
 #include "decomposition_scenes.h"
 #include "engine/cpu/cpu_engine.h"
 #include "engine/engine_api.h"
 #include "io/sensor_recorder.h"
 #include "physics_test_support.h"
+#include "run_support.h"
 
 namespace fbar {
 namespace {
@@ -192,18 +190,7 @@ Csv read_csv(const std::filesystem::path& path) {
 /// Runs `scene` through the run loop (run_cpu) on `ranks` ranks (threads; one rank: no transport); every rank must
 /// complete.
 void run_on_ranks(const Scene& scene, int ranks) {
-  std::vector<std::unique_ptr<comm::Transport>> transports = comm::make_thread_transports(ranks);
-  std::vector<RunResult> results(ranks);
-  std::vector<std::thread> threads;
-  for (int r = 0; r < ranks; ++r)
-    threads.emplace_back([&, r] {
-      RunOptions o;
-      o.quiet = true;
-      o.transport = ranks > 1 ? transports[r].get() : nullptr;
-      results[r] = run_cpu(scene, o);
-    });
-  for (auto& t : threads) t.join();
-  for (const RunResult& r : results) EXPECT_EQ(r.exit_code, 0) << r.message;
+  for (const RunResult& r : test::run_cpu_ranks(scene, ranks)) EXPECT_EQ(r.exit_code, 0) << r.message;
 }
 
 /// The dam break of the decomposition tests with two load cells (the floor's force, the water's mass) run

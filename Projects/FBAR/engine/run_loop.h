@@ -119,10 +119,9 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
   engine.set_grid_sensors(sensors.grid_sensors());
   engine.set_grid_sample(-1);
   engine.set_particle_sensors(sensors.particle_sensors());
-  auto flush_sensors = [&] {
-    if (!sensors.grid_sensors().empty()) sensors.flush_grid(engine.grid_samples(sensors.grid_pending()));
-    if (!sensors.particle_sensors().empty())
-      sensors.flush_particles(engine.particle_samples(sensors.particle_pending()));
+  auto flush_sensors = [&] {  // a collective; ranks agree on what is pending
+    if (sensors.grid_pending() > 0) sensors.flush_grid(engine.grid_samples(sensors.grid_pending()));
+    if (sensors.particle_pending() > 0) sensors.flush_particles(engine.particle_samples(sensors.particle_pending()));
   };
   TrackerRecorder trackers(scene, transport, resume);
   for (const BodyTracker& t : trackers.trackers()) engine.set_tracker(t.body, t.set);

@@ -12,6 +12,9 @@
 #include <system_error>
 
 #include "MnSystem/IO/h5_frame.h"
+#include "physics/constitutive_models.cuh"
+#include "scene/scene.h"
+#include "scene/scene_parse.h"
 
 namespace fbar::io {
 namespace {
@@ -228,7 +231,7 @@ void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c) {
   if (ec) throw std::runtime_error("cannot rename " + part.string() + " to " + path.string() + ": " + ec.message());
 }
 
-Checkpoint read_checkpoint(const std::filesystem::path& path) {
+Checkpoint read_checkpoint(const std::filesystem::path& path, bool particles) {
   const std::string file = describe(path);
   if (!std::filesystem::is_regular_file(path)) throw std::runtime_error(file + ": no such file");
   std::lock_guard<std::mutex> lock(h5_detail::hdf5_mutex());
@@ -272,6 +275,10 @@ Checkpoint read_checkpoint(const std::filesystem::path& path) {
                          get_int(g.get(), ("bytes" + std::to_string(i)).c_str(), file));
   }
   const long long bodies = get_int(root, "bodies", file);
+  if (!particles) {
+    c.bodies.resize(static_cast<std::size_t>(bodies));
+    return c;
+  }
   for (long long b = 0; b < bodies; ++b) {
     const std::string group = "body" + std::to_string(b);
     if (H5Lexists(root, group.c_str(), H5P_DEFAULT) <= 0) throw std::runtime_error(file + ": group " + group + " is missing");
@@ -361,10 +368,31 @@ Checkpoint read_checkpoint_for(const std::filesystem::path& given, int rank, int
     return read_checkpoint_set(given);
   }
   if (std::filesystem::is_regular_file(own)) {
-    Checkpoint c = read_checkpoint(own);
-    if (c.ranks == ranks && c.rank == rank) return c;
+    const Checkpoint header = read_checkpoint(own, false);
+    if (header.ranks == ranks && header.rank == rank) return read_checkpoint(own);
   }
   return read_checkpoint_set(given);
+}
+
+void check_matches(const Checkpoint& c, const Scene& scene) {
+  if (c.bodies.size() != scene.bodies.size())
+    throw std::invalid_argument("--restart: the checkpoint holds " + std::to_string(c.bodies.size()) +
+                                " bodies, the scene " + std::to_string(scene.bodies.size()));
+  for (std::size_t b = 0; b < c.bodies.size(); ++b) {
+    const CheckpointBody& body = c.bodies[b];
+    const Constitutive law = scene.bodies[b].material.law;
+    const std::string where = "--restart: bodies[" + std::to_string(b) + "]";
+    if (body.law != to_string(law))
+      throw std::invalid_argument(where + ".material.constitutive is " + to_string(law) + ", the checkpoint's body " +
+                                  std::to_string(b) + " is " + body.law);
+    int scalars = -1;
+    visit_material(law, [&](auto m) {
+      scalars = static_cast<int>(sizeof(material_state_t<decltype(m), double>) / sizeof(double));
+    });
+    if (body.state_scalars != scalars)
+      throw std::invalid_argument(where + ": the checkpoint stores " + std::to_string(body.state_scalars) +
+                                  " state scalars per particle, " + body.law + " has " + std::to_string(scalars));
+  }
 }
 
 }  // namespace fbar::io

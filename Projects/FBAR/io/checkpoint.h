@@ -28,6 +28,10 @@
 #include <utility>
 #include <vector>
 
+namespace fbar {
+struct Scene;
+}
+
 namespace fbar::io {
 
 /// One body's particles on one rank, in slot order.
@@ -78,8 +82,13 @@ std::filesystem::path checkpoint_rank_path(const std::filesystem::path& given, i
 
 /// Writes `c` (positions and state in float32 when c.precision is "single"). Throws std::runtime_error.
 void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c);
-/// Reads a checkpoint; throws std::runtime_error naming the file and what is missing or inconsistent.
-Checkpoint read_checkpoint(const std::filesystem::path& path);
+/// Reads a checkpoint (without `particles`: the root attributes only, every body left empty); throws
+/// std::runtime_error naming the file and what is missing or inconsistent.
+Checkpoint read_checkpoint(const std::filesystem::path& path, bool particles = true);
+
+/// Whether a run of `scene` can continue from `c`: as many bodies, each of the same material law with as many
+/// stored state scalars. Throws std::invalid_argument naming the body and the difference (both engines call it).
+void check_matches(const Checkpoint& c, const Scene& scene);
 
 /// Every rank's file of the set `given` belongs to (rank 0 .. ranks - 1, each checked to be of the same step), as
 /// one checkpoint whose bodies hold every particle in ID order (rank = 0, ranks = 1, no slabs): what a run with a

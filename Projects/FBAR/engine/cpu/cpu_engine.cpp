@@ -154,18 +154,20 @@ CpuEngine<T, TG>::CpuEngine(const Scene& scene, comm::Transport& transport, doub
   for (std::size_t b = 0; b < scene.bodies.size(); ++b)
     positions.push_back(sample_body(scene.bodies[b], scene.simulation, static_cast<int>(b)));
   init(positions);
-  if (ranks() > 1) {
-    // Every rank sampled every particle (deterministically): the slabs follow from the local counts, and each rank
-    // keeps the particles it owns.
-    choose_slabs_now(true);
-    for (Body& body : bodies_) {
-      std::vector<int> owner(body.x.size());
-      for (std::size_t p = 0; p < body.x.size(); ++p) owner[p] = owner_of(body.x[p]);
-      keep_own_particles(body, owner);
-    }
-    measure_balance();
-    chosen_imbalance_ = imbalance_;
+  if (ranks() > 1) divide_replicated();  // every rank sampled every particle (deterministically)
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::divide_replicated() {
+  // The slabs follow from the local counts, and each rank keeps the particles it owns.
+  choose_slabs_now(true);
+  for (Body& body : bodies_) {
+    std::vector<int> owner(body.x.size());
+    for (std::size_t p = 0; p < body.x.size(); ++p) owner[p] = owner_of(body.x[p]);
+    keep_own_particles(body, owner);
   }
+  measure_balance();
+  chosen_imbalance_ = imbalance_;
 }
 
 template <typename T, typename TG>
@@ -173,17 +175,10 @@ CpuEngine<T, TG>::CpuEngine(const Scene& scene, const io::Checkpoint& cp, comm::
                             double rebalance_threshold)
     : scene_(scene), rebalance_threshold_(rebalance_threshold), log_(&std::cerr) {
   if (transport) transport_ = transport;
-  if (cp.bodies.size() != scene.bodies.size())
-    throw std::invalid_argument("--restart: the checkpoint holds " + std::to_string(cp.bodies.size()) +
-                                " bodies, the scene " + std::to_string(scene.bodies.size()));
+  io::check_matches(cp, scene);
   std::vector<std::vector<Vec3d>> positions(cp.bodies.size());
   for (std::size_t b = 0; b < cp.bodies.size(); ++b) {
     const io::CheckpointBody& c = cp.bodies[b];
-    const std::string where = "bodies[" + std::to_string(b) + "]";
-    if (c.law != to_string(scene.bodies[b].material.law))
-      throw std::invalid_argument("--restart: " + where + ".material.constitutive is " +
-                                  to_string(scene.bodies[b].material.law) + ", the checkpoint's body " +
-                                  std::to_string(b) + " is " + c.law);
     positions[b].resize(c.particles());
     for (std::size_t p = 0; p < c.particles(); ++p) positions[b][p] = Vec3d{{c.x[3 * p], c.x[3 * p + 1], c.x[3 * p + 2]}};
   }
@@ -203,11 +198,7 @@ CpuEngine<T, TG>::CpuEngine(const Scene& scene, const io::Checkpoint& cp, comm::
     std::visit(
         [&](auto& mb) {
           using State = typename std::decay_t<decltype(mb.state)>::value_type;
-          constexpr int S = static_cast<int>(sizeof(State) / sizeof(T));
-          if (c.state_scalars != S)
-            throw std::invalid_argument("--restart: bodies[" + std::to_string(b) + "]: the checkpoint stores " +
-                                        std::to_string(c.state_scalars) + " state scalars per particle, " +
-                                        c.law + " has " + std::to_string(S));
+          constexpr int S = static_cast<int>(sizeof(State) / sizeof(T));  // = c.state_scalars (check_matches)
           for (std::size_t p = 0; p < n; ++p) {
             T v[S];
             for (int i = 0; i < S; ++i) v[i] = static_cast<T>(c.state[static_cast<std::size_t>(S) * p + i]);
@@ -234,14 +225,7 @@ CpuEngine<T, TG>::CpuEngine(const Scene& scene, const io::Checkpoint& cp, comm::
         throw std::invalid_argument("--restart: a checkpoint of rank " + std::to_string(cp.rank) + " of " +
                                     std::to_string(cp.ranks) + " given to rank " + std::to_string(rank()) + " of " +
                                     std::to_string(ranks()));
-      choose_slabs_now(true);
-      for (Body& body : bodies_) {
-        std::vector<int> owner(body.x.size());
-        for (std::size_t p = 0; p < body.x.size(); ++p) owner[p] = owner_of(body.x[p]);
-        keep_own_particles(body, owner);
-      }
-      measure_balance();
-      chosen_imbalance_ = imbalance_;
+      divide_replicated();
     }
   } else if (cp.ranks != 1) {
     throw std::invalid_argument("--restart: a checkpoint of rank " + std::to_string(cp.rank) + " of " +

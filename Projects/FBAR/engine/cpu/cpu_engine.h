@@ -349,6 +349,7 @@ class CpuEngine {
   void keep_own_particles(Body& body, const std::vector<int>& owner);  // drops those of other ranks, in order
   void resize_scratch(Body& body);     // the next-state arrays follow the particle count
   void measure_balance();              // imbalance_ from every rank's particle count (collective)
+  void divide_replicated();            // every rank holds every particle: choose the slabs, keep its own (collective)
   /// Slabs from the particles: of this rank only when every rank holds every particle (`replicated`, at start),
   /// else of every rank (to rebalance).
   void choose_slabs_now(bool replicated);

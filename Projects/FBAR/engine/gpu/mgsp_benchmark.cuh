@@ -1084,20 +1084,12 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
 
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::restore_bodies(const io::Checkpoint& cp) {
-  if (cp.bodies.size() != bodies_.size())
-    throw std::invalid_argument("--restart: the checkpoint holds " + std::to_string(cp.bodies.size()) +
-                                " bodies, the scene " + std::to_string(bodies_.size()));
+  io::check_matches(cp, scene_);
   for (auto& bp : bodies_) {
     BodyBase& b = *bp;
     const io::CheckpointBody& c = cp.bodies[static_cast<std::size_t>(b.index)];
     const std::string where = "--restart: bodies[" + std::to_string(b.index) + "]";
-    if (c.law != to_string(b.spec.material.law))
-      throw std::invalid_argument(where + ".material.constitutive is " + to_string(b.spec.material.law) +
-                                  ", the checkpoint's body is " + c.law);
-    const int S = b.stored_scalars() - 3;
-    if (c.state_scalars != S)
-      throw std::invalid_argument(where + ": the checkpoint stores " + std::to_string(c.state_scalars) +
-                                  " state scalars per particle, " + c.law + " has " + std::to_string(S));
+    const int S = b.stored_scalars() - 3;  // = c.state_scalars (check_matches)
     const std::size_t n = c.particles();
     if (static_cast<long long>(n) != b.global_particles)
       throw std::invalid_argument(where + ": " + std::to_string(n) + " particles in the checkpoint, " +
