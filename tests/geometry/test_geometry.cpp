@@ -436,7 +436,7 @@ TEST(SampleBody, InvalidEntriesNameTheirKey) {
   EXPECT_EQ(scene_error_of([&] {
               sample_body(make_body({make_box({0.1, 0.1, 0.1}, {0.1, 0.1, 0.1}), file}, 8), sim, 2);
             }).first,
-            "bodies[2].geometry[1].object");
+            "bodies[2].geometry[1].file");
   GeometrySpec arr = make_box({0.1, 0.1, 0.1}, {0.1, 0.1, 0.1});
   arr.array = {1, 0, 1};
   EXPECT_EQ(scene_error_of([&] { sample_body(make_body({arr}, 8), sim, 0); }).first, "bodies[0].geometry[0].array");

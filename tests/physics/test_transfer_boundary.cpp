@@ -16,6 +16,7 @@
 #include "physics_test_support.h"
 #include "physics/time_step.cuh"
 #include "physics/transfer.cuh"
+#include "scene/scene_parse.h"
 
 namespace fbar {
 namespace {
@@ -246,7 +247,7 @@ TEST(Boundary, TimeWindowAndUnsupportedObjects) {
   EXPECT_FALSE(boundary_active(b, 1.51));
   spec.object = BoundaryObject::USGS_GATE;
   EXPECT_FALSE(make_boundary_params(spec, unit_sim(0.1), b, error));
-  EXPECT_NE(error.find("Floor, Plane, Velocity and Bathymetry"), std::string::npos) << error;
+  EXPECT_NE(error.find("expand_boundary"), std::string::npos) << error;
   spec.object = BoundaryObject::Box;  // without extents
   EXPECT_FALSE(make_boundary_params(spec, unit_sim(0.1), b, error));
 }
@@ -517,6 +518,114 @@ TEST(Fbar, VelocityGradientAndCell) {
       EXPECT_EQ(s.base[a] + c[a], static_cast<int>(std::floor(p[a] / dx))) << x;
     }
   }
+}
+
+}  // namespace
+}  // namespace fbar
+
+namespace fbar {
+namespace {
+
+/// The velocity of a node after every active boundary of a scene at time t (as both engines apply them).
+Vec3d after_boundaries(const RunConstants<double>& k, const Vec3d& x, Vec3d v, double t) {
+  for (std::size_t i = 0; i < k.boundaries.size(); ++i) {
+    if (!boundary_active(k.boundaries[i], t)) continue;
+    v = apply_boundary(k.boundary_at_time(i, t), x, v, &k.profiles);
+  }
+  return v;
+}
+
+Scene facility_scene(BoundaryObject object, Contact contact, Real3 lo, Real3 hi, double s = 1.0) {
+  Scene scene;
+  scene.simulation.dx = 0.05 * s;
+  scene.simulation.domain = {100.0 * s, 10.0 * s, 10.0 * s};
+  scene.simulation.froude_scaling = s;
+  BoundarySpec b;
+  b.object = object;
+  b.contact = contact;
+  b.domain_start = lo;
+  b.domain_end = hi;
+  scene.boundaries.push_back(b);
+  return scene;
+}
+
+// A Piston (and the OSU paddles built on it) pushes along +x from its face: a Separable one brings slower nodes up
+// to its speed and leaves faster ones; a Slip one sets the normal component and keeps the tangential ones.
+TEST(FacilityBoundary, PaddlesArePistonsAlongX) {
+  for (BoundaryObject paddle : {BoundaryObject::Piston, BoundaryObject::OSU_LWF_PADDLE, BoundaryObject::OSU_TWB_PADDLE}) {
+    Scene scene = facility_scene(paddle, Contact::Separable, {0.0, 0.0, 0.0}, {1.0, 5.0, 5.0});
+    scene.boundaries[0].velocity = {0.5, 0.0, 0.0};
+    const RunConstants<double> k(scene, "test");
+    ASSERT_EQ(k.boundaries.size(), 1u);
+    const double t = 2.0;  // the face has moved to x = 2
+    EXPECT_EQ(after_boundaries(k, Vec3d{{1.9, 1.0, 1.0}}, Vec3d{{0.1, -0.2, 0.3}}, t), (Vec3d{{0.5, -0.2, 0.3}}));
+    EXPECT_EQ(after_boundaries(k, Vec3d{{1.9, 1.0, 1.0}}, Vec3d{{0.9, -0.2, 0.3}}, t), (Vec3d{{0.9, -0.2, 0.3}}));
+    EXPECT_EQ(after_boundaries(k, Vec3d{{2.1, 1.0, 1.0}}, Vec3d{{0.1, -0.2, 0.3}}, t), (Vec3d{{0.1, -0.2, 0.3}}));
+    scene.boundaries[0].contact = Contact::Slip;
+    const RunConstants<double> slip(scene, "test");
+    EXPECT_EQ(after_boundaries(slip, Vec3d{{1.9, 1.0, 1.0}}, Vec3d{{0.9, -0.2, 0.3}}, t), (Vec3d{{0.5, -0.2, 0.3}}));
+  }
+}
+
+// The OSU TWB and USGS ramps are Bathymetry beds through the facility's stations, placed at domain_start and scaled.
+TEST(FacilityBoundary, RampsFollowTheFacilityStations) {
+  struct Case {
+    BoundaryObject object;
+    std::vector<std::pair<double, double>> stations;  // (x, bed height) at full scale
+  };
+  const std::vector<Case> cases = {
+      {BoundaryObject::OSU_TWB_RAMP, {{5.0, 0.0}, {21.3, 0.5}, {31.3, 1.0}, {40.0, 1.0}}},
+      {BoundaryObject::USGS_RAMP, {{50.0, 0.0}, {81.25, 1.25 / 5.675}, {82.5, 1.25 / 5.675 + 1.25 / 2.747},
+                                   {90.0, 1.25 / 5.675 + 1.25 / 2.747 + 7.5 / 1.732}}}};
+  for (const Case& c : cases)
+    for (const double s : {1.0, 0.2}) {
+      const Scene scene = facility_scene(c.object, Contact::Slip, {1.0 * s, 0.5 * s, 0.0}, {99.0 * s, 9.0 * s, 9.0 * s}, s);
+      const RunConstants<double> k(scene, "test");
+      for (const auto& [x, y] : c.stations) {
+        const double xs = (1.0 + x) * s, ys = (0.5 + y) * s;
+        EXPECT_EQ(after_boundaries(k, Vec3d{{xs, ys + 1e-3 * s, 1.0}}, kV, 0.0), kV) << to_string(c.object) << x;
+        EXPECT_FALSE(after_boundaries(k, Vec3d{{xs, ys - 1e-3 * s, 1.0}}, kV, 0.0) == kV) << to_string(c.object) << x;
+      }
+    }
+}
+
+// The USGS gate: closed for 1 s (x s^0.5) after time[0], then two doors slide apart from the box's z-centre at
+// 1 m/s (x s^0.5) for 1 s (x s^0.5), then it is gone.
+TEST(FacilityBoundary, UsgsGateOpensFromTheCentre) {
+  const double s = 0.25, ts = std::sqrt(s);
+  Scene scene = facility_scene(BoundaryObject::USGS_GATE, Contact::Separable, {4.0 * s, 0.0, 3.0 * s},
+                               {4.2 * s, 2.0 * s, 5.0 * s}, s);
+  scene.boundaries[0].time = {0.5, std::numeric_limits<double>::infinity()};
+  const RunConstants<double> k(scene, "test");
+  auto blocked = [&](double z, double t) {  // a node in the gate is held (Separable, moving into the low-x face)
+    return after_boundaries(k, Vec3d{{4.05 * s, 0.5 * s, z * s}}, Vec3d{{1.0, 0.0, 0.0}}, t)[0] != 1.0;
+  };
+  EXPECT_FALSE(blocked(4.0, 0.4));               // before time[0]
+  EXPECT_TRUE(blocked(4.0, 0.5 + 0.9 * ts));     // closed
+  EXPECT_TRUE(blocked(3.3, 0.5 + 0.9 * ts));
+  EXPECT_FALSE(blocked(4.0, 0.5 + 1.5 * ts));    // 0.5 m (x s) open on each side of the centre
+  EXPECT_FALSE(blocked(3.6, 0.5 + 1.5 * ts));
+  EXPECT_TRUE(blocked(3.3, 0.5 + 1.5 * ts));
+  EXPECT_FALSE(blocked(3.3, 0.5 + 2.1 * ts));    // gone
+}
+
+// The Waseda (Tokyo) harbour: an apron 0.255 m high from 4.45 m behind domain_start; a WASIRF pump drives its box.
+TEST(FacilityBoundary, HarbourQuayAndPump) {
+  const RunConstants<double> harbour(
+      facility_scene(BoundaryObject::TOKYO_HARBOR, Contact::Slip, {1.0, 0.2, 0.0}, {9.0, 2.0, 4.0}), "test");
+  const Vec3d down{{0.0, -1.0, 0.0}};
+  EXPECT_EQ(after_boundaries(harbour, Vec3d{{6.0, 0.2 + 0.25, 1.0}}, down, 0.0), Vec3d::zero());  // on the apron
+  EXPECT_EQ(after_boundaries(harbour, Vec3d{{6.0, 0.2 + 0.30, 1.0}}, down, 0.0), down);           // above it
+  EXPECT_EQ(after_boundaries(harbour, Vec3d{{5.3, 0.2 + 0.1, 1.0}}, down, 0.0), down);            // in front
+  // Just behind the quay face (its nearest face): a node moving into the quay loses that motion.
+  EXPECT_EQ(after_boundaries(harbour, Vec3d{{5.46, 0.25, 1.0}}, Vec3d{{1.0, 0.0, 0.0}}, 0.0), Vec3d::zero());
+
+  Scene pump = facility_scene(BoundaryObject::WASIRF_PUMP, Contact::Separable, {1.0, 0.0, 0.0}, {2.0, 1.0, 1.0});
+  pump.boundaries[0].velocity = {0.8, 0.0, -0.2};
+  const RunConstants<double> k(pump, "test");
+  EXPECT_EQ(after_boundaries(k, Vec3d{{1.5, 0.5, 0.5}}, Vec3d{{0.1, 0.3, 0.0}}, 5.0), (Vec3d{{0.8, 0.3, -0.2}}));
+  EXPECT_EQ(after_boundaries(k, Vec3d{{1.5, 0.5, 0.5}}, Vec3d{{1.2, 0.3, -0.5}}, 5.0), (Vec3d{{1.2, 0.3, -0.5}}));
+  EXPECT_EQ(after_boundaries(k, Vec3d{{2.5, 0.5, 0.5}}, Vec3d{{0.1, 0.3, 0.0}}, 5.0), (Vec3d{{0.1, 0.3, 0.0}}));
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 #include "MnBase/Math/bspline.h"
 #include "MnBase/Math/vec.h"
 #include "physics/boundary.cuh"
+#include "scene/facilities.h"
 #include "physics/constitutive_models.cuh"
 #include "physics/motion_path.h"
 #include "scene/scene.h"
@@ -83,32 +84,34 @@ struct RunConstants {
     }
     default_dt = std::min(resolved_default_dt(sim), viscous_step_bound(scene).dt);
     for (std::size_t i = 0; i < scene.boundaries.size(); ++i) {
-      BoundaryParams<T> p{};
-      std::string error;
-      if (!make_boundary_params(scene.boundaries[i], sim, p, error))
-        throw std::invalid_argument("boundaries[" + std::to_string(i) + "]: " + error + " in the " + engine);
-      const BoundarySpec& spec = scene.boundaries[i];
-      if (p.shape == BoundaryShape::Bathymetry) {
-        const std::vector<std::array<double, 2>> bed = boundary_bed_points(spec, sim);
-        if (profiles.count + static_cast<int>(bed.size()) > BoundaryProfiles<T>::kMax)
-          throw std::invalid_argument("boundaries[" + std::to_string(i) + "].bathymetry: more than " +
-                                      std::to_string(BoundaryProfiles<T>::kMax) +
-                                      " bathymetry points in all boundaries of the scene");
-        p.profile_first = profiles.count;
-        p.profile_count = static_cast<int>(bed.size());
-        for (const auto& point : bed) {
-          profiles.x[profiles.count] = static_cast<T>(point[0]);
-          profiles.y[profiles.count] = static_cast<T>(point[1]);
-          ++profiles.count;
-        }
-      }
       MotionPath motion;
-      if (!spec.file.empty())
-        motion = MotionPath::load(spec.file, sim.froude_scaling, spec.output_frequency,
+      if (!scene.boundaries[i].file.empty())
+        motion = MotionPath::load(scene.boundaries[i].file, sim.froude_scaling, scene.boundaries[i].output_frequency,
                                   "boundaries[" + std::to_string(i) + "].file");
-      for (const BoundaryParams<T>& copy : boundary_array(p, spec)) {
-        boundaries.push_back(copy);
-        motions.push_back(motion);
+      // A facility object is several generic pieces (scene/facilities.h), each with the entry's array and motion.
+      for (const BoundarySpec& spec : expand_boundary(scene.boundaries[i], sim)) {
+        BoundaryParams<T> p{};
+        std::string error;
+        if (!make_boundary_params(spec, sim, p, error))
+          throw std::invalid_argument("boundaries[" + std::to_string(i) + "]: " + error + " in the " + engine);
+        if (p.shape == BoundaryShape::Bathymetry) {
+          const std::vector<std::array<double, 2>>& bed = spec.bathymetry;
+          if (profiles.count + static_cast<int>(bed.size()) > BoundaryProfiles<T>::kMax)
+            throw std::invalid_argument("boundaries[" + std::to_string(i) + "].bathymetry: more than " +
+                                        std::to_string(BoundaryProfiles<T>::kMax) +
+                                        " bathymetry points in all boundaries of the scene");
+          p.profile_first = profiles.count;
+          p.profile_count = static_cast<int>(bed.size());
+          for (const auto& point : bed) {
+            profiles.x[profiles.count] = static_cast<T>(point[0]);
+            profiles.y[profiles.count] = static_cast<T>(point[1]);
+            ++profiles.count;
+          }
+        }
+        for (const BoundaryParams<T>& copy : boundary_array(p, spec)) {
+          boundaries.push_back(copy);
+          motions.push_back(motion);
+        }
       }
     }
   }

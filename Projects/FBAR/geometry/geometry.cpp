@@ -11,7 +11,9 @@
 #include <stdexcept>
 #include <string>
 
+#include "scene/facilities.h"
 #include "scene/scene_error.h"
+#include "scene/scene_parse.h"
 
 namespace fbar {
 namespace {
@@ -113,7 +115,7 @@ SamplingPattern sampling_pattern(double ppc) {
   return p;
 }
 
-BodyShape::BodyShape(const std::vector<GeometrySpec>& geometry, int body_index) {
+BodyShape::BodyShape(const std::vector<GeometrySpec>& geometry, int body_index, double froude_scaling) {
   const double inf = std::numeric_limits<double>::infinity();
   bounds_ = Aabb{Vec3d{{inf, inf, inf}}, Vec3d{{-inf, -inf, -inf}}};
   entries_.reserve(geometry.size());
@@ -123,9 +125,6 @@ BodyShape::BodyShape(const std::vector<GeometrySpec>& geometry, int body_index) 
     Entry e;
     e.object = g.object;
     e.operation = g.operation;
-    if (g.object == GeometryObject::File)
-      throw SceneError(path + ".object", "\"File\"",
-                       "\"Box\", \"Sphere\" or \"Cylinder\" (File geometry is not supported by the sampler yet)");
     if (!all_finite(g.offset)) throw SceneError(path + ".offset", fmt3(g.offset), "three finite numbers", "m");
     if (!all_finite(g.rotate)) throw SceneError(path + ".rotate", fmt3(g.rotate), "three finite numbers", "deg");
     if (!all_finite(g.fulcrum)) throw SceneError(path + ".fulcrum", fmt3(g.fulcrum), "three finite numbers", "m");
@@ -173,7 +172,71 @@ BodyShape::BodyShape(const std::vector<GeometrySpec>& geometry, int body_index) 
         }
         break;
       }
-      case GeometryObject::File: break;  // refused above
+      case GeometryObject::File: {
+        const GeometryFileKind kind = geometry_file_kind(g.file);
+        if (kind == GeometryFileKind::Unknown)
+          throw SceneError(path + ".file", "\"" + g.file + "\"", std::string("a file ending in ") + geometry_file_extensions());
+        if (!(g.scaling_factor > 0.0) || !std::isfinite(g.scaling_factor))
+          throw SceneError(path + ".scaling_factor", fmt(g.scaling_factor), "a positive number");
+        try {
+          if (kind == GeometryFileKind::Sdf) {
+            e.sdf = read_sdf(g.file);
+            e.sdf_h = e.sdf->dx * g.scaling_factor;
+            e.sdf_padding = g.padding;
+            e.centre = offset;
+            for (int d = 0; d < 3; ++d) {
+              e.lo[d] = offset[d] - e.sdf_padding * e.sdf_h;
+              e.hi[d] = offset[d] + (e.sdf->n[d] - 1 - e.sdf_padding) * e.sdf_h;
+            }
+          } else {
+            if (g.operation != GeometryOperation::Add && g.operation != GeometryOperation::Union)
+              throw SceneError(path + ".operation", std::string("\"") + to_string(g.operation) + "\"",
+                               "Add or Union for a point file (particles hold no volume to subtract or intersect; "
+                               "use an .sdf file for that)");
+            e.points = true;
+            const std::vector<Vec3d> file_points = read_point_file(g.file);
+            PointSet set;
+            set.entry = j;
+            set.points.reserve(file_points.size() * static_cast<std::size_t>(g.array[0]) * g.array[1] * g.array[2]);
+            const Mat3<double> rot = euler_xyz(g.rotate);
+            const bool rotated = g.rotate[0] != 0.0 || g.rotate[1] != 0.0 || g.rotate[2] != 0.0;
+            const Vec3d fulcrum = to_vec(g.fulcrum);
+            for (int a = 0; a < g.array[0]; ++a)
+              for (int b = 0; b < g.array[1]; ++b)
+                for (int c = 0; c < g.array[2]; ++c) {
+                  const Vec3d shift{{a * g.spacing[0], b * g.spacing[1], c * g.spacing[2]}};
+                  for (const Vec3d& q : file_points) {
+                    const Vec3d local = offset + q * g.scaling_factor + shift;
+                    set.points.push_back(rotated ? rot * (local - fulcrum) + fulcrum : local);
+                  }
+                }
+            point_sets_.push_back(std::move(set));
+          }
+        } catch (const std::runtime_error& err) {
+          if (dynamic_cast<const SceneError*>(&err)) throw;
+          throw SceneError(path + ".file", "\"" + g.file + "\"", std::string("a readable geometry file (") + err.what() + ")");
+        }
+        break;
+      }
+      case GeometryObject::Bathymetry:
+      case GeometryObject::OsuLwf:
+      case GeometryObject::OsuTwb: {
+        check_span(g.span, path, to_string(g.object));
+        e.lo = offset;
+        e.hi = offset + to_vec(g.span);
+        BedPoints bed;
+        if (g.object == GeometryObject::Bathymetry || g.use_custom_bathymetry) {
+          bed = g.bathymetry;
+        } else {  // the facility's bed, its origin (the wave-maker's neutral position, the floor) at the offset
+          const double s = g.use_froude_scaling ? froude_scaling : 1.0;
+          bed = place_bed(g.object == GeometryObject::OsuLwf ? osu_lwf_bathymetry() : osu_twb_bathymetry(), s,
+                          offset[0], offset[1]);
+        }
+        if (bed.size() < 2)
+          throw SceneError(path + ".bathymetry", std::to_string(bed.size()) + " point(s)", "at least 2 [x, y] points", "m");
+        e.bed = std::make_shared<const BedPoints>(std::move(bed));
+        break;
+      }
     }
     for (int d = 0; d < 3; ++d) {
       e.copies[d] = g.array[d];
@@ -184,7 +247,7 @@ BodyShape::BodyShape(const std::vector<GeometrySpec>& geometry, int body_index) 
     const Mat3<double> rot = euler_xyz(g.rotate);
     e.world_to_local = transpose(rot);
 
-    if (g.operation == GeometryOperation::Add || g.operation == GeometryOperation::Union) {
+    if (!e.points && (g.operation == GeometryOperation::Add || g.operation == GeometryOperation::Union)) {
       // Box of all copies in the local frame, then its 8 corners rotated into the world.
       Vec3d lo = e.lo, hi = e.hi;
       for (int d = 0; d < 3; ++d) {
@@ -239,7 +302,17 @@ bool BodyShape::entry_contains(const Entry& e, const Vec3d& p) {
             if (r2 <= e.radius_sq) return true;
             break;
           }
-          case GeometryObject::File: break;
+          case GeometryObject::File:
+            if (e.sdf) {
+              const Vec3d u = (qs - e.centre) / e.sdf_h + Vec3d{{e.sdf_padding, e.sdf_padding, e.sdf_padding}};
+              if (e.sdf->value(u) <= 0.0) return true;
+            }
+            break;
+          case GeometryObject::Bathymetry:
+          case GeometryObject::OsuLwf:
+          case GeometryObject::OsuTwb:
+            if (qs[1] >= bed_height(*e.bed, qs[0])) return true;
+            break;
         }
       }
   return false;
@@ -248,6 +321,7 @@ bool BodyShape::entry_contains(const Entry& e, const Vec3d& p) {
 bool BodyShape::contains(const Vec3d& p) const {
   bool inside = false;
   for (const Entry& e : entries_) {
+    if (e.points) continue;
     switch (e.operation) {
       case GeometryOperation::Add:
       case GeometryOperation::Union:
@@ -260,6 +334,22 @@ bool BodyShape::contains(const Vec3d& p) const {
       case GeometryOperation::Intersection:
         if (inside) inside = entry_contains(e, p);
         break;
+    }
+  }
+  return inside;
+}
+
+bool BodyShape::survives(const Vec3d& p, std::size_t entry) const {
+  bool inside = true;
+  for (std::size_t j = entry + 1; j < entries_.size() && inside; ++j) {
+    const Entry& e = entries_[j];
+    if (e.points) continue;
+    switch (e.operation) {
+      case GeometryOperation::Add:
+      case GeometryOperation::Union: break;
+      case GeometryOperation::Subtract:
+      case GeometryOperation::Difference: inside = !entry_contains(e, p); break;
+      case GeometryOperation::Intersection: inside = entry_contains(e, p); break;
     }
   }
   return inside;
@@ -300,18 +390,28 @@ BodySampler::BodySampler(const BodySpec& body, const SimulationSpec& sim, int bo
   } catch (const std::invalid_argument&) {
     throw SceneError(body_path + ".material.ppc", fmt(body.material.ppc), "a positive number of particles per cell");
   }
-  if (body.geometry.empty()) throw SceneError(path, "[]", "at least one Box, Sphere or Cylinder entry");
+  if (body.geometry.empty()) throw SceneError(path, "[]", "at least one geometry entry");
 
-  shape_ = std::make_shared<BodyShape>(body.geometry, body_index);
+  shape_ = std::make_shared<BodyShape>(body.geometry, body_index, sim.froude_scaling);
   part_lo_ = to_vec(body.partition_start);
   part_hi_ = to_vec(body.partition_end);
   domain_ = Vec3d{{sim.domain[0], sim.domain[1], sim.domain[2]}};
+  // Point-file particles: the partition clip (half-open, as the lattice) and the later entries' operations.
+  for (const BodyShape::PointSet& set : shape_->point_sets())
+    for (const Vec3d& p : set.points)
+      if (p[0] >= part_lo_[0] && p[0] < part_hi_[0] && p[1] >= part_lo_[1] && p[1] < part_hi_[1] &&
+          p[2] >= part_lo_[2] && p[2] < part_hi_[2] && shape_->survives(p, set.entry))
+        points_.push_back(p);
+  point_chunks_ = (static_cast<long long>(points_.size()) + kPointChunk - 1) / kPointChunk;
   Aabb box = shape_->bounds();
   for (int d = 0; d < 3; ++d) {
     box.lo[d] = std::max(box.lo[d], part_lo_[d]);
     box.hi[d] = std::min(box.hi[d], part_hi_[d]);
   }
-  if (box.empty()) throw_no_particles(path);
+  if (box.empty()) {  // no solid to sample: only point files (or nothing)
+    if (points_.empty()) throw_no_particles(path);
+    return;
+  }
 
   // Candidate points: the lattice (spacing h) or cells (edge dx) covering `box`, one extra on each side so that
   // rounding in the index computation never loses a point; the predicate decides.
@@ -366,8 +466,17 @@ void BodySampler::visit_plane(long long ix, F&& f) const {
 
 void BodySampler::sample_planes(long long first, long long last, std::vector<Vec3d>& out) const {
   first = std::max(first, 0LL);
-  last = std::min(last, count_[0]);
+  last = std::min(last, planes());
   if (first >= last) return;
+  if (last > count_[0]) {  // point-file chunks after the lattice planes
+    sample_planes(first, count_[0], out);
+    const long long from = std::max(first, count_[0]) - count_[0], to = last - count_[0];
+    const std::size_t begin = static_cast<std::size_t>(from * kPointChunk);
+    const std::size_t end = std::min(points_.size(), static_cast<std::size_t>(to * kPointChunk));
+    out.insert(out.end(), points_.begin() + static_cast<std::ptrdiff_t>(begin),
+               points_.begin() + static_cast<std::ptrdiff_t>(end));
+    return;
+  }
   // One output vector per x-plane, concatenated in plane order: deterministic for any thread count.
   std::vector<std::vector<Vec3d>> planes(static_cast<std::size_t>(last - first));
 #pragma omp parallel for schedule(dynamic, 1)
@@ -401,6 +510,34 @@ bool BodySampler::outside_domain(const Vec3d& p) const {
 }
 
 SampleCount BodySampler::count(double dx) const {
+  if (points_.empty()) return count_lattice(dx);
+  // Point-file particles join the lattice's counts: one ordered tally of both.
+  SampleCount c = count_[0] > 0 ? count_lattice(dx, true) : SampleCount{};
+  BlockTally tally;
+  for (const BlockCount& b : c.blocks) tally.blocks[{b.bx, b.by, b.bz}] += b.particles;
+  c.blocks.clear();
+  const double inv_dx = 1.0 / dx;
+  std::size_t outside = 0;
+  Vec3d first_outside{};
+  for (long long chunk = 0; chunk < point_chunks_; ++chunk) {
+    const std::size_t begin = static_cast<std::size_t>(chunk * kPointChunk);
+    const std::size_t end = std::min(points_.size(), begin + static_cast<std::size_t>(kPointChunk));
+    c.per_plane.push_back(static_cast<long long>(end - begin));
+    for (std::size_t i = begin; i < end; ++i) {
+      if (outside_domain(points_[i])) {
+        if (outside++ == 0) first_outside = points_[i];
+        continue;
+      }
+      tally.add(points_[i], inv_dx);
+    }
+  }
+  c.particles += static_cast<long long>(points_.size());
+  check_inside_domain(outside, static_cast<std::size_t>(c.particles), first_outside);
+  tally.emit(c);
+  return c;
+}
+
+SampleCount BodySampler::count_lattice(double dx, bool may_be_empty) const {
   // Particle blocks as the GPU engine forms them (partition_domain.h): B = floor((base - 1) / 4) per axis with
   // base = floor(x / dx - 0.5). Counted into a dense box of blocks (planes in parallel, atomic increments); every
   // candidate point lies inside it, so no count is lost.
@@ -415,7 +552,7 @@ SampleCount BodySampler::count(double dx) const {
     dense *= static_cast<double>(bn[d]);
   }
   if (dense > 268435456.0)  // 2^28 blocks (1 GiB of counters): a body this sparse is counted per plane in maps
-    return count_sparse(dx);
+    return count_sparse(dx, may_be_empty);
   SampleCount c;
   std::vector<std::uint32_t> counts(static_cast<std::size_t>(dense), 0u);
   c.per_plane.assign(static_cast<std::size_t>(count_[0]), 0);
@@ -450,7 +587,7 @@ SampleCount BodySampler::count(double dx) const {
       }
     }
   }
-  if (particles == 0) throw_no_particles(path_);
+  if (particles == 0 && !may_be_empty) throw_no_particles(path_);
   check_inside_domain(outside, particles, first_outside);
   c.particles = static_cast<long long>(particles);
   for (long long i = 0; i < bn[0]; ++i)
@@ -464,7 +601,7 @@ SampleCount BodySampler::count(double dx) const {
   return c;
 }
 
-SampleCount BodySampler::count_sparse(double dx) const {
+SampleCount BodySampler::count_sparse(double dx, bool may_be_empty) const {
   SampleCount c;
   BlockTally tally;
   const double inv_dx = 1.0 / dx;
@@ -482,7 +619,7 @@ SampleCount BodySampler::count_sparse(double dx) const {
       tally.add(p, inv_dx);
     });
   }
-  if (c.particles == 0) throw_no_particles(path_);
+  if (c.particles == 0 && !may_be_empty) throw_no_particles(path_);
   check_inside_domain(outside, static_cast<std::size_t>(c.particles), first_outside);
   tally.emit(c);
   return c;

@@ -41,12 +41,14 @@
 //  cells), deterministic.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "MnBase/Math/vec.h"
+#include "geometry/geometry_files.h"
 #include "scene/scene.h"
 
 namespace fbar {
@@ -71,27 +73,45 @@ SamplingPattern sampling_pattern(double ppc);
 /// The CSG solid of one body's geometry[] list, prepared for fast point queries (rotations precomputed).
 class BodyShape {
  public:
-  /// Validates the entries (positive span / radius, array >= 1, no File objects) and precomputes transforms.
+  /// Validates the entries (positive span / radius, array >= 1, readable files) and precomputes transforms; reads
+  /// File geometry (geometry_files.h). froude_scaling places a facility's bed (OSU LWF / TWB objects) at scale.
   /// Throws SceneError naming bodies[body_index].geometry[j].<key>.
-  BodyShape(const std::vector<GeometrySpec>& geometry, int body_index);
+  BodyShape(const std::vector<GeometrySpec>& geometry, int body_index, double froude_scaling = 1.0);
 
-  /// True when p [m] is inside the result of the operation sequence.
+  /// True when p [m] is inside the result of the operation sequence (point-file entries hold no volume).
   bool contains(const Vec3d& p) const;
 
-  /// Bounding box of every Add/Union entry (rotated, all copies): no point outside it is ever inside.
-  /// Empty when the list holds no Add/Union entry.
+  /// Bounding box of every solid Add/Union entry (rotated, all copies): no point outside it is ever inside.
+  /// Empty when the list holds no such entry.
   const Aabb& bounds() const { return bounds_; }
+
+  /// The particles of a point-file entry (geometry_files.h), every copy, in world coordinates [m], in file order
+  /// (copies i-major), before the operations of later entries.
+  struct PointSet {
+    std::size_t entry = 0;
+    std::vector<Vec3d> points;
+  };
+  const std::vector<PointSet>& point_sets() const { return point_sets_; }
+  /// Does a particle of entry `entry` (a point file, added when its entry comes) survive the later entries'
+  /// operations (Subtract, Intersection, ...)?
+  bool survives(const Vec3d& p, std::size_t entry) const;
 
  private:
   /// One geometry entry in its own frame: copy 0 unrotated, plus how to map a world point into that frame.
   struct Entry {
     GeometryObject object = GeometryObject::Box;
     GeometryOperation operation = GeometryOperation::Add;
+    bool points = false;      ///< a point file: no volume, its particles are in point_sets_
     Vec3d lo{};               ///< [m] bounding box of copy 0, unrotated
     Vec3d hi{};
-    Vec3d centre{};           ///< [m] sphere centre; cylinder: centre of the cross-section (axis component unused)
+    Vec3d centre{};           ///< [m] sphere centre; cylinder: centre of the cross-section (axis component unused);
+                              ///< .sdf: the offset (where grid index `padding` lies)
     double radius_sq = 0.0;   ///< [m^2]
     int axis = 0;             ///< cylinder axis
+    std::shared_ptr<const SdfGrid> sdf;  ///< .sdf: the level set
+    double sdf_h = 0.0;       ///< [m] .sdf: metres per grid index (dx * scaling_factor)
+    double sdf_padding = 1.0; ///< .sdf: the grid index placed at the offset
+    std::shared_ptr<const std::vector<std::array<double, 2>>> bed;  ///< [m] bed objects: the profile (world x, y)
     Int3 copies{1, 1, 1};
     Vec3d spacing{};          ///< [m]
     bool rotated = false;
@@ -101,6 +121,7 @@ class BodyShape {
   static bool entry_contains(const Entry& e, const Vec3d& p);
 
   std::vector<Entry> entries_;
+  std::vector<PointSet> point_sets_;
   Aabb bounds_;
 };
 
@@ -125,7 +146,9 @@ class BodySampler {
  public:
   /// Validates the body's sampling inputs; throws SceneError as sample_body does.
   BodySampler(const BodySpec& body, const SimulationSpec& sim, int body_index);
-  long long planes() const { return count_[0]; }
+  /// Batches: the x-planes of the candidate lattice, then the particles of point files in chunks of kPointChunk.
+  long long planes() const { return count_[0] + point_chunks_; }
+  static constexpr long long kPointChunk = 1 << 20;
   /// Appends the points of planes [first, last) in order (OpenMP over planes, deterministic).
   void sample_planes(long long first, long long last, std::vector<Vec3d>& out) const;
   /// Counts particles and particles per block (OpenMP over planes). Throws SceneError, as sample_body, when no
@@ -138,7 +161,8 @@ class BodySampler {
  private:
   template <typename F>
   void visit_plane(long long ix, F&& f) const;
-  SampleCount count_sparse(double dx) const;
+  SampleCount count_lattice(double dx, bool may_be_empty = false) const;
+  SampleCount count_sparse(double dx, bool may_be_empty) const;
 
   int body_index_ = 0;
   std::uint64_t seed_ = 0;
@@ -146,6 +170,8 @@ class BodySampler {
   SamplingPattern pattern_;
   std::shared_ptr<BodyShape> shape_;
   Vec3d part_lo_{}, part_hi_{}, domain_{};
+  std::vector<Vec3d> points_;    ///< point-file particles kept (partition clip, later operations), in order
+  long long point_chunks_ = 0;
   double h_ = 0.0;
   long long first_[3] = {0, 0, 0}, count_[3] = {0, 0, 0};
 };

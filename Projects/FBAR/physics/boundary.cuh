@@ -26,6 +26,13 @@
 //   Bathymetry  keeps the material above the bed y_s(x): the piecewise-linear profile through its `bathymetry`
 //             points (flat beyond the first and last), over all z; nodes at or below it are projected with the
 //             normal of their segment (BoundaryProfiles holds the points).
+//   Piston    a wave maker: every node inside [lo, hi] is projected with n = +x (its face is the +x face at hi_x;
+//             the material is in front of it). Moved by a motion file or `velocity` like any boundary.
+//   Pump      drives the flow inside [lo, hi]: along each axis where the pump's velocity u_a is not 0, a node slower
+//             than u_a in u_a's direction takes u_a (a faster node keeps its speed); contact does not apply and the
+//             pump does not move (its velocity is the flow's).
+// Facility objects (OSU flume and basin, USGS flume, WASIRF, Waseda harbour) are built from these shapes on the host
+// (scene/facilities.h expand_boundary); nothing facility-specific reaches this file.
 // A moving boundary (velocity v_b != 0) translates by v_b (t - t_begin): boundary_at() gives it at time t; one with a
 // motion file (physics/motion_path.h) by the file's displacement along x, with the file's velocity.
 // `array` [nx, ny, nz] with `spacing` repeats a boundary nx x ny x nz times (boundary_array()).
@@ -38,11 +45,12 @@
 
 #include "MnBase/Math/vec.h"
 #include "MnBase/Meta/config.h"
+#include "scene/facilities.h"
 #include "scene/scene.h"
 
 namespace fbar {
 
-enum class BoundaryShape : int { Walls, Box, Sphere, Cylinder, Floor, Plane, Velocity, Bathymetry };
+enum class BoundaryShape : int { Walls, Box, Sphere, Cylinder, Floor, Plane, Velocity, Bathymetry, Piston, Pump };
 
 /// The points of every Bathymetry boundary of a run, one table (a boundary holds its first point and count).
 template <typename T>
@@ -74,6 +82,7 @@ struct BoundaryParams {
 template <typename T>
 FBAR_HOST_DEVICE inline BoundaryParams<T> boundary_at(const BoundaryParams<T>& b, double t) {
   BoundaryParams<T> m = b;
+  if (b.shape == BoundaryShape::Pump) return m;  // its velocity is the flow's, not its own
   const double since = t - b.t_begin;
   if (since > 0.0)
     for (int a = 0; a < 3; ++a) {
@@ -208,6 +217,21 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
     }
     case BoundaryShape::Velocity:
       return inside_box() ? b.velocity : v;
+    case BoundaryShape::Piston: {
+      if (!inside_box()) return v;
+      Vec3<T> n = Vec3<T>::zero();
+      n[0] = T(1);
+      return project_moving(b, v, n);
+    }
+    case BoundaryShape::Pump: {
+      if (!inside_box()) return v;
+      for (int a = 0; a < 3; ++a) {
+        const T u = b.velocity[a];
+        if (u > T(0) && v[a] < u) v[a] = u;
+        if (u < T(0) && v[a] > u) v[a] = u;
+      }
+      return v;
+    }
     case BoundaryShape::Bathymetry: {
       if (!profiles || b.profile_count < 2) return v;
       // The segment over x (the first / last one extended flat beyond the ends), its height and normal.
@@ -237,30 +261,6 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
   return v;
 }
 
-/// The bed of the OSU Large Wave Flume (VALIDATION.md, from the ClaymoreUW validation): [x, y] in metres, x from
-/// the wave-maker's neutral position, y above the flume floor: flat to 17.925 m (VALIDATION.md also lists a break at
-/// 14.275 m, kept as a point), 1:12 up to 3 ft (0.9144 m) at 28.9 m, 1:24 up to 5 ft (1.524 m) at 43.525 m, flat to
-/// 80.1 m, 1:12 up to 7 ft (2.1336 m) at 87.45 m, flat beyond. Approximate: straight segments between the published
-/// stations (the as-built bed differs by centimetres), the same across the flume's width.
-inline std::vector<std::array<double, 2>> osu_lwf_bathymetry() {
-  return {{0.0, 0.0},       {14.275, 0.0},   {17.925, 0.0},  {28.9, 0.9144},
-          {43.525, 1.524},  {80.1, 1.524},   {87.45, 2.1336}};
-}
-
-/// The bed points of a Bathymetry-like boundary in scene coordinates: its `bathymetry` points, or for the OSU LWF
-/// ramp without custom points the flume's bed scaled by the Froude factor s and placed with the wave-maker's
-/// neutral position at (domain_start x, y).
-inline std::vector<std::array<double, 2>> boundary_bed_points(const BoundarySpec& spec, const SimulationSpec& sim) {
-  if (spec.object != BoundaryObject::OSU_LWF_RAMP || (spec.use_custom_bathymetry && !spec.bathymetry.empty()))
-    return spec.bathymetry;
-  std::vector<std::array<double, 2>> bed = osu_lwf_bathymetry();
-  for (auto& p : bed) {
-    p[0] = spec.domain_start[0] + p[0] * sim.froude_scaling;
-    p[1] = spec.domain_start[1] + p[1] * sim.froude_scaling;
-  }
-  return bed;
-}
-
 /// The copies of a boundary that `array` [nx, ny, nz] and `spacing` [m] ask for (ClaymoreUW's boundary arrays):
 /// copy (i, j, k) is translated by (i sx, j sy, k sz), in i-major order; [1, 1, 1] gives the boundary itself.
 template <typename T>
@@ -281,8 +281,9 @@ inline std::vector<BoundaryParams<T>> boundary_array(const BoundaryParams<T>& b,
   return out;
 }
 
-/// Builds the kernel parameters of a boundary on the host. Returns false and an explanation in `error` for a
-/// boundary the engines do not implement yet (other objects), never ignoring a key. Arrays: boundary_array();
+/// Builds the kernel parameters of a generic boundary (expand_boundary() turns facility objects into generic ones)
+/// on the host; a Bathymetry's points go to BoundaryProfiles (RunConstants). Returns false and an explanation in
+/// `error` for a facility object or a boundary without the extents it needs, never ignoring a key. Arrays: boundary_array();
 /// motion files: MotionPath (RunConstants::boundary_at_time).
 template <typename T>
 inline bool make_boundary_params(const BoundarySpec& spec, const SimulationSpec& sim, BoundaryParams<T>& out,
@@ -295,22 +296,23 @@ inline bool make_boundary_params(const BoundarySpec& spec, const SimulationSpec&
     case BoundaryObject::Floor: out.shape = BoundaryShape::Floor; break;
     case BoundaryObject::Plane: out.shape = BoundaryShape::Plane; break;
     case BoundaryObject::Velocity: out.shape = BoundaryShape::Velocity; break;
-    case BoundaryObject::Bathymetry:
-    case BoundaryObject::OSU_LWF_RAMP: out.shape = BoundaryShape::Bathymetry; break;
+    case BoundaryObject::Bathymetry: out.shape = BoundaryShape::Bathymetry; break;
+    case BoundaryObject::Piston: out.shape = BoundaryShape::Piston; break;
+    case BoundaryObject::Pump: out.shape = BoundaryShape::Pump; break;
     default:
-      error = "the boundary object is not implemented (Walls, Box, Sphere, Cylinder, Floor, Plane, Velocity and "
-              "Bathymetry are)";
+      error = "a facility object stands for generic pieces: expand it with expand_boundary() (scene/facilities.h) "
+              "first";
       return false;
   }
   out.profile_first = 0;
   out.profile_count = 0;
-  if (spec.object == BoundaryObject::Bathymetry && spec.bathymetry.size() < 2) {  // the OSU ramp has its own bed
+  if (spec.object == BoundaryObject::Bathymetry && spec.bathymetry.size() < 2) {
     error = "a Bathymetry boundary needs at least two bathymetry points [[x, y], ...]";
     return false;
   }
   bool has_box = true;
   for (int a = 0; a < 3; ++a) has_box = has_box && spec.domain_end[a] > spec.domain_start[a];
-  if (spec.object == BoundaryObject::Bathymetry || spec.object == BoundaryObject::OSU_LWF_RAMP) {
+  if (spec.object == BoundaryObject::Bathymetry) {
     has_box = false;  // the profile spans the domain; domain_start / domain_end are not used
   } else if (spec.object == BoundaryObject::Plane) {
     has_box = spec.domain_end[0] > spec.domain_start[0];  // a line in x, y (it may descend)

@@ -88,7 +88,9 @@ struct AlgorithmSpec {
   double fbar_blend() const { return use_fbar ? fbar_psi : 0.0; }
 };
 
-enum class GeometryObject { Box, Sphere, Cylinder, File };
+/// Bathymetry: water above a bed profile inside the box [offset, offset + span]; OsuLwf / OsuTwb: the same above a
+/// facility's bed (scene/facilities.h), placed at offset.
+enum class GeometryObject { Box, Sphere, Cylinder, File, Bathymetry, OsuLwf, OsuTwb };
 enum class GeometryOperation { Add, Subtract, Union, Intersection, Difference };
 
 struct GeometrySpec {
@@ -109,6 +111,10 @@ struct GeometrySpec {
   bool has_attributes = false;
   std::vector<std::string> input_attribs;
   std::vector<long long> track_particle_id;  ///< ClaymoreUW: ids (local to this entry) appended to the body's list
+  /// [m] Bathymetry: the bed's [x, y] points (absolute); OsuLwf / OsuTwb with use_custom_bathymetry: they replace the
+  /// facility's bed
+  std::vector<std::array<double, 2>> bathymetry;
+  bool use_custom_bathymetry = false;
 };
 
 struct BodySpec {
@@ -134,7 +140,7 @@ struct BodySpec {
 };
 
 enum class BoundaryObject {
-  Walls, Box, Sphere, Cylinder, Plane, Floor, Bathymetry, Velocity,
+  Walls, Box, Sphere, Cylinder, Plane, Floor, Bathymetry, Velocity, Piston, Pump,
   OSU_LWF_RAMP, OSU_LWF_PADDLE, OSU_TWB_RAMP, OSU_TWB_PADDLE, USGS_RAMP, USGS_GATE, WASIRF_PUMP, TOKYO_HARBOR
 };
 enum class Contact { Sticky, Slip, Separable };

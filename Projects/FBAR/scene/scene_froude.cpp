@@ -72,6 +72,15 @@ void apply_froude_scaling(Scene& scene) {
           g.radius *= length;
           break;
         case GeometryObject::File: g.scaling_factor *= length; break;
+        case GeometryObject::Bathymetry:
+        case GeometryObject::OsuLwf:
+        case GeometryObject::OsuTwb:
+          scale3(g.span, length);  // a facility's own bed is scaled where it is placed (geometry.cpp)
+          for (auto& p : g.bathymetry) {
+            p[0] *= length;
+            p[1] *= length;
+          }
+          break;
       }
     }
   }

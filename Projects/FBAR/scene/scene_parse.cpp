@@ -31,6 +31,7 @@
 #include <sstream>
 #include <utility>
 
+#include "geometry/geometry_files.h"
 #include "scene/attributes.h"
 #include "physics/constitutive_models.cuh"
 
@@ -259,7 +260,10 @@ const std::vector<EnumName<OnFailure>> kOnFailure = {{OnFailure::Stop, {"stop"}}
 const std::vector<EnumName<GeometryObject>> kGeometryObjects = {{GeometryObject::Box, {"Box", "Cube"}},
                                                                 {GeometryObject::Sphere, {"Sphere", "Ball"}},
                                                                 {GeometryObject::Cylinder, {"Cylinder"}},
-                                                                {GeometryObject::File, {"File"}}};
+                                                                {GeometryObject::File, {"File"}},
+                                                                {GeometryObject::Bathymetry, {"Bathymetry"}},
+                                                                {GeometryObject::OsuLwf, {"OSU LWF", "OSU_LWF_WATER"}},
+                                                                {GeometryObject::OsuTwb, {"OSU TWB", "OSU_TWB_WATER"}}};
 const std::vector<EnumName<GeometryOperation>> kGeometryOperations = {
     {GeometryOperation::Add, {"Add"}},
     {GeometryOperation::Subtract, {"Subtract"}},
@@ -274,7 +278,9 @@ const std::vector<EnumName<BoundaryObject>> kBoundaryObjects = {
     {BoundaryObject::Cylinder, {"Cylinder"}},
     {BoundaryObject::Plane, {"Plane", "Surface"}},
     {BoundaryObject::Floor, {"Floor"}},
-    {BoundaryObject::Bathymetry, {"Bathymetry"}},
+    {BoundaryObject::Bathymetry, {"Bathymetry", "Bath"}},
+    {BoundaryObject::Piston, {"Piston", "Paddle"}},
+    {BoundaryObject::Pump, {"Pump"}},
     {BoundaryObject::Velocity, {"Velocity", "velocity_boundary"}},
     {BoundaryObject::OSU_LWF_RAMP, {"OSU_LWF_RAMP", "OSU LWF", "OSU Flume", "OSU LWF Bathymetry"}},
     {BoundaryObject::OSU_LWF_PADDLE, {"OSU_LWF_PADDLE", "OSU Paddle", "OSU LWF Piston", "OSU Wave Maker"}},
@@ -350,7 +356,8 @@ const Keys kAlgorithmKeys = {"type",     "ppc",      "CFL",           "use_ASFLI
 const Keys kGeometryKeys = {"object",   "operation", "span",           "offset",         "radius",
                             "axis",     "rotate",    "fulcrum",        "array",          "spacing",
                             "file",     "padding",   "scaling_factor", "scaling",        "use_froude_scaling",
-                            "has_attributes", "input_attribs", "track_particle_id"};
+                            "has_attributes", "input_attribs", "track_particle_id", "bathymetry",
+                            "use_custom_bathymetry"};
 const Keys kBoundaryKeys = {"object",   "contact",  "domain_start",   "domain_end",  "time",
                             "friction_static", "friction_dynamic", "velocity", "file", "output_frequency",
                             "output_freq", "array", "spacing",        "bathymetry",  "use_custom_bathymetry",
@@ -680,6 +687,20 @@ AlgorithmSpec parse_algorithm(ObjectReader* o) {
   return a;
 }
 
+/// A bed profile [[x, y], ...] [m], x strictly increasing.
+std::vector<std::array<double, 2>> read_bed_points(const rj::Value& x, const std::string& bp) {
+  std::vector<std::array<double, 2>> bed;
+  require_array(x, bp, "an array of [x, y] points");
+  for (rj::SizeType i = 0; i < x.Size(); ++i) {
+    const auto pt = read_reals<2>(x[i], index_path(bp, i), kAny, "m");
+    if (!bed.empty() && !(pt[0] > bed.back()[0]))
+      throw SceneError(index_path(index_path(bp, i), 0), num_text(pt[0]),
+                       "a number > the previous point's x (" + num_text(bed.back()[0]) + ")", "m");
+    bed.push_back({pt[0], pt[1]});
+  }
+  return bed;
+}
+
 GeometrySpec parse_geometry(const rj::Value& v, const std::string& path, const Context& ctx) {
   GeometrySpec g;
   ObjectReader o(v, path, kGeometryKeys, ctx, "bodies[].geometry[]");
@@ -703,8 +724,24 @@ GeometrySpec parse_geometry(const rj::Value& v, const std::string& path, const C
 
   // Shape keys.
   Real3 sphere_span{};  // checked against the radius only: a sphere is offset + radius
-  if (g.object == GeometryObject::Box) {
+  const bool is_bed = g.object == GeometryObject::Bathymetry || g.object == GeometryObject::OsuLwf ||
+                      g.object == GeometryObject::OsuTwb;
+  if (g.object == GeometryObject::Box || is_bed) {
     if (auto* x = o.get("span")) g.span = read_real3(*x, o.sub("span"), kPositive, "m");
+  }
+  if (is_bed) {
+    // Read for Bathymetry too (ClaymoreUW's scenes set it there), where the points are always used.
+    if (auto* x = o.get("use_custom_bathymetry")) g.use_custom_bathymetry = read_bool(*x, o.sub("use_custom_bathymetry"));
+    if (auto* x = o.get("bathymetry")) g.bathymetry = read_bed_points(*x, o.sub("bathymetry"));
+    if (g.object == GeometryObject::Bathymetry && g.bathymetry.size() < 2)
+      throw SceneError(o.sub("bathymetry"), g.bathymetry.empty() ? "(missing)" : "1 point",
+                       "at least 2 [x, y] points: a Bathymetry body is the water above the bed through them", "m");
+    if (g.object != GeometryObject::Bathymetry && g.use_custom_bathymetry && g.bathymetry.size() < 2)
+      throw SceneError(o.sub("bathymetry"), g.bathymetry.empty() ? "(missing)" : "1 point",
+                       "at least 2 [x, y] points when use_custom_bathymetry is true", "m");
+    if (g.object != GeometryObject::Bathymetry && !g.use_custom_bathymetry && !g.bathymetry.empty())
+      throw SceneError(o.sub("use_custom_bathymetry"), "false",
+                       "true when bathymetry points are given (they replace the facility's bed only then)");
   }
   if (g.object == GeometryObject::Sphere) {
     // ClaymoreUW clips a sphere to the box [offset, offset + span]; fbar samples the whole sphere. Both agree when
@@ -746,6 +783,8 @@ GeometrySpec parse_geometry(const rj::Value& v, const std::string& path, const C
     const rj::Value* x = o.get("file");
     if (!x) o.missing("file", "a file path for object File");
     g.file = ctx.resolve_file(*x, o.sub("file"));
+    if (geometry_file_kind(g.file) == GeometryFileKind::Unknown)
+      throw SceneError(o.sub("file"), json_text(*x), std::string("a file ending in ") + geometry_file_extensions());
     if (auto* p = o.get("padding")) g.padding = read_int(*p, o.sub("padding"), at_least(1), "cells");
     if (auto f = o.get_any({"scaling_factor", "scaling"})) g.scaling_factor = read_number(*f.value, f.path, kPositive, "-");
     if (auto* h = o.get("has_attributes")) g.has_attributes = read_bool(*h, o.sub("has_attributes"));
@@ -753,6 +792,11 @@ GeometrySpec parse_geometry(const rj::Value& v, const std::string& path, const C
     if (g.has_attributes && g.input_attribs.empty())
       throw SceneError(o.sub("input_attribs"), "(missing or empty)",
                        "the attribute names to read from the file when has_attributes is true");
+    if (!g.has_attributes && !g.input_attribs.empty())  // ClaymoreUW reads them and then zeroes them
+      ctx.warn(o.sub("input_attribs") + ": ignored (has_attributes is false: only positions are read)");
+    if (g.padding != 1 && geometry_file_kind(g.file) != GeometryFileKind::Sdf)
+      throw SceneError(o.sub("padding"), std::to_string(g.padding), "no padding for a point file (it places an .sdf)",
+                       "cells");
   }
   const std::string object_name = to_string(g.object);
   o.finish([&](std::string_view key) { return "no " + std::string(key) + " for object " + object_name; });
@@ -933,17 +977,7 @@ BoundarySpec parse_boundary(const rj::Value& v, const std::string& path, const C
                               b.object == BoundaryObject::OSU_TWB_RAMP || b.object == BoundaryObject::USGS_RAMP;
   if (has_bathymetry) {
     if (auto* x = o.get("use_custom_bathymetry")) b.use_custom_bathymetry = read_bool(*x, o.sub("use_custom_bathymetry"));
-    if (auto* x = o.get("bathymetry")) {
-      const std::string bp = o.sub("bathymetry");
-      require_array(*x, bp, "an array of [x, y] points");
-      for (rj::SizeType i = 0; i < x->Size(); ++i) {
-        const auto pt = read_reals<2>((*x)[i], index_path(bp, i), kAny, "m");
-        if (!b.bathymetry.empty() && !(pt[0] > b.bathymetry.back()[0]))
-          throw SceneError(index_path(index_path(bp, i), 0), num_text(pt[0]),
-                           "a number > the previous point's x (" + num_text(b.bathymetry.back()[0]) + ")", "m");
-        b.bathymetry.push_back({pt[0], pt[1]});
-      }
-    }
+    if (auto* x = o.get("bathymetry")) b.bathymetry = read_bed_points(*x, o.sub("bathymetry"));
     if (b.object == BoundaryObject::Bathymetry && b.bathymetry.size() < 2)  // ClaymoreUW: silently nothing
       throw SceneError(o.sub("bathymetry"), b.bathymetry.empty() ? "(missing)" : "1 point",
                        "at least 2 [x, y] points: a Bathymetry boundary is the bed through them", "m");
@@ -951,6 +985,10 @@ BoundarySpec parse_boundary(const rj::Value& v, const std::string& path, const C
       throw SceneError(o.sub("bathymetry"), b.bathymetry.empty() ? "(missing)" : "1 point",
                        "at least 2 [x, y] points when use_custom_bathymetry is true", "m");
   }
+  if ((b.object == BoundaryObject::Pump || b.object == BoundaryObject::WASIRF_PUMP) &&
+      b.velocity == Real3{0.0, 0.0, 0.0})
+    throw SceneError(o.sub("velocity"), o.get("velocity") ? "[0, 0, 0]" : "(missing)",
+                     "the flow velocity the pump drives, not zero", "m/s");
   read_type_label(o, "grid");
   const std::string object_name = to_string(b.object);
   o.finish([&](std::string_view key) {

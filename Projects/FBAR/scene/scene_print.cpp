@@ -82,6 +82,13 @@ std::string geometry_line(const GeometrySpec& g) {
     case GeometryObject::File:
       s += " file " + g.file + ", padding " + std::to_string(g.padding) + ", scaling_factor " + num(g.scaling_factor) + ",";
       break;
+    case GeometryObject::Bathymetry:
+    case GeometryObject::OsuLwf:
+    case GeometryObject::OsuTwb:
+      s += " span " + vec(g.span) + " m above " +
+           (g.bathymetry.empty() ? std::string("the facility's bed")
+                                 : std::to_string(g.bathymetry.size()) + " bed points") + ",";
+      break;
   }
   s += " offset " + vec(g.offset) + " m";
   if (g.rotate != Real3{0.0, 0.0, 0.0}) s += ", rotate " + vec(g.rotate) + " deg about " + vec(g.fulcrum) + " m";

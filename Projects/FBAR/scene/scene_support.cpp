@@ -1,9 +1,9 @@
 // The release policy, in one place: which parsed and validated scene features this build's engine can run.
 //
 // Both engines run every material of MaterialTypes (constitutive_models.cuh); APIC/MLS transfers, PIC-FLIP / ASFLIP
-// and F-bar; Box / Sphere / Cylinder geometry with every operation,
-// rotation and arrays; Walls, Box, Sphere, Cylinder, Floor, Plane and Velocity boundaries (Sticky / Slip / Separable, Coulomb friction,
-// constant velocity, any time window);
+// and F-bar; Box / Sphere / Cylinder / Bathymetry / OSU LWF / OSU TWB geometry and File geometry (.sdf solids; .csv,
+// .pos, .bgeo, .h5 positions) with every operation, rotation and arrays; every boundary object (Sticky / Slip /
+// Separable, Coulomb friction, constant velocity or motion files, any time window);
 // .bgeo / .geo / .csv frames with the attributes cpu_engine_supports_attribute() accepts; grid sensors of Force,
 // Acceleration, Momentum, Velocity and Mass; particle sensors of every particle quantity frames write. Everything else SCHEMA.md lists is parsed
 // and range-checked by scene_parse.cpp, then refused here. A later release enables a feature by deleting its line.
@@ -58,8 +58,9 @@ void check_supported(const Scene& scene) {
     for (std::size_t j = 0; j < b.geometry.size(); ++j) {
       const GeometrySpec& g = b.geometry[j];
       const std::string gp = p + "." + idx("geometry", j);
-      if (g.object == GeometryObject::File)
-        refuse(gp + ".object", q("File"), "Box, Sphere or Cylinder", "geometry object File");
+      if (g.object == GeometryObject::File && g.has_attributes)
+        refuse(gp + ".has_attributes", "true", "false (positions only)",
+               "reading particle attributes from a geometry file (has_attributes)");
       if (!g.track_particle_id.empty())
         refuse(gp + ".track_particle_id", std::to_string(g.track_particle_id.size()) + " id(s)", "an empty list",
                "track_particle_id (particle tracking)");
@@ -108,17 +109,7 @@ void check_supported(const Scene& scene) {
                              why.substr(why.find(": ") + 2) + ")");
       }
     }
-    switch (b.object) {
-      case BoundaryObject::Walls: case BoundaryObject::Box: case BoundaryObject::Sphere:
-      case BoundaryObject::Cylinder: case BoundaryObject::Floor: case BoundaryObject::Plane:
-      case BoundaryObject::Velocity: case BoundaryObject::Bathymetry: case BoundaryObject::OSU_LWF_RAMP:
-        break;
-      default:
-        refuse(p + ".object", q(to_string(b.object)),
-               "Walls, Box, Sphere, Cylinder, Floor, Plane, Velocity, Bathymetry or OSU_LWF_RAMP",
-               std::string("boundary object ") + to_string(b.object));
-    }
-
+    // Every object runs: facility objects are built from generic pieces (scene/facilities.h expand_boundary).
   }
   make_trackers(scene);  // throws for too many IDs or attributes, or an attribute a body does not have
   int enabled = 0;

@@ -52,6 +52,9 @@ const char* to_string(GeometryObject o) {
     case GeometryObject::Sphere: return "Sphere";
     case GeometryObject::Cylinder: return "Cylinder";
     case GeometryObject::File: return "File";
+    case GeometryObject::Bathymetry: return "Bathymetry";
+    case GeometryObject::OsuLwf: return "OSU LWF";
+    case GeometryObject::OsuTwb: return "OSU TWB";
   }
   return "?";
 }
@@ -75,6 +78,8 @@ const char* to_string(BoundaryObject o) {
     case BoundaryObject::Floor: return "Floor";
     case BoundaryObject::Bathymetry: return "Bathymetry";
     case BoundaryObject::Velocity: return "Velocity";
+    case BoundaryObject::Piston: return "Piston";
+    case BoundaryObject::Pump: return "Pump";
     case BoundaryObject::OSU_LWF_RAMP: return "OSU_LWF_RAMP";
     case BoundaryObject::OSU_LWF_PADDLE: return "OSU_LWF_PADDLE";
     case BoundaryObject::OSU_TWB_RAMP: return "OSU_TWB_RAMP";
@@ -294,6 +299,23 @@ class SceneWriter {
         num("scaling_factor", g.scaling_factor);
         boolean("has_attributes", g.has_attributes);
         names("input_attribs", g.input_attribs);
+        break;
+      case GeometryObject::Bathymetry:
+      case GeometryObject::OsuLwf:
+      case GeometryObject::OsuTwb:
+        reals("span", g.span);
+        if (g.object != GeometryObject::Bathymetry) boolean("use_custom_bathymetry", g.use_custom_bathymetry);
+        if (!g.bathymetry.empty()) {
+          key("bathymetry");
+          w_.StartArray();
+          for (const auto& p : g.bathymetry) {
+            w_.StartArray();
+            w_.Double(p[0]);
+            w_.Double(p[1]);
+            w_.EndArray();
+          }
+          w_.EndArray();
+        }
         break;
     }
     reals("offset", g.offset);

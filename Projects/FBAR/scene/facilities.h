@@ -1,0 +1,68 @@
+// The experimental facilities that ClaymoreUW's scenes name, as data: bed profiles (x along the flume from the
+// wave-maker's neutral position, y above the flume floor, metres at full scale) that Bathymetry boundaries and
+// water-body geometry share, so that a body of water sits exactly on the bed that holds it. Nothing here reaches a
+// kernel: boundary.cuh and geometry.cpp turn these points into the generic Bathymetry profile and CSG solid.
+//
+// Sources and what is approximate (user guide §2.7, "Facility objects"):
+//  * OSU Large Wave Flume (LWF, Oregon State University, 104 m x 3.7 m x 4.6 m): the stations of the ClaymoreUW
+//    validation (VALIDATION.md): flat to 17.925 m (a break at 14.275 m kept as a point), 1:12 up to 3 ft (0.9144 m)
+//    at 28.9 m, 1:24 up to 5 ft (1.524 m) at 43.525 m, flat to 80.1 m, 1:12 up to 7 ft (2.1336 m) at 87.45 m, flat
+//    beyond. Straight segments between published stations: the as-built concrete bed differs by centimetres.
+//    ClaymoreUW's own tables raise this bed by 0.225 m and shift it by 0.1 m (geometry) or 2 m (boundary); fbar keeps
+//    one bed for both, placed by the scene.
+//  * OSU Tsunami Wave Basin (TWB, 48.8 m x 26.5 m x 2.1 m): flat to 11.3 m, 1:20 up to 1.0 m at 31.3 m, flat to
+//    41.3 m (ClaymoreUW's tables); flat beyond (ClaymoreUW drops to 0 after 41.3 m, behind the basin's end wall).
+//  * USGS debris-flow flume (H.J. Andrews, 95 m long, 2 m wide): the flume bed is flat (y = 0) to 80 m in the flume's
+//    own frame (tilt it with gravity), then the run-out pad bends up: 1:5.675 to 81.25 m, 1:2.747 to 82.5 m, then
+//    1:1.732 (ClaymoreUW's tables; its 1.25 / 5.675 m step is not Froude-scaled there, which fbar corrects). fbar
+//    ends the last slope at 100 m (a profile is flat beyond its last point).
+#pragma once
+
+#include <array>
+#include <vector>
+
+#include "scene/scene.h"
+
+namespace fbar {
+
+using BedPoints = std::vector<std::array<double, 2>>;
+
+inline BedPoints osu_lwf_bathymetry() {
+  return {{0.0, 0.0},      {14.275, 0.0}, {17.925, 0.0},  {28.9, 0.9144},
+          {43.525, 1.524}, {80.1, 1.524}, {87.45, 2.1336}};
+}
+
+inline BedPoints osu_twb_bathymetry() { return {{0.0, 0.0}, {11.3, 0.0}, {31.3, 1.0}, {41.3, 1.0}}; }
+
+inline BedPoints usgs_ramp_bathymetry() {
+  const double y1 = 1.25 / 5.675, y2 = y1 + 1.25 / 2.747;
+  return {{0.0, 0.0}, {80.0, 0.0}, {81.25, y1}, {82.5, y2}, {100.0, y2 + 17.5 / 1.732}};
+}
+
+/// A facility bed scaled by the Froude factor s and placed with its origin at (x0, y0).
+inline BedPoints place_bed(BedPoints bed, double s, double x0, double y0) {
+  for (auto& p : bed) {
+    p[0] = x0 + p[0] * s;
+    p[1] = y0 + p[1] * s;
+  }
+  return bed;
+}
+
+/// Height of the piecewise-linear bed through `bed` (x increasing, at least one point) at x; flat beyond the ends.
+inline double bed_height(const BedPoints& bed, double x) {
+  if (x <= bed.front()[0]) return bed.front()[1];
+  if (x >= bed.back()[0]) return bed.back()[1];
+  std::size_t i = 0;
+  while (i + 2 < bed.size() && x >= bed[i + 1][0]) ++i;
+  const double ex = bed[i + 1][0] - bed[i][0];
+  return bed[i][1] + (x - bed[i][0]) / ex * (bed[i + 1][1] - bed[i][1]);
+}
+
+/// The generic boundaries (Walls, Box, ..., Bathymetry, Piston, Pump) a boundary entry stands for: a generic object
+/// is itself; a facility object (OSU_LWF_RAMP, OSU_LWF_PADDLE, OSU_TWB_RAMP, OSU_TWB_PADDLE, USGS_RAMP, USGS_GATE,
+/// WASIRF_PUMP, TOKYO_HARBOR) becomes the generic pieces that build it, placed by its domain_start / domain_end and
+/// Froude-scaled by `sim` (user guide §2.7 lists each). The pieces keep the entry's contact, friction, time window,
+/// velocity, motion file and array; the engines see only generic shapes.
+std::vector<BoundarySpec> expand_boundary(const BoundarySpec& spec, const SimulationSpec& sim);
+
+}  // namespace fbar
