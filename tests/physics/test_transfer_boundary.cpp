@@ -288,7 +288,9 @@ TEST(Boundary, FloorAndDescendingPlane) {
   EXPECT_EQ(apply_boundary(floor, Vec3d{{0.5, 0.15, 0.5}}, kV), kV);
   // A 45-degree ramp descending from (0, 1) to (1, 0): normal (1, 1)/sqrt(2).
   const auto ramp = make(BoundaryObject::Plane, Contact::Slip, {0.0, 1.0, 0.0}, {1.0, 0.0, 1.0});
-  EXPECT_EQ(apply_boundary(ramp, Vec3d{{0.5, 0.6, 0.5}}, kV), kV);  // above the line
+  EXPECT_EQ(apply_boundary(ramp, Vec3d{{0.5, 0.65, 0.5}}, kV), kV);  // above the line and its one-cell band
+  // Within the band (0.07 above the line, dx = 0.1): moving into the ramp, its normal part is removed.
+  EXPECT_FALSE(apply_boundary(ramp, Vec3d{{0.5, 0.6, 0.5}}, kV) == kV);
   const Vec3d v = apply_boundary(ramp, Vec3d{{0.5, 0.4, 0.5}}, Vec3d{{-1.0, -1.0, 0.3}});
   EXPECT_NEAR(v[0], 0.0, 1e-15);
   EXPECT_NEAR(v[1], 0.0, 1e-15);
@@ -338,7 +340,8 @@ TEST(Boundary, BathymetryFollowsItsProfile) {
   profiles.count = 3;
   EXPECT_EQ(apply_boundary(b, Vec3d{{0.1, 0.15, 0.5}}, kV, &profiles), kV);  // above the flat start
   EXPECT_EQ(apply_boundary(b, Vec3d{{0.1, 0.05, 0.5}}, kV, &profiles), (Vec3d{{0.3, 0.0, 0.2}}));
-  EXPECT_EQ(apply_boundary(b, Vec3d{{0.4, 0.25, 0.5}}, kV, &profiles), kV);  // above the slope (bed 0.2 there)
+  EXPECT_EQ(apply_boundary(b, Vec3d{{0.4, 0.32, 0.5}}, kV, &profiles), kV);  // a cell above the slope (bed 0.2)
+  EXPECT_FALSE(apply_boundary(b, Vec3d{{0.4, 0.25, 0.5}}, kV, &profiles) == kV);  // in its band (dx = 0.1)
   // Below the slope: moving along +x runs into it; the component along its normal (-1, 2)/sqrt(5) is removed:
   // (2, 0) - (-2/sqrt(5)) (-1, 2)/sqrt(5) = (1.6, 0.8), along the slope.
   const Vec3d v = apply_boundary(b, Vec3d{{0.4, 0.15, 0.5}}, Vec3d{{2.0, 0.0, 0.3}}, &profiles);
@@ -367,11 +370,13 @@ TEST(Boundary, OsuLwfRampIsTheFlumeBed) {
     const RunConstants<double> k(scene, "test");
     ASSERT_EQ(k.boundaries.size(), 1u);
     const BoundaryParams<double>& b = k.boundaries[0];
-    // (station x, bed height) from VALIDATION.md; a node 1 mm below the bed is projected, 1 mm above is not.
+    // (station x, bed height) from VALIDATION.md; a node 1 mm below the bed is projected, one that is more than a
+    // cell above it (the band over slopes, kBedLayerCells) is not.
     for (const auto& [x, y] : std::vector<std::pair<double, double>>{
              {10.0, 0.0}, {28.9, 0.9144}, {36.2125, 0.9144 + (1.524 - 0.9144) / 2}, {60.0, 1.524}, {95.0, 2.1336}}) {
       const double xs = 1.0 + x * s, ys = 0.5 + y * s;
-      EXPECT_EQ(apply_boundary(b, Vec3d{{xs, ys + 1e-3 * s, 0.5}}, kV, &k.profiles), kV) << s << " " << x;
+      EXPECT_EQ(apply_boundary(b, Vec3d{{xs, ys + scene.simulation.dx + 1e-3 * s, 0.5}}, kV, &k.profiles), kV)
+          << s << " " << x;
       EXPECT_FALSE(apply_boundary(b, Vec3d{{xs, ys - 1e-3 * s, 0.5}}, kV, &k.profiles) == kV) << s << " " << x;
     }
   }
@@ -583,7 +588,8 @@ TEST(FacilityBoundary, RampsFollowTheFacilityStations) {
       const RunConstants<double> k(scene, "test");
       for (const auto& [x, y] : c.stations) {
         const double xs = (1.0 + x) * s, ys = (0.5 + y) * s;
-        EXPECT_EQ(after_boundaries(k, Vec3d{{xs, ys + 1e-3 * s, 1.0}}, kV, 0.0), kV) << to_string(c.object) << x;
+        EXPECT_EQ(after_boundaries(k, Vec3d{{xs, ys + scene.simulation.dx + 1e-3 * s, 1.0}}, kV, 0.0), kV)
+            << to_string(c.object) << x;
         EXPECT_FALSE(after_boundaries(k, Vec3d{{xs, ys - 1e-3 * s, 1.0}}, kV, 0.0) == kV) << to_string(c.object) << x;
       }
     }
