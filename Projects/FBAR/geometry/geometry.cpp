@@ -397,11 +397,22 @@ BodySampler::BodySampler(const BodySpec& body, const SimulationSpec& sim, int bo
   part_hi_ = to_vec(body.partition_end);
   domain_ = Vec3d{{sim.domain[0], sim.domain[1], sim.domain[2]}};
   // Point-file particles: the partition clip (half-open, as the lattice) and the later entries' operations.
-  for (const BodyShape::PointSet& set : shape_->point_sets())
-    for (const Vec3d& p : set.points)
-      if (p[0] >= part_lo_[0] && p[0] < part_hi_[0] && p[1] >= part_lo_[1] && p[1] < part_hi_[1] &&
-          p[2] >= part_lo_[2] && p[2] < part_hi_[2] && shape_->survives(p, set.entry))
-        points_.push_back(p);
+  for (BodyShape::PointSet& set : shape_->take_point_sets()) {
+    std::vector<Vec3d>& pts = set.points;
+    pts.erase(std::remove_if(pts.begin(), pts.end(),
+                             [&](const Vec3d& p) {
+                               return !(p[0] >= part_lo_[0] && p[0] < part_hi_[0] && p[1] >= part_lo_[1] &&
+                                        p[1] < part_hi_[1] && p[2] >= part_lo_[2] && p[2] < part_hi_[2] &&
+                                        shape_->survives(p, set.entry));
+                             }),
+              pts.end());
+    if (points_.empty()) {
+      points_ = std::move(pts);
+    } else {
+      points_.insert(points_.end(), pts.begin(), pts.end());
+      std::vector<Vec3d>().swap(pts);
+    }
+  }
   point_chunks_ = (static_cast<long long>(points_.size()) + kPointChunk - 1) / kPointChunk;
   Aabb box = shape_->bounds();
   for (int d = 0; d < 3; ++d) {

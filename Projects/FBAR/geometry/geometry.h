@@ -86,12 +86,17 @@ class BodyShape {
   const Aabb& bounds() const { return bounds_; }
 
   /// The particles of a point-file entry (geometry_files.h), every copy, in world coordinates [m], in file order
-  /// (copies i-major), before the operations of later entries.
+  /// (copies i-major), before the operations of later entries and the partition clip.
   struct PointSet {
     std::size_t entry = 0;
     std::vector<Vec3d> points;
   };
-  const std::vector<PointSet>& point_sets() const { return point_sets_; }
+  /// Hands the point sets over (the sampler keeps only the particles that survive; a large file is not held twice).
+  std::vector<PointSet> take_point_sets() {
+    std::vector<PointSet> sets = std::move(point_sets_);
+    point_sets_.clear();
+    return sets;
+  }
   /// Does a particle of entry `entry` (a point file, added when its entry comes) survive the later entries'
   /// operations (Subtract, Intersection, ...)?
   bool survives(const Vec3d& p, std::size_t entry) const;

@@ -240,23 +240,21 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
       const T* px = profiles->x + b.profile_first;
       const T* py = profiles->y + b.profile_first;
       const int last = b.profile_count - 1;
-      T surface, ex = T(1), ey = T(0);
-      if (x_node[0] <= px[0]) {
-        surface = py[0];
-      } else if (x_node[0] >= px[last]) {
-        surface = py[last];
-      } else {
-        int i = 0;
-        while (i + 1 < last && x_node[0] >= px[i + 1]) ++i;
+      int i;
+      bool on_segment;
+      const T surface = bed_surface(px, py, b.profile_count, x_node[0], i, on_segment);
+      T ex = T(1), ey = T(0);
+      if (on_segment) {
         ex = px[i + 1] - px[i];
         ey = py[i + 1] - py[i];
-        surface = py[i] + (x_node[0] - px[i]) / ex * ey;
       }
       // Within b.layer (kBedLayerCells) of a sloped segment the bed holds a band of nodes up to b.layer above it; a
-      // flat stretch, aligned with the grid, needs none.
+      // flat stretch, aligned with the grid, needs none. The segments reaching into [x - layer, x + layer] are the
+      // ones next to segment i: scanned outwards from it.
       bool sloped = false;
-      for (int j = 0; j < last && !sloped; ++j)
-        sloped = py[j + 1] != py[j] && px[j] < x_node[0] + b.layer && px[j + 1] > x_node[0] - b.layer;
+      for (int j = i; j >= 0 && !sloped && px[j + 1] > x_node[0] - b.layer; --j)
+        sloped = py[j + 1] != py[j] && px[j] < x_node[0] + b.layer;
+      for (int j = i + 1; j < last && !sloped && px[j] < x_node[0] + b.layer; ++j) sloped = py[j + 1] != py[j];
       if (x_node[1] > surface + (sloped ? b.layer : T(0))) return v;  // above the bed: the material's side
       const T length = sqrt(ex * ex + ey * ey);
       Vec3<T> n = Vec3<T>::zero();

@@ -21,6 +21,7 @@
 #include <array>
 #include <vector>
 
+#include "MnBase/Meta/config.h"
 #include "scene/scene.h"
 
 namespace fbar {
@@ -48,14 +49,25 @@ inline BedPoints place_bed(BedPoints bed, double s, double x0, double y0) {
   return bed;
 }
 
-/// Height of the piecewise-linear bed through `bed` (x increasing, at least one point) at x; flat beyond the ends.
+/// The piecewise-linear bed through n >= 2 points (x increasing; point k at px[k stride], py[k stride]), flat
+/// beyond the ends, at x: its height; `i` is the segment that holds x (0 .. n-2, the end segment for an x outside)
+/// and `on_segment` whether x lies strictly between the first and last point. Host and device (boundary.cuh's
+/// Bathymetry, geometry.cpp's bed bodies).
+template <typename T>
+FBAR_HOST_DEVICE inline T bed_surface(const T* px, const T* py, int n, T x, int& i, bool& on_segment, int stride = 1) {
+  i = 0;
+  while (i + 2 < n && x >= px[(i + 1) * stride]) ++i;
+  on_segment = x > px[0] && x < px[(n - 1) * stride];
+  if (!on_segment) return x <= px[0] ? py[0] : py[(n - 1) * stride];
+  const T x0 = px[i * stride], y0 = py[i * stride];
+  return y0 + (x - x0) / (px[(i + 1) * stride] - x0) * (py[(i + 1) * stride] - y0);
+}
+
+/// Height of the bed through `bed` (at least two points) at x.
 inline double bed_height(const BedPoints& bed, double x) {
-  if (x <= bed.front()[0]) return bed.front()[1];
-  if (x >= bed.back()[0]) return bed.back()[1];
-  std::size_t i = 0;
-  while (i + 2 < bed.size() && x >= bed[i + 1][0]) ++i;
-  const double ex = bed[i + 1][0] - bed[i][0];
-  return bed[i][1] + (x - bed[i][0]) / ex * (bed[i + 1][1] - bed[i][1]);
+  int i;
+  bool on_segment;
+  return bed_surface(&bed[0][0], &bed[0][1], static_cast<int>(bed.size()), x, i, on_segment, 2);
 }
 
 /// The generic boundaries (Walls, Box, ..., Bathymetry, Piston, Pump) a boundary entry stands for: a generic object

@@ -783,8 +783,6 @@ GeometrySpec parse_geometry(const rj::Value& v, const std::string& path, const C
     const rj::Value* x = o.get("file");
     if (!x) o.missing("file", "a file path for object File");
     g.file = ctx.resolve_file(*x, o.sub("file"));
-    if (geometry_file_kind(g.file) == GeometryFileKind::Unknown)
-      throw SceneError(o.sub("file"), json_text(*x), std::string("a file ending in ") + geometry_file_extensions());
     if (auto* p = o.get("padding")) g.padding = read_int(*p, o.sub("padding"), at_least(1), "cells");
     if (auto f = o.get_any({"scaling_factor", "scaling"})) g.scaling_factor = read_number(*f.value, f.path, kPositive, "-");
     if (auto* h = o.get("has_attributes")) g.has_attributes = read_bool(*h, o.sub("has_attributes"));

@@ -146,6 +146,18 @@ class SceneWriter {
     for (double x : v) w_.Double(x);
     w_.EndArray();
   }
+  /// [[x, y], ...] (bed profiles)
+  void points(const char* k, const std::vector<std::array<double, 2>>& v) {
+    key(k);
+    w_.StartArray();
+    for (const auto& p : v) {
+      w_.StartArray();
+      w_.Double(p[0]);
+      w_.Double(p[1]);
+      w_.EndArray();
+    }
+    w_.EndArray();
+  }
   void ints(const char* k, const Int3& v) {
     key(k);
     w_.StartArray();
@@ -305,17 +317,7 @@ class SceneWriter {
       case GeometryObject::OsuTwb:
         reals("span", g.span);
         if (g.object != GeometryObject::Bathymetry) boolean("use_custom_bathymetry", g.use_custom_bathymetry);
-        if (!g.bathymetry.empty()) {
-          key("bathymetry");
-          w_.StartArray();
-          for (const auto& p : g.bathymetry) {
-            w_.StartArray();
-            w_.Double(p[0]);
-            w_.Double(p[1]);
-            w_.EndArray();
-          }
-          w_.EndArray();
-        }
+        if (!g.bathymetry.empty()) points("bathymetry", g.bathymetry);
         break;
     }
     reals("offset", g.offset);
@@ -349,15 +351,7 @@ class SceneWriter {
                                 b.object == BoundaryObject::OSU_TWB_RAMP || b.object == BoundaryObject::USGS_RAMP;
     if (has_bathymetry) {
       boolean("use_custom_bathymetry", b.use_custom_bathymetry);
-      key("bathymetry");
-      w_.StartArray();
-      for (const auto& p : b.bathymetry) {
-        w_.StartArray();
-        w_.Double(p[0]);
-        w_.Double(p[1]);
-        w_.EndArray();
-      }
-      w_.EndArray();
+      points("bathymetry", b.bathymetry);
     }
     w_.EndObject();
   }
