@@ -211,6 +211,128 @@ TEST(FileGeometry, PointFilesInEveryFormatArePlacedLikeShapes) {
   EXPECT_EQ(static_cast<long long>(count.per_plane.size()), sampler.planes());
 }
 
+// has_attributes: named values come with the positions from a .csv header, a .bgeo and an .h5, whatever their order
+// in the file; a missing name is an error that lists what the file holds.
+TEST(FileGeometry, AttributesAreReadByNameInEveryFormat) {
+  const fs::path dir = temp_dir();
+  io::ParticleFrame frame;
+  frame.positions = std::vector<Vec3d>{Vec3d{{0.1, 0.2, 0.3}}, Vec3d{{0.4, 0.5, 0.6}}, Vec3d{{0.7, 0.8, 0.9}}};
+  frame.add("ID", 1, std::vector<std::int32_t>{0, 1, 2});
+  frame.add("Velocity_X", 1, std::vector<float>{1.5f, -2.0f, 0.25f}, "m/s");
+  frame.add("J", 1, std::vector<float>{0.99f, 1.0f, 1.01f});
+  frame.add("DefGrad_Determinant_FBAR", 1, std::vector<float>{0.98f, 0.97f, 0.96f});
+  io::write_bgeo(dir / "a.bgeo", frame);
+  io::write_h5(dir / "a.h5", frame);
+  io::write_csv(dir / "a.csv", frame);
+  const std::vector<std::string> names = {"J", "ID", "Velocity_X", "JBar"};
+  const std::vector<std::string> aliases = {"DefGrad_Determinant", "", "", "DefGrad_Determinant_FBAR"};
+  for (const char* name : {"a.bgeo", "a.h5", "a.csv"}) {
+    std::vector<double> values;
+    const std::vector<Vec3d> x = read_point_file((dir / name).string(), names, aliases, values);
+    ASSERT_EQ(x.size(), 3u) << name;
+    ASSERT_EQ(values.size(), 12u) << name;
+    for (std::size_t p = 0; p < 3; ++p) {
+      EXPECT_FLOAT_EQ(static_cast<float>(values[4 * p + 0]), std::get<0>(frame.attributes[2].values)[p]) << name;
+      EXPECT_EQ(values[4 * p + 1], static_cast<double>(p)) << name;
+      EXPECT_FLOAT_EQ(static_cast<float>(values[4 * p + 2]), std::get<0>(frame.attributes[1].values)[p]) << name;
+      EXPECT_FLOAT_EQ(static_cast<float>(values[4 * p + 3]), std::get<0>(frame.attributes[3].values)[p]) << name;
+    }
+    std::vector<double> none;
+    try {
+      read_point_file((dir / name).string(), {"logJp"}, {""}, none);
+      ADD_FAILURE() << name << ": a missing attribute was accepted";
+    } catch (const std::runtime_error& e) {
+      const std::string m = e.what();
+      EXPECT_NE(m.find("named logJp"), std::string::npos) << m;
+      EXPECT_NE(m.find("Velocity_X"), std::string::npos) << m;  // what the file holds
+    }
+  }
+  {
+    std::ofstream plain(dir / "plain.csv");
+    plain << "0.1,0.2,0.3,1\n";
+    std::ofstream pos(dir / "p.pos");
+    pos << "0.1 0.2 0.3\n";
+  }
+  std::vector<double> v;
+  EXPECT_THROW(read_point_file((dir / "plain.csv").string(), {"J"}, {""}, v), std::runtime_error);  // no header
+  EXPECT_THROW(read_point_file((dir / "p.pos").string(), {"J"}, {""}, v), std::runtime_error);
+}
+
+// The seeds of a placed file: velocities turn with the entry's rotation and scale with Froude (s^0.5), F turns as
+// R F R^T, and they follow their particles through the partition clip and the array copies.
+TEST(FileGeometry, SeedsFollowRotationFroudeScalingAndClipping) {
+  const fs::path dir = temp_dir();
+  {
+    std::ofstream csv(dir / "s.csv");
+    csv << "Position_X,Position_Y,Position_Z,Velocity_X,Velocity_Y,Velocity_Z,DefGrad_XX,DefGrad_XY,DefGrad_XZ,"
+           "DefGrad_YX,DefGrad_YY,DefGrad_YZ,DefGrad_ZX,DefGrad_ZY,DefGrad_ZZ,logJp\n";
+    csv << "0,0,0, 1,0,0, 2,0,0, 0,1,0, 0,0,1, -0.1\n";
+    csv << "0.1,0,0, 0,3,0, 1,0,0, 0,1,0, 0,0,1, -0.2\n";
+  }
+  SimulationSpec sim = make_sim(0.05);
+  sim.froude_scaling = 4.0;
+  GeometrySpec g = file_entry(dir / "s.csv", {0.2, 0.2, 0.2});
+  g.has_attributes = true;
+  g.input_attribs = {"Velocity_X", "Velocity_Y", "Velocity_Z", "DefGrad_XX", "DefGrad_XY", "DefGrad_XZ",
+                     "DefGrad_YX", "DefGrad_YY", "DefGrad_YZ", "DefGrad_ZX", "DefGrad_ZY", "DefGrad_ZZ", "logJp"};
+  g.rotate = {0, 0, 90};
+  g.fulcrum = {0.2, 0.2, 0.2};
+  g.array = {1, 1, 2};
+  g.spacing = {0, 0, 0.3};
+  BodySpec body = make_body({g});
+  ParticleSeeds seeds;
+  std::vector<Vec3d> x = sample_body(body, sim, 0, &seeds);
+  ASSERT_EQ(x.size(), 4u);
+  ASSERT_EQ(seeds.size(), 4u);
+  EXPECT_EQ(seeds.first, 0);
+  for (std::size_t c = 0; c < 2; ++c) {
+    const double* a = seeds.at(2 * c);      // v (1, 0, 0) -> R v = (0, 1, 0), x 2 (Froude 4)
+    const double* b = seeds.at(2 * c + 1);  // v (0, 3, 0) -> (-3, 0, 0) x 2
+    EXPECT_NEAR(a[kSeedVelocity + 0], 0.0, 1e-12);
+    EXPECT_NEAR(a[kSeedVelocity + 1], 2.0, 1e-12);
+    EXPECT_NEAR(b[kSeedVelocity + 0], -6.0, 1e-12);
+    EXPECT_NEAR(b[kSeedVelocity + 1], 0.0, 1e-12);
+    EXPECT_NEAR(a[kSeedDefGrad + 0], 1.0, 1e-12);  // diag(2, 1, 1) -> diag(1, 2, 1)
+    EXPECT_NEAR(a[kSeedDefGrad + 4], 2.0, 1e-12);
+    EXPECT_NEAR(a[kSeedDefGrad + 1], 0.0, 1e-12);
+    EXPECT_EQ(a[kSeedLogJp], -0.1);
+    EXPECT_EQ(b[kSeedLogJp], -0.2);
+    EXPECT_TRUE(std::isnan(a[kSeedJ]));
+  }
+  // The clip drops the second point of each copy (rotated to y = 0.2 + 0.1 = 0.3 >= 0.25); its seed goes with it.
+  body.partition_end = {1.0, 0.25, 1.0};
+  x = sample_body(body, sim, 0, &seeds);
+  ASSERT_EQ(x.size(), 2u);
+  ASSERT_EQ(seeds.size(), 2u);
+  EXPECT_EQ(seeds.at(0)[kSeedLogJp], -0.1);
+  EXPECT_EQ(seeds.at(1)[kSeedLogJp], -0.1);
+  // After a sampled solid, the seeded particles are the last ones: `first` counts the lattice's.
+  GeometrySpec box;
+  box.object = GeometryObject::Box;
+  box.offset = {0.6, 0.6, 0.6};
+  box.span = {0.1, 0.1, 0.1};
+  x = sample_body(make_body({box, g}), sim, 0, &seeds);
+  EXPECT_EQ(seeds.first, 64);
+  EXPECT_EQ(seeds.size(), 4u);
+  EXPECT_EQ(x.size(), 68u);
+  // A J <= 0 is refused with the file and the point.
+  {
+    std::ofstream csv(dir / "bad.csv");
+    csv << "Position_X,Position_Y,Position_Z,J\n0.1,0.1,0.1,1\n0.2,0.2,0.2,-0.5\n";
+  }
+  GeometrySpec bad = file_entry(dir / "bad.csv");
+  bad.has_attributes = true;
+  bad.input_attribs = {"J"};
+  try {
+    sample_body(make_body({bad}), make_sim(0.05), 0, &seeds);
+    ADD_FAILURE() << "J < 0 accepted";
+  } catch (const SceneError& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("bodies[0].geometry[0].file"), std::string::npos) << m;
+    EXPECT_NE(m.find("point 1"), std::string::npos) << m;
+  }
+}
+
 // A point file can only be added: it holds no volume that could be subtracted or intersected.
 TEST(FileGeometry, ErrorsNameTheFileAndTheLine) {
   const fs::path dir = temp_dir();

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "engine/cpu/cpu_engine.h"
 #include "engine/engine_api.h"
 #include "engine/gpu/gpu_engine.h"
 #include "engine/stop_request.h"
@@ -86,6 +87,70 @@ void expect_engine_restart(Precision precision, double tolerance) {
     EXPECT_LT(worst, tolerance) << "body " << body;
     EXPECT_LT(worst_J, tolerance * 100) << "body " << body;
     EXPECT_EQ(sb.logJp.empty(), sa.logJp.empty());
+  }
+}
+
+// ClaymoreUW's resume on the GPU engine: bodies seeded from .bgeo frames (has_attributes) start in the frame's state
+// (velocity, J of the water; velocity, F and logJp of the sand: equal to the CPU engine's seeding, as floats), and
+// then follow the CPU engine's run of the same seeded scene to round-off (double, 20 steps of the GPU's dt).
+TEST(GpuResume, ABgeoFrameSeedsBodiesAsOnTheCpuEngine) {
+  FBAR_REQUIRE_DEVICE();
+  const fs::path dir = scratch("resume_bgeo");
+  Scene a = two_body_scene(Precision::Double);
+  a.bodies[1].velocity = r3(0.5, 0.0, -0.25);
+  a.bodies[0].output_attribs = {"ID", "Velocity_X", "Velocity_Y", "Velocity_Z", "J"};
+  a.bodies[1].output_attribs = {"ID", "Velocity_X", "Velocity_Y", "Velocity_Z", "logJp"};
+  for (const char* c : {"XX", "XY", "XZ", "YX", "YY", "YZ", "ZX", "ZY", "ZZ"})
+    a.bodies[1].output_attribs.push_back(std::string("DefGrad_") + c);
+  CpuEngine<double> run(a);
+  run.set_log(nullptr);
+  for (int i = 0; i < 40; ++i) ASSERT_TRUE(run.step().ok);
+  Scene b = a;
+  for (std::size_t k = 0; k < 2; ++k) {
+    const fs::path file = dir / ("body" + std::to_string(k) + ".bgeo");
+    io::write_bgeo(file, run.frame(static_cast<int>(k)));
+    GeometrySpec g;
+    g.object = GeometryObject::File;
+    g.file = file.string();
+    g.has_attributes = true;
+    g.input_attribs = a.bodies[k].output_attribs;
+    b.bodies[k].geometry = {g};
+    b.bodies[k].velocity = r3(0, 0, 0);
+  }
+  CpuEngine<double> cpu(b);
+  cpu.set_log(nullptr);
+  GpuEngine<double, double> gpu(b);
+  gpu.set_log(nullptr);
+  for (int k = 0; k < 2; ++k) {
+    const io::ParticleFrame seeded = cpu.frame(k);
+    const ParticleSnapshot<double> s = gpu.snapshot(k);
+    ASSERT_EQ(s.x.size(), seeded.size()) << "body " << k;
+    const std::vector<float>& vx = seeded.find("Velocity_X")->floats();
+    const std::vector<float>& vz = seeded.find("Velocity_Z")->floats();
+    for (std::size_t p = 0; p < s.x.size(); ++p) {
+      ASSERT_EQ(static_cast<float>(s.v[p][0]), vx[p]) << "body " << k << " particle " << p;
+      ASSERT_EQ(static_cast<float>(s.v[p][2]), vz[p]) << "body " << k << " particle " << p;
+      if (k == 0) {
+        ASSERT_EQ(static_cast<float>(s.J[p]), seeded.find("J")->floats()[p]) << "particle " << p;
+      } else {
+        ASSERT_EQ(static_cast<float>(s.logJp[p]), seeded.find("logJp")->floats()[p]) << "particle " << p;
+        ASSERT_EQ(static_cast<float>(s.F[p](0, 1)), seeded.find("DefGrad_XY")->floats()[p]) << "particle " << p;
+        ASSERT_EQ(static_cast<float>(s.F[p](2, 2)), seeded.find("DefGrad_ZZ")->floats()[p]) << "particle " << p;
+      }
+    }
+  }
+  for (int i = 0; i < 20; ++i) {
+    const StepReport r = gpu.step();
+    ASSERT_TRUE(r.ok);
+    ASSERT_TRUE(cpu.step(r.dt).ok);
+  }
+  for (int k = 0; k < 2; ++k) {
+    const io::ParticleFrame f = cpu.frame(k);
+    const ParticleSnapshot<double> s = gpu.snapshot(k);
+    double worst = 0.0;
+    for (std::size_t p = 0; p < s.x.size(); ++p)
+      for (int d = 0; d < 3; ++d) worst = std::max(worst, std::fabs(s.x[p][d] - f.position(p)[d]));
+    EXPECT_LT(worst, 1e-9) << "body " << k;
   }
 }
 

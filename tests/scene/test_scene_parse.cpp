@@ -302,6 +302,31 @@ TEST(SceneParse, CrossChecks) {
             std::string::npos);
 }
 
+// has_attributes: the names must set a particle's state, vectors and tensors whole, logJp only for a material that
+// stores it, and a solid (.sdf) holds no values.
+TEST(SceneParse, SeedAttributesAreChecked) {
+  const std::string points = std::string(FBAR_SCENE_TEST_DIR) + "/data/points.csv";
+  const auto with = [&](const std::string& attribs, const std::string& law = "JFluid",
+                        const std::string& file = "") {
+    return scene_with(R"({"material": {"constitutive": ")" + law + R"("}, "geometry": [{"object": "File", "file": ")" +
+                      (file.empty() ? points : file) + R"(", "has_attributes": true, "input_attribs": )" + attribs +
+                      "}]}");
+  };
+  EXPECT_NE(error_of(with(R"(["J", "Pressure"])"))
+                .find("bodies[0].geometry[0].input_attribs[1]: got \"Pressure\"; expected an attribute that sets"),
+            std::string::npos);
+  EXPECT_NE(error_of(with(R"(["Velocity_X", "Velocity_Y"])"))
+                .find("bodies[0].geometry[0].input_attribs: got 2 of Velocity_X, Velocity_Y, Velocity_Z"),
+            std::string::npos);
+  EXPECT_NE(error_of(with(R"(["DefGrad_XX"])", "FixedCorotated")).find("all nine components"), std::string::npos);
+  EXPECT_NE(error_of(with(R"(["logJp"])")).find("bodies[0].geometry[0].input_attribs[0]: got \"logJp\""),
+            std::string::npos);
+  EXPECT_NO_THROW(parse(with(R"(["logJp", "ID", "Mass"])", "DruckerPrager"), true));
+  EXPECT_NE(error_of(with(R"(["J"])", "JFluid", std::string(FBAR_SCENE_TEST_DIR) + "/data/cube.sdf"))
+                .find("bodies[0].geometry[0].has_attributes: got true"),
+            std::string::npos);
+}
+
 TEST(SceneParse, ReleasePolicyRejectsWhatTheEngineCannotRun) {
   struct Case {
     std::string json;
@@ -311,9 +336,6 @@ TEST(SceneParse, ReleasePolicyRejectsWhatTheEngineCannotRun) {
       {scene_with(body(R"({})", R"("algorithm": {"use_FEM": true})")), "bodies[0].algorithm.use_FEM"},
       {scene_with(body(R"({})", R"("output_attribs": ["logJp"])")), "bodies[0].output_attribs[0]"},
       {scene_with(body(R"({})", R"("target_attribs": ["Position_Y"])")), "bodies[0].target_attribs"},
-      {scene_with(R"({"material": {}, "geometry": [{"object": "File", "file": ")" + std::string(FBAR_SCENE_TEST_DIR) +
-                  R"(/data/points.csv", "has_attributes": true, "input_attribs": ["J"]}]})"),
-       "bodies[0].geometry[0].has_attributes"},
       {scene_with(body(), R"("grid-sensors": [{"attribute": "Volume", "domain_start": [0,0,0],
                                               "domain_end": [1,1,1]}])"),
        "grid-sensors[0].attribute"},
@@ -511,7 +533,8 @@ TEST(SceneWrite, RoundTripOfEveryFeature) {
                      "offset": [0.3, 0.2, 0.1], "rotate": [10, 20, 30], "fulcrum": [0.4, 0.4, 0.4],
                      "array": [2, 1, 3], "spacing": [0.4, 0, 0.3], "track_particle_id": [3]},
                     {"object": "File", "operation": "Union", "file": "data/points.csv",
-                     "scaling": 1.5, "has_attributes": true, "input_attribs": ["Velocity_X", "J"],
+                     "scaling": 1.5, "has_attributes": true,
+                     "input_attribs": ["Velocity_X", "Velocity_Y", "Velocity_Z", "J"],
                      "use_froude_scaling": false},
                     {"object": "File", "operation": "Subtract", "file": "data/cube.sdf", "padding": 2,
                      "scaling_factor": 0.5},

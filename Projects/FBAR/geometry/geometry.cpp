@@ -11,6 +11,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "geometry/particle_seed.h"
+#include "scene/attributes.h"
 #include "scene/facilities.h"
 #include "scene/scene_error.h"
 #include "scene/scene_parse.h"
@@ -96,6 +98,50 @@ bool in_closed_box(const Vec3d& p, const Vec3d& lo, const Vec3d& hi) {
   throw SceneError(path, "0 particles",
                    "at least one particle: the geometry after its operations and the partition_start/partition_end "
                    "clip must contain a sampling point");
+}
+
+/// The seeds (particle_seed.h) of a point file's particles from its attributes (names g.input_attribs, point-major):
+/// velocities rotated with the entry and scaled by `velocity_scale` (Froude: s^0.5), F rotated as R F R^T (the
+/// particle's rest shape is placed rotated too). Throws std::runtime_error naming the file and the point for J <= 0,
+/// det F <= 0.
+std::vector<double> file_seeds(const GeometrySpec& g, const std::vector<double>& attributes, std::size_t n,
+                               const Mat3<double>& rot, double velocity_scale) {
+  const std::vector<std::string>& names = g.input_attribs;
+  const std::size_t K = names.size();
+  const bool j_listed = std::find(names.begin(), names.end(), "J") != names.end();
+  std::vector<int> slot(K);
+  for (std::size_t k = 0; k < K; ++k) {
+    slot[k] = seed_slot(names[k]);
+    if (names[k] == "JBar" && j_listed) slot[k] = kSeedIgnored;  // J wins; F-bar recomputes JBar every step
+  }
+  std::vector<double> out(n * kSeedScalars, seed_unset());
+  for (std::size_t p = 0; p < n; ++p) {
+    double* s = out.data() + p * kSeedScalars;
+    for (std::size_t k = 0; k < K; ++k)
+      if (slot[k] >= 0) s[slot[k]] = attributes[p * K + k];
+    const auto where = [&](const char* what) {
+      return g.file + ": point " + std::to_string(p) + ": " + what;
+    };
+    if (!std::isnan(s[kSeedVelocity])) {
+      Vec3d v{{s[kSeedVelocity], s[kSeedVelocity + 1], s[kSeedVelocity + 2]}};
+      v = rot * v * velocity_scale;
+      for (int a = 0; a < 3; ++a) s[kSeedVelocity + a] = v[a];
+    }
+    if (!std::isnan(s[kSeedDefGrad])) {
+      Mat3<double> F;
+      for (int i = 0; i < 3; ++i)
+        for (int c = 0; c < 3; ++c) F(i, c) = s[kSeedDefGrad + 3 * i + c];
+      if (!(determinant(F) > 0.0))
+        throw std::runtime_error(where("det(DefGrad) = ") + std::to_string(determinant(F)) +
+                                 " (a deformation gradient has a positive determinant)");
+      F = rot * F * transpose(rot);
+      for (int i = 0; i < 3; ++i)
+        for (int c = 0; c < 3; ++c) s[kSeedDefGrad + 3 * i + c] = F(i, c);
+    }
+    if (!std::isnan(s[kSeedJ]) && !(s[kSeedJ] > 0.0))
+      throw std::runtime_error(where("J = ") + std::to_string(s[kSeedJ]) + " (J is a volume ratio, > 0)");
+  }
+  return out;
 }
 
 }  // namespace
@@ -194,12 +240,29 @@ BodyShape::BodyShape(const std::vector<GeometrySpec>& geometry, int body_index, 
                                "Add or Union for a point file (particles hold no volume to subtract or intersect; "
                                "use an .sdf file for that)");
             e.points = true;
-            const std::vector<Vec3d> file_points = read_point_file(g.file);
-            PointSet set;
-            set.entry = j;
-            set.points.reserve(file_points.size() * static_cast<std::size_t>(g.array[0]) * g.array[1] * g.array[2]);
+            std::vector<double> attributes;
+            std::vector<std::string> names, aliases;
+            if (g.has_attributes) {
+              names = g.input_attribs;
+              for (const std::string& n : names) {  // a file may hold an alias's name (DefGrad_Determinant for J)
+                std::string alias;
+                for (const auto& a : kParticleAttributeAliases)
+                  if (a.second == n) alias = std::string(a.first);
+                aliases.push_back(alias);
+              }
+            }
+            const std::vector<Vec3d> file_points = read_point_file(g.file, names, aliases, attributes);
             const Mat3<double> rot = euler_xyz(g.rotate);
             const bool rotated = g.rotate[0] != 0.0 || g.rotate[1] != 0.0 || g.rotate[2] != 0.0;
+            const std::vector<double> seeds =
+                names.empty() ? std::vector<double>{}
+                              : file_seeds(g, attributes, file_points.size(), rot,
+                                           std::sqrt(g.use_froude_scaling ? froude_scaling : 1.0));
+            PointSet set;
+            set.entry = j;
+            const std::size_t copies = static_cast<std::size_t>(g.array[0]) * g.array[1] * g.array[2];
+            set.points.reserve(file_points.size() * copies);
+            set.seeds.reserve(seeds.size() * copies);
             const Vec3d fulcrum = to_vec(g.fulcrum);
             for (int a = 0; a < g.array[0]; ++a)
               for (int b = 0; b < g.array[1]; ++b)
@@ -209,6 +272,7 @@ BodyShape::BodyShape(const std::vector<GeometrySpec>& geometry, int body_index, 
                     const Vec3d local = offset + q * g.scaling_factor + shift;
                     set.points.push_back(rotated ? rot * (local - fulcrum) + fulcrum : local);
                   }
+                  set.seeds.insert(set.seeds.end(), seeds.begin(), seeds.end());
                 }
             point_sets_.push_back(std::move(set));
           }
@@ -397,20 +461,35 @@ BodySampler::BodySampler(const BodySpec& body, const SimulationSpec& sim, int bo
   part_hi_ = to_vec(body.partition_end);
   domain_ = Vec3d{{sim.domain[0], sim.domain[1], sim.domain[2]}};
   // Point-file particles: the partition clip (half-open, as the lattice) and the later entries' operations.
-  for (BodyShape::PointSet& set : shape_->take_point_sets()) {
+  std::vector<BodyShape::PointSet> sets = shape_->take_point_sets();
+  const bool seeded = std::any_of(sets.begin(), sets.end(), [](const auto& s) { return !s.seeds.empty(); });
+  for (BodyShape::PointSet& set : sets) {
     std::vector<Vec3d>& pts = set.points;
-    pts.erase(std::remove_if(pts.begin(), pts.end(),
-                             [&](const Vec3d& p) {
-                               return !(p[0] >= part_lo_[0] && p[0] < part_hi_[0] && p[1] >= part_lo_[1] &&
-                                        p[1] < part_hi_[1] && p[2] >= part_lo_[2] && p[2] < part_hi_[2] &&
-                                        shape_->survives(p, set.entry));
-                             }),
-              pts.end());
+    if (seeded && set.seeds.empty()) set.seeds.assign(pts.size() * kSeedScalars, seed_unset());
+    std::size_t kept = 0;  // compact points (and their seeds) in place, in order
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      const Vec3d& p = pts[i];
+      if (!(p[0] >= part_lo_[0] && p[0] < part_hi_[0] && p[1] >= part_lo_[1] && p[1] < part_hi_[1] &&
+            p[2] >= part_lo_[2] && p[2] < part_hi_[2] && shape_->survives(p, set.entry)))
+        continue;
+      if (kept != i) {
+        pts[kept] = p;
+        if (seeded)
+          std::copy_n(set.seeds.begin() + static_cast<std::ptrdiff_t>(i * kSeedScalars), kSeedScalars,
+                      set.seeds.begin() + static_cast<std::ptrdiff_t>(kept * kSeedScalars));
+      }
+      ++kept;
+    }
+    pts.resize(kept);
+    if (seeded) set.seeds.resize(kept * kSeedScalars);
     if (points_.empty()) {
       points_ = std::move(pts);
+      seeds_ = std::move(set.seeds);
     } else {
       points_.insert(points_.end(), pts.begin(), pts.end());
+      seeds_.insert(seeds_.end(), set.seeds.begin(), set.seeds.end());
       std::vector<Vec3d>().swap(pts);
+      std::vector<double>().swap(set.seeds);
     }
   }
   point_chunks_ = (static_cast<long long>(points_.size()) + kPointChunk - 1) / kPointChunk;
@@ -645,8 +724,16 @@ SampleCount count_points(const std::vector<Vec3d>& points, double dx) {
   return c;
 }
 
-std::vector<Vec3d> sample_body(const BodySpec& body, const SimulationSpec& sim, int body_index) {
-  const BodySampler sampler(body, sim, body_index);
+ParticleSeeds BodySampler::take_seeds(long long total_particles) {
+  ParticleSeeds s;
+  s.first = total_particles - static_cast<long long>(points_.size());
+  s.values = std::move(seeds_);
+  seeds_.clear();
+  return s;
+}
+
+std::vector<Vec3d> sample_body(const BodySpec& body, const SimulationSpec& sim, int body_index, ParticleSeeds* seeds) {
+  BodySampler sampler(body, sim, body_index);
   std::vector<Vec3d> points;
   sampler.sample_planes(0, sampler.planes(), points);
   if (points.empty()) throw_no_particles(sampler.path());
@@ -658,6 +745,7 @@ std::vector<Vec3d> sample_body(const BodySpec& body, const SimulationSpec& sim, 
       ++outside;
     }
   if (outside > 0) sampler.check_inside_domain(outside, points.size(), *first_outside);
+  if (seeds) *seeds = sampler.take_seeds(static_cast<long long>(points.size()));
   return points;
 }
 

@@ -49,6 +49,7 @@
 
 #include "MnBase/Math/vec.h"
 #include "geometry/geometry_files.h"
+#include "geometry/particle_seed.h"
 #include "scene/scene.h"
 
 namespace fbar {
@@ -90,6 +91,7 @@ class BodyShape {
   struct PointSet {
     std::size_t entry = 0;
     std::vector<Vec3d> points;
+    std::vector<double> seeds;  ///< has_attributes: kSeedScalars per point (geometry/particle_seed.h), else empty
   };
   /// Hands the point sets over (the sampler keeps only the particles that survive; a large file is not held twice).
   std::vector<PointSet> take_point_sets() {
@@ -162,6 +164,10 @@ class BodySampler {
   bool outside_domain(const Vec3d& p) const;
   void check_inside_domain(std::size_t outside, std::size_t total, const Vec3d& first_outside) const;
   const std::string& path() const { return path_; }
+  /// The seeds of the point-file particles (has_attributes; empty when no entry has attributes), which are the last
+  /// point_particles() of the body's total_particles in ID order. Hands them over (call once).
+  ParticleSeeds take_seeds(long long total_particles);
+  std::size_t point_particles() const { return points_.size(); }
 
  private:
   template <typename F>
@@ -176,6 +182,7 @@ class BodySampler {
   std::shared_ptr<BodyShape> shape_;
   Vec3d part_lo_{}, part_hi_{}, domain_{};
   std::vector<Vec3d> points_;    ///< point-file particles kept (partition clip, later operations), in order
+  std::vector<double> seeds_;    ///< their seeds (kSeedScalars each), or empty
   long long point_chunks_ = 0;
   double h_ = 0.0;
   long long first_[3] = {0, 0, 0}, count_[3] = {0, 0, 0};
@@ -189,6 +196,8 @@ SampleCount count_points(const std::vector<Vec3d>& points, double dx);
 /// counts them and names the first), when no particle remains, or when the candidate lattice is unreasonably large
 /// (> 2^36 points); invalid entries throw at "bodies[i].geometry[j].<key>"; a bad ppc throws at
 /// "bodies[i].material.ppc".
-std::vector<Vec3d> sample_body(const BodySpec& body, const SimulationSpec& sim, int body_index);
+/// `seeds`, when given, receives the seeds of point files read with has_attributes (empty when none).
+std::vector<Vec3d> sample_body(const BodySpec& body, const SimulationSpec& sim, int body_index,
+                               ParticleSeeds* seeds = nullptr);
 
 }  // namespace fbar

@@ -77,11 +77,24 @@ std::string column_name(std::string_view field) {
   return s;
 }
 
-std::vector<Vec3d> read_text_points(const std::string& path, bool csv) {
+/// The attribute `names[k]` (or `aliases[k]`) is missing: the error lists what the file holds.
+[[noreturn]] void fail_missing(const std::string& path, const std::string& name, const std::vector<std::string>& held,
+                               const char* what) {
+  std::string list;
+  for (const std::string& h : held) list += (list.empty() ? "" : ", ") + h;
+  fail(path, "no " + std::string(what) + " named " + name + " (has_attributes; the file holds: " +
+                 (list.empty() ? std::string("none") : list) + ")");
+}
+
+std::vector<Vec3d> read_text_points(const std::string& path, bool csv, const std::vector<std::string>& names,
+                                    const std::vector<std::string>& aliases, std::vector<double>& values) {
   std::ifstream in(path);
   if (!in) fail(path, "cannot open the file");
+  if (!names.empty() && !csv)
+    fail(path, "a .pos file holds positions only (has_attributes needs a .csv with a header row, a .bgeo or an .h5)");
   std::vector<Vec3d> points;
   int column[3] = {0, 1, 2};
+  std::vector<int> attribute_column(names.size(), -1);
   std::string line;
   long long number = 0;
   bool first_row = true;
@@ -95,18 +108,29 @@ std::vector<Vec3d> read_text_points(const std::string& path, bool csv) {
     double first_value = 0.0;
     if (first_row && csv && !parse_number(fields[0], first_value)) {  // a header row names the columns
       first_row = false;
-      const char* names[3] = {"Position_X", "Position_Y", "Position_Z"};
+      const char* position_names[3] = {"Position_X", "Position_Y", "Position_Z"};
       for (int a = 0; a < 3; ++a) {
         const auto it = std::find_if(fields.begin(), fields.end(),
-                                     [&](std::string_view f) { return column_name(f) == names[a]; });
+                                     [&](std::string_view f) { return column_name(f) == position_names[a]; });
         if (it != fields.end()) {
           column[a] = static_cast<int>(it - fields.begin());
         } else if (fields.size() < 3) {
           fail_line(path, number, "a header without Position_X, Position_Y, Position_Z columns");
         }
       }
+      std::vector<std::string> held;
+      for (std::string_view f : fields) held.push_back(column_name(f));
+      for (std::size_t k = 0; k < names.size(); ++k) {
+        auto it = std::find(held.begin(), held.end(), names[k]);
+        if (it == held.end() && !aliases[k].empty()) it = std::find(held.begin(), held.end(), aliases[k]);
+        if (it == held.end()) fail_missing(path, names[k], held, "column");
+        attribute_column[k] = static_cast<int>(it - held.begin());
+      }
       continue;
     }
+    if (first_row && !names.empty())
+      fail_line(path, number, "has_attributes needs a header row naming the columns (e.g. Position_X,Position_Y,"
+                              "Position_Z," + names.front() + ")");
     first_row = false;
     Vec3d p{};
     for (int a = 0; a < 3; ++a) {
@@ -117,13 +141,22 @@ std::vector<Vec3d> read_text_points(const std::string& path, bool csv) {
         fail_line(path, number, "expected a finite number, got \"" +
                                     std::string(fields[static_cast<std::size_t>(column[a])]) + "\"");
     }
+    for (std::size_t k = 0; k < names.size(); ++k) {
+      const std::size_t c = static_cast<std::size_t>(attribute_column[k]);
+      double value = 0.0;
+      if (c >= fields.size() || !parse_number(fields[c], value) || !std::isfinite(value))
+        fail_line(path, number, "expected a finite number in column " + names[k] + ", got \"" +
+                                    (c < fields.size() ? std::string(fields[c]) : std::string()) + "\"");
+      values.push_back(value);
+    }
     points.push_back(p);
   }
   if (in.bad()) fail(path, "read error");
   return points;
 }
 
-std::vector<Vec3d> read_h5_points(const std::string& path) {
+std::vector<Vec3d> read_h5_points(const std::string& path, const std::vector<std::string>& names,
+                                  const std::vector<std::string>& aliases, std::vector<double>& values) {
   using io::h5_detail::Handle;
   std::lock_guard<std::mutex> lock(io::h5_detail::hdf5_mutex());
   H5E_auto2_t old_func;
@@ -150,7 +183,59 @@ std::vector<Vec3d> read_h5_points(const std::string& path) {
     fail(path, "cannot read /Position");
   std::vector<Vec3d> points(static_cast<std::size_t>(dims[0]));
   for (std::size_t i = 0; i < points.size(); ++i) points[i] = Vec3d{{raw[3 * i], raw[3 * i + 1], raw[3 * i + 2]}};
+  if (names.empty()) return points;
+  // Attributes: datasets of N values (N or N x 1), read as doubles, stored point-major.
+  std::vector<std::string> held;
+  H5Literate(
+      file.get(), H5_INDEX_NAME, H5_ITER_NATIVE, nullptr,
+      [](hid_t, const char* name, const H5L_info_t*, void* data) -> herr_t {
+        static_cast<std::vector<std::string>*>(data)->push_back(name);
+        return 0;
+      },
+      &held);
+  const std::size_t n = points.size(), K = names.size();
+  values.assign(n * K, 0.0);
+  std::vector<double> column(n);
+  for (std::size_t k = 0; k < K; ++k) {
+    std::string name = names[k];
+    if (H5Lexists(file.get(), name.c_str(), H5P_DEFAULT) <= 0 && !aliases[k].empty()) name = aliases[k];
+    if (H5Lexists(file.get(), name.c_str(), H5P_DEFAULT) <= 0) fail_missing(path, names[k], held, "dataset");
+    Handle a(H5Dopen2(file.get(), name.c_str(), H5P_DEFAULT), H5Dclose, "open /" + name + " in " + path);
+    Handle as(H5Dget_space(a.get()), H5Sclose, "read the shape of /" + name + " in " + path);
+    hsize_t ad[2] = {0, 0};
+    const int rank = H5Sget_simple_extent_ndims(as.get());
+    if (rank < 1 || rank > 2 || H5Sget_simple_extent_dims(as.get(), ad, nullptr) != rank || ad[0] != n ||
+        (rank == 2 && ad[1] != 1))
+      fail(path, "/" + name + " is not one value per point (" + std::to_string(n) + " points)");
+    if (n && H5Dread(a.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, column.data()) < 0)
+      fail(path, "cannot read /" + name);
+    for (std::size_t i = 0; i < n; ++i) values[i * K + k] = column[i];
+  }
   return points;
+}
+
+/// The named one-component attributes of a bgeo frame, point-major.
+void bgeo_attributes(const std::string& path, const io::ParticleFrame& frame, const std::vector<std::string>& names,
+                     const std::vector<std::string>& aliases, std::vector<double>& values) {
+  const std::size_t n = frame.size(), K = names.size();
+  values.assign(n * K, 0.0);
+  for (std::size_t k = 0; k < K; ++k) {
+    const io::FrameAttribute* a = frame.find(names[k]);
+    if (!a && !aliases[k].empty()) a = frame.find(aliases[k]);
+    if (!a) {
+      std::vector<std::string> held;
+      for (const io::FrameAttribute& h : frame.attributes) held.push_back(h.name);
+      fail_missing(path, names[k], held, "attribute");
+    }
+    if (a->width != 1)
+      fail(path, "attribute " + a->name + " has " + std::to_string(a->width) +
+                     " components per point (has_attributes reads one-component attributes such as Velocity_X)");
+    std::visit(
+        [&](const auto& v) {
+          for (std::size_t i = 0; i < n; ++i) values[i * K + k] = static_cast<double>(v[i]);
+        },
+        a->values);
+  }
 }
 
 }  // namespace
@@ -217,12 +302,21 @@ GeometryFileKind geometry_file_kind(const std::string& path) {
 const char* geometry_file_extensions() { return ".sdf (a solid), .csv, .pos, .bgeo or .h5 (particle positions)"; }
 
 std::vector<Vec3d> read_point_file(const std::string& path) {
+  std::vector<double> none;
+  return read_point_file(path, {}, {}, none);
+}
+
+std::vector<Vec3d> read_point_file(const std::string& path, const std::vector<std::string>& names,
+                                   const std::vector<std::string>& aliases, std::vector<double>& values) {
+  if (aliases.size() != names.size()) throw std::invalid_argument("read_point_file: one alias per name");
+  values.clear();
   const std::string e = lower_extension(path);
   std::vector<Vec3d> points;
   if (e == ".csv" || e == ".pos") {
-    points = read_text_points(path, e == ".csv");
+    points = read_text_points(path, e == ".csv", names, aliases, values);
   } else if (e == ".bgeo") {
     const io::ParticleFrame frame = io::read_bgeo(path);
+    if (!names.empty()) bgeo_attributes(path, frame, names, aliases, values);
     std::visit(
         [&](const auto& x) {
           points.reserve(x.size());
@@ -231,13 +325,17 @@ std::vector<Vec3d> read_point_file(const std::string& path) {
         },
         frame.positions);
   } else if (e == ".h5") {
-    points = read_h5_points(path);
+    points = read_h5_points(path, names, aliases, values);
   } else {
     fail(path, std::string("not a point file (expected ") + geometry_file_extensions() + ")");
   }
   if (points.empty()) fail(path, "holds no points");
   for (const Vec3d& p : points)
     if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) fail(path, "holds a non-finite position");
+  for (std::size_t i = 0; i < values.size(); ++i)
+    if (!std::isfinite(values[i]))
+      fail(path, "attribute " + names[i % names.size()] + " of point " + std::to_string(i / names.size()) +
+                     " is not finite");
   return points;
 }
 

@@ -17,6 +17,8 @@
 //            .pos  x y z per line, separated by spaces, tabs or commas; '#' starts a comment line.
 //            .bgeo classic Houdini bgeo (partio's format; fbar's frames): the point positions.
 //            .h5   fbar's HDF5 frame (io/h5_frame.h): the dataset /Position, N x 3.
+//          With has_attributes, named values per point come with the positions: .csv header columns, .bgeo attributes
+//          and .h5 datasets of one value per point (geometry/particle_seed.h says what they seed).
 // Errors throw std::runtime_error naming the file and, for text formats, the line.
 #pragma once
 
@@ -57,5 +59,13 @@ const char* geometry_file_extensions();
 /// Reads the positions [file units] of a point file (.csv, .pos, .bgeo, .h5). Throws std::runtime_error naming the
 /// file (and line) for anything it cannot read, and for a file without points.
 std::vector<Vec3d> read_point_file(const std::string& path);
+
+/// The same, with the named per-point attributes (has_attributes): values[p * names.size() + k] is attribute
+/// names[k] of point p. A name matches a .csv header column (without its " [unit]"), a .bgeo attribute or an .h5
+/// dataset of one value per point, exactly; `aliases[k]`, when not empty, is tried when names[k] is absent. Throws
+/// std::runtime_error naming the file and the attribute (with the names the file holds) when one is missing, has
+/// more than one component or a non-finite value; a .pos file holds no names.
+std::vector<Vec3d> read_point_file(const std::string& path, const std::vector<std::string>& names,
+                                   const std::vector<std::string>& aliases, std::vector<double>& values);
 
 }  // namespace fbar

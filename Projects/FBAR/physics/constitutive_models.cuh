@@ -15,6 +15,7 @@
 // the one type whose kLaw matches.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <iterator>
 #include <string>
@@ -23,6 +24,7 @@
 #include <utility>
 
 #include "MnBase/Meta/type_seq.h"
+#include "geometry/particle_seed.h"
 #include "physics/materials/drucker_prager.cuh"
 #include "physics/materials/fixed_corotated.cuh"
 #include "physics/materials/hencky.cuh"
@@ -90,6 +92,10 @@ struct has_initial_state : std::false_type {};
 template <typename M>
 struct has_initial_state<M, std::void_t<decltype(M::template initial_state<double>(std::declval<const MaterialSpec&>()))>>
     : std::true_type {};
+template <typename M, typename = void>
+struct has_state_with_J : std::false_type {};
+template <typename M>
+struct has_state_with_J<M, std::void_t<decltype(M::template state_with_J<double>(1.0))>> : std::true_type {};
 template <typename M, typename = void>
 struct has_check : std::false_type {};
 template <typename M>
@@ -188,6 +194,31 @@ material_state_t<M, T> material_initial_state(const MaterialSpec& spec) {
     return M::template initial_state<T>(spec);
   else
     return M::template reference_state<T>();
+}
+
+/// The state of a particle of material M seeded from a file's attributes (geometry/particle_seed.h; NaN: not given),
+/// starting from `s` (material_initial_state): a material that stores F takes DefGrad_* (or, given only J, the
+/// isotropic F = J^(1/3) I); a material whose state is J (state_with_J, JFluid) takes J (or det F); one that stores
+/// logJp takes logJp. Host only (both engines seed on the host).
+template <typename M, typename T>
+material_state_t<M, T> material_seeded_state(material_state_t<M, T> s, const double* seed) {
+  const bool has_F = !std::isnan(seed[kSeedDefGrad]);
+  const bool has_J = !std::isnan(seed[kSeedJ]);
+  Mat3<double> F = Mat3<double>::identity();
+  if (has_F)
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) F(i, j) = seed[kSeedDefGrad + 3 * i + j];
+  if constexpr (M::kOutputs.deformation_gradient) {
+    if (!has_F && has_J) F = Mat3<double>::identity() * std::cbrt(seed[kSeedJ]);
+    if (has_F || has_J)
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) s.F(i, j) = static_cast<T>(F(i, j));
+  } else if constexpr (material_detail::has_state_with_J<M>::value) {
+    if (has_J || has_F) s = M::template state_with_J<T>(static_cast<T>(has_J ? seed[kSeedJ] : determinant(F)));
+  }
+  if constexpr (M::kOutputs.log_jp)
+    if (!std::isnan(seed[kSeedLogJp])) s.logJp = static_cast<T>(seed[kSeedLogJp]);
+  return s;
 }
 
 /// A rule across parameters of material M that `spec` breaks (M::check), or an empty problem.

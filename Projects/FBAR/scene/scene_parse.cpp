@@ -538,6 +538,26 @@ std::string read_attribute(const rj::Value& v, const std::string& path, bool all
   return canonical;
 }
 
+/// input_attribs of a File read with has_attributes: names that seed a particle (geometry/particle_seed.h), vectors
+/// and tensors whole (a velocity with all three components, F with all nine).
+void check_seed_attributes(const std::vector<std::string>& names, const std::string& path) {
+  int velocity = 0, defgrad = 0;
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    const int slot = seed_slot(names[i]);
+    if (slot == kSeedRefused)
+      throw SceneError(index_path(path, i), "\"" + names[i] + "\"",
+                       std::string("an attribute that sets a particle's initial state: ") + seed_attribute_names());
+    if (slot >= kSeedVelocity && slot < kSeedVelocity + 3) ++velocity;
+    if (slot >= kSeedDefGrad && slot < kSeedDefGrad + 9) ++defgrad;
+  }
+  if (velocity != 0 && velocity != 3)
+    throw SceneError(path, std::to_string(velocity) + " of Velocity_X, Velocity_Y, Velocity_Z",
+                     "all three velocity components or none (the body's velocity gives the rest)");
+  if (defgrad != 0 && defgrad != 9)
+    throw SceneError(path, std::to_string(defgrad) + " of DefGrad_XX..DefGrad_ZZ",
+                     "all nine components of the deformation gradient or none");
+}
+
 std::vector<std::string> read_attribute_list(const rj::Value& v, const std::string& path) {
   require_array(v, path, "an array of particle attribute names");
   std::vector<std::string> out;
@@ -790,6 +810,10 @@ GeometrySpec parse_geometry(const rj::Value& v, const std::string& path, const C
     if (g.has_attributes && g.input_attribs.empty())
       throw SceneError(o.sub("input_attribs"), "(missing or empty)",
                        "the attribute names to read from the file when has_attributes is true");
+    if (g.has_attributes && geometry_file_kind(g.file) == GeometryFileKind::Sdf)
+      throw SceneError(o.sub("has_attributes"), "true", "false for an .sdf file (a solid holds no particle values; "
+                                                        "has_attributes reads .csv, .bgeo and .h5 point files)");
+    if (g.has_attributes) check_seed_attributes(g.input_attribs, o.sub("input_attribs"));
     if (!g.has_attributes && !g.input_attribs.empty())  // ClaymoreUW reads them and then zeroes them
       ctx.warn(o.sub("input_attribs") + ": ignored (has_attributes is false: only positions are read)");
     if (g.padding != 1 && geometry_file_kind(g.file) != GeometryFileKind::Sdf)

@@ -59,8 +59,14 @@ void check_supported(const Scene& scene) {
       const GeometrySpec& g = b.geometry[j];
       const std::string gp = p + "." + idx("geometry", j);
       if (g.object == GeometryObject::File && g.has_attributes)
-        refuse(gp + ".has_attributes", "true", "false (positions only)",
-               "reading particle attributes from a geometry file (has_attributes)");
+        for (std::size_t k = 0; k < g.input_attribs.size(); ++k) {
+          bool stores_logjp = false;
+          visit_material(m.law, [&](auto mm) { stores_logjp = decltype(mm)::kOutputs.log_jp; });
+          if (g.input_attribs[k] == "logJp" && !stores_logjp)
+            throw SceneError(gp + ".input_attribs[" + std::to_string(k) + "]", "\"logJp\"",
+                             std::string("an attribute a ") + to_string(m.law) +
+                                 " particle stores (logJp seeds NACC and DruckerPrager bodies)");
+        }
       if (!g.track_particle_id.empty())
         refuse(gp + ".track_particle_id", std::to_string(g.track_particle_id.size()) + " id(s)", "an empty list",
                "track_particle_id (particle tracking)");

@@ -136,9 +136,11 @@ bool cpu_engine_supports_attribute(Constitutive law, std::string_view name) {
 template <typename T, typename TG>
 CpuEngine<T, TG>::CpuEngine(const Scene& scene) : scene_(scene), log_(&std::cerr) {
   std::vector<std::vector<Vec3d>> positions;
+  std::vector<ParticleSeeds> seeds(scene.bodies.size());
   for (std::size_t b = 0; b < scene.bodies.size(); ++b)
-    positions.push_back(sample_body(scene.bodies[b], scene.simulation, static_cast<int>(b)));
+    positions.push_back(sample_body(scene.bodies[b], scene.simulation, static_cast<int>(b), &seeds[b]));
   init(positions);
+  apply_seeds(seeds);
 }
 
 template <typename T, typename TG>
@@ -151,9 +153,11 @@ template <typename T, typename TG>
 CpuEngine<T, TG>::CpuEngine(const Scene& scene, comm::Transport& transport, double rebalance_threshold)
     : scene_(scene), transport_(&transport), rebalance_threshold_(rebalance_threshold), log_(&std::cerr) {
   std::vector<std::vector<Vec3d>> positions;
+  std::vector<ParticleSeeds> seeds(scene.bodies.size());
   for (std::size_t b = 0; b < scene.bodies.size(); ++b)
-    positions.push_back(sample_body(scene.bodies[b], scene.simulation, static_cast<int>(b)));
+    positions.push_back(sample_body(scene.bodies[b], scene.simulation, static_cast<int>(b), &seeds[b]));
   init(positions);
+  apply_seeds(seeds);
   if (ranks() > 1) divide_replicated();  // every rank sampled every particle (deterministically)
 }
 
@@ -367,6 +371,29 @@ void CpuEngine<T, TG>::init(const std::vector<std::vector<Vec3d>>& positions) {
     });
   }
   max_grid_speed_ = max_speed;
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::apply_seeds(const std::vector<ParticleSeeds>& seeds) {
+  for (std::size_t b = 0; b < bodies_.size() && b < seeds.size(); ++b) {
+    const ParticleSeeds& seed = seeds[b];
+    if (seed.empty()) continue;
+    Body& body = bodies_[b];
+    std::visit(
+        [&](auto& mb) {
+          using M = typename std::decay_t<decltype(mb)>::material_type;
+          for (std::size_t i = 0; i < seed.size(); ++i) {
+            const std::size_t p = static_cast<std::size_t>(seed.first) + i;  // slot = ID before any division
+            const double* s = seed.at(i);
+            if (!std::isnan(s[kSeedVelocity]))
+              for (int a = 0; a < 3; ++a) body.v[p][a] = static_cast<T>(s[kSeedVelocity + a]);
+            mb.state[p] = material_seeded_state<M, T>(mb.state[p], s);
+            max_grid_speed_ = std::max(max_grid_speed_, static_cast<double>(norm(body.v[p])));
+            body.max_wave_speed = std::max(body.max_wave_speed, static_cast<double>(M::wave_speed(mb.params, mb.state[p])));
+          }
+        },
+        body.material);
+  }
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -336,6 +336,8 @@ class CpuEngine {
   };
 
   void init(const std::vector<std::vector<Vec3d>>& positions);
+  /// Velocities and states of particles read with has_attributes (geometry/particle_seed.h), after init().
+  void apply_seeds(const std::vector<ParticleSeeds>& seeds);
   void build_partition();
   TryResult try_step(double dt);
   void p2g(Body& body, T dt);

@@ -313,6 +313,9 @@ class MgspBenchmark {
     /// Particles first_id .. first_id + x.size() into bins[0] (flat: slot = ID); first_id is a multiple of 32.
     /// ids: the particles' IDs (nullptr: first_id + i).
     virtual void upload(const Vec3d* x, const int* ids, std::size_t n, long long first_id, cudaStream_t s) = 0;
+    /// States of particles read with has_attributes (geometry/particle_seed.h): restart_state for every ID, the
+    /// seeded ones from their seeds, the rest in the body's initial state. Returns the largest wave speed [m/s].
+    virtual double seed_states(const ParticleSeeds& seeds) = 0;
     virtual void g2p2g(MgspBenchmark& e, bool initial, T dt) = 0;
     virtual void dest_from_positions(MgspBenchmark& e, int bins_which, const int* valid, int first, int slots) = 0;
     virtual std::size_t migrant_bytes(const MgspBenchmark& e) const = 0;
@@ -380,6 +383,20 @@ class MgspBenchmark {
       std::byte* target = bins[0].instance().data() + Layout::kBinBytes * static_cast<std::size_t>(first_id / 32);
       if (bytes) FBAR_CUDA_CHECK(cudaMemcpyAsync(target, host.data(), bytes, cudaMemcpyHostToDevice, s));
       FBAR_CUDA_CHECK(cudaStreamSynchronize(s));
+    }
+
+    double seed_states(const ParticleSeeds& seeds) override {
+      constexpr std::size_t S = Layout::kStateScalars;
+      const auto initial = material_initial_state<M, T>(this->spec.material);
+      this->restart_state.resize(S * static_cast<std::size_t>(this->global_particles));
+      double speed = 0.0;
+      for (long long id = 0; id < this->global_particles; ++id) {
+        auto state = initial;
+        if (id >= seeds.first) state = material_seeded_state<M, T>(state, seeds.at(static_cast<std::size_t>(id - seeds.first)));
+        speed = std::max(speed, static_cast<double>(M::wave_speed(params, state)));
+        std::memcpy(this->restart_state.data() + S * static_cast<std::size_t>(id), &state, sizeof(state));
+      }
+      return speed;
     }
 
     void g2p2g(MgspBenchmark& e, bool initial, T dt) override {
@@ -761,6 +778,7 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
                                 std::to_string(BoundarySet<TG>::kMax) + " per run");
 
   double max_speed = 0.0;
+  std::vector<ParticleSeeds> seeds(scene_.bodies.size());  // has_attributes: per-particle velocities and states
   for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {
     const BodySpec& spec = scene_.bodies[b];
     const std::string where = "bodies[" + std::to_string(b) + "]";
@@ -787,7 +805,9 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
       counts_.push_back(count_points(x, sim.dx));
     } else {
       // Counted without storing a point (throws SceneError for particles outside the domain, or none at all).
-      counts_.push_back(BodySampler(spec, sim, static_cast<int>(b)).count(sim.dx));
+      BodySampler sampler(spec, sim, static_cast<int>(b));
+      counts_.push_back(sampler.count(sim.dx));
+      seeds[b] = sampler.take_seeds(counts_.back().particles);
     }
     const long long slots_needed = 32 * bins_needed(counts_.back());
     if (slots_needed > DeviceLimits::kMaxSlots)
@@ -821,8 +841,18 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
     max_speed = std::max(max_speed, std::sqrt(spec.velocity[0] * spec.velocity[0] +
                                               spec.velocity[1] * spec.velocity[1] +
                                               spec.velocity[2] * spec.velocity[2]));
-    if (b < options.initial_velocities.size() && !options.initial_velocities[b].empty()) {
-      const std::vector<Vec3d>& v = options.initial_velocities[b];
+    std::vector<Vec3d> seeded_v;  // the body's velocity, or a seed's (has_attributes)
+    if (!seeds[b].empty() && seeds[b].size() > 0) {
+      seeded_v.assign(static_cast<std::size_t>(body.global_particles),
+                      Vec3d{{spec.velocity[0], spec.velocity[1], spec.velocity[2]}});
+      for (std::size_t i = 0; i < seeds[b].size(); ++i) {
+        const double* sv = seeds[b].at(i) + kSeedVelocity;
+        if (!std::isnan(sv[0])) seeded_v[static_cast<std::size_t>(seeds[b].first) + i] = Vec3d{{sv[0], sv[1], sv[2]}};
+      }
+    }
+    const bool given_v = b < options.initial_velocities.size() && !options.initial_velocities[b].empty();
+    if (given_v || !seeded_v.empty()) {
+      const std::vector<Vec3d>& v = given_v ? options.initial_velocities[b] : seeded_v;
       if (v.size() != static_cast<std::size_t>(body.global_particles))
         throw std::invalid_argument("GpuEngine: " + std::to_string(v.size()) + " initial velocities for the " +
                                     std::to_string(body.global_particles) + " particles of body " + std::to_string(b));
@@ -840,6 +870,9 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
   }
   max_grid_speed_ = max_speed;
   if (const io::Checkpoint* cp = options.restart) restore_bodies(*cp);
+  for (auto& b : bodies_)  // a restart's checkpoint holds the state instead
+    if (!options.restart && !seeds[static_cast<std::size_t>(b->index)].empty())
+      b->rest_wave_speed = std::max(b->rest_wave_speed, b->seed_states(seeds[static_cast<std::size_t>(b->index)]));
   if (decomposed()) choose_slabs(positions);
 
   // The plan (memory_plan.h): capacities and every buffer's size, from the counts; refused before anything is
@@ -1063,6 +1096,7 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
   dt_p2g_ = dt0;
   next_dt_ = dt0;
   aux_valid_ = record_;
+  for (auto& b : bodies_) std::vector<T>().swap(b->restart_state);  // uploaded (restart or has_attributes)
   if (restart) {
     checkpoint_keep_ = false;
     update_record();
@@ -1073,7 +1107,6 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
     next_dt_ = restart->next_dt;
     clean_steps_ = restart->clean_steps;
     for (auto& b : bodies_) {  // uploaded and scattered: the host copies are not needed again
-      std::vector<T>().swap(b->restart_state);
       std::vector<Vec3<T>>().swap(b->initial_v_host);
       mgsp_detail::DeviceArray<T> done;
       b->initial_C.swap(done);
