@@ -95,7 +95,7 @@ INSTANTIATE_TEST_SUITE_P(
                       FallCase{Constitutive::FixedCorotated, 0.95, 0, 0},
                       FallCase{Constitutive::DruckerPrager, 0.9, 0.05, 0.2},
                       FallCase{Constitutive::Hencky, 0, 0, 0}, FallCase{Constitutive::NeoHookean, 0, 0, 0, 1.0},
-                      FallCase{Constitutive::JFluid, 0, 0, 0, 0.5}),
+                      FallCase{Constitutive::JFluid, 0, 0, 0, 0.5}, FallCase{Constitutive::VonMises, 0, 0, 0}),
     fall_case_name);
 
 // VALIDATION.md item 1: uniform translation across many cells keeps v = v0, F = I, stress 0 to round-off. 15 cells

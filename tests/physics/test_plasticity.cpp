@@ -366,5 +366,142 @@ TEST(NACC, ShearAtConstantPressureSaturatesAtTheCriticalState) {
   }
 }
 
+// ------------------------------------------------------------------------------------------------ VonMises
+
+MaterialSpec von_mises_spec(double E, double nu, double sigma_y, double H) {
+  MaterialSpec m;
+  m.law = Constitutive::VonMises;
+  m.youngs_modulus = E;
+  m.poisson_ratio = nu;
+  m.rho = 7800.0;
+  m.tensile_yield_strength = sigma_y;
+  m.hardening_modulus = H;
+  return m;
+}
+
+Mat3d diag3(double a, double b, double c) {
+  Mat3d D = Mat3d::zero();
+  D(0, 0) = a;
+  D(1, 1) = b;
+  D(2, 2) = c;
+  return D;
+}
+
+/// A uniaxial stress test driven in log strain: each increment stretches axis 0 by de11 and solves the lateral
+/// increment (axes 1 and 2) for tau22 = 0 by the secant method, as a testing machine does.
+struct UniaxialDriver {
+  VonMises::Params<double> p;
+  VonMises::State<double> s{Mat3d::identity(), 0.0};
+  double e11 = 0.0, e22 = 0.0;  ///< total log strains
+  double tau11 = 0.0, tau22 = 0.0;
+
+  VonMises::State<double> trial(double d11, double d22) const {
+    return VonMises::return_map(p, diag3(std::exp(d11), std::exp(d22), std::exp(d22)) * s.F, s.eps_p);
+  }
+  double lateral_stress(double d11, double d22) const {
+    return VonMises::kirchhoff_stress(p, trial(d11, d22), Mat3d::zero()).kirchhoff(1, 1);
+  }
+  void step(double d11) {
+    double a = -0.5 * d11, b = -0.3 * d11;  // between plastic (-1/2) and elastic (-nu) contraction
+    double fa = lateral_stress(d11, a), fb = lateral_stress(d11, b);
+    for (int it = 0; it < 60 && std::fabs(fb) > 1e-12 * p.yield_stress && fb != fa; ++it) {
+      const double c = b - fb * (b - a) / (fb - fa);
+      a = b;
+      fa = fb;
+      b = c;
+      fb = lateral_stress(d11, b);
+    }
+    s = trial(d11, b);
+    e11 += d11;
+    e22 += b;
+    const Mat3d tau = VonMises::kirchhoff_stress(p, s, Mat3d::zero()).kirchhoff;
+    tau11 = tau(0, 0);
+    tau22 = tau(1, 1);
+  }
+};
+
+// Uniaxial stress (the tensile test that defines sigma_y): Hencky elasticity tau11 = E e11 up to the yield stress,
+// then tau11 = (sigma_y + H e11) / (1 + H / E) (linear hardening; H = 0: a plateau at sigma_y), plastic flow at
+// constant volume (lateral strain -nu tau11 / E - eps_p / 2), and the hardening variable eps_p = e11 - tau11 / E.
+// The radial return is exact on this proportional path: tolerance 1e-9 of sigma_y (the secant solve's 1e-12 and
+// the SVD's round-off accumulated over 300 increments), in tension and compression.
+TEST(VonMises, UniaxialStressFollowsTheClosedForm) {
+  const double E = 2e8, nu = 0.3, sy = 4e5;
+  for (double H : {0.0, 0.1 * E}) {
+    for (double sign : {1.0, -1.0}) {
+      UniaxialDriver d;
+      d.p = VonMises::make_params<double>(von_mises_spec(E, nu, sy, H));
+      const double de = sign * 1e-4;  // yield at e11 = sigma_y / E = 2e-3: 20 elastic increments, 280 plastic
+      for (int i = 0; i < 300; ++i) {
+        d.step(de);
+        const double e = std::fabs(d.e11);
+        const double expected = e <= sy / E ? E * e : (sy + H * e) / (1.0 + H / E);
+        ASSERT_NEAR(sign * d.tau11, expected, 1e-9 * sy) << "H " << H << " step " << i;
+        ASSERT_NEAR(d.tau22, 0.0, 1e-9 * sy);
+        const double eps_p = std::max(0.0, e - expected / E);
+        ASSERT_NEAR(d.s.eps_p, eps_p, 1e-9) << "H " << H << " step " << i;
+        ASSERT_NEAR(sign * d.e22, -nu * expected / E - 0.5 * eps_p, 1e-9) << "H " << H << " step " << i;
+      }
+      EXPECT_GT(d.s.eps_p, 0.02);  // well into the plastic range
+    }
+  }
+}
+
+// Pure shear F = diag(e^a, e^-a, 1) (isochoric, proportional): q = 2 sqrt(3) mu a up to yield, then
+// q = (sigma_y + H e_eq) / (1 + H / (3 mu)) with e_eq = 2 a / sqrt(3) the equivalent total strain; the shear stress
+// (tau11 - tau22) / 2 = q / sqrt(3) reaches the shear yield stress sigma_y / sqrt(3) for H = 0 (von Mises, not
+// Tresca's sigma_y / 2). Each increment is one return mapping; tolerance 1e-9 of sigma_y.
+TEST(VonMises, PureShearYieldsAtTheShearYieldStress) {
+  const double E = 2e8, nu = 0.25, sy = 4e5;
+  for (double H : {0.0, 0.2 * E}) {
+    const auto p = VonMises::make_params<double>(von_mises_spec(E, nu, sy, H));
+    VonMises::State<double> s = VonMises::reference_state<double>();
+    const double da = 2e-5;
+    for (int i = 1; i <= 400; ++i) {
+      s = VonMises::return_map(p, diag3(std::exp(da), std::exp(-da), 1.0) * s.F, s.eps_p);
+      const Mat3d tau = VonMises::kirchhoff_stress(p, s, Mat3d::zero()).kirchhoff;
+      const double a = i * da, e_eq = 2.0 * a / std::sqrt(3.0);
+      const double q_elastic = 2.0 * std::sqrt(3.0) * p.mu * a;
+      const double q = q_elastic <= sy ? q_elastic : (sy + H * e_eq) / (1.0 + H / (3.0 * p.mu));
+      ASSERT_NEAR(0.5 * (tau(0, 0) - tau(1, 1)), q / std::sqrt(3.0), 1e-9 * sy) << "H " << H << " step " << i;
+      ASSERT_NEAR(trace(tau), 0.0, 1e-9 * sy);                   // isochoric: no pressure
+      ASSERT_NEAR(determinant(s.F), 1.0, 1e-12);                 // plastic flow keeps the volume
+    }
+    if (H == 0.0) EXPECT_NEAR(0.5 * (VonMises::kirchhoff_stress(p, s, Mat3d::zero()).kirchhoff(0, 0) -
+                                     VonMises::kirchhoff_stress(p, s, Mat3d::zero()).kirchhoff(1, 1)),
+                              sy / std::sqrt(3.0), 1e-9 * sy);
+  }
+}
+
+// Simple shear (rotating principal axes) to gamma = 1 in 2000 increments: the state never leaves the yield surface
+// (q <= sigma_y (1 + 1e-12)), ends on it, and the return is objective: rotating the trial F rotates the stress.
+TEST(VonMises, SimpleShearStaysOnTheSurfaceAndIsObjective) {
+  const auto p = VonMises::make_params<double>(von_mises_spec(1e8, 0.3, 2e5, 0.0));
+  VonMises::State<double> s = VonMises::reference_state<double>();
+  double q_max = 0.0;
+  for (int i = 0; i < 2000; ++i) {
+    s = VonMises::return_map(p, shear(s.F, 5e-4), s.eps_p);
+    q_max = std::max(q_max, pq(VonMises::kirchhoff_stress(p, s, Mat3d::zero()).kirchhoff).q);
+  }
+  EXPECT_LE(q_max, 2e5 * (1.0 + 1e-12));
+  EXPECT_NEAR(pq(VonMises::kirchhoff_stress(p, s, Mat3d::zero()).kirchhoff).q, 2e5, 1e-9 * 2e5);
+  EXPECT_GT(s.eps_p, 0.5);
+  // Objectivity: R F_trial returns to R F_e (same eps_p), whose stress is R tau R^T.
+  const Mat3d F_trial = shear(s.F, 0.01);
+  const double c = std::cos(0.7), sn = std::sin(0.7);
+  Mat3d R = Mat3d::identity();
+  R(0, 0) = c;
+  R(0, 1) = -sn;
+  R(1, 0) = sn;
+  R(1, 1) = c;
+  const auto a = VonMises::return_map(p, F_trial, s.eps_p);
+  const auto b = VonMises::return_map(p, R * F_trial, s.eps_p);
+  EXPECT_NEAR(b.eps_p, a.eps_p, 1e-14);
+  const Mat3d ta = R * VonMises::kirchhoff_stress(p, a, Mat3d::zero()).kirchhoff * transpose(R);
+  const Mat3d tb = VonMises::kirchhoff_stress(p, b, Mat3d::zero()).kirchhoff;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) EXPECT_NEAR(tb(i, j), ta(i, j), 1e-9 * 2e5);
+}
+
 }  // namespace
 }  // namespace fbar

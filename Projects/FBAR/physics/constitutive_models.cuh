@@ -33,12 +33,13 @@
 #include "physics/materials/material_parameters.h"
 #include "physics/materials/nacc.cuh"
 #include "physics/materials/neo_hookean.cuh"
+#include "physics/materials/von_mises.cuh"
 #include "scene/scene.h"
 
 namespace fbar {
 
 /// Every material an engine can run, in the order of their variant indices.
-using MaterialTypes = type_seq<JFluid, FixedCorotated, NeoHookean, DruckerPrager, NACC, Hencky>;
+using MaterialTypes = type_seq<JFluid, FixedCorotated, NeoHookean, DruckerPrager, NACC, Hencky, VonMises>;
 
 template <typename M, typename T>
 using material_params_t = typename M::template Params<T>;

@@ -43,7 +43,7 @@ struct SimulationSpec {
   std::uint64_t seed = 0;               ///< seed for jittered particle sampling
 };
 
-enum class Constitutive { JFluid, FixedCorotated, NeoHookean, DruckerPrager, NACC, Hencky };
+enum class Constitutive { JFluid, FixedCorotated, NeoHookean, DruckerPrager, NACC, Hencky, VonMises };
 
 struct MaterialSpec {
   Constitutive law = Constitutive::JFluid;
@@ -66,6 +66,8 @@ struct MaterialSpec {
   bool vol_correction = true;           ///< DruckerPrager SandVolCorrection
   double xi = 0.8;                      ///< [-] NACC hardening
   bool hardening = true;                ///< NACC hardeningOn
+  double tensile_yield_strength = 2e6;  ///< [Pa] VonMises initial yield stress sigma_y (ClaymoreUW default)
+  double hardening_modulus = 0.0;       ///< [Pa] VonMises linear isotropic hardening H (ClaymoreUW reads 1e6, then ignores it)
 };
 
 struct AlgorithmSpec {
