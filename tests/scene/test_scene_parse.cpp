@@ -327,6 +327,22 @@ TEST(SceneParse, SeedAttributesAreChecked) {
             std::string::npos);
 }
 
+// HydroUQ writes its wrapper keys at the top level: accepted as metadata, kept through the writer (run.json).
+TEST(SceneParse, HydroUQWrapperKeysAreMetadata) {
+  const Scene s = parse(R"({"Application": "MPM", "EventClassification": "Hydro", "type": "MPM", "subtype": "MPM",
+                            "bodies": [{"material": {}, "geometry": [{"object": "Box"}]}]})");
+  ASSERT_EQ(s.wrapper.size(), 4u);
+  EXPECT_EQ(s.wrapper[0], (std::pair<std::string, std::string>{"Application", "MPM"}));
+  EXPECT_EQ(s.wrapper[1], (std::pair<std::string, std::string>{"EventClassification", "Hydro"}));
+  const std::string written = write_scene_json(s);
+  EXPECT_NE(written.find("EventClassification"), std::string::npos) << written;
+  EXPECT_NE(written.find("Hydro"), std::string::npos) << written;
+  EXPECT_TRUE(parse(written) == s);
+  EXPECT_NE(error_of(R"({"Application": 3, "bodies": [{"material": {}, "geometry": [{"object": "Box"}]}]})")
+                .find("Application: got 3; expected a string (HydroUQ metadata)"),
+            std::string::npos);
+}
+
 TEST(SceneParse, ReleasePolicyRejectsWhatTheEngineCannotRun) {
   struct Case {
     std::string json;

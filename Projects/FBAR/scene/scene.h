@@ -197,6 +197,9 @@ struct Scene {
   std::vector<GridSensorSpec> grid_sensors;
   std::vector<ParticleSensorSpec> particle_sensors;
   int mesh_count = 0;                   ///< entries of the top-level "meshes" array (FEM bodies, a later release)
+  /// HydroUQ's wrapper keys (Application, EventClassification, type, subtype, in that order; absent ones omitted):
+  /// metadata that ClaymoreUW prints and fbar records (the scene writer, hence run.json); nothing reads them.
+  std::vector<std::pair<std::string, std::string>> wrapper;
 };
 
 }  // namespace fbar

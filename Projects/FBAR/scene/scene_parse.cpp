@@ -326,7 +326,10 @@ const std::vector<const char*> kSaveSuffixes = {".bgeo", ".geo", ".csv", ".h5"};
 
 using Keys = std::vector<std::string_view>;
 const Keys kTopKeys = {"simulation", "bodies",           "models",  "boundaries", "grid-boundaries",
-                       "grid-sensors", "particle-sensors", "targets", "meshes"};
+                       "grid-sensors", "particle-sensors", "targets", "meshes",
+                       "Application",  "EventClassification", "type", "subtype"};
+/// HydroUQ's wrapper keys at the top level: metadata (Scene::wrapper), in this order.
+const char* const kWrapperKeys[] = {"Application", "EventClassification", "type", "subtype"};
 const Keys kSimulationKeys = {"domain",      "default_dx",  "default_dt", "gravity",
                               "time",        "fps",         "frames",     "save_path",
                               "save_suffix", "particles_output_exterior_only",
@@ -1151,6 +1154,8 @@ Scene parse_document(const rj::Document& doc, Context& ctx) {
       scene.particle_sensors.push_back(parse_particle_sensor((*a)[i], index_path(path, i), ctx));
   // FEM meshes: their keys are defined by a later release; only their presence is recorded (check_supported).
   if (auto* a = optional_array(root, {"meshes"}, path, "an array of mesh objects")) scene.mesh_count = static_cast<int>(a->Size());
+  for (const char* k : kWrapperKeys)
+    if (auto* v = root.get(k)) scene.wrapper.emplace_back(k, read_string(*v, k, "a string (HydroUQ metadata)"));
   root.finish();
 
   apply_froude_scaling(scene);

@@ -179,6 +179,10 @@ class SceneWriter {
 
   void scene(const Scene& s) {
     w_.StartObject();
+    for (const auto& [k, v] : s.wrapper) {  // HydroUQ's metadata, first as HydroUQ writes it
+      key(k.c_str());
+      w_.String(v.c_str(), static_cast<rj::SizeType>(v.size()));
+    }
     simulation(s.simulation);
     key("bodies");
     w_.StartArray();
@@ -549,7 +553,8 @@ bool operator==(const ParticleSensorSpec& a, const ParticleSensorSpec& b) {
 }
 bool operator==(const Scene& a, const Scene& b) {
   return a.simulation == b.simulation && a.bodies == b.bodies && a.boundaries == b.boundaries &&
-         a.grid_sensors == b.grid_sensors && a.particle_sensors == b.particle_sensors && a.mesh_count == b.mesh_count;
+         a.grid_sensors == b.grid_sensors && a.particle_sensors == b.particle_sensors && a.mesh_count == b.mesh_count &&
+         a.wrapper == b.wrapper;
 }
 
 }  // namespace fbar
