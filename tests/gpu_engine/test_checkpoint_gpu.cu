@@ -19,6 +19,7 @@
 #include "io/checkpoint.h"
 #include "scene/scene_parse.h"
 #include "../physics/decomposition_scenes.h"
+#include "../physics/resume_support.h"
 #include "../physics/run_support.h"
 #include "gpu_test_support.h"
 
@@ -98,25 +99,11 @@ TEST(GpuResume, ABgeoFrameSeedsBodiesAsOnTheCpuEngine) {
   const fs::path dir = scratch("resume_bgeo");
   Scene a = two_body_scene(Precision::Double);
   a.bodies[1].velocity = r3(0.5, 0.0, -0.25);
-  a.bodies[0].output_attribs = {"ID", "Velocity_X", "Velocity_Y", "Velocity_Z", "J"};
-  a.bodies[1].output_attribs = {"ID", "Velocity_X", "Velocity_Y", "Velocity_Z", "logJp"};
-  for (const char* c : {"XX", "XY", "XZ", "YX", "YY", "YZ", "ZX", "ZY", "ZZ"})
-    a.bodies[1].output_attribs.push_back(std::string("DefGrad_") + c);
+  test::output_state_attributes(a);
   CpuEngine<double> run(a);
   run.set_log(nullptr);
   for (int i = 0; i < 40; ++i) ASSERT_TRUE(run.step().ok);
-  Scene b = a;
-  for (std::size_t k = 0; k < 2; ++k) {
-    const fs::path file = dir / ("body" + std::to_string(k) + ".bgeo");
-    io::write_bgeo(file, run.frame(static_cast<int>(k)));
-    GeometrySpec g;
-    g.object = GeometryObject::File;
-    g.file = file.string();
-    g.has_attributes = true;
-    g.input_attribs = a.bodies[k].output_attribs;
-    b.bodies[k].geometry = {g};
-    b.bodies[k].velocity = r3(0, 0, 0);
-  }
+  const Scene b = test::seeded_from_frames(a, run, dir);
   CpuEngine<double> cpu(b);
   cpu.set_log(nullptr);
   GpuEngine<double, double> gpu(b);

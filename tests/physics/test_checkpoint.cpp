@@ -22,6 +22,7 @@
 #include "engine/stop_request.h"
 #include "io/checkpoint.h"
 #include "physics_test_support.h"
+#include "resume_support.h"
 #include "run_support.h"
 
 namespace fbar {
@@ -343,30 +344,14 @@ TEST(Resume, ABgeoFrameSeedsFluidAndSolidBodies) {
   a.bodies[0].track_particle_id.clear();
   a.bodies[0].track_attribs.clear();
   a.bodies[1].velocity = r3(0.5, 0.0, -0.25);
-  a.bodies[0].output_attribs = {"ID", "Velocity_X", "Velocity_Y", "Velocity_Z", "J"};
-  std::vector<std::string> defgrad;
-  for (const char* c : {"XX", "XY", "XZ", "YX", "YY", "YZ", "ZX", "ZY", "ZZ"}) defgrad.push_back(std::string("DefGrad_") + c);
-  a.bodies[1].output_attribs = {"ID", "Velocity_X", "Velocity_Y", "Velocity_Z", "logJp"};
-  a.bodies[1].output_attribs.insert(a.bodies[1].output_attribs.end(), defgrad.begin(), defgrad.end());
+  test::output_state_attributes(a);
   CpuEngine<double> run(a);
   run.set_log(nullptr);
   for (int i = 0; i < 40; ++i) ASSERT_TRUE(run.step().ok);
-  Scene b = a;
-  for (std::size_t k = 0; k < 2; ++k) {
-    const fs::path file = dir / ("body" + std::to_string(k) + ".bgeo");
-    io::write_bgeo(file, run.frame(static_cast<int>(k)));
-    GeometrySpec g;
-    g.object = GeometryObject::File;
-    g.file = file.string();
-    g.has_attributes = true;
-    g.input_attribs = a.bodies[k].output_attribs;
-    b.bodies[k].geometry = {g};
-    b.bodies[k].velocity = r3(0, 0, 0);  // the file's velocities replace it
-  }
-  CpuEngine<double> resumed(b);
+  CpuEngine<double> resumed(test::seeded_from_frames(a, run, dir));
   resumed.set_log(nullptr);
   for (int k = 0; k < 2; ++k) {
-    const io::ParticleFrame written = io::read_bgeo(dir / ("body" + std::to_string(k) + ".bgeo"));
+    const io::ParticleFrame written = io::read_bgeo(test::resume_frame(dir, static_cast<std::size_t>(k)));
     const io::ParticleFrame seeded = resumed.frame(k);
     ASSERT_EQ(seeded.size(), written.size()) << "body " << k;
     for (std::size_t p = 0; p < written.size(); ++p)

@@ -58,10 +58,10 @@ void check_supported(const Scene& scene) {
     for (std::size_t j = 0; j < b.geometry.size(); ++j) {
       const GeometrySpec& g = b.geometry[j];
       const std::string gp = p + "." + idx("geometry", j);
+      bool stores_logjp = false;
+      visit_material(m.law, [&](auto mm) { stores_logjp = decltype(mm)::kOutputs.log_jp; });
       if (g.object == GeometryObject::File && g.has_attributes)
         for (std::size_t k = 0; k < g.input_attribs.size(); ++k) {
-          bool stores_logjp = false;
-          visit_material(m.law, [&](auto mm) { stores_logjp = decltype(mm)::kOutputs.log_jp; });
           if (g.input_attribs[k] == "logJp" && !stores_logjp)
             throw SceneError(gp + ".input_attribs[" + std::to_string(k) + "]", "\"logJp\"",
                              std::string("an attribute a ") + to_string(m.law) +

@@ -389,11 +389,13 @@ class MgspBenchmark {
       constexpr std::size_t S = Layout::kStateScalars;
       const auto initial = material_initial_state<M, T>(this->spec.material);
       this->restart_state.resize(S * static_cast<std::size_t>(this->global_particles));
-      double speed = 0.0;
+      double speed = 0.0;  // of the seeded states (the others are the body's initial state)
       for (long long id = 0; id < this->global_particles; ++id) {
         auto state = initial;
-        if (id >= seeds.first) state = material_seeded_state<M, T>(state, seeds.at(static_cast<std::size_t>(id - seeds.first)));
-        speed = std::max(speed, static_cast<double>(M::wave_speed(params, state)));
+        if (id >= seeds.first) {
+          state = material_seeded_state<M, T>(state, seeds.at(static_cast<std::size_t>(id - seeds.first)));
+          speed = std::max(speed, static_cast<double>(M::wave_speed(params, state)));
+        }
         std::memcpy(this->restart_state.data() + S * static_cast<std::size_t>(id), &state, sizeof(state));
       }
       return speed;
@@ -842,7 +844,7 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
                                               spec.velocity[1] * spec.velocity[1] +
                                               spec.velocity[2] * spec.velocity[2]));
     std::vector<Vec3d> seeded_v;  // the body's velocity, or a seed's (has_attributes)
-    if (!seeds[b].empty() && seeds[b].size() > 0) {
+    if (!seeds[b].empty()) {
       seeded_v.assign(static_cast<std::size_t>(body.global_particles),
                       Vec3d{{spec.velocity[0], spec.velocity[1], spec.velocity[2]}});
       for (std::size_t i = 0; i < seeds[b].size(); ++i) {

@@ -76,7 +76,40 @@ FBAR_HOST_DEVICE inline HenckyPrincipal<T> hencky_principal(const Mat3<T>& F) {
   return h;
 }
 
-struct DruckerPrager {
+/// The elasticity of a plastic law whose State<T> holds the elastic F (State::F) and whose Params<T> hold rho0, mu
+/// and lambda (DruckerPrager, VonMises): the Hencky law (materials/hencky.cuh) of F_e. Such a law derives from
+/// HenckyElastoplastic<its Params, its State> for kirchhoff_stress, wave_speed and energy_density, and supplies its
+/// own return mapping.
+template <template <typename> class Params, template <typename> class State>
+struct HenckyElastoplastic {
+  /// The Hencky parameters with the law's mu and lambda.
+  template <typename T>
+  FBAR_HOST_DEVICE static constexpr Hencky::Params<T> elastic(const Params<T>& p) {
+    return Hencky::Params<T>{p.rho0, p.mu, p.lambda};
+  }
+
+  /// tau = U diag(2 mu eps + lambda tr eps) U^T [Pa] of the stored (returned, never inverted) F_e; C unused.
+  template <typename T>
+  FBAR_HOST_DEVICE static inline StressResult<T> kirchhoff_stress(const Params<T>& p, const State<T>& s,
+                                                                  const Mat3<T>& C) {
+    return Hencky::kirchhoff_stress(elastic(p), Hencky::State<T>{s.F}, C);
+  }
+
+  /// P-wave speed sqrt((lambda + 2 mu) / rho0) [m/s] (elastic, small strain: the fastest wave).
+  template <typename T>
+  FBAR_HOST_DEVICE static inline T wave_speed(const Params<T>& p, const State<T>& /*s*/) {
+    return Hencky::wave_speed(elastic(p), Hencky::State<T>{Mat3<T>::identity()});
+  }
+
+  /// Stored elastic energy psi = mu |eps|^2 + lambda/2 (tr eps)^2 of F_e per reference volume [J/m^3] (the plastic
+  /// work is dissipated).
+  template <typename T>
+  FBAR_HOST_DEVICE static inline T energy_density(const Params<T>& p, const State<T>& s) {
+    return Hencky::energy_density(elastic(p), Hencky::State<T>{s.F});
+  }
+};
+
+struct DruckerPrager : HenckyElastoplastic<DruckerPragerParams, PlasticState> {
   static constexpr const char* kJsonName = "DruckerPrager";
   static constexpr Constitutive kLaw = Constitutive::DruckerPrager;
   static constexpr const char* kAliases[] = {"Sand", "Drucker-Prager", "Drucker_Prager"};
@@ -184,29 +217,7 @@ struct DruckerPrager {
     return return_map(p, advance_deformation_gradient(s.F, C, dt), s.logJp);
   }
 
-  /// The elasticity is the Hencky law's (materials/hencky.cuh) with the same mu and lambda.
-  template <typename T>
-  FBAR_HOST_DEVICE static constexpr Hencky::Params<T> elastic(const Params<T>& p) {
-    return Hencky::Params<T>{p.rho0, p.mu, p.lambda};
-  }
-
-  /// tau = U diag(2 mu eps + lambda tr eps) U^T [Pa] of the stored (returned, never inverted) F; C unused.
-  template <typename T>
-  FBAR_HOST_DEVICE static inline StressResult<T> kirchhoff_stress(const Params<T>& p, const State<T>& s,
-                                                                  const Mat3<T>& C) {
-    return Hencky::kirchhoff_stress(elastic(p), Hencky::State<T>{s.F}, C);
-  }
-
-  template <typename T>
-  FBAR_HOST_DEVICE static inline T wave_speed(const Params<T>& p, const State<T>& /*s*/) {
-    return Hencky::wave_speed(elastic(p), Hencky::State<T>{Mat3<T>::identity()});
-  }
-
-  /// psi = mu |eps|^2 + lambda/2 (tr eps)^2 of the elastic F [J/m^3].
-  template <typename T>
-  FBAR_HOST_DEVICE static inline T energy_density(const Params<T>& p, const State<T>& s) {
-    return Hencky::energy_density(elastic(p), Hencky::State<T>{s.F});
-  }
+  // kirchhoff_stress, wave_speed, energy_density: HenckyElastoplastic (the Hencky law of the elastic F).
 };
 
 }  // namespace fbar

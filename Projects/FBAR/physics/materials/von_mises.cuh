@@ -48,7 +48,7 @@ struct VonMisesState {
   T eps_p;    ///< [-] accumulated equivalent plastic strain (the hardening variable)
 };
 
-struct VonMises {
+struct VonMises : HenckyElastoplastic<VonMisesParams, VonMisesState> {
   static constexpr const char* kJsonName = "VonMises";
   static constexpr Constitutive kLaw = Constitutive::VonMises;
   static constexpr const char* kAliases[] = {"Von_Mises", "Von-Mises", "Von Mises"};
@@ -107,30 +107,7 @@ struct VonMises {
     return return_map(p, advance_deformation_gradient(s.F, C, dt), s.eps_p);
   }
 
-  /// The elasticity: the Hencky law with the same mu and lambda.
-  template <typename T>
-  FBAR_HOST_DEVICE static constexpr Hencky::Params<T> elastic(const Params<T>& p) {
-    return Hencky::Params<T>{p.rho0, p.mu, p.lambda};
-  }
-
-  /// tau = U diag(2 mu eps + lambda tr eps) U^T [Pa] of the elastic F; C unused.
-  template <typename T>
-  FBAR_HOST_DEVICE static inline StressResult<T> kirchhoff_stress(const Params<T>& p, const State<T>& s,
-                                                                  const Mat3<T>& C) {
-    return Hencky::kirchhoff_stress(elastic(p), Hencky::State<T>{s.F}, C);
-  }
-
-  /// P-wave speed sqrt((lambda + 2 mu) / rho0) [m/s] (elastic, small strain: the fastest wave).
-  template <typename T>
-  FBAR_HOST_DEVICE static inline T wave_speed(const Params<T>& p, const State<T>& /*s*/) {
-    return Hencky::wave_speed(elastic(p), Hencky::State<T>{Mat3<T>::identity()});
-  }
-
-  /// Stored elastic energy per reference volume of F_e [J/m^3] (the plastic work is dissipated).
-  template <typename T>
-  FBAR_HOST_DEVICE static inline T energy_density(const Params<T>& p, const State<T>& s) {
-    return Hencky::energy_density(elastic(p), Hencky::State<T>{s.F});
-  }
+  // kirchhoff_stress, wave_speed, energy_density: HenckyElastoplastic (the Hencky law of the elastic F).
 };
 
 }  // namespace fbar
