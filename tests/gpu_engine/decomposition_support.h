@@ -31,12 +31,15 @@ struct RunResult {
   long long steps = 0;
   long long migrated = 0;
   std::size_t halo_blocks = 0;
+  std::size_t halo_particle_blocks = 0;  ///< most particle blocks a step ran before the halo exchange
   bool always_owned = true;
 };
 
 /// One rank: `steps` CFL steps on CUDA device `gpu`, then every particle it holds. host: null for a run without
-/// decomposition; nccl: NCCL between the ranks (each on its own GPU), else peer copies between threads.
-inline RunResult run_rank(const Scene& scene, comm::Transport* host, int steps, int gpu = 0, bool nccl = false) {
+/// decomposition; nccl: NCCL between the ranks (each on its own GPU), else peer copies between threads; overlap:
+/// GpuEngineOptions::overlap_halo.
+inline RunResult run_rank(const Scene& scene, comm::Transport* host, int steps, int gpu = 0, bool nccl = false,
+                          bool overlap = true) {
   RunResult out;
   try {
     FBAR_CUDA_CHECK(cudaSetDevice(gpu));
@@ -46,6 +49,7 @@ inline RunResult run_rank(const Scene& scene, comm::Transport* host, int steps, 
       device = nccl ? comm::make_nccl_transport(*host) : comm::make_thread_device_transport(*host);
       options.ranks = host;
       options.device_ranks = device.get();
+      options.overlap_halo = overlap;
     }
     GpuEngine<double> engine(scene, options);
     engine.set_log(nullptr);
@@ -57,6 +61,7 @@ inline RunResult run_rank(const Scene& scene, comm::Transport* host, int steps, 
         return out;
       }
       out.halo_blocks = std::max(out.halo_blocks, engine.halo_blocks());
+      out.halo_particle_blocks = std::max(out.halo_particle_blocks, engine.halo_particle_blocks());
     }
     out.time = engine.time();
     out.steps = engine.steps();

@@ -32,11 +32,12 @@ using test::RunResult;
 using test::travelling_block;
 
 /// `ranks` threads; rank r on GPU r % gpus, NCCL when nccl (then every rank needs its own GPU).
-RunResult run_decomposed(const Scene& scene, int ranks, int steps, int gpus = 1, bool nccl = false) {
+RunResult run_decomposed(const Scene& scene, int ranks, int steps, int gpus = 1, bool nccl = false,
+                         bool overlap = true) {
   std::vector<std::unique_ptr<comm::Transport>> hosts = comm::make_thread_transports(ranks);
   std::vector<RunResult> results(static_cast<std::size_t>(ranks));
   std::vector<std::thread> threads;
-  for (int r = 0; r < ranks; ++r) threads.emplace_back([&, r] { results[r] = run_rank(scene, hosts[r].get(), steps, r % gpus, nccl); });
+  for (int r = 0; r < ranks; ++r) threads.emplace_back([&, r] { results[r] = run_rank(scene, hosts[r].get(), steps, r % gpus, nccl, overlap); });
   for (auto& t : threads) t.join();
   RunResult merged;
   merged.mass = results[0].mass;
@@ -45,6 +46,7 @@ RunResult run_decomposed(const Scene& scene, int ranks, int steps, int gpus = 1,
     if (!one.error.empty()) merged.error += "rank " + std::to_string(r) + ": " + one.error + "\n";
     merged.migrated += one.migrated;
     merged.halo_blocks = std::max(merged.halo_blocks, one.halo_blocks);
+    merged.halo_particle_blocks = std::max(merged.halo_particle_blocks, one.halo_particle_blocks);
     merged.always_owned = merged.always_owned && one.always_owned;
     for (const auto& [key, state] : one.states)
       if (!merged.states.emplace(key, state).second)
@@ -62,15 +64,18 @@ using test::kPositionTolerance;
 using test::kTimeTolerance;
 using test::kVelocityTolerance;
 
-/// gpus = 1: 2 and 3 ranks on GPU 0 (peer copies); gpus > 1: that many ranks, one per GPU, with NCCL.
-void expect_same_run(const Scene& scene, int steps, bool expect_migration, int gpus = 1) {
+/// gpus = 1: 2 and 3 ranks on GPU 0 (peer copies); gpus > 1: that many ranks, one per GPU, with NCCL. overlap:
+/// the halo-first G2P2G with the halo sums on a second stream (GpuEngineOptions::overlap_halo), or one after the
+/// other.
+void expect_same_run(const Scene& scene, int steps, bool expect_migration, int gpus = 1, bool overlap = true) {
   FBAR_REQUIRE_DEVICE();
   const RunResult one = run_rank(scene, nullptr, steps);
   ASSERT_TRUE(one.error.empty()) << one.error;
   const std::vector<int> rank_counts = gpus > 1 ? std::vector<int>{gpus} : std::vector<int>{2, 3};
   for (int ranks : rank_counts) {
-    SCOPED_TRACE(std::to_string(ranks) + " ranks" + (gpus > 1 ? " on as many GPUs (NCCL)" : " on one GPU"));
-    const RunResult many = run_decomposed(scene, ranks, steps, gpus, gpus > 1);
+    SCOPED_TRACE(std::to_string(ranks) + " ranks" + (gpus > 1 ? " on as many GPUs (NCCL)" : " on one GPU") +
+                 (overlap ? ", halo overlapped" : ", halo after G2P2G"));
+    const RunResult many = run_decomposed(scene, ranks, steps, gpus, gpus > 1, overlap);
     ASSERT_TRUE(many.error.empty()) << many.error;
     ASSERT_EQ(many.states.size(), one.states.size()) << "particles lost or doubled";
     for (const auto& [key, s] : one.states) ASSERT_EQ(many.states.count(key), 1u) << "particle " << key.second;
@@ -79,6 +84,7 @@ void expect_same_run(const Scene& scene, int steps, bool expect_migration, int g
     EXPECT_NEAR(many.time, one.time, kTimeTolerance * one.time);
     EXPECT_TRUE(many.always_owned) << "a particle sat on a rank that does not own its block";
     EXPECT_GT(many.halo_blocks, 0u);
+    EXPECT_GT(many.halo_particle_blocks, 0u) << "no particle block was run before the halo exchange";
     if (expect_migration) {
       EXPECT_GT(many.migrated, 0);
     }
@@ -96,6 +102,9 @@ void expect_same_run(const Scene& scene, int steps, bool expect_migration, int g
 TEST(GpuDecomposition, DamBreakCrossesTheCuts) { expect_same_run(dam_break(false), 120, true); }
 
 TEST(GpuDecomposition, DamBreakWithAsflipAndFbar) { expect_same_run(dam_break(true), 120, true); }
+
+// The same runs with the halo sums after the whole G2P2G (no second stream): both orders give the one-rank result.
+TEST(GpuDecomposition, DamBreakWithoutOverlap) { expect_same_run(dam_break(true), 120, true, 1, false); }
 
 TEST(GpuDecomposition, TravellingBlockMigratesEveryParticle) { expect_same_run(travelling_block(), 120, true); }
 

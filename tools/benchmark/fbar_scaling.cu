@@ -2,7 +2,7 @@
 // ranks, one rank per GPU.
 //
 //   fbar_scaling [--ranks=1,2] [--strong=32] [--weak=16] [--steps=50] [--warmup=10] [--precision=single]
-//                [--scene=dam_break] [--csv=FILE]
+//                [--scene=dam_break] [--overlap=both|on|off] [--csv=FILE]
 // Without a launcher the ranks are threads of this process: rank r on GPU r % (visible GPUs); NCCL when every rank
 // has a GPU of its own, peer copies between the threads otherwise (several ranks on one GPU: a check of the
 // decomposition's overhead, not a scaling figure; the table says "shared"). Under mpirun / srun (one process per
@@ -10,7 +10,9 @@
 // Per case: wall time per step (max over ranks; the ranks step in lockstep), particle-steps per second, the
 // efficiency against one rank (strong: t1 / (N tN) at a fixed total; weak: t1 / tN at a fixed size per rank), and
 // rank 0's split of a step from CUDA events in a second timed run (grid update, G2P2G, halo sums, migration,
-// partition; the halo is not overlapped with G2P2G yet, so all of it is exposed).
+// partition; halo: the exposed part of the halo sums, hidden: the part that overlapped the interior G2P2G). Every
+// case on more than one rank runs with the halo-first overlap (GpuEngineOptions::overlap_halo) and without it
+// (--overlap=both, the default), so the table shows what the overlap hides.
 #include <cuda_runtime.h>
 
 #include <algorithm>
@@ -58,7 +60,8 @@ std::vector<int> split_ints(const std::string& s) {
 }
 
 template <typename T, typename TG>
-RankResult run_rank(const Scene& scene, comm::Transport* host, bool nccl, int device, int steps, int warmup) {
+RankResult run_rank(const Scene& scene, comm::Transport* host, bool nccl, int device, int steps, int warmup,
+                    bool overlap) {
   RankResult out;
   try {
     FBAR_CUDA_CHECK(cudaSetDevice(device));
@@ -68,6 +71,7 @@ RankResult run_rank(const Scene& scene, comm::Transport* host, bool nccl, int de
       dev = nccl ? comm::make_nccl_transport(*host) : comm::make_thread_device_transport(*host);
       options.ranks = host;
       options.device_ranks = dev.get();
+      options.overlap_halo = overlap;
     }
     GpuEngine<T, TG> engine(scene, options);
     engine.set_log(nullptr);
@@ -94,12 +98,12 @@ RankResult run_rank(const Scene& scene, comm::Transport* host, bool nccl, int de
 }
 
 RankResult run_case_typed(const Scene& scene, int ranks, int devices, int steps, int warmup, Precision precision,
-                          comm::Transport* mpi, bool& shared) {
+                          comm::Transport* mpi, bool overlap, bool& shared) {
   auto run = [&](comm::Transport* host, bool nccl, int device) {
     switch (precision) {
-      case Precision::Double: return run_rank<double, double>(scene, host, nccl, device, steps, warmup);
-      case Precision::Mixed: return run_rank<double, float>(scene, host, nccl, device, steps, warmup);
-      default: return run_rank<float, float>(scene, host, nccl, device, steps, warmup);
+      case Precision::Double: return run_rank<double, double>(scene, host, nccl, device, steps, warmup, overlap);
+      case Precision::Mixed: return run_rank<double, float>(scene, host, nccl, device, steps, warmup, overlap);
+      default: return run_rank<float, float>(scene, host, nccl, device, steps, warmup, overlap);
     }
   };
   if (mpi) {  // this process is one rank of the MPI world
@@ -136,7 +140,7 @@ int main(int argc, char** argv) {
   std::vector<int> ranks_list = {1, 2};
   double strong = 32, weak = 16;
   int steps = 50, warmup = 10;
-  std::string precision_name = "single", scene_name = "dam_break", csv;
+  std::string precision_name = "single", scene_name = "dam_break", csv, overlap_name = "both";
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&](const char* key) { return a.substr(std::string(key).size()); };
@@ -148,6 +152,7 @@ int main(int argc, char** argv) {
     else if (a.rfind("--precision=", 0) == 0) precision_name = value("--precision=");
     else if (a.rfind("--scene=", 0) == 0) scene_name = value("--scene=");
     else if (a.rfind("--csv=", 0) == 0) csv = value("--csv=");
+    else if (a.rfind("--overlap=", 0) == 0) overlap_name = value("--overlap=");
     else {
       std::fprintf(stderr, "unknown argument %s\n", a.c_str());
       return 2;
@@ -178,21 +183,26 @@ int main(int argc, char** argv) {
   std::ofstream out;
   if (lead && !csv.empty()) {
     out.open(csv);
-    out << "mode,ranks,transport,particles,ms_per_step,particle_steps_per_s,efficiency,grid_ms,g2p2g_ms,halo_ms,"
-           "migration_ms,partition_ms,halo_blocks,migrated,commit,device\n";
+    out << "mode,ranks,transport,overlap,particles,ms_per_step,particle_steps_per_s,efficiency,grid_ms,g2p2g_ms,"
+           "halo_exposed_ms,halo_hidden_ms,migration_ms,partition_ms,halo_blocks,migrated,commit,device\n";
   }
   if (lead)
-    std::printf("%-6s %5s %-8s %10s %9s %11s %6s | %8s %8s %8s %8s %8s %6s %8s\n", "mode", "ranks", "transport",
-                "particles", "ms/step", "p-steps/s", "eff", "grid", "g2p2g", "halo", "migr", "part", "halo b",
-                "migrated");
+    std::printf("%-6s %5s %-8s %-4s %10s %9s %11s %6s | %8s %8s %8s %8s %8s %8s %6s %8s\n", "mode", "ranks",
+                "transport", "ovl", "particles", "ms/step", "p-steps/s", "eff", "grid", "g2p2g", "halo", "hidden",
+                "migr", "part", "halo b", "migrated");
+  std::vector<bool> overlaps;
+  if (overlap_name != "off") overlaps.push_back(true);
+  if (overlap_name != "on") overlaps.push_back(false);
   for (const char* mode : {"strong", "weak"}) {
     double t1 = 0;
-    for (int n : ranks_list) {
+    for (int n : ranks_list)
+    for (const bool overlap : overlaps) {
+      if (n == 1 && overlap != overlaps.front()) continue;  // one rank has no halo
       const bool is_strong = std::string(mode) == "strong";
       const double millions = is_strong ? strong : weak * n;
       const Scene scene = bench::make_scene(scene_name, millions, precision);
       bool shared = false;
-      const RankResult r = run_case_typed(scene, n, devices, steps, warmup, precision, mpi.get(), shared);
+      const RankResult r = run_case_typed(scene, n, devices, steps, warmup, precision, mpi.get(), overlap, shared);
       if (!r.error.empty()) {
         if (lead) std::printf("%-6s %5d error: %s\n", mode, n, r.error.c_str());
         continue;
@@ -201,15 +211,18 @@ int main(int argc, char** argv) {
       const double eff = t1 > 0 ? (is_strong ? t1 / (n * r.ms_per_step) : t1 / r.ms_per_step) : 0.0;
       const double k = r.kernels.steps > 0 ? 1.0 / static_cast<double>(r.kernels.steps) : 0.0;
       const std::string transport = n == 1 ? "-" : shared ? "shared" : "nccl";
+      const char* ovl = n == 1 ? "-" : overlap ? "on" : "off";
       if (!lead) continue;
-      std::printf("%-6s %5d %-8s %10zu %9.3f %11.3e %6.3f | %8.3f %8.3f %8.3f %8.3f %8.3f %6zu %8lld\n", mode, n,
-                  transport.c_str(), r.particles, r.ms_per_step, static_cast<double>(r.particles) * 1e3 / r.ms_per_step,
-                  eff, r.kernels.grid_update_ms * k, r.kernels.g2p2g_ms * k, r.kernels.halo_ms * k,
-                  r.kernels.migration_ms * k, r.kernels.partition_ms * k, r.halo_blocks, r.migrated);
+      std::printf("%-6s %5d %-8s %-4s %10zu %9.3f %11.3e %6.3f | %8.3f %8.3f %8.3f %8.3f %8.3f %8.3f %6zu %8lld\n", mode,
+                  n, transport.c_str(), ovl, r.particles, r.ms_per_step,
+                  static_cast<double>(r.particles) * 1e3 / r.ms_per_step, eff, r.kernels.grid_update_ms * k,
+                  r.kernels.g2p2g_ms * k, r.kernels.halo_ms * k, r.kernels.halo_hidden_ms * k, r.kernels.migration_ms * k,
+                  r.kernels.partition_ms * k, r.halo_blocks, r.migrated);
       if (out)
-        out << mode << "," << n << "," << transport << "," << r.particles << "," << r.ms_per_step << ","
+        out << mode << "," << n << "," << transport << "," << ovl << "," << r.particles << "," << r.ms_per_step << ","
             << static_cast<double>(r.particles) * 1e3 / r.ms_per_step << "," << eff << "," << r.kernels.grid_update_ms * k
-            << "," << r.kernels.g2p2g_ms * k << "," << r.kernels.halo_ms * k << "," << r.kernels.migration_ms * k << ","
+            << "," << r.kernels.g2p2g_ms * k << "," << r.kernels.halo_ms * k << "," << r.kernels.halo_hidden_ms * k
+            << "," << r.kernels.migration_ms * k << ","
             << r.kernels.partition_ms * k << "," << r.halo_blocks << "," << r.migrated << "," << FBAR_GIT_COMMIT << ","
             << prop.name << "\n";
     }

@@ -185,6 +185,8 @@ template <typename T, typename TG>
 long long GpuEngine<T, TG>::migrated() const { return impl_->migrated(); }
 template <typename T, typename TG>
 std::size_t GpuEngine<T, TG>::halo_blocks() const { return impl_->halo_blocks(); }
+template <typename T, typename TG>
+std::size_t GpuEngine<T, TG>::halo_particle_blocks() const { return impl_->halo_particle_blocks(); }
 
 template class GpuEngine<float, float>;
 template class GpuEngine<double, double>;

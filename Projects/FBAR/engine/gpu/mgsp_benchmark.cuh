@@ -41,6 +41,7 @@
 #include <array>
 #include <climits>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
@@ -161,10 +162,16 @@ static __global__ void reset_step_stats(StepStats* stats, BodyStepStats* bodies,
       }
     bodies[b].total_bins = 0;
     bodies[b].particles = 0;
+    bodies[b].halo_blocks = 0;
+    bodies[b].interior_blocks = 0;
   }
 }
 
 }  // namespace mgsp_detail
+
+/// Which blocks of a layout one G2P2G launch runs: all (one GPU), or the halo particle blocks / the others of a
+/// decomposed rank's list (partition_domain.h), so that the halo exchange overlaps the second launch.
+enum class G2P2GPass { All, Halo, Interior };
 
 /// The device state of one GPU and its step (the engine behind GpuEngine<T, TG>). T: particle scalar type (stored
 /// state, transfers, material update); TG: grid scalar type (grid buffers, the shared P2G arena, the grid update).
@@ -245,6 +252,11 @@ class MgspBenchmark {
   const comm::SlabPartition& slabs() const { return slabs_; }
   long long migrated() const { return migrated_; }
   std::size_t halo_blocks() const { return halo_[0].keys.size() + halo_[1].keys.size(); }
+  std::size_t halo_particle_blocks() const {
+    std::size_t n = 0;
+    for (const auto& b : bodies_) n += static_cast<std::size_t>(b->halo_blocks[cur_]);
+    return n;
+  }
 
  private:
   // ---------------------------------------------------------------- bodies (host-side polymorphism only)
@@ -265,6 +277,8 @@ class MgspBenchmark {
     mgsp_detail::DeviceArray<T> particle_v[2];
     PartitionDomain partition;
     int total_bins[2] = {0, 0};  ///< bins of layout 0 / 1
+    /// Decomposed runs: blocks of layout 0 / 1 listed for the halo-first G2P2G (halo particle blocks, the others).
+    int halo_blocks[2] = {0, 0}, interior_blocks[2] = {0, 0};
     mgsp_detail::DeviceArray<T> aux;  ///< (slot, kAuxScalars) recorded v and C
     /// Per-particle initial velocities (GpuEngineOptions::initial_velocities): (ID, 3) on the device for the initial
     /// P2G, and on the host for snapshots before the first step; empty when the body starts at its scene velocity.
@@ -316,7 +330,8 @@ class MgspBenchmark {
     /// States of particles read with has_attributes (geometry/particle_seed.h): restart_state for every ID, the
     /// seeded ones from their seeds, the rest in the body's initial state. Returns the largest wave speed [m/s].
     virtual double seed_states(const ParticleSeeds& seeds) = 0;
-    virtual void g2p2g(MgspBenchmark& e, bool initial, T dt) = 0;
+    /// pass: every block of layout(cur) (one GPU, the initial P2G), or one part of its list (the halo-first step).
+    virtual void g2p2g(MgspBenchmark& e, bool initial, T dt, G2P2GPass pass = G2P2GPass::All) = 0;
     virtual void dest_from_positions(MgspBenchmark& e, int bins_which, const int* valid, int first, int slots) = 0;
     virtual std::size_t migrant_bytes(const MgspBenchmark& e) const = 0;
     /// Emigrants among the first `slots` slots of bins[1 - cur] into out[0] / out[1] (count: 2 device ints).
@@ -401,7 +416,7 @@ class MgspBenchmark {
       return speed;
     }
 
-    void g2p2g(MgspBenchmark& e, bool initial, T dt) override {
+    void g2p2g(MgspBenchmark& e, bool initial, T dt, G2P2GPass pass) override {
       G2P2GParams<M, T, TG> p;
       p.in = bins[e.cur_].instance();
       p.out = bins[1 - e.cur_].instance();
@@ -443,9 +458,9 @@ class MgspBenchmark {
       p.wave_speed = e.wave_d_.get() + (1 - e.wave_cur_) * e.bodies_.size() + this->index;
       p.p2g_bound_in = e.p2g_bound_d_.get() + e.bound_cur_ * e.bodies_.size() + this->index;
       p.p2g_bound_out = e.p2g_bound_d_.get() + (1 - e.bound_cur_) * e.bodies_.size() + this->index;
-      const int blocks = e.block_count_;
-      if (blocks == 0) return;
-      if (p.fbar_psi != T(0)) {  // F-bar: this body's cell sums first (kernels/g2p2g_kernel.cuh, fbar_divergence)
+      if (e.block_count_ == 0) return;
+      if (p.fbar_psi != T(0) && pass != G2P2GPass::Interior) {  // F-bar: the cell sums first (fbar_divergence)
+        const int blocks = e.block_count_;
         e.fbar_sums_.clear(0, blocks, e.stream_);
         FbarDivergenceParams<M, T, TG> f;
         f.in = p.in;
@@ -462,6 +477,16 @@ class MgspBenchmark {
         mgsp_detail::check_launch("fbar_divergence");
         if (e.decomposed()) e.halo_exchange({{e.fbar_sums_.instance().data(), GridFbarBuffer<TG>::kBlockBytes}}, -1);
       }
+      int blocks = e.block_count_;
+      p.order_first = -1;
+      if (pass == G2P2GPass::Halo) {
+        p.order_first = 0;
+        blocks = this->halo_blocks[e.cur_];
+      } else if (pass == G2P2GPass::Interior) {
+        blocks = this->interior_blocks[e.cur_];
+        p.order_first = this->partition.block_capacity() - blocks;
+      }
+      if (blocks == 0) return;
       const bool transport = static_cast<bool>(p.transported_next);
       const std::size_t arena = g2p2g_arena_bytes<TG>(transport);
       const bool capture = p.capture.x != nullptr;
@@ -635,7 +660,22 @@ class MgspBenchmark {
   bool owns(const Vec3d& x) const;
   /// Sums the listed block buffers' halo blocks with the neighbours (data, bytes per block). grid >= 0: the first
   /// buffer is grid_[grid], whose summed halo is kept for a later delta exchange; delta: add (mine + theirs) - saved.
-  void halo_exchange(std::initializer_list<std::pair<std::byte*, std::size_t>> buffers, int grid, bool delta = false);
+  /// On `stream` (nullptr: the compute stream).
+  void halo_exchange(std::initializer_list<std::pair<std::byte*, std::size_t>> buffers, int grid, bool delta = false,
+                     cudaStream_t stream = nullptr);
+  /// Step 3 of a decomposed rank: G2P2G of the halo particle blocks, then of the others on the compute stream while
+  /// the halo stream sums grid[1 - gc] (and the transported momentum) with the neighbours; the compute stream then
+  /// waits for the sums (options_.overlap_halo; otherwise G2P2G and the sums one after the other).
+  void g2p2g_and_halo(T dt);
+  /// Lists layout `l` of body b for the halo-first G2P2G (counters: 2 device ints, zeroed here).
+  void list_blocks(BodyBase& b, int l, int* counters);
+  /// total_bins and the listed block counts of layout l from the step's statistics.
+  void take_layout_stats(BodyBase& b, int l) {
+    const BodyStepStats& s = body_stats_[b.index];
+    b.total_bins[l] = s.total_bins;
+    b.halo_blocks[l] = s.halo_blocks;
+    b.interior_blocks[l] = s.interior_blocks;
+  }
   /// After the partition: the table blocks [halo_scanned_, count) in a halo plane (keys and counts into stats).
   void collect_halo();
   /// Collective: every rank's new halo blocks go to its neighbours; both sides then hold (and list, sorted) the
@@ -662,6 +702,9 @@ class MgspBenchmark {
   cudaStream_t stream_ = nullptr;       ///< compute stream
   cudaStream_t copy_stream_ = nullptr;  ///< frame downloads
   cudaEvent_t events_[6] = {};  ///< step phases (kernel timing): grid | dt + G2P2G | halo | migration | partition
+  cudaStream_t halo_stream_ = nullptr;  ///< decomposed runs: the halo sums overlapping the interior G2P2G
+  cudaEvent_t halo_ready_ = nullptr, halo_done_ = nullptr;  ///< halo blocks scattered / summed
+  cudaEvent_t halo_events_[2] = {};  ///< kernel timing: the halo stream's sums start / end
   BlockHashTable table_;
   GridBuffer<TG> grid_[2];
   GridVelocityBuffer<TG> velocity_;
@@ -922,8 +965,14 @@ MgspBenchmark<T, TG>::~MgspBenchmark() {
   // Buffers free themselves; streams and events last (no throw from a destructor).
   if (stream_) cudaStreamSynchronize(stream_);
   if (copy_stream_) cudaStreamSynchronize(copy_stream_);
+  if (halo_stream_) cudaStreamSynchronize(halo_stream_);
   for (cudaEvent_t& e : events_)
     if (e) cudaEventDestroy(e);
+  for (cudaEvent_t& e : halo_events_)
+    if (e) cudaEventDestroy(e);
+  if (halo_ready_) cudaEventDestroy(halo_ready_);
+  if (halo_done_) cudaEventDestroy(halo_done_);
+  if (halo_stream_) cudaStreamDestroy(halo_stream_);
   if (stream_) cudaStreamDestroy(stream_);
   if (copy_stream_) cudaStreamDestroy(copy_stream_);
 }
@@ -933,6 +982,15 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
   FBAR_CUDA_CHECK(cudaStreamCreateWithFlags(&stream_, cudaStreamNonBlocking));
   FBAR_CUDA_CHECK(cudaStreamCreateWithFlags(&copy_stream_, cudaStreamNonBlocking));
   for (cudaEvent_t& e : events_) FBAR_CUDA_CHECK(cudaEventCreate(&e));
+  if (decomposed()) {
+    // The highest priority: its pack / exchange / add kernels take SMs as the interior G2P2G's blocks retire.
+    int least = 0, greatest = 0;
+    FBAR_CUDA_CHECK(cudaDeviceGetStreamPriorityRange(&least, &greatest));
+    FBAR_CUDA_CHECK(cudaStreamCreateWithPriority(&halo_stream_, cudaStreamNonBlocking, greatest));
+    FBAR_CUDA_CHECK(cudaEventCreateWithFlags(&halo_ready_, cudaEventDisableTiming));
+    FBAR_CUDA_CHECK(cudaEventCreateWithFlags(&halo_done_, cudaEventDisableTiming));
+    for (cudaEvent_t& e : halo_events_) FBAR_CUDA_CHECK(cudaEventCreate(&e));
+  }
 
   // Capacities from the plan (options may start them smaller: tests exercise growth).
   block_capacity_ = options_.block_capacity > 0 ? options_.block_capacity : static_cast<int>(plan_.block_capacity);
@@ -954,7 +1012,7 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
     const long long flat = (body.particles + 31) / 32;
     const int bins = options_.bin_capacity > 0 ? static_cast<int>(std::max<long long>(flat, options_.bin_capacity))
                                                : static_cast<int>(plan_.bin_capacity[b]);
-    body.partition.allocate(block_capacity_, bins);
+    body.partition.allocate(block_capacity_, bins, decomposed());
     body.allocate_bins(bins);
     if (positions && decomposed()) {
       std::vector<Vec3d> mine;
@@ -1014,7 +1072,7 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
   while (handle_overflow()) {
   }
   for (auto& b : bodies_) {
-    b->total_bins[0] = body_stats_[b->index].total_bins;
+    take_layout_stats(*b, 0);
     if (body_stats_[b->index].particles != b->particles)
       throw std::runtime_error("GpuEngine: initial partition placed " + std::to_string(body_stats_[b->index].particles) +
                                " of " + std::to_string(b->particles) + " particles of body " + std::to_string(b->index));
@@ -1081,7 +1139,7 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
   if (decomposed()) agree_on_try();
   if (stats_->internal_error) throw std::runtime_error("GpuEngine: internal error in the initial P2G");
   for (auto& b : bodies_) {
-    b->total_bins[1] = body_stats_[b->index].total_bins;
+    take_layout_stats(*b, 1);
     if (body_stats_[b->index].particles != b->pending_particles)
       throw std::runtime_error("GpuEngine: the initial P2G's partition placed " +
                                std::to_string(body_stats_[b->index].particles) + " of " +
@@ -1305,8 +1363,25 @@ void MgspBenchmark<T, TG>::partition_after_g2p2g() {
     pad_src<<<mgsp_detail::grid_for(block_capacity_, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
         nl.count, nl.bin_offset, block_capacity_, nl.src, b.partition.bin_capacity());
     mgsp_detail::check_launch("pad_src");
+    if (b.partition.ordered()) list_blocks(b, next, &body_stats_d_[b.index].halo_blocks);
   }
   if (decomposed()) collect_halo();
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::list_blocks(BodyBase& b, int l, int* counters) {
+  static_assert(offsetof(BodyStepStats, interior_blocks) == offsetof(BodyStepStats, halo_blocks) + sizeof(int),
+                "list_particle_blocks counts into two adjacent ints");
+  // Rank r's particle planes [lo, hi) scatter into grid planes [lo, hi]: plane lo is shared with rank r - 1 and
+  // plane hi with rank r + 1, so the particle planes lo and hi - 1 are the halo particle planes.
+  const int first_lo = halo_[0].peer >= 0 ? halo_[0].plane : INT_MIN;
+  const int first_hi = halo_[1].peer >= 0 ? halo_[1].plane - 1 : INT_MIN;
+  FBAR_CUDA_CHECK(cudaMemsetAsync(counters, 0, 2 * sizeof(int), stream_));
+  const int capacity = b.partition.block_capacity();
+  list_particle_blocks<<<mgsp_detail::grid_for(capacity, kHaloThreads), kHaloThreads, 0, stream_>>>(
+      b.partition.layout(l).count, capacity, table_.view(), slab_.axis, first_lo, first_hi, b.partition.layout(l).order,
+      counters);
+  mgsp_detail::check_launch("list_particle_blocks");
 }
 
 template <typename T, typename TG>
@@ -1361,7 +1436,11 @@ void MgspBenchmark<T, TG>::grow_blocks_to(int capacity) {
   }
   grid_[0].clear(keep, capacity, stream_);
   grid_[1].clear(keep, capacity, stream_);
-  for (auto& b : bodies_) b->partition.grow_blocks(capacity, cur_, stream_);
+  for (auto& b : bodies_) {
+    b->partition.grow_blocks(capacity, cur_, stream_);
+    // The kept layout's list again, at the new capacity (same counts: the same H and I the host holds).
+    if (b->partition.ordered()) list_blocks(*b, cur_, b->partition.list_counters());
+  }
   block_capacity_ = capacity;
   std::size_t temp = 0;
   FBAR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, temp, static_cast<int*>(nullptr), static_cast<int*>(nullptr),
@@ -1567,19 +1646,14 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
         if (b->frame_copied) FBAR_CUDA_CHECK(cudaStreamWaitEvent(stream_, b->frame_copied, 0));
         if (decomposed() && b->capture.x) prepare_capture(*b);
       }
-    for (auto& b : bodies_) b->g2p2g(*this, false, static_cast<T>(dt));
-    event_record(2);
     if (decomposed()) {
-      if (asflip_)
-        halo_exchange({{grid_[1 - gc_].instance().data(), GridBuffer<TG>::kBlockBytes},
-                       {transported_[1 - gc_].instance().data(), GridVelocityBuffer<TG>::kBlockBytes}},
-                      1 - gc_);
-      else
-        halo_exchange({{grid_[1 - gc_].instance().data(), GridBuffer<TG>::kBlockBytes}}, 1 - gc_);
+      g2p2g_and_halo(static_cast<T>(dt));
       event_record(4);
       migrate_particles();
       event_record(5);
     } else {
+      for (auto& b : bodies_) b->g2p2g(*this, false, static_cast<T>(dt));
+      event_record(2);
       event_record(4);
       event_record(5);
     }
@@ -1622,6 +1696,11 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
         times_.g2p2g_ms += ms;
         FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[2], events_[4]));
         times_.halo_ms += ms;
+        if (decomposed() && options_.overlap_halo) {  // hidden: what the halo stream took beyond the exposed part
+          float total = 0.f;
+          FBAR_CUDA_CHECK(cudaEventElapsedTime(&total, halo_events_[0], halo_events_[1]));
+          times_.halo_hidden_ms += std::max(0.f, total - ms);
+        }
         FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[4], events_[5]));
         times_.migration_ms += ms;
         FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[5], events_[3]));
@@ -1664,7 +1743,7 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::commit(double dt) {
   for (auto& b : bodies_) {
-    b->total_bins[1 - cur_] = body_stats_[b->index].total_bins;
+    take_layout_stats(*b, 1 - cur_);
     b->particles = b->pending_particles;
   }
   migrated_ += pending_migrated_;
@@ -2263,8 +2342,50 @@ bool MgspBenchmark<T, TG>::owns(const Vec3d& x) const {
 }
 
 template <typename T, typename TG>
+void MgspBenchmark<T, TG>::g2p2g_and_halo(T dt) {
+  auto sums = [&](cudaStream_t s) {
+    if (asflip_)
+      halo_exchange({{grid_[1 - gc_].instance().data(), GridBuffer<TG>::kBlockBytes},
+                     {transported_[1 - gc_].instance().data(), GridVelocityBuffer<TG>::kBlockBytes}},
+                    1 - gc_, false, s);
+    else
+      halo_exchange({{grid_[1 - gc_].instance().data(), GridBuffer<TG>::kBlockBytes}}, 1 - gc_, false, s);
+  };
+  if (!options_.overlap_halo) {
+    for (auto& b : bodies_) b->g2p2g(*this, false, dt);
+    event_record(2);
+    sums(stream_);
+    return;
+  }
+  // The halo particle blocks of every body first: after them no launch of this step writes a block of a shared
+  // plane (a particle block B scatters into blocks B .. B + 1 only). fbar_sums_ holds one body's cell sums at a
+  // time, so an F-bar body with another F-bar body after it runs its other blocks at once.
+  int fbar_left = 0;
+  for (const auto& b : bodies_) fbar_left += b->fbar_psi != T(0);
+  std::vector<BodyBase*> rest;
+  for (auto& b : bodies_) {
+    b->g2p2g(*this, false, dt, G2P2GPass::Halo);
+    if (b->fbar_psi != T(0) && --fbar_left > 0)
+      b->g2p2g(*this, false, dt, G2P2GPass::Interior);
+    else
+      rest.push_back(b.get());
+  }
+  FBAR_CUDA_CHECK(cudaEventRecord(halo_ready_, stream_));
+  // The other blocks on the compute stream, queued before the exchange (a host-ordered transport may block in it).
+  for (BodyBase* b : rest) b->g2p2g(*this, false, dt, G2P2GPass::Interior);
+  event_record(2);
+  FBAR_CUDA_CHECK(cudaStreamWaitEvent(halo_stream_, halo_ready_, 0));
+  if (timing_) FBAR_CUDA_CHECK(cudaEventRecord(halo_events_[0], halo_stream_));
+  sums(halo_stream_);
+  if (timing_) FBAR_CUDA_CHECK(cudaEventRecord(halo_events_[1], halo_stream_));
+  FBAR_CUDA_CHECK(cudaEventRecord(halo_done_, halo_stream_));
+  FBAR_CUDA_CHECK(cudaStreamWaitEvent(stream_, halo_done_, 0));
+}
+
+template <typename T, typename TG>
 void MgspBenchmark<T, TG>::halo_exchange(std::initializer_list<std::pair<std::byte*, std::size_t>> buffers, int grid,
-                                         bool delta) {
+                                         bool delta, cudaStream_t stream) {
+  if (!stream) stream = stream_;
   const bool save = grid >= 0;
   std::size_t per_block = 0;  // scalars of every listed buffer's block
   for (const auto& [data, bytes] : buffers) per_block += bytes / sizeof(TG);
@@ -2282,7 +2403,7 @@ void MgspBenchmark<T, TG>::halo_exchange(std::initializer_list<std::pair<std::by
       const int block_scalars = static_cast<int>(bytes / sizeof(TG));
       if (n > 0) {
         pack_halo<TG><<<mgsp_detail::grid_for(static_cast<long long>(n) * block_scalars, kHaloThreads), kHaloThreads, 0,
-                        stream_>>>(reinterpret_cast<const TG*>(data), block_scalars, h.index.get(), n,
+                        stream>>>(reinterpret_cast<const TG*>(data), block_scalars, h.index.get(), n,
                                    h.send.get() + offset);
         mgsp_detail::check_launch("pack_halo");
       }
@@ -2295,7 +2416,7 @@ void MgspBenchmark<T, TG>::halo_exchange(std::initializer_list<std::pair<std::by
     m.send_bytes = m.recv_bytes = scalars * sizeof(TG);
     messages.push_back(m);
   }
-  device_->exchange(messages, stream_);
+  device_->exchange(messages, stream);
   for (HaloSide& h : halo_) {
     if (h.peer < 0 || h.keys.empty()) continue;
     const int n = static_cast<int>(h.keys.size());
@@ -2307,12 +2428,12 @@ void MgspBenchmark<T, TG>::halo_exchange(std::initializer_list<std::pair<std::by
       const std::size_t count = static_cast<std::size_t>(n) * block_scalars;
       const bool saved = first && delta;
       if (saved && h.saved[grid].size() < count) throw std::logic_error("GpuEngine: a delta exchange before any sum");
-      add_halo<TG><<<mgsp_detail::grid_for(static_cast<long long>(count), kHaloThreads), kHaloThreads, 0, stream_>>>(
+      add_halo<TG><<<mgsp_detail::grid_for(static_cast<long long>(count), kHaloThreads), kHaloThreads, 0, stream>>>(
           target, block_scalars, h.index.get(), n, h.recv.get() + offset, saved ? h.saved[grid].get() : nullptr);
       mgsp_detail::check_launch("add_halo");
       if (first && save) {  // the sums both ranks now hold, for a later delta exchange
         if (h.saved[grid].size() < count) h.saved[grid].allocate(count);
-        pack_halo<TG><<<mgsp_detail::grid_for(static_cast<long long>(count), kHaloThreads), kHaloThreads, 0, stream_>>>(
+        pack_halo<TG><<<mgsp_detail::grid_for(static_cast<long long>(count), kHaloThreads), kHaloThreads, 0, stream>>>(
             target, block_scalars, h.index.get(), n, h.saved[grid].get());
         mgsp_detail::check_launch("pack_halo");
       }

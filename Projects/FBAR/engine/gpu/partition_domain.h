@@ -11,7 +11,12 @@
 // bins) and writes them in layout order, so the reorder costs no pass of its own. While it runs it records, per
 // slot, the particle's next block and its rank there (dest), which the partition kernels turn into the next
 // layout's src. Layouts are double-buffered so a failed step can be repeated from the untouched one.
-// halo_tag (per block) is reserved for the multi-GPU partition (0 = interior); single-GPU runs leave it 0.
+// Decomposed runs (ordered domains) also list, per layout, the blocks that have particles, halo particle blocks first:
+//   order[0, H)                 the blocks whose P2G reaches a grid plane shared with a neighbour (G2P2G runs them
+//                               first, so the halo exchange overlaps the rest)
+//   order[capacity - I, capacity)  the other I blocks with particles
+// (the counts H and I come back with the step's statistics; one-GPU runs have no order arrays and launch over every
+// table block).
 #pragma once
 
 #include <cuda_runtime.h>
@@ -35,9 +40,10 @@ struct LayoutView {
   int* count;       ///< (block) particles per block
   int* bin_offset;  ///< (block + 1) first bin of each block
   int* src;         ///< (slot) storage slot of the particle, -1 for an empty lane
+  int* order;       ///< (block) halo particle blocks from the front, the others from the back; nullptr: not listed
 };
 
-/// Owner of a body's partition arrays (two layouts, dest, scan scratch, halo tags).
+/// Owner of a body's partition arrays (two layouts, dest, scan scratch; block lists when ordered).
 class PartitionDomain {
  public:
   PartitionDomain() = default;
@@ -45,9 +51,11 @@ class PartitionDomain {
   PartitionDomain& operator=(const PartitionDomain&) = delete;
   ~PartitionDomain() { release(); }
 
-  /// Sizes the per-block arrays for `blocks` blocks and the per-slot arrays for `bins` bins (contents lost).
-  void allocate(int blocks, int bins) {
+  /// Sizes the per-block arrays for `blocks` blocks and the per-slot arrays for `bins` bins (contents lost);
+  /// ordered: with the block lists of a decomposed run.
+  void allocate(int blocks, int bins, bool ordered = false) {
     release();
+    ordered_ = ordered;
     block_capacity_ = blocks;
     bin_capacity_ = bins;
     for (int l = 0; l < 2; ++l) {
@@ -60,11 +68,11 @@ class PartitionDomain {
     }
     dest_ = static_cast<ParticleDest*>(cuda::device_malloc(sizeof(ParticleDest) * slots(), "partition arrays"));
     bins_per_block_ = static_cast<int*>(cuda::device_malloc(sizeof(int) * (blocks + 1), "partition arrays"));
-    halo_tag_ = static_cast<unsigned char*>(cuda::device_malloc(blocks, "partition arrays"));
-    FBAR_CUDA_CHECK(cudaMemset(halo_tag_, 0, blocks));
+    allocate_order(blocks);
   }
 
-  /// Grows the per-block arrays keeping layout `keep` (counts and offsets of blocks [0, old capacity)).
+  /// Grows the per-block arrays keeping layout `keep` (counts and offsets of blocks [0, old capacity)). The block
+  /// lists are not kept: list the kept layout again (the same counts give the same H and I).
   void grow_blocks(int blocks, int keep, cudaStream_t stream) {
     for (int l = 0; l < 2; ++l) {
       int* c = nullptr;
@@ -85,10 +93,9 @@ class PartitionDomain {
       bin_offset_[l] = o;
     }
     cudaFree(bins_per_block_);
-    cudaFree(halo_tag_);
+    free_order();
     bins_per_block_ = static_cast<int*>(cuda::device_malloc(sizeof(int) * (blocks + 1), "partition arrays"));
-    halo_tag_ = static_cast<unsigned char*>(cuda::device_malloc(blocks, "partition arrays"));
-    FBAR_CUDA_CHECK(cudaMemsetAsync(halo_tag_, 0, blocks, stream));
+    allocate_order(blocks);
     block_capacity_ = blocks;
   }
 
@@ -110,15 +117,16 @@ class PartitionDomain {
     bin_capacity_ = bins;
   }
 
-  LayoutView layout(int l) const { return LayoutView{count_[l], bin_offset_[l], src_[l]}; }
+  LayoutView layout(int l) const { return LayoutView{count_[l], bin_offset_[l], src_[l], order_[l]}; }
+  bool ordered() const { return ordered_; }
+  int* list_counters() const { return list_counters_; }  ///< 2 device ints: scratch for listing a layout again
   ParticleDest* dest() const { return dest_; }
   int* bins_per_block() const { return bins_per_block_; }
-  unsigned char* halo_tag() const { return halo_tag_; }
   int block_capacity() const { return block_capacity_; }
   int bin_capacity() const { return bin_capacity_; }
   std::size_t slots() const { return static_cast<std::size_t>(bin_capacity_) * 32; }
   std::size_t bytes() const {
-    return static_cast<std::size_t>(block_capacity_) * (2 * 2 * sizeof(int) + sizeof(int) + 1) +
+    return static_cast<std::size_t>(block_capacity_) * (2 * 2 * sizeof(int) + sizeof(int) + (ordered_ ? 2 * sizeof(int) : 0)) +
            slots() * (2 * sizeof(int) + sizeof(ParticleDest));
   }
 
@@ -132,10 +140,22 @@ class PartitionDomain {
     }
     if (dest_) cudaFree(dest_);
     if (bins_per_block_) cudaFree(bins_per_block_);
-    if (halo_tag_) cudaFree(halo_tag_);
+    free_order();
     dest_ = nullptr;
     bins_per_block_ = nullptr;
-    halo_tag_ = nullptr;
+  }
+  void allocate_order(int blocks) {
+    if (!ordered_) return;
+    for (int l = 0; l < 2; ++l) order_[l] = static_cast<int*>(cuda::device_malloc(sizeof(int) * blocks, "partition arrays"));
+    list_counters_ = static_cast<int*>(cuda::device_malloc(2 * sizeof(int), "partition arrays"));
+  }
+  void free_order() {
+    for (int l = 0; l < 2; ++l) {
+      if (order_[l]) cudaFree(order_[l]);
+      order_[l] = nullptr;
+    }
+    if (list_counters_) cudaFree(list_counters_);
+    list_counters_ = nullptr;
   }
 
   int* count_[2] = {nullptr, nullptr};
@@ -143,7 +163,9 @@ class PartitionDomain {
   int* src_[2] = {nullptr, nullptr};
   ParticleDest* dest_ = nullptr;
   int* bins_per_block_ = nullptr;
-  unsigned char* halo_tag_ = nullptr;
+  int* order_[2] = {nullptr, nullptr};
+  int* list_counters_ = nullptr;
+  bool ordered_ = false;
   int block_capacity_ = 0;
   int bin_capacity_ = 0;
 };

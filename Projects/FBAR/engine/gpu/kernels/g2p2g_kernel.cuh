@@ -114,6 +114,9 @@ struct G2P2GParams {
   Bins in;                   ///< particles of this step (storage order)
   Bins out;                  ///< particles of the next step, written in this layout's order
   LayoutView layout;         ///< this step's layout
+  /// Decomposed runs: CUDA block k runs the particle block layout.order[order_first + k] (one pass of the halo-first
+  /// G2P2G); one GPU: order_first < 0 and CUDA block k runs table block k.
+  int order_first;
   int* next_count;           ///< (block) particles per block of the next layout (zeroed before)
   ParticleDest* dest;        ///< (slot) next block and rank of each particle
   BlockHashTableView table;
@@ -355,7 +358,8 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
   __shared__ double block_max[2][kG2P2GThreads / 32];
   __shared__ int block_over;
 
-  const int block = blockIdx.x;
+  const int block = p.order_first >= 0 ? p.layout.order[p.order_first + static_cast<int>(blockIdx.x)]
+                                       : static_cast<int>(blockIdx.x);
   const int count = p.layout.count[block];
   if (count == 0) return;  // uniform per CUDA block: a stale or footprint-only block
   const Vec3i origin = p.table.block_coords(block);

@@ -67,6 +67,23 @@ static __global__ void __launch_bounds__(kHaloThreads)
   }
 }
 
+/// The blocks of a layout that have particles, listed for the halo-first G2P2G (partition_domain.h): a particle
+/// block in plane `first_lo` (the lowest plane of the slab, when there is a lower neighbour) or `first_hi` (the
+/// highest, when there is an upper one) scatters into a shared grid plane (its arena is blocks B .. B + 1), so it
+/// goes to the front of `order`; every other block with particles to the back. counters[0] / [1] count them (H, I).
+/// The order within each part is that of the atomics: it does not matter (each block is a CUDA block of its own).
+static __global__ void __launch_bounds__(kHaloThreads)
+    list_particle_blocks(const int* count, int capacity, BlockHashTableView table, int axis, int first_lo,
+                         int first_hi, int* order, int* counters) {
+  const int b = blockIdx.x * blockDim.x + threadIdx.x;
+  if (b >= capacity || count[b] == 0) return;
+  const int along = table.block_coords(b)[axis];
+  if (along == first_lo || along == first_hi)
+    order[atomicAdd(&counters[0], 1)] = b;
+  else
+    order[capacity - 1 - atomicAdd(&counters[1], 1)] = b;
+}
+
 /// Inserts the listed blocks (zeroed in both grids when new) and writes their table indices (-1: overflow).
 template <typename TG>
 __global__ void __launch_bounds__(kHaloThreads)

@@ -18,6 +18,8 @@ struct BodyStepStats {
   int first_id[kFailKinds];  ///< smallest failing particle ID (INT_MAX when none)
   int total_bins;            ///< bins of the next layout (bin_offset[capacity])
   int particles;             ///< particles placed in the next layout
+  int halo_blocks;           ///< decomposed runs: blocks of the next layout listed first (list_particle_blocks)
+  int interior_blocks;       ///< decomposed runs: the other blocks with particles of the next layout
 };
 
 /// The particle blocks a rank owns (comm/slab_partition.h): planes [lo, hi) along `axis`; one rank owns all.
