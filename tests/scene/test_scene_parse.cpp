@@ -343,6 +343,96 @@ TEST(SceneParse, HydroUQWrapperKeysAreMetadata) {
             std::string::npos);
 }
 
+// The simulation keys HydroUQ writes (ClaymoreUW's loader reads none of them): each has a meaning, or an error or a
+// warning that names it (user guide 2.1, difference 30).
+TEST(SceneParse, HydroUQSimulationKeys) {
+  auto scene = [](const std::string& sim) {
+    return R"({"simulation": {"domain": [1, 1, 1], "default_dx": 0.05, )" + sim +
+           R"(}, "bodies": [{"material": {"constitutive": "JFluid"}, "geometry": [{"object": "Box"}]},
+                            {"material": {"constitutive": "JFluid", "CFL": 0.7}, "geometry": [{"object": "Box"}]}]})";
+  };
+  std::vector<std::string> warnings;
+  const Scene s = parse(scene(R"("time": 0.5, "initial_time": 0.5, "cfl": 0.4, "time_integration": "Explicit",
+                                 "mirror_domain": [false, false, false], "fps": 10, "duration": 2.05,
+                                 "use_froude_scaling": true, "froude_scaling": 1, "froude_time_ratio": 1,
+                                 "use_cauchy_scaling": false, "cauchy_bulk_ratio": 1)"),
+                        true, &warnings);
+  EXPECT_TRUE(warnings.empty()) << warnings.front();
+  EXPECT_EQ(s.simulation.time, 0.5);
+  EXPECT_EQ(s.bodies[0].material.cfl, 0.4);  // simulation.cfl for a body that gives none
+  EXPECT_EQ(s.bodies[1].material.cfl, 0.7);  // its own CFL wins
+  EXPECT_EQ(s.simulation.frames, 21);        // duration without frames: ceil(2.05 s x 10 fps)
+  EXPECT_EQ(s.simulation.cauchy_scaling, CauchyScaling::Off);
+
+  // Warnings: a duration frames / fps contradicts, a Froude factor switched off, a time ratio Froude does not allow,
+  // a Cauchy ratio without use_cauchy_scaling.
+  warnings.clear();
+  const Scene w = parse(scene(R"("fps": 10, "frames": 5, "duration": 2, "froude_scaling": 4, "use_froude_scaling": false,
+                                 "froude_time_ratio": 3, "cauchy_bulk_ratio": 2)"),
+                        true, &warnings);
+  ASSERT_EQ(warnings.size(), 4u);
+  EXPECT_NE(warnings[0].find("simulation.froude_scaling: 4 is not applied because simulation.use_froude_scaling is false"),
+            std::string::npos) << warnings[0];
+  EXPECT_NE(warnings[1].find("simulation.froude_time_ratio: 3 is not used"), std::string::npos) << warnings[1];
+  EXPECT_NE(warnings[2].find("simulation.cauchy_bulk_ratio: 2 is not applied"), std::string::npos) << warnings[2];
+  EXPECT_NE(warnings[3].find("simulation.duration: 2 s is not used: frames / fps = 5 / 10 = 0.5 s"), std::string::npos)
+      << warnings[3];
+  EXPECT_EQ(w.simulation.froude_scaling, 1.0);
+  EXPECT_EQ(w.simulation.domain, (Real3{1, 1, 1}));
+  EXPECT_EQ(w.simulation.frames, 5);
+
+  // Errors name the key, the value and what fbar expects.
+  EXPECT_NE(error_of(scene(R"("time_integration": "Implicit")"))
+                .find(R"(simulation.time_integration: got "Implicit"; expected "Explicit")"),
+            std::string::npos);
+  EXPECT_NE(error_of(scene(R"("mirror_domain": [true, false, false])"))
+                .find("simulation.mirror_domain: got [true,false,false]; expected false, or [false, false, false]: "
+                      "mirrored domains are not implemented"),
+            std::string::npos);
+  EXPECT_NE(error_of(scene(R"("time": 0, "initial_time": 1)"))
+                .find("simulation.initial_time: got 1; expected the value of simulation.time (0 s)"),
+            std::string::npos);
+  EXPECT_NE(error_of(scene(R"("cfl": 1.5)")).find("simulation.cfl: got 1.5"), std::string::npos);
+  EXPECT_NE(error_of(scene(R"("cauchy_bulk_ratio": 0)")).find("simulation.cauchy_bulk_ratio: got 0; expected a number > 0"),
+            std::string::npos);
+}
+
+// Cauchy similitude: with use_cauchy_scaling the materials' stresses and moduli scale by cauchy_bulk_ratio c (also
+// at froude_scaling 1) and viscosities by c s^0.5; false keeps them as written (ClaymoreUW) while lengths still
+// scale; absent, c = s (difference 14). The resolved scene reads back unchanged (applied once).
+TEST(SceneParse, CauchyScalingScalesStressesByTheRatio) {
+  auto scene = [](const std::string& sim) {
+    return R"({"simulation": {"domain": [1, 1, 1], "default_dx": 0.05, )" + sim +
+           R"(}, "bodies": [{"material": {"constitutive": "JFluid", "bulk_modulus": 1e6, "viscosity": 0.01},
+                             "geometry": [{"object": "Box"}]},
+                            {"material": {"constitutive": "VonMises", "youngs_modulus": 1e7,
+                                          "tensile_yield_strength": 1e5}, "geometry": [{"object": "Box"}]}]})";
+  };
+  const Scene on = parse(scene(R"("froude_scaling": 4, "use_cauchy_scaling": true, "cauchy_bulk_ratio": 2)"));
+  EXPECT_EQ(on.bodies[0].material.bulk_modulus, 2e6);
+  EXPECT_DOUBLE_EQ(on.bodies[0].material.viscosity, 0.01 * 2 * 2);  // c s^0.5
+  EXPECT_EQ(on.bodies[1].material.youngs_modulus, 2e7);
+  EXPECT_EQ(on.bodies[1].material.tensile_yield_strength, 2e5);
+  EXPECT_EQ(on.simulation.domain, (Real3{4, 4, 4}));
+  EXPECT_TRUE(parse(write_scene_json(on)) == on);
+
+  const Scene at_one = parse(scene(R"("use_cauchy_scaling": true, "cauchy_bulk_ratio": 3)"));
+  EXPECT_EQ(at_one.bodies[0].material.bulk_modulus, 3e6);
+  EXPECT_EQ(at_one.simulation.domain, (Real3{1, 1, 1}));
+  EXPECT_TRUE(at_one.simulation.froude_scaling_applied);
+  EXPECT_TRUE(parse(write_scene_json(at_one)) == at_one);
+
+  const Scene off = parse(scene(R"("froude_scaling": 4, "use_cauchy_scaling": false)"));
+  EXPECT_EQ(off.bodies[0].material.bulk_modulus, 1e6);
+  EXPECT_EQ(off.bodies[0].material.viscosity, 0.01);
+  EXPECT_EQ(off.simulation.domain, (Real3{4, 4, 4}));
+  EXPECT_TRUE(parse(write_scene_json(off)) == off);
+
+  const Scene absent = parse(scene(R"("froude_scaling": 4)"));
+  EXPECT_EQ(absent.bodies[0].material.bulk_modulus, 4e6);
+  EXPECT_DOUBLE_EQ(absent.bodies[0].material.viscosity, 0.08);
+}
+
 TEST(SceneParse, ReleasePolicyRejectsWhatTheEngineCannotRun) {
   struct Case {
     std::string json;

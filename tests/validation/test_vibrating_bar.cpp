@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <vector>
 
+#include "scene/scene_parse.h"
 #include "vibrating_bar_case.h"
 
 namespace fbar {
@@ -42,6 +43,23 @@ TEST(VibratingBar, PeriodAmplitudeAndEnergy) {
   EXPECT_LE(r.peaks[2], kVcmAmplitude * (1 + 1e-3));             // and no growth
   EXPECT_NEAR(r.tip_amplitude, kTipAmplitude, 0.02 * kTipAmplitude);
   EXPECT_LE(r.energy_max, r.energy0 * (1 + kOmega * r.dt));
+}
+
+// Cauchy similitude (simulation.use_cauchy_scaling true, cauchy_bulk_ratio r, no Froude scaling): E x r at equal
+// density makes the wave speed sqrt(r) c, so the first period is T1 / sqrt(r). r = 4 must give 5 s within the same
+// 2 % as the unscaled bar (the clamp's error is relative to L, which does not change); a ratio applied twice (E x 16,
+// 2.5 s) or not at all (10 s) fails.
+TEST(VibratingBar, CauchyScalingShortensThePeriodBySqrtOfTheRatio) {
+  double scaled_modulus = 0;
+  const BarResult r = run_bar(0.5, 1.6, validation::WallFit::LastWallNodePlane, kApic, [&](Scene& scene) {
+    scene.simulation.cauchy_scaling = CauchyScaling::On;
+    scene.simulation.cauchy_bulk_ratio = 4.0;
+    apply_froude_scaling(scene);
+    scaled_modulus = scene.bodies[0].material.youngs_modulus;
+  });
+  ASSERT_TRUE(r.ok);
+  EXPECT_EQ(scaled_modulus, 4.0 * kE);
+  EXPECT_NEAR(r.period, kPeriod / 2, 0.02 * kPeriod / 2);
 }
 
 // The period error converges at first order (the clamp, above): L/dx = 25, 50, 100 must give decreasing errors, each

@@ -17,6 +17,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <vector>
 
 #include "engine/cpu/cpu_engine.h"
@@ -59,9 +60,10 @@ struct Scheme {
 };
 constexpr Scheme kApic{"APIC", 0, 0, 0};
 
+/// adjust: applied to the scene before the engine is built (a test of scene-level scaling).
 template <class Engine = CpuEngine<double>>
 BarResult run_bar(double dx, double periods, validation::WallFit fit = validation::WallFit::LastWallNodePlane,
-                  const Scheme& scheme = kApic) {
+                  const Scheme& scheme = kApic, const std::function<void(Scene&)>& adjust = {}) {
   validation::Stopwatch clock;
   const double x0 = dx + validation::wall_inset(fit, dx), y0 = x0, z0 = x0;  // material faces (validation_support.h)
   Scene scene = validation::make_scene(r3(x0 + kL + 4 * dx, y0 + 2.5 * dx, z0 + 2.5 * dx), dx, r3(0, 0, 0));
@@ -77,6 +79,7 @@ BarResult run_bar(double dx, double periods, validation::WallFit fit = validatio
                                                   r3(validation::kFar, validation::kFar, validation::kFar), dx, fit));
   scene.boundaries.push_back(validation::wall_box(Contact::Slip, r3(-validation::kFar, y0, z0),
                                                   r3(validation::kFar, y0 + dx, z0 + dx), dx, fit));
+  if (adjust) adjust(scene);
 
   Engine engine(scene);
   engine.set_velocities(0, [&](const Vec3d& x) { return Vec3d{{kV0 * std::sin(kPi * (x[0] - x0) / (2 * kL)), 0, 0}}; });

@@ -19,6 +19,10 @@ using Int3 = std::array<int, 3>;
 enum class Precision { Single, Double, Mixed };
 enum class OnFailure { Stop, ReduceDt };
 enum class Backend { Auto, Gpu, Cpu };
+/// How scaling treats the materials' stresses and moduli (HydroUQ's use_cauchy_scaling): Default (the key absent):
+/// x froude_scaling, Cauchy similitude at equal density; Off: as written (ClaymoreUW's behaviour); On: x
+/// cauchy_bulk_ratio. Viscosities follow with an extra s^0.5 (stress x time); Off leaves them as written too.
+enum class CauchyScaling { Default, Off, On };
 
 struct SimulationSpec {
   Real3 domain{1.0, 1.0, 1.0};          ///< [m] extent of the simulated box, origin at (0,0,0)
@@ -35,6 +39,8 @@ struct SimulationSpec {
   /// True once froude_scaling has been applied to every field (the parser does it; a scene written by
   /// write_scene_json carries `"froude_scaling_applied": true` so that re-reading it does not scale twice).
   bool froude_scaling_applied = false;
+  CauchyScaling cauchy_scaling = CauchyScaling::Default;
+  double cauchy_bulk_ratio = 1.0;       ///< [Pa/Pa] model / prototype stiffness (CauchyScaling::On)
   int info_rate = 0;                    ///< log every N steps (0: once per frame)
   /// Write a checkpoint (io/checkpoint.h) every N frames (0: only when a run stops on a signal or a failure).
   int checkpoint_every = 0;

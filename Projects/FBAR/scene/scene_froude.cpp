@@ -9,9 +9,12 @@
 //   frequency         x s^-0.5   fps, sensor output_frequency, motion-file output_frequency
 //                                (frames is unchanged, so the simulated duration frames / fps scales as s^0.5)
 //   mass              x s^3      (no scene key: particle mass follows from rho and the scaled particle volume)
-//   stress, modulus   x s        bulk_modulus, youngs_modulus: Cauchy similitude at equal density, so the
-//                                elastic wave speed sqrt(E / rho) scales like a Froude velocity
-//   dynamic viscosity x s^1.5    stress x time
+//   stress, modulus   x c        bulk_modulus, youngs_modulus, VonMises strengths (froude_power 1): c = s by
+//                                default (Cauchy similitude at equal density, so the elastic wave speed
+//                                sqrt(E / rho) scales like a Froude velocity); c = cauchy_bulk_ratio when
+//                                use_cauchy_scaling is true (even at s = 1); use_cauchy_scaling false keeps every
+//                                material parameter as written (ClaymoreUW's behaviour)
+//   dynamic viscosity x c s^0.5  stress x time (s^1.5 by default)
 //   unchanged                    density, gravity, dimensionless parameters (gamma, poisson_ratio, CFL, ppc,
 //                                friction angles and coefficients, cohesion (a log-strain), logJp0, beta, xi,
 //                                ASFLIP / F-bar ratios), angles (rotate), counts (frames, array, info_rate)
@@ -37,7 +40,11 @@ void scale3(Real3& v, double k) {
 void apply_froude_scaling(Scene& scene) {
   SimulationSpec& sim = scene.simulation;
   const double s = sim.froude_scaling;
-  if (sim.froude_scaling_applied || s == 1.0) return;  // s = 1 is the identity: nothing to record
+  // The stress ratio c of the materials (SimulationSpec::cauchy_scaling); 0: leave them as written.
+  const double c = sim.cauchy_scaling == CauchyScaling::Off  ? 0.0
+                   : sim.cauchy_scaling == CauchyScaling::On ? sim.cauchy_bulk_ratio
+                                                             : s;
+  if (sim.froude_scaling_applied || (s == 1.0 && (c == 1.0 || c == 0.0))) return;  // identity: nothing to record
   sim.froude_scaling_applied = true;
   const double length = s;
   const double time = std::sqrt(s);
@@ -54,11 +61,12 @@ void apply_froude_scaling(Scene& scene) {
     scale3(b.velocity, velocity);
     scale3(b.partition_start, length);
     scale3(b.partition_end, length);
-    // Only the parameters the law reads, each by its own power of s (MaterialParameter::froude_power: stress 1,
-    // viscosity 1.5): the others keep their defaults (the written scene omits them).
-    for_each_material_parameter(b.material.law, [&](const MaterialParameter& p) {
-      if (!p.is_flag() && p.froude_power != 0.0) b.material.*(p.number) *= std::pow(s, p.froude_power);
-    });
+    // Only the parameters the law reads (MaterialParameter::froude_power: stress 1, viscosity 1.5), stresses by c
+    // and viscosities by c s^0.5: the others keep their defaults (the written scene omits them).
+    if (c > 0.0)
+      for_each_material_parameter(b.material.law, [&](const MaterialParameter& p) {
+        if (!p.is_flag() && p.froude_power != 0.0) b.material.*(p.number) *= c * std::pow(s, p.froude_power - 1.0);
+      });
     for (GeometrySpec& g : b.geometry) {
       if (!g.use_froude_scaling) continue;
       scale3(g.offset, length);

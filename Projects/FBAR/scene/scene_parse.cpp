@@ -334,7 +334,10 @@ const Keys kSimulationKeys = {"domain",      "default_dx",  "default_dt", "gravi
                               "time",        "fps",         "frames",     "save_path",
                               "save_suffix", "particles_output_exterior_only",
                               "froude_scaling", "froude_scaling_applied", "info_rate", "checkpoint_every", "precision",
-                              "on_failure",  "seed",        "gpuid"};
+                              "on_failure",  "seed",        "gpuid",
+                              // HydroUQ's (ClaymoreUW's loader does not read them; fbar gives each a meaning)
+                              "initial_time", "duration", "cfl", "time_integration", "mirror_domain",
+                              "use_froude_scaling", "froude_time_ratio", "use_cauchy_scaling", "cauchy_bulk_ratio"};
 const Keys kBodyKeys = {"gpu",           "model",          "velocity",     "partition_start", "partition_end",
                         "partition",     "output",         "track_particle_id", "output_attribs", "track_attribs",
                         "target_attribs", "material",      "algorithm",    "geometry",        "constitutive",
@@ -581,7 +584,78 @@ std::vector<std::string> read_attribute_list(const rj::Value& v, const std::stri
 struct SimulationRead {
   SimulationSpec spec;
   bool default_dt_given = false;
+  std::optional<double> cfl;  ///< simulation.cfl (HydroUQ): the CFL number of every body that gives none
 };
+
+/// The simulation keys HydroUQ writes and ClaymoreUW's loader does not read (user guide 2.1 and difference 30).
+void read_hydrouq_simulation(ObjectReader& o, SimulationRead& out, const Context& ctx) {
+  SimulationSpec& s = out.spec;
+  if (auto* x = o.get("initial_time")) {  // HydroUQ writes it beside `time`, the same value
+    const double t = read_number(*x, o.sub("initial_time"), kAny, "s");
+    if (o.has("time") && t != s.time)
+      throw SceneError(o.sub("initial_time"), json_text(*x),
+                       "the value of simulation.time (" + num_text(s.time) + " s): both name the start time");
+    s.time = t;
+  }
+  if (auto* x = o.get("cfl")) out.cfl = read_number(*x, o.sub("cfl"), Range{0.0, 1.0, true, false}, "-");
+  if (auto* x = o.get("time_integration")) {
+    const std::string t = read_string(*x, o.sub("time_integration"), "\"Explicit\"");
+    if (fold(t) != "explicit")
+      throw SceneError(o.sub("time_integration"), json_text(*x),
+                       "\"Explicit\" (fbar, like ClaymoreUW, integrates explicitly in time)");
+  }
+  if (auto* x = o.get("mirror_domain")) {
+    const std::string p = o.sub("mirror_domain");
+    const std::string expected = "false, or [false, false, false]: mirrored domains are not implemented (ClaymoreUW "
+                                 "reads no mirror_domain either)";
+    bool any = false;
+    if (x->IsBool()) {
+      any = x->GetBool();
+    } else if (x->IsArray() && x->Size() == 3) {
+      for (rj::SizeType i = 0; i < 3; ++i) {
+        if (!(*x)[i].IsBool()) throw SceneError(index_path(p, i), json_text((*x)[i]), "true or false");
+        any = any || (*x)[i].GetBool();
+      }
+    } else {
+      throw SceneError(p, json_text(*x), expected);
+    }
+    if (any) throw SceneError(p, json_text(*x), expected);
+  }
+  if (auto* x = o.get("use_froude_scaling")) {
+    if (!read_bool(*x, o.sub("use_froude_scaling")) && s.froude_scaling != 1.0 && !s.froude_scaling_applied) {
+      ctx.warn("simulation.froude_scaling: " + num_text(s.froude_scaling) +
+               " is not applied because simulation.use_froude_scaling is false (ClaymoreUW does not read "
+               "use_froude_scaling and would apply it)");
+      s.froude_scaling = 1.0;
+    }
+  }
+  if (auto* x = o.get("froude_time_ratio")) {
+    const double r = read_number(*x, o.sub("froude_time_ratio"), kPositive, "s/s");
+    const double expected = std::sqrt(s.froude_scaling);
+    if (!s.froude_scaling_applied && std::abs(r - expected) > 1e-3 * expected)
+      ctx.warn("simulation.froude_time_ratio: " + num_text(r) + " is not used: Froude similitude fixes the time ratio "
+               "at sqrt(froude_scaling) = " + num_text(expected) + " s/s, which fbar applies");
+  }
+  if (auto* x = o.get("use_cauchy_scaling"))
+    s.cauchy_scaling = read_bool(*x, o.sub("use_cauchy_scaling")) ? CauchyScaling::On : CauchyScaling::Off;
+  if (auto* x = o.get("cauchy_bulk_ratio")) {
+    s.cauchy_bulk_ratio = read_number(*x, o.sub("cauchy_bulk_ratio"), kPositive, "Pa/Pa");
+    if (s.cauchy_scaling != CauchyScaling::On && s.cauchy_bulk_ratio != 1.0)
+      ctx.warn("simulation.cauchy_bulk_ratio: " + num_text(s.cauchy_bulk_ratio) +
+               " is not applied because simulation.use_cauchy_scaling is not true");
+    if (s.cauchy_scaling != CauchyScaling::On) s.cauchy_bulk_ratio = 1.0;
+  }
+  if (auto* x = o.get("duration")) {  // ClaymoreUW runs frames / fps; HydroUQ writes the duration it meant
+    const double d = read_number(*x, o.sub("duration"), kPositive, "s");
+    if (!o.has("frames")) {
+      s.frames = std::max(1, static_cast<int>(std::ceil(d * s.fps - 1e-9)));
+    } else if (std::abs(s.frames / s.fps - d) > 0.5 / s.fps) {
+      ctx.warn("simulation.duration: " + num_text(d) + " s is not used: frames / fps = " + std::to_string(s.frames) +
+               " / " + num_text(s.fps) + " = " + num_text(s.frames / s.fps) + " s sets the run's length (as in "
+               "ClaymoreUW); leave frames out to run the duration");
+    }
+  }
+}
 
 SimulationRead parse_simulation(const rj::Value* v, const Context& ctx) {
   SimulationRead out;
@@ -627,6 +701,7 @@ SimulationRead parse_simulation(const rj::Value* v, const Context& ctx) {
     read_int(*x, o.sub("gpuid"), kNonNegative);
     ctx.warn("simulation.gpuid: ignored (ClaymoreUW ignores it too; GPUs are chosen per body with bodies[].gpu)");
   }
+  read_hydrouq_simulation(o, out, ctx);
   o.finish();
   return out;
 }
@@ -831,6 +906,7 @@ GeometrySpec parse_geometry(const rj::Value& v, const std::string& path, const C
 struct BodyRead {
   BodySpec spec;
   bool model_given = false;
+  bool cfl_given = false;  ///< material.CFL or algorithm.CFL (else simulation.cfl applies when given)
   std::string model_path;
 };
 
@@ -900,6 +976,8 @@ BodyRead parse_body(const rj::Value& v, const std::string& path, const Context& 
   }
 
   b.material = parse_material(o, algo, ctx);
+  const rj::Value* material = o.get("material");
+  out.cfl_given = (material->IsObject() && material->HasMember("CFL")) || (algo && algo->has("CFL"));
   b.algorithm = parse_algorithm(algo);
 
   const rj::Value* geo = o.get("geometry");
@@ -1141,7 +1219,10 @@ Scene parse_document(const rj::Document& doc, Context& ctx) {
   std::vector<BodyRead> read;
   for (rj::SizeType i = 0; i < bodies->Size(); ++i) read.push_back(parse_body((*bodies)[i], index_path(bodies_path, i), ctx));
   assign_models(read, bodies_path);
-  for (auto& b : read) scene.bodies.push_back(std::move(b.spec));
+  for (auto& b : read) {
+    if (sim.cfl && !b.cfl_given) b.spec.material.cfl = *sim.cfl;
+    scene.bodies.push_back(std::move(b.spec));
+  }
 
   std::string path;
   if (auto* a = optional_array(root, {"boundaries", "grid-boundaries"}, path, "an array of boundary objects"))

@@ -41,9 +41,9 @@ Scene parse_scene_string(const std::string& json, const ParseOptions& options);
 /// Later releases delete lines here and nowhere else.
 void check_supported(const Scene& scene);
 
-/// Applies Froude similitude with factor s = scene.simulation.froude_scaling to every field (see the definition
-/// for the exponent of each quantity) and sets simulation.froude_scaling_applied. No-op when already applied or
-/// when s = 1.
+/// Applies Froude similitude with factor s = scene.simulation.froude_scaling to every field, the materials' stresses
+/// by the Cauchy ratio of simulation.cauchy_scaling (see the definition for the exponent of each quantity), and
+/// sets simulation.froude_scaling_applied. No-op when already applied or when nothing would change.
 void apply_froude_scaling(Scene& scene);
 
 /// The resolved scene as a JSON document (every key, canonical names, SI units, froude_scaling_applied true when

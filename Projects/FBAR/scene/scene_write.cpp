@@ -228,6 +228,8 @@ class SceneWriter {
     boolean("particles_output_exterior_only", s.particles_output_exterior_only);
     num("froude_scaling", s.froude_scaling);
     boolean("froude_scaling_applied", s.froude_scaling_applied);
+    if (s.cauchy_scaling != CauchyScaling::Default) boolean("use_cauchy_scaling", s.cauchy_scaling == CauchyScaling::On);
+    if (s.cauchy_scaling == CauchyScaling::On) num("cauchy_bulk_ratio", s.cauchy_bulk_ratio);
     integer("info_rate", s.info_rate);
     integer("checkpoint_every", s.checkpoint_every);
     str("precision", to_string(s.precision));
@@ -503,7 +505,7 @@ bool operator==(const SimulationSpec& a, const SimulationSpec& b) {
          a.time == b.time && a.fps == b.fps && a.frames == b.frames && a.save_path == b.save_path &&
          a.save_suffix == b.save_suffix && a.particles_output_exterior_only == b.particles_output_exterior_only &&
          a.froude_scaling == b.froude_scaling && a.froude_scaling_applied == b.froude_scaling_applied &&
-         a.info_rate == b.info_rate && a.checkpoint_every == b.checkpoint_every && a.precision == b.precision && a.on_failure == b.on_failure && a.seed == b.seed;
+         a.cauchy_scaling == b.cauchy_scaling && a.cauchy_bulk_ratio == b.cauchy_bulk_ratio && a.info_rate == b.info_rate && a.checkpoint_every == b.checkpoint_every && a.precision == b.precision && a.on_failure == b.on_failure && a.seed == b.seed;
 }
 bool operator==(const MaterialSpec& a, const MaterialSpec& b) {
   return a.law == b.law && a.type == b.type && a.ppc == b.ppc && a.cfl == b.cfl && a.rho == b.rho &&
