@@ -206,16 +206,26 @@ TEST(SceneParse, SyntaxErrorsGiveLineAndColumn) {
 }
 
 TEST(SceneParse, UnknownKeySuggestsClosestKnownKey) {
-  const std::string json = scene_with(body(R"({"constitutive": "FixedCorotated", "poissons_ratio": 0.3})"));
+  const std::string json = scene_with(body(R"({"constitutive": "FixedCorotated", "poison_ratio": 0.3})"));
   const std::string e = error_of(json);
-  EXPECT_NE(e.find("bodies[0].material.poissons_ratio: got unknown key \"poissons_ratio\""), std::string::npos) << e;
+  EXPECT_NE(e.find("bodies[0].material.poison_ratio: got unknown key \"poison_ratio\""), std::string::npos) << e;
   EXPECT_NE(e.find("did you mean \"poisson_ratio\"?"), std::string::npos) << e;
   // With allow_unknown_keys it is a warning; the misspelt value is not used, and the warning says so.
   std::vector<std::string> warnings;
   const Scene s = parse(json, true, &warnings, true);
   EXPECT_EQ(s.bodies[0].material.poisson_ratio, 0.2);
   ASSERT_EQ(warnings.size(), 1u);
-  EXPECT_NE(warnings[0].find("poissons_ratio: ignored"), std::string::npos) << warnings[0];
+  EXPECT_NE(warnings[0].find("poison_ratio: ignored"), std::string::npos) << warnings[0];
+  // HydroUQ's spelling poissons_ratio is read as poisson_ratio (ClaymoreUW ignores it and uses 0.2), with a warning.
+  warnings.clear();
+  const Scene h = parse(scene_with(body(R"({"constitutive": "FixedCorotated", "poissons_ratio": 0.3})")), true, &warnings);
+  EXPECT_EQ(h.bodies[0].material.poisson_ratio, 0.3);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("bodies[0].material.poissons_ratio: read as poisson_ratio = 0.3"), std::string::npos)
+      << warnings[0];
+  EXPECT_NE(error_of(scene_with(body(R"({"constitutive": "FixedCorotated", "poissons_ratio": 0.3, "poisson_ratio": 0.25})")))
+                .find("bodies[0].material.poissons_ratio: got 0.3; expected the value of poisson_ratio (0.25)"),
+            std::string::npos);
   // A misspelt required key is reported as such, not as the required key missing.
   EXPECT_EQ(error_of(scene_with(R"({"materials": {}, "geometry": [{"object": "Box"}]})")),
             "bodies[0].materials: got unknown key \"materials\"; expected a key of bodies[] (did you mean \"material\"?)");
@@ -236,15 +246,23 @@ TEST(SceneParse, ClosestKeyAndLevenshtein) {
   EXPECT_EQ(closest_key("completely_different", {"CFL", "rho"}), "");      // too far: no suggestion
 }
 
-TEST(SceneParse, ParametersTheLawDoesNotReadAreErrors) {
-  // ClaymoreUW silently ignored a Young's modulus given to a fluid; here it is an error naming the law's keys.
-  const std::string e = error_of(scene_with(body(R"({"constitutive": "JFluid", "youngs_modulus": 1e6})")));
-  EXPECT_NE(e.find("bodies[0].material.youngs_modulus: got 1000000; expected no youngs_modulus for constitutive "
-                   "JFluid (it reads bulk_modulus, gamma, viscosity)"),
+TEST(SceneParse, ParametersTheLawDoesNotReadAreWarnings) {
+  // ClaymoreUW silently ignores a Young's modulus given to a fluid (HydroUQ writes every field of its material form);
+  // here it is ignored with a warning naming the law's keys, and a key of another object likewise.
+  std::vector<std::string> warnings;
+  const Scene s = parse(scene_with(body(R"({"constitutive": "JFluid", "youngs_modulus": 1e6})")), true, &warnings);
+  EXPECT_EQ(s.bodies[0].material.youngs_modulus, 1e7);  // the default: not used by JFluid, not set
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("bodies[0].material.youngs_modulus: 1000000 is ignored (no youngs_modulus for constitutive "
+                             "JFluid (it reads bulk_modulus, gamma, viscosity))"),
             std::string::npos)
-      << e;
-  EXPECT_NE(error_of(scene_with(R"({"material": {}, "geometry": [{"object": "Box", "radius": 0.1}]})"))
-                .find("no radius for object Box"),
+      << warnings[0];
+  warnings.clear();
+  parse(scene_with(R"({"material": {}, "geometry": [{"object": "Box", "radius": 0.1}]})"), true, &warnings);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("no radius for object Box"), std::string::npos) << warnings[0];
+  // An unknown key stays an error.
+  EXPECT_NE(error_of(scene_with(body(R"({"constitutive": "JFluid", "youngs_modulu": 1e6})"))).find("unknown key"),
             std::string::npos);
 }
 
@@ -280,7 +298,7 @@ TEST(SceneParse, ModelIdsAreAssignedInOrderPerGpu) {
 TEST(SceneParse, CrossChecks) {
   EXPECT_NE(error_of(scene_with(body(), R"("boundaries": [{"object": "Walls", "domain_start": [0, 0, 0],
                                                           "domain_end": [1, 0, 1]}])"))
-                .find("boundaries[0].domain_end[1]: got 0; expected a number > domain_start[1] (0) [m]"),
+                .find("boundaries[0].domain_end[1]: got 0; expected a number > domain_start[1] (0): the box is empty"),
             std::string::npos);
   EXPECT_NE(error_of(scene_with(body(R"({})", R"("partition_start": [0.5, 0, 0], "partition_end": [0.4, 1, 1])")))
                 .find("bodies[0].partition_end[0]: got 0.4; expected a number > partition_start[0] (0.5) [m]"),
@@ -433,6 +451,26 @@ TEST(SceneParse, CauchyScalingScalesStressesByTheRatio) {
   EXPECT_DOUBLE_EQ(absent.bodies[0].material.viscosity, 0.08);
 }
 
+// target_attribs (ClaymoreUW: what its particle sensors aggregate) is the attribute of sensors that give none; a
+// sensor's own attribute wins, with a warning when the bodies' differs; more than one entry is an error.
+TEST(SceneParse, TargetAttribsChooseTheParticleSensorsAttribute) {
+  const std::string sensor = R"("particle-sensors": [{"domain_start": [0, 0, 0], "domain_end": [1, 1, 1]},
+                                                     {"attribute": "Velocity_X", "domain_start": [0, 0, 0],
+                                                      "domain_end": [1, 1, 1]}])";
+  std::vector<std::string> warnings;
+  const Scene s = parse(scene_with(body(R"({})", R"("target_attribs": ["Velocity_Y"])"), sensor), true, &warnings);
+  EXPECT_EQ(s.particle_sensors[0].attribute, "Velocity_Y");
+  EXPECT_EQ(s.particle_sensors[1].attribute, "Velocity_X");
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("particle-sensors[1].attribute: Velocity_X is aggregated; the bodies' target_attribs "
+                             "(Velocity_Y)"),
+            std::string::npos)
+      << warnings[0];
+  EXPECT_NE(error_of(scene_with(body(R"({})", R"("target_attribs": ["Velocity_Y", "Position_Y"])"), sensor))
+                .find("bodies[0].target_attribs: got 2 attributes; expected one attribute"),
+            std::string::npos);
+}
+
 TEST(SceneParse, ReleasePolicyRejectsWhatTheEngineCannotRun) {
   struct Case {
     std::string json;
@@ -441,7 +479,6 @@ TEST(SceneParse, ReleasePolicyRejectsWhatTheEngineCannotRun) {
   const std::vector<Case> cases = {
       {scene_with(body(R"({})", R"("algorithm": {"use_FEM": true})")), "bodies[0].algorithm.use_FEM"},
       {scene_with(body(R"({})", R"("output_attribs": ["logJp"])")), "bodies[0].output_attribs[0]"},
-      {scene_with(body(R"({})", R"("target_attribs": ["Position_Y"])")), "bodies[0].target_attribs"},
       {scene_with(body(), R"("grid-sensors": [{"attribute": "Volume", "domain_start": [0,0,0],
                                               "domain_end": [1,1,1]}])"),
        "grid-sensors[0].attribute"},
@@ -472,9 +509,25 @@ TEST(SceneParse, TrackersInEitherSpelling) {
   EXPECT_EQ(a.bodies[0].track_particle_id, (std::vector<long long>{3, 1}));
   EXPECT_EQ(b.bodies[0].track_particle_id, a.bodies[0].track_particle_id);
   EXPECT_EQ(b.bodies[0].track_attribs, a.bodies[0].track_attribs);
-  const std::string both = error_of(scene_with(body(R"({})", R"("track_particle_id": [1], "trackers": {"ids": [2]})")));
-  EXPECT_EQ(both.rfind("bodies[0].trackers.ids: got", 0), 0u) << both;
-  EXPECT_NE(both.find("either trackers.ids or track_particle_id"), std::string::npos) << both;
+  // Both spellings (ClaymoreUW's scene.json has both, different): the newer trackers wins, with a warning.
+  std::vector<std::string> warnings;
+  const Scene both = parse(scene_with(body(R"({})", R"("track_particle_id": [1], "trackers": {"ids": [2]})")), true,
+                           &warnings);
+  EXPECT_EQ(both.bodies[0].track_particle_id, (std::vector<long long>{2}));
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("bodies[0].track_particle_id: ignored: bodies[0].trackers.ids"), std::string::npos)
+      << warnings[0];
+  // The same for output.attribs and output_attribs.
+  warnings.clear();
+  const Scene out = parse(scene_with(body(R"({})", R"("output_attribs": ["Pressure"], "output": {"attribs": ["J"]})")),
+                          true, &warnings);
+  EXPECT_EQ(out.bodies[0].output_attribs, (std::vector<std::string>{"J"}));
+  ASSERT_EQ(warnings.size(), 1u);
+  // A geometry entry's IDs (without array copies) join the body's, as in ClaymoreUW.
+  const Scene geo = parse(scene_with(R"({"material": {}, "track_particle_id": [3],
+                                         "geometry": [{"object": "Box", "track_particle_id": [0, 3]}]})"));
+  EXPECT_EQ(geo.bodies[0].track_particle_id, (std::vector<long long>{3, 0}));
+  EXPECT_TRUE(geo.bodies[0].geometry[0].track_particle_id.empty());
   EXPECT_EQ(error_of(scene_with(body(R"({})", R"("track_particle_id": [1], "track_attribs": ["DefGrad_XX"])")))
                 .rfind("bodies[0].track_attribs[0]", 0),
             0u);  // JFluid stores no F
@@ -490,9 +543,14 @@ TEST(SceneParse, OutputObjectAttribsAndExterior) {
   const Scene s = parse(scene_with(body(R"({})", R"("output": {"attribs": ["ID", "Pressure"], "exterior_threshold": 0.5})")));
   EXPECT_EQ(s.bodies[0].output_attribs, (std::vector<std::string>{"ID", "Pressure"}));
   EXPECT_EQ(s.bodies[0].exterior_threshold, 0.5);
-  const std::string both =
-      error_of(scene_with(body(R"({})", R"("output_attribs": ["ID"], "output": {"attribs": ["Mass"]})")));
-  EXPECT_EQ(both.rfind("bodies[0].output.attribs: got", 0), 0u) << both;
+  std::vector<std::string> warnings;  // both, different: the newer output.attribs is written, with a warning
+  const Scene both =
+      parse(scene_with(body(R"({})", R"("output_attribs": ["ID"], "output": {"attribs": ["Mass"]})")), true, &warnings);
+  EXPECT_EQ(both.bodies[0].output_attribs, (std::vector<std::string>{"Mass"}));
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("bodies[0].output_attribs: ignored: bodies[0].output.attribs (ClaymoreUW's newer key)"),
+            std::string::npos)
+      << warnings[0];
   const Scene ext = parse(scene_with(body(R"({})", R"("output": {"exterior_only": true})")));
   EXPECT_TRUE(ext.bodies[0].output_exterior_only);
   EXPECT_EQ(ext.bodies[0].exterior_threshold, 128.0);  // ClaymoreUW's cutoff
@@ -613,7 +671,8 @@ TEST(SceneWrite, RoundTripOfTheShippedScenes) {
   for (const char* f : {"scenes/dam_break_3d.json", "scenes/elastic_block_drop.json", "scenes/two_disks.json",
                         "Projects/FBAR/scene.json", "tests/scenes/good/claymoreuw_layout.json",
                         "tests/scenes/good/csg_two_gpus.json", "tests/scenes/good/froude_scaled_block.json",
-                        "tests/scenes/good/models_alias.json", "tests/scenes/good/tiny_fluid.json"}) {
+                        "tests/scenes/good/models_alias.json", "tests/scenes/good/tiny_fluid.json",
+                        "tests/scenes/good/hydrouq_keys.json"}) {
     SCOPED_TRACE(f);
     const Scene s = parse_scene_file(std::string(FBAR_SOURCE_DIR) + "/" + f, ParseOptions{});
     expect_round_trip(s);

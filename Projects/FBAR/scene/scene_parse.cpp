@@ -348,7 +348,8 @@ const Keys kOutputKeys = {"output_attribs", "attribs",         "track_attribs", 
                            "track_particle_id", "exterior_only", "exterior_threshold"};
 /// Keys of bodies[].material: the common ones, then every material's parameters (kParameters).
 Keys material_keys() {
-  Keys keys = {"type", "constitutive", "ppc", "CFL", "rho"};
+  // material_preset: HydroUQ's label of the form it filled in; poissons_ratio: HydroUQ's spelling of poisson_ratio.
+  Keys keys = {"type", "constitutive", "ppc", "CFL", "rho", "material_preset", "poissons_ratio"};
   for_each_material([&](auto m) {
     for (const MaterialParameter& p : decltype(m)::kParameters)
       if (std::find(keys.begin(), keys.end(), std::string_view(p.key)) == keys.end()) keys.push_back(p.key);
@@ -363,7 +364,10 @@ const Keys kGeometryKeys = {"object",   "operation", "span",           "offset",
                             "axis",     "rotate",    "fulcrum",        "array",          "spacing",
                             "file",     "padding",   "scaling_factor", "scaling",        "use_froude_scaling",
                             "has_attributes", "input_attribs", "track_particle_id", "bathymetry",
-                            "use_custom_bathymetry"};
+                            "use_custom_bathymetry",
+                            // HydroUQ's / ClaymoreUW scenes': switches of array and rotate, a cylinder's length and
+                            // long axis; a region some scenes give a Bathymetry body (read by no ClaymoreUW code)
+                            "apply_array", "apply_rotation", "length", "long_axis", "domain_start", "domain_end"};
 const Keys kBoundaryKeys = {"object",   "contact",  "domain_start",   "domain_end",  "time",
                             "friction_static", "friction_dynamic", "velocity", "file", "output_frequency",
                             "output_freq", "array", "spacing",        "bathymetry",  "use_custom_bathymetry",
@@ -371,7 +375,7 @@ const Keys kBoundaryKeys = {"object",   "contact",  "domain_start",   "domain_en
 const Keys kGridSensorKeys = {"attribute",   "operation",  "direction", "output_frequency", "output_freq",
                               "domain_start", "domain_end", "type",      "name",             "toggle"};
 const Keys kParticleSensorKeys = {"attribute",    "operation",  "output_frequency", "output_freq",
-                                  "domain_start", "domain_end", "type",             "name", "toggle"};
+                                  "domain_start", "domain_end", "type",             "name", "toggle", "direction"};
 
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -478,14 +482,18 @@ class ObjectReader {
     throw SceneError(sub(key), "(missing)", expected, unit);
   }
 
-  /// Reports unconsumed members: known keys get `why_unused(key)`, unknown keys the closest known key.
-  void finish(const std::function<std::string(std::string_view)>& why_unused = {}) {
+  /// Reports unconsumed members: known keys get `why_unused(key)`, unknown keys the closest known key. warn_unused:
+  /// a known key this object does not use is a warning (ClaymoreUW ignores it silently), not an error.
+  void finish(const std::function<std::string(std::string_view)>& why_unused = {}, bool warn_unused = false) {
     std::size_t i = 0;
     for (auto m = v_.MemberBegin(); m != v_.MemberEnd(); ++m, ++i) {
       if (used_[i]) continue;
       const std::string key(m->name.GetString(), m->name.GetStringLength());
       const bool known = std::find(known_.begin(), known_.end(), key) != known_.end();
-      if (known) {
+      if (known && warn_unused) {
+        ctx_.warn(sub(key) + ": " + json_text(m->value) + " is ignored (" +
+                  (why_unused ? why_unused(key) : "no " + key + " here") + ")");
+      } else if (known) {
         ctx_.reject_key(sub(key), json_text(m->value), why_unused ? why_unused(key) : "no " + key + " here");
       } else {
         std::string expected = std::string("a key of ") + what_;
@@ -733,6 +741,7 @@ MaterialSpec parse_material(ObjectReader& body, ObjectReader* algorithm, const C
   if (auto ppc = read_either<double>(o, algorithm, "ppc", number(kPositive, "particles/cell"))) m.ppc = *ppc;
   if (auto cfl = read_either<double>(o, algorithm, "CFL", number(Range{0.0, 1.0, true, false}, "-"))) m.cfl = *cfl;
   if (auto* x = o.get("rho")) m.rho = read_number(*x, o.sub("rho"), kPositive, "kg/m^3");
+  if (auto* x = o.get("material_preset")) read_string(*x, o.sub("material_preset"), "a string (HydroUQ's label)");
 
   // The parameters the law reads (its kParameters: type and range checked); finish() reports any other one given.
   std::vector<std::string> used_names;
@@ -746,6 +755,22 @@ MaterialSpec parse_material(ObjectReader& body, ObjectReader* algorithm, const C
       m.*(p.number) = read_number(*x, o.sub(p.key), Range{p.range.lo, p.range.hi, p.range.lo_open, p.range.hi_open},
                                   p.unit);
   });
+  if (auto* x = o.get("poissons_ratio")) {  // HydroUQ writes this spelling; ClaymoreUW reads only poisson_ratio
+    const bool used = std::find(used_names.begin(), used_names.end(), "poisson_ratio") != used_names.end();
+    if (!used) {
+      ctx.warn(o.sub("poissons_ratio") + ": " + json_text(*x) + " is ignored (no poisson_ratio for constitutive " +
+               to_string(m.law) + ")");
+    } else {
+      const double nu = read_number(*x, o.sub("poissons_ratio"), Range{-1.0, 0.5, true, true}, "-");
+      if (o.has("poisson_ratio") && nu != m.poisson_ratio)
+        throw SceneError(o.sub("poissons_ratio"), json_text(*x),
+                         "the value of poisson_ratio (" + num_text(m.poisson_ratio) + "), or only one of the two");
+      if (!o.has("poisson_ratio"))
+        ctx.warn(o.sub("poissons_ratio") + ": read as poisson_ratio = " + num_text(nu) +
+                 " (HydroUQ's spelling; ClaymoreUW does not read it and uses its default 0.2)");
+      m.poisson_ratio = nu;
+    }
+  }
   // Rules across parameters (e.g. DruckerPrager's logJp0 needs the volume correction).
   visit_material(m.law, [&](auto law) {
     const ParameterProblem problem = material_check<decltype(law)>(m);
@@ -758,9 +783,13 @@ MaterialSpec parse_material(ObjectReader& body, ObjectReader* algorithm, const C
   });
 
   const std::string law_name = to_string(m.law);
-  o.finish([&](std::string_view key) {
-    return "no " + std::string(key) + " for constitutive " + law_name + " (it reads " + join(used_names) + ")";
-  });
+  // A parameter of another law is ignored with a warning: ClaymoreUW's scenes carry them (HydroUQ writes every
+  // field of its material form) and ClaymoreUW ignores them silently.
+  o.finish(
+      [&](std::string_view key) {
+        return "no " + std::string(key) + " for constitutive " + law_name + " (it reads " + join(used_names) + ")";
+      },
+      true);
   return m;
 }
 
@@ -817,6 +846,15 @@ GeometrySpec parse_geometry(const rj::Value& v, const std::string& path, const C
   if (auto* x = o.get("array")) g.array = read_int3(*x, o.sub("array"), at_least(1));
   if (auto* x = o.get("spacing")) g.spacing = read_real3(*x, o.sub("spacing"), kAny, "m");
   if (auto* x = o.get("use_froude_scaling")) g.use_froude_scaling = read_bool(*x, o.sub("use_froude_scaling"));
+  // HydroUQ's switches (ClaymoreUW reads neither and always applies array and rotate): false drops them.
+  if (auto* x = o.get("apply_array"); x && !read_bool(*x, o.sub("apply_array")) && g.array != Int3{1, 1, 1}) {
+    ctx.warn(o.sub("array") + ": not applied because apply_array is false (ClaymoreUW would apply it)");
+    g.array = Int3{1, 1, 1};
+  }
+  if (auto* x = o.get("apply_rotation"); x && !read_bool(*x, o.sub("apply_rotation")) && g.rotate != Real3{0, 0, 0}) {
+    ctx.warn(o.sub("rotate") + ": not applied because apply_rotation is false (ClaymoreUW would apply it)");
+    g.rotate = Real3{0, 0, 0};
+  }
   if (auto* x = o.get("track_particle_id"))
     g.track_particle_id = read_integer_array(*x, o.sub("track_particle_id"), kNonNegative);
 
@@ -847,13 +885,21 @@ GeometrySpec parse_geometry(const rj::Value& v, const std::string& path, const C
     if (auto* x = o.get("span")) sphere_span = read_real3(*x, o.sub("span"), kAny, "m");
   }
   if (g.object == GeometryObject::Cylinder) {
-    if (auto* x = o.get("axis")) g.axis = read_enum(*x, o.sub("axis"), kAxes);
+    if (auto f = o.get_any({"axis", "long_axis"})) g.axis = read_enum(*f.value, f.path, kAxes);
     if (auto* x = o.get("span")) {
       // Only span[axis] (the length) is used; the cross-section comes from radius.
       g.span = read_real3(*x, o.sub("span"), kNonNegative, "m");
       if (!(g.span[g.axis] > 0.0))
         throw SceneError(index_path(o.sub("span"), g.axis), num_text(g.span[g.axis]),
                          std::string("a number > 0 (the cylinder length along axis ") + axis_name(g.axis) + ")", "m");
+    }
+    if (auto* x = o.get("length")) {  // the length along the axis; ClaymoreUW takes it from span
+      const double length = read_number(*x, o.sub("length"), kPositive, "m");
+      if (!o.has("span"))
+        g.span[g.axis] = length;
+      else if (length != g.span[g.axis])
+        ctx.warn(o.sub("length") + ": " + num_text(length) + " m is not used: span[" + std::to_string(g.axis) +
+                 "] = " + num_text(g.span[g.axis]) + " m is the cylinder's length (as in ClaymoreUW)");
     }
   }
   if (is_round) {
@@ -899,7 +945,9 @@ GeometrySpec parse_geometry(const rj::Value& v, const std::string& path, const C
                        "cells");
   }
   const std::string object_name = to_string(g.object);
-  o.finish([&](std::string_view key) { return "no " + std::string(key) + " for object " + object_name; });
+  // A key of another object (a radius on a Box, a region on a Bathymetry body) is ignored with a warning, as
+  // ClaymoreUW ignores it.
+  o.finish([&](std::string_view key) { return "no " + std::string(key) + " for object " + object_name; }, true);
   return g;
 }
 
@@ -948,8 +996,8 @@ BodyRead parse_body(const rj::Value& v, const std::string& path, const Context& 
   if (outp && outp->get("attribs")) {  // ClaymoreUW's newer spelling, output: {attribs: [...]}
     const std::vector<std::string> a = attribs(*outp->get("attribs"), outp->sub("attribs"));
     if ((o.get("output_attribs") || outp->get("output_attribs")) && a != b.output_attribs)
-      throw SceneError(outp->sub("attribs"), json_text(*outp->get("attribs")),
-                       "the same list as output_attribs, or only one of the two");
+      ctx.warn(o.sub("output_attribs") + ": ignored: " + outp->sub("attribs") +
+               " (ClaymoreUW's newer key) is given too and differs; the frames hold output.attribs");
     b.output_attribs = a;
   }
   if (outp) {
@@ -958,19 +1006,30 @@ BodyRead parse_body(const rj::Value& v, const std::string& path, const Context& 
       b.exterior_threshold = read_number(*x, outp->sub("exterior_threshold"), kNonNegative, "particles per block");
   }
   if (auto a = read_either<std::vector<std::string>>(o, outp, "track_attribs", attribs)) b.track_attribs = *a;
-  if (auto a = read_either<std::vector<std::string>>(o, outp, "target_attribs", attribs)) b.target_attribs = *a;
+  auto targets = [](const rj::Value& x, const std::string& p) {  // what the particle sensors aggregate
+    require_array(x, p, "an array of one particle attribute name");
+    std::vector<std::string> names;
+    for (rj::SizeType i = 0; i < x.Size(); ++i) names.push_back(read_attribute(x[i], index_path(p, i), true));
+    return names;
+  };
+  if (auto a = read_either<std::vector<std::string>>(o, outp, "target_attribs", targets)) b.target_attribs = *a;
   // ClaymoreUW's newer spelling: "trackers": {"ids": [...], "attribs": [...]}.
   if (auto* x = o.get("trackers")) {
     ObjectReader tr(*x, o.sub("trackers"), kTrackerKeys, ctx, "bodies[].trackers");
+    // The newer keys win over track_particle_id / track_attribs (a warning when both are given and differ).
     if (auto* ids_value = tr.get("ids")) {
-      if (!b.track_particle_id.empty())
-        throw SceneError(tr.sub("ids"), json_text(*ids_value), "either trackers.ids or track_particle_id, not both");
-      b.track_particle_id = ids(*ids_value, tr.sub("ids"));
+      const std::vector<long long> t = ids(*ids_value, tr.sub("ids"));
+      if (!b.track_particle_id.empty() && t != b.track_particle_id)
+        ctx.warn(o.sub("track_particle_id") + ": ignored: " + tr.sub("ids") +
+                 " (ClaymoreUW's newer key) is given too and differs; fbar tracks trackers.ids");
+      b.track_particle_id = t;
     }
     if (auto* a = tr.get("attribs")) {
-      if (!b.track_attribs.empty())
-        throw SceneError(tr.sub("attribs"), json_text(*a), "either trackers.attribs or track_attribs, not both");
-      b.track_attribs = attribs(*a, tr.sub("attribs"));
+      const std::vector<std::string> t = attribs(*a, tr.sub("attribs"));
+      if (!b.track_attribs.empty() && t != b.track_attribs)
+        ctx.warn(o.sub("track_attribs") + ": ignored: " + tr.sub("attribs") +
+                 " (ClaymoreUW's newer key) is given too and differs; fbar records trackers.attribs");
+      b.track_attribs = t;
     }
     tr.finish();
   }
@@ -987,6 +1046,16 @@ BodyRead parse_body(const rj::Value& v, const std::string& path, const Context& 
     throw SceneError(o.sub("geometry"), "[]", "a non-empty array of geometry objects (Box, Sphere, Cylinder, File)");
   for (rj::SizeType i = 0; i < geo->Size(); ++i)
     b.geometry.push_back(parse_geometry((*geo)[i], index_path(o.sub("geometry"), i), ctx));
+  // ClaymoreUW appends a geometry entry's track_particle_id to the body's, shifted by the particles of each array
+  // copy before it; without copies the IDs are the body's own (the shift of copies is not implemented yet: the
+  // support check refuses those).
+  for (GeometrySpec& g : b.geometry) {
+    if (g.track_particle_id.empty() || g.array != Int3{1, 1, 1}) continue;
+    for (long long id : g.track_particle_id)
+      if (std::find(b.track_particle_id.begin(), b.track_particle_id.end(), id) == b.track_particle_id.end())
+        b.track_particle_id.push_back(id);
+    g.track_particle_id.clear();
+  }
 
   // Labels that HydroUQ / ClaymoreUW scenes carry; they have no effect on the simulation.
   if (auto* x = o.get("name")) read_string(*x, o.sub("name"));
@@ -1015,7 +1084,8 @@ std::pair<Real3, Real3> read_region(ObjectReader& o, bool strict) {
     if (strict ? !(end[d] > start[d]) : !(end[d] >= start[d]))
       throw SceneError(index_path(o.sub("domain_end"), d), num_text(end[d]),
                        std::string("a number ") + (strict ? ">" : ">=") + " domain_start[" + std::to_string(d) + "] (" +
-                           num_text(start[d]) + ")",
+                           num_text(start[d]) + "): the box is empty (ClaymoreUW's would hold nothing); swap the two "
+                           "values or correct them",
                        "m");
   return {start, end};
 }
@@ -1094,10 +1164,15 @@ BoundarySpec parse_boundary(const rj::Value& v, const std::string& path, const C
                      "the flow velocity the pump drives, not zero", "m/s");
   read_type_label(o, "grid");
   const std::string object_name = to_string(b.object);
-  o.finish([&](std::string_view key) {
-    if (key == "output_frequency" || key == "output_freq") return std::string("no ") + std::string(key) + " without a motion file";
-    return "no " + std::string(key) + " for object " + object_name;
-  });
+  // A key of another object (a motion file's rate without a file, a radius on a Box) is ignored with a warning,
+  // as ClaymoreUW ignores it.
+  o.finish(
+      [&](std::string_view key) {
+        if (key == "output_frequency" || key == "output_freq")
+          return std::string("no ") + std::string(key) + " without a motion file";
+        return "no " + std::string(key) + " for object " + object_name;
+      },
+      true);
   return b;
 }
 
@@ -1145,7 +1220,8 @@ GridSensorSpec parse_grid_sensor(const rj::Value& v, const std::string& path, co
   return s;
 }
 
-ParticleSensorSpec parse_particle_sensor(const rj::Value& v, const std::string& path, const Context& ctx) {
+ParticleSensorSpec parse_particle_sensor(const rj::Value& v, const std::string& path, const Context& ctx,
+                                         bool& attribute_given) {
   ParticleSensorSpec s;
   ObjectReader o(v, path, kParticleSensorKeys, ctx, "particle-sensors[]");
   if (const rj::Value* a = o.get("attribute"))  // ClaymoreUW's default: Position_Y (its target_attribs default)
@@ -1156,6 +1232,10 @@ ParticleSensorSpec parse_particle_sensor(const rj::Value& v, const std::string& 
   std::tie(s.domain_start, s.domain_end) = read_region(o, false);
   s.name = read_type_label(o, "particles");
   if (auto* x = o.get("toggle")) s.toggle = read_bool(*x, o.sub("toggle"));
+  if (auto* x = o.get("direction"))  // HydroUQ writes it; a particle sensor aggregates a scalar
+    ctx.warn(o.sub("direction") + ": " + json_text(*x) +
+             " is ignored (a particle sensor aggregates the scalar attribute; ClaymoreUW ignores it too)");
+  attribute_given = o.has("attribute");
   o.finish();
   return s;
 }
@@ -1230,9 +1310,30 @@ Scene parse_document(const rj::Document& doc, Context& ctx) {
   if (auto* a = optional_array(root, {"grid-sensors"}, path, "an array of grid-sensor objects"))
     for (rj::SizeType i = 0; i < a->Size(); ++i)
       scene.grid_sensors.push_back(parse_grid_sensor((*a)[i], index_path(path, i), ctx));
-  if (auto* a = optional_array(root, {"particle-sensors", "targets"}, path, "an array of particle-sensor objects"))
-    for (rj::SizeType i = 0; i < a->Size(); ++i)
-      scene.particle_sensors.push_back(parse_particle_sensor((*a)[i], index_path(path, i), ctx));
+  if (auto* a = optional_array(root, {"particle-sensors", "targets"}, path, "an array of particle-sensor objects")) {
+    // ClaymoreUW's particle sensors aggregate the bodies' target_attribs[0] (its default Position_Y) and read no
+    // attribute of their own; fbar's read their attribute, and take the bodies' target_attribs when they give none.
+    std::set<std::string> targets;
+    for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
+      const std::vector<std::string>& t = scene.bodies[b].target_attribs;
+      if (t.size() > 1)
+        throw SceneError(index_path(bodies_path, b) + ".target_attribs", std::to_string(t.size()) + " attributes",
+                         "one attribute (the particle sensors aggregate one; ClaymoreUW uses only the first too)");
+      if (!t.empty()) targets.insert(t.front());
+    }
+    for (rj::SizeType i = 0; i < a->Size(); ++i) {
+      bool given = false;
+      ParticleSensorSpec sensor = parse_particle_sensor((*a)[i], index_path(path, i), ctx, given);
+      const std::string at = index_path(path, i) + ".attribute";
+      if (!given && targets.size() > 1)
+        throw SceneError(at, "(missing)", "an attribute: the bodies' target_attribs differ (" + join(std::vector<std::string>(targets.begin(), targets.end())) + ")");
+      if (!given && targets.size() == 1) sensor.attribute = *targets.begin();
+      if (given && !targets.empty() && !targets.count(sensor.attribute))
+        ctx.warn(at + ": " + sensor.attribute + " is aggregated; the bodies' target_attribs (" + join(std::vector<std::string>(targets.begin(), targets.end())) +
+                 "), which ClaymoreUW's sensors aggregate instead, is not");
+      scene.particle_sensors.push_back(std::move(sensor));
+    }
+  }
   // FEM meshes: their keys are defined by a later release; only their presence is recorded (check_supported).
   if (auto* a = optional_array(root, {"meshes"}, path, "an array of mesh objects")) scene.mesh_count = static_cast<int>(a->Size());
   for (const char* k : kWrapperKeys)

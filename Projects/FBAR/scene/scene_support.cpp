@@ -68,14 +68,14 @@ void check_supported(const Scene& scene) {
                                  " particle stores (logJp seeds NACC and DruckerPrager bodies)");
         }
       if (!g.track_particle_id.empty())
-        refuse(gp + ".track_particle_id", std::to_string(g.track_particle_id.size()) + " id(s)", "an empty list",
-               "track_particle_id (particle tracking)");
+        refuse(gp + ".track_particle_id", std::to_string(g.track_particle_id.size()) + " id(s)",
+               "no geometry-level IDs on an entry with array copies (the body's track_particle_id, or the entry "
+               "without array)",
+               "track_particle_id on an array of copies");
     }
     if (b.track_particle_id.empty() && !b.track_attribs.empty())
       throw SceneError(p + ".track_attribs", q(b.track_attribs.front()),
                        "track_particle_id as well (the particles whose attributes are tracked)");
-    if (!b.target_attribs.empty())
-      refuse(p + ".target_attribs", q(b.target_attribs.front()), "an empty list", "target_attribs (particle sensors)");
     for (std::size_t k = 0; k < b.output_attribs.size(); ++k) {
       const std::string& name = b.output_attribs[k];
       // The engine's own list decides (DefGrad_* only for a material that stores F), so --check and a run agree.
