@@ -1008,6 +1008,9 @@ BodyRead parse_body(const rj::Value& v, const std::string& path, const Context& 
   if (auto a = read_either<std::vector<std::string>>(o, outp, "track_attribs", attribs)) b.track_attribs = *a;
   auto targets = [](const rj::Value& x, const std::string& p) {  // what the particle sensors aggregate
     require_array(x, p, "an array of one particle attribute name");
+    if (x.Size() > 1)
+      throw SceneError(p, std::to_string(x.Size()) + " attributes",
+                       "one attribute (the particle sensors aggregate one; ClaymoreUW uses only the first too)");
     std::vector<std::string> names;
     for (rj::SizeType i = 0; i < x.Size(); ++i) names.push_back(read_attribute(x[i], index_path(p, i), true));
     return names;
@@ -1314,13 +1317,8 @@ Scene parse_document(const rj::Document& doc, Context& ctx) {
     // ClaymoreUW's particle sensors aggregate the bodies' target_attribs[0] (its default Position_Y) and read no
     // attribute of their own; fbar's read their attribute, and take the bodies' target_attribs when they give none.
     std::set<std::string> targets;
-    for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
-      const std::vector<std::string>& t = scene.bodies[b].target_attribs;
-      if (t.size() > 1)
-        throw SceneError(index_path(bodies_path, b) + ".target_attribs", std::to_string(t.size()) + " attributes",
-                         "one attribute (the particle sensors aggregate one; ClaymoreUW uses only the first too)");
-      if (!t.empty()) targets.insert(t.front());
-    }
+    for (const BodySpec& b : scene.bodies)
+      if (!b.target_attribs.empty()) targets.insert(b.target_attribs.front());
     for (rj::SizeType i = 0; i < a->Size(); ++i) {
       bool given = false;
       ParticleSensorSpec sensor = parse_particle_sensor((*a)[i], index_path(path, i), ctx, given);

@@ -34,7 +34,7 @@ std::size_t grid_bytes(long long capacity, Precision precision, bool asflip, boo
 }
 
 /// Per-block partition arrays of one body (partition_domain.h): count and bin offset of two layouts, bins per
-/// block (one GPU: a decomposed rank adds its two block lists, 8 bytes per block).
+/// block (one GPU: a decomposed rank with overlap_halo adds its two block lists, 8 bytes per block).
 std::size_t partition_block_bytes(long long capacity) {
   const std::size_t c = static_cast<std::size_t>(capacity);
   return c * (2 * 2 * 4 + 4);

@@ -1012,7 +1012,7 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
     const long long flat = (body.particles + 31) / 32;
     const int bins = options_.bin_capacity > 0 ? static_cast<int>(std::max<long long>(flat, options_.bin_capacity))
                                                : static_cast<int>(plan_.bin_capacity[b]);
-    body.partition.allocate(block_capacity_, bins, decomposed());
+    body.partition.allocate(block_capacity_, bins, decomposed() && options_.overlap_halo);  // the lists' only use
     body.allocate_bins(bins);
     if (positions && decomposed()) {
       std::vector<Vec3d> mine;

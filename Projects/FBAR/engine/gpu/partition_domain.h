@@ -11,7 +11,7 @@
 // bins) and writes them in layout order, so the reorder costs no pass of its own. While it runs it records, per
 // slot, the particle's next block and its rank there (dest), which the partition kernels turn into the next
 // layout's src. Layouts are double-buffered so a failed step can be repeated from the untouched one.
-// Decomposed runs (ordered domains) also list, per layout, the blocks that have particles, halo particle blocks first:
+// Decomposed runs with the halo overlap (ordered domains) also list, per layout, the blocks that have particles, halo particle blocks first:
 //   order[0, H)                 the blocks whose P2G reaches a grid plane shared with a neighbour (G2P2G runs them
 //                               first, so the halo exchange overlaps the rest)
 //   order[capacity - I, capacity)  the other I blocks with particles
