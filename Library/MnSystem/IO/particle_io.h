@@ -393,26 +393,67 @@ inline std::vector<std::string> column_names(const FrameAttribute& a) {
 /// Classic binary Houdini geometry, byte for byte what partio's writeBGEO produces for the same data
 /// (positions are stored as float). Throws std::invalid_argument (bad frame, > 2^31-1 points) or
 /// std::runtime_error (I/O).
-inline void write_bgeo(const std::filesystem::path& path, const ParticleFrame& frame) {
-  validate_frame(frame);
-  const std::size_t n = frame.size();
-  if (n > 0x7fffffffu) throw std::invalid_argument(path.string() + ": bgeo holds at most 2^31-1 points");
-  detail::AtomicFile file(path);
-  std::string& out = file.buffer();
+/// One point attribute of a bgeo's dictionary: name, components, Houdini type code (0 float, 1 int, 5 vector).
+struct BgeoAttribute {
+  std::string name;
+  int width = 1;
+  int type = 0;
+};
+
+/// The bgeo header (magic, counts, attribute dictionary) of n points with `attributes`: what precedes the records.
+inline std::string bgeo_header(std::size_t n, const std::vector<BgeoAttribute>& attributes) {
+  std::string out;
   out.append("Bgeo", 4);
   out.push_back('V');
   detail::put_be32(out, 5);                                                 // version
   detail::put_be32(out, static_cast<std::uint32_t>(n));                     // nPoints
   for (int i = 0; i < 3; ++i) detail::put_be32(out, 0);                     // nPrims, nPointGroups, nPrimGroups
-  detail::put_be32(out, static_cast<std::uint32_t>(frame.attributes.size()));  // nPointAttrib
+  detail::put_be32(out, static_cast<std::uint32_t>(attributes.size()));     // nPointAttrib
   for (int i = 0; i < 3; ++i) detail::put_be32(out, 0);                     // nVertexAttrib, nPrimAttrib, nAttrib
-  for (const FrameAttribute& a : frame.attributes) {
+  for (const BgeoAttribute& a : attributes) {
     detail::put_be16(out, static_cast<std::uint16_t>(a.name.size()));
     out.append(a.name);
     detail::put_be16(out, static_cast<std::uint16_t>(a.width));
-    detail::put_be32(out, static_cast<std::uint32_t>(detail::houdini_type(a)));
+    detail::put_be32(out, static_cast<std::uint32_t>(a.type));
     for (int c = 0; c < a.width; ++c) detail::put_be32(out, 0);           // default value
   }
+  return out;
+}
+
+/// A bgeo whose point records (big-endian, 16 + 4 x components bytes each, as write_bgeo lays them out) are
+/// already serialised, e.g. by the GPU into a pinned buffer: the header, the records written by several threads at
+/// their offsets, the end marks. Throws std::invalid_argument / std::runtime_error as write_bgeo.
+inline void write_bgeo_records(const std::filesystem::path& path, std::size_t n,
+                               const std::vector<BgeoAttribute>& attributes, const char* records) {
+  if (n > 0x7fffffffu) throw std::invalid_argument(path.string() + ": bgeo holds at most 2^31-1 points");
+  std::size_t record = 16;
+  for (const BgeoAttribute& a : attributes) record += 4 * static_cast<std::size_t>(a.width);
+  detail::AtomicFile file(path);
+  file.buffer() = bgeo_header(n, attributes);
+  const off_t base = file.reserve(n * record);
+  const std::size_t piece = std::max<std::size_t>(1, (std::size_t(8) << 20) / record);
+  const unsigned threads = std::max(1u, std::min(8u, std::thread::hardware_concurrency() / 2));
+  detail::parallel_ranges(n, threads, [&](std::size_t lo, std::size_t hi) {
+    for (std::size_t first = lo; first < hi; first += piece) {
+      const std::size_t count = std::min(piece, hi - first);
+      file.write_at(records + first * record, count * record, base + static_cast<off_t>(first * record));
+    }
+  });
+  std::string& out = file.buffer();
+  out.push_back(static_cast<char>(0x00));  // begin extra
+  out.push_back(static_cast<char>(0xff));  // end extra
+  file.commit();
+}
+
+inline void write_bgeo(const std::filesystem::path& path, const ParticleFrame& frame) {
+  validate_frame(frame);
+  const std::size_t n = frame.size();
+  if (n > 0x7fffffffu) throw std::invalid_argument(path.string() + ": bgeo holds at most 2^31-1 points");
+  detail::AtomicFile file(path);
+  std::vector<BgeoAttribute> dictionary;
+  for (const FrameAttribute& a : frame.attributes) dictionary.push_back({a.name, a.width, detail::houdini_type(a)});
+  file.buffer() = bgeo_header(n, dictionary);
+  std::string& out = file.buffer();
   // The points: fixed-size records (x y z w, then every attribute's components). Several threads each serialise a
   // range of points in 4 MiB pieces and pwrite them at their offsets (a 16M-particle frame with 4 attributes is
   // 0.58 GB: byte by byte on one thread it took 1.3 s, longer than the 100 steps between two frames).

@@ -1,6 +1,8 @@
 // MpiTransport (mpi_transport.h).
 #include "comm/mpi_transport.h"
 
+#include <algorithm>
+#include <climits>
 #include <cstdlib>
 #include <cstring>
 #include <stdexcept>
@@ -108,21 +110,37 @@ std::vector<Bytes> MpiTransport::exchange(const std::vector<int>& peers, const s
 }
 
 std::vector<Bytes> MpiTransport::allgather(const Bytes& mine) {
+  // In rounds that keep every MPI count an int (at most 1 GiB per rank): a rebalance gathers every rank's particles.
   const int n = size_;
-  int my_size = static_cast<int>(mine.size());
-  std::vector<int> sizes(n), offsets(n, 0);
-  check(MPI_Allgather(&my_size, 1, MPI_INT, sizes.data(), 1, MPI_INT, MPI_COMM_WORLD), "MPI_Allgather");
-  int total = 0;
-  for (int r = 0; r < n; ++r) {
-    offsets[r] = total;
-    total += sizes[r];
-  }
-  Bytes all(static_cast<std::size_t>(total));
-  check(MPI_Allgatherv(mine.data(), my_size, MPI_BYTE, all.data(), sizes.data(), offsets.data(), MPI_BYTE,
-                       MPI_COMM_WORLD),
-        "MPI_Allgatherv");
+  const std::size_t kRound = std::min<std::size_t>(std::size_t(1) << 30, static_cast<std::size_t>(INT_MAX) / n);
+  long long my_size = static_cast<long long>(mine.size());
+  std::vector<long long> sizes(n);
+  check(MPI_Allgather(&my_size, 1, MPI_LONG_LONG, sizes.data(), 1, MPI_LONG_LONG, MPI_COMM_WORLD), "MPI_Allgather");
   std::vector<Bytes> out(n);
-  for (int r = 0; r < n; ++r) out[r].assign(all.begin() + offsets[r], all.begin() + offsets[r] + sizes[r]);
+  long long most = 0;
+  for (int r = 0; r < n; ++r) {
+    out[r].resize(static_cast<std::size_t>(sizes[r]));
+    most = std::max(most, sizes[r]);
+  }
+  std::vector<int> counts(n), offsets(n);
+  Bytes round;
+  for (std::size_t start = 0; start < static_cast<std::size_t>(most) || start == 0; start += kRound) {
+    int total = 0;
+    for (int r = 0; r < n; ++r) {
+      const auto size = static_cast<std::size_t>(sizes[r]);
+      counts[r] = static_cast<int>(start < size ? std::min(kRound, size - start) : 0);
+      offsets[r] = total;
+      total += counts[r];
+    }
+    round.resize(static_cast<std::size_t>(std::max(total, 1)));
+    const int mine_now = counts[rank_];
+    check(MPI_Allgatherv(mine_now ? mine.data() + start : nullptr, mine_now, MPI_BYTE, round.data(), counts.data(),
+                         offsets.data(), MPI_BYTE, MPI_COMM_WORLD),
+          "MPI_Allgatherv");
+    for (int r = 0; r < n; ++r)
+      if (counts[r]) std::memcpy(out[r].data() + start, round.data() + offsets[r], static_cast<std::size_t>(counts[r]));
+    if (most == 0) break;
+  }
   return out;
 }
 

@@ -27,6 +27,11 @@
 //   bool checkpoint_ready()                     checkpoint() can be taken now (the GPU engine needs the particles'
 //                                               v and C, which it records only on the steps asked to)
 //   void keep_checkpoint_inputs(bool)           the next step records what checkpoint() needs
+//   bool rebalance_due()                        decomposed runs: the particles per rank drifted apart (the same
+//                                               answer on every rank); the step landing on the next frame then
+//                                               keeps the checkpoint inputs
+//   bool rebalance_if_drifted()                 after a frame's output (collective): new slabs when still due
+//                                               (the CPU engine rebalances within its steps: false for both)
 #pragma once
 
 #include <algorithm>
@@ -267,7 +272,7 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
       // The step that lands on the frame time writes the frame (on the device, for the GPU engine).
       const bool lands = step_target == target && engine.time() + engine.next_dt() >= target;
       engine.set_frame_capture(lands);
-      engine.keep_checkpoint_inputs(stop_step || (lands && frame_checkpoint_due(frame)));
+      engine.keep_checkpoint_inputs(stop_step || (lands && (frame_checkpoint_due(frame) || engine.rebalance_due())));
       // Where the step after a landing heads: the next sample or frame time (the GPU fixes that step's dt now).
       const double following = step_target < target          ? head_for(step_target, target)
                                 : frame < sim.frames ? head_for(step_target, t0 + (frame + 1) / sim.fps)
@@ -310,6 +315,10 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
         throw std::logic_error("the step landing on frame " + std::to_string(frame) +
                                " did not record what its checkpoint needs");
       checkpoint(io::checkpoint_frame_path(save_dir, frame, rank), "frame");
+    }
+    if (engine.rebalance_due()) {  // the same on every rank
+      writer.flush();  // the frames' host buffers belong to the engine that is built again
+      engine.rebalance_if_drifted();
     }
     if (!options.quiet) {
       const Count count = all_particles();

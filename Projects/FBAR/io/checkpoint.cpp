@@ -315,6 +315,11 @@ Checkpoint read_checkpoint_set(const std::filesystem::path& given) {
                                std::to_string(c.steps) + " vs " + std::to_string(parts[0].steps) + ")");
     parts.push_back(std::move(c));
   }
+  return merge_checkpoints(std::move(parts), describe(given));
+}
+
+Checkpoint merge_checkpoints(std::vector<Checkpoint> parts, const std::string& what) {
+  if (parts.empty()) throw std::invalid_argument(what + ": no rank's state to merge");
   Checkpoint all = parts[0];
   all.rank = 0;
   all.ranks = 1;
@@ -330,7 +335,7 @@ Checkpoint read_checkpoint_set(const std::filesystem::path& given) {
       out.max_wave_speed = std::max(out.max_wave_speed, c.bodies[b].max_wave_speed);
     }
     if (total != static_cast<std::size_t>(out.global_particles))
-      throw std::runtime_error(describe(given) + ": body " + std::to_string(b) + " has " + std::to_string(total) +
+      throw std::runtime_error(what + ": body " + std::to_string(b) + " has " + std::to_string(total) +
                                " particles over the ranks' files, " + std::to_string(out.global_particles) +
                                " expected");
     // Every particle by ID: slot = ID, as a one-rank run holds them.
@@ -345,7 +350,7 @@ Checkpoint read_checkpoint_set(const std::filesystem::path& given) {
       for (std::size_t p = 0; p < src->particles(); ++p) {
         const std::int64_t id = src->id[p];
         if (id < 0 || static_cast<std::size_t>(id) >= total || out.id[static_cast<std::size_t>(id)] >= 0)
-          throw std::runtime_error(describe(given) + ": body " + std::to_string(b) + ": particle ID " +
+          throw std::runtime_error(what + ": body " + std::to_string(b) + ": particle ID " +
                                    std::to_string(id) + " is out of range or on several ranks");
         const auto q = static_cast<std::size_t>(id);
         out.id[q] = id;
@@ -358,6 +363,69 @@ Checkpoint read_checkpoint_set(const std::filesystem::path& given) {
       }
   }
   return all;
+}
+
+// Particle arrays as bytes: per body the particle count, the largest wave speed, then id, x, v, C, mass, volume and
+// state, each as the vector's raw bytes (one process's or one host's in-memory exchange: native byte order).
+namespace {
+template <typename V>
+void put_raw(std::vector<std::uint8_t>& out, const V* data, std::size_t n) {
+  const auto* b = reinterpret_cast<const std::uint8_t*>(data);
+  out.insert(out.end(), b, b + sizeof(V) * n);
+}
+template <typename V>
+void take_raw(const std::vector<std::uint8_t>& in, std::size_t& at, V* data, std::size_t n) {
+  const std::size_t bytes = sizeof(V) * n;
+  if (at + bytes > in.size()) throw std::runtime_error("checkpoint particles: the byte stream ends early");
+  if (bytes) std::memcpy(data, in.data() + at, bytes);
+  at += bytes;
+}
+}  // namespace
+
+std::vector<std::uint8_t> checkpoint_particle_bytes(const Checkpoint& c) {
+  std::vector<std::uint8_t> out;
+  std::size_t total = 0;
+  for (const CheckpointBody& b : c.bodies)
+    total += 16 + b.particles() * (8 * (1 + 3 + 3 + 9 + 1 + 1) + 8 * static_cast<std::size_t>(b.state_scalars));
+  out.reserve(total);
+  for (const CheckpointBody& b : c.bodies) {
+    const std::uint64_t n = b.particles();
+    put_raw(out, &n, 1);
+    put_raw(out, &b.max_wave_speed, 1);
+    put_raw(out, b.id.data(), n);
+    put_raw(out, b.x.data(), 3 * n);
+    put_raw(out, b.v.data(), 3 * n);
+    put_raw(out, b.C.data(), 9 * n);
+    put_raw(out, b.mass.data(), n);
+    put_raw(out, b.volume.data(), n);
+    put_raw(out, b.state.data(), static_cast<std::size_t>(b.state_scalars) * n);
+  }
+  return out;
+}
+
+void read_checkpoint_particle_bytes(const std::vector<std::uint8_t>& bytes, Checkpoint& into) {
+  std::size_t at = 0;
+  for (CheckpointBody& b : into.bodies) {
+    std::uint64_t n = 0;
+    take_raw(bytes, at, &n, 1);
+    take_raw(bytes, at, &b.max_wave_speed, 1);
+    const auto S = static_cast<std::size_t>(b.state_scalars);
+    b.id.resize(n);
+    b.x.resize(3 * n);
+    b.v.resize(3 * n);
+    b.C.resize(9 * n);
+    b.mass.resize(n);
+    b.volume.resize(n);
+    b.state.resize(S * n);
+    take_raw(bytes, at, b.id.data(), n);
+    take_raw(bytes, at, b.x.data(), 3 * n);
+    take_raw(bytes, at, b.v.data(), 3 * n);
+    take_raw(bytes, at, b.C.data(), 9 * n);
+    take_raw(bytes, at, b.mass.data(), n);
+    take_raw(bytes, at, b.volume.data(), n);
+    take_raw(bytes, at, b.state.data(), S * n);
+  }
+  if (at != bytes.size()) throw std::runtime_error("checkpoint particles: bytes left over (another scene?)");
 }
 
 Checkpoint read_checkpoint_for(const std::filesystem::path& given, int rank, int ranks) {

@@ -95,6 +95,16 @@ void check_matches(const Checkpoint& c, const Scene& scene);
 /// different number of ranks starts from.
 Checkpoint read_checkpoint_set(const std::filesystem::path& given);
 
+/// The parts (every rank's state at the same step, rank 0's first) as one checkpoint with every particle in ID order
+/// (rank 0's header, rank = 0, ranks = 1, no slabs). `what` names the parts in errors. Throws std::runtime_error
+/// when a particle is missing or on two ranks.
+Checkpoint merge_checkpoints(std::vector<Checkpoint> parts, const std::string& what);
+
+/// Every body's particle arrays (and largest wave speed) of `c` as bytes, and back into a checkpoint whose header
+/// and bodies' law, state_scalars and global_particles are already set: what ranks exchange in memory to rebalance.
+std::vector<std::uint8_t> checkpoint_particle_bytes(const Checkpoint& c);
+void read_checkpoint_particle_bytes(const std::vector<std::uint8_t>& bytes, Checkpoint& into);
+
 /// What rank `rank` of a run of `ranks` ranks restarts from: its own file of the set when the set was written by as
 /// many ranks (the run then goes on as it was), otherwise read_checkpoint_set(given).
 Checkpoint read_checkpoint_for(const std::filesystem::path& given, int rank, int ranks);

@@ -215,6 +215,9 @@ class CpuEngine {
   double imbalance() const { return imbalance_; }
   long long migrated() const { return migrated_; }      ///< particles this rank sent to others so far
   int rebalances() const { return rebalances_; }        ///< times the slabs were chosen again
+  /// The run loop's rebalancing points (run_loop.h): this engine rebalances within its steps, so never.
+  bool rebalance_due() const { return false; }
+  bool rebalance_if_drifted() { return false; }
   /// Particle IDs of this rank's particles of `body`, in slot order (one rank: 0, 1, 2, ...: slot = ID).
   const std::vector<std::int64_t>& ids(int body) const;
 

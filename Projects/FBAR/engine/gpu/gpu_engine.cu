@@ -2,8 +2,10 @@
 #include "engine/gpu/gpu_engine.h"
 
 #include "comm/device_transport.h"
+#include "comm/slab_partition.h"
 #include "comm/transport.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -53,15 +55,29 @@ std::unique_ptr<MgspBenchmark<T, TG>> make_engine(const Scene& scene, const GpuE
   return std::make_unique<MgspBenchmark<T, TG>>(scene, &in.positions, in.options);
 }
 
+/// The options a rebalance builds the engine with again: without what only the first construction reads.
+GpuEngineOptions kept_options(const GpuEngineOptions& options) {
+  GpuEngineOptions kept = options;
+  kept.initial_velocities.clear();
+  kept.restart = nullptr;
+  return kept;
+}
+
 }  // namespace
 
 template <typename T, typename TG>
 GpuEngine<T, TG>::GpuEngine(const Scene& scene, const GpuEngineOptions& options)
-    : impl_(make_engine<T, TG>(scene, options)) {}
+    : impl_(make_engine<T, TG>(scene, options)), scene_(&scene), options_(kept_options(options)) {
+  chosen_imbalance_ = impl_->imbalance();
+}
 template <typename T, typename TG>
 GpuEngine<T, TG>::GpuEngine(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions,
                         const GpuEngineOptions& options)
-    : impl_(std::make_unique<MgspBenchmark<T, TG>>(scene, &positions, options)) {}
+    : impl_(std::make_unique<MgspBenchmark<T, TG>>(scene, &positions, options)),
+      scene_(&scene),
+      options_(kept_options(options)) {
+  chosen_imbalance_ = impl_->imbalance();
+}
 template <typename T, typename TG>
 GpuEngine<T, TG>::~GpuEngine() = default;
 
@@ -92,15 +108,35 @@ double GpuEngine<T, TG>::next_dt() const { return impl_->next_dt(); }
 template <typename T, typename TG>
 double GpuEngine<T, TG>::max_grid_speed() const { return impl_->max_grid_speed(); }
 template <typename T, typename TG>
-void GpuEngine<T, TG>::set_log(std::ostream* log) { impl_->set_log(log); }
+void GpuEngine<T, TG>::set_log(std::ostream* log) {
+  log_ = log;
+  impl_->set_log(log);
+}
 template <typename T, typename TG>
-void GpuEngine<T, TG>::set_record_velocities(bool on) { impl_->set_record_velocities(on); }
+void GpuEngine<T, TG>::set_record_velocities(bool on) {
+  record_velocities_ = on;
+  impl_->set_record_velocities(on);
+}
 template <typename T, typename TG>
-void GpuEngine<T, TG>::set_kernel_timing(bool on) { impl_->set_kernel_timing(on); }
+void GpuEngine<T, TG>::set_kernel_timing(bool on) {
+  timing_ = on;
+  impl_->set_kernel_timing(on);
+}
 template <typename T, typename TG>
-KernelTimes GpuEngine<T, TG>::kernel_times() const { return impl_->kernel_times(); }
+KernelTimes GpuEngine<T, TG>::kernel_times() const {
+  KernelTimes t = impl_->kernel_times();
+  const KernelTimes& e = earlier_times_;
+  t.grid_update_ms += e.grid_update_ms;
+  t.g2p2g_ms += e.g2p2g_ms;
+  t.partition_ms += e.partition_ms;
+  t.halo_ms += e.halo_ms;
+  t.halo_hidden_ms += e.halo_hidden_ms;
+  t.migration_ms += e.migration_ms;
+  t.steps += e.steps;
+  return t;
+}
 template <typename T, typename TG>
-long long GpuEngine<T, TG>::p2g_range_repeats() const { return impl_->p2g_range_repeats(); }
+long long GpuEngine<T, TG>::p2g_range_repeats() const { return earlier_repeats_ + impl_->p2g_range_repeats(); }
 template <typename T, typename TG>
 int GpuEngine<T, TG>::body_count() const { return impl_->body_count(); }
 template <typename T, typename TG>
@@ -112,27 +148,48 @@ ParticleSnapshot<T> GpuEngine<T, TG>::snapshot(int body) const { return impl_->s
 template <typename T, typename TG>
 io::ParticleFrame GpuEngine<T, TG>::frame(int body) const { return impl_->frame(body); }
 template <typename T, typename TG>
-void GpuEngine<T, TG>::set_frame_capture(bool on) { impl_->set_frame_capture(on); }
+void GpuEngine<T, TG>::set_frame_capture(bool on) {
+  frame_capture_ = on;
+  impl_->set_frame_capture(on);
+}
 template <typename T, typename TG>
-double GpuEngine<T, TG>::output_wait_seconds() const { return impl_->output_wait_seconds(); }
+double GpuEngine<T, TG>::output_wait_seconds() const { return earlier_wait_s_ + impl_->output_wait_seconds(); }
 template <typename T, typename TG>
-void GpuEngine<T, TG>::set_grid_sensors(const std::vector<GridSensorSpec>& sensors) { impl_->set_grid_sensors(sensors); }
+void GpuEngine<T, TG>::set_grid_sensors(const std::vector<GridSensorSpec>& sensors) {
+  grid_sensors_ = sensors;
+  impl_->set_grid_sensors(sensors);
+}
 template <typename T, typename TG>
-void GpuEngine<T, TG>::set_grid_sample(int slot) { impl_->set_grid_sample(slot); }
+void GpuEngine<T, TG>::set_grid_sample(int slot) {
+  grid_sample_ = slot;
+  impl_->set_grid_sample(slot);
+}
 template <typename T, typename TG>
 std::vector<SensorAccum> GpuEngine<T, TG>::grid_samples(int slots) const { return impl_->grid_samples(slots); }
 template <typename T, typename TG>
 void GpuEngine<T, TG>::set_particle_sensors(const std::vector<ParticleSensorSpec>& sensors) {
+  particle_sensors_ = sensors;
   impl_->set_particle_sensors(sensors);
 }
 template <typename T, typename TG>
-void GpuEngine<T, TG>::keep_particle_inputs(bool on) { impl_->keep_particle_inputs(on); }
+void GpuEngine<T, TG>::keep_particle_inputs(bool on) {
+  particle_inputs_ = on;
+  impl_->keep_particle_inputs(on);
+}
 template <typename T, typename TG>
 void GpuEngine<T, TG>::sample_particles(int slot) { impl_->sample_particles(slot); }
 template <typename T, typename TG>
 std::vector<SensorAccum> GpuEngine<T, TG>::particle_samples(int slots) const { return impl_->particle_samples(slots); }
 template <typename T, typename TG>
-void GpuEngine<T, TG>::set_tracker(int body, const TrackerSet& set) { impl_->set_tracker(body, set); }
+void GpuEngine<T, TG>::set_tracker(int body, const TrackerSet& set) {
+  impl_->set_tracker(body, set);
+  for (auto& [b, t] : trackers_)
+    if (b == body) {
+      t = set;
+      return;
+    }
+  trackers_.emplace_back(body, set);
+}
 template <typename T, typename TG>
 void GpuEngine<T, TG>::track(int body, std::vector<double>& values, std::vector<double>& present) {
   impl_->track(body, values, present);
@@ -142,11 +199,14 @@ io::Checkpoint GpuEngine<T, TG>::checkpoint() const { return impl_->checkpoint()
 template <typename T, typename TG>
 bool GpuEngine<T, TG>::checkpoint_ready() const { return impl_->checkpoint_ready(); }
 template <typename T, typename TG>
-void GpuEngine<T, TG>::keep_checkpoint_inputs(bool on) { impl_->keep_checkpoint_inputs(on); }
+void GpuEngine<T, TG>::keep_checkpoint_inputs(bool on) {
+  checkpoint_inputs_ = on;
+  impl_->keep_checkpoint_inputs(on);
+}
 template <typename T, typename TG>
 const DeviceMemoryPlan& GpuEngine<T, TG>::memory_plan() const { return impl_->memory_plan(); }
 template <typename T, typename TG>
-std::size_t GpuEngine<T, TG>::peak_device_bytes() const { return impl_->peak_device_bytes(); }
+std::size_t GpuEngine<T, TG>::peak_device_bytes() const { return std::max(earlier_peak_, impl_->peak_device_bytes()); }
 template <typename T, typename TG>
 std::string GpuEngine<T, TG>::resource_note() const {
   std::string note = "device memory " + format_bytes(static_cast<double>(device_bytes())) + ", peak " +
@@ -182,11 +242,94 @@ int GpuEngine<T, TG>::ranks() const { return impl_->ranks(); }
 template <typename T, typename TG>
 const comm::SlabPartition& GpuEngine<T, TG>::slabs() const { return impl_->slabs(); }
 template <typename T, typename TG>
-long long GpuEngine<T, TG>::migrated() const { return impl_->migrated(); }
+long long GpuEngine<T, TG>::migrated() const { return earlier_migrated_ + impl_->migrated(); }
 template <typename T, typename TG>
 std::size_t GpuEngine<T, TG>::halo_blocks() const { return impl_->halo_blocks(); }
 template <typename T, typename TG>
 std::size_t GpuEngine<T, TG>::halo_particle_blocks() const { return impl_->halo_particle_blocks(); }
+template <typename T, typename TG>
+double GpuEngine<T, TG>::imbalance() const { return impl_->imbalance(); }
+template <typename T, typename TG>
+int GpuEngine<T, TG>::rebalances() const { return rebalances_; }
+template <typename T, typename TG>
+bool GpuEngine<T, TG>::rebalance_due() const {
+  const double now = impl_->imbalance();
+  return ranks() > 1 && options_.rebalance_threshold > 0.0 && now > options_.rebalance_threshold &&
+         now > 1.5 * chosen_imbalance_;
+}
+
+template <typename T, typename TG>
+bool GpuEngine<T, TG>::rebalance_if_drifted() {
+  if (!rebalance_due() || !impl_->checkpoint_ready()) return false;  // the same on every rank
+  comm::Transport& host = *options_.ranks;
+  const double drifted = impl_->imbalance();
+  const comm::SlabPartition before = impl_->slabs();
+  const auto start = std::chrono::steady_clock::now();
+  // Every rank's particles, merged in ID order on every rank (the restart path's input).
+  io::Checkpoint merged = impl_->checkpoint();  // collective
+  {
+    std::vector<comm::Bytes> parts = host.allgather(io::checkpoint_particle_bytes(merged));
+    for (io::CheckpointBody& b : merged.bodies) {  // the header and body descriptions stay
+      const io::CheckpointBody empty{b.law, b.state_scalars, b.global_particles, 0.0};
+      b = empty;
+    }
+    std::vector<io::Checkpoint> all(parts.size(), merged);
+    for (std::size_t r = 0; r < parts.size(); ++r) {
+      io::read_checkpoint_particle_bytes(parts[r], all[r]);
+      comm::Bytes().swap(parts[r]);
+    }
+    merged = io::merge_checkpoints(std::move(all), "rebalancing at step " + std::to_string(impl_->steps()));
+  }
+  // The slabs the particles ask for now, as the engine would choose them: nothing to do when they are the same.
+  {
+    std::vector<SampleCount> counts;
+    for (const io::CheckpointBody& b : merged.bodies) {
+      std::vector<Vec3d> x(b.particles());
+      for (std::size_t p = 0; p < x.size(); ++p) x[p] = Vec3d{{b.x[3 * p], b.x[3 * p + 1], b.x[3 * p + 2]}};
+      counts.push_back(count_points(x, scene_->simulation.dx));
+    }
+    std::vector<const SampleCount*> pointers;
+    for (const SampleCount& c : counts) pointers.push_back(&c);
+    if (comm::choose_slabs(comm::plane_counts(pointers), ranks()).cuts == before.cuts) {
+      chosen_imbalance_ = drifted;  // whole block planes allow no better split: wait for a larger drift
+      return false;
+    }
+  }
+  impl_->wait_for_frames();
+  earlier_times_ = kernel_times();
+  earlier_migrated_ = migrated();
+  earlier_repeats_ = p2g_range_repeats();
+  earlier_wait_s_ = output_wait_seconds();
+  earlier_peak_ = peak_device_bytes();
+  impl_.reset();  // the device memory first
+  GpuEngineOptions options = options_;
+  options.restart = &merged;
+  impl_ = make_engine<T, TG>(*scene_, options);
+  replay_settings();
+  chosen_imbalance_ = impl_->imbalance();
+  ++rebalances_;
+  if (log_ && rank() == 0)
+    *log_ << "fbar: particles per GPU rank drifted apart (imbalance " << mgsp_detail::format_g(100 * drifted)
+          << " % > " << mgsp_detail::format_g(100 * options_.rebalance_threshold) << " %) at step " << steps()
+          << ": new " << impl_->slabs().describe() << ", imbalance " << mgsp_detail::format_g(100 * chosen_imbalance_)
+          << " % (" << mgsp_detail::format_g(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count())
+          << " s)\n";
+  return true;
+}
+
+template <typename T, typename TG>
+void GpuEngine<T, TG>::replay_settings() {
+  impl_->set_log(log_);
+  impl_->set_record_velocities(record_velocities_);
+  impl_->set_kernel_timing(timing_);
+  if (!grid_sensors_.empty()) impl_->set_grid_sensors(grid_sensors_);
+  if (!particle_sensors_.empty()) impl_->set_particle_sensors(particle_sensors_);
+  for (const auto& [body, set] : trackers_) impl_->set_tracker(body, set);
+  impl_->set_grid_sample(grid_sample_);
+  impl_->keep_particle_inputs(particle_inputs_);
+  impl_->keep_checkpoint_inputs(checkpoint_inputs_);
+  impl_->set_frame_capture(frame_capture_);
+}
 
 template class GpuEngine<float, float>;
 template class GpuEngine<double, double>;

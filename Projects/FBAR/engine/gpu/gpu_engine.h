@@ -80,6 +80,10 @@ struct GpuEngineOptions {
   /// while a second stream sums the shared planes with the neighbours (false: the sums after the whole G2P2G; the
   /// benchmark compares both). The result is the same either way, to the order of the atomic sums.
   bool overlap_halo = true;
+  /// Decomposed runs: rebalance_if_drifted() chooses the slabs again when the particles per rank drifted apart by
+  /// more than this (max / mean - 1) and by 1.5 x the imbalance the last choice left (<= 0: never). The CPU
+  /// engine's rule and default.
+  double rebalance_threshold = 0.25;
   /// Continue from a checkpoint (io/checkpoint.h) holding every particle in ID order (io::read_checkpoint_set):
   /// positions, velocities, C, state, time and the next dt from it, nothing sampled. The initial P2G then makes the
   /// grid the continuous run had, to the order of its atomic sums. Must outlive the constructor only.
@@ -181,9 +185,39 @@ class GpuEngine {
   std::size_t halo_blocks() const;          ///< grid blocks this rank shares with its neighbours now
   /// Particle blocks (all bodies) the next G2P2G runs first because they scatter into a shared plane.
   std::size_t halo_particle_blocks() const;
+  /// Particles per rank after the last step, max / mean - 1 (the same on every rank; 0 on one rank).
+  double imbalance() const;
+  /// The particles drifted apart beyond GpuEngineOptions::rebalance_threshold since the slabs were last chosen
+  /// (the same answer on every rank). The run loop then keeps the checkpoint inputs on the step landing on the next
+  /// frame and calls rebalance_if_drifted() after that frame's output.
+  bool rebalance_due() const;
+  /// Collective. When rebalance_due() and checkpoint_ready(): the slabs are chosen again from every particle and
+  /// the particles go to their new ranks, through the restart path (every rank's checkpoint() gathered in host
+  /// memory, the device state rebuilt from it: about 150 bytes per particle of the whole scene on every rank, for
+  /// as long as it takes). Sensors, trackers and settings carry over. Frames submitted before must have been
+  /// written (io::AsyncWriter::flush). Returns whether the slabs changed.
+  bool rebalance_if_drifted();
+  int rebalances() const;                   ///< times rebalance_if_drifted() chose new slabs
 
  private:
+  void replay_settings();
   std::unique_ptr<MgspBenchmark<T, TG>> impl_;
+  // What a rebalance needs to build the engine again, and what it carries over.
+  const Scene* scene_ = nullptr;  ///< the caller's (outlives the engine, as for MgspBenchmark's construction)
+  GpuEngineOptions options_;      ///< without initial velocities and restart (used at construction only)
+  std::ostream* log_ = nullptr;
+  bool record_velocities_ = false, timing_ = false, frame_capture_ = false, particle_inputs_ = false,
+       checkpoint_inputs_ = false;
+  int grid_sample_ = -1;
+  std::vector<GridSensorSpec> grid_sensors_;
+  std::vector<ParticleSensorSpec> particle_sensors_;
+  std::vector<std::pair<int, TrackerSet>> trackers_;
+  KernelTimes earlier_times_;          ///< of the engines before the last rebalance
+  long long earlier_migrated_ = 0, earlier_repeats_ = 0;
+  double earlier_wait_s_ = 0.0;
+  std::size_t earlier_peak_ = 0;
+  double chosen_imbalance_ = 0.0;     ///< right after the slabs were last chosen
+  int rebalances_ = 0;
 };
 
 extern template class GpuEngine<float, float>;

@@ -250,6 +250,22 @@ class MgspBenchmark {
   int rank() const { return host_ ? host_->rank() : 0; }
   int ranks() const { return host_ ? host_->size() : 1; }
   const comm::SlabPartition& slabs() const { return slabs_; }
+  /// Particles per rank after the last step (or the start), max / mean - 1; the same on every rank (0: one rank).
+  double imbalance() const {
+    if (!decomposed()) return 0.0;
+    double total = 0.0;
+    for (const auto& b : bodies_) total += static_cast<double>(b->global_particles);
+    const double mean = total / ranks();
+    return mean > 0.0 ? most_rank_particles_ / mean - 1.0 : 0.0;
+  }
+  /// Waits until the writer thread has built every frame submitted so far (their host buffers are free).
+  void wait_for_frames() const {
+    for (const auto& b : bodies_) {
+      if (!b->frame_slot) continue;
+      std::unique_lock<std::mutex> lock(b->frame_slot->mutex);
+      b->frame_slot->released.wait(lock, [&] { return !b->frame_slot->busy; });
+    }
+  }
   long long migrated() const { return migrated_; }
   std::size_t halo_blocks() const { return halo_[0].keys.size() + halo_[1].keys.size(); }
   std::size_t halo_particle_blocks() const {
@@ -322,6 +338,8 @@ class MgspBenchmark {
     virtual int stored_scalars() const = 0;
     virtual void allocate_bins(int bins) = 0;                   ///< both buffers, contents lost
     virtual void reallocate_bins(int which, int bins) = 0;      ///< one buffer, contents lost
+    /// One buffer grown to `bins` bins, its first `keep_slots` slots (and ASFLIP velocities) kept.
+    virtual void grow_bins_keeping(int which, int bins, int keep_slots, cudaStream_t s) = 0;
     virtual int bins_capacity(int which) const = 0;
     virtual std::size_t bins_bytes() const = 0;
     /// Particles first_id .. first_id + x.size() into bins[0] (flat: slot = ID); first_id is a multiple of 32.
@@ -374,6 +392,18 @@ class MgspBenchmark {
     void reallocate_bins(int which, int n) override {
       bins[which].allocate(n);
       if (this->asflip) this->particle_v[which].allocate(static_cast<std::size_t>(n) * 32 * 3);
+    }
+    void grow_bins_keeping(int which, int n, int keep_slots, cudaStream_t s) override {
+      bins[which].grow_keeping(n, (keep_slots + 31) / 32, s);
+      if (this->asflip) {
+        mgsp_detail::DeviceArray<T> bigger;
+        bigger.allocate(static_cast<std::size_t>(n) * 32 * 3);
+        if (keep_slots > 0)
+          FBAR_CUDA_CHECK(cudaMemcpyAsync(bigger.get(), this->particle_v[which].get(),
+                                          sizeof(T) * 3 * static_cast<std::size_t>(keep_slots), cudaMemcpyDeviceToDevice, s));
+        FBAR_CUDA_CHECK(cudaStreamSynchronize(s));
+        this->particle_v[which].swap(bigger);
+      }
     }
     int bins_capacity(int which) const override { return bins[which].bin_capacity(); }
     std::size_t bins_bytes() const override {
@@ -627,6 +657,9 @@ class MgspBenchmark {
   cuda::OutOfMemory growth_failure(const std::string& what, const cuda::OutOfMemory& e) const;
   void grow_bins_to(BodyBase& b, int keep, int capacity);
   void grow_bins(BodyBase& b, int layout_keep, int needed);
+  /// Decomposed runs, in the migration: room for `needed` bins in bins[1 - cur] while keeping what this step's G2P2G
+  /// wrote there (its first `written` slots, their destinations and recorded v and C) and layout(cur).
+  void grow_for_arrivals(BodyBase& b, int written, long long needed);
   void ensure_aux();
   void update_record();
   /// A restart: every body's mass, volume, state and C from the checkpoint (positions and velocities came in as
@@ -790,6 +823,7 @@ class MgspBenchmark {
   long long migrated_ = 0;
   long long pending_migrated_ = 0;
   bool halo_grew_ = false;  ///< agree_on_try: some rank has new halo blocks (every rank then calls rebuild_halo)
+  double most_rank_particles_ = 0.0;  ///< agree_on_try: the most particles any rank holds after the last step
 };
 
 // =====================================================================================================================
@@ -1466,6 +1500,29 @@ void MgspBenchmark<T, TG>::grow_bins(BodyBase& b, int keep, int needed) {
                              std::to_string(b.partition.bin_capacity()) + " -> " + std::to_string(capacity) + " bins",
                          e);
   }
+  peak_bytes_ = std::max(peak_bytes_, device_bytes());
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::grow_for_arrivals(BodyBase& b, int written, long long needed) {
+  if (needed > DeviceLimits::kMaxSlots / 32)
+    throw std::runtime_error("GpuEngine: rank " + std::to_string(rank()) + " needs " + std::to_string(32 * needed) +
+                             " particle slots for body " + std::to_string(b.index) + " at step " +
+                             std::to_string(steps_ + 1) + "; at most " + std::to_string(DeviceLimits::kMaxSlots) +
+                             " per body and device (docs/user_guide.md \"Limits\")");
+  // The destinations G2P2G recorded (the partition's growth does not keep them).
+  mgsp_detail::DeviceArray<ParticleDest> dest;
+  dest.allocate(static_cast<std::size_t>(std::max(written, 1)));
+  if (written > 0)
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(dest.get(), b.partition.dest(), sizeof(ParticleDest) * written,
+                                    cudaMemcpyDeviceToDevice, stream_));
+  if (needed > b.partition.bin_capacity()) grow_bins(b, cur_, static_cast<int>(needed));
+  if (written > 0)
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(b.partition.dest(), dest.get(), sizeof(ParticleDest) * written,
+                                    cudaMemcpyDeviceToDevice, stream_));
+  if (b.bins_capacity(1 - cur_) < b.partition.bin_capacity())
+    b.grow_bins_keeping(1 - cur_, b.partition.bin_capacity(), written, stream_);
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
   peak_bytes_ = std::max(peak_bytes_, device_bytes());
 }
 
@@ -2151,7 +2208,15 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
   const std::size_t n = static_cast<std::size_t>(by_directory ? b.captured_particles : b.particles);
   const int columns = b.capture.column_count;
   const std::size_t words = by_directory ? static_cast<std::size_t>((b.global_particles + 31) / 32) : 0;
-  const std::size_t host_bytes = n * (3 * sizeof(T) + sizeof(float) * columns) + words * sizeof(unsigned);
+  const io::ExteriorFilter exterior = exterior_filter(scene_, body);
+  // A .bgeo frame without the exterior filter: the GPU writes the file's point records into the pinned buffer
+  // (pack_bgeo_records) and the writer thread only writes them out. Other formats: positions and columns come down
+  // and the writer builds the frame.
+  const bool records = path.extension() == ".bgeo" && !exterior.on() &&
+                       b.frame_attrs.size() <= static_cast<std::size_t>(kMaxFrameColumns) + 1;
+  const std::size_t record_bytes = 4 * (4 + b.frame_attrs.size());
+  const std::size_t host_bytes =
+      records ? n * record_bytes : n * (3 * sizeof(T) + sizeof(float) * columns) + words * sizeof(unsigned);
   if (!b.frame_host || b.frame_host_size < host_bytes) {  // the writer has released it (busy was false)
     b.frame_host = mgsp_detail::pinned(std::max<std::size_t>(host_bytes, 1));
     b.frame_host_size = std::max<std::size_t>(host_bytes, 1);
@@ -2162,6 +2227,59 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
   FBAR_CUDA_CHECK(cudaStreamWaitEvent(copy_stream_, ready, 0));
   FBAR_CUDA_CHECK(cudaEventDestroy(ready));
   auto* host = static_cast<std::byte*>(b.frame_host.get());
+  if (records) {
+    BgeoPack<T> pack;
+    pack.x = b.frame_x.get();
+    pack.columns = b.frame_columns.get();
+    pack.stride = static_cast<std::size_t>(b.capture.particles);
+    pack.entries = static_cast<int>(n);
+    if (by_directory) {
+      pack.id_bits = b.id_bits.get();
+      pack.id_offset = b.id_offset.get();
+      pack.words = static_cast<int>(words);
+    }
+    pack.attributes = static_cast<int>(b.frame_attrs.size());
+    std::vector<io::BgeoAttribute> dictionary;
+    int column = 0;
+    for (std::size_t a = 0; a < b.frame_attrs.size(); ++a) {
+      const bool id = b.frame_attrs[a].column.quantity == FrameQuantity::Id;
+      pack.source[a] = id ? -1 : column++;
+      dictionary.push_back({b.frame_attrs[a].name, 1, id ? io::detail::kHoudiniInt : io::detail::kHoudiniFloat});
+    }
+    unsigned* out = nullptr;
+    FBAR_CUDA_CHECK(cudaHostGetDevicePointer(reinterpret_cast<void**>(&out), host, 0));
+    if (n) {
+      pack_bgeo_records<T><<<64, kOutputThreads, 0, copy_stream_>>>(pack, out);
+      mgsp_detail::check_launch("pack_bgeo_records");
+    }
+    FBAR_CUDA_CHECK(cudaEventRecord(b.frame_copied, copy_stream_));
+    const cudaEvent_t copied = b.frame_copied;
+    const std::shared_ptr<typename BodyBase::HostSlot> slot = b.frame_slot;
+    writer.submit_job([=] {
+      struct Release {  // the host buffer goes back to the step loop once written, also when writing throws
+        std::shared_ptr<typename BodyBase::HostSlot> slot;
+        ~Release() {
+          {
+            std::lock_guard<std::mutex> lock(slot->mutex);
+            slot->busy = false;
+          }
+          slot->released.notify_all();
+        }
+      } release{slot};
+      const auto t0 = std::chrono::steady_clock::now();
+      FBAR_CUDA_CHECK(cudaEventSynchronize(copied));
+      const auto t1 = std::chrono::steady_clock::now();
+      io::write_bgeo_records(path, n, dictionary, reinterpret_cast<const char*>(host));
+      if (std::getenv("FBAR_OUTPUT_TIMING")) {  // the writer's phases, for the output benchmark
+        const auto t2 = std::chrono::steady_clock::now();
+        const double wait = std::chrono::duration<double>(t1 - t0).count();
+        const double write = std::chrono::duration<double>(t2 - t1).count();
+        std::fprintf(stderr, "fbar: output timing: %s: records on the host after %.3f s, written in %.3f s (%.2f GB/s)\n",
+                     path.filename().string().c_str(), wait, write, 1e-9 * static_cast<double>(n * record_bytes) / write);
+      }
+    });
+    return;
+  }
   if (n) {
     FBAR_CUDA_CHECK(cudaMemcpyAsync(host, b.frame_x.get(), 3 * n * sizeof(T), cudaMemcpyDeviceToHost, copy_stream_));
     // Column c of the device frame starts at c x capture.particles (a decomposed rank's frame has room for
@@ -2178,7 +2296,6 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
   FBAR_CUDA_CHECK(cudaEventRecord(b.frame_copied, copy_stream_));
   const cudaEvent_t copied = b.frame_copied;
   const std::vector<FrameAttributeSpec> attrs = b.frame_attrs;
-  const io::ExteriorFilter exterior = exterior_filter(scene_, body);
   const std::shared_ptr<typename BodyBase::HostSlot> slot = b.frame_slot;
   writer.submit_job([=] {
     // The host buffer goes back to the step loop once the frame is built, also when building throws.
@@ -2661,11 +2778,7 @@ void MgspBenchmark<T, TG>::migrate_particles() {
     if (arriving == 0) continue;
     const int first = b.source_slots;
     const long long room = 32LL * std::min(b.bins_capacity(1 - cur_), b.partition.bin_capacity());
-    if (first + static_cast<long long>(arriving) > room)
-      throw std::runtime_error("GpuEngine: rank " + std::to_string(rank()) + " receives " + std::to_string(arriving) +
-                               " particles of body " + std::to_string(b.index) + " at step " +
-                               std::to_string(steps_ + 1) + " beyond its " + std::to_string(room) +
-                               " particle slots (engine limit of this release: more headroom per rank is needed)");
+    if (first + static_cast<long long>(arriving) > room) grow_for_arrivals(b, first, (first + arriving + 31) / 32);
     int slot = first;
     for (int side = 0; side < 2; ++side) {
       if (halo_[side].peer < 0 || incoming[side][b.index] == 0) continue;
@@ -2692,10 +2805,13 @@ void MgspBenchmark<T, TG>::agree_on_try() {
     }
   host_->allreduce_sum(sums.data(), static_cast<int>(sums.size()));
   host_->allreduce_min(firsts.data(), static_cast<int>(firsts.size()));
-  double speed_sq = 0.0;
-  std::memcpy(&speed_sq, &stats_->max_speed_sq, sizeof(double));
-  speed_sq = host_->max(speed_sq);
-  std::memcpy(&stats_->max_speed_sq, &speed_sq, sizeof(double));
+  // The largest grid speed and the most particles a rank holds after this try, in one reduction.
+  double most[2] = {0.0, 0.0};
+  std::memcpy(&most[0], &stats_->max_speed_sq, sizeof(double));
+  for (const auto& b : bodies_) most[1] += static_cast<double>(b->pending_particles);
+  host_->allreduce_max(most, 2);
+  std::memcpy(&stats_->max_speed_sq, &most[0], sizeof(double));
+  most_rank_particles_ = most[1];
   stats_->internal_error = static_cast<int>(sums[0]);
   stats_->p2g_range = static_cast<int>(sums[1]);
   halo_grew_ = sums[2] > 0;  // stats_->halo_new stays this rank's: rebuild_halo sends those

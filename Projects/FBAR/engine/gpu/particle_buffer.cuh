@@ -150,6 +150,16 @@ class ParticleBuffer {
     if (buffer_) buffer_.deallocate(cuda::DeviceAllocator{});
     buffer_ = spawn<typename Layout::buffer_>(cuda::DeviceAllocator{}, static_cast<std::size_t>(bins));
   }
+  /// Grows to `bins` bins keeping the first `keep_bins` (a stream-ordered copy, then a sync before the old frees).
+  void grow_keeping(int bins, int keep_bins, cudaStream_t s) {
+    Buffer bigger = spawn<typename Layout::buffer_>(cuda::DeviceAllocator{}, static_cast<std::size_t>(bins));
+    const std::size_t keep = Layout::kBinBytes * static_cast<std::size_t>(keep_bins);
+    if (buffer_ && keep > 0)
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(bigger.data(), buffer_.data(), keep, cudaMemcpyDeviceToDevice, s));
+    FBAR_CUDA_CHECK(cudaStreamSynchronize(s));
+    if (buffer_) buffer_.deallocate(cuda::DeviceAllocator{});
+    buffer_ = bigger;
+  }
   Buffer instance() const { return buffer_; }
   int bin_capacity() const { return static_cast<int>(buffer_.capacity()); }
   std::size_t bytes() const { return buffer_ ? buffer_.size_bytes() : 0; }

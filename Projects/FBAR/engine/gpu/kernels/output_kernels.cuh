@@ -127,4 +127,61 @@ static __global__ void __launch_bounds__(kOutputThreads) count_id_bits(const uns
   if (w == words) counts[w] = 0;
 }
 
+/// What pack_bgeo_records reads: a captured frame (FrameCapture's x and columns, and its ID directory) and, per
+/// attribute of the file in order, the capture column it comes from or -1 for the particle ID.
+template <typename T>
+struct BgeoPack {
+  const T* x = nullptr;              ///< (entry, 3) [m]
+  const float* columns = nullptr;    ///< (column, entry), column c at c x stride
+  std::size_t stride = 0;
+  int entries = 0;                   ///< records to write
+  const unsigned* id_bits = nullptr; ///< nullptr: entry = ID
+  const int* id_offset = nullptr;    ///< (words + 1) exclusive prefix counts of id_bits
+  int words = 0;
+  int attributes = 0;
+  int source[kMaxFrameColumns + 1];  ///< capture column of attribute a, or -1: the ID
+};
+
+/// The ID of entry `e` of a decomposed rank's frame: the word whose prefix count range holds e (binary search),
+/// then the (e - offset)-th set bit of that word.
+__device__ inline int bgeo_entry_id(const unsigned* bits, const int* offset, int words, int e) {
+  int lo = 0, hi = words;  // the last word w with offset[w] <= e
+  while (hi - lo > 1) {
+    const int mid = (lo + hi) / 2;
+    if (offset[mid] <= e) lo = mid;
+    else hi = mid;
+  }
+  unsigned m = bits[lo];
+  for (int k = e - offset[lo]; k > 0; --k) m &= m - 1;
+  return 32 * lo + __ffs(m) - 1;
+}
+
+/// A frame's bgeo point records (io::write_bgeo's layout: x, y, z, w = 1 as big-endian float32, then every
+/// attribute as big-endian float32 or int32), written as 4-byte words straight into `out` (pinned host memory is
+/// fine: consecutive threads write consecutive words). A grid-stride loop: a few blocks keep PCIe busy without
+/// taking the SMs from the step.
+template <typename T>
+__global__ void __launch_bounds__(kOutputThreads) pack_bgeo_records(BgeoPack<T> p, unsigned* out) {
+  const int words_per_record = 4 + p.attributes;
+  const std::size_t total = static_cast<std::size_t>(p.entries) * words_per_record;
+  for (std::size_t g = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x; g < total;
+       g += static_cast<std::size_t>(gridDim.x) * blockDim.x) {
+    const int e = static_cast<int>(g / words_per_record);
+    const int w = static_cast<int>(g - static_cast<std::size_t>(e) * words_per_record);
+    unsigned v;
+    if (w < 3) {
+      v = __float_as_uint(static_cast<float>(p.x[3 * static_cast<std::size_t>(e) + w]));
+    } else if (w == 3) {
+      v = __float_as_uint(1.0f);
+    } else {
+      const int c = p.source[w - 4];
+      if (c >= 0)
+        v = __float_as_uint(p.columns[static_cast<std::size_t>(c) * p.stride + e]);
+      else
+        v = static_cast<unsigned>(p.id_bits ? bgeo_entry_id(p.id_bits, p.id_offset, p.words, e) : e);
+    }
+    out[g] = __byte_perm(v, 0, 0x0123);  // big-endian
+  }
+}
+
 }  // namespace fbar
