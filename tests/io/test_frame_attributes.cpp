@@ -86,13 +86,16 @@ TEST(FrameAttributes, NamesUnitsAndWhatIsNotKept) {
   ASSERT_TRUE(resolve_frame_attribute("StrainSmall_2", a));
   EXPECT_EQ(a.unit, "");
   EXPECT_EQ(a.column.row, kTensorPrincipal);
-  // Quantities no engine keeps per particle are not frame attributes (the release policy refuses them).
-  EXPECT_FALSE(resolve_frame_attribute("JBar", a));
+  // JBar is the J that F-bar integrates (the stored J); PorePressure is kept by no engine (the release policy
+  // refuses it).
+  ASSERT_TRUE(resolve_frame_attribute("JBar", a));
+  EXPECT_EQ(a.column.quantity, FrameQuantity::J);
+  EXPECT_EQ(a.name, "JBar");
   EXPECT_FALSE(resolve_frame_attribute("PorePressure", a));
-  // Every canonical name of attributes.h either resolves or is one of those two.
+  // Every canonical name of attributes.h either resolves or is PorePressure.
   for (std::string_view n : kParticleAttributeNames) {
     const std::string name(n);
-    if (name == "JBar" || name == "PorePressure") continue;
+    if (name == "PorePressure") continue;
     EXPECT_TRUE(resolve_frame_attribute(canonical_attribute(name), a)) << name;
   }
 }

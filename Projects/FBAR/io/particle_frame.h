@@ -89,7 +89,9 @@ inline bool resolve_frame_attribute(const std::string& name, FrameAttributeSpec&
   if (name.rfind("Position_", 0) == 0) return set(FrameQuantity::Position, "m", name.back() - 'X');
   if (name == "Velocity_Magnitude") return set(FrameQuantity::VelocityMagnitude, "m/s");
   if (name.rfind("Velocity_", 0) == 0) return set(FrameQuantity::Velocity, "m/s", name.back() - 'X');
-  if (name == "J") return set(FrameQuantity::J, "");
+  // JBar: both engines' F-bar integrates the blended (cell-averaged) volume rate into the particle's J, so the J
+  // they store is ClaymoreUW's JBar (without F-bar, J itself).
+  if (name == "J" || name == "JBar") return set(FrameQuantity::J, "");
   if (name == "logJp") return set(FrameQuantity::LogJp, "");
   if (name == "Pressure") return set(FrameQuantity::Pressure, "Pa");
   if (name == "VonMisesStress") return set(FrameQuantity::VonMises, "Pa");
@@ -99,7 +101,7 @@ inline bool resolve_frame_attribute(const std::string& name, FrameAttributeSpec&
   if (tensor_attribute(name, "StressPK1_", row, col)) return set(FrameQuantity::StressPK1, "Pa", row, col);
   if (tensor_attribute(name, "StressPK2_", row, col)) return set(FrameQuantity::StressPK2, "Pa", row, col);
   if (tensor_attribute(name, "StrainSmall_", row, col)) return set(FrameQuantity::StrainSmall, "", row, col);
-  return false;  // JBar, PorePressure: quantities no engine keeps per particle
+  return false;  // PorePressure: no engine keeps it per particle
 }
 
 /// Whether a quantity reads the deformation gradient F (a material that stores F has it).
