@@ -349,7 +349,10 @@ const Keys kOutputKeys = {"output_attribs", "attribs",         "track_attribs", 
 /// Keys of bodies[].material: the common ones, then every material's parameters (kParameters).
 Keys material_keys() {
   // material_preset: HydroUQ's label of the form it filled in; poissons_ratio: HydroUQ's spelling of poisson_ratio.
-  Keys keys = {"type", "constitutive", "ppc", "CFL", "rho", "material_preset", "poissons_ratio"};
+  // rhow, alpha1, poro, Kf, Ks, Kperm: ClaymoreUW's CoupledUP parameters (that law is refused by name; on another
+  // law they are ignored with a warning, as any parameter the law does not read).
+  Keys keys = {"type", "constitutive", "ppc", "CFL", "rho", "material_preset", "poissons_ratio",
+               "rhow", "alpha1", "poro", "Kf", "Ks", "Kperm"};
   for_each_material([&](auto m) {
     for (const MaterialParameter& p : decltype(m)::kParameters)
       if (std::find(keys.begin(), keys.end(), std::string_view(p.key)) == keys.end()) keys.push_back(p.key);
@@ -725,6 +728,15 @@ MaterialSpec parse_material(ObjectReader& body, ObjectReader* algorithm, const C
   ObjectReader o(*v, body.sub("material"), kMaterialKeys, ctx, "bodies[].material");
 
   const auto law = read_either<Constitutive>(o, &body, "constitutive", [](const rj::Value& x, const std::string& p) {
+    // ClaymoreUW's coupled u-p soil (its names; "undrained" it parses and then rejects): refused by name.
+    if (x.IsString()) {
+      const std::string f = fold(x.GetString());
+      if (f == "coupledup" || f == "coupled" || f == "up" || f == "undrained")
+        throw SceneError(p, json_text(x),
+                         "a law this release implements (" + supported_material_names() +
+                             "); ClaymoreUW's CoupledUP (saturated soil with pore pressure: rhow, alpha1, poro, Kf, "
+                             "Ks, Kperm) is not supported yet in this release");
+    }
     return read_enum(x, p, kLaws);
   });
   m.law = law.value_or(Constitutive::JFluid);  // ClaymoreUW's default
