@@ -672,7 +672,7 @@ TEST(SceneWrite, RoundTripOfTheShippedScenes) {
                         "Projects/FBAR/scene.json", "tests/scenes/good/claymoreuw_layout.json",
                         "tests/scenes/good/csg_two_gpus.json", "tests/scenes/good/froude_scaled_block.json",
                         "tests/scenes/good/models_alias.json", "tests/scenes/good/tiny_fluid.json",
-                        "tests/scenes/good/hydrouq_keys.json"}) {
+                        "tests/scenes/good/hydrouq_keys.json", "tests/scenes/good/decomposed_boundaries.json"}) {
     SCOPED_TRACE(f);
     const Scene s = parse_scene_file(std::string(FBAR_SOURCE_DIR) + "/" + f, ParseOptions{});
     expect_round_trip(s);

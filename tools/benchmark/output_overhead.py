@@ -4,13 +4,13 @@ writing only the last frame.
 
 Scene: scenes/dam_break_3d.json at a finer default_dx (0.00225: 16M JFluid particles, single precision), sensors
 removed, output_attribs ID, Velocity_Magnitude, Pressure, J, .bgeo. A probe run measures the CFL dt at rest; then
-  every100  fps = 1 / (100 dt), `frames` frames (a frame every 100 steps),
+  every100  fps = 1 / (100 dt), `frames` frames (a frame every 100 steps; --every N: every N steps),
   end       fps = 1 / (100 dt frames), one frame (the same steps, one frame at the end).
 Both also write frame 0. Printed per variant: steps, ms/step of the last progress line (the step loop, setup
 excluded), the step loop's wait for the writer, and wall time of the whole command; overhead = every100 / end - 1
 of ms/step (the target is 0.05).
 
-usage: output_overhead.py [--fbar build/release/fbar] [--dx 0.00225] [--frames 8] [--target /tmp/fbar_out]...
+usage: output_overhead.py [--fbar build/release/fbar] [--dx 0.00225] [--frames 8] [--every 100] [--target DIR]...
 """
 import argparse
 import json
@@ -66,6 +66,7 @@ def main():
     ap.add_argument("--fbar", default=os.path.join(ROOT, "build", "release", "fbar"))
     ap.add_argument("--dx", type=float, default=0.00225)
     ap.add_argument("--frames", type=int, default=8)
+    ap.add_argument("--every", type=int, default=100, help="steps between two frames")
     ap.add_argument("--target", action="append", default=None, help="output folder (repeat for several)")
     a = ap.parse_args()
     targets = a.target or ["/tmp/fbar_output_bench"]
@@ -74,8 +75,9 @@ def main():
     print(f"probe: dt at rest {dt:.4g} s", flush=True)
     rows = []
     for target in targets:
-        end = run(a.fbar, scene(a.dx, 1.0 / (100 * dt * a.frames), 1, target), target + "_end", "end")
-        every = run(a.fbar, scene(a.dx, 1.0 / (100 * dt), a.frames, target), target + "_every100", "every100")
+        label = f"every{a.every}"
+        end = run(a.fbar, scene(a.dx, 1.0 / (a.every * dt * a.frames), 1, target), target + "_end", "end")
+        every = run(a.fbar, scene(a.dx, 1.0 / (a.every * dt), a.frames, target), target + "_" + label, label)
         rows.append((target, end, every))
     print("| target | variant | steps | ms/step | output wait [s] | wall [s] | frame bytes |")
     print("| --- | --- | ---: | ---: | ---: | ---: | ---: |")
@@ -84,7 +86,7 @@ def main():
             print(f"| {target} | {r['label']} | {r['steps']} | {r['ms']:.3f} | {r['wait']:.3f} | {r['wall']:.2f} | "
                   f"{r['bytes'] / 1e9:.2f} GB |")
     for target, end, every in rows:
-        print(f"{target}: overhead every100 vs end: {every['ms'] / end['ms'] - 1:+.3f} (ms/step)")
+        print(f"{target}: overhead {every['label']} vs end: {every['ms'] / end['ms'] - 1:+.3f} (ms/step)")
 
 
 if __name__ == "__main__":
