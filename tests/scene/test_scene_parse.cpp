@@ -363,6 +363,47 @@ TEST(SceneParse, HydroUQWrapperKeysAreMetadata) {
 
 // The simulation keys HydroUQ writes (ClaymoreUW's loader reads none of them): each has a meaning, or an error or a
 // warning that names it (user guide 2.1, difference 30).
+// The values of ClaymoreUW's loader that fbar 0.1 refused (docs/claymore_compatibility.md): a boundary time in its
+// three-element form, the grid-sensor operations addition / averages, a flat grid-sensor box (grown by one cell as
+// ClaymoreUW grows it); refused with a reason: the CoupledUP grid channels and the particle-sensor Subtract.
+TEST(SceneParse, ClaymoreUWSensorAndBoundaryForms) {
+  const std::string body = R"({"material": {"constitutive": "JFluid"}, "geometry": [{"object": "Box"}]})";
+  std::vector<std::string> warnings;
+  const Scene s = parse(scene_with(body, R"("boundaries": [{"object": "Walls", "contact": "Slip", "time": [0, 10, -1],
+                                                           "domain_start": [0, 0, 0], "domain_end": [1, 1, 1]},
+                                                          {"object": "Walls", "contact": "Slip", "time": [1, 2, 5],
+                                                           "domain_start": [0, 0, 0], "domain_end": [1, 1, 1]}],
+      "grid-sensors": [{"attribute": "Force", "operation": "addition", "domain_start": [0.1, 0.2, 0.1],
+                        "domain_end": [0.3, 0.2, 0.4]},
+                       {"attribute": "Mass", "operation": "Averages", "direction": "N/A",
+                        "domain_start": [0.1, 0.2, 0.1], "domain_end": [0.3, 0.25, 0.4]}])"),
+                        true, &warnings);
+  ASSERT_EQ(s.boundaries.size(), 2u);
+  EXPECT_EQ(s.boundaries[0].time[0], 0.0);
+  EXPECT_EQ(s.boundaries[0].time[1], 10.0);
+  EXPECT_EQ(s.boundaries[1].time[1], 2.0);
+  ASSERT_EQ(warnings.size(), 1u);  // the third entry when it is not ClaymoreUW's -1
+  EXPECT_NE(warnings[0].find("boundaries[1].time[2]: 5 is ignored"), std::string::npos) << warnings[0];
+  ASSERT_EQ(s.grid_sensors.size(), 2u);
+  EXPECT_EQ(s.grid_sensors[0].operation, SensorOperation::Sum);
+  EXPECT_EQ(s.grid_sensors[1].operation, SensorOperation::Average);
+  EXPECT_EQ(s.grid_sensors[0].domain_end[1], 0.2 + 0.05);  // flat in y: one cell (dx 0.05) thick
+  EXPECT_EQ(s.grid_sensors[0].domain_end[0], 0.3);
+  EXPECT_EQ(s.grid_sensors[1].domain_end[1], 0.25);
+  EXPECT_NE(error_of(scene_with(body, R"("grid-sensors": [{"attribute": "masw", "direction": "N/A",
+                                                          "domain_start": [0, 0, 0], "domain_end": [1, 1, 1]}])"))
+                .find("MassWater is a channel of ClaymoreUW's CoupledUP law"),
+            std::string::npos);
+  EXPECT_NE(error_of(scene_with(body, R"("particle-sensors": [{"attribute": "Position_Y", "operation": "Subtract",
+                                                              "domain_start": [0, 0, 0], "domain_end": [1, 1, 1]}])"))
+                .find("ClaymoreUW accepts Subtract and writes 0 for it"),
+            std::string::npos);
+  EXPECT_NE(error_of(scene_with(body, R"("boundaries": [{"object": "Walls", "time": [0, 1, 2, 3],
+                                                         "domain_start": [0, 0, 0], "domain_end": [1, 1, 1]}])"))
+                .find("an array of 2 (or 3) numbers"),
+            std::string::npos);
+}
+
 TEST(SceneParse, HydroUQSimulationKeys) {
   auto scene = [](const std::string& sim) {
     return R"({"simulation": {"domain": [1, 1, 1], "default_dx": 0.05, )" + sim +

@@ -176,11 +176,15 @@ std::string read_string(const rj::Value& v, const std::string& path, const char*
   return std::string(v.GetString(), v.GetStringLength());
 }
 
+/// N numbers; `or_one_more`: N + 1 are accepted too (the caller reads the last one), and the message says so.
 template <std::size_t N>
 std::array<double, N> read_reals(const rj::Value& v, const std::string& path, const Range& r, const char* unit,
-                                 bool allow_inf = false) {
-  if (!v.IsArray() || v.Size() != N)
-    throw SceneError(path, json_text(v), each(r, "an array of " + std::to_string(N) + " numbers"), unit);
+                                 bool allow_inf = false, bool or_one_more = false) {
+  if (!v.IsArray() || (v.Size() != N && !(or_one_more && v.Size() == N + 1)))
+    throw SceneError(path, json_text(v),
+                     each(r, "an array of " + std::to_string(N) + (or_one_more ? " (or " + std::to_string(N + 1) + ")" : "") +
+                                 " numbers"),
+                     unit);
   std::array<double, N> out{};
   for (rj::SizeType i = 0; i < N; ++i) out[i] = read_number(v[i], index_path(path, i), r, unit, allow_inf);
   return out;
@@ -297,11 +301,11 @@ const std::vector<EnumName<Contact>> kContacts = {
     {Contact::Separable, {"Separable", "Seperable", "Separate", "Separatable"}},
 };
 const std::vector<EnumName<SensorOperation>> kGridSensorOperations = {
-    {SensorOperation::Sum, {"Sum", "Add"}},
+    {SensorOperation::Sum, {"Sum", "Add", "Addition"}},
     {SensorOperation::Max, {"Max", "Maximum"}},
     {SensorOperation::Min, {"Min", "Minimum"}},
     {SensorOperation::Count, {"Count"}},
-    {SensorOperation::Average, {"Average", "Mean"}},
+    {SensorOperation::Average, {"Average", "Averages", "Mean"}},
     {SensorOperation::STDEV, {"STDEV", "Standard Deviation"}},
 };
 const std::vector<EnumName<SensorOperation>> kParticleSensorOperations = {
@@ -317,6 +321,8 @@ const std::vector<EnumName<std::string>> kGridSensorAttributes = {
     {"Force", {"Force"}},       {"Acceleration", {"Acceleration"}}, {"Momentum", {"Momentum"}},
     {"Velocity", {"Velocity"}}, {"Mass", {"Mass"}},                 {"Volume", {"Volume"}},
     {"JBar", {"JBar", "J Bar"}},
+    // ClaymoreUW's CoupledUP grid channels (refused: scene_support.cpp)
+    {"MassWater", {"MassWater", "masw"}},       {"PorePressure", {"PorePressure", "pore_pressure"}},
 };
 const std::vector<const char*> kSaveSuffixes = {".bgeo", ".geo", ".csv", ".h5"};
 
@@ -1137,7 +1143,13 @@ BoundarySpec parse_boundary(const rj::Value& v, const std::string& path, const C
     std::tie(b.domain_start, b.domain_end) = read_region(o, true);
   }
   if (auto* x = o.get("time")) {
-    const auto t = read_reals<2>(*x, o.sub("time"), kAny, "s", true);
+    // ClaymoreUW writes [start, end, -1] (its third element is deprecated and unused); [start, end] is fbar's.
+    if (x->IsArray() && x->Size() == 3) {
+      const std::string third = index_path(o.sub("time"), 2);
+      const double flag = read_number((*x)[2], third, kAny, "-");
+      if (flag != -1.0) ctx.warn(third + ": " + num_text(flag) + " is ignored (ClaymoreUW's deprecated third entry)");
+    }
+    const auto t = read_reals<2>(*x, o.sub("time"), kAny, "s", true, true);
     if (std::isinf(t[0])) throw SceneError(index_path(o.sub("time"), 0), num_text(t[0]), "a finite number", "s");
     if (!(t[1] > t[0]))
       throw SceneError(index_path(o.sub("time"), 1), num_text(t[1]), "a number > time[0] (" + num_text(t[0]) + ")", "s");
@@ -1212,7 +1224,8 @@ GridSensorSpec parse_grid_sensor(const rj::Value& v, const std::string& path, co
       const char* choices = "one of X, X+, X-, Y, Y+, Y-, Z, Z+, Z-, or a vector of 3 numbers";
       const std::string t = read_string(*x, dp, choices);
       const std::string u = lower(t);
-      const bool scalar = s.attribute == "Mass" || s.attribute == "Volume" || s.attribute == "JBar";
+      const bool scalar = s.attribute == "Mass" || s.attribute == "Volume" || s.attribute == "JBar" ||
+                          s.attribute == "MassWater" || s.attribute == "PorePressure";
       if (u == "n/a") {  // ClaymoreUW's "no direction", meaningful for a scalar attribute only
         if (!scalar)
           throw SceneError(dp, json_text(*x), std::string(choices) + " (attribute " + s.attribute + " is a vector)");
@@ -1241,7 +1254,13 @@ ParticleSensorSpec parse_particle_sensor(const rj::Value& v, const std::string& 
   ObjectReader o(v, path, kParticleSensorKeys, ctx, "particle-sensors[]");
   if (const rj::Value* a = o.get("attribute"))  // ClaymoreUW's default: Position_Y (its target_attribs default)
     s.attribute = read_attribute(*a, o.sub("attribute"), true);
-  if (auto* x = o.get("operation")) s.operation = read_enum(*x, o.sub("operation"), kParticleSensorOperations);
+  if (auto* x = o.get("operation")) {
+    if (x->IsString() && fold(x->GetString()) == "subtract")  // ClaymoreUW accepts it and writes 0: no reduction
+      throw SceneError(o.sub("operation"), json_text(*x),
+                       "one of Sum, Max, Min, Count, Average, STDEV, Variance (ClaymoreUW accepts Subtract and writes "
+                       "0 for it: it reduces nothing)");
+    s.operation = read_enum(*x, o.sub("operation"), kParticleSensorOperations);
+  }
   if (auto f = o.get_any({"output_frequency", "output_freq"}))
     s.output_frequency = read_number(*f.value, f.path, kPositive, "Hz");
   std::tie(s.domain_start, s.domain_end) = read_region(o, false);
@@ -1323,8 +1342,13 @@ Scene parse_document(const rj::Document& doc, Context& ctx) {
   if (auto* a = optional_array(root, {"boundaries", "grid-boundaries"}, path, "an array of boundary objects"))
     for (rj::SizeType i = 0; i < a->Size(); ++i) scene.boundaries.push_back(parse_boundary((*a)[i], index_path(path, i), ctx));
   if (auto* a = optional_array(root, {"grid-sensors"}, path, "an array of grid-sensor objects"))
-    for (rj::SizeType i = 0; i < a->Size(); ++i)
-      scene.grid_sensors.push_back(parse_grid_sensor((*a)[i], index_path(path, i), ctx));
+    for (rj::SizeType i = 0; i < a->Size(); ++i) {
+      GridSensorSpec g = parse_grid_sensor((*a)[i], index_path(path, i), ctx);
+      // ClaymoreUW grows a box of zero thickness along an axis by one cell, so that a plane of nodes is caught.
+      for (int d = 0; d < 3; ++d)
+        if (g.domain_end[d] == g.domain_start[d]) g.domain_end[d] += scene.simulation.dx;
+      scene.grid_sensors.push_back(std::move(g));
+    }
   if (auto* a = optional_array(root, {"particle-sensors", "targets"}, path, "an array of particle-sensor objects")) {
     // ClaymoreUW's particle sensors aggregate the bodies' target_attribs[0] (its default Position_Y) and read no
     // attribute of their own; fbar's read their attribute, and take the bodies' target_attribs when they give none.

@@ -127,6 +127,11 @@ void check_supported(const Scene& scene) {
       refuse(idx("grid-sensors", i) + ".attribute", q(g.attribute),
              "one of Force, Acceleration, Momentum, Velocity, Mass (the grid stores no volume)",
              "grid-sensor attribute " + g.attribute);
+    if (g.attribute == "MassWater" || g.attribute == "PorePressure")
+      refuse(idx("grid-sensors", i) + ".attribute", q(g.attribute),
+             "one of Force, Acceleration, Momentum, Velocity, Mass (" + g.attribute +
+                 " is a channel of ClaymoreUW's CoupledUP law, which this release does not have)",
+             "grid-sensor attribute " + g.attribute);
   }
   if (enabled > GridSensorSet<double>::kMax)
     throw SceneError("grid-sensors", std::to_string(enabled) + " enabled sensors",
