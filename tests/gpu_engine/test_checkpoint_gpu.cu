@@ -15,6 +15,8 @@
 #include "engine/cpu/cpu_engine.h"
 #include "engine/engine_api.h"
 #include "engine/gpu/gpu_engine.h"
+#include "MnSystem/IO/async_writer.h"
+#include "MnSystem/IO/particle_io.h"
 #include "engine/stop_request.h"
 #include "io/checkpoint.h"
 #include "scene/scene_parse.h"
@@ -106,8 +108,21 @@ TEST(GpuResume, ABgeoFrameSeedsBodiesAsOnTheCpuEngine) {
   const Scene b = test::seeded_from_frames(a, run, dir);
   CpuEngine<double> cpu(b);
   cpu.set_log(nullptr);
-  GpuEngine<double, double> gpu(b);
+  GpuEngineOptions with_frames;
+  with_frames.frames = true;
+  GpuEngine<double, double> gpu(b, with_frames);
   gpu.set_log(nullptr);
+  {
+    // Frame 0 of the seeded state (ClaymoreUW's resume writes it first): the seeds' velocities, as the CPU's frame.
+    io::AsyncWriter writer(1);
+    gpu.submit_frame(1, dir / "gpu_frame0.bgeo", writer);
+    writer.close();
+    const io::ParticleFrame written = io::read_bgeo(dir / "gpu_frame0.bgeo");
+    const io::ParticleFrame seeded = cpu.frame(1);
+    ASSERT_EQ(written.size(), seeded.size());
+    EXPECT_EQ(written.find("Velocity_X")->floats(), seeded.find("Velocity_X")->floats());
+    EXPECT_EQ(written.find("Velocity_Z")->floats(), seeded.find("Velocity_Z")->floats());
+  }
   for (int k = 0; k < 2; ++k) {
     const io::ParticleFrame seeded = cpu.frame(k);
     const ParticleSnapshot<double> s = gpu.snapshot(k);

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "geometry/geometry.h"
 #include "scene/scene_parse.h"
 
 namespace fbar {
@@ -402,6 +403,49 @@ TEST(SceneParse, ClaymoreUWSensorAndBoundaryForms) {
                                                          "domain_start": [0, 0, 0], "domain_end": [1, 1, 1]}])"))
                 .find("an array of 2 (or 3) numbers"),
             std::string::npos);
+}
+
+// ClaymoreUW's DKT scenes track particle 0 of every copy of a debris array: fbar takes local ID i as the i-th
+// particle of copy 0 sampled alone, and finds the same point in each copy of the body (here 2 x 3 boxes).
+TEST(SceneParse, GeometryTrackIdsFollowEveryArrayCopy) {
+  const std::string json = R"({"simulation": {"domain": [1, 1, 1], "default_dx": 0.05},
+    "bodies": [{"material": {"constitutive": "FixedCorotated"}, "track_particle_id": [3],
+                "geometry": [{"object": "Box", "span": [0.1, 0.1, 0.1], "offset": [0.2, 0.2, 0.2],
+                              "array": [2, 3, 1], "spacing": [0.2, 0.15, 0], "track_particle_id": [0, 5]}]}]})";
+  const Scene s = parse(json);
+  const BodySpec& b = s.bodies[0];
+  ASSERT_EQ(b.track_particle_id.size(), 1u + 2u * 6u);  // the body's own, then 2 local IDs x 6 copies
+  EXPECT_EQ(b.track_particle_id[0], 3);
+  EXPECT_TRUE(b.geometry[0].track_particle_id.empty());
+  const std::vector<Vec3d> all = sample_body(b, s.simulation, 0);
+  BodySpec one = b;
+  one.geometry[0].array = Int3{1, 1, 1};
+  const std::vector<Vec3d> copy0 = sample_body(one, s.simulation, 0);
+  std::size_t k = 1;
+  for (long long local : {0, 5})
+    for (int a = 0; a < 2; ++a)
+      for (int c = 0; c < 3; ++c) {
+        const Vec3d expected = copy0[static_cast<std::size_t>(local)] + Vec3d{{0.2 * a, 0.15 * c, 0.0}};
+        const Vec3d got = all[static_cast<std::size_t>(b.track_particle_id[k++])];
+        for (int d = 0; d < 3; ++d) EXPECT_NEAR(got[d], expected[d], 1e-12) << "local " << local << " copy " << a << c;
+      }
+  // A local ID beyond one copy's particles names the count; a Subtract entry's IDs are the body's, with a warning.
+  EXPECT_NE(error_of(R"({"simulation": {"domain": [1, 1, 1], "default_dx": 0.05},
+    "bodies": [{"material": {"constitutive": "FixedCorotated"},
+                "geometry": [{"object": "Box", "span": [0.1, 0.1, 0.1], "offset": [0.2, 0.2, 0.2],
+                              "array": [2, 1, 1], "spacing": [0.2, 0, 0], "track_particle_id": [64]}]}]})")
+                .find("expected an ID below the 64 particles of one copy"),
+            std::string::npos);
+  std::vector<std::string> warnings;
+  const Scene sub = parse(R"({"simulation": {"domain": [1, 1, 1], "default_dx": 0.05},
+    "bodies": [{"material": {"constitutive": "JFluid"},
+                "geometry": [{"object": "Box", "span": [0.6, 0.3, 0.6], "offset": [0.1, 0.1, 0.1]},
+                             {"object": "Sphere", "operation": "Subtract", "radius": 0.05, "offset": [0.2, 0.2, 0.2],
+                              "array": [2, 1, 1], "spacing": [0.2, 0, 0], "track_particle_id": [7]}]}]})",
+                          true, &warnings);
+  EXPECT_EQ(sub.bodies[0].track_particle_id, (std::vector<long long>{7}));
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("the entry adds no particles"), std::string::npos) << warnings[0];
 }
 
 TEST(SceneParse, HydroUQSimulationKeys) {

@@ -2,6 +2,7 @@
 #include "geometry/geometry.h"
 
 #include <algorithm>
+#include <filesystem>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -460,18 +461,23 @@ BodySampler::BodySampler(const BodySpec& body, const SimulationSpec& sim, int bo
   part_lo_ = to_vec(body.partition_start);
   part_hi_ = to_vec(body.partition_end);
   domain_ = Vec3d{{sim.domain[0], sim.domain[1], sim.domain[2]}};
-  // Point-file particles: the partition clip (half-open, as the lattice) and the later entries' operations.
+  // Point-file particles: the partition clip (half-open, as the lattice) and the later entries' operations. A
+  // particle frame (.bgeo, .h5) is not clipped: ClaymoreUW reads frames without the partition (its resume scenes
+  // keep their first run's partition_end, which a wave crest of the frame may have risen above), and a .csv / .pos
+  // file is, as ClaymoreUW clips its csv files.
   std::vector<BodyShape::PointSet> sets = shape_->take_point_sets();
   const bool seeded = std::any_of(sets.begin(), sets.end(), [](const auto& s) { return !s.seeds.empty(); });
   for (BodyShape::PointSet& set : sets) {
     std::vector<Vec3d>& pts = set.points;
     if (seeded && set.seeds.empty()) set.seeds.assign(pts.size() * kSeedScalars, seed_unset());
+    const std::string ext = std::filesystem::path(body.geometry[set.entry].file).extension().string();
+    const bool clipped = ext != ".bgeo" && ext != ".h5";
     std::size_t kept = 0;  // compact points (and their seeds) in place, in order
     for (std::size_t i = 0; i < pts.size(); ++i) {
       const Vec3d& p = pts[i];
-      if (!(p[0] >= part_lo_[0] && p[0] < part_hi_[0] && p[1] >= part_lo_[1] && p[1] < part_hi_[1] &&
-            p[2] >= part_lo_[2] && p[2] < part_hi_[2] && shape_->survives(p, set.entry)))
-        continue;
+      const bool inside_partition = p[0] >= part_lo_[0] && p[0] < part_hi_[0] && p[1] >= part_lo_[1] &&
+                                    p[1] < part_hi_[1] && p[2] >= part_lo_[2] && p[2] < part_hi_[2];
+      if (!((inside_partition || !clipped) && shape_->survives(p, set.entry))) continue;
       if (kept != i) {
         pts[kept] = p;
         if (seeded)

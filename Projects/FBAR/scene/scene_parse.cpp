@@ -31,6 +31,7 @@
 #include <sstream>
 #include <utility>
 
+#include "geometry/geometry.h"
 #include "geometry/geometry_files.h"
 #include "scene/attributes.h"
 #include "physics/constitutive_models.cuh"
@@ -419,6 +420,24 @@ struct Context {
         std::error_code ec;
         if (fs::is_regular_file(candidate, ec)) return fs::absolute(candidate, ec).lexically_normal().string();
         tried.push_back(candidate.string());
+      }
+      // ClaymoreUW opens "./" + name from its working folder, so its scenes carry paths like "../x.csv" that only
+      // hold there. Then the file's own name is looked up in each folder and its geometry/ and motion/ subfolders
+      // (Data/ keeps ClaymoreUW's files there), with a warning that says where it was found.
+      const fs::path base = p.filename();
+      if (!base.empty() && base != p) {
+        for (const auto& dir : search_dirs)
+          for (const fs::path sub : {fs::path(), fs::path("motion"), fs::path("geometry")}) {
+            const fs::path candidate = dir / sub / base;
+            std::error_code ec;
+            if (fs::is_regular_file(candidate, ec)) {
+              const std::string found = fs::absolute(candidate, ec).lexically_normal().string();
+              warn(path + ": \"" + name + "\" is not found as written; using " + found +
+                   " (the same file name in a data folder)");
+              return found;
+            }
+          }
+        tried.push_back(base.string() + " in each of those folders and their motion/ and geometry/ subfolders");
       }
     }
     throw SceneError(path, json_text(v), "an existing file (looked for " + join(tried, ", ") + ")");
@@ -1068,8 +1087,7 @@ BodyRead parse_body(const rj::Value& v, const std::string& path, const Context& 
   for (rj::SizeType i = 0; i < geo->Size(); ++i)
     b.geometry.push_back(parse_geometry((*geo)[i], index_path(o.sub("geometry"), i), ctx));
   // ClaymoreUW appends a geometry entry's track_particle_id to the body's, shifted by the particles of each array
-  // copy before it; without copies the IDs are the body's own (the shift of copies is not implemented yet: the
-  // support check refuses those).
+  // copy before it; without copies the IDs are the body's own (with copies: resolve_copy_track_ids, after scaling).
   for (GeometrySpec& g : b.geometry) {
     if (g.track_particle_id.empty() || g.array != Int3{1, 1, 1}) continue;
     for (long long id : g.track_particle_id)
@@ -1319,6 +1337,95 @@ const rj::Value* optional_array(ObjectReader& root, std::initializer_list<std::s
   return &require_array(*f.value, f.path, what);
 }
 
+/// ClaymoreUW's geometry-level track_particle_id on an entry with array copies: it tracks local particle i of every
+/// copy. fbar samples a body as one solid on the global lattice, so its IDs run over the whole body: local ID i is
+/// the i-th particle of the entry's copy 0 sampled alone (same lattice, partition and seed), and copy (a, b, c)
+/// contributes the body's particle at that point shifted by (a, b, c) x spacing (the nearest within half a lattice
+/// step). An entry that adds no particles (Subtract, Intersection, Difference) lists the body's own IDs (a
+/// warning says so). A rotated entry keeps its IDs for the support check to refuse.
+void resolve_copy_track_ids(Scene& scene, const Context& ctx) {
+  for (std::size_t bi = 0; bi < scene.bodies.size(); ++bi) {
+    BodySpec& b = scene.bodies[bi];
+    const std::string bp = "bodies[" + std::to_string(bi) + "]";
+    bool pending = false;
+    for (const GeometrySpec& g : b.geometry)
+      pending = pending || (!g.track_particle_id.empty() && g.rotate == Real3{0.0, 0.0, 0.0});
+    if (!pending) continue;
+    auto add_id = [&](long long id) {
+      if (std::find(b.track_particle_id.begin(), b.track_particle_id.end(), id) == b.track_particle_id.end())
+        b.track_particle_id.push_back(id);
+    };
+    const std::vector<Vec3d> all = sample_body(b, scene.simulation, static_cast<int>(bi));
+    const double dx = scene.simulation.dx;
+    const double step = dx / std::cbrt(b.material.ppc);  // the lattice step (jitter: the mean spacing)
+    // The body's particles by cell, for the nearest-particle lookups.
+    std::map<std::array<long long, 3>, std::vector<long long>> cells;
+    auto cell_of = [&](const Vec3d& x) {
+      return std::array<long long, 3>{static_cast<long long>(std::floor(x[0] / dx)),
+                                      static_cast<long long>(std::floor(x[1] / dx)),
+                                      static_cast<long long>(std::floor(x[2] / dx))};
+    };
+    for (std::size_t id = 0; id < all.size(); ++id) cells[cell_of(all[id])].push_back(static_cast<long long>(id));
+    auto nearest = [&](const Vec3d& x) -> long long {
+      const auto c = cell_of(x);
+      long long best = -1;
+      double best_d2 = 0.25 * step * step;
+      for (long long i = -1; i <= 1; ++i)
+        for (long long j = -1; j <= 1; ++j)
+          for (long long k = -1; k <= 1; ++k) {
+            const auto it = cells.find({c[0] + i, c[1] + j, c[2] + k});
+            if (it == cells.end()) continue;
+            for (long long id : it->second) {
+              double d2 = 0.0;
+              for (int a = 0; a < 3; ++a) d2 += (all[id][a] - x[a]) * (all[id][a] - x[a]);
+              if (d2 <= best_d2) {
+                best_d2 = d2;
+                best = id;
+              }
+            }
+          }
+      return best;
+    };
+    for (std::size_t gi = 0; gi < b.geometry.size(); ++gi) {
+      GeometrySpec& g = b.geometry[gi];
+      if (g.track_particle_id.empty() || g.rotate != Real3{0.0, 0.0, 0.0}) continue;
+      const std::string gp = bp + ".geometry[" + std::to_string(gi) + "].track_particle_id";
+      if (g.operation != GeometryOperation::Add && g.operation != GeometryOperation::Union) {
+        ctx.warn(gp + ": the entry adds no particles, so its IDs are taken as the body's (ClaymoreUW shifts them by "
+                 "the body's particle count for each copy)");
+        for (long long id : g.track_particle_id) add_id(id);
+        g.track_particle_id.clear();
+        continue;
+      }
+      BodySpec alone = b;
+      alone.geometry = {g};
+      alone.geometry[0].array = Int3{1, 1, 1};
+      alone.geometry[0].track_particle_id.clear();
+      const std::vector<Vec3d> first = sample_body(alone, scene.simulation, static_cast<int>(bi));
+      for (long long local : g.track_particle_id) {
+        if (local >= static_cast<long long>(first.size()))
+          throw SceneError(gp, std::to_string(local),
+                           "an ID below the " + std::to_string(first.size()) + " particles of one copy of the entry");
+        for (int a = 0; a < g.array[0]; ++a)
+          for (int c = 0; c < g.array[1]; ++c)
+            for (int d = 0; d < g.array[2]; ++d) {
+              const Vec3d shift{{a * g.spacing[0], c * g.spacing[1], d * g.spacing[2]}};
+              const Vec3d at = first[static_cast<std::size_t>(local)] + shift;
+              const long long id = nearest(at);
+              if (id < 0)
+                throw SceneError(gp, std::to_string(local),
+                                 "an ID of a particle every copy keeps (copy [" + std::to_string(a) + ", " +
+                                     std::to_string(c) + ", " + std::to_string(d) + "] has no particle at [" +
+                                     num_text(at[0]) + ", " + num_text(at[1]) + ", " + num_text(at[2]) +
+                                     "]: a later entry or the partition removed it)");
+              add_id(id);
+            }
+      }
+      g.track_particle_id.clear();
+    }
+  }
+}
+
 Scene parse_document(const rj::Document& doc, Context& ctx) {
   Scene scene;
   ObjectReader root(doc, "", kTopKeys, ctx, "the scene (simulation, bodies, boundaries, grid-sensors, particle-sensors)");
@@ -1377,6 +1484,7 @@ Scene parse_document(const rj::Document& doc, Context& ctx) {
   apply_froude_scaling(scene);
   // ClaymoreUW's default step is dx / 100 (of the scaled dx: the default is a property of the grid).
   if (!sim.default_dt_given) scene.simulation.default_dt = scene.simulation.dx / 100.0;
+  resolve_copy_track_ids(scene, ctx);  // samples the bodies that list IDs per array copy (at scale)
   return scene;
 }
 

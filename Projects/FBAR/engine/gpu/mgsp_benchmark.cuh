@@ -539,8 +539,8 @@ class MgspBenchmark {
       const Vec3<T> v0{{static_cast<T>(this->spec.velocity[0]), static_cast<T>(this->spec.velocity[1]),
                         static_cast<T>(this->spec.velocity[2])}};
       fbar::capture_frame_state<M, T><<<mgsp_detail::grid_for(slots, kOutputThreads), kOutputThreads, 0, e.stream_>>>(
-          bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, this->capture, v0, params, this->mass,
-          this->volume);
+          bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, this->capture, v0,
+          this->initial_v.size() ? this->initial_v.get() : nullptr, params, this->mass, this->volume);
       mgsp_detail::check_launch("capture_frame_state");
     }
 
@@ -1162,10 +1162,6 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
       halo_exchange({{grid_[0].instance().data(), GridBuffer<TG>::kBlockBytes}}, 0);
     migrate_particles();
   }
-  for (auto& b : bodies_) {  // read by the initial P2G only (cudaFree waits for it)
-    mgsp_detail::DeviceArray<T> done;
-    b->initial_v.swap(done);
-  }
   partition_after_g2p2g();
   read_stats();
   while (handle_overflow()) {
@@ -1599,6 +1595,12 @@ std::vector<FailureReport> MgspBenchmark<T, TG>::failures_of_try(double dt) cons
 template <typename T, typename TG>
 StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target, double following) {
   if (!(dt > 0.0) || !std::isfinite(dt)) throw std::invalid_argument("GpuEngine::step: dt must be positive");
+  // Seeded or restarted velocities (by ID): read by the initial P2G and by frame 0's capture; not needed any more.
+  for (auto& b : bodies_)
+    if (b->initial_v.size()) {
+      mgsp_detail::DeviceArray<T> done;
+      b->initial_v.swap(done);
+    }
   StepReport report;
   int range_repeats = 0;
   for (;;) {
@@ -2184,7 +2186,7 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
   if (!b.capture.x)
     throw std::logic_error("GpuEngine::submit_frame: frames were not planned (GpuEngineOptions::frames)");
   if (captured_step_ != steps_) {
-    if (steps_ != 0 || !b.initial_v_host.empty())
+    if (steps_ != 0 || captured_step_ >= 0)
       throw std::logic_error("GpuEngine::submit_frame: step " + std::to_string(steps_) +
                              " did not capture a frame (set_frame_capture(true) before the step that lands on it)");
     if (decomposed()) prepare_capture(b);

@@ -37,18 +37,23 @@ __global__ void __launch_bounds__(kOutputThreads)
   for (int i = 0; i < kAuxScalars; ++i) o[S + i] = aux ? aux[static_cast<std::size_t>(s) * kAuxScalars + i] : T(0);
 }
 
-/// The frame of the state before the first step (v = the body's initial velocity, C = 0): one thread per slot of
-/// the current layout, particles read through src.
+/// The frame of the state before the first step (v = the body's initial velocity, or each particle's from v_by_id
+/// (3 per ID) when a seed gave them; C = 0): one thread per slot of the current layout, particles read through src.
 template <typename M, typename T>
 __global__ void __launch_bounds__(kOutputThreads)
     capture_frame_state(typename ParticleLayout<M, T>::Buffer bins, const int* src, int slots, FrameCapture<T> capture,
-                        Vec3<T> velocity, material_params_t<M, T> material, T mass, T volume) {
+                        Vec3<T> velocity, const T* v_by_id, material_params_t<M, T> material, T mass, T volume) {
   const int slot = blockIdx.x * blockDim.x + threadIdx.x;
   if (slot >= slots) return;
   const int s = src[slot];
   if (s < 0) return;
   const ParticleRecord<M, T> p = load_particle<M, T>(bins, s);
-  capture_particle<M, T>(capture, p.id, p.x, velocity, Mat3<T>::zero(), p.state, material, mass, volume);
+  Vec3<T> v = velocity;
+  if (v_by_id && p.id >= 0) {
+    const T* q = v_by_id + 3 * static_cast<std::size_t>(p.id);
+    v = Vec3<T>{{q[0], q[1], q[2]}};
+  }
+  capture_particle<M, T>(capture, p.id, p.x, v, Mat3<T>::zero(), p.state, material, mass, volume);
 }
 
 /// Particle sensors (physics/sensors.cuh) of one body: blockIdx.y = sensor, a grid-stride loop over the slots of the
