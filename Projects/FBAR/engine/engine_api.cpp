@@ -90,6 +90,23 @@ RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& 
 
 }  // namespace
 
+/// H100 particle-steps per second of one law's APIC step at 16M particles (docs/benchmarks/2026-11-23-h100-materials
+/// .md), single and double precision; `basis` says which row. Laws not measured take FixedCorotated's (both do an
+/// SVD per particle and step).
+struct LawThroughput {
+  double single, dbl;
+  const char* basis;
+};
+LawThroughput law_throughput(Constitutive law) {
+  const std::string name = to_string(law);
+  if (name == "JFluid") return {9.21e9, 4.75e9, "JFluid"};
+  if (name == "NeoHookean") return {8.99e9, 4.14e9, "NeoHookean"};
+  if (name == "DruckerPrager") return {4.43e9, 1.83e9, "DruckerPrager"};
+  if (name == "NACC") return {5.75e9, 2.65e9, "NACC"};
+  if (name == "FixedCorotated") return {6.45e9, 2.95e9, "FixedCorotated"};
+  return {6.45e9, 2.95e9, "FixedCorotated's (not measured for this law)"};
+}
+
 SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) {
   const SimulationSpec& sim = scene.simulation;
   SceneSummary summary;
@@ -131,6 +148,54 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     s.dt_bound = cfl_time_step(m.cfl, dx, facts.wave_speed, v0);
     s.viscous_dt = body_viscous_step_bound(body, dx);
     summary.dt = min_time_step(min_time_step(summary.dt, s.dt_bound), s.viscous_dt);
+    {
+      // The GPU engine's bytes per particle (before the bins' headroom and empty lanes) and the time of its step.
+      const std::size_t t = particle_scalar_bytes(sim.precision);
+      const bool asflip_body = body.algorithm.asflip_active();
+      const bool fbar_body = body.algorithm.fbar_blend() != 0.0;
+      s.stored_scalars = facts.stored_scalars;
+      s.record_bytes = particle_record_bytes(facts.stored_scalars, t);
+      std::size_t bytes = 2 * s.record_bytes + 16;  // two bin sets; partition: src of both layouts and the destination
+      s.gpu_bytes_detail = "2 bins x " + std::to_string(s.record_bytes) + " B (" + std::to_string(facts.stored_scalars) +
+                           " scalars of " + std::to_string(t) + " B + ID) + 16 B partition";
+      if (asflip_body) {
+        bytes += 6 * t;
+        s.gpu_bytes_detail += " + " + std::to_string(6 * t) + " B ASFLIP velocities";
+      }
+      if (record) {
+        bytes += 12 * t;
+        s.gpu_bytes_detail += " + " + std::to_string(12 * t) + " B recorded v and C (sensors, trackers, checkpoints)";
+      }
+      if (options.frames) {
+        int columns = 0;
+        try {
+          columns = frame_float_columns(frame_attributes(body, static_cast<int>(i), "GPU engine"));
+        } catch (const std::invalid_argument&) {
+          columns = static_cast<int>(body.output_attribs.size());
+        }
+        bytes += 3 * t + 4 * static_cast<std::size_t>(columns);
+        s.gpu_bytes_detail += " + " + std::to_string(3 * t + 4 * static_cast<std::size_t>(columns)) + " B frame (" +
+                              std::to_string(columns) + " columns)";
+      }
+      s.gpu_bytes_per_particle = bytes;
+      const LawThroughput law = law_throughput(m.law);
+      double rate = sim.precision == Precision::Single ? law.single
+                    : sim.precision == Precision::Double ? law.dbl
+                                                          : law.dbl / 0.75;  // mixed: 0.60-0.90 of a double step
+      std::string basis = std::string(law.basis) + ", " + to_string(sim.precision);
+      if (asflip_body) {
+        rate /= 1.92;  // PIC-FLIP / FLIP / ASFLIP: 1.91-1.93 x an APIC step (2026-11-23-h100-per-scheme.md)
+        basis += ", ASFLIP x 1.92";
+      }
+      if (fbar_body) {
+        rate /= 1.25;  // F-bar: 1.25 x (same record)
+        basis += ", F-bar x 1.25";
+      }
+      s.throughput = rate;
+      s.throughput_basis = basis;
+      s.gpu_ms_per_step = 1e3 * static_cast<double>(count.particles) / rate;
+      summary.gpu_ms_per_step += s.gpu_ms_per_step;
+    }
     summary.bodies.push_back(s);
 
     BodyMemoryInput in;
@@ -163,6 +228,16 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     const std::size_t state_scalars = static_cast<std::size_t>(facts.stored_scalars - 3);
     cpu_particle_bytes += static_cast<std::size_t>(count.particles) *
                           ((12 + 18 + 2 + 2 * state_scalars) * particle_scalar_bytes(sim.precision) + 16);
+  }
+
+  summary.gpu_ms_per_step += kGpuStepOverheadMs + kGpuBodyOverheadMs * static_cast<double>(summary.bodies.size());
+  // The grid channels each body's P2G writes: mass and momentum; the transported momentum when any body uses
+  // ASFLIP (every body then sums it); F-bar's two cell sums for an F-bar body.
+  for (std::size_t i = 0; i < summary.bodies.size(); ++i) {
+    BodySummary& s = summary.bodies[i];
+    s.grid_channels = "mass, momentum (4)";
+    if (asflip) s.grid_channels += " + transported momentum (3: some body uses ASFLIP)";
+    if (scene.bodies[i].algorithm.fbar_blend() != 0.0) s.grid_channels += " + F-bar cell sums (2)";
   }
 
   // CPU grid: 4 channels x 64 nodes per block in the grid scalar type (+3 for ASFLIP's v^n, +2 for F-bar's cell

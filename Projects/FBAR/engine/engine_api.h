@@ -21,6 +21,15 @@ struct BodySummary {
   double wave_speed = 0.0;        ///< [m/s] p-wave speed at rest (VALIDATION.md formulas)
   double dt_bound = 0.0;          ///< [s] CFL * dx / (wave_speed + |initial velocity|)
   double viscous_dt = 0.0;        ///< [s] CFL rho dx^2 / (3 mu) (time_step.cuh); +infinity when inviscid
+  // What the body costs on the GPU engine (a scene pays only for what it uses):
+  int stored_scalars = 0;             ///< position + material state scalars per particle in a bin
+  std::size_t record_bytes = 0;       ///< [B] one bin record: those scalars in the run's precision and the ID
+  std::size_t gpu_bytes_per_particle = 0;  ///< [B] bins x 2, ASFLIP velocities, recorded v and C, partition, frame
+  std::string gpu_bytes_detail;       ///< what the bytes are, for --check
+  std::string grid_channels;          ///< the grid channels this body's P2G writes, for --check
+  double throughput = 0.0;            ///< [particle-steps/s] on an H100 at 16M particles (docs/benchmarks)
+  std::string throughput_basis;       ///< which measurement the throughput comes from
+  double gpu_ms_per_step = 0.0;       ///< [ms] particles / throughput
 };
 
 struct SceneSummary {
@@ -31,7 +40,16 @@ struct SceneSummary {
   std::vector<std::size_t> gpu_bytes;       ///< estimated device memory per GPU (index = gpu id): gpu_plans' totals
   std::size_t host_setup_bytes = 0;         ///< host memory of the GPU engine's set-up (one sampling batch)
   std::vector<std::string> device_notes;    ///< free memory of the devices present, and whether the plan fits
+  /// [ms] estimated H100 time per step: kGpuStepOverheadMs, kGpuBodyOverheadMs per body, and every body's
+  /// gpu_ms_per_step.
+  double gpu_ms_per_step = 0.0;
 };
+
+/// [ms] the parts of a GPU step that do not scale with particles: per step (the grid update, dt, the readback) and
+/// per body (its G2P2G and partition launches). Fitted to the two small runs of
+/// docs/benchmarks/2026-11-25-h100-check-estimate.md (the large one checks the throughputs).
+inline constexpr double kGpuStepOverheadMs = 0.05;
+inline constexpr double kGpuBodyOverheadMs = 0.05;
 
 struct SummaryOptions {
   bool frames = true;  ///< the run writes frames (the GPU keeps each body's frame on the device)

@@ -427,7 +427,7 @@ struct Context {
       const fs::path base = p.filename();
       if (!base.empty() && base != p) {
         for (const auto& dir : search_dirs)
-          for (const fs::path sub : {fs::path(), fs::path("motion"), fs::path("geometry")}) {
+          for (const fs::path& sub : {fs::path(), fs::path("motion"), fs::path("geometry")}) {
             const fs::path candidate = dir / sub / base;
             std::error_code ec;
             if (fs::is_regular_file(candidate, ec)) {

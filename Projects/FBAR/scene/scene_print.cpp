@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <iomanip>
 #include <ostream>
 #include <sstream>
@@ -144,6 +145,12 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
       row(os, "time step bound", num(bs.dt_bound) + " s (CFL x dx / (wave speed + |velocity|))");
       if (std::isfinite(bs.viscous_dt))
         row(os, "viscous bound", num(bs.viscous_dt) + " s (CFL x rho x dx^2 / (3 x viscosity), explicit viscosity)");
+      row(os, "GPU per particle", std::to_string(bs.gpu_bytes_per_particle) + " B: " + bs.gpu_bytes_detail);
+      row(os, "grid channels", bs.grid_channels);
+      char cost[160];
+      std::snprintf(cost, sizeof(cost), "%.3g ms per step on an H100 (%.3g particle-steps/s: ", bs.gpu_ms_per_step,
+                    bs.throughput);
+      row(os, "GPU time", cost + bs.throughput_basis + ")");
     }
   }
 
@@ -180,6 +187,15 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
   row(os, "time step", num(summary.dt) + " s (min of default_dt and every body's bounds)");
   const double steps_per_frame = summary.dt > 0.0 ? std::ceil(1.0 / (s.fps * summary.dt)) : 0.0;
   row(os, "steps", "about " + num(steps_per_frame) + " per frame, " + num(steps_per_frame * s.frames) + " in all");
+  {
+    char cost[256];
+    const double per_simulated_s = summary.dt > 0.0 ? 1e-3 * summary.gpu_ms_per_step / summary.dt : 0.0;
+    std::snprintf(cost, sizeof(cost),
+                  "about %.3g ms per step on one H100 (%.2g ms + %.2g ms per body + the bodies' particles), %.3g s "
+                  "per simulated second at this time step (docs/benchmarks/2026-11-25-h100-check-estimate.md)",
+                  summary.gpu_ms_per_step, kGpuStepOverheadMs, kGpuBodyOverheadMs, per_simulated_s);
+    row(os, "GPU time", cost);
+  }
   row(os, "memory (CPU engine)", bytes(summary.cpu_bytes));
   for (std::size_t g = 0; g < summary.gpu_plans.size(); ++g) {
     const DeviceMemoryPlan& p = summary.gpu_plans[g];
