@@ -1,0 +1,255 @@
+#!/usr/bin/env python3
+"""Accuracy against cost (issue 13): sweeps fbar over a reference problem and charts error against time.
+
+Problem (this first version): Martin & Moyce's dam break (1952; VALIDATION.md item 1), as the validation test
+tests/validation/test_dam_break.cpp sets it up: a water column of width a = 0.05715 m and height 2a on a dry bed,
+a slab one cell thick between slip walls (2D flow), JFluid with c0 = 10 x Ritter's front speed. Every run is a
+scene file given to the fbar command line; a particle sensor (Max of Position_X, 200 samples) records the surge
+front Z = front / a against T = t sqrt(2 g / a). Martin & Moyce's data bound the front from below (bed friction and
+the gate delay the experiment; the simulated flow has neither) and Ritter's ideal front (dZ/dT = 2) from above, so
+the experiment is not a converged answer. The error is therefore measured against the sweep's finest APIC run in
+double precision: the mean |T - T_ref| at which the front reaches Martin & Moyce's gauges Z = 1.22 .. 4.11 (a
+gauge not reached by T = 4.2 counts as reached then); the CSV
+also has each run's mean |Z - Z_exp| / Z_exp and how many gauges it reaches between Ritter and the data. Cost: the
+run's wall time (run.json) per simulated second.
+
+Sweep: resolution (cells per a), transfer scheme (APIC, PIC-FLIP 0.95, FLIP, ASFLIP), precision (single, double).
+The default is the CPU engine at small sizes (seconds per run); --gpu runs the GPU engine and larger sizes.
+
+Writes, under --out (default docs/validation): dam_break_study.csv (one row per run), dam_break_pareto.png (error
+against cost, the Pareto front marked and labelled) and dam_break_convergence.png (error against resolution per
+scheme, with the observed order between the two finest pairs in the legend).
+
+usage: run_study.py [--fbar build/release/fbar] [--gpu] [--out docs/validation] [--work /tmp/fbar_study]
+"""
+import argparse
+import csv
+import glob
+import json
+import math
+import os
+import subprocess
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+A = 0.05715  # [m] column width
+G = 9.81
+T_END = 4.2  # [-] t sqrt(2 g / a): past the last gauge's time (3.33), so that coarse, slower fronts reach it too
+FRONT_T = [0.41, 0.84, 1.19, 1.43, 1.63, 1.83, 1.98, 2.20, 2.32, 2.51, 2.65, 2.83, 2.98, 3.11, 3.33]
+FRONT_Z = [1.11, 1.22, 1.44, 1.67, 1.89, 2.11, 2.33, 2.56, 2.78, 3.00, 3.22, 3.44, 3.67, 3.89, 4.11]
+SCHEMES = {  # name: algorithm keys
+    "APIC": {"use_ASFLIP": False},
+    "PIC-FLIP 0.95": {"use_ASFLIP": True, "ASFLIP_alpha": 0.95, "ASFLIP_beta_min": 0.0, "ASFLIP_beta_max": 0.0},
+    "FLIP": {"use_ASFLIP": True, "ASFLIP_alpha": 1.0, "ASFLIP_beta_min": 0.0, "ASFLIP_beta_max": 0.0},
+    "ASFLIP": {"use_ASFLIP": True, "ASFLIP_alpha": 0.9, "ASFLIP_beta_min": 0.0, "ASFLIP_beta_max": 0.2},
+}
+
+
+def scene(cells, scheme, precision):
+    dx = A / cells
+    x0 = y0 = z0 = 2 * dx  # the walls one cell outside the column's faces, on node planes
+    c0 = 10 * 2 * math.sqrt(G * 2 * A)
+    domain = [x0 + 6 * A + 2 * dx, y0 + 2 * A + 4 * dx, z0 + 3 * dx]
+    t_end = T_END / math.sqrt(2 * G / A)
+    algorithm = dict(SCHEMES[scheme], use_FBAR=False)
+    return {
+        "simulation": {"domain": domain, "default_dx": dx, "gravity": [0, -G, 0], "fps": 1 / t_end, "frames": 1,
+                       "precision": precision, "save_suffix": ".csv"},
+        "bodies": [{"material": {"constitutive": "JFluid", "rho": 1000, "bulk_modulus": 1000 * c0 * c0, "gamma": 7,
+                                 "viscosity": 1e-3, "ppc": 8, "CFL": 0.5},
+                    "algorithm": algorithm,
+                    "geometry": [{"object": "Box", "span": [A, 2 * A, dx], "offset": [x0, y0, z0]}],
+                    "output_attribs": ["ID"]}],
+        "boundaries": [{"object": "Walls", "contact": "Slip", "domain_start": [x0 - dx, y0 - dx, z0 - dx],
+                        "domain_end": [x0 + 6 * A + dx, domain[1], z0 + 2 * dx]}],
+        "particle-sensors": [{"attribute": "Position_X", "operation": "Max", "output_frequency": 200 / t_end,
+                              "domain_start": [0, 0, 0], "domain_end": domain}],
+    }, x0, t_end
+
+
+def interpolate(xs, ys, x):
+    for i in range(1, len(xs)):
+        if xs[i] >= x:
+            w = (x - xs[i - 1]) / (xs[i] - xs[i - 1])
+            return ys[i - 1] + w * (ys[i] - ys[i - 1])
+    return ys[-1]
+
+
+def first_reach(T, Z, z):
+    """The first T at which Z reaches z (linear between samples), or None."""
+    for i in range(1, len(Z)):
+        if Z[i] >= z:
+            if Z[i] == Z[i - 1]:
+                return T[i]
+            return T[i - 1] + (z - Z[i - 1]) / (Z[i] - Z[i - 1]) * (T[i] - T[i - 1])
+    return None
+
+
+def run(fbar, backend, cells, scheme, precision, work):
+    s, x0, t_end = scene(cells, scheme, precision)
+    label = f"{backend}_{cells}_{scheme.replace(' ', '')}_{precision}"
+    out = os.path.join(work, label)
+    os.makedirs(out, exist_ok=True)
+    path = os.path.join(out, "scene.json")
+    with open(path, "w") as f:
+        json.dump(s, f)
+    p = subprocess.run([fbar, f"--backend={backend}", "--quiet", f"--output={out}", path], capture_output=True,
+                       text=True)
+    row = {"backend": backend, "cells_per_a": cells, "scheme": scheme, "precision": precision}
+    if p.returncode != 0:
+        row.update(status="failed", error_vs_experiment="", gauges_within_bounds="", wall_s="", steps="",
+                   particles="", s_per_simulated_s="", message=(p.stderr.strip().splitlines() or [""])[-1], arrivals=None)
+        return row
+    with open(os.path.join(out, "run.json")) as f:
+        meta = json.load(f)
+    sensor = glob.glob(os.path.join(out, "particleTarget[[]0[]]_model[[]0[]]_dev[[]0[]].csv"))[0]
+    T, Z = [], []
+    with open(sensor) as f:
+        rows = list(csv.reader(f))[1:]
+    for t, x in rows:
+        T.append(float(t) * math.sqrt(2 * G / A))
+        Z.append((float(x) + 0.5 * A / cells / 2 - x0) / A)  # the front particle's edge (half a particle spacing)
+    err = sum(abs(interpolate(T, Z, te) - ze) / ze for te, ze in zip(FRONT_T, FRONT_Z)) / len(FRONT_T)
+    arrivals = [first_reach(T, Z, z) for z in FRONT_Z[1:]]
+    within = sum(1 for t, te, z in zip(arrivals, FRONT_T[1:], FRONT_Z[1:]) if t is not None and (z - 1) / 2 <= t <= te)
+    particles = int(round(cells * 2 * cells * 8))
+    row.update(status="ok", error_vs_experiment=f"{err:.5f}", gauges_within_bounds=f"{within}/{len(arrivals)}",
+               wall_s=f"{meta['wall_time_s']:.4f}", steps=meta["steps"], particles=particles,
+               s_per_simulated_s=f"{meta['wall_time_s'] / t_end:.4f}", message="", arrivals=arrivals)
+    return row
+
+
+def against_reference(rows):
+    """error = mean |T - T_ref| over the gauges, against the finest APIC double run (marked reference)."""
+    ok = [r for r in rows if r["status"] == "ok"]
+    ref = max((r for r in ok if r["scheme"] == "APIC" and r["precision"] == "double"), key=lambda r: r["cells_per_a"])
+    for r in rows:
+        r["reference"] = "yes" if r is ref else ""
+        if r["status"] != "ok":
+            r["error"] = ""
+            continue
+        # A gauge the front never reached counts as reached at the run's end (T_END): a lower bound on its error.
+        diffs = [abs((T_END if t is None else t) - tr) for t, tr in zip(r["arrivals"], ref["arrivals"])]
+        r["error"] = f"{sum(diffs) / len(diffs):.5f}"
+    return ref
+
+
+def pareto(points):
+    """Indices of the points no other point beats in both cost and error."""
+    front = []
+    for i, (c, e) in enumerate(points):
+        if not any((c2 <= c and e2 <= e) and (c2 < c or e2 < e) for j, (c2, e2) in enumerate(points) if j != i):
+            front.append(i)
+    return sorted(front, key=lambda i: points[i][0])
+
+
+def charts(rows, out, title_backend):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ref = next(r for r in rows if r["reference"])
+    # The reference's own configuration in the other precision differs from it by round-off only: left out.
+    ok = [r for r in rows if r["status"] == "ok" and r["error"] and not r["reference"] and
+          not (r["scheme"] == ref["scheme"] and int(r["cells_per_a"]) == int(ref["cells_per_a"]))]
+    for r in ok:
+        r["cells_per_a"] = int(r["cells_per_a"])
+    pts = [(float(r["s_per_simulated_s"]), float(r["error"])) for r in ok]
+    front = pareto(pts)
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    markers = {"single": "o", "double": "s"}
+    colors = {name: c for name, c in zip(SCHEMES, ["C0", "C1", "C2", "C3"])}
+    for r, (c, e) in zip(ok, pts):
+        ax.scatter(c, e, marker=markers[r["precision"]], color=colors[r["scheme"]], s=18 + 3 * r["cells_per_a"])
+    fx = [pts[i][0] for i in front]
+    fy = [pts[i][1] for i in front]
+    ax.plot(fx, fy, "k--", lw=1, label="Pareto front")
+    for i in front:
+        r = ok[i]
+        ax.annotate(f"{r['scheme']}, {r['cells_per_a']}/a, {r['precision']}", pts[i], xytext=(4, 4),
+                    textcoords="offset points", fontsize=7)
+    for name in SCHEMES:
+        ax.scatter([], [], color=colors[name], label=name)
+    for p, m in markers.items():
+        ax.scatter([], [], marker=m, color="gray", label=p)
+    ax.set_xscale("log")
+    ax.set_xlabel(f"wall time per simulated second [s] ({title_backend})")
+    ax.set_yscale("log")
+    ax.set_ylabel(f"mean |T - T_ref| at the gauges (ref: APIC, double, {ref['cells_per_a']}/a)")
+    ax.set_title("Dam break front: error against cost (marker size: cells per a)")
+    ax.legend(fontsize=8)
+    ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(os.path.join(out, "dam_break_pareto.png"), dpi=110)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(7, 5))
+    for name in SCHEMES:
+        for prec, style in (("double", "-"), ("single", ":")):
+            rs = sorted((r for r in ok if r["scheme"] == name and r["precision"] == prec), key=lambda r: r["cells_per_a"])
+            if name == ref["scheme"]:  # its finest point is the reference: the order uses the two finest others
+                rs = [r for r in rs if r["cells_per_a"] < int(ref["cells_per_a"])]
+            if len(rs) < 2:
+                continue
+            n = [r["cells_per_a"] for r in rs]
+            e = [float(r["error"]) for r in rs]
+            order = ""
+            if len(rs) >= 3 and e[-1] > 0 and e[-2] > 0:
+                order = f", order {math.log(e[-2] / e[-1]) / math.log(n[-1] / n[-2]):.2f}"
+            ax.plot(n, e, style, marker="o", color=colors[name], label=f"{name} ({prec}{order})")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("cells per column width a")
+    ax.set_ylabel(f"mean |T - T_ref| at the gauges (ref: APIC, double, {ref['cells_per_a']}/a)")
+    ax.set_title("Dam break front: error against resolution (order between the two finest)")
+    ax.legend(fontsize=7)
+    ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(os.path.join(out, "dam_break_convergence.png"), dpi=110)
+    plt.close(fig)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--fbar", default=os.path.join(ROOT, "build", "release", "fbar"))
+    ap.add_argument("--gpu", action="store_true", help="the GPU engine and larger sizes")
+    ap.add_argument("--out", default=os.path.join(ROOT, "docs", "validation"))
+    ap.add_argument("--work", default="/tmp/fbar_study")
+    ap.add_argument("--cells", type=int, nargs="+", help="cells per a (default 4 6 8 12 16 24, --gpu: 8 12 16 24 32 48)")
+    ap.add_argument("--replot", action="store_true", help="draw the charts again from the CSV in --out, run nothing")
+    a = ap.parse_args()
+    if a.replot:
+        with open(os.path.join(a.out, "dam_break_study.csv")) as f:
+            rows = list(csv.DictReader(f))
+        charts(rows, a.out, f"{rows[0]['backend']} engine")
+        return 0
+    backend = "gpu" if a.gpu else "cpu"
+    cells = a.cells or ([8, 12, 16, 24, 32, 48] if a.gpu else [4, 6, 8, 12, 16, 24])
+    os.makedirs(a.out, exist_ok=True)
+    rows = []
+    for n in cells:
+        for scheme in SCHEMES:
+            for precision in ("single", "double"):
+                r = run(a.fbar, backend, n, scheme, precision, a.work)
+                rows.append(r)
+                print(f"{backend} {n:3d}/a {scheme:14s} {precision:6s} {r['status']:6s} "
+                      f"vs data {r['error_vs_experiment']:>8s} within bounds {r['gauges_within_bounds']:>6s} "
+                      f"wall {r['wall_s']:>8s} s {r['message']}", flush=True)
+    ref = against_reference(rows)
+    print(f"reference: {ref['scheme']}, {ref['precision']}, {ref['cells_per_a']}/a")
+    for r in rows:
+        print(f"  {r['cells_per_a']:3d}/a {r['scheme']:14s} {r['precision']:6s} error {r['error']:>8s} "
+              f"{'(reference)' if r['reference'] else ''}")
+    fields = ["backend", "cells_per_a", "scheme", "precision", "status", "reference", "error", "error_vs_experiment",
+              "gauges_within_bounds", "wall_s", "s_per_simulated_s", "steps", "particles", "message"]
+    with open(os.path.join(a.out, "dam_break_study.csv"), "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: r[k] for k in fields})
+    charts(rows, a.out, f"{backend} engine")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
