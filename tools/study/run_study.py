@@ -48,7 +48,7 @@ SCHEMES = {  # name: algorithm keys
 }
 
 
-def scene(cells, scheme, precision):
+def scene(cells, scheme, precision, cfl=0.5, default_dt=None):
     dx = A / cells
     x0 = y0 = z0 = 2 * dx  # the walls one cell outside the column's faces, on node planes
     c0 = 10 * 2 * math.sqrt(G * 2 * A)
@@ -56,10 +56,11 @@ def scene(cells, scheme, precision):
     t_end = T_END / math.sqrt(2 * G / A)
     algorithm = dict(SCHEMES[scheme], use_FBAR=False)
     return {
-        "simulation": {"domain": domain, "default_dx": dx, "gravity": [0, -G, 0], "fps": 1 / t_end, "frames": 1,
-                       "precision": precision, "save_suffix": ".csv"},
+        "simulation": dict({"domain": domain, "default_dx": dx, "gravity": [0, -G, 0], "fps": 1 / t_end, "frames": 1,
+                            "precision": precision, "save_suffix": ".csv"},
+                           **({"default_dt": default_dt} if default_dt else {})),
         "bodies": [{"material": {"constitutive": "JFluid", "rho": 1000, "bulk_modulus": 1000 * c0 * c0, "gamma": 7,
-                                 "viscosity": 1e-3, "ppc": 8, "CFL": 0.5},
+                                 "viscosity": 1e-3, "ppc": 8, "CFL": cfl},
                     "algorithm": algorithm,
                     "geometry": [{"object": "Box", "span": [A, 2 * A, dx], "offset": [x0, y0, z0]}],
                     "output_attribs": ["ID"]}],
@@ -88,16 +89,17 @@ def first_reach(T, Z, z):
     return None
 
 
-def run(fbar, backend, cells, scheme, precision, work):
-    s, x0, t_end = scene(cells, scheme, precision)
-    label = f"{backend}_{cells}_{scheme.replace(' ', '')}_{precision}"
+def run(fbar, backend, cells, scheme, precision, work, cfl=0.5, default_dt=None):
+    s, x0, t_end = scene(cells, scheme, precision, cfl, default_dt)
+    label = f"{backend}_{cells}_{scheme.replace(' ', '')}_{precision}_{cfl}_{default_dt}"
     out = os.path.join(work, label)
     os.makedirs(out, exist_ok=True)
     path = os.path.join(out, "scene.json")
     with open(path, "w") as f:
         json.dump(s, f)
     p = subprocess.run([fbar, f"--backend={backend}", f"--output={out}", path], capture_output=True, text=True)
-    row = {"backend": backend, "cells_per_a": cells, "scheme": scheme, "precision": precision}
+    row = {"backend": backend, "cells_per_a": cells, "scheme": scheme, "precision": precision, "cfl": cfl,
+           "default_dt": default_dt or ""}
     if p.returncode != 0:
         row.update(status="failed", error_vs_experiment="", gauges_within_bounds="", wall_s="", steps="",
                    particles="", s_per_simulated_s="", message=(p.stderr.strip().splitlines() or [""])[-1], arrivals=None)
@@ -117,6 +119,9 @@ def run(fbar, backend, cells, scheme, precision, work):
     err = sum(abs(interpolate(T, Z, te) - ze) / ze for te, ze in zip(FRONT_T, FRONT_Z)) / len(FRONT_T)
     arrivals = [first_reach(T, Z, z) for z in FRONT_Z[1:]]
     within = sum(1 for t, te, z in zip(arrivals, FRONT_T[1:], FRONT_Z[1:]) if t is not None and (z - 1) / 2 <= t <= te)
+    # Physically impossible: a front ahead of Ritter's ideal dam break (Z <= 1 + 2 T) by more than a cell, or a
+    # non-finite position. A run that completes with one of these failed silently.
+    row["impossible"] = "yes" if any(not math.isfinite(z) or z > 1 + 2 * t + 1.0 / cells for t, z in zip(T, Z)) else ""
     particles = int(round(cells * 2 * cells * 8))
     row.update(status="ok", error_vs_experiment=f"{err:.5f}", gauges_within_bounds=f"{within}/{len(arrivals)}",
                wall_s=f"{meta['wall_time_s']:.4f}", steps=meta["steps"], particles=particles,
@@ -214,6 +219,50 @@ def charts(rows, out, title_backend, suffix=""):
     plt.close(fig)
 
 
+def stability(fbar, backend, work, out, suffix):
+    """Stability map: the CFL number (fbar keeps every step within CFL x dx / (c + |v|) of the fastest particle and
+    grid node, and a scene cannot ask for more than 1) against the scheme, at a/dx = 8: each run is stable, a
+    failure fbar detected and reported (exit 2 with its message), or a silent failure (completed, physically
+    impossible)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    cells = 8
+    factors = [0.2, 0.4, 0.6, 0.8, 0.9, 1.0]
+    rows = []
+    for scheme in SCHEMES:
+        for k in factors:
+            r = run(fbar, backend, cells, scheme, "double", work, cfl=k)
+            state = ("detected" if r["status"] == "failed" else "silent" if r.get("impossible") else "stable")
+            r["state"] = state
+
+            rows.append(r)
+            print(f"stability {scheme:14s} CFL {k:.1f}: {state} {r['message']}", flush=True)
+    fields = ["scheme", "cfl", "state", "message"]
+    with open(os.path.join(out, f"dam_break_stability{suffix}.csv"), "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: r.get(k, "") for k in fields})
+    colors = {"stable": "#4caf50", "detected": "#ff9800", "silent": "#d32f2f"}
+    fig, ax = plt.subplots(figsize=(7, 3.6))
+    for i, scheme in enumerate(SCHEMES):
+        for j, k in enumerate(factors):
+            st = next(r["state"] for r in rows if r["scheme"] == scheme and r["cfl"] == k)
+            ax.add_patch(plt.Rectangle((j, i), 0.95, 0.95, color=colors[st]))
+            ax.text(j + 0.47, i + 0.47, st, ha="center", va="center", fontsize=7)
+    ax.set_xlim(0, len(factors))
+    ax.set_ylim(0, len(SCHEMES))
+    ax.set_xticks([j + 0.47 for j in range(len(factors))], [f"{k:g}" for k in factors])
+    ax.set_yticks([i + 0.47 for i in range(len(SCHEMES))], list(SCHEMES))
+    ax.set_xlabel("CFL number")
+    ax.set_title(f"Dam break, a/dx = {cells}, double ({backend} engine): stable, failure detected, silent failure")
+    fig.tight_layout()
+    fig.savefig(os.path.join(out, f"dam_break_stability{suffix}.png"), dpi=110)
+    plt.close(fig)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--fbar", default=os.path.join(ROOT, "build", "release", "fbar"))
@@ -222,8 +271,13 @@ def main():
     ap.add_argument("--work", default="/tmp/fbar_study")
     ap.add_argument("--cells", type=int, nargs="+", help="cells per a (default 4 6 8 12 16 24, --gpu: 8 12 16 24 32 48)")
     ap.add_argument("--replot", action="store_true", help="draw the charts again from the CSV in --out, run nothing")
+    ap.add_argument("--stability", action="store_true", help="the stability map (CFL number against scheme) only")
     a = ap.parse_args()
     suffix = "_gpu" if a.gpu else ""  # the CPU study's files are dam_break_*.{csv,png}, the GPU's dam_break_*_gpu.*
+    if a.stability:
+        os.makedirs(a.out, exist_ok=True)
+        stability(a.fbar, "gpu" if a.gpu else "cpu", a.work, a.out, suffix)
+        return 0
     if a.replot:
         with open(os.path.join(a.out, f"dam_break_study{suffix}.csv")) as f:
             rows = list(csv.DictReader(f))
