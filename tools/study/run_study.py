@@ -257,7 +257,7 @@ def stability(fbar, backend, work, out, suffix):
     ax.set_xticks([j + 0.47 for j in range(len(factors))], [f"{k:g}" for k in factors])
     ax.set_yticks([i + 0.47 for i in range(len(SCHEMES))], list(SCHEMES))
     ax.set_xlabel("CFL number")
-    ax.set_title(f"Dam break, a/dx = {cells}, double ({backend} engine): stable, failure detected, silent failure")
+    ax.set_title(f"Dam break, a/dx = {cells}, double, {backend} engine: stable / detected / silent")
     fig.tight_layout()
     fig.savefig(os.path.join(out, f"dam_break_stability{suffix}.png"), dpi=110)
     plt.close(fig)
