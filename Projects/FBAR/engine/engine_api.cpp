@@ -148,6 +148,15 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     s.dt_bound = cfl_time_step(m.cfl, dx, facts.wave_speed, v0);
     s.viscous_dt = body_viscous_step_bound(body, dx);
     summary.dt = min_time_step(min_time_step(summary.dt, s.dt_bound), s.viscous_dt);
+    // Float columns of the body's frame on the GPU (-1: no frames); a list the run refuses still counts its bytes.
+    int frame_columns = -1;
+    if (options.frames) {
+      try {
+        frame_columns = frame_float_columns(frame_attributes(body, static_cast<int>(i), "GPU engine"));
+      } catch (const std::invalid_argument&) {
+        frame_columns = static_cast<int>(body.output_attribs.size());
+      }
+    }
     {
       // The GPU engine's bytes per particle (before the bins' headroom and empty lanes) and the time of its step.
       const std::size_t t = particle_scalar_bytes(sim.precision);
@@ -166,16 +175,10 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
         bytes += 12 * t;
         s.gpu_bytes_detail += " + " + std::to_string(12 * t) + " B recorded v and C (sensors, trackers, checkpoints)";
       }
-      if (options.frames) {
-        int columns = 0;
-        try {
-          columns = frame_float_columns(frame_attributes(body, static_cast<int>(i), "GPU engine"));
-        } catch (const std::invalid_argument&) {
-          columns = static_cast<int>(body.output_attribs.size());
-        }
-        bytes += 3 * t + 4 * static_cast<std::size_t>(columns);
-        s.gpu_bytes_detail += " + " + std::to_string(3 * t + 4 * static_cast<std::size_t>(columns)) + " B frame (" +
-                              std::to_string(columns) + " columns)";
+      if (frame_columns >= 0) {
+        const std::size_t frame = 3 * t + 4 * static_cast<std::size_t>(frame_columns);
+        bytes += frame;
+        s.gpu_bytes_detail += " + " + std::to_string(frame) + " B frame (" + std::to_string(frame_columns) + " columns)";
       }
       s.gpu_bytes_per_particle = bytes;
       const LawThroughput law = law_throughput(m.law);
@@ -205,13 +208,7 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     in.asflip = body.algorithm.asflip_active();
     in.fbar = body.algorithm.fbar_blend() != 0.0;
     in.record = record;
-    if (options.frames) {
-      try {
-        in.frame_columns = frame_float_columns(frame_attributes(body, static_cast<int>(i), "GPU engine"));
-      } catch (const std::invalid_argument&) {
-        in.frame_columns = static_cast<int>(body.output_attribs.size());  // the run refuses it; count the bytes
-      }
-    }
+    if (frame_columns >= 0) in.frame_columns = frame_columns;
     asflip = asflip || in.asflip;
     fbar = fbar || in.fbar;
     gpu_inputs[body.gpu].push_back(in);

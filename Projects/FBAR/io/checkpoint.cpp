@@ -320,7 +320,14 @@ Checkpoint read_checkpoint_set(const std::filesystem::path& given) {
 
 Checkpoint merge_checkpoints(std::vector<Checkpoint> parts, const std::string& what) {
   if (parts.empty()) throw std::invalid_argument(what + ": no rank's state to merge");
-  Checkpoint all = parts[0];
+  // Rank 0's header and body descriptions, without its particle arrays (they are read from parts[0] below).
+  Checkpoint all;
+  {
+    std::vector<CheckpointBody> bodies = std::move(parts[0].bodies);
+    all = parts[0];
+    for (const CheckpointBody& b : bodies) all.bodies.push_back({b.law, b.state_scalars, b.global_particles, 0.0});
+    parts[0].bodies = std::move(bodies);
+  }
   all.rank = 0;
   all.ranks = 1;
   all.slab_cuts.clear();

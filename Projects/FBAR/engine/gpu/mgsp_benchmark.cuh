@@ -315,6 +315,18 @@ class MgspBenchmark {
       std::mutex mutex;
       std::condition_variable released;
       bool busy = false;
+      /// The writer's hold on the slot: the host buffer goes back to the step loop when it ends, also when the
+      /// writing throws.
+      struct Hold {
+        std::shared_ptr<HostSlot> slot;
+        ~Hold() {
+          {
+            std::lock_guard<std::mutex> lock(slot->mutex);
+            slot->busy = false;
+          }
+          slot->released.notify_all();
+        }
+      };
     };
     std::shared_ptr<HostSlot> frame_slot = std::make_shared<HostSlot>();
     cudaEvent_t frame_copied = nullptr;  ///< the last download of the frame finished (the next capture waits)
@@ -2258,16 +2270,7 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
     const cudaEvent_t copied = b.frame_copied;
     const std::shared_ptr<typename BodyBase::HostSlot> slot = b.frame_slot;
     writer.submit_job([=] {
-      struct Release {  // the host buffer goes back to the step loop once written, also when writing throws
-        std::shared_ptr<typename BodyBase::HostSlot> slot;
-        ~Release() {
-          {
-            std::lock_guard<std::mutex> lock(slot->mutex);
-            slot->busy = false;
-          }
-          slot->released.notify_all();
-        }
-      } release{slot};
+      const typename BodyBase::HostSlot::Hold hold{slot};  // released once written
       const auto t0 = std::chrono::steady_clock::now();
       FBAR_CUDA_CHECK(cudaEventSynchronize(copied));
       const auto t1 = std::chrono::steady_clock::now();
@@ -2300,21 +2303,10 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
   const std::vector<FrameAttributeSpec> attrs = b.frame_attrs;
   const std::shared_ptr<typename BodyBase::HostSlot> slot = b.frame_slot;
   writer.submit_job([=] {
-    // The host buffer goes back to the step loop once the frame is built, also when building throws.
-    struct Release {
-      std::shared_ptr<typename BodyBase::HostSlot> slot;
-      ~Release() {
-        {
-          std::lock_guard<std::mutex> lock(slot->mutex);
-          slot->busy = false;
-        }
-        slot->released.notify_all();
-      }
-    };
     io::ParticleFrame f;
     f.exterior = exterior;
     {
-      Release release{slot};
+      const typename BodyBase::HostSlot::Hold hold{slot};  // released once the frame is built
       FBAR_CUDA_CHECK(cudaEventSynchronize(copied));
       // The copies out of the pinned buffer run on several threads (a 16M-particle frame is 0.4 GB of them).
       const unsigned threads = std::max(1u, std::min(8u, std::thread::hardware_concurrency() / 2));
