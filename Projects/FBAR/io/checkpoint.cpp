@@ -325,7 +325,7 @@ Checkpoint merge_checkpoints(std::vector<Checkpoint> parts, const std::string& w
   {
     std::vector<CheckpointBody> bodies = std::move(parts[0].bodies);
     all = parts[0];
-    for (const CheckpointBody& b : bodies) all.bodies.push_back({b.law, b.state_scalars, b.global_particles, 0.0});
+    for (const CheckpointBody& b : bodies) all.bodies.push_back(b.description());
     parts[0].bodies = std::move(bodies);
   }
   all.rank = 0;

@@ -48,6 +48,14 @@ struct CheckpointBody {
   std::vector<double> volume;     ///< [m^3] reference volume V0
   std::vector<double> state;      ///< (particle, state_scalars)
   std::size_t particles() const { return id.size(); }
+  /// The same body without particles (law, state scalars, global count; max_wave_speed 0).
+  CheckpointBody description() const {
+    CheckpointBody d;
+    d.law = law;
+    d.state_scalars = state_scalars;
+    d.global_particles = global_particles;
+    return d;
+  }
 };
 
 struct Checkpoint {

@@ -269,10 +269,7 @@ bool GpuEngine<T, TG>::rebalance_if_drifted() {
   io::Checkpoint merged = impl_->checkpoint();  // collective
   {
     std::vector<comm::Bytes> parts = host.allgather(io::checkpoint_particle_bytes(merged));
-    for (io::CheckpointBody& b : merged.bodies) {  // the header and body descriptions stay
-      const io::CheckpointBody empty{b.law, b.state_scalars, b.global_particles, 0.0};
-      b = empty;
-    }
+    for (io::CheckpointBody& b : merged.bodies) b = b.description();  // the header and body descriptions stay
     std::vector<io::Checkpoint> all(parts.size(), merged);
     for (std::size_t r = 0; r < parts.size(); ++r) {
       io::read_checkpoint_particle_bytes(parts[r], all[r]);
