@@ -505,8 +505,9 @@ void CpuEngine<T, TG>::p2g(Body& body, T dt) {
                 const int l1 = s.base[1] - origin[1] * kBlockSide;
                 const int l2 = s.base[2] - origin[2] * kBlockSide;
                 const StressResult<T> stress = M::kirchhoff_stress(params, state[p], body.C[p]);
-                const P2GParticle<T> payload =
+                P2GParticle<T> payload =
                     mls_p2g_particle(body.mass[p], body.volume[p], body.v[p], body.C[p], stress.kirchhoff, dt, d_inv);
+                if (!body.force.empty()) payload.momentum += body.force[p] * dt;  // set_particle_forces
                 for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3T& xixp) {
                   const int a = arena_index(l0 + i, l1 + j, l2 + k);
                   const Vec3T mv = p2g_node_momentum(payload, w, xixp);
@@ -867,7 +868,14 @@ typename CpuEngine<T, TG>::TryResult CpuEngine<T, TG>::try_step(double dt_in) {
     std::memset(&grid_.blocks[gb], 0, sizeof(GridBlock));
     if (asflip_) std::memset(&grid_.asflip[gb], 0, sizeof(AsflipBlock));
   }
-  for (Body& body : bodies_) p2g(body, dt);
+  for (Body& body : bodies_) {
+    if (body.force_of) {
+      body.force.resize(body.x.size());
+      for (std::size_t p = 0; p < body.x.size(); ++p)
+        body.force[p] = body.force_of(body.id[p], body.x[p].template cast<double>(), time_).template cast<T>();
+    }
+    p2g(body, dt);
+  }
   if (ranks() > 1) exchange_halo(false);
   result.max_grid_speed = update_grid(static_cast<TG>(dt_in));
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
@@ -1300,6 +1308,15 @@ void CpuEngine<T, TG>::set_deformation_gradients(int body, const std::function<M
         }
       },
       b.material);
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::set_particle_forces(int body, ParticleForce force) {
+  if (force && ranks() > 1)
+    throw std::invalid_argument("CpuEngine::set_particle_forces: one rank only (the forces do not migrate)");
+  Body& b = body_at(body);
+  b.force_of = std::move(force);
+  b.force.clear();
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -245,6 +245,12 @@ class CpuEngine {
   /// volume becomes V0 = (dx^3/ppc) / J and the mass rho0 V0 (the current density is then rho0 / J, consistent
   /// with the state). Throws std::invalid_argument for a body that does not store J, or J <= 0.
   void set_volume_ratios(int body, const std::function<double(const Vec3d&)>& J_of_position, bool rescale_mass = true);
+  /// External forces [N] on the particles of `body`: force(id, x, t) of the particle with ID `id` at x [m], at the
+  /// start of each step (time t [s]), added to its P2G momentum (sum_i w_ip f_p dt over its nodes). For programs
+  /// that drive the engine (a pressure on a surface, a coupled solver; tests/validation/thick_sphere_case.h); scenes
+  /// have no such key. One rank only; not kept in checkpoints. An empty function removes the forces.
+  using ParticleForce = std::function<Vec3d(std::int64_t id, const Vec3d& x, double t)>;
+  void set_particle_forces(int body, ParticleForce force);
   /// Overwrites F(x) of a body whose material stores F (FixedCorotated, NeoHookean, DruckerPrager, NACC); throws
   /// otherwise.
   void set_deformation_gradients(int body, const std::function<Mat3d(const Vec3d&)>& F_of_position);
@@ -305,6 +311,8 @@ class CpuEngine {
     bool asflip = false;          // PIC-FLIP / ASFLIP velocity and position update (transfer.cuh)
     AsflipParams<T> asflip_params{T(0), T(0), T(0)};
     T fbar_psi = T(0);  // F-bar blend (transfer.cuh: fbar_velocity_gradient); 0: off
+    ParticleForce force_of;    // set_particle_forces; empty: none
+    std::vector<Vec3T> force;  // (slot) [N] force_of at the start of the step being tried
     Partition partition;
   };
 
