@@ -152,12 +152,21 @@ def pareto(points):
     return sorted(front, key=lambda i: points[i][0])
 
 
+def save(fig, out, name):
+    """Writes a finished chart as out/name (PNG) and frees it."""
+    import matplotlib.pyplot as plt
+    fig.tight_layout()
+    fig.savefig(os.path.join(out, name), dpi=110)
+    plt.close(fig)
+
+
 def charts(rows, out, title_backend, suffix=""):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     ref = next(r for r in rows if r["reference"])
+    error_label = f"mean |T - T_ref| at the gauges (ref: APIC, double, {ref['cells_per_a']}/a)"
     # The reference's own configuration in the other precision differs from it by round-off only: left out.
     ok = [r for r in rows if r["status"] == "ok" and r["error"] and not r["reference"] and
           not (r["scheme"] == ref["scheme"] and int(r["cells_per_a"]) == int(ref["cells_per_a"]))]
@@ -184,13 +193,11 @@ def charts(rows, out, title_backend, suffix=""):
     ax.set_xscale("log")
     ax.set_xlabel(f"wall time per simulated second [s] ({title_backend})")
     ax.set_yscale("log")
-    ax.set_ylabel(f"mean |T - T_ref| at the gauges (ref: APIC, double, {ref['cells_per_a']}/a)")
+    ax.set_ylabel(error_label)
     ax.set_title("Dam break front: error against cost (marker size: cells per a)")
     ax.legend(fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(os.path.join(out, f"dam_break_pareto{suffix}.png"), dpi=110)
-    plt.close(fig)
+    save(fig, out, f"dam_break_pareto{suffix}.png")
 
     fig, ax = plt.subplots(figsize=(7, 5))
     for name in SCHEMES:
@@ -209,13 +216,11 @@ def charts(rows, out, title_backend, suffix=""):
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("cells per column width a")
-    ax.set_ylabel(f"mean |T - T_ref| at the gauges (ref: APIC, double, {ref['cells_per_a']}/a)")
+    ax.set_ylabel(error_label)
     ax.set_title("Dam break front: error against resolution (order between the two finest)")
     ax.legend(fontsize=7)
     ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(os.path.join(out, f"dam_break_convergence{suffix}.png"), dpi=110)
-    plt.close(fig)
+    save(fig, out, f"dam_break_convergence{suffix}.png")
 
 
 def stability(fbar, backend, work, out, suffix):
@@ -257,9 +262,7 @@ def stability(fbar, backend, work, out, suffix):
     ax.set_yticks([i + 0.47 for i in range(len(SCHEMES))], list(SCHEMES))
     ax.set_xlabel("CFL number")
     ax.set_title(f"Dam break, a/dx = {cells}, double, {backend} engine: stable / detected / silent")
-    fig.tight_layout()
-    fig.savefig(os.path.join(out, f"dam_break_stability{suffix}.png"), dpi=110)
-    plt.close(fig)
+    save(fig, out, f"dam_break_stability{suffix}.png")
 
 
 def main():
