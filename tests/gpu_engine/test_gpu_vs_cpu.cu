@@ -245,7 +245,7 @@ TEST(GpuVsCpu, NaccDouble) {
   FBAR_REQUIRE_DEVICE();
   compare<double>(Constitutive::NACC, 5e-4, 60);
 }
-// F-bar (transfer.cuh: cell-averaged volume rate; the GPU's fbar_divergence kernel sums cells with atomics, the CPU in
+// F-bar (transfer.cuh: J pulled to the cell's mean; the GPU's fbar_cell_sums kernel sums cells with atomics, the CPU in
 // particle order): same tolerances as without, and the run must differ from plain MLS-MPM.
 TEST(GpuVsCpu, FbarFixedCorotatedFloat) {
   FBAR_REQUIRE_DEVICE();

@@ -496,23 +496,32 @@ TEST(Asflip, UpdateFormulas) {
   EXPECT_EQ(uniform.move, vpic * dt);
 }
 
-// transfer.cuh F-bar: C' = C + psi (d_c - tr C) / 3 I takes the blended volume rate, keeps the deviatoric part, is
-// C itself for psi = 0 or d_c = tr C; the cell of a particle is base + 0 or 1 per axis; an empty cell has d_c = 0.
+// transfer.cuh F-bar: C' = C + kappa I. JFluid's exact update J (1 + dt tr C') must land on the line
+// ((1 - psi) J + psi Jbar)(1 + dt tr C) to round-off, for any psi; the deviatoric part is C's; a particle at its
+// cell's mean (or psi = 0) keeps C; the cell of a particle is base + 0 or 1 per axis; an empty cell has mean 0.
 TEST(Fbar, VelocityGradientAndCell) {
   Mat3d C = Mat3d::zero();
   C(0, 0) = 0.3, C(0, 1) = -1.2, C(1, 0) = 0.4, C(1, 1) = -0.1, C(2, 2) = 0.7, C(2, 0) = 0.25;
-  const double trC = 0.9, d = -0.6;
-  for (const double psi : {0.0, 0.25, 1.0}) {
-    const Mat3d Cp = fbar_velocity_gradient(C, d, psi);
-    EXPECT_NEAR(Cp(0, 0) + Cp(1, 1) + Cp(2, 2), (1 - psi) * trC + psi * d, 1e-15) << psi;
+  const double trC = 0.9, dt = 1e-4;
+  const double one_minus_J = 2e-5, cell = -3e-5;  // J = 0.99998, Jbar = 1.00003
+  for (const double psi : {0.0, 0.25, 0.96, 1.0}) {
+    const Mat3d Cp = fbar_velocity_gradient(C, one_minus_J, cell, psi, dt);
+    const double J_new = (1 - one_minus_J) * (1 + dt * (Cp(0, 0) + Cp(1, 1) + Cp(2, 2)));
+    const double expected = ((1 - psi) * (1 - one_minus_J) + psi * (1 - cell)) * (1 + dt * trC);
+    EXPECT_NEAR(J_new, expected, 1e-15) << psi;
     const Mat3d diff = Cp - C;
     for (int a = 0; a < 3; ++a)
       for (int b = 0; b < 3; ++b)
-        EXPECT_NEAR(diff(a, b), a == b ? psi * (d - trC) / 3 : 0.0, 1e-15) << psi << " " << a << b;
+        if (a != b) {
+          EXPECT_EQ(diff(a, b), 0.0) << psi << " " << a << b;
+        }
+    EXPECT_NEAR(diff(0, 0), diff(1, 1), 1e-15);
+    EXPECT_NEAR(diff(1, 1), diff(2, 2), 1e-15);
   }
-  EXPECT_LE(max_abs(fbar_velocity_gradient(C, trC, 1.0) - C), 1e-16);
-  EXPECT_EQ(fbar_cell_divergence(0.0, 0.0), 0.0);
-  EXPECT_DOUBLE_EQ(fbar_cell_divergence(3e-6, 2e-6), 1.5);
+  EXPECT_EQ(max_abs(fbar_velocity_gradient(C, one_minus_J, one_minus_J, 1.0, dt) - C), 0.0);
+  EXPECT_EQ(max_abs(fbar_velocity_gradient(C, one_minus_J, cell, 0.0, dt) - C), 0.0);
+  EXPECT_EQ(fbar_cell_compression(0.0, 0.0), 0.0);
+  EXPECT_DOUBLE_EQ(fbar_cell_compression(3e-12, 2e-6), 1.5e-6);
   const double dx = 0.1;
   for (const double x : {0.05, 0.0999, 0.1, 0.149, 0.15, 0.1999, 1.234}) {
     const Vec3d p{{x, x + 0.04, x + 0.07}};

@@ -9,7 +9,7 @@
 // The block must bulge sideways to settle: nearly isochoric motion, which quadratic B-spline MPM with 8 ppc cannot
 // represent when each particle keeps its own volume (more volume constraints than nodes): its pressure field
 // checkerboards, particle to particle, by more than the pressure itself. (The settlement, an integral, barely shows
-// it: 0.95 of the exact value.) F-bar (FBAR_psi = 1) gives each grid cell one volume rate. The bed is placed as
+// it: 0.95 of the exact value.) F-bar (FBAR_psi = 1) gives each grid cell one volume ratio. The bed is placed as
 // ClaymoreUW places it (validation_support.h, LastWallNodePlane); with the bed on the zero-velocity plane the frozen
 // first particle layer of a nearly incompressible solid carries tension (about -2 rho g H), with or without F-bar.
 //

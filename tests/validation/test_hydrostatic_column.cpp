@@ -82,13 +82,14 @@ TEST(HydrostaticColumn, StressFreeStartConvergesToHydrostaticBasePressure) {
 }
 
 // The same stress-free column with and without F-bar (VALIDATION.md: "hydrostatic pressure error and checkerboard
-// index with and without F-bar"). The row alternation inside cells described above is a volume mode: F-bar gives
-// both rows of a cell one volume rate, so it must vanish (checkerboard index: RMS over the cells above the bottom
+// index with and without F-bar"). The row alternation inside cells described above is a volume mode: F-bar pulls
+// both rows of a cell to the cell's J every step, so it must vanish (checkerboard index: RMS over the cells above the bottom
 // one of half the difference of their two row means, over rho0 g H), while the base pressure read from the bulk
 // keeps cb-geo's accuracy. Tolerances: F-bar's checkerboard below a tenth of the plain run's (the mode is gone, what
 // is left is the time-average residue), base error within cb-geo's 4.85 %; the plain run must show the mode.
-// Measured (dx 0.01, double): checkerboard 0.020 rho0 g H without, 6e-17 with F-bar (JFluid's J takes the cell's
-// volume rate exactly, so both rows of a cell keep equal J); base error +0.198 % without, +0.041 % with.
+// Measured (dx 0.01, double, 2026-11-25): checkerboard 0.020 rho0 g H without, 0.00074 with F-bar (both rows start
+// each step from the cell's J and differ by one step's own volume change); base error +0.198 % without, +0.039 %
+// with.
 TEST(HydrostaticColumn, FbarRemovesTheRowCheckerboard) {
   const ColumnResult plain = run_column<double>(0.01, Start::StressFree, 0.6, validation::WallFit::LastWallNodePlane);
   const ColumnResult fbar =

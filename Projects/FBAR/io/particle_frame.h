@@ -89,7 +89,7 @@ inline bool resolve_frame_attribute(const std::string& name, FrameAttributeSpec&
   if (name.rfind("Position_", 0) == 0) return set(FrameQuantity::Position, "m", name.back() - 'X');
   if (name == "Velocity_Magnitude") return set(FrameQuantity::VelocityMagnitude, "m/s");
   if (name.rfind("Velocity_", 0) == 0) return set(FrameQuantity::Velocity, "m/s", name.back() - 'X');
-  // JBar: both engines' F-bar integrates the blended (cell-averaged) volume rate into the particle's J, so the J
+  // JBar: both engines' F-bar pulls the particle's J toward its cell's mean every step (transfer.cuh), so the J
   // they store is ClaymoreUW's JBar (without F-bar, J itself).
   if (name == "J" || name == "JBar") return set(FrameQuantity::J, "");
   if (name == "logJp") return set(FrameQuantity::LogJp, "");

@@ -128,21 +128,28 @@ FBAR_HOST_DEVICE constexpr AsflipUpdate<T> asflip_update(const AsflipParams<T>& 
   return AsflipUpdate<T>{v_pic + flip * a.alpha, (v_pic + flip * beta) * dt};
 }
 
-/// F-bar anti-locking in incremental form (de Souza Neto et al. 1996's F-bar applied to the step's deformation
-/// increment, averaged over background cells as Coombs et al. 2018, "Overcoming volumetric locking in material point
-/// methods", do). A nearly incompressible material locks when every particle must keep its own volume: more volume
-/// constraints than the grid has velocity degrees of freedom, and the pressure checkerboards. F-bar gives all the
-/// particles of a grid cell one volume rate, their volume-weighted mean:
-///   d_c     = sum_{q in c} V_q tr C_q / sum_{q in c} V_q    (cell c = floor(x_q / dx); V_q = V_q^0 J_q, current)
-///   C'_p    = C_p + psi (d_c - tr C_p) / 3 I                (psi = FBAR_psi: 0 off, 1 full F-bar)
-/// and the material advances with C'_p: J <- (1 + dt tr C') J (JFluid) takes the blended volume rate exactly, F <-
-/// (I + dt C') F to first order in dt; the deviatoric part of the motion is untouched. Only the state update sees
-/// C'_p: the transfers keep C_p, so mass, momentum and angular momentum are conserved as without F-bar, and a uniform
-/// divergence (all tr C_q equal) is left unchanged. The cell sums ride in two grid channels (cell c at node c, the
-/// node at its lower corner), filled by a pass between the grid update and G2P.
-/// Why cells, not nodes: averaging through the B-spline weights (sum_i w_ip of nodal means, ClaymoreUW's way) removes
-/// the particle-to-particle checkerboard but leaves a two-cell pressure wave in a nearly incompressible block
-/// (tests/validation/test_fbar_locking.cpp measured checkerboard 0.066 rho g H against 0.0003 per cell).
+/// F-bar anti-locking by volume averaging over background cells (de Souza Neto et al. 1996's F-bar, with the cell as
+/// the element, as Coombs et al. 2018, "Overcoming volumetric locking in material point methods", do). A nearly
+/// incompressible material locks when every particle must keep its own volume: more volume constraints than the grid
+/// has velocity degrees of freedom, and the pressure checkerboards. F-bar gives the particles of a grid cell one
+/// volume ratio, the cell's current over its reference volume:
+///   Jbar_c = sum_{q in c} V0_q J_q / sum_{q in c} V0_q           (cell c = floor(x_q / dx), at the start of the step)
+/// and each step pulls every particle's J toward it by the fraction psi before its own volume rate acts:
+///   J_p <- ((1 - psi) J_p + psi Jbar_c) (1 + dt tr C_p)           (psi = FBAR_psi: 0 off, 1 full F-bar)
+/// The material takes this as the velocity gradient C'_p = C_p + kappa I (fbar_velocity_gradient below), so the state
+/// update stays one code path for every law: JFluid's J <- (1 + dt tr C') J gives the line above exactly, F <-
+/// (I + dt C') F to first order in dt, and the return mapping of a plastic law sees the averaged volume. The deviatoric
+/// part of the motion is untouched, and the transfers keep C_p: mass, momentum and angular momentum are conserved as
+/// without F-bar. A uniform J is left unchanged, and the cell's total volume sum V0 J changes as without F-bar.
+/// Why the volume, not its rate: averaging the rate (J <- (1 + dt d_c) J, d_c the cell's mean tr C) locks as well,
+/// but a particle's J then integrates other particles' rates along its path and stops measuring the space it fills:
+/// in a 5 s piston-driven flume (FBAR_psi 0.96, 8 particles per cell at rest) the water's particles spread to 6.97 per
+/// interior cell with J = 1 everywhere, against 7.97 with this form and 7.93 without F-bar (docs/validation.md,
+/// "F-bar and the volume of a long free-surface flow"). Why cells, not nodes: averaging through the B-spline weights
+/// leaves a two-cell pressure wave in a nearly incompressible block (tests/validation/test_fbar_locking.cpp measured
+/// checkerboard 0.066 rho g H against 0.0008 per cell).
+/// The cell sums ride in two grid channels (cell c at node c, the node at its lower corner), filled by a pass over the
+/// particles between the grid update and G2P (CPU: fbar_cell_sums; GPU: the fbar_cell_sums kernel).
 
 /// Offset of the cell holding x from the stencil base (each component 0 or 1: cell node = base + offset).
 template <typename T>
@@ -152,16 +159,21 @@ FBAR_HOST_DEVICE inline Vec3i fbar_cell_offset(const Vec3<T>& x, T inv_dx, const
                 static_cast<int>(floor(x[2] * inv_dx)) - base[2]}};
 }
 
-/// Cell divergence d_c = (sum V tr C) / (sum V) [1/s]; 0 for a cell without particles.
+/// The cell's mean of 1 - J, (sum V0 (1 - J)) / (sum V0) [-] (1 - Jbar_c, stored like JFluid's state for float
+/// accuracy near J = 1); 0 for a cell without particles.
 template <typename T>
-FBAR_HOST_DEVICE constexpr T fbar_cell_divergence(T volume_divergence_sum, T volume_sum) {
-  return volume_sum > T(0) ? volume_divergence_sum / volume_sum : T(0);
+FBAR_HOST_DEVICE constexpr T fbar_cell_compression(T compression_sum, T volume_sum) {
+  return volume_sum > T(0) ? compression_sum / volume_sum : T(0);
 }
 
-/// C'_p = C_p + psi (d_c - tr C_p) / 3 I [1/s] (above).
+/// C'_p = C_p + kappa I [1/s] with 1 + dt tr C'_p = ((1 - psi) J_p + psi Jbar_c)(1 + dt tr C_p) / J_p (above):
+///   kappa = psi (Jbar_c - J_p) (1 + dt tr C_p) / (3 dt J_p),   Jbar_c - J_p = (1 - J_p) - (1 - Jbar_c).
+/// one_minus_J: the particle's 1 - J at the start of the step; cell_compression: fbar_cell_compression of its cell.
 template <typename T>
-FBAR_HOST_DEVICE constexpr Mat3<T> fbar_velocity_gradient(const Mat3<T>& C, T cell_divergence, T psi) {
-  const T kappa = psi * (cell_divergence - (C(0, 0) + C(1, 1) + C(2, 2))) / T(3);
+FBAR_HOST_DEVICE constexpr Mat3<T> fbar_velocity_gradient(const Mat3<T>& C, T one_minus_J, T cell_compression, T psi,
+                                                          T dt) {
+  const T trace_C = C(0, 0) + C(1, 1) + C(2, 2);
+  const T kappa = psi * (one_minus_J - cell_compression) * (T(1) + dt * trace_C) / (T(3) * dt * (T(1) - one_minus_J));
   Mat3<T> out = C;
   out(0, 0) += kappa;
   out(1, 1) += kappa;

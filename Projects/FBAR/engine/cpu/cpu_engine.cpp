@@ -620,24 +620,23 @@ double CpuEngine<T, TG>::update_grid(TG dt) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// F-bar: the body's volume-weighted velocity divergence per grid cell (transfer.cuh, fbar_velocity_gradient)
+// F-bar: the body's cell sums of V0 (1 - J) and V0 at the start of the step (transfer.cuh, fbar_velocity_gradient)
 
 template <typename T, typename TG>
-void CpuEngine<T, TG>::fbar_divergence(Body& body) {
+void CpuEngine<T, TG>::fbar_cell_sums(Body& body) {
   const int nblocks = static_cast<int>(grid_.blocks.size());
 #pragma omp parallel for schedule(static) if (nblocks >= kMinParallelBlocks)
   for (int gb = 0; gb < nblocks; ++gb)
     for (auto& ch : grid_.fbar[gb].sums) std::fill(ch, ch + 64, TG(0));
   const Partition& part = body.partition;
-  const T dx = k_.dx, inv_dx = k_.inv_dx, d_inv = k_.d_inv;
+  const T inv_dx = k_.inv_dx;
   std::visit(
       [&](auto& mb) {
         using M = typename std::decay_t<decltype(mb)>::material_type;
         const auto& state = mb.state;
 #pragma omp parallel if (part.largest_colour >= kMinParallelBlocks)
         {
-          T arena_v[3][kArenaNodes];     // (component, node) grid velocities around one particle block
-          T arena_sum[2][kArenaNodes];   // (sum, cell) the block's deposits: V tr C, V (cell i at node i)
+          T arena_sum[2][kArenaNodes];  // (sum, cell) the block's deposits: V0 (1 - J), V0 (cell i at node i)
           for (int colour = 0; colour < 8; ++colour) {
             const std::vector<int>& list = part.colour_blocks[colour];
             const int count = static_cast<int>(list.size());
@@ -645,33 +644,18 @@ void CpuEngine<T, TG>::fbar_divergence(Body& body) {
             for (int li = 0; li < count; ++li) {
               const int pb = list[li];
               const std::array<int, 8>& blocks = part.grid_blocks[pb];
-              for (int a = 0; a < kArenaSide; ++a)
-                for (int b = 0; b < kArenaSide; ++b)
-                  for (int c = 0; c < kArenaSide; ++c) {
-                    const GridBlock& g = grid_.blocks[blocks[arena_neighbour(a, b, c)]];
-                    const int node = arena_node_in_block(a, b, c);
-                    const int ai = arena_index(a, b, c);
-                    for (int d = 0; d < 3; ++d) arena_v[d][ai] = g.momentum[d][node];
-                    arena_sum[0][ai] = arena_sum[1][ai] = T(0);
-                  }
+              for (auto& ch : arena_sum) std::fill(ch, ch + kArenaNodes, T(0));
               const Vec3i& origin = part.block_coords[pb];
               for (int q = part.block_start[pb]; q < part.block_start[pb + 1]; ++q) {
                 const int p = part.order[q];
                 const QuadraticBspline<T> s = quadratic_bspline_inv(body.x[p], inv_dx);
-                const int l0 = s.base[0] - origin[0] * kBlockSide;
-                const int l1 = s.base[1] - origin[1] * kBlockSide;
-                const int l2 = s.base[2] - origin[2] * kBlockSide;
-                G2PSum<T> sum;
-                for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3T& xixp) {
-                  const int a = arena_index(l0 + i, l1 + j, l2 + k);
-                  sum.add(w, Vec3T{{arena_v[0][a], arena_v[1][a], arena_v[2][a]}}, xixp);
-                });
-                const Mat3T C = sum.affine(d_inv);
-                const T V = body.volume[p] * M::volume_ratio(state[p]);
                 const Vec3i cell = fbar_cell_offset(body.x[p], inv_dx, s.base);
-                const int a = arena_index(l0 + cell[0], l1 + cell[1], l2 + cell[2]);
-                arena_sum[0][a] += V * (C(0, 0) + C(1, 1) + C(2, 2));
-                arena_sum[1][a] += V;
+                const int a = arena_index(s.base[0] - origin[0] * kBlockSide + cell[0],
+                                          s.base[1] - origin[1] * kBlockSide + cell[1],
+                                          s.base[2] - origin[2] * kBlockSide + cell[2]);
+                const T V0 = body.volume[p];
+                arena_sum[0][a] += V0 * (T(1) - M::volume_ratio(state[p]));
+                arena_sum[1][a] += V0;
               }
               // The same colour discipline as P2G: no other block of this colour touches these grid blocks.
               for (int a = 0; a < kArenaSide; ++a)
@@ -715,7 +699,7 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
         {
           T arena_v[3][kArenaNodes];      // (component, node) grid velocities around one particle block
           T arena_v_old[3][kArenaNodes];  // (component, node) ASFLIP's v^n, when the body uses it
-          T arena_fbar[2][kArenaNodes];   // (sum, node) F-bar's divergence sums, when the body uses it
+          T arena_fbar[2][kArenaNodes];   // (sum, node) F-bar's cell sums, when the body uses it
           long long my_count[3] = {0, 0, 0};
           long long my_first[3] = {first[0], first[1], first[2]};
           T my_wave = T(0);
@@ -747,7 +731,7 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
               const int l2 = s.base[2] - origin[2] * kBlockSide;
               G2PSum<T> sum;
               G2POldSum<T> old;
-              T divergence = T(0);  // F-bar's smoothed tr C
+              T cell_compression = T(0);  // F-bar's 1 - Jbar of the particle's cell
               for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3T& xixp) {
                 const int a = arena_index(l0 + i, l1 + j, l2 + k);
                 sum.add(w, Vec3T{{arena_v[0][a], arena_v[1][a], arena_v[2][a]}}, xixp);
@@ -756,12 +740,15 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
               if (fbar) {
                 const Vec3i cell = fbar_cell_offset(x, inv_dx, s.base);
                 const int a = arena_index(l0 + cell[0], l1 + cell[1], l2 + cell[2]);
-                divergence = fbar_cell_divergence(arena_fbar[0][a], arena_fbar[1][a]);
+                cell_compression = fbar_cell_compression(arena_fbar[0][a], arena_fbar[1][a]);
               }
               Vec3T v = sum.velocity();
               const Mat3T C = sum.affine(d_inv);
-              const auto s_new =
-                  M::advance(params, state[p], fbar ? fbar_velocity_gradient(C, divergence, body.fbar_psi) : C, dt);
+              const auto s_new = M::advance(
+                  params, state[p],
+                  fbar ? fbar_velocity_gradient(C, T(1) - M::volume_ratio(state[p]), cell_compression, body.fbar_psi, dt)
+                       : C,
+                  dt);
               Vec3T x_new;
               if (body.asflip) {
                 const AsflipUpdate<T> u =
@@ -880,7 +867,7 @@ typename CpuEngine<T, TG>::TryResult CpuEngine<T, TG>::try_step(double dt_in) {
   result.max_grid_speed = update_grid(static_cast<TG>(dt_in));
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     if (bodies_[b].fbar_psi != T(0)) {
-      fbar_divergence(bodies_[b]);  // F-bar smooths within one body
+      fbar_cell_sums(bodies_[b]);  // F-bar averages within one body
       if (ranks() > 1) exchange_halo(true);
     }
     g2p(static_cast<int>(b), bodies_[b], dt, result);

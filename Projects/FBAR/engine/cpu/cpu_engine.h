@@ -310,7 +310,7 @@ class CpuEngine {
     double max_wave_speed = 0.0;  // [m/s] over the particles of the committed state
     bool asflip = false;          // PIC-FLIP / ASFLIP velocity and position update (transfer.cuh)
     AsflipParams<T> asflip_params{T(0), T(0), T(0)};
-    T fbar_psi = T(0);  // F-bar blend (transfer.cuh: fbar_velocity_gradient); 0: off
+    T fbar_psi = T(0);  // F-bar: the fraction of J pulled to its cell's mean per step (transfer.cuh); 0: off
     ParticleForce force_of;    // set_particle_forces; empty: none
     std::vector<Vec3T> force;  // (slot) [N] force_of at the start of the step being tried
     Partition partition;
@@ -353,7 +353,7 @@ class CpuEngine {
   TryResult try_step(double dt);
   void p2g(Body& body, T dt);
   double update_grid(TG dt);
-  void fbar_divergence(Body& body);
+  void fbar_cell_sums(Body& body);
   void g2p(int body_index, Body& body, T dt, TryResult& result);
   void commit(const TryResult& result, double dt);
   void exchange_halo(bool fbar_sums);  // sums the halo planes with the neighbours (P2G channels or F-bar sums)

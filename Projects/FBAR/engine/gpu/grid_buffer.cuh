@@ -33,8 +33,8 @@ inline constexpr auto grid_momentum_z = placeholder::_3;
 inline constexpr auto grid_velocity_x = placeholder::_0;  ///< [m/s] (velocity buffer)
 inline constexpr auto grid_velocity_y = placeholder::_1;
 inline constexpr auto grid_velocity_z = placeholder::_2;
-inline constexpr auto grid_fbar_volume_rate = placeholder::_0;  ///< [m^3/s] F-bar cell sum of V tr C (cell at node)
-inline constexpr auto grid_fbar_volume = placeholder::_1;       ///< [m^3] F-bar cell sum of V
+inline constexpr auto grid_fbar_compression = placeholder::_0;  ///< [m^3] F-bar cell sum of V0 (1 - J) (cell at node)
+inline constexpr auto grid_fbar_volume = placeholder::_1;       ///< [m^3] F-bar cell sum of V0
 
 template <typename T>
 struct GridLayout {

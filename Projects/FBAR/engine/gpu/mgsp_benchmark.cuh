@@ -22,7 +22,7 @@
 //   2'. dt_{n+1} from the largest grid speed and wave speeds over ranks (DeviceTransport::allreduce_max on the
 //       device, before compute_next_dt): every rank computes the same dt (min over ranks of each rank's dt would not
 //       do: the fastest node and the stiffest particle may sit on different ranks)
-//   3'. F-bar: the cell sums' halo exchange between fbar_divergence and G2P2G; after G2P2G: the halo exchange of
+//   3'. F-bar: the cell sums' halo exchange between fbar_cell_sums and G2P2G; after G2P2G: the halo exchange of
 //       grid[1 - gc] (and the transported momentum), then migration: G2P2G marked the particles whose next block a
 //       neighbour owns (kEmigrant); their records go to the neighbour, which appends the ones it receives behind
 //       its own slots and records their (block, rank) before the partition
@@ -501,22 +501,19 @@ class MgspBenchmark {
       p.p2g_bound_in = e.p2g_bound_d_.get() + e.bound_cur_ * e.bodies_.size() + this->index;
       p.p2g_bound_out = e.p2g_bound_d_.get() + (1 - e.bound_cur_) * e.bodies_.size() + this->index;
       if (e.block_count_ == 0) return;
-      if (p.fbar_psi != T(0) && pass != G2P2GPass::Interior) {  // F-bar: the cell sums first (fbar_divergence)
+      if (p.fbar_psi != T(0) && pass != G2P2GPass::Interior) {  // F-bar: the cell sums first (fbar_cell_sums)
         const int blocks = e.block_count_;
         e.fbar_sums_.clear(0, blocks, e.stream_);
-        FbarDivergenceParams<M, T, TG> f;
+        FbarCellSumsParams<M, T, TG> f;
         f.in = p.in;
         f.layout = p.layout;
         f.table = p.table;
-        f.velocity = p.velocity;
         f.sums = p.fbar_sums;
         f.volume = p.volume;
-        f.dx = p.dx;
         f.inv_dx = p.inv_dx;
-        f.d_inv = p.d_inv;
         f.stats = p.stats;
-        fbar::fbar_divergence<M, T, TG><<<blocks, kG2P2GThreads, 0, e.stream_>>>(f);
-        mgsp_detail::check_launch("fbar_divergence");
+        fbar::fbar_cell_sums<M, T, TG><<<blocks, kG2P2GThreads, 0, e.stream_>>>(f);
+        mgsp_detail::check_launch("fbar_cell_sums");
         if (e.decomposed()) e.halo_exchange({{e.fbar_sums_.instance().data(), GridFbarBuffer<TG>::kBlockBytes}}, -1);
       }
       int blocks = e.block_count_;

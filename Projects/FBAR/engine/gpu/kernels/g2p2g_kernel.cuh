@@ -134,8 +134,8 @@ struct G2P2GParams {
   T* particle_v_out;
   bool asflip;                ///< this body uses PIC-FLIP / ASFLIP
   AsflipParams<T> asflip_params;
-  typename GridLayout<TG>::FbarBuffer fbar_sums;  ///< F-bar cell sums of this body (fbar_divergence), when fbar_psi > 0
-  T fbar_psi;                ///< [-] F-bar blend, 0: off (transfer.cuh)
+  typename GridLayout<TG>::FbarBuffer fbar_sums;  ///< F-bar cell sums of this body (fbar_cell_sums), when fbar_psi > 0
+  T fbar_psi;                ///< [-] F-bar: the fraction of J pulled to its cell's mean per step, 0: off (transfer.cuh)
   material_params_t<M, T> material;
   T mass;                    ///< [kg] per particle
   T volume;                  ///< [m^3] reference volume per particle
@@ -429,15 +429,18 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
         v = sum.velocity();
         C = sum.affine(p.d_inv);
         if (!(kMayAsflip && p.asflip)) x_new = advect(in.x, v, p.dt);
-        if (p.fbar_psi != T(0)) {  // F-bar: the state advances with the cell's volume rate (transfer.cuh)
+        if (p.fbar_psi != T(0)) {  // F-bar: J is pulled toward its cell's mean, then advanced (transfer.cuh)
           const Vec3i cell = fbar_cell_offset(in.x, p.inv_dx, s.base);
           const int a = c0 + cell[0], b = c1 + cell[1], c = c2 + cell[2];
           const int nb = arena_blocks[g2p2g_detail::arena_neighbour(a, b, c)];
           const int node = g2p2g_detail::arena_node_in_block(a, b, c);
-          const T d = nb < 0 ? T(0)
-                             : fbar_cell_divergence(static_cast<T>(block_val(p.fbar_sums, grid_fbar_volume_rate, nb, node)),
-                                                    static_cast<T>(block_val(p.fbar_sums, grid_fbar_volume, nb, node)));
-          state_new = M::advance(p.material, in.state, fbar_velocity_gradient(C, d, p.fbar_psi), p.dt);
+          const T one_minus_J = T(1) - M::volume_ratio(in.state);
+          const T cell_mean = nb < 0 ? one_minus_J
+                                     : fbar_cell_compression(
+                                           static_cast<T>(block_val(p.fbar_sums, grid_fbar_compression, nb, node)),
+                                           static_cast<T>(block_val(p.fbar_sums, grid_fbar_volume, nb, node)));
+          state_new =
+              M::advance(p.material, in.state, fbar_velocity_gradient(C, one_minus_J, cell_mean, p.fbar_psi, p.dt), p.dt);
         } else {
           state_new = M::advance(p.material, in.state, C, p.dt);
         }
@@ -631,32 +634,28 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
   }
 }
 
-/// F-bar's cell sums of one body (transfer.cuh): per particle, G2P of C from this step's grid velocities, then
-/// V tr C and V (V = V0 J, current volume) added to the particle's cell, cell c stored at node c. Launched per body
-/// between the grid update and its G2P2G, into a zeroed buffer; one CUDA block per particle block, like g2p2g.
+/// F-bar's cell sums of one body (transfer.cuh): per particle, V0 (1 - J) and V0 of the state at the start of the
+/// step added to the particle's cell, cell c stored at node c. Launched per body between the grid update and its
+/// G2P2G, into a zeroed buffer; one CUDA block per particle block, like g2p2g.
 template <typename M, typename T, typename TG>
-struct FbarDivergenceParams {
-  typename ParticleLayout<M, T>::Buffer in;         ///< particles of this step (storage order)
-  LayoutView layout;                                ///< this step's layout
+struct FbarCellSumsParams {
+  typename ParticleLayout<M, T>::Buffer in;  ///< particles of this step (storage order)
+  LayoutView layout;                         ///< this step's layout
   BlockHashTableView table;
-  typename GridLayout<TG>::VelocityBuffer velocity;  ///< grid velocities of this step
-  typename GridLayout<TG>::FbarBuffer sums;          ///< target (zeroed on blocks [0, block count))
-  T volume;                                         ///< [m^3] reference volume per particle
-  T dx, inv_dx, d_inv;                              ///< [m], [1/m], [1/m^2]
+  typename GridLayout<TG>::FbarBuffer sums;  ///< target (zeroed on blocks [0, block count))
+  T volume;                                  ///< [m^3] reference volume per particle
+  T inv_dx;                                  ///< [1/m]
   StepStats* stats;
 };
 
 template <typename M, typename T, typename TG>
-__global__ void __launch_bounds__(kG2P2GThreads) fbar_divergence(FbarDivergenceParams<M, T, TG> p) {
-  __shared__ g2p2g_detail::ArenaVelocity<TG> arena_v[kArenaStorage];
+__global__ void __launch_bounds__(kG2P2GThreads) fbar_cell_sums(FbarCellSumsParams<M, T, TG> p) {
   __shared__ int arena_blocks[8];
   const int block = blockIdx.x;
   const int count = p.layout.count[block];
   if (count == 0) return;
   const Vec3i origin = p.table.block_coords(block);
   g2p2g_detail::find_arena_blocks(p.table, origin, arena_blocks, p.stats);
-  __syncthreads();
-  g2p2g_detail::load_arena_velocities<TG>(p.velocity, arena_blocks, arena_v);
   __syncthreads();
   const int first_slot = p.layout.bin_offset[block] * 32;
   for (int t = threadIdx.x; t < ((count + 31) / 32) * 32; t += blockDim.x) {
@@ -666,20 +665,14 @@ __global__ void __launch_bounds__(kG2P2GThreads) fbar_divergence(FbarDivergenceP
     const QuadraticBspline<T> s = quadratic_bspline_inv(in.x, p.inv_dx);
     const int c0 = min(max(s.base[0] - 4 * origin[0], 0), 5), c1 = min(max(s.base[1] - 4 * origin[1], 0), 5),
               c2 = min(max(s.base[2] - 4 * origin[2], 0), 5);
-    G2PSum<T> sum;
-    g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
-      const g2p2g_detail::ArenaVelocity<TG> node_v = arena_v[g2p2g_detail::arena_index(c0 + i, c1 + j, c2 + k)];
-      sum.add(w, Vec3<T>{{static_cast<T>(node_v.x), static_cast<T>(node_v.y), static_cast<T>(node_v.z)}}, xixp);
-    });
-    const Mat3<T> C = sum.affine(p.d_inv);
-    const T V = p.volume * M::volume_ratio(in.state);
     const Vec3i cell = fbar_cell_offset(in.x, p.inv_dx, s.base);
     const int a = c0 + cell[0], b = c1 + cell[1], c = c2 + cell[2];
     const int nb = arena_blocks[g2p2g_detail::arena_neighbour(a, b, c)];
-    if (nb < 0) continue;  // counted above
+    if (nb < 0) continue;  // counted by find_arena_blocks
     const int node = g2p2g_detail::arena_node_in_block(a, b, c);
-    atomicAdd(&block_val(p.sums, grid_fbar_volume_rate, nb, node), static_cast<TG>(V * (C(0, 0) + C(1, 1) + C(2, 2))));
-    atomicAdd(&block_val(p.sums, grid_fbar_volume, nb, node), static_cast<TG>(V));
+    atomicAdd(&block_val(p.sums, grid_fbar_compression, nb, node),
+              static_cast<TG>(p.volume * (T(1) - M::volume_ratio(in.state))));
+    atomicAdd(&block_val(p.sums, grid_fbar_volume, nb, node), static_cast<TG>(p.volume));
   }
 }
 
