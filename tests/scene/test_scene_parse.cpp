@@ -448,6 +448,37 @@ TEST(SceneParse, GeometryTrackIdsFollowEveryArrayCopy) {
   EXPECT_NE(warnings[0].find("the entry adds no particles"), std::string::npos) << warnings[0];
 }
 
+// A rotated entry turns its whole array about the fulcrum: copy (a, b, c) lies R (a, b, c) x spacing from copy 0.
+// At 90 degrees about z the shifted points are lattice points (exact); at 30 degrees the world lattice does not turn
+// with the copies, and each copy's particle is the nearest, within half a lattice diagonal (sqrt(3)/2 x 0.025 m).
+TEST(SceneParse, GeometryTrackIdsFollowARotatedArray) {
+  for (const double angle : {90.0, 30.0}) {
+    const std::string json = R"({"simulation": {"domain": [1, 1, 1], "default_dx": 0.05},
+      "bodies": [{"material": {"constitutive": "FixedCorotated"},
+                  "geometry": [{"object": "Box", "span": [0.1, 0.1, 0.1], "offset": [0.5, 0.2, 0.3],
+                                "rotate": [0, 0, )" + std::to_string(angle) + R"(], "fulcrum": [0.5, 0.2, 0.3],
+                                "array": [3, 1, 1], "spacing": [0.2, 0, 0], "track_particle_id": [0, 21]}]}]})";
+    const Scene s = parse(json);
+    const BodySpec& b = s.bodies[0];
+    ASSERT_EQ(b.track_particle_id.size(), 2u * 3u) << angle;
+    const std::vector<Vec3d> all = sample_body(b, s.simulation, 0);
+    BodySpec one = b;
+    one.geometry[0].array = Int3{1, 1, 1};
+    const std::vector<Vec3d> copy0 = sample_body(one, s.simulation, 0);
+    const double c = std::cos(angle * M_PI / 180.0), sn = std::sin(angle * M_PI / 180.0);
+    const double tolerance = angle == 90.0 ? 1e-12 : 0.5 * std::sqrt(3.0) * 0.025;
+    std::size_t k = 0;
+    for (long long local : {0, 21})
+      for (int a = 0; a < 3; ++a) {
+        const Vec3d expected = copy0[static_cast<std::size_t>(local)] + Vec3d{{0.2 * a * c, 0.2 * a * sn, 0.0}};
+        const Vec3d got = all[static_cast<std::size_t>(b.track_particle_id[k++])];
+        double d2 = 0;
+        for (int d = 0; d < 3; ++d) d2 += (got[d] - expected[d]) * (got[d] - expected[d]);
+        EXPECT_LE(std::sqrt(d2), tolerance) << "angle " << angle << " local " << local << " copy " << a;
+      }
+  }
+}
+
 TEST(SceneParse, HydroUQSimulationKeys) {
   auto scene = [](const std::string& sim) {
     return R"({"simulation": {"domain": [1, 1, 1], "default_dx": 0.05, )" + sim +
@@ -781,7 +812,7 @@ TEST(SceneWrite, RoundTripOfEveryFeature) {
        "output_attribs": ["ID", "logJp", "StressPK2_1"],
        "geometry": [{"object": "Cylinder", "axis": "Y", "radius": 0.15, "span": [0, 0.5, 0],
                      "offset": [0.3, 0.2, 0.1], "rotate": [10, 20, 30], "fulcrum": [0.4, 0.4, 0.4],
-                     "array": [2, 1, 3], "spacing": [0.4, 0, 0.3], "track_particle_id": [3]},
+                     "array": [2, 1, 3], "spacing": [0.4, 0, 0.3]},
                     {"object": "File", "operation": "Union", "file": "data/points.csv",
                      "scaling": 1.5, "has_attributes": true,
                      "input_attribs": ["Velocity_X", "Velocity_Y", "Velocity_Z", "J"],

@@ -50,6 +50,8 @@ void cos_sin_deg(double deg, double& c, double& s) {
   s = std::sin(rad);
 }
 
+}  // namespace
+
 /// R = Rz(ez) * Ry(ey) * Rx(ex): rotation about X first, then Y, then Z (fixed world axes), angles in degrees.
 Mat3<double> euler_xyz(const Real3& deg) {
   double cx, sx, cy, sy, cz, sz;
@@ -61,6 +63,8 @@ Mat3<double> euler_xyz(const Real3& deg) {
   const Mat3<double> rz{{{cz, -sz, 0}, {sz, cz, 0}, {0, 0, 1}}};
   return rz * (ry * rx);
 }
+
+namespace {
 
 bool all_finite(const Real3& a) { return std::isfinite(a[0]) && std::isfinite(a[1]) && std::isfinite(a[2]); }
 

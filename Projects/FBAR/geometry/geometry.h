@@ -54,6 +54,9 @@
 
 namespace fbar {
 
+/// The rotation of a geometry entry's `rotate` [deg]: R = Rz * Ry * Rx (about X first, then Y, then Z; fixed axes).
+Mat3<double> euler_xyz(const Real3& deg);
+
 /// Axis-aligned box [lo, hi] [m]. Empty when lo > hi in any axis.
 struct Aabb {
   Vec3d lo;

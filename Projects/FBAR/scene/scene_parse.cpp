@@ -1341,15 +1341,17 @@ const rj::Value* optional_array(ObjectReader& root, std::initializer_list<std::s
 /// copy. fbar samples a body as one solid on the global lattice, so its IDs run over the whole body: local ID i is
 /// the i-th particle of the entry's copy 0 sampled alone (same lattice, partition and seed), and copy (a, b, c)
 /// contributes the body's particle at that point shifted by (a, b, c) x spacing (the nearest within half a lattice
-/// step). An entry that adds no particles (Subtract, Intersection, Difference) lists the body's own IDs (a
-/// warning says so). A rotated entry keeps its IDs for the support check to refuse.
+/// step). A rotated entry turns its whole array about its fulcrum, so copy (a, b, c) sits R (a, b, c) x spacing from
+/// copy 0; the world lattice does not turn with it, so the copy's particle is the nearest within half a lattice
+/// diagonal (sqrt(3)/2 steps). An entry that adds no particles (Subtract, Intersection, Difference) lists the body's
+/// own IDs (a warning says so).
 void resolve_copy_track_ids(Scene& scene, const Context& ctx) {
   for (std::size_t bi = 0; bi < scene.bodies.size(); ++bi) {
     BodySpec& b = scene.bodies[bi];
     const std::string bp = "bodies[" + std::to_string(bi) + "]";
     bool pending = false;
     for (const GeometrySpec& g : b.geometry)
-      pending = pending || (!g.track_particle_id.empty() && g.rotate == Real3{0.0, 0.0, 0.0});
+      pending = pending || !g.track_particle_id.empty();
     if (!pending) continue;
     auto add_id = [&](long long id) {
       if (std::find(b.track_particle_id.begin(), b.track_particle_id.end(), id) == b.track_particle_id.end())
@@ -1366,10 +1368,10 @@ void resolve_copy_track_ids(Scene& scene, const Context& ctx) {
                                       static_cast<long long>(std::floor(x[2] / dx))};
     };
     for (std::size_t id = 0; id < all.size(); ++id) cells[cell_of(all[id])].push_back(static_cast<long long>(id));
-    auto nearest = [&](const Vec3d& x) -> long long {
+    auto nearest = [&](const Vec3d& x, double radius_in_steps) -> long long {
       const auto c = cell_of(x);
       long long best = -1;
-      double best_d2 = 0.25 * step * step;
+      double best_d2 = radius_in_steps * radius_in_steps * step * step;
       for (long long i = -1; i <= 1; ++i)
         for (long long j = -1; j <= 1; ++j)
           for (long long k = -1; k <= 1; ++k) {
@@ -1388,7 +1390,7 @@ void resolve_copy_track_ids(Scene& scene, const Context& ctx) {
     };
     for (std::size_t gi = 0; gi < b.geometry.size(); ++gi) {
       GeometrySpec& g = b.geometry[gi];
-      if (g.track_particle_id.empty() || g.rotate != Real3{0.0, 0.0, 0.0}) continue;
+      if (g.track_particle_id.empty()) continue;
       const std::string gp = bp + ".geometry[" + std::to_string(gi) + "].track_particle_id";
       if (g.operation != GeometryOperation::Add && g.operation != GeometryOperation::Union) {
         ctx.warn(gp + ": the entry adds no particles, so its IDs are taken as the body's (ClaymoreUW shifts them by "
@@ -1402,6 +1404,9 @@ void resolve_copy_track_ids(Scene& scene, const Context& ctx) {
       alone.geometry[0].array = Int3{1, 1, 1};
       alone.geometry[0].track_particle_id.clear();
       const std::vector<Vec3d> first = sample_body(alone, scene.simulation, static_cast<int>(bi));
+      const bool rotated = g.rotate != Real3{0.0, 0.0, 0.0};
+      const Mat3<double> rot = euler_xyz(g.rotate);
+      const double radius = rotated ? 0.5 * std::sqrt(3.0) + 1e-9 : 0.5;  // lattice steps
       for (long long local : g.track_particle_id) {
         if (local >= static_cast<long long>(first.size()))
           throw SceneError(gp, std::to_string(local),
@@ -1410,8 +1415,8 @@ void resolve_copy_track_ids(Scene& scene, const Context& ctx) {
           for (int c = 0; c < g.array[1]; ++c)
             for (int d = 0; d < g.array[2]; ++d) {
               const Vec3d shift{{a * g.spacing[0], c * g.spacing[1], d * g.spacing[2]}};
-              const Vec3d at = first[static_cast<std::size_t>(local)] + shift;
-              const long long id = nearest(at);
+              const Vec3d at = first[static_cast<std::size_t>(local)] + (rotated ? rot * shift : shift);
+              const long long id = nearest(at, radius);
               if (id < 0)
                 throw SceneError(gp, std::to_string(local),
                                  "an ID of a particle every copy keeps (copy [" + std::to_string(a) + ", " +

@@ -67,11 +67,6 @@ void check_supported(const Scene& scene) {
                              std::string("an attribute a ") + to_string(m.law) +
                                  " particle stores (logJp seeds NACC and DruckerPrager bodies)");
         }
-      if (!g.track_particle_id.empty())  // resolve_copy_track_ids leaves them on a rotated entry only
-        refuse(gp + ".track_particle_id", std::to_string(g.track_particle_id.size()) + " id(s)",
-               "no geometry-level IDs on a rotated entry with array copies (the body's track_particle_id, or the "
-               "entry without rotate)",
-               "track_particle_id on a rotated array of copies");
     }
     if (b.track_particle_id.empty() && !b.track_attribs.empty())
       throw SceneError(p + ".track_attribs", q(b.track_attribs.front()),
