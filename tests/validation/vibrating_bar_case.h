@@ -83,7 +83,8 @@ BarResult run_bar(double dx, double periods, validation::WallFit fit = validatio
 
   Engine engine(scene);
   engine.set_velocities(0, [&](const Vec3d& x) { return Vec3d{{kV0 * std::sin(kPi * (x[0] - x0) / (2 * kL)), 0, 0}}; });
-  const std::vector<Vec3d> x_ref = engine.positions(0);
+  std::vector<Vec3d> x_ref;  // in double whatever the engine's precision (the study runs single and mixed too)
+  for (const auto& x : engine.positions(0)) x_ref.push_back(x.template cast<double>());
   double tip_ref = 0;
   for (const Vec3d& x : x_ref) tip_ref = std::max(tip_ref, x[0]);
   std::vector<std::size_t> tip;  // the last particle row (largest x)

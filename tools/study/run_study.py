@@ -21,7 +21,16 @@ against cost, the Pareto front marked and labelled) and dam_break_convergence.pn
 scheme, with the observed order between the two finest pairs in the legend); with --gpu the same names ending in
 _gpu. Cost: the run's wall time less the engine's set-up (which the GPU engine prints), per simulated second.
 
-usage: run_study.py [--fbar build/release/fbar] [--gpu] [--out docs/validation] [--work /tmp/fbar_study]
+--problem bar: Bardenhagen's vibrating bar (VALIDATION.md item 3; tests/validation/vibrating_bar_case.h), a clamped
+bar of L = 25 m started in its first mode; exact period T1 = 10 s. A scene file cannot start a bar in a mode, so
+these runs go through fbar_study_cases (tools/study/study_cases.cu), which runs the validation case itself on either
+engine. Error: |T / T1 - 1| of the period from the centre-of-mass velocity's zero crossings (2.6 periods); the CSV
+also has the amplitude lost per period and the largest energy over the run. Sweep: L/dx 12.5 .. 200 (--gpu: up to
+400), the four schemes, single and double (and mixed on the CPU engine). Writes vibrating_bar_study{,_gpu}.csv,
+vibrating_bar_pareto{,_gpu}.png and vibrating_bar_convergence{,_gpu}.png.
+
+usage: run_study.py [--problem dam_break|bar] [--fbar build/release/fbar] [--gpu] [--out docs/validation]
+                    [--work /tmp/fbar_study]
 """
 import argparse
 import csv
@@ -265,16 +274,136 @@ def stability(fbar, backend, work, out, suffix):
     save(fig, out, f"dam_break_stability{suffix}.png")
 
 
+BAR_SCHEMES = ["APIC", "PIC-FLIP", "FLIP", "ASFLIP"]
+
+
+def bar_run(driver, backend, cells, scheme, precision):
+    """One vibrating-bar run through fbar_study_cases; the JSON line it prints, or a failed row."""
+    p = subprocess.run([driver, "--problem=bar", f"--engine={backend}", f"--precision={precision}",
+                        f"--scheme={scheme}", f"--cells={cells}"], capture_output=True, text=True)
+    lines = [ln for ln in p.stdout.splitlines() if ln.startswith("{")]
+    row = json.loads(lines[-1]) if lines else {"status": "failed"}
+    row.update(backend=backend, cells=cells, scheme=scheme, precision=precision)
+    if p.returncode != 0 or row.get("status") != "ok":
+        row["status"] = "failed"
+        row["message"] = (p.stderr.strip().splitlines() or [""])[-1]
+    else:
+        row["s_per_simulated_s"] = row["wall_s"] / row["simulated_s"]
+    return row
+
+
+def bar_charts(rows, out, title_backend, suffix=""):
+    import matplotlib
+    import matplotlib.ticker
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ok = [r for r in rows if r["status"] == "ok" and float(r["period_error"]) > 0]
+    for r in ok:
+        r["cells"] = float(r["cells"])
+    pts = [(float(r["s_per_simulated_s"]), float(r["period_error"])) for r in ok]
+    front = pareto(pts)
+    colors = {name: c for name, c in zip(BAR_SCHEMES, ["C0", "C1", "C2", "C3"])}
+    markers = {"single": "o", "double": "s", "mixed": "^"}
+    error_label = "period error |T / T1 - 1| (exact T1 = 10 s)"
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    for r, (c, e) in zip(ok, pts):
+        ax.scatter(c, e, marker=markers[r["precision"]], color=colors[r["scheme"]], s=10 + 0.3 * r["cells"])
+    ax.plot([pts[i][0] for i in front], [pts[i][1] for i in front], "k--", lw=1, label="Pareto front")
+    labelled = None  # the front's points at one resolution differ by round-off in error: label the cheapest only
+    for i in front:
+        r = ok[i]
+        if labelled is not None and abs(pts[i][1] / pts[labelled][1] - 1) < 0.05:
+            continue
+        labelled = i
+        ax.annotate(f"{r['scheme']}, L/dx {r['cells']:g}, {r['precision']}", pts[i], xytext=(4, 4),
+                    textcoords="offset points", fontsize=7)
+    for name in BAR_SCHEMES:
+        ax.scatter([], [], color=colors[name], label=name)
+    for prec in sorted({r["precision"] for r in ok}):
+        ax.scatter([], [], marker=markers[prec], color="gray", label=prec)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel(f"wall time per simulated second [s] ({title_backend})")
+    ax.set_ylabel(error_label)
+    ax.set_title("Vibrating bar: period error against cost (marker size: L/dx)")
+    ax.legend(fontsize=8)
+    ax.grid(True, which="both", alpha=0.3)
+    save(fig, out, f"vibrating_bar_pareto{suffix}.png")
+
+    fig, ax = plt.subplots(figsize=(7, 5))
+    styles = {"double": "-", "single": ":", "mixed": "--"}
+    for name in BAR_SCHEMES:
+        for prec, style in styles.items():
+            rs = sorted((r for r in ok if r["scheme"] == name and r["precision"] == prec), key=lambda r: r["cells"])
+            if len(rs) < 2:
+                continue
+            n = [r["cells"] for r in rs]
+            e = [float(r["period_error"]) for r in rs]
+            order = f", order {math.log(e[-2] / e[-1]) / math.log(n[-1] / n[-2]):.2f}" if len(rs) >= 3 else ""
+            ax.plot(n, e, style, marker="o", color=colors[name], label=f"{name} ({prec}{order})")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+    ax.set_xticks([12.5, 25, 50, 100, 200, 400])
+    ax.set_xticklabels(["12.5", "25", "50", "100", "200", "400"])
+    ax.set_xlabel("cells per bar length L/dx")
+    ax.set_ylabel(error_label)
+    ax.set_title("Vibrating bar: period error against resolution (order between the two finest)")
+    ax.legend(fontsize=6.5, ncol=2)
+    ax.grid(True, which="both", alpha=0.3)
+    save(fig, out, f"vibrating_bar_convergence{suffix}.png")
+
+
+def bar_study(a):
+    backend = "gpu" if a.gpu else "cpu"
+    suffix = "_gpu" if a.gpu else ""
+    fields = ["backend", "cells", "dx", "scheme", "precision", "status", "period", "period_error",
+              "amplitude_loss_per_period", "energy_max_over_e0", "tip_amplitude_error", "wall_s",
+              "s_per_simulated_s", "steps", "particles", "message"]
+    csv_path = os.path.join(a.out, f"vibrating_bar_study{suffix}.csv")
+    if a.replot:
+        with open(csv_path) as f:
+            rows = list(csv.DictReader(f))
+        bar_charts(rows, a.out, f"{rows[0]['backend']} engine", suffix)
+        return 0
+    driver = a.driver or os.path.join(os.path.dirname(a.fbar), "fbar_study_cases")
+    cells = a.cells or ([12.5, 25, 50, 100, 200, 400] if a.gpu else [12.5, 25, 50, 100, 200])
+    precisions = ("single", "double") if a.gpu else ("single", "double", "mixed")
+    os.makedirs(a.out, exist_ok=True)
+    rows = []
+    for n in cells:
+        for scheme in BAR_SCHEMES:
+            for precision in precisions:
+                r = bar_run(driver, backend, n, scheme, precision)
+                rows.append(r)
+                print(f"{backend} L/dx {n:6g} {scheme:9s} {precision:6s} {r['status']:6s} "
+                      f"period error {r.get('period_error', '')!s:>12s} wall {r.get('wall_s', '')!s:>10s} s "
+                      f"{r.get('message', '')}", flush=True)
+                with open(csv_path, "w", newline="") as f:  # after every run: a cut-off sweep keeps its rows
+                    w = csv.DictWriter(f, fieldnames=fields)
+                    w.writeheader()
+                    for done in rows:
+                        w.writerow({k: done.get(k, "") for k in fields})
+    bar_charts(rows, a.out, f"{backend} engine", suffix)
+    return 0
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--fbar", default=os.path.join(ROOT, "build", "release", "fbar"))
     ap.add_argument("--gpu", action="store_true", help="the GPU engine and larger sizes")
     ap.add_argument("--out", default=os.path.join(ROOT, "docs", "validation"))
     ap.add_argument("--work", default="/tmp/fbar_study")
-    ap.add_argument("--cells", type=int, nargs="+", help="cells per a (default 4 6 8 12 16 24, --gpu: 8 12 16 24 32 48)")
+    ap.add_argument("--cells", type=float, nargs="+",
+                    help="cells per a (default 4 6 8 12 16 24, --gpu: 8 12 16 24 32 48); --problem bar: L/dx")
     ap.add_argument("--replot", action="store_true", help="draw the charts again from the CSV in --out, run nothing")
     ap.add_argument("--stability", action="store_true", help="the stability map (CFL number against scheme) only")
+    ap.add_argument("--problem", choices=["dam_break", "bar"], default="dam_break")
+    ap.add_argument("--driver", help="fbar_study_cases (default: beside --fbar)")
     a = ap.parse_args()
+    if a.problem == "bar":
+        return bar_study(a)
     suffix = "_gpu" if a.gpu else ""  # the CPU study's files are dam_break_*.{csv,png}, the GPU's dam_break_*_gpu.*
     if a.stability:
         os.makedirs(a.out, exist_ok=True)
@@ -286,7 +415,7 @@ def main():
         charts(rows, a.out, f"{rows[0]['backend']} engine", suffix)
         return 0
     backend = "gpu" if a.gpu else "cpu"
-    cells = a.cells or ([8, 12, 16, 24, 32, 48] if a.gpu else [4, 6, 8, 12, 16, 24])
+    cells = [int(c) for c in a.cells] if a.cells else ([8, 12, 16, 24, 32, 48] if a.gpu else [4, 6, 8, 12, 16, 24])
     os.makedirs(a.out, exist_ok=True)
     rows = []
     for n in cells:

@@ -1,0 +1,91 @@
+// fbar_study_cases: one run of a validation case (tests/validation/*_case.h) for the study runner
+// (tools/study/run_study.py --problem bar), on either engine, printed as one JSON line.
+//
+// The cases whose set-up a scene file cannot express (the vibrating bar starts from the first mode's velocity field)
+// run here through the same headers as the validation tests, so the study measures exactly what the tests assert.
+//
+// usage: fbar_study_cases --problem=bar --engine=cpu|gpu --precision=single|double|mixed --scheme=APIC|PIC-FLIP|FLIP|ASFLIP
+//                         --cells=<L/dx> [--periods=2.6]
+// (mixed: CPU engine only.) Exit code 0 with the JSON line, 1 for a failed run (the line says why), 2 for bad usage.
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <string>
+
+#include "../../tests/gpu_engine/gpu_validation_engine.h"
+#include "../../tests/validation/vibrating_bar_case.h"
+#include "MnSystem/Cuda/device_query.h"
+
+namespace {
+
+using namespace fbar;
+
+std::string arg(int argc, char** argv, const char* key, const char* fallback) {
+  const std::size_t n = std::strlen(key);
+  for (int i = 1; i < argc; ++i)
+    if (std::strncmp(argv[i], key, n) == 0 && argv[i][n] == '=') return argv[i] + n + 1;
+  return fallback;
+}
+
+template <class Engine>
+int bar(const bar_case::Scheme& scheme, double cells, double periods, const std::string& tag) {
+  using namespace bar_case;
+  const double dx = kL / cells;
+  const auto start = std::chrono::steady_clock::now();
+  const BarResult r = run_bar<Engine>(dx, periods, validation::WallFit::LastWallNodePlane, scheme);
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (!r.ok || r.peaks.size() < 5) {
+    std::printf("{\"problem\": \"bar\", %s, \"status\": \"failed\"}\n", tag.c_str());
+    return 1;
+  }
+  // Loss of the centre-of-mass velocity amplitude per period, from the extrema at t = 0 and two periods later.
+  const double decay = 1 - std::sqrt(r.peaks[4] / r.peaks[0]);
+  std::printf("{\"problem\": \"bar\", %s, \"status\": \"ok\", \"cells\": %.6g, \"dx\": %.6g, \"period\": %.9g, "
+              "\"period_error\": %.6g, \"amplitude_loss_per_period\": %.6g, \"energy_max_over_e0\": %.9g, "
+              "\"tip_amplitude_error\": %.6g, \"steps\": %lld, \"particles\": %zu, \"wall_s\": %.6g, "
+              "\"simulated_s\": %.6g}\n",
+              tag.c_str(), cells, dx, r.period, std::fabs(r.period / kPeriod - 1), decay, r.energy_max / r.energy0,
+              std::fabs(r.tip_amplitude / kTipAmplitude - 1), r.steps, r.particles, wall, periods * kPeriod);
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const std::string problem = arg(argc, argv, "--problem", "bar");
+  const std::string engine = arg(argc, argv, "--engine", "cpu");
+  const std::string precision = arg(argc, argv, "--precision", "double");
+  const std::string scheme_name = arg(argc, argv, "--scheme", "APIC");
+  const double cells = std::atof(arg(argc, argv, "--cells", "50").c_str());
+  const double periods = std::atof(arg(argc, argv, "--periods", "2.6").c_str());
+  bar_case::Scheme scheme = bar_case::kApic;
+  if (scheme_name == "PIC-FLIP") scheme = {"PIC-FLIP 0.95", 0.95, 0, 0};
+  else if (scheme_name == "FLIP") scheme = {"FLIP", 1.0, 0, 0};
+  else if (scheme_name == "ASFLIP") scheme = {"ASFLIP", 0.95, 0.0, 0.2};
+  else if (scheme_name != "APIC") {
+    std::fprintf(stderr, "fbar_study_cases: --scheme=%s: expected APIC, PIC-FLIP, FLIP or ASFLIP\n", scheme_name.c_str());
+    return 2;
+  }
+  if (problem != "bar" || !(cells > 0) || !(periods >= 2.6)) {
+    std::fprintf(stderr, "fbar_study_cases: expected --problem=bar, --cells > 0 and --periods >= 2.6\n");
+    return 2;
+  }
+  const std::string tag = "\"engine\": \"" + engine + "\", \"precision\": \"" + precision + "\", \"scheme\": \"" +
+                          scheme_name + "\"";
+  if (engine == "cpu") {
+    if (precision == "single") return bar<CpuEngine<float>>(scheme, cells, periods, tag);
+    if (precision == "double") return bar<CpuEngine<double>>(scheme, cells, periods, tag);
+    if (precision == "mixed") return bar<CpuEngine<double, float>>(scheme, cells, periods, tag);
+  } else if (engine == "gpu") {
+    if (cuda::device_count() == 0) {
+      std::fprintf(stderr, "fbar_study_cases: --engine=gpu: %s\n", cuda::no_device_reason().c_str());
+      return 2;
+    }
+    if (precision == "single") return bar<test::GpuValidationEngine<float>>(scheme, cells, periods, tag);
+    if (precision == "double") return bar<test::GpuValidationEngine<double>>(scheme, cells, periods, tag);
+  }
+  std::fprintf(stderr, "fbar_study_cases: --engine=%s --precision=%s: expected cpu (single, double, mixed) or gpu "
+                       "(single, double)\n", engine.c_str(), precision.c_str());
+  return 2;
+}
