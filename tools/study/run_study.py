@@ -29,7 +29,13 @@ also has the amplitude lost per period and the largest energy over the run. Swee
 400), the four schemes, single and double (and mixed on the CPU engine). Writes vibrating_bar_study{,_gpu}.csv,
 vibrating_bar_pareto{,_gpu}.png and vibrating_bar_convergence{,_gpu}.png.
 
-usage: run_study.py [--problem dam_break|bar] [--fbar build/release/fbar] [--gpu] [--out docs/validation]
+--problem hydrostatic: the cb-geo hydrostatic column (VALIDATION.md item 5; tests/validation/hydrostatic_column_case.h)
+from a stress-free start, through fbar_study_cases too. Error: the RMS over particle rows of the time-averaged
+pressure error over rho0 g H; the CSV also has the base pressure error of the middle-half fit, the row
+checkerboard and the bottom cell's error. Sweep: H/dx 5 .. 40 (--gpu: up to 80), F-bar off and on (psi 1), single,
+double (and mixed on the CPU engine). Writes hydrostatic_study{,_gpu}.csv and the two charts.
+
+usage: run_study.py [--problem dam_break|bar|hydrostatic] [--fbar build/release/fbar] [--gpu] [--out docs/validation]
                     [--work /tmp/fbar_study]
 """
 import argparse
@@ -275,15 +281,33 @@ def stability(fbar, backend, work, out, suffix):
 
 
 BAR_SCHEMES = ["APIC", "PIC-FLIP", "FLIP", "ASFLIP"]
+# The problems run through fbar_study_cases: how each is swept, measured and drawn.
+CASES = {
+    "bar": dict(
+        name="Vibrating bar", prefix="vibrating_bar", group="scheme", groups=BAR_SCHEMES, group_label=lambda g: g,
+        error="period_error", error_label="period error |T / T1 - 1| (exact T1 = 10 s)", res="L/dx",
+        res_label="cells per bar length L/dx", cells=[12.5, 25, 50, 100, 200], gpu_cells=[12.5, 25, 50, 100, 200, 400],
+        args=lambda g: [f"--scheme={g}"],
+        fields=["period", "period_error", "amplitude_loss_per_period", "energy_max_over_e0", "tip_amplitude_error"]),
+    "hydrostatic": dict(
+        name="Hydrostatic column", prefix="hydrostatic", group="fbar", groups=["0", "1"],
+        group_label=lambda g: "F-bar" if float(g) else "no F-bar",
+        error="profile_rms", error_label="pressure profile error, RMS over rows / (rho0 g H)", res="H/dx",
+        res_label="cells per column height H/dx", cells=[5, 10, 20, 40], gpu_cells=[5, 10, 20, 40, 80],
+        args=lambda g: [f"--fbar={g}"],
+        fields=["profile_rms", "base_error", "checkerboard", "bottom_cell_error"]),
+}
 
 
-def bar_run(driver, backend, cells, scheme, precision):
-    """One vibrating-bar run through fbar_study_cases; the JSON line it prints, or a failed row."""
-    p = subprocess.run([driver, "--problem=bar", f"--engine={backend}", f"--precision={precision}",
-                        f"--scheme={scheme}", f"--cells={cells}"], capture_output=True, text=True)
+def case_run(driver, problem, backend, cells, group, precision):
+    """One run through fbar_study_cases; the JSON line it prints, or a failed row."""
+    spec = CASES[problem]
+    p = subprocess.run([driver, f"--problem={problem}", f"--engine={backend}", f"--precision={precision}",
+                        f"--cells={cells}"] + spec["args"](group), capture_output=True, text=True)
     lines = [ln for ln in p.stdout.splitlines() if ln.startswith("{")]
     row = json.loads(lines[-1]) if lines else {"status": "failed"}
-    row.update(backend=backend, cells=cells, scheme=scheme, precision=precision)
+    row.update(backend=backend, cells=cells, precision=precision)
+    row[spec["group"]] = group
     if p.returncode != 0 or row.get("status") != "ok":
         row["status"] = "failed"
         row["message"] = (p.stderr.strip().splitlines() or [""])[-1]
@@ -292,100 +316,104 @@ def bar_run(driver, backend, cells, scheme, precision):
     return row
 
 
-def bar_charts(rows, out, title_backend, suffix=""):
+def case_charts(problem, rows, out, title_backend, suffix=""):
     import matplotlib
     import matplotlib.ticker
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    ok = [r for r in rows if r["status"] == "ok" and float(r["period_error"]) > 0]
+    spec = CASES[problem]
+    key, err = spec["group"], spec["error"]
+    ok = [r for r in rows if r["status"] == "ok" and float(r[err]) > 0]
     for r in ok:
         r["cells"] = float(r["cells"])
-    pts = [(float(r["s_per_simulated_s"]), float(r["period_error"])) for r in ok]
+        r[key] = str(r[key])
+    groups = [g for g in spec["groups"] if any(r[key] == g for r in ok)]
+    pts = [(float(r["s_per_simulated_s"]), float(r[err])) for r in ok]
     front = pareto(pts)
-    colors = {name: c for name, c in zip(BAR_SCHEMES, ["C0", "C1", "C2", "C3"])}
+    colors = {g: c for g, c in zip(groups, ["C0", "C1", "C2", "C3"])}
     markers = {"single": "o", "double": "s", "mixed": "^"}
-    error_label = "period error |T / T1 - 1| (exact T1 = 10 s)"
     fig, ax = plt.subplots(figsize=(8, 5.5))
     for r, (c, e) in zip(ok, pts):
-        ax.scatter(c, e, marker=markers[r["precision"]], color=colors[r["scheme"]], s=10 + 0.3 * r["cells"])
+        ax.scatter(c, e, marker=markers[r["precision"]], color=colors[r[key]], s=10 + 0.3 * r["cells"])
     ax.plot([pts[i][0] for i in front], [pts[i][1] for i in front], "k--", lw=1, label="Pareto front")
-    labelled = None  # the front's points at one resolution differ by round-off in error: label the cheapest only
+    labelled = None  # the front's points at one resolution often differ by round-off in error: label the cheapest
     for i in front:
         r = ok[i]
         if labelled is not None and abs(pts[i][1] / pts[labelled][1] - 1) < 0.05:
             continue
         labelled = i
-        ax.annotate(f"{r['scheme']}, L/dx {r['cells']:g}, {r['precision']}", pts[i], xytext=(4, 4),
-                    textcoords="offset points", fontsize=7)
-    for name in BAR_SCHEMES:
-        ax.scatter([], [], color=colors[name], label=name)
+        ax.annotate(f"{spec['group_label'](r[key])}, {spec['res']} {r['cells']:g}, {r['precision']}", pts[i],
+                    xytext=(4, 4), textcoords="offset points", fontsize=7)
+    for g in groups:
+        ax.scatter([], [], color=colors[g], label=spec["group_label"](g))
     for prec in sorted({r["precision"] for r in ok}):
         ax.scatter([], [], marker=markers[prec], color="gray", label=prec)
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel(f"wall time per simulated second [s] ({title_backend})")
-    ax.set_ylabel(error_label)
-    ax.set_title("Vibrating bar: period error against cost (marker size: L/dx)")
+    ax.set_ylabel(spec["error_label"])
+    ax.set_title(f"{spec['name']}: error against cost (marker size: {spec['res']})")
     ax.legend(fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
-    save(fig, out, f"vibrating_bar_pareto{suffix}.png")
+    save(fig, out, f"{spec['prefix']}_pareto{suffix}.png")
 
     fig, ax = plt.subplots(figsize=(7, 5))
     styles = {"double": "-", "single": ":", "mixed": "--"}
-    for name in BAR_SCHEMES:
+    for g in groups:
         for prec, style in styles.items():
-            rs = sorted((r for r in ok if r["scheme"] == name and r["precision"] == prec), key=lambda r: r["cells"])
+            rs = sorted((r for r in ok if r[key] == g and r["precision"] == prec), key=lambda r: r["cells"])
             if len(rs) < 2:
                 continue
             n = [r["cells"] for r in rs]
-            e = [float(r["period_error"]) for r in rs]
+            e = [float(r[err]) for r in rs]
             order = f", order {math.log(e[-2] / e[-1]) / math.log(n[-1] / n[-2]):.2f}" if len(rs) >= 3 else ""
-            ax.plot(n, e, style, marker="o", color=colors[name], label=f"{name} ({prec}{order})")
+            ax.plot(n, e, style, marker="o", color=colors[g], label=f"{spec['group_label'](g)} ({prec}{order})")
     ax.set_xscale("log")
     ax.set_yscale("log")
+    ticks = sorted({r["cells"] for r in ok})
     ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
-    ax.set_xticks([12.5, 25, 50, 100, 200, 400])
-    ax.set_xticklabels(["12.5", "25", "50", "100", "200", "400"])
-    ax.set_xlabel("cells per bar length L/dx")
-    ax.set_ylabel(error_label)
-    ax.set_title("Vibrating bar: period error against resolution (order between the two finest)")
+    ax.set_xticks(ticks)
+    ax.set_xticklabels([f"{t:g}" for t in ticks])
+    ax.set_xlabel(spec["res_label"])
+    ax.set_ylabel(spec["error_label"])
+    ax.set_title(f"{spec['name']}: error against resolution (order between the two finest)")
     ax.legend(fontsize=6.5, ncol=2)
     ax.grid(True, which="both", alpha=0.3)
-    save(fig, out, f"vibrating_bar_convergence{suffix}.png")
+    save(fig, out, f"{spec['prefix']}_convergence{suffix}.png")
 
 
-def bar_study(a):
+def case_study(a):
+    spec = CASES[a.problem]
     backend = "gpu" if a.gpu else "cpu"
     suffix = "_gpu" if a.gpu else ""
-    fields = ["backend", "cells", "dx", "scheme", "precision", "status", "period", "period_error",
-              "amplitude_loss_per_period", "energy_max_over_e0", "tip_amplitude_error", "wall_s",
-              "s_per_simulated_s", "steps", "particles", "message"]
-    csv_path = os.path.join(a.out, f"vibrating_bar_study{suffix}.csv")
+    fields = (["backend", "cells", "dx", spec["group"], "precision", "status"] + spec["fields"] +
+              ["wall_s", "s_per_simulated_s", "steps", "particles", "message"])
+    csv_path = os.path.join(a.out, f"{spec['prefix']}_study{suffix}.csv")
     if a.replot:
         with open(csv_path) as f:
             rows = list(csv.DictReader(f))
-        bar_charts(rows, a.out, f"{rows[0]['backend']} engine", suffix)
+        case_charts(a.problem, rows, a.out, f"{rows[0]['backend']} engine", suffix)
         return 0
     driver = a.driver or os.path.join(os.path.dirname(a.fbar), "fbar_study_cases")
-    cells = a.cells or ([12.5, 25, 50, 100, 200, 400] if a.gpu else [12.5, 25, 50, 100, 200])
+    cells = a.cells or (spec["gpu_cells"] if a.gpu else spec["cells"])
     precisions = ("single", "double") if a.gpu else ("single", "double", "mixed")
     os.makedirs(a.out, exist_ok=True)
     rows = []
     for n in cells:
-        for scheme in BAR_SCHEMES:
+        for g in spec["groups"]:
             for precision in precisions:
-                r = bar_run(driver, backend, n, scheme, precision)
+                r = case_run(driver, a.problem, backend, n, g, precision)
                 rows.append(r)
-                print(f"{backend} L/dx {n:6g} {scheme:9s} {precision:6s} {r['status']:6s} "
-                      f"period error {r.get('period_error', '')!s:>12s} wall {r.get('wall_s', '')!s:>10s} s "
+                print(f"{backend} {spec['res']} {n:6g} {spec['group_label'](g):9s} {precision:6s} {r['status']:6s} "
+                      f"error {r.get(spec['error'], '')!s:>12s} wall {r.get('wall_s', '')!s:>10s} s "
                       f"{r.get('message', '')}", flush=True)
                 with open(csv_path, "w", newline="") as f:  # after every run: a cut-off sweep keeps its rows
                     w = csv.DictWriter(f, fieldnames=fields)
                     w.writeheader()
                     for done in rows:
                         w.writerow({k: done.get(k, "") for k in fields})
-    bar_charts(rows, a.out, f"{backend} engine", suffix)
+    case_charts(a.problem, rows, a.out, f"{backend} engine", suffix)
     return 0
 
 
@@ -399,11 +427,11 @@ def main():
                     help="cells per a (default 4 6 8 12 16 24, --gpu: 8 12 16 24 32 48); --problem bar: L/dx")
     ap.add_argument("--replot", action="store_true", help="draw the charts again from the CSV in --out, run nothing")
     ap.add_argument("--stability", action="store_true", help="the stability map (CFL number against scheme) only")
-    ap.add_argument("--problem", choices=["dam_break", "bar"], default="dam_break")
+    ap.add_argument("--problem", choices=["dam_break", "bar", "hydrostatic"], default="dam_break")
     ap.add_argument("--driver", help="fbar_study_cases (default: beside --fbar)")
     a = ap.parse_args()
-    if a.problem == "bar":
-        return bar_study(a)
+    if a.problem in CASES:
+        return case_study(a)
     suffix = "_gpu" if a.gpu else ""  # the CPU study's files are dam_break_*.{csv,png}, the GPU's dam_break_*_gpu.*
     if a.stability:
         os.makedirs(a.out, exist_ok=True)

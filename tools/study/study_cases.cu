@@ -4,8 +4,9 @@
 // The cases whose set-up a scene file cannot express (the vibrating bar starts from the first mode's velocity field)
 // run here through the same headers as the validation tests, so the study measures exactly what the tests assert.
 //
-// usage: fbar_study_cases --problem=bar --engine=cpu|gpu --precision=single|double|mixed --scheme=APIC|PIC-FLIP|FLIP|ASFLIP
-//                         --cells=<L/dx> [--periods=2.6]
+// usage: fbar_study_cases --problem=bar|hydrostatic --engine=cpu|gpu --precision=single|double|mixed
+//                         --scheme=APIC|PIC-FLIP|FLIP|ASFLIP (bar) --fbar=<psi> (hydrostatic) --cells=<L/dx or H/dx>
+//                         [--periods=2.6] (bar)
 // (mixed: CPU engine only.) Exit code 0 with the JSON line, 1 for a failed run (the line says why), 2 for bad usage.
 #include <chrono>
 #include <cmath>
@@ -14,6 +15,7 @@
 #include <string>
 
 #include "../../tests/gpu_engine/gpu_validation_engine.h"
+#include "../../tests/validation/hydrostatic_column_case.h"
 #include "../../tests/validation/vibrating_bar_case.h"
 #include "MnSystem/Cuda/device_query.h"
 
@@ -50,6 +52,28 @@ int bar(const bar_case::Scheme& scheme, double cells, double periods, const std:
   return 0;
 }
 
+/// The hydrostatic column from rest without stress (hydrostatic_column_case.h, the cb-geo procedure) to t = 0.6 s.
+template <typename T, typename TG, class Engine>
+int column(double cells, double psi, const std::string& tag) {
+  using namespace hydrostatic_case;
+  const double dx = kH / cells;
+  const double t_end = 0.6;
+  const auto start = std::chrono::steady_clock::now();
+  const ColumnResult r =
+      run_column<T, TG, Engine>(dx, Start::StressFree, t_end, validation::WallFit::LastWallNodePlane, psi);
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (!r.ok) {
+    std::printf("{\"problem\": \"hydrostatic\", %s, \"status\": \"failed\"}\n", tag.c_str());
+    return 1;
+  }
+  std::printf("{\"problem\": \"hydrostatic\", %s, \"status\": \"ok\", \"cells\": %.6g, \"dx\": %.6g, "
+              "\"profile_rms\": %.6g, \"base_error\": %.6g, \"checkerboard\": %.6g, \"bottom_cell_error\": %.6g, "
+              "\"steps\": %lld, \"particles\": %zu, \"wall_s\": %.6g, \"simulated_s\": %.6g}\n",
+              tag.c_str(), cells, dx, r.profile_rms, std::fabs(r.base_fit_error()), r.checkerboard,
+              r.cell_error.empty() ? 0.0 : std::fabs(r.cell_error.front()), r.steps, r.particles, wall, t_end);
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -67,12 +91,26 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "fbar_study_cases: --scheme=%s: expected APIC, PIC-FLIP, FLIP or ASFLIP\n", scheme_name.c_str());
     return 2;
   }
-  if (problem != "bar" || !(cells > 0) || !(periods >= 2.6)) {
-    std::fprintf(stderr, "fbar_study_cases: expected --problem=bar, --cells > 0 and --periods >= 2.6\n");
+  if ((problem != "bar" && problem != "hydrostatic") || !(cells > 0) || !(periods >= 2.6)) {
+    std::fprintf(stderr, "fbar_study_cases: expected --problem=bar or hydrostatic, --cells > 0 and --periods >= 2.6\n");
     return 2;
   }
+  const double psi = std::atof(arg(argc, argv, "--fbar", "0").c_str());
   const std::string tag = "\"engine\": \"" + engine + "\", \"precision\": \"" + precision + "\", \"scheme\": \"" +
-                          scheme_name + "\"";
+                          scheme_name + "\", \"fbar\": " + std::to_string(psi);
+  if (problem == "hydrostatic") {
+    if (engine == "cpu") {
+      if (precision == "single") return column<float, float, CpuEngine<float>>(cells, psi, tag);
+      if (precision == "double") return column<double, double, CpuEngine<double>>(cells, psi, tag);
+      if (precision == "mixed") return column<double, float, CpuEngine<double, float>>(cells, psi, tag);
+    } else if (engine == "gpu" && cuda::device_count() > 0) {
+      if (precision == "single") return column<float, float, test::GpuValidationEngine<float>>(cells, psi, tag);
+      if (precision == "double") return column<double, double, test::GpuValidationEngine<double>>(cells, psi, tag);
+    }
+    std::fprintf(stderr, "fbar_study_cases: --engine=%s --precision=%s: not available here\n", engine.c_str(),
+                 precision.c_str());
+    return 2;
+  }
   if (engine == "cpu") {
     if (precision == "single") return bar<CpuEngine<float>>(scheme, cells, periods, tag);
     if (precision == "double") return bar<CpuEngine<double>>(scheme, cells, periods, tag);
