@@ -27,6 +27,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <vector>
@@ -52,11 +53,14 @@ struct GranularResult {
   std::size_t particles = 0;
 };
 
+/// dx: the grid spacing (the validation's is kGranularDx; the study runner sweeps it). scheme: ASFLIP (alpha,
+/// beta_min, beta_max), all 0 for APIC.
 template <class Engine = CpuEngine<double>>
-GranularResult run_granular_collapse(const char* engine_name) {
+GranularResult run_granular_collapse(const char* engine_name, double dx = kGranularDx,
+                                     std::array<double, 3> scheme = {0.0, 0.0, 0.0}) {
   using validation::r3;
   validation::Stopwatch clock;
-  const double kL0 = kGranularL0, kH0 = kGranularH0, kDx = kGranularDx;
+  const double kL0 = kGranularL0, kH0 = kGranularH0, kDx = dx;
   const auto fit = validation::WallFit::LastWallNodePlane;
   const double x0 = kDx + validation::wall_inset(fit, kDx), y0 = x0, z0 = x0;
   Scene scene = validation::make_scene(r3(x0 + 5.0, y0 + kH0 + 4 * kDx, z0 + 2.5 * kDx), kDx, r3(0, -9.81, 0));
@@ -65,6 +69,10 @@ GranularResult run_granular_collapse(const char* engine_name) {
   sand.material.poisson_ratio = 0.2;
   sand.material.friction_angle = DruckerPrager::plane_strain_friction_angle(kGranularPhi);
   sand.material.cohesion = 0.0;
+  sand.algorithm.use_asflip = true;
+  sand.algorithm.asflip_alpha = scheme[0];
+  sand.algorithm.asflip_beta_min = scheme[1];
+  sand.algorithm.asflip_beta_max = scheme[2];
   validation::add_box(sand, r3(x0, y0, z0), r3(kL0, kH0, kDx));
   scene.bodies.push_back(sand);
   const double far = validation::kFar;
@@ -74,10 +82,10 @@ GranularResult run_granular_collapse(const char* engine_name) {
 
   Engine engine(scene);
   GranularResult result;
-  const std::vector<double> m = engine.masses(0);
+  const auto m = engine.masses(0);  // the engine's scalar type (the study runs single precision too)
   double potential0 = 0;
   for (std::size_t p = 0; p < engine.particle_count(0); ++p)
-    potential0 += m[p] * 9.81 * (engine.positions(0)[p][1] - y0);
+    potential0 += static_cast<double>(m[p]) * 9.81 * (static_cast<double>(engine.positions(0)[p][1]) - y0);
   const StepReport r = engine.advance_to(3.0);
   if (!r.ok) {
     ADD_FAILURE() << r.message();
@@ -86,8 +94,8 @@ GranularResult run_granular_collapse(const char* engine_name) {
   double potential = 0;
   std::vector<double> reach, height;
   for (std::size_t p = 0; p < engine.particle_count(0); ++p) {
-    const Vec3d& x = engine.positions(0)[p];
-    potential += m[p] * 9.81 * (x[1] - y0);
+    const Vec3d x = engine.positions(0)[p].template cast<double>();
+    potential += static_cast<double>(m[p]) * 9.81 * (x[1] - y0);
     reach.push_back(x[0] - x0);
     height.push_back(x[1] - y0);
   }

@@ -5,7 +5,9 @@
 // run here through the same headers as the validation tests, so the study measures exactly what the tests assert.
 //
 // usage: fbar_study_cases --problem=bar|hydrostatic --engine=cpu|gpu --precision=single|double|mixed
-//                         --scheme=APIC|PIC-FLIP|FLIP|ASFLIP (bar) --fbar=<psi> (hydrostatic) --cells=<L/dx or H/dx>
+//                         --problem=granular (the same schemes; --cells = H0/dx, 20 in the validation)
+//                         --scheme=APIC|PIC-FLIP|FLIP|ASFLIP (bar, granular) --fbar=<psi> (hydrostatic)
+//                         --cells=<L/dx or H/dx>
 //                         [--periods=2.6] (bar)
 // (mixed: CPU engine only.) Exit code 0 with the JSON line, 1 for a failed run (the line says why), 2 for bad usage.
 #include <chrono>
@@ -15,6 +17,7 @@
 #include <string>
 
 #include "../../tests/gpu_engine/gpu_validation_engine.h"
+#include "../../tests/validation/granular_collapse_case.h"
 #include "../../tests/validation/hydrostatic_column_case.h"
 #include "../../tests/validation/vibrating_bar_case.h"
 #include "MnSystem/Cuda/device_query.h"
@@ -74,6 +77,28 @@ int column(double cells, double psi, const std::string& tag) {
   return 0;
 }
 
+/// The granular column collapse (granular_collapse_case.h, Lube et al. 2005, a = 0.5) to rest at t = 3 s.
+template <class Engine>
+int granular(const bar_case::Scheme& scheme, double cells, const std::string& tag) {
+  using namespace granular_case;
+  const double dx = kGranularH0 / cells;
+  const auto start = std::chrono::steady_clock::now();
+  const GranularResult r = run_granular_collapse<Engine>("study", dx, {scheme.alpha, scheme.beta_min, scheme.beta_max});
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (!r.ok) {
+    std::printf("{\"problem\": \"granular\", %s, \"status\": \"failed\"}\n", tag.c_str());
+    return 1;
+  }
+  // Lube et al.'s runout for a = 0.5 is 1.2 a = 0.6 (experimental band +-20 %).
+  std::printf("{\"problem\": \"granular\", %s, \"status\": \"ok\", \"cells\": %.6g, \"dx\": %.6g, "
+              "\"runout\": %.6g, \"runout_error_vs_lube\": %.6g, \"height_ratio\": %.6g, "
+              "\"kinetic_over_released\": %.6g, \"steps\": %lld, \"particles\": %zu, \"wall_s\": %.6g, "
+              "\"simulated_s\": 3}\n",
+              tag.c_str(), cells, dx, r.runout, std::fabs(r.runout / 0.6 - 1), r.height_ratio, r.kinetic / r.released,
+              r.steps, r.particles, wall);
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -91,13 +116,27 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "fbar_study_cases: --scheme=%s: expected APIC, PIC-FLIP, FLIP or ASFLIP\n", scheme_name.c_str());
     return 2;
   }
-  if ((problem != "bar" && problem != "hydrostatic") || !(cells > 0) || !(periods >= 2.6)) {
-    std::fprintf(stderr, "fbar_study_cases: expected --problem=bar or hydrostatic, --cells > 0 and --periods >= 2.6\n");
+  if ((problem != "bar" && problem != "hydrostatic" && problem != "granular") || !(cells > 0) || !(periods >= 2.6)) {
+    std::fprintf(stderr, "fbar_study_cases: expected --problem=bar, hydrostatic or granular, --cells > 0 and "
+                         "--periods >= 2.6\n");
     return 2;
   }
   const double psi = std::atof(arg(argc, argv, "--fbar", "0").c_str());
   const std::string tag = "\"engine\": \"" + engine + "\", \"precision\": \"" + precision + "\", \"scheme\": \"" +
                           scheme_name + "\", \"fbar\": " + std::to_string(psi);
+  if (problem == "granular") {
+    if (engine == "cpu") {
+      if (precision == "single") return granular<CpuEngine<float>>(scheme, cells, tag);
+      if (precision == "double") return granular<CpuEngine<double>>(scheme, cells, tag);
+      if (precision == "mixed") return granular<CpuEngine<double, float>>(scheme, cells, tag);
+    } else if (engine == "gpu" && cuda::device_count() > 0) {
+      if (precision == "single") return granular<test::GpuValidationEngine<float>>(scheme, cells, tag);
+      if (precision == "double") return granular<test::GpuValidationEngine<double>>(scheme, cells, tag);
+    }
+    std::fprintf(stderr, "fbar_study_cases: --engine=%s --precision=%s: not available here\n", engine.c_str(),
+                 precision.c_str());
+    return 2;
+  }
   if (problem == "hydrostatic") {
     if (engine == "cpu") {
       if (precision == "single") return column<float, float, CpuEngine<float>>(cells, psi, tag);
