@@ -41,7 +41,11 @@ the CSV also has the runout, H_inf / H0 and the kinetic energy left. The charts 
 finest APIC double run instead (the experiment's mean is not a converged answer: the runs cross it). Sweep: H0/dx 5, 10 (--gpu: 5 .. 40), the four
 schemes, the precisions as above.
 
-usage: run_study.py [--problem dam_break|bar|hydrostatic|granular] [--fbar build/release/fbar] [--gpu] [--out docs/validation]
+--problem disks: the two elastic disks of tests/validation/two_disks_case.h (Sulsky et al. 1994) to 4.5 s. Error: the
+energy lost (the continuum impact is elastic, so a converged run loses none); the CSV also has the largest energy
+over E0, the restitution and the momentum drift. Sweep: R/dx 4, 8, 16 (--gpu: to 32), the four schemes.
+
+usage: run_study.py [--problem dam_break|bar|hydrostatic|granular|disks] [--fbar build/release/fbar] [--gpu] [--out docs/validation]
                     [--work /tmp/fbar_study]
 """
 import argparse
@@ -309,6 +313,12 @@ CASES = {
         res_label="cells per column height H0/dx", cells=[5, 10], gpu_cells=[5, 10, 20, 40],
         args=lambda g: [f"--scheme={g}"],
         fields=["runout", "runout_error_vs_lube", "height_ratio", "kinetic_over_released"]),
+    "disks": dict(
+        name="Two-disk impact", prefix="two_disks", group="scheme", groups=BAR_SCHEMES, group_label=lambda g: g,
+        error="energy_lost", error_label="energy lost by t = 4.5 s / E0 (the continuum impact is elastic)",
+        res="R/dx", res_label="cells per disk radius R/dx", cells=[4, 8, 16], gpu_cells=[4, 8, 16, 32],
+        args=lambda g: [f"--scheme={g}"],
+        fields=["energy_lost", "energy_max_over_e0", "restitution", "momentum_drift"]),
 }
 
 
@@ -446,7 +456,7 @@ def main():
                     help="cells per a (default 4 6 8 12 16 24, --gpu: 8 12 16 24 32 48); --problem bar: L/dx")
     ap.add_argument("--replot", action="store_true", help="draw the charts again from the CSV in --out, run nothing")
     ap.add_argument("--stability", action="store_true", help="the stability map (CFL number against scheme) only")
-    ap.add_argument("--problem", choices=["dam_break", "bar", "hydrostatic", "granular"], default="dam_break")
+    ap.add_argument("--problem", choices=["dam_break", "bar", "hydrostatic", "granular", "disks"], default="dam_break")
     ap.add_argument("--driver", help="fbar_study_cases (default: beside --fbar)")
     a = ap.parse_args()
     if a.problem in CASES:

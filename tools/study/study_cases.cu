@@ -6,6 +6,7 @@
 //
 // usage: fbar_study_cases --problem=bar|hydrostatic --engine=cpu|gpu --precision=single|double|mixed
 //                         --problem=granular (the same schemes; --cells = H0/dx, 20 in the validation)
+//                         --problem=disks (the same schemes; --cells = R/dx, 4 to 16 in the validation)
 //                         --scheme=APIC|PIC-FLIP|FLIP|ASFLIP (bar, granular) --fbar=<psi> (hydrostatic)
 //                         --cells=<L/dx or H/dx>
 //                         [--periods=2.6] (bar)
@@ -19,6 +20,7 @@
 #include "../../tests/gpu_engine/gpu_validation_engine.h"
 #include "../../tests/validation/granular_collapse_case.h"
 #include "../../tests/validation/hydrostatic_column_case.h"
+#include "../../tests/validation/two_disks_case.h"
 #include "../../tests/validation/vibrating_bar_case.h"
 #include "MnSystem/Cuda/device_query.h"
 
@@ -99,6 +101,28 @@ int granular(const bar_case::Scheme& scheme, double cells, const std::string& ta
   return 0;
 }
 
+/// Two elastic disks colliding (two_disks_case.h, Sulsky et al. 1994) to t = 4.5 s: the energy lost is the error
+/// (the continuum impact is elastic).
+template <class Engine>
+int disks(const bar_case::Scheme& s, double cells, const std::string& tag) {
+  using namespace disks_case;
+  const double dx = kR / cells;
+  const auto start = std::chrono::steady_clock::now();
+  const DisksResult r = run_disks<Engine>(dx, 4.5, disks_case::Scheme{s.name, s.alpha, s.beta_min, s.beta_max});
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (!r.ok) {
+    std::printf("{\"problem\": \"disks\", %s, \"status\": \"failed\"}\n", tag.c_str());
+    return 1;
+  }
+  std::printf("{\"problem\": \"disks\", %s, \"status\": \"ok\", \"cells\": %.6g, \"dx\": %.6g, "
+              "\"energy_lost\": %.6g, \"energy_max_over_e0\": %.9g, \"restitution\": %.6g, "
+              "\"momentum_drift\": %.3g, \"steps\": %lld, \"particles\": %zu, \"wall_s\": %.6g, "
+              "\"simulated_s\": 4.5}\n",
+              tag.c_str(), cells, dx, 1 - r.energy_end / r.energy0, r.energy_max / r.energy0, -r.v_end[0][0] / kSpeed,
+              r.momentum_drift, r.steps, r.particles, wall);
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -116,14 +140,28 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "fbar_study_cases: --scheme=%s: expected APIC, PIC-FLIP, FLIP or ASFLIP\n", scheme_name.c_str());
     return 2;
   }
-  if ((problem != "bar" && problem != "hydrostatic" && problem != "granular") || !(cells > 0) || !(periods >= 2.6)) {
-    std::fprintf(stderr, "fbar_study_cases: expected --problem=bar, hydrostatic or granular, --cells > 0 and "
+  if ((problem != "bar" && problem != "hydrostatic" && problem != "granular" && problem != "disks") || !(cells > 0) ||
+      !(periods >= 2.6)) {
+    std::fprintf(stderr, "fbar_study_cases: expected --problem=bar, hydrostatic, granular or disks, --cells > 0 and "
                          "--periods >= 2.6\n");
     return 2;
   }
   const double psi = std::atof(arg(argc, argv, "--fbar", "0").c_str());
   const std::string tag = "\"engine\": \"" + engine + "\", \"precision\": \"" + precision + "\", \"scheme\": \"" +
                           scheme_name + "\", \"fbar\": " + std::to_string(psi);
+  if (problem == "disks") {
+    if (engine == "cpu") {
+      if (precision == "single") return disks<CpuEngine<float>>(scheme, cells, tag);
+      if (precision == "double") return disks<CpuEngine<double>>(scheme, cells, tag);
+      if (precision == "mixed") return disks<CpuEngine<double, float>>(scheme, cells, tag);
+    } else if (engine == "gpu" && cuda::device_count() > 0) {
+      if (precision == "single") return disks<test::GpuValidationEngine<float>>(scheme, cells, tag);
+      if (precision == "double") return disks<test::GpuValidationEngine<double>>(scheme, cells, tag);
+    }
+    std::fprintf(stderr, "fbar_study_cases: --engine=%s --precision=%s: not available here\n", engine.c_str(),
+                 precision.c_str());
+    return 2;
+  }
   if (problem == "granular") {
     if (engine == "cpu") {
       if (precision == "single") return granular<CpuEngine<float>>(scheme, cells, tag);
