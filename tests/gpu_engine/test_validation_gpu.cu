@@ -106,8 +106,7 @@ using GpuDouble = test::GpuValidationEngine<double>;
 TEST(GpuValidation, VibratingBarPeriodAndDecayPerScheme) {
   FBAR_REQUIRE_DEVICE();
   using namespace bar_case;
-  const Scheme schemes[] = {kApic, {"PIC-FLIP 0.95", 0.95, 0, 0}, {"FLIP", 1.0, 0, 0}, {"ASFLIP", 0.95, 0.0, 0.2}};
-  for (const Scheme& sc : schemes) {
+  for (const Scheme& sc : validation::kTransferSchemes) {
     SCOPED_TRACE(sc.name);
     const BarResult r = run_bar<GpuDouble>(0.5, 2.6, validation::WallFit::LastWallNodePlane, sc);
     ASSERT_TRUE(r.ok);

@@ -11,6 +11,7 @@
 
 #include "engine/run_constants.h"
 #include "physics/boundary.cuh"
+#include "physics/constitutive_models.cuh"
 #include "physics/grid_update.cuh"
 #include "physics/motion_path.h"
 #include "physics_test_support.h"
@@ -520,6 +521,14 @@ TEST(Fbar, VelocityGradientAndCell) {
   }
   EXPECT_EQ(max_abs(fbar_velocity_gradient(C, one_minus_J, one_minus_J, 1.0, dt) - C), 0.0);
   EXPECT_EQ(max_abs(fbar_velocity_gradient(C, one_minus_J, cell, 0.0, dt) - C), 0.0);
+  // F-bar reads 1 - J through one_minus_volume_ratio: JFluid's stored value exactly (in float, 1 - (1 - u) would
+  // keep 1e-7 only to the quantum of J near 1, 6e-8), every other law's 1 - volume_ratio.
+  const JFluidState<float> fluid{1e-7f};
+  EXPECT_EQ(one_minus_volume_ratio<JFluid>(fluid), 1e-7f);
+  EXPECT_NE(1.0f - JFluid::volume_ratio(fluid), 1e-7f);
+  FixedCorotatedState<double> solid{Mat3d::identity()};
+  solid.F(0, 0) = 1.01;
+  EXPECT_DOUBLE_EQ(one_minus_volume_ratio<FixedCorotated>(solid), 1.0 - FixedCorotated::volume_ratio(solid));
   EXPECT_EQ(fbar_cell_compression(0.0, 0.0), 0.0);
   EXPECT_DOUBLE_EQ(fbar_cell_compression(3e-12, 2e-6), 1.5e-6);
   const double dx = 0.1;

@@ -27,7 +27,6 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <cstdio>
 #include <vector>
@@ -53,11 +52,10 @@ struct GranularResult {
   std::size_t particles = 0;
 };
 
-/// dx: the grid spacing (the validation's is kGranularDx; the study runner sweeps it). scheme: ASFLIP (alpha,
-/// beta_min, beta_max), all 0 for APIC.
+/// dx: the grid spacing (the validation's is kGranularDx; the study runner sweeps it and the transfer scheme).
 template <class Engine = CpuEngine<double>>
 GranularResult run_granular_collapse(const char* engine_name, double dx = kGranularDx,
-                                     std::array<double, 3> scheme = {0.0, 0.0, 0.0}) {
+                                     const validation::Scheme& scheme = validation::kApic) {
   using validation::r3;
   validation::Stopwatch clock;
   const double kL0 = kGranularL0, kH0 = kGranularH0, kDx = dx;
@@ -69,10 +67,7 @@ GranularResult run_granular_collapse(const char* engine_name, double dx = kGranu
   sand.material.poisson_ratio = 0.2;
   sand.material.friction_angle = DruckerPrager::plane_strain_friction_angle(kGranularPhi);
   sand.material.cohesion = 0.0;
-  sand.algorithm.use_asflip = true;
-  sand.algorithm.asflip_alpha = scheme[0];
-  sand.algorithm.asflip_beta_min = scheme[1];
-  sand.algorithm.asflip_beta_max = scheme[2];
+  validation::set_scheme(sand, scheme);
   validation::add_box(sand, r3(x0, y0, z0), r3(kL0, kH0, kDx));
   scene.bodies.push_back(sand);
   const double far = validation::kFar;

@@ -65,9 +65,8 @@ TEST(TwoDisks, MomentumEnergyAndRebound) {
 // Measured (CPU, double): energy lost APIC 12.04 %, PIC-FLIP 0.95 4.58 %, FLIP 4.44 %, ASFLIP (0.95, 0, 0.2) 4.56 %;
 // restitution 0.919, 0.952, 0.952, 0.952.
 TEST(TwoDisks, EnergyPerTransferScheme) {
-  const Scheme schemes[] = {kApic, {"PIC-FLIP 0.95", 0.95, 0, 0}, {"FLIP", 1.0, 0, 0}, {"ASFLIP", 0.95, 0.0, 0.2}};
   double apic_loss = 0;
-  for (const Scheme& s : schemes) {
+  for (const Scheme& s : validation::kTransferSchemes) {
     SCOPED_TRACE(s.name);
     const DisksResult r = run_disks(0.025, 4.5, s);
     ASSERT_TRUE(r.ok);

@@ -68,11 +68,8 @@ Vec3d body_velocity(Engine& engine, int body) {
   return p / m;
 }
 
-struct Scheme {
-  const char* name;
-  double alpha, beta_min, beta_max;
-};
-constexpr Scheme kApic{"APIC", 0, 0, 0};
+using validation::kApic;
+using validation::Scheme;
 
 template <class Engine = CpuEngine<double>>
 DisksResult run_disks(double dx, double t_end, const Scheme& scheme = kApic) {
@@ -84,10 +81,7 @@ DisksResult run_disks(double dx, double t_end, const Scheme& scheme = kApic) {
   for (int d = 0; d < 2; ++d) {
     const double c = kShift + (d == 0 ? -0.3 : 0.3);
     BodySpec disk = validation::fixed_corotated_body(kRho, kE, kNu);
-    disk.algorithm.use_asflip = true;
-    disk.algorithm.asflip_alpha = scheme.alpha;
-    disk.algorithm.asflip_beta_min = scheme.beta_min;
-    disk.algorithm.asflip_beta_max = scheme.beta_max;
+    validation::set_scheme(disk, scheme);
     validation::add_disk(disk, c, c, kR, z0, dx);
     disk.velocity = d == 0 ? r3(kSpeed, kSpeed, 0) : r3(-kSpeed, -kSpeed, 0);
     scene.bodies.push_back(disk);

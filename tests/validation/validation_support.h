@@ -71,6 +71,24 @@ inline BodySpec make_body(Constitutive law, double rho, double ppc = 8.0, double
   return b;
 }
 
+/// Transfer scheme of a run: APIC (alpha = beta = 0), PIC-FLIP blend (alpha), ASFLIP (alpha, beta_min, beta_max).
+struct Scheme {
+  const char* name;
+  double alpha, beta_min, beta_max;
+};
+inline constexpr Scheme kApic{"APIC", 0, 0, 0};
+/// The four schemes the validation tests and the study runner compare (VALIDATION.md item 6).
+inline constexpr Scheme kTransferSchemes[] = {
+    kApic, {"PIC-FLIP 0.95", 0.95, 0, 0}, {"FLIP", 1.0, 0, 0}, {"ASFLIP", 0.95, 0.0, 0.2}};
+
+/// Runs a body with `scheme` (the ASFLIP keys; all zero is plain APIC, which needs no ASFLIP channels).
+inline void set_scheme(BodySpec& body, const Scheme& scheme) {
+  body.algorithm.use_asflip = true;
+  body.algorithm.asflip_alpha = scheme.alpha;
+  body.algorithm.asflip_beta_min = scheme.beta_min;
+  body.algorithm.asflip_beta_max = scheme.beta_max;
+}
+
 /// A JFluid body: rho [kg/m^3], bulk modulus K [Pa], Tait exponent gamma [-], dynamic viscosity [Pa s].
 inline BodySpec jfluid_body(double rho, double bulk_modulus, double gamma, double viscosity, double ppc = 8.0,
                             double cfl = 0.5) {

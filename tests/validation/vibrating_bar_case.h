@@ -53,12 +53,8 @@ struct BarResult {
   double seconds = 0;
 };
 
-/// Transfer scheme of a run: APIC (alpha = beta = 0), PIC-FLIP blend (alpha), ASFLIP (alpha, beta_min, beta_max).
-struct Scheme {
-  const char* name;
-  double alpha, beta_min, beta_max;
-};
-constexpr Scheme kApic{"APIC", 0, 0, 0};
+using validation::kApic;
+using validation::Scheme;
 
 /// adjust: applied to the scene before the engine is built (a test of scene-level scaling).
 template <class Engine = CpuEngine<double>>
@@ -68,10 +64,7 @@ BarResult run_bar(double dx, double periods, validation::WallFit fit = validatio
   const double x0 = dx + validation::wall_inset(fit, dx), y0 = x0, z0 = x0;  // material faces (validation_support.h)
   Scene scene = validation::make_scene(r3(x0 + kL + 4 * dx, y0 + 2.5 * dx, z0 + 2.5 * dx), dx, r3(0, 0, 0));
   BodySpec bar = validation::fixed_corotated_body(kRho, kE, 0.0);
-  bar.algorithm.use_asflip = true;
-  bar.algorithm.asflip_alpha = scheme.alpha;
-  bar.algorithm.asflip_beta_min = scheme.beta_min;
-  bar.algorithm.asflip_beta_max = scheme.beta_max;
+  validation::set_scheme(bar, scheme);
   validation::add_box(bar, r3(x0, y0, z0), r3(kL, dx, dx));
   scene.bodies.push_back(bar);
   // Clamp: sticky wall against the bar's end x = x0; lateral: slip walls against the bar's faces.

@@ -290,11 +290,11 @@ def stability(fbar, backend, work, out, suffix):
     save(fig, out, f"dam_break_stability{suffix}.png")
 
 
-BAR_SCHEMES = ["APIC", "PIC-FLIP", "FLIP", "ASFLIP"]
+CASE_SCHEMES = ["APIC", "PIC-FLIP", "FLIP", "ASFLIP"]
 # The problems run through fbar_study_cases: how each is swept, measured and drawn.
 CASES = {
     "bar": dict(
-        name="Vibrating bar", prefix="vibrating_bar", group="scheme", groups=BAR_SCHEMES, group_label=lambda g: g,
+        name="Vibrating bar", prefix="vibrating_bar", group="scheme", groups=CASE_SCHEMES, group_label=lambda g: g,
         error="period_error", error_label="period error |T / T1 - 1| (exact T1 = 10 s)", res="L/dx",
         res_label="cells per bar length L/dx", cells=[12.5, 25, 50, 100, 200], gpu_cells=[12.5, 25, 50, 100, 200, 400],
         args=lambda g: [f"--scheme={g}"],
@@ -307,14 +307,14 @@ CASES = {
         args=lambda g: [f"--fbar={g}"],
         fields=["profile_rms", "base_error", "checkerboard", "bottom_cell_error"]),
     "granular": dict(
-        name="Granular collapse", prefix="granular_collapse", group="scheme", groups=BAR_SCHEMES,
+        name="Granular collapse", prefix="granular_collapse", group="scheme", groups=CASE_SCHEMES,
         group_label=lambda g: g, error="runout_error", reference=("APIC", "runout"),
         error_label="runout error |r / r_ref - 1| (ref: the finest APIC double run)", res="H0/dx",
         res_label="cells per column height H0/dx", cells=[5, 10], gpu_cells=[5, 10, 20, 40],
         args=lambda g: [f"--scheme={g}"],
         fields=["runout", "runout_error_vs_lube", "height_ratio", "kinetic_over_released"]),
     "disks": dict(
-        name="Two-disk impact", prefix="two_disks", group="scheme", groups=BAR_SCHEMES, group_label=lambda g: g,
+        name="Two-disk impact", prefix="two_disks", group="scheme", groups=CASE_SCHEMES, group_label=lambda g: g,
         error="energy_lost", error_label="energy lost by t = 4.5 s / E0 (the continuum impact is elastic)",
         res="R/dx", res_label="cells per disk radius R/dx", cells=[4, 8, 16], gpu_cells=[4, 8, 16, 32],
         args=lambda g: [f"--scheme={g}"],

@@ -36,7 +36,7 @@ std::string arg(int argc, char** argv, const char* key, const char* fallback) {
 }
 
 template <class Engine>
-int bar(const bar_case::Scheme& scheme, double cells, double periods, const std::string& tag) {
+int bar(const validation::Scheme& scheme, double cells, double periods, const std::string& tag) {
   using namespace bar_case;
   const double dx = kL / cells;
   const auto start = std::chrono::steady_clock::now();
@@ -81,11 +81,11 @@ int column(double cells, double psi, const std::string& tag) {
 
 /// The granular column collapse (granular_collapse_case.h, Lube et al. 2005, a = 0.5) to rest at t = 3 s.
 template <class Engine>
-int granular(const bar_case::Scheme& scheme, double cells, const std::string& tag) {
+int granular(const validation::Scheme& scheme, double cells, const std::string& tag) {
   using namespace granular_case;
   const double dx = kGranularH0 / cells;
   const auto start = std::chrono::steady_clock::now();
-  const GranularResult r = run_granular_collapse<Engine>("study", dx, {scheme.alpha, scheme.beta_min, scheme.beta_max});
+  const GranularResult r = run_granular_collapse<Engine>("study", dx, scheme);
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (!r.ok) {
     std::printf("{\"problem\": \"granular\", %s, \"status\": \"failed\"}\n", tag.c_str());
@@ -104,11 +104,11 @@ int granular(const bar_case::Scheme& scheme, double cells, const std::string& ta
 /// Two elastic disks colliding (two_disks_case.h, Sulsky et al. 1994) to t = 4.5 s: the energy lost is the error
 /// (the continuum impact is elastic).
 template <class Engine>
-int disks(const bar_case::Scheme& s, double cells, const std::string& tag) {
+int disks(const validation::Scheme& scheme, double cells, const std::string& tag) {
   using namespace disks_case;
   const double dx = kR / cells;
   const auto start = std::chrono::steady_clock::now();
-  const DisksResult r = run_disks<Engine>(dx, 4.5, disks_case::Scheme{s.name, s.alpha, s.beta_min, s.beta_max});
+  const DisksResult r = run_disks<Engine>(dx, 4.5, scheme);
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (!r.ok) {
     std::printf("{\"problem\": \"disks\", %s, \"status\": \"failed\"}\n", tag.c_str());
@@ -123,6 +123,33 @@ int disks(const bar_case::Scheme& s, double cells, const std::string& tag) {
   return 0;
 }
 
+/// The engine and its scalar types for --engine and --precision, as a tag type handed to `run`.
+template <typename T, typename TG, class E>
+struct EngineChoice {
+  using scalar = T;
+  using grid_scalar = TG;
+  using engine = E;
+};
+
+template <class Run>
+int on_engine(const std::string& engine, const std::string& precision, Run&& run) {
+  if (engine == "cpu") {
+    if (precision == "single") return run(EngineChoice<float, float, CpuEngine<float>>{});
+    if (precision == "double") return run(EngineChoice<double, double, CpuEngine<double>>{});
+    if (precision == "mixed") return run(EngineChoice<double, float, CpuEngine<double, float>>{});
+  } else if (engine == "gpu") {
+    if (cuda::device_count() == 0) {
+      std::fprintf(stderr, "fbar_study_cases: --engine=gpu: %s\n", cuda::no_device_reason().c_str());
+      return 2;
+    }
+    if (precision == "single") return run(EngineChoice<float, float, test::GpuValidationEngine<float>>{});
+    if (precision == "double") return run(EngineChoice<double, double, test::GpuValidationEngine<double>>{});
+  }
+  std::fprintf(stderr, "fbar_study_cases: --engine=%s --precision=%s: expected cpu (single, double, mixed) or gpu "
+                       "(single, double)\n", engine.c_str(), precision.c_str());
+  return 2;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -132,11 +159,12 @@ int main(int argc, char** argv) {
   const std::string scheme_name = arg(argc, argv, "--scheme", "APIC");
   const double cells = std::atof(arg(argc, argv, "--cells", "50").c_str());
   const double periods = std::atof(arg(argc, argv, "--periods", "2.6").c_str());
-  bar_case::Scheme scheme = bar_case::kApic;
-  if (scheme_name == "PIC-FLIP") scheme = {"PIC-FLIP 0.95", 0.95, 0, 0};
-  else if (scheme_name == "FLIP") scheme = {"FLIP", 1.0, 0, 0};
-  else if (scheme_name == "ASFLIP") scheme = {"ASFLIP", 0.95, 0.0, 0.2};
-  else if (scheme_name != "APIC") {
+  const double psi = std::atof(arg(argc, argv, "--fbar", "0").c_str());
+  // --scheme names the first word of a validation::kTransferSchemes entry (APIC, PIC-FLIP, FLIP, ASFLIP).
+  const validation::Scheme* scheme = nullptr;
+  for (const validation::Scheme& s : validation::kTransferSchemes)
+    if (std::string(s.name).substr(0, std::string(s.name).find(' ')) == scheme_name) scheme = &s;
+  if (!scheme) {
     std::fprintf(stderr, "fbar_study_cases: --scheme=%s: expected APIC, PIC-FLIP, FLIP or ASFLIP\n", scheme_name.c_str());
     return 2;
   }
@@ -146,61 +174,14 @@ int main(int argc, char** argv) {
                          "--periods >= 2.6\n");
     return 2;
   }
-  const double psi = std::atof(arg(argc, argv, "--fbar", "0").c_str());
   const std::string tag = "\"engine\": \"" + engine + "\", \"precision\": \"" + precision + "\", \"scheme\": \"" +
                           scheme_name + "\", \"fbar\": " + std::to_string(psi);
-  if (problem == "disks") {
-    if (engine == "cpu") {
-      if (precision == "single") return disks<CpuEngine<float>>(scheme, cells, tag);
-      if (precision == "double") return disks<CpuEngine<double>>(scheme, cells, tag);
-      if (precision == "mixed") return disks<CpuEngine<double, float>>(scheme, cells, tag);
-    } else if (engine == "gpu" && cuda::device_count() > 0) {
-      if (precision == "single") return disks<test::GpuValidationEngine<float>>(scheme, cells, tag);
-      if (precision == "double") return disks<test::GpuValidationEngine<double>>(scheme, cells, tag);
-    }
-    std::fprintf(stderr, "fbar_study_cases: --engine=%s --precision=%s: not available here\n", engine.c_str(),
-                 precision.c_str());
-    return 2;
-  }
-  if (problem == "granular") {
-    if (engine == "cpu") {
-      if (precision == "single") return granular<CpuEngine<float>>(scheme, cells, tag);
-      if (precision == "double") return granular<CpuEngine<double>>(scheme, cells, tag);
-      if (precision == "mixed") return granular<CpuEngine<double, float>>(scheme, cells, tag);
-    } else if (engine == "gpu" && cuda::device_count() > 0) {
-      if (precision == "single") return granular<test::GpuValidationEngine<float>>(scheme, cells, tag);
-      if (precision == "double") return granular<test::GpuValidationEngine<double>>(scheme, cells, tag);
-    }
-    std::fprintf(stderr, "fbar_study_cases: --engine=%s --precision=%s: not available here\n", engine.c_str(),
-                 precision.c_str());
-    return 2;
-  }
-  if (problem == "hydrostatic") {
-    if (engine == "cpu") {
-      if (precision == "single") return column<float, float, CpuEngine<float>>(cells, psi, tag);
-      if (precision == "double") return column<double, double, CpuEngine<double>>(cells, psi, tag);
-      if (precision == "mixed") return column<double, float, CpuEngine<double, float>>(cells, psi, tag);
-    } else if (engine == "gpu" && cuda::device_count() > 0) {
-      if (precision == "single") return column<float, float, test::GpuValidationEngine<float>>(cells, psi, tag);
-      if (precision == "double") return column<double, double, test::GpuValidationEngine<double>>(cells, psi, tag);
-    }
-    std::fprintf(stderr, "fbar_study_cases: --engine=%s --precision=%s: not available here\n", engine.c_str(),
-                 precision.c_str());
-    return 2;
-  }
-  if (engine == "cpu") {
-    if (precision == "single") return bar<CpuEngine<float>>(scheme, cells, periods, tag);
-    if (precision == "double") return bar<CpuEngine<double>>(scheme, cells, periods, tag);
-    if (precision == "mixed") return bar<CpuEngine<double, float>>(scheme, cells, periods, tag);
-  } else if (engine == "gpu") {
-    if (cuda::device_count() == 0) {
-      std::fprintf(stderr, "fbar_study_cases: --engine=gpu: %s\n", cuda::no_device_reason().c_str());
-      return 2;
-    }
-    if (precision == "single") return bar<test::GpuValidationEngine<float>>(scheme, cells, periods, tag);
-    if (precision == "double") return bar<test::GpuValidationEngine<double>>(scheme, cells, periods, tag);
-  }
-  std::fprintf(stderr, "fbar_study_cases: --engine=%s --precision=%s: expected cpu (single, double, mixed) or gpu "
-                       "(single, double)\n", engine.c_str(), precision.c_str());
-  return 2;
+  return on_engine(engine, precision, [&](auto choice) {
+    using C = decltype(choice);
+    using E = typename C::engine;
+    if (problem == "hydrostatic") return column<typename C::scalar, typename C::grid_scalar, E>(cells, psi, tag);
+    if (problem == "granular") return granular<E>(*scheme, cells, tag);
+    if (problem == "disks") return disks<E>(*scheme, cells, tag);
+    return bar<E>(*scheme, cells, periods, tag);
+  });
 }

@@ -654,7 +654,7 @@ void CpuEngine<T, TG>::fbar_cell_sums(Body& body) {
                                           s.base[1] - origin[1] * kBlockSide + cell[1],
                                           s.base[2] - origin[2] * kBlockSide + cell[2]);
                 const T V0 = body.volume[p];
-                arena_sum[0][a] += V0 * (T(1) - M::volume_ratio(state[p]));
+                arena_sum[0][a] += V0 * one_minus_volume_ratio<M>(state[p]);
                 arena_sum[1][a] += V0;
               }
               // The same colour discipline as P2G: no other block of this colour touches these grid blocks.
@@ -746,7 +746,7 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
               const Mat3T C = sum.affine(d_inv);
               const auto s_new = M::advance(
                   params, state[p],
-                  fbar ? fbar_velocity_gradient(C, T(1) - M::volume_ratio(state[p]), cell_compression, body.fbar_psi, dt)
+                  fbar ? fbar_velocity_gradient(C, one_minus_volume_ratio<M>(state[p]), cell_compression, body.fbar_psi, dt)
                        : C,
                   dt);
               Vec3T x_new;

@@ -9,6 +9,8 @@
 #pragma once
 
 #include <cmath>
+#include <type_traits>
+#include <utility>
 
 #include "MnBase/Math/vec.h"
 #include "MnBase/Meta/config.h"
@@ -77,6 +79,23 @@ FBAR_HOST_DEVICE constexpr Mat3<T> advance_deformation_gradient(const Mat3<T>& F
 template <typename T>
 FBAR_HOST_DEVICE constexpr T advance_one_minus_J(T one_minus_J, const Mat3<T>& C, T dt) {
   return one_minus_J - (T(1) - one_minus_J) * dt * trace(C);
+}
+
+/// True when a law's state stores 1 - J itself (a member `one_minus_J`, as JFluid's does).
+template <class S, class = void>
+struct StoresOneMinusJ : std::false_type {};
+template <class S>
+struct StoresOneMinusJ<S, std::void_t<decltype(std::declval<const S&>().one_minus_J)>> : std::true_type {};
+
+/// 1 - J of a state of law M: the stored value where the law keeps it (exact in float), else 1 - M::volume_ratio.
+template <class M, class S>
+FBAR_HOST_DEVICE constexpr auto one_minus_volume_ratio(const S& s) {
+  if constexpr (StoresOneMinusJ<S>::value) {
+    return s.one_minus_J;
+  } else {
+    using T = decltype(M::volume_ratio(s));
+    return T(1) - M::volume_ratio(s);
+  }
 }
 
 /// True when every entry is finite (no NaN, no infinity).

@@ -434,7 +434,7 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
           const int a = c0 + cell[0], b = c1 + cell[1], c = c2 + cell[2];
           const int nb = arena_blocks[g2p2g_detail::arena_neighbour(a, b, c)];
           const int node = g2p2g_detail::arena_node_in_block(a, b, c);
-          const T one_minus_J = T(1) - M::volume_ratio(in.state);
+          const T one_minus_J = one_minus_volume_ratio<M>(in.state);
           const T cell_mean = nb < 0 ? one_minus_J
                                      : fbar_cell_compression(
                                            static_cast<T>(block_val(p.fbar_sums, grid_fbar_compression, nb, node)),
@@ -671,7 +671,7 @@ __global__ void __launch_bounds__(kG2P2GThreads) fbar_cell_sums(FbarCellSumsPara
     if (nb < 0) continue;  // counted by find_arena_blocks
     const int node = g2p2g_detail::arena_node_in_block(a, b, c);
     atomicAdd(&block_val(p.sums, grid_fbar_compression, nb, node),
-              static_cast<TG>(p.volume * (T(1) - M::volume_ratio(in.state))));
+              static_cast<TG>(p.volume * one_minus_volume_ratio<M>(in.state)));
     atomicAdd(&block_val(p.sums, grid_fbar_volume, nb, node), static_cast<TG>(p.volume));
   }
 }
