@@ -122,10 +122,19 @@ TEST(GpuValidation, VibratingBarPeriodAndDecayPerScheme) {
   }
 }
 
-// tests/validation/test_hydrostatic_column.cpp, StressFreeStart... and FbarRemovesTheRowCheckerboard (dx 0.01).
+// tests/validation/test_hydrostatic_column.cpp, HydrostaticInitialState..., StressFreeStart... and
+// FbarRemovesTheRowCheckerboard (dx 0.01).
 TEST(GpuValidation, HydrostaticColumnWithAndWithoutFbar) {
   FBAR_REQUIRE_DEVICE();
   using namespace hydrostatic_case;
+  {  // the scene's hydrostatic initial state, applied by the GPU engine's upload: the CPU test's bounds
+    const ColumnResult h =
+        run_column<double, double, GpuDouble>(0.01, Start::Hydrostatic, 0.3, validation::WallFit::ZeroVelocityPlane);
+    ASSERT_TRUE(h.ok);
+    EXPECT_LE(std::fabs(h.base_row_error()), 1e-4);
+    EXPECT_LE(h.profile_rms, 1e-3);
+    EXPECT_LE(h.ke_max, 1e-9 * h.weight_energy);
+  }
   const ColumnResult plain =
       run_column<double, double, GpuDouble>(0.01, Start::StressFree, 0.6, validation::WallFit::LastWallNodePlane);
   const ColumnResult fbar =

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "physics/constitutive_models.cuh"
@@ -339,6 +340,50 @@ TEST(JFluid, AdvanceUpdatesOneMinusJ) {
   const double dt = 1e-3, omj = 2e-3;
   const double J_new = (1 - omj) * (1 + dt * trace(C));
   EXPECT_NEAR(JFluid::advance(JFluidParams<double>{}, JFluidState<double>{omj}, C, dt).one_minus_J, 1 - J_new, 4 * kEps);
+}
+
+// Tension cutoff: J stops at J_t with p(J_t) = -tension_cutoff, so the pressure never falls below -tension_cutoff
+// however far the fluid is pulled; compression is untouched; without the key (the default, ClaymoreUW's law) nothing
+// is cut, and a cutoff beyond the law's own limit K / gamma cuts nothing either.
+TEST(JFluid, TensionCutoffBoundsThePressure) {
+  const double K = 2e6, gamma = 7.0;
+  MaterialSpec spec = fluid_spec(K, gamma, 0.0, 1000.0);
+  Mat3d expand = Mat3d::identity() * 10.0;  // tr C = 30 /s
+  const double dt = 1e-3;
+  for (double cutoff : {0.0, 1e4}) {
+    spec.tension_cutoff = cutoff;
+    const auto p = JFluid::make_params<double>(spec);
+    JFluidState<double> s = JFluid::reference_state<double>();
+    for (int i = 0; i < 50; ++i) s = JFluid::advance(p, s, expand, dt);  // J would reach 1.03^50 = 4.4
+    EXPECT_NEAR(JFluid::pressure(p, s), -cutoff, 1e-9 * K) << "cutoff " << cutoff;
+    EXPECT_LE(JFluid::volume_ratio(s), 1.0 + 2 * cutoff / K);
+    // compression is not cut
+    const JFluidState<double> c = JFluid::advance(p, JFluidState<double>{2e-3}, Mat3d::identity() * -1.0, dt);
+    EXPECT_NEAR(c.one_minus_J, 1 - (1 - 2e-3) * (1 - 3 * dt), 4 * kEps);
+  }
+  spec.tension_cutoff = std::numeric_limits<double>::infinity();  // the key absent
+  JFluidState<double> s = JFluid::reference_state<double>();
+  const auto none = JFluid::make_params<double>(spec);
+  for (int i = 0; i < 50; ++i) s = JFluid::advance(none, s, expand, dt);
+  EXPECT_NEAR(JFluid::volume_ratio(s), std::pow(1.03, 50), 1e-9);
+  spec.tension_cutoff = K;  // gamma p_t / K = 7 >= 1: beyond the law's tension K / gamma
+  EXPECT_EQ(JFluid::make_params<double>(spec).one_minus_J_min, -std::numeric_limits<double>::infinity());
+}
+
+// The hydrostatic initial state: J p(J) equals the requested Kirchhoff pressure (Newton in double) for the range of
+// depths a scene meets (tau / K from 1e-9 to 0.3), and zero depth is the rest state.
+TEST(JFluid, HydrostaticStateHasTheKirchhoffPressure) {
+  for (double gamma : {1.0, 7.0}) {
+    const double K = 2e6;
+    const auto p = JFluid::make_params<double>(fluid_spec(K, gamma, 0.0, 1000.0));
+    EXPECT_EQ(JFluid::hydrostatic_state<double>(p, 0.0).one_minus_J, 0.0);
+    for (double tau : {2e-3, 1.0, 1e3, 5e4, 6e5}) {
+      const JFluidState<double> s = JFluid::hydrostatic_state<double>(p, tau);
+      EXPECT_GT(s.one_minus_J, 0.0);
+      EXPECT_NEAR(JFluid::volume_ratio(s) * JFluid::pressure(p, s), tau, 1e-12 * tau + 1e-15 * K)
+          << "gamma " << gamma << ", tau " << tau;
+    }
+  }
 }
 
 // fp32: with 1 - J stored, float keeps the pressure of tiny compressions (water, K = 2e8, the OSU flume scene) to a few

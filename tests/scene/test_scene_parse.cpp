@@ -255,7 +255,7 @@ TEST(SceneParse, ParametersTheLawDoesNotReadAreWarnings) {
   EXPECT_EQ(s.bodies[0].material.youngs_modulus, 1e7);  // the default: not used by JFluid, not set
   ASSERT_EQ(warnings.size(), 1u);
   EXPECT_NE(warnings[0].find("bodies[0].material.youngs_modulus: 1000000 is ignored (no youngs_modulus for constitutive "
-                             "JFluid (it reads bulk_modulus, gamma, viscosity))"),
+                             "JFluid (it reads bulk_modulus, gamma, viscosity, tension_cutoff))"),
             std::string::npos)
       << warnings[0];
   warnings.clear();
@@ -783,6 +783,27 @@ void expect_round_trip(const Scene& scene) {
   EXPECT_EQ(write_scene_json(again, false), write_scene_json(scene, false));
 }
 
+// bodies[].initial_state and JFluid's tension_cutoff (fbar's keys): read, defaults, and errors naming the key.
+TEST(SceneParse, InitialStateAndTensionCutoff) {
+  const Scene rest = parse(scene_with(body()));
+  EXPECT_EQ(rest.bodies[0].initial_state, InitialState::Rest);
+  EXPECT_TRUE(std::isinf(rest.bodies[0].material.tension_cutoff));
+  const Scene h = parse(scene_with(body(R"({"constitutive": "JFluid", "tension_cutoff": 0})",
+                                        R"("initial_state": "hydrostatic")")));
+  EXPECT_EQ(h.bodies[0].initial_state, InitialState::Hydrostatic);
+  EXPECT_EQ(h.bodies[0].material.tension_cutoff, 0.0);
+  const std::string solid = error_of(scene_with(body(R"({"constitutive": "FixedCorotated"})",
+                                                     R"("initial_state": "hydrostatic")")));
+  EXPECT_NE(solid.find("bodies[0].initial_state"), std::string::npos) << solid;
+  EXPECT_NE(solid.find("FixedCorotated"), std::string::npos) << solid;
+  const std::string word = error_of(scene_with(body(R"({"constitutive": "JFluid"})", R"("initial_state": "still")")));
+  EXPECT_NE(word.find("bodies[0].initial_state"), std::string::npos) << word;
+  EXPECT_NE(word.find("hydrostatic"), std::string::npos) << word;
+  const std::string negative = error_of(scene_with(body(R"({"constitutive": "JFluid", "tension_cutoff": -5})")));
+  EXPECT_NE(negative.find("bodies[0].material.tension_cutoff"), std::string::npos) << negative;
+  EXPECT_NE(negative.find("Pa"), std::string::npos) << negative;
+}
+
 TEST(SceneWrite, RoundTripOfTheShippedScenes) {
   for (const char* f : {"scenes/dam_break_3d.json", "scenes/elastic_block_drop.json", "scenes/two_disks.json",
                         "Projects/FBAR/scene.json", "tests/scenes/good/claymoreuw_layout.json",
@@ -830,7 +851,9 @@ TEST(SceneWrite, RoundTripOfEveryFeature) {
                     {"object": "Box", "operation": "Intersection", "span": [0.1, 0.3, 0.3], "offset": [1, 1, 0.5]},
                     {"object": "Box", "operation": "Difference", "span": [0.05, 0.05, 0.05], "offset": [1, 1, 0.5]}]},
       {"material": {"constitutive": "NeoHookean", "type": "mesh"}, "algorithm": {"type": "mesh", "use_FEM": true},
-       "geometry": [{"object": "Box", "operation": "Subtract"}]}],
+       "geometry": [{"object": "Box", "operation": "Subtract"}]},
+      {"initial_state": "hydrostatic", "material": {"constitutive": "JFluid", "tension_cutoff": 1500},
+       "geometry": [{"object": "Box", "span": [0.5, 0.4, 0.3], "offset": [0.2, 0.2, 0.2]}]}],
     "boundaries": [
       {"object": "OSU_LWF_RAMP", "contact": "Slip", "domain_start": [0, 0, 0], "domain_end": [3, 2, 1],
        "use_custom_bathymetry": true, "bathymetry": [[0, 0.1], [1.5, 0.2], [3, 0.6]], "friction_static": 0.2},

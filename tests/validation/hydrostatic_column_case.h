@@ -13,6 +13,9 @@
 //    oscillates acoustically (period 4 H / c0 = 17 ms) with little damping (inviscid, APIC). The pressure field is
 //    averaged over whole oscillation periods (between the first and the last upward zero crossing of the
 //    centre-of-mass velocity), which removes the oscillation from the mean.
+//  * Hydrostatic: the scene's bodies[].initial_state "hydrostatic" (physics/hydrostatic.h), which both engines
+//    apply: particles of mass rho0 V0 with the Kirchhoff pressure J p = rho0 g (surface - y). Its exact discrete
+//    field is that Kirchhoff profile (the node forces integrate tau over V0; Cauchy p = tau / J).
 // Wall placement (validation_support.h, WallFit): the equilibrium test puts the bed on the zero-velocity plane, where
 // a resting fluid is an exact discrete equilibrium; the stress-free test uses the engine's convention (bed on the
 // last wall node plane, one cell inside the Walls face), the placement whose first particle layer takes its load.
@@ -56,7 +59,7 @@ double hydrostatic_pressure(double depth) {
 /// Volume ratio of the Tait law at pressure p [Pa]: J = (1 + gamma p / K)^(-1/gamma).
 double volume_ratio(double p) { return std::pow(1.0 + kGamma * p / kK, -1.0 / kGamma); }
 
-enum class Start { Equilibrium, StressFree };
+enum class Start { Equilibrium, StressFree, Hydrostatic };
 
 struct ColumnResult {
   bool ok = false;
@@ -93,6 +96,7 @@ ColumnResult run_column(double dx, Start start, double t_end, validation::WallFi
   BodySpec column = validation::jfluid_body(kRho, kK, kGamma, 0.0);
   column.algorithm.use_fbar = fbar_psi != 0.0;
   column.algorithm.fbar_psi = fbar_psi;
+  if (start == Start::Hydrostatic) column.initial_state = InitialState::Hydrostatic;
   validation::add_box(column, r3(x0, y0, z0), r3(w, kH, w));
   scene.bodies.push_back(column);
   scene.boundaries.push_back(
@@ -106,9 +110,13 @@ ColumnResult run_column(double dx, Start start, double t_end, validation::WallFi
   // Stress-free start: every particle has mass rho0 dx^3 / ppc, so at rest a particle carries the weight of the mass
   // above it: p = rho0 g (surface - y_ref), whatever the compression; the bed pressure is exactly rho0 g H.
   std::vector<double> p_exact(x_ref.size());
-  for (std::size_t i = 0; i < x_ref.size(); ++i)
-    p_exact[i] =
-        start == Start::Equilibrium ? hydrostatic_pressure(surface - x_ref[i][1]) : kRho * kG * (surface - x_ref[i][1]);
+  const JFluid::Params<double> law = JFluid::make_params<double>(column.material);
+  for (std::size_t i = 0; i < x_ref.size(); ++i) {
+    const double tau = kRho * kG * (surface - x_ref[i][1]);
+    p_exact[i] = start == Start::Equilibrium ? hydrostatic_pressure(surface - x_ref[i][1])
+                 : start == Start::Hydrostatic ? JFluid::pressure(law, JFluid::hydrostatic_state<double>(law, tau))
+                                               : tau;
+  }
   if (start == Start::Equilibrium)
     engine.set_volume_ratios(0, [&](const Vec3d& x) { return volume_ratio(hydrostatic_pressure(surface - x[1])); });
 
@@ -215,7 +223,7 @@ ColumnResult run_column(double dx, Start start, double t_end, validation::WallFi
   std::printf("hydrostatic column, %s, %s start, %s, dx = %g m: %zu particles, %lld steps, %.2f s wall\n",
               fit == validation::WallFit::ZeroVelocityPlane ? "bed on the zero-velocity plane"
                                                             : "bed on the last wall node plane",
-              start == Start::Equilibrium ? "equilibrium" : "stress-free",
+              start == Start::Equilibrium ? "equilibrium" : start == Start::Hydrostatic ? "hydrostatic" : "stress-free",
               to_string(scene.simulation.precision), dx, result.particles, result.steps, result.seconds);
   std::printf(
       "  bottom rows error %+.4f %% %+.4f %% %+.4f %% %+.4f %%; bottom cells %+.4f %% %+.4f %% %+.4f %%; top row %+.3f "

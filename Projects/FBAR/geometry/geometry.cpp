@@ -742,8 +742,31 @@ ParticleSeeds BodySampler::take_seeds(long long total_particles) {
   return s;
 }
 
-std::vector<Vec3d> sample_body(const BodySpec& body, const SimulationSpec& sim, int body_index, ParticleSeeds* seeds) {
+Aabb points_bounds(const std::vector<Vec3d>& points) {
+  const double inf = std::numeric_limits<double>::infinity();
+  Aabb box{Vec3d{{inf, inf, inf}}, Vec3d{{-inf, -inf, -inf}}};
+  for (const Vec3d& p : points)
+    for (int d = 0; d < 3; ++d) {
+      box.lo[d] = std::min(box.lo[d], p[d]);
+      box.hi[d] = std::max(box.hi[d], p[d]);
+    }
+  return box;
+}
+
+Aabb BodySampler::geometry_bounds() const {
+  Aabb box = shape_->bounds();
+  const Aabb pts = points_bounds(points_);
+  for (int d = 0; d < 3; ++d) {
+    box.lo[d] = std::min(box.lo[d], pts.lo[d]);
+    box.hi[d] = std::max(box.hi[d], pts.hi[d]);
+  }
+  return box;
+}
+
+std::vector<Vec3d> sample_body(const BodySpec& body, const SimulationSpec& sim, int body_index, ParticleSeeds* seeds,
+                               Aabb* bounds) {
   BodySampler sampler(body, sim, body_index);
+  if (bounds) *bounds = sampler.geometry_bounds();
   std::vector<Vec3d> points;
   sampler.sample_planes(0, sampler.planes(), points);
   if (points.empty()) throw_no_particles(sampler.path());

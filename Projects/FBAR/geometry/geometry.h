@@ -171,6 +171,9 @@ class BodySampler {
   /// point_particles() of the body's total_particles in ID order. Hands them over (call once).
   ParticleSeeds take_seeds(long long total_particles);
   std::size_t point_particles() const { return points_.size(); }
+  /// Bounding box of the body's geometry [m]: its solid entries (BodyShape::bounds) and its point-file particles,
+  /// before the partition clip (a hydrostatic body's free surface is the top of its whole geometry).
+  Aabb geometry_bounds() const;
 
  private:
   template <typename F>
@@ -200,7 +203,11 @@ SampleCount count_points(const std::vector<Vec3d>& points, double dx);
 /// (> 2^36 points); invalid entries throw at "bodies[i].geometry[j].<key>"; a bad ppc throws at
 /// "bodies[i].material.ppc".
 /// `seeds`, when given, receives the seeds of point files read with has_attributes (empty when none).
+/// `bounds`, when given, receives BodySampler::geometry_bounds().
 std::vector<Vec3d> sample_body(const BodySpec& body, const SimulationSpec& sim, int body_index,
-                               ParticleSeeds* seeds = nullptr);
+                               ParticleSeeds* seeds = nullptr, Aabb* bounds = nullptr);
+
+/// Bounding box of given points [m] (empty Aabb for none).
+Aabb points_bounds(const std::vector<Vec3d>& points);
 
 }  // namespace fbar

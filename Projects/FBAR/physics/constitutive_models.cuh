@@ -8,7 +8,8 @@
 //        kirchhoff_stress(params, state, C) -> StressResult<T>, advance(params, state, C, dt) (the state update
 //        with its return mapping), wave_speed(params, state), energy_density(params, state);
 //      optional: kAliases (other JSON names), initial_state<T>(MaterialSpec) (a state set by parameters, e.g.
-//      logJp0), check(MaterialSpec) -> ParameterProblem (a rule across parameters);
+//      logJp0), check(MaterialSpec) -> ParameterProblem (a rule across parameters), hydrostatic_state<T>(params,
+//      kirchhoff_pressure) (host: lets bodies[].initial_state be "hydrostatic", physics/hydrostatic.h);
 //   2. include it here and append M to MaterialTypes; add its enumerator to Constitutive (scene.h).
 // Parsing, validation, --check, the scene writer, Froude scaling, both engines' kernels and particle bins, and the
 // output attributes follow from the type. Engines never compare strings: visit_material(law, f) calls f(M{}) for
@@ -97,6 +98,11 @@ template <typename M, typename = void>
 struct has_state_with_J : std::false_type {};
 template <typename M>
 struct has_state_with_J<M, std::void_t<decltype(M::template state_with_J<double>(1.0))>> : std::true_type {};
+template <typename M, typename = void>
+struct has_hydrostatic_state : std::false_type {};
+template <typename M>
+struct has_hydrostatic_state<M, std::void_t<decltype(M::template hydrostatic_state<double>(
+                                    std::declval<const material_params_t<M, double>&>(), 0.0))>> : std::true_type {};
 template <typename M, typename = void>
 struct has_check : std::false_type {};
 template <typename M>
@@ -251,6 +257,23 @@ template <typename F>
 void for_each_material(F&& f) {
   for (int i = 0; i < static_cast<int>(MaterialTypes::count); ++i)
     material_detail::call_at(i, f, std::make_index_sequence<MaterialTypes::count>{});
+}
+
+/// Whether material `law` can start hydrostatic (bodies[].initial_state): it has M::hydrostatic_state(params,
+/// kirchhoff_pressure), the state whose Kirchhoff pressure is the given one (JFluid).
+inline bool material_has_hydrostatic_state(Constitutive law) {
+  bool has = false;
+  visit_material(law, [&](auto m) { has = material_detail::has_hydrostatic_state<decltype(m)>::value; });
+  return has;
+}
+
+/// The hydrostatic state of material M at Kirchhoff pressure `tau` [Pa] (host; M must have hydrostatic_state).
+template <typename M, typename T>
+material_state_t<M, T> material_hydrostatic_state(const material_params_t<M, T>& params, double tau) {
+  if constexpr (material_detail::has_hydrostatic_state<M>::value)
+    return M::template hydrostatic_state<T>(params, tau);
+  else
+    return M::template reference_state<T>();
 }
 
 /// "JFluid, FixedCorotated": the materials the engines implement, for error messages.

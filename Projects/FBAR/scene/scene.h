@@ -18,6 +18,9 @@ using Int3 = std::array<int, 3>;
 
 enum class Precision { Single, Double, Mixed };
 enum class OnFailure { Stop, ReduceDt };
+/// A body's state at t = 0 (bodies[].initial_state): Rest, stress-free (ClaymoreUW's); Hydrostatic, a fluid's
+/// pressure in equilibrium with gravity below the top of its geometry (physics/hydrostatic.h).
+enum class InitialState { Rest, Hydrostatic };
 enum class Backend { Auto, Gpu, Cpu };
 /// How scaling treats the materials' stresses and moduli (HydroUQ's use_cauchy_scaling): Default (the key absent):
 /// x froude_scaling, Cauchy similitude at equal density; Off: as written (ClaymoreUW's behaviour); On: x
@@ -61,6 +64,7 @@ struct MaterialSpec {
   double bulk_modulus = 2e7;            ///< [Pa]
   double gamma = 7.1;                   ///< [-]
   double viscosity = 1e-3;              ///< [Pa s] dynamic viscosity
+  double tension_cutoff = std::numeric_limits<double>::infinity();  ///< [Pa] most tension carried (inf: no cutoff)
   // Elastic solids
   double youngs_modulus = 1e7;          ///< [Pa]
   double poisson_ratio = 0.2;           ///< [-], in [0, 0.5) (negative allowed down to -1)
@@ -129,6 +133,7 @@ struct BodySpec {
   int gpu = 0;
   int model = 0;
   Real3 velocity{0.0, 0.0, 0.0};        ///< [m/s] initial velocity
+  InitialState initial_state = InitialState::Rest;  ///< initial_state: "rest" or "hydrostatic"
   /// [m] particles outside [partition_start, partition_end] are removed at start.
   Real3 partition_start{-std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity(),
                         -std::numeric_limits<double>::infinity()};

@@ -262,6 +262,8 @@ const std::vector<EnumName<Precision>> kPrecisions = {
     {Precision::Single, {"single"}}, {Precision::Double, {"double"}}, {Precision::Mixed, {"mixed"}}};
 const std::vector<EnumName<OnFailure>> kOnFailure = {{OnFailure::Stop, {"stop"}},
                                                      {OnFailure::ReduceDt, {"reduce_dt"}}};
+const std::vector<EnumName<InitialState>> kInitialStates = {{InitialState::Rest, {"rest"}},
+                                                            {InitialState::Hydrostatic, {"hydrostatic"}}};
 const std::vector<EnumName<GeometryObject>> kGeometryObjects = {{GeometryObject::Box, {"Box", "Cube"}},
                                                                 {GeometryObject::Sphere, {"Sphere", "Ball"}},
                                                                 {GeometryObject::Cylinder, {"Cylinder"}},
@@ -348,7 +350,7 @@ const Keys kSimulationKeys = {"domain",      "default_dx",  "default_dt", "gravi
 const Keys kBodyKeys = {"gpu",           "model",          "velocity",     "partition_start", "partition_end",
                         "partition",     "output",         "track_particle_id", "output_attribs", "track_attribs",
                         "target_attribs", "material",      "algorithm",    "geometry",        "constitutive",
-                        "type",          "name",           "color",         "trackers"};
+                        "type",          "name",           "color",         "trackers",       "initial_state"};
 const Keys kTrackerKeys = {"ids", "attribs"};
 const Keys kPartitionKeys = {"gpu", "model", "partition_start", "partition_end"};
 const Keys kOutputKeys = {"output_attribs", "attribs",         "track_attribs",     "target_attribs",
@@ -1075,6 +1077,13 @@ BodyRead parse_body(const rj::Value& v, const std::string& path, const Context& 
   }
 
   b.material = parse_material(o, algo, ctx);
+  if (auto* x = o.get("initial_state")) {
+    b.initial_state = read_enum(*x, o.sub("initial_state"), kInitialStates);
+    if (b.initial_state == InitialState::Hydrostatic && !material_has_hydrostatic_state(b.material.law))
+      throw SceneError(o.sub("initial_state"), json_text(*x),
+                       std::string("\"rest\" for constitutive ") + to_string(b.material.law) +
+                           " (a hydrostatic initial state sets a fluid's pressure: JFluid)");
+  }
   const rj::Value* material = o.get("material");
   out.cfl_given = (material->IsObject() && material->HasMember("CFL")) || (algo && algo->has("CFL"));
   b.algorithm = parse_algorithm(algo);
@@ -1086,6 +1095,13 @@ BodyRead parse_body(const rj::Value& v, const std::string& path, const Context& 
     throw SceneError(o.sub("geometry"), "[]", "a non-empty array of geometry objects (Box, Sphere, Cylinder, File)");
   for (rj::SizeType i = 0; i < geo->Size(); ++i)
     b.geometry.push_back(parse_geometry((*geo)[i], index_path(o.sub("geometry"), i), ctx));
+  if (b.initial_state == InitialState::Hydrostatic)
+    for (std::size_t i = 0; i < b.geometry.size(); ++i)
+      if (b.geometry[i].has_attributes)
+        throw SceneError(o.sub("initial_state"), "\"hydrostatic\"",
+                         "\"rest\": geometry[" + std::to_string(i) +
+                             "] has_attributes seeds the body's states from its file (a body starts either from a "
+                             "file's states or hydrostatic)");
   // ClaymoreUW appends a geometry entry's track_particle_id to the body's, shifted by the particles of each array
   // copy before it; without copies the IDs are the body's own (with copies: resolve_copy_track_ids, after scaling).
   for (GeometrySpec& g : b.geometry) {

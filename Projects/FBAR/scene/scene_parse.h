@@ -65,6 +65,7 @@ const char* to_string(Precision p);
 /// The precision as run logs state it: "single", "double", or "mixed: particles double, grid single".
 const char* precision_description(Precision p);
 const char* to_string(OnFailure f);
+const char* to_string(InitialState s);
 const char* to_string(Backend b);
 const char* to_string(Constitutive c);
 const char* to_string(GeometryObject o);

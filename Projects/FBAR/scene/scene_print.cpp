@@ -53,6 +53,8 @@ std::string material_line(const MaterialSpec& m) {
     s += std::string(", ") + p.key + " ";
     if (p.is_flag())
       s += yes_no(m.*(p.flag));
+    else if (!std::isfinite(m.*(p.number)))
+      s += "none";  // an absent optional parameter (tension_cutoff)
     else
       s += num(m.*(p.number)) + (std::string_view(p.unit) == "-" ? "" : std::string(" ") + p.unit);
   });
@@ -129,6 +131,8 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
     row(os, "material", material_line(b.material));
     row(os, "algorithm", algorithm_line(b.algorithm));
     row(os, "velocity", vec(b.velocity) + " m/s");
+    if (b.initial_state == InitialState::Hydrostatic)
+      row(os, "initial_state", "hydrostatic: J p = rho g (depth below the top of the geometry)");
     row(os, "partition", vec(b.partition_start) + " .. " + vec(b.partition_end) + " m");
     for (std::size_t j = 0; j < b.geometry.size(); ++j)
       row(os, "geometry[" + std::to_string(j) + "]", geometry_line(b.geometry[j]));

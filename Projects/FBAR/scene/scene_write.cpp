@@ -7,6 +7,7 @@
 #include <rapidjson/stringbuffer.h>
 #include <rapidjson/writer.h>
 
+#include <cmath>
 #include <limits>
 
 #include "scene/scene_parse.h"
@@ -33,6 +34,7 @@ const char* precision_description(Precision p) {
   return p == Precision::Mixed ? "mixed: particles double, grid single" : to_string(p);
 }
 const char* to_string(OnFailure f) { return f == OnFailure::Stop ? "stop" : "reduce_dt"; }
+const char* to_string(InitialState s) { return s == InitialState::Rest ? "rest" : "hydrostatic"; }
 const char* to_string(Backend b) {
   switch (b) {
     case Backend::Auto: return "auto";
@@ -244,6 +246,7 @@ class SceneWriter {
     integer("gpu", b.gpu);
     integer("model", b.model);
     reals("velocity", b.velocity);
+    if (b.initial_state != InitialState::Rest) str("initial_state", to_string(b.initial_state));
     // Open bounds (the default) are omitted: infinity has no standard JSON spelling.
     if (!is_open(b.partition_start, -1)) reals("partition_start", b.partition_start);
     if (!is_open(b.partition_end, +1)) reals("partition_end", b.partition_end);
@@ -278,7 +281,7 @@ class SceneWriter {
     for_each_material_parameter(m.law, [&](const MaterialParameter& p) {
       if (p.is_flag())
         boolean(p.key, m.*(p.flag));
-      else
+      else if (std::isfinite(m.*(p.number)))  // an infinite value is the key's absence (tension_cutoff: none)
         num(p.key, m.*(p.number));
     });
     w_.EndObject();
@@ -510,6 +513,8 @@ bool operator==(const SimulationSpec& a, const SimulationSpec& b) {
 bool operator==(const MaterialSpec& a, const MaterialSpec& b) {
   return a.law == b.law && a.type == b.type && a.ppc == b.ppc && a.cfl == b.cfl && a.rho == b.rho &&
          a.bulk_modulus == b.bulk_modulus && a.gamma == b.gamma && a.viscosity == b.viscosity &&
+         a.tension_cutoff == b.tension_cutoff && a.tensile_yield_strength == b.tensile_yield_strength &&
+         a.hardening_modulus == b.hardening_modulus &&
          a.youngs_modulus == b.youngs_modulus && a.poisson_ratio == b.poisson_ratio &&
          a.friction_angle == b.friction_angle && a.cohesion == b.cohesion && a.logJp0 == b.logJp0 &&
          a.beta == b.beta && a.vol_correction == b.vol_correction && a.xi == b.xi && a.hardening == b.hardening;
@@ -529,7 +534,8 @@ bool operator==(const GeometrySpec& a, const GeometrySpec& b) {
          a.track_particle_id == b.track_particle_id;
 }
 bool operator==(const BodySpec& a, const BodySpec& b) {
-  return a.gpu == b.gpu && a.model == b.model && a.velocity == b.velocity && a.partition_start == b.partition_start &&
+  return a.gpu == b.gpu && a.model == b.model && a.velocity == b.velocity && a.initial_state == b.initial_state &&
+         a.partition_start == b.partition_start &&
          a.partition_end == b.partition_end && a.track_particle_id == b.track_particle_id &&
          a.output_attribs == b.output_attribs && a.output_exterior_only == b.output_exterior_only &&
          a.exterior_threshold == b.exterior_threshold && a.track_attribs == b.track_attribs &&

@@ -18,6 +18,7 @@
 #include "scene/attributes.h"
 #include "geometry/geometry.h"
 #include "physics/grid_update.cuh"
+#include "physics/hydrostatic.h"
 #include "io/particle_frame.h"
 #include "settings.h"
 #include "physics/time_step.cuh"
@@ -137,9 +138,11 @@ template <typename T, typename TG>
 CpuEngine<T, TG>::CpuEngine(const Scene& scene) : scene_(scene), log_(&std::cerr) {
   std::vector<std::vector<Vec3d>> positions;
   std::vector<ParticleSeeds> seeds(scene.bodies.size());
+  std::vector<Aabb> bounds(scene.bodies.size());
   for (std::size_t b = 0; b < scene.bodies.size(); ++b)
-    positions.push_back(sample_body(scene.bodies[b], scene.simulation, static_cast<int>(b), &seeds[b]));
+    positions.push_back(sample_body(scene.bodies[b], scene.simulation, static_cast<int>(b), &seeds[b], &bounds[b]));
   init(positions);
+  apply_hydrostatic(bounds);
   apply_seeds(seeds);
 }
 
@@ -147,6 +150,9 @@ template <typename T, typename TG>
 CpuEngine<T, TG>::CpuEngine(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions)
     : scene_(scene), log_(&std::cerr) {
   init(positions);
+  std::vector<Aabb> bounds;
+  for (const std::vector<Vec3d>& x : positions) bounds.push_back(points_bounds(x));
+  apply_hydrostatic(bounds);
 }
 
 template <typename T, typename TG>
@@ -154,9 +160,11 @@ CpuEngine<T, TG>::CpuEngine(const Scene& scene, comm::Transport& transport, doub
     : scene_(scene), transport_(&transport), rebalance_threshold_(rebalance_threshold), log_(&std::cerr) {
   std::vector<std::vector<Vec3d>> positions;
   std::vector<ParticleSeeds> seeds(scene.bodies.size());
+  std::vector<Aabb> bounds(scene.bodies.size());
   for (std::size_t b = 0; b < scene.bodies.size(); ++b)
-    positions.push_back(sample_body(scene.bodies[b], scene.simulation, static_cast<int>(b), &seeds[b]));
+    positions.push_back(sample_body(scene.bodies[b], scene.simulation, static_cast<int>(b), &seeds[b], &bounds[b]));
   init(positions);
+  apply_hydrostatic(bounds);
   apply_seeds(seeds);
   if (ranks() > 1) divide_replicated();  // every rank sampled every particle (deterministically)
 }
@@ -371,6 +379,24 @@ void CpuEngine<T, TG>::init(const std::vector<std::vector<Vec3d>>& positions) {
     });
   }
   max_grid_speed_ = max_speed;
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::apply_hydrostatic(const std::vector<Aabb>& bounds) {
+  for (std::size_t b = 0; b < bodies_.size() && b < bounds.size(); ++b) {
+    Body& body = bodies_[b];
+    const HydrostaticProfile h = hydrostatic_profile(body.spec, scene_.simulation, bounds[b].lo, bounds[b].hi);
+    if (!h.active) continue;
+    std::visit(
+        [&](auto& mb) {
+          using M = typename std::decay_t<decltype(mb)>::material_type;
+          for (std::size_t p = 0; p < body.x.size(); ++p) {
+            mb.state[p] = material_hydrostatic_state<M, T>(mb.params, h.kirchhoff_pressure(body.x[p].template cast<double>()));
+            body.max_wave_speed = std::max(body.max_wave_speed, static_cast<double>(M::wave_speed(mb.params, mb.state[p])));
+          }
+        },
+        body.material);
+  }
 }
 
 template <typename T, typename TG>

@@ -349,6 +349,9 @@ class CpuEngine {
   void init(const std::vector<std::vector<Vec3d>>& positions);
   /// Velocities and states of particles read with has_attributes (geometry/particle_seed.h), after init().
   void apply_seeds(const std::vector<ParticleSeeds>& seeds);
+  /// bodies[].initial_state "hydrostatic": each particle's state from its depth below the top of `bounds[b]`, the
+  /// body's geometry (physics/hydrostatic.h). Before apply_seeds (a point file's J wins).
+  void apply_hydrostatic(const std::vector<Aabb>& bounds);
   void build_partition();
   TryResult try_step(double dt);
   void p2g(Body& body, T dt);

@@ -61,6 +61,7 @@
 #include "scene/attributes.h"
 #include "physics/boundary.cuh"
 #include "physics/constitutive_models.cuh"
+#include "physics/hydrostatic.h"
 #include "engine/cpu/cpu_engine.h"
 #include "geometry/geometry.h"
 #include "engine/gpu/gpu_engine.h"
@@ -286,6 +287,7 @@ class MgspBenchmark {
     int pending_particles = 0;     ///< particles on this rank after this try's migration
     T mass = T(0), volume = T(0);
     double rest_wave_speed = 0.0;
+    HydrostaticProfile hydrostatic;  ///< bodies[].initial_state "hydrostatic": the upload's states (inactive: rest)
     T fbar_psi = T(0);  ///< F-bar blend (transfer.cuh), 0: off
     bool asflip = false;  ///< PIC-FLIP / ASFLIP (transfer.cuh)
     AsflipParams<T> asflip_params{T(0), T(0), T(0)};
@@ -433,6 +435,8 @@ class MgspBenchmark {
       for (std::size_t i = 0; i < n; ++i) {
         const int id = ids ? ids[i] : static_cast<int>(first_id + static_cast<long long>(i));
         ParticleRecord<M, T> p{x[i].template cast<T>(), state, id};
+        if (this->hydrostatic.active)
+          p.state = material_hydrostatic_state<M, T>(params, this->hydrostatic.kirchhoff_pressure(x[i]));
         if (!this->restart_state.empty())
           std::memcpy(&p.state, this->restart_state.data() + S * static_cast<std::size_t>(id), sizeof(p.state));
         store_particle<M, T>(view, static_cast<int>(i), p);
@@ -884,6 +888,7 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
         throw std::invalid_argument(where + ".output_attribs: " + name + " is not available on the GPU engine");
     }
     if (!(mat.ppc > 0.0)) throw std::invalid_argument(where + ".material.ppc: must be positive");
+    Aabb geometry_bounds;  // the free surface of a hydrostatic body is its top (physics/hydrostatic.h)
     if (positions) {
       const std::vector<Vec3d>& x = (*positions)[b];
       for (std::size_t p = 0; p < x.size(); ++p)
@@ -891,12 +896,15 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
           if (!(x[p][a] >= 0.0 && x[p][a] <= sim.domain[a]))
             throw std::invalid_argument(where + ": particle " + std::to_string(p) + " lies outside the domain");
       counts_.push_back(count_points(x, sim.dx));
+      geometry_bounds = points_bounds(x);
     } else {
       // Counted without storing a point (throws SceneError for particles outside the domain, or none at all).
       BodySampler sampler(spec, sim, static_cast<int>(b));
       counts_.push_back(sampler.count(sim.dx));
       seeds[b] = sampler.take_seeds(counts_.back().particles);
+      geometry_bounds = sampler.geometry_bounds();
     }
+    const HydrostaticProfile hydrostatic = hydrostatic_profile(spec, sim, geometry_bounds.lo, geometry_bounds.hi);
     const long long slots_needed = 32 * bins_needed(counts_.back());
     if (slots_needed > DeviceLimits::kMaxSlots)
       throw std::invalid_argument(where + ": " + std::to_string(counts_.back().particles) + " particles need " +
@@ -910,10 +918,23 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
       body->params = M::template make_params<T>(mat);
       body->rest_wave_speed = static_cast<double>(M::wave_speed(M::template make_params<double>(mat),
                                                                 M::template reference_state<double>()));
+      if (hydrostatic.active) {  // the deepest particle's sound speed
+        double deepest = 0.0;
+        for (int c = 0; c < 8; ++c) {
+          Vec3d corner;
+          for (int d = 0; d < 3; ++d) corner[d] = (c >> d) & 1 ? geometry_bounds.hi[d] : geometry_bounds.lo[d];
+          deepest = std::max(deepest, hydrostatic.kirchhoff_pressure(corner));
+        }
+        const auto params_d = M::template make_params<double>(mat);
+        body->rest_wave_speed = std::max(
+            body->rest_wave_speed,
+            static_cast<double>(M::wave_speed(params_d, material_hydrostatic_state<M, double>(params_d, deepest))));
+      }
       bodies_.push_back(std::move(body));
     });
     BodyBase& body = *bodies_.back();
     body.spec = spec;
+    body.hydrostatic = hydrostatic;
     body.index = static_cast<int>(b);
     body.particles = static_cast<int>(counts_.back().particles);
     body.global_particles = counts_.back().particles;

@@ -4,12 +4,24 @@
 // Cauchy stress sigma = -p I + 2 mu_visc dev(sym(grad v)), grad v = C (APIC affine matrix, see material_common).
 // Sound speed c^2 = dp/drho = (K / rho0) J^(1 - gamma)  (= (K + gamma p) / rho, rho = rho0 / J).
 //
+// Tension cutoff (tension_cutoff = p_t >= 0, fbar's; absent: none, ClaymoreUW's law): the fluid carries at most p_t
+// of tension, p >= -p_t. J stops growing at J_t, p(J_t) = -p_t: a fluid pulled further separates (cavitates) instead
+// of storing the expansion, so that it carries no tension when it closes again. The law's pressure and energy are
+// unchanged below J_t. J_t = (1 - gamma p_t / K)^(-1/gamma); when gamma p_t >= K there is no J_t (the law's tension
+// never exceeds K / gamma) and nothing is cut.
+//
+// Hydrostatic initial state (bodies[].initial_state "hydrostatic"): hydrostatic_state() gives the J whose Kirchhoff
+// pressure J p(J) equals rho0 g depth. MPM's momentum balance integrates the Kirchhoff stress over reference volumes
+// (a particle's force is V0 tau grad w), so this profile is the discrete equilibrium of a column of particles of mass
+// rho0 V0, where the Cauchy profile p = rho0 g depth would leave a residual force of relative size p / K.
+//
 // Precision: a particle stores 1 - J, never J. Near rest 1 - J ~ p / K is tiny (water at 1 m depth: 5e-5), and
 // every formula below is written with log1p / expm1 on 1 - J so that the pressure keeps the relative accuracy of
 // the stored value in float: p = (K/gamma) expm1(-gamma log1p(-(1 - J))).
 #pragma once
 
 #include <cmath>
+#include <limits>
 
 #include "MnBase/Math/vec.h"
 #include "MnBase/Meta/config.h"
@@ -26,6 +38,7 @@ struct JFluidParams {
   T bulk_modulus;  ///< [Pa] K > 0
   T gamma;         ///< [-] Tait-Murnaghan exponent, >= 1 (water: ~7)
   T viscosity;     ///< [Pa s] dynamic viscosity mu_visc >= 0
+  T one_minus_J_min = -std::numeric_limits<T>::infinity();  ///< [-] 1 - J_t of the tension cutoff (-inf: none)
 };
 
 /// Per-particle state of a JFluid particle besides its position.
@@ -46,6 +59,8 @@ struct JFluid {
                        "bulk modulus K at rest"),
       number_parameter("gamma", "-", &MaterialSpec::gamma, kPositiveValue, 0.0, "Tait-Murnaghan exponent"),
       number_parameter("viscosity", "Pa s", &MaterialSpec::viscosity, kNonNegativeValue, 1.5, "dynamic viscosity"),
+      number_parameter("tension_cutoff", "Pa", &MaterialSpec::tension_cutoff, kNonNegativeValue, 1.0,
+                       "most tension the fluid carries, p >= -tension_cutoff (absent: no cutoff)"),
   };
   template <typename T>
   using Params = JFluidParams<T>;
@@ -58,8 +73,12 @@ struct JFluid {
   /// Parameters from the resolved scene (host only).
   template <typename T>
   static Params<T> make_params(const MaterialSpec& m) {
-    return Params<T>{static_cast<T>(m.rho), static_cast<T>(m.bulk_modulus), static_cast<T>(m.gamma),
-                     static_cast<T>(m.viscosity)};
+    Params<T> p{static_cast<T>(m.rho), static_cast<T>(m.bulk_modulus), static_cast<T>(m.gamma),
+                static_cast<T>(m.viscosity)};
+    const double ratio = m.gamma * m.tension_cutoff / m.bulk_modulus;  // gamma p_t / K
+    if (std::isfinite(m.tension_cutoff) && ratio < 1.0)
+      p.one_minus_J_min = static_cast<T>(-std::expm1(-std::log1p(-ratio) / m.gamma));  // 1 - J_t
+    return p;
   }
 
   /// Undeformed state (J = 1).
@@ -97,11 +116,31 @@ struct JFluid {
     return StressResult<T>{sigma * J, J};
   }
 
-  /// State after one step: J <- (1 + dt tr C) J on 1 - J.
+  /// State after one step: J <- (1 + dt tr C) J on 1 - J, then J <- min(J, J_t) (the tension cutoff).
   template <typename T>
-  FBAR_HOST_DEVICE static constexpr State<T> advance(const Params<T>& /*p*/, const State<T>& s, const Mat3<T>& C,
+  FBAR_HOST_DEVICE static constexpr State<T> advance(const Params<T>& p, const State<T>& s, const Mat3<T>& C,
                                                      T dt) {
-    return State<T>{advance_one_minus_J(s.one_minus_J, C, dt)};
+    const T one_minus_J = advance_one_minus_J(s.one_minus_J, C, dt);
+    return State<T>{one_minus_J < p.one_minus_J_min ? p.one_minus_J_min : one_minus_J};
+  }
+
+  /// The state whose Kirchhoff pressure J p(J) is `kirchhoff_pressure` [Pa] (>= 0; host): the hydrostatic initial
+  /// state at depth d has kirchhoff_pressure = rho0 g d. Newton's method on 1 - J, in double.
+  template <typename T>
+  static State<T> hydrostatic_state(const Params<T>& p, double kirchhoff_pressure) {
+    const double K = static_cast<double>(p.bulk_modulus), gamma = static_cast<double>(p.gamma);
+    double u = kirchhoff_pressure / K;  // 1 - J, first guess from the linear law
+    for (int it = 0; it < 60; ++it) {
+      const double J = 1.0 - u;
+      const double pressure = K / gamma * std::expm1(-gamma * std::log1p(-u));
+      const double dpressure = K * std::exp(-(gamma + 1.0) * std::log1p(-u));  // dp/du
+      const double f = J * pressure - kirchhoff_pressure;
+      const double df = J * dpressure - pressure;  // d(J p)/du > 0 for J <= 1
+      const double step = f / df;
+      u -= step;
+      if (!(std::fabs(step) > 1e-16 * std::fabs(u))) break;
+    }
+    return State<T>{static_cast<T>(u)};
   }
 
   /// Sound speed c = sqrt((K/rho0) J^(1-gamma)) [m/s] of the current state.
