@@ -96,7 +96,7 @@ int main() {
   }
   comm::MpiTransport mpi;
   int failed = check("dam break (ASFLIP, F-bar)", test::dam_break(true), mpi, 120);
-  failed += check("travelling block", test::travelling_block(), mpi, 120);
+  failed += check("travelling block", test::travelling_block(mpi.size()), mpi, 120);
   failed = static_cast<int>(mpi.sum(static_cast<long long>(failed)));
   return failed == 0 ? 0 : 1;
 #else

@@ -163,7 +163,7 @@ TEST(GpuDecomposition, NcclDamBreakOnEveryGpu) {
 
 TEST(GpuDecomposition, NcclTravellingBlockOnEveryGpu) {
   FBAR_REQUIRE_GPUS(2);
-  expect_same_run(travelling_block(), 120, true, visible_gpus());
+  expect_same_run(travelling_block(visible_gpus()), 120, true, visible_gpus());
 }
 
 // A decomposed rank's .bgeo frame: the GPU writes the point records (pack_bgeo_records) with each entry's ID taken

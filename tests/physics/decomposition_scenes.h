@@ -33,9 +33,12 @@ inline Scene dam_break(bool schemes) {
 }
 
 /// A soft block (E 1e4 Pa) travelling at 2 m/s along x without gravity: every particle crosses one or more cuts.
-inline Scene travelling_block() {
+/// `ranks` > 3 lengthens it (0.08 m, two GPU particle-block planes, per rank) so that every rank's slab is at least
+/// two planes wide: on 4 ranks its particles cross three cuts.
+inline Scene travelling_block(int ranks = 1) {
   Scene scene = empty_scene(r3(0.8, 0.2, 0.2), 0.01, r3(0, 0, 0));
-  BodySpec block = box_body(Constitutive::FixedCorotated, r3(0.06, 0.06, 0.06), r3(0.16, 0.08, 0.08), r3(2, 0, 0));
+  const double length = ranks > 3 ? 0.08 * ranks : 0.16;
+  BodySpec block = box_body(Constitutive::FixedCorotated, r3(0.06, 0.06, 0.06), r3(length, 0.08, 0.08), r3(2, 0, 0));
   block.material.youngs_modulus = 1e4;
   scene.bodies.push_back(block);
   return scene;

@@ -458,6 +458,11 @@ TEST(TimeStep, CflBound) {
   // dt = CFL dx / (c + |v|max): 0.5 * 0.01 / (100 + 0) = 5e-5 s; with |v|max = 25: 4e-5 s.
   EXPECT_DOUBLE_EQ(cfl_time_step(0.5, 0.01, 100.0, 0.0), 5e-5);
   EXPECT_DOUBLE_EQ(cfl_time_step(0.5, 0.01, 100.0, 25.0), 4e-5);
+  // CFL above 0.5: the acoustic part stays at c dt / dx = 0.5 (a lone particle's limit is 1 / sqrt(3)); CFL 1 gives
+  // 1e-4 s by the flow bound and 5e-5 s by the cap. Fast flow still binds below the cap: |v| = 150 -> 4e-5 s.
+  EXPECT_DOUBLE_EQ(cfl_time_step(1.0, 0.01, 100.0, 0.0), 5e-5);
+  EXPECT_DOUBLE_EQ(cfl_time_step(1.0, 0.01, 100.0, 150.0), 4e-5);
+  EXPECT_DOUBLE_EQ(cfl_time_step(0.9, 0.01, 0.0, 10.0), 9e-4);  // no wave speed: the flow bound alone
   EXPECT_DOUBLE_EQ(min_time_step(1e-4, 4e-5), 4e-5);
   EXPECT_DOUBLE_EQ(min_time_step(1e-5, 4e-5), 1e-5);
   EXPECT_DOUBLE_EQ(min_time_step(1e-5, std::numeric_limits<double>::quiet_NaN()), 1e-5);

@@ -1,38 +1,90 @@
 #!/usr/bin/env bash
-# The multi-GPU checks and scaling of issue 10 on a machine with 2 (or more) GPUs, e.g. nvidia-h200-x2. Uses the
-# binaries in BIN (default build/release) and writes logs to $OUT (or ./out); prints a short table last.
-#   tools/benchmark/run_multi_gpu.sh            (STRONG=32 WEAK=16 STEPS=50: sizes in millions of particles)
-# 1. the decomposition tests, NCCL ones included (one rank per visible GPU, threads)
-# 2. the MPI check: 2 processes, NCCL; then again with NCCL's peer-to-peer and shared-memory transports off, so
-#    the network path (sockets / IB) runs as between nodes
-# 3. the command line: --gpus=1|2|3 and mpirun -np 2 fbar --backend=gpu against one rank, by particle ID
-# 4. fbar_scaling: strong (STRONG M on 1 and 2 GPUs) and weak (WEAK M per GPU), threads; then the same under mpirun
+# The multi-GPU checks and scaling of issues 10 (two GPUs) and 14 (four GPUs) on a machine with 2 or more GPUs
+# (nvidia-h200-x2, nvidia-h200-x4, ...). Uses the binaries in BIN (default build/release) and writes logs to $OUT (or
+# ./out); prints a short table last.
+#   tools/benchmark/run_multi_gpu.sh                  every stage the visible GPUs allow
+#   STAGES="two four" STRONG2=32 STRONG4=64 WEAK=16 STEPS=50 tools/benchmark/run_multi_gpu.sh
+# Stages (each skipped when fewer GPUs are visible than it needs):
+#   suite  the one-GPU suite (gpu_engine_tests, SUITE_FILTER or every test) on the LAST visible GPU, in the background while "two"
+#          runs its correctness checks on the first two (no timing runs meanwhile)
+#   two    on the first 2 GPUs: the decomposition tests (NCCL ones included, one rank per GPU as threads); the MPI
+#          check with 2 processes, with NCCL's default transports and again with its peer-to-peer and shared-memory
+#          transports off (the network path, as between nodes); the command line (--gpus=1|2|3 and mpirun -np 2
+#          against one rank, by particle ID)
+#   scale2 on the first 2 GPUs: fbar_scaling strong STRONG2 M and weak WEAK M per GPU on 1 and 2 GPUs (threads), then
+#          under mpirun -np 2
+#   four   on 4 GPUs: the NCCL decomposition tests on 4 GPUs (a body over all four, particles crossing three cuts),
+#          the MPI check with 4 processes on the network path, fbar_scaling strong STRONG4 M and weak WEAK M per GPU
+#          on 1, 2 and 4 GPUs (threads), then under mpirun -np 4
 set -uo pipefail
 OUT=${OUT:-$PWD/out}
 mkdir -p "$OUT"
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 BIN=${BIN:-$ROOT/build/release}
+STAGES=${STAGES:-suite two scale2 four}
 export NCCL_NVLS_ENABLE=0  # NVLink multicast off: the shared hosts require it
-MPIRUN=(mpirun --allow-run-as-root --oversubscribe -np 2 -x NCCL_NVLS_ENABLE)
+MPI=(mpirun --allow-run-as-root --oversubscribe -x NCCL_NVLS_ENABLE -x CUDA_VISIBLE_DEVICES)
+NET=(-x NCCL_P2P_DISABLE=1 -x NCCL_SHM_DISABLE=1)
 nvidia-smi -L | tee "$OUT/gpus.txt"
-find_bin() { for d in "$BIN" "$BIN/tests/gpu_engine"; do [ -x "$d/$1" ] && { echo "$d/$1"; return; }; done; echo "$1"; }
+GPUS=$(grep -c "^GPU " "$OUT/gpus.txt")
+find_bin() { for d in "$BIN" "$BIN/tests/gpu_engine" "$BIN/tools/benchmark"; do [ -x "$d/$1" ] && { echo "$d/$1"; return; }; done; echo "$1"; }
 TESTS=$(find_bin gpu_engine_tests); CHECK=$(find_bin gpu_mpi_decomposition_check); SCALING=$(find_bin fbar_scaling)
-timeout 500 "$TESTS" --gtest_filter='GpuDecomposition.*' > "$OUT/decomposition_tests.log" 2>&1
-echo "decomposition tests rc=$?" | tee -a "$OUT/summary.txt"
-timeout 300 "${MPIRUN[@]}" "$CHECK" > "$OUT/mpi_check.log" 2>&1
-echo "MPI check (NCCL default transports) rc=$?" | tee -a "$OUT/summary.txt"
-NCCL_P2P_DISABLE=1 NCCL_SHM_DISABLE=1 timeout 300 "${MPIRUN[@]}" -x NCCL_P2P_DISABLE -x NCCL_SHM_DISABLE "$CHECK" \
-  > "$OUT/mpi_check_net.log" 2>&1
-echo "MPI check (P2P and SHM off: network path) rc=$?" | tee -a "$OUT/summary.txt"
 FBAR=$(find_bin fbar)
-timeout 600 python3 "$ROOT/tests/gpu_engine/gpu_cli_ranks_test.py" "$FBAR" mpirun \
-  "$ROOT/tests/scenes/good/decomposed_dam_break.json" /tmp/fbar_gpu_cli_ranks > "$OUT/cli_ranks.log" 2>&1
-echo "command line --gpus=1|2|3 and mpirun -np 2 rc=$?" | tee -a "$OUT/summary.txt"
-timeout 600 "$SCALING" --ranks=1,2 --strong="${STRONG:-32}" --weak="${WEAK:-16}" --steps="${STEPS:-50}" \
-  --csv="$OUT/scaling_threads.csv" > "$OUT/scaling_threads.log" 2>&1
-timeout 300 "${MPIRUN[@]}" "$SCALING" --strong="${STRONG:-32}" --weak="${WEAK:-16}" --steps="${STEPS:-50}" \
-  --csv="$OUT/scaling_mpi.csv" > "$OUT/scaling_mpi.log" 2>&1
-grep -E "GPU ranks|OK \]|FAILED|SKIPPED" "$OUT/decomposition_tests.log" | tail -20
-grep -h "MPI ranks" "$OUT/mpi_check.log" "$OUT/mpi_check_net.log"
-cat "$OUT/cli_ranks.log" "$OUT/scaling_threads.log" "$OUT/scaling_mpi.log"
+STEPS=${STEPS:-50}
+summary() { echo "$1" | tee -a "$OUT/summary.txt"; }
+has() { [[ " $STAGES " == *" $1 "* ]]; }
+
+suite_pid=
+if has suite && [ "$GPUS" -ge 3 ]; then
+  (CUDA_VISIBLE_DEVICES=$((GPUS - 1)) timeout "${SUITE_TIMEOUT:-540}" "$TESTS" --gtest_filter="${SUITE_FILTER:-*}" > "$OUT/suite.log" 2>&1; echo "$?" > "$OUT/suite.rc") &
+  suite_pid=$!
+fi
+
+if has two && [ "$GPUS" -ge 2 ]; then
+  export CUDA_VISIBLE_DEVICES=0,1
+  timeout 400 "$TESTS" --gtest_filter='GpuDecomposition.*' > "$OUT/two_tests.log" 2>&1
+  summary "2 GPUs: decomposition tests (threads; NCCL on 2 GPUs) rc=$?"
+  timeout 200 "${MPI[@]}" -np 2 "$CHECK" > "$OUT/two_mpi.log" 2>&1
+  summary "2 GPUs: MPI check, NCCL default transports rc=$?"
+  timeout 200 "${MPI[@]}" -np 2 "${NET[@]}" "$CHECK" >> "$OUT/two_mpi.log" 2>&1
+  summary "2 GPUs: MPI check, P2P and SHM off (network path) rc=$?"
+  timeout 400 python3 "$ROOT/tests/gpu_engine/gpu_cli_ranks_test.py" "$FBAR" mpirun \
+    "$ROOT/tests/scenes/good/decomposed_dam_break.json" /tmp/fbar_gpu_cli_ranks >> "$OUT/two_tests.log" 2>&1
+  summary "2 GPUs: command line --gpus=1|2|3 and mpirun -np 2 against one rank rc=$?"
+  unset CUDA_VISIBLE_DEVICES
+fi
+[ -n "$suite_pid" ] && { wait "$suite_pid"; summary "1 GPU: gpu_engine_tests rc=$(cat "$OUT/suite.rc")"; }
+
+if has scale2 && [ "$GPUS" -ge 2 ]; then
+  export CUDA_VISIBLE_DEVICES=0,1
+  timeout 300 "$SCALING" --ranks=1,2 --strong="${STRONG2:-32}" --weak="${WEAK:-16}" --steps="$STEPS" \
+    --csv="$OUT/scaling_two.csv" > "$OUT/scaling_two.log" 2>&1
+  summary "2 GPUs: scaling (threads) rc=$?"
+  timeout 200 "${MPI[@]}" -np 2 "$SCALING" --strong="${STRONG2:-32}" --weak="${WEAK:-16}" --steps="$STEPS" \
+    --overlap=on --csv="$OUT/scaling_two_mpi.csv" >> "$OUT/scaling_two.log" 2>&1
+  summary "2 GPUs: scaling (mpirun -np 2) rc=$?"
+  unset CUDA_VISIBLE_DEVICES
+fi
+
+if has four && [ "$GPUS" -ge 4 ]; then
+  export CUDA_VISIBLE_DEVICES=0,1,2,3
+  timeout 300 "$TESTS" --gtest_filter='GpuDecomposition.Nccl*' > "$OUT/four_tests.log" 2>&1
+  summary "4 GPUs: NCCL decomposition tests (threads) rc=$?"
+  timeout 200 "${MPI[@]}" -np 4 "${NET[@]}" "$CHECK" > "$OUT/four_mpi.log" 2>&1
+  summary "4 GPUs: MPI check, 4 processes, P2P and SHM off (network path) rc=$?"
+  timeout 300 "$SCALING" --ranks=1,2,4 --strong="${STRONG4:-64}" --weak="${WEAK:-16}" --steps="$STEPS" \
+    --csv="$OUT/scaling_four.csv" > "$OUT/scaling_four.log" 2>&1
+  summary "4 GPUs: scaling (threads) rc=$?"
+  timeout 200 "${MPI[@]}" -np 4 "$SCALING" --strong="${STRONG4:-64}" --weak="${WEAK:-16}" --steps="$STEPS" \
+    --overlap=on --csv="$OUT/scaling_four_mpi.csv" >> "$OUT/scaling_four.log" 2>&1
+  summary "4 GPUs: scaling (mpirun -np 4) rc=$?"
+  unset CUDA_VISIBLE_DEVICES
+fi
+
+for f in suite.log two_tests.log four_tests.log; do
+  [ -f "$OUT/$f" ] && { echo "== $f"; grep -E "GPU ranks|MPI ranks|^(gpus|mpi)[0-9]|tests? ran|PASSED|FAILED|SKIPPED \]" "$OUT/$f" | tail -25; }
+done
+for f in two_mpi.log four_mpi.log; do [ -f "$OUT/$f" ] && { echo "== $f"; grep -vE "^\s*$" "$OUT/$f" | tail -8; }; done
+for f in scaling_two.log scaling_four.log; do [ -f "$OUT/$f" ] && { echo "== $f"; cat "$OUT/$f"; }; done
+echo "== summary"
 cat "$OUT/summary.txt"

@@ -45,7 +45,22 @@ schemes, the precisions as above.
 energy lost (the continuum impact is elastic, so a converged run loses none); the CSV also has the largest energy
 over E0, the restitution and the momentum drift. Sweep: R/dx 4, 8, 16 (--gpu: to 32), the four schemes.
 
-usage: run_study.py [--problem dam_break|bar|hydrostatic|granular|disks] [--fbar build/release/fbar] [--gpu] [--out docs/validation]
+--problem wall_pressure: the pressure on the far wall of a dam break against Lobovsky et al. (2014), with fbar's
+hydrostatic start, tension cutoff and F-bar against ClaymoreUW's stress-free start (tools/study/wall_pressure.py says
+how it is measured). Writes wall_pressure_study{,_gpu}.csv, wall_pressure_series{,_gpu}.csv (the finest size's
+sensor histories) and the charts wall_pressure_{pareto,convergence,history,noise}{,_gpu}.png.
+
+--problem stability: the code-built stability maps of tests/validation/stability_case.h (fbar_study_cases
+--problem=stability runs them all): the CFL number and the stiffness against the scheme
+(a splash with lone particles), Poisson's ratio against scheme and F-bar (a bouncing block); each run stable,
+detected (fbar stopped it with a report) or silent (completed, yet its energy grew or became non-finite). CPU:
+double precision; --gpu: single. Writes stability_maps{,_gpu}.csv and stability_{cfl,stiffness,poisson}{,_gpu}.png.
+
+--problem translation: a block of water in rigid translation (tools/study/translation.py): every error is round-off,
+so it charts what single, mixed and double precision deliver and cost. Writes translation_study{,_gpu}.csv,
+translation_pareto{,_gpu}.png and translation_precision{,_gpu}.png.
+
+usage: run_study.py [--problem dam_break|bar|hydrostatic|granular|disks|wall_pressure|stability|translation] [--fbar build/release/fbar] [--gpu] [--out docs/validation]
                     [--work /tmp/fbar_study]
 """
 import argparse
@@ -446,6 +461,84 @@ def case_study(a):
     return 0
 
 
+STATE_COLORS = {"stable": "#4caf50", "detected": "#ff9800", "silent": "#d32f2f"}
+
+
+def stability_maps(rows, out, title_backend, suffix=""):
+    """The code-built stability maps (fbar_study_cases --problem=stability): one chart per map, rows the scheme (and
+    F-bar for the Poisson map), columns the swept value, each cell stable / detected / silent."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    titles = {"cfl": ("CFL number (material.CFL)", "Splash with lone particles: the CFL number against the scheme"),
+              "stiffness": ("c0 / front speed 2 sqrt(g a)", "Splash with lone particles: stiffness against the scheme"),
+              "poisson": ("Poisson's ratio", "Bouncing elastic block: Poisson's ratio against scheme and F-bar")}
+    for name, (xlabel, title) in titles.items():
+        rs = [r for r in rows if r["map"] == name]
+        if not rs:
+            continue
+        xs = sorted({float(r["x"]) for r in rs})
+        keys = []
+        for r in rs:
+            k = r["scheme"] + (", F-bar" if float(r["fbar"]) else "") if name == "poisson" else r["scheme"]
+            r["row"] = k
+            if k not in keys:
+                keys.append(k)
+        fig, ax = plt.subplots(figsize=(1.2 * len(xs) + 2.5, 0.55 * len(keys) + 1.6))
+        for i, k in enumerate(keys):
+            for j, x in enumerate(xs):
+                cell = [r for r in rs if r["row"] == k and float(r["x"]) == x]
+                if not cell:
+                    continue
+                r = cell[0]
+                ax.add_patch(plt.Rectangle((j, i), 0.95, 0.95, color=STATE_COLORS[r["state"]]))
+                note = r["state"] if r["state"] != "stable" else f"{int(r['steps'])} steps"
+                ax.text(j + 0.47, i + 0.47, note, ha="center", va="center", fontsize=6.5)
+        ax.set_xlim(0, len(xs))
+        ax.set_ylim(0, len(keys))
+        ax.set_xticks([j + 0.47 for j in range(len(xs))], [f"{x:g}" for x in xs])
+        ax.set_yticks([i + 0.47 for i in range(len(keys))], keys)
+        ax.set_xlabel(xlabel)
+        ax.set_title(f"{title} ({title_backend}, {rs[0]['precision']}): stable / detected / silent", fontsize=9)
+        save(fig, out, f"stability_{name}{suffix}.png")
+
+
+def stability_study(a):
+    """fbar_study_cases --problem=stability on one engine: every map's runs, the CSV and the charts."""
+    backend = "gpu" if a.gpu else "cpu"
+    suffix = "_gpu" if a.gpu else ""
+    csv_path = os.path.join(a.out, f"stability_maps{suffix}.csv")
+    fields = ["engine", "precision", "map", "case", "scheme", "fbar", "x_name", "x", "state", "energy_gain", "steps",
+              "particles", "wall_s", "simulated_s", "message"]
+    if a.replot:
+        with open(csv_path) as f:
+            rows = list(csv.DictReader(f))
+        stability_maps(rows, a.out, f"{rows[0]['engine']} engine", suffix)
+        return 0
+    driver = a.driver or os.path.join(os.path.dirname(a.fbar), "fbar_study_cases")
+    precision = "single" if a.gpu else "double"
+    p = subprocess.run([driver, "--problem=stability", f"--engine={backend}", f"--precision={precision}"],
+                       capture_output=True, text=True)
+    rows = [json.loads(ln) for ln in p.stdout.splitlines() if ln.startswith("{")]
+    if p.returncode != 0 or not rows:
+        print(p.stderr)
+        return 1
+    os.makedirs(a.out, exist_ok=True)
+    with open(csv_path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: r.get(k, "") for k in fields})
+    for r in rows:
+        print(f"{r['map']:9s} {r['scheme']:14s} F-bar {r['fbar']:g} {r['x_name']} {r['x']:<7g} {r['state']:8s} "
+              f"gain {r['energy_gain']:+.3g} {r['steps']} steps {r['message']}")
+    silent = [r for r in rows if r["state"] == "silent"]
+    print(f"{len(rows)} runs, {len(silent)} silent")
+    stability_maps(rows, a.out, f"{backend} engine", suffix)
+    return 0
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--fbar", default=os.path.join(ROOT, "build", "release", "fbar"))
@@ -456,9 +549,18 @@ def main():
                     help="cells per a (default 4 6 8 12 16 24, --gpu: 8 12 16 24 32 48); --problem bar: L/dx")
     ap.add_argument("--replot", action="store_true", help="draw the charts again from the CSV in --out, run nothing")
     ap.add_argument("--stability", action="store_true", help="the stability map (CFL number against scheme) only")
-    ap.add_argument("--problem", choices=["dam_break", "bar", "hydrostatic", "granular", "disks"], default="dam_break")
+    ap.add_argument("--problem", choices=["dam_break", "bar", "hydrostatic", "granular", "disks", "wall_pressure",
+                                          "stability", "translation"], default="dam_break")
     ap.add_argument("--driver", help="fbar_study_cases (default: beside --fbar)")
     a = ap.parse_args()
+    if a.problem == "stability":
+        return stability_study(a)
+    if a.problem == "translation":
+        import translation  # tools/study/translation.py
+        return translation.study(a, pareto, save)
+    if a.problem == "wall_pressure":
+        import wall_pressure  # tools/study/wall_pressure.py
+        return wall_pressure.study(a, pareto, save)
     if a.problem in CASES:
         return case_study(a)
     suffix = "_gpu" if a.gpu else ""  # the CPU study's files are dam_break_*.{csv,png}, the GPU's dam_break_*_gpu.*

@@ -8,6 +8,8 @@
 //                         --problem=granular (the same schemes; --cells = H0/dx, 20 in the validation)
 //                         --problem=disks (the same schemes; --cells = R/dx, 4 to 16 in the validation)
 //                         --scheme=APIC|PIC-FLIP|FLIP|ASFLIP (bar, granular) --fbar=<psi> (hydrostatic)
+//                         --problem=stability (the whole stability map: one JSON line per run; --scheme, --cells
+//                         unused)
 //                         --cells=<L/dx or H/dx>
 //                         [--periods=2.6] (bar)
 // (mixed: CPU engine only.) Exit code 0 with the JSON line, 1 for a failed run (the line says why), 2 for bad usage.
@@ -20,6 +22,7 @@
 #include "../../tests/gpu_engine/gpu_validation_engine.h"
 #include "../../tests/validation/granular_collapse_case.h"
 #include "../../tests/validation/hydrostatic_column_case.h"
+#include "../../tests/validation/stability_case.h"
 #include "../../tests/validation/two_disks_case.h"
 #include "../../tests/validation/vibrating_bar_case.h"
 #include "MnSystem/Cuda/device_query.h"
@@ -123,6 +126,49 @@ int disks(const validation::Scheme& scheme, double cells, const std::string& tag
   return 0;
 }
 
+/// The stability maps (stability_case.h): every run of them, one JSON line each. Map "cfl": the bodies' CFL number
+/// against the scheme (splash with lone particles, stiffness 10); "stiffness": c0 over the front speed against the
+/// scheme (CFL 0.5); "poisson": Poisson's ratio against the scheme with F-bar off and on (block).
+template <typename T, typename TG, class Engine>
+int stability(const std::string& tag) {
+  using namespace stability_case;
+  auto print = [&](const char* map, const char* problem, const validation::Scheme& scheme, const char* x_name,
+                   double x, double fbar_psi, const StabilityResult& r) {
+    std::string message;
+    for (char c : r.message) message += (c == '"' || c == '\\') ? '\'' : (c == '\n' ? ' ' : c);
+    std::printf("{\"problem\": \"stability\", %s, \"map\": \"%s\", \"case\": \"%s\", \"scheme\": \"%s\", "
+                "\"fbar\": %g, \"x_name\": \"%s\", \"x\": %g, \"state\": \"%s\", \"energy_gain\": %.4g, "
+                "\"steps\": %lld, \"particles\": %zu, \"wall_s\": %.4g, \"simulated_s\": %.6g, "
+                "\"message\": \"%s\", \"status\": \"ok\"}\n",
+                tag.c_str(), map, problem, scheme.name, fbar_psi, x_name, x, to_string(r.state), r.energy_gain, r.steps,
+                r.particles, r.seconds, r.simulated, message.c_str());
+    std::fflush(stdout);
+  };
+  for (const validation::Scheme& scheme : validation::kTransferSchemes) {
+    for (double cfl : {0.2, 0.3, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0}) {
+      SplashSetup s;
+      s.scheme = scheme;
+      s.cfl = cfl;
+      print("cfl", "splash", scheme, "CFL", cfl, 0, run_splash<T, TG, Engine>(s));
+    }
+    for (double k : {0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0}) {
+      SplashSetup s;
+      s.scheme = scheme;
+      s.stiffness = k;
+      print("stiffness", "splash", scheme, "stiffness", k, 0, run_splash<T, TG, Engine>(s));
+    }
+    for (double psi : {0.0, 1.0})
+      for (double nu : {0.3, 0.45, 0.49, 0.499}) {
+        BlockSetup b;
+        b.scheme = scheme;
+        b.poisson = nu;
+        b.fbar_psi = psi;
+        print("poisson", "block", scheme, "poisson", nu, psi, run_block<T, TG, Engine>(b));
+      }
+  }
+  return 0;
+}
+
 /// The engine and its scalar types for --engine and --precision, as a tag type handed to `run`.
 template <typename T, typename TG, class E>
 struct EngineChoice {
@@ -168,10 +214,10 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "fbar_study_cases: --scheme=%s: expected APIC, PIC-FLIP, FLIP or ASFLIP\n", scheme_name.c_str());
     return 2;
   }
-  if ((problem != "bar" && problem != "hydrostatic" && problem != "granular" && problem != "disks") || !(cells > 0) ||
-      !(periods >= 2.6)) {
-    std::fprintf(stderr, "fbar_study_cases: expected --problem=bar, hydrostatic, granular or disks, --cells > 0 and "
-                         "--periods >= 2.6\n");
+  if ((problem != "bar" && problem != "hydrostatic" && problem != "granular" && problem != "disks" &&
+       problem != "stability") || !(cells > 0) || !(periods >= 2.6)) {
+    std::fprintf(stderr, "fbar_study_cases: expected --problem=bar, hydrostatic, granular, disks or stability, "
+                         "--cells > 0 and --periods >= 2.6\n");
     return 2;
   }
   const std::string tag = "\"engine\": \"" + engine + "\", \"precision\": \"" + precision + "\", \"scheme\": \"" +
@@ -179,6 +225,9 @@ int main(int argc, char** argv) {
   return on_engine(engine, precision, [&](auto choice) {
     using C = decltype(choice);
     using E = typename C::engine;
+    if (problem == "stability")
+      return stability<typename C::scalar, typename C::grid_scalar, E>("\"engine\": \"" + engine +
+                                                                       "\", \"precision\": \"" + precision + "\"");
     if (problem == "hydrostatic") return column<typename C::scalar, typename C::grid_scalar, E>(cells, psi, tag);
     if (problem == "granular") return granular<E>(*scheme, cells, tag);
     if (problem == "disks") return disks<E>(*scheme, cells, tag);

@@ -753,6 +753,10 @@ Aabb points_bounds(const std::vector<Vec3d>& points) {
   return box;
 }
 
+Aabb body_geometry_bounds(const BodySpec& body, const SimulationSpec& sim, int body_index) {
+  return BodySampler(body, sim, body_index).geometry_bounds();
+}
+
 Aabb BodySampler::geometry_bounds() const {
   Aabb box = shape_->bounds();
   const Aabb pts = points_bounds(points_);

@@ -210,4 +210,8 @@ std::vector<Vec3d> sample_body(const BodySpec& body, const SimulationSpec& sim, 
 /// Bounding box of given points [m] (empty Aabb for none).
 Aabb points_bounds(const std::vector<Vec3d>& points);
 
+/// BodySampler::geometry_bounds() of body `body_index` (engines given their particles' positions: the free surface of
+/// a hydrostatic body is the top of its geometry, not its top particle, which lies half a particle spacing below).
+Aabb body_geometry_bounds(const BodySpec& body, const SimulationSpec& sim, int body_index);
+
 }  // namespace fbar

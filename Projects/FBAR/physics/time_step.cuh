@@ -1,5 +1,16 @@
 // The explicit time-step bounds (VALIDATION.md): dt = min(default_dt, every viscous body's viscous bound,
-// min_b CFL_b dx / (c_b + |v|max)).
+// min_b min(CFL_b dx / (c_b + |v|max), kAcousticCourant dx / c_b)).
+//
+// The acoustic cap. A particle alone in its grid cells (a splash droplet, the tip of a jet) is the stiffest
+// oscillator MLS-MPM has: its nodes carry only its own mass, so a step moves its velocity gradient by
+// dC = (4 / dx^2)(tau / rho) dt, and its volume mode oscillates at omega = 2 sqrt(3) c / dx (the elasticity's largest
+// eigenvalue, 3 lambda + 2 mu <= 3 rho c^2, over rho; c the p-wave or sound speed). Explicit steps are stable only
+// for omega dt < 2, that is c dt / dx < 1 / sqrt(3) = 0.577 in 3D, whatever the flow does elsewhere. A body's CFL
+// number may be up to 1 (ClaymoreUW's range), and the bulk of a flow is stable there, but lone particles are not: the
+// stability map of issue 13 (docs/validation.md) measured silent blow-ups of lone particles from CFL 0.75 on (their
+// energy grew by 1e5 over a thousand steps before J <= 0 stopped the run). So the acoustic part of every step stays
+// at c dt / dx <= 0.5, below the lone particle's limit, and a CFL above 0.5 only lengthens steps that advection,
+// not sound, limits.
 #pragma once
 
 #include <limits>
@@ -9,11 +20,18 @@
 
 namespace fbar {
 
-/// One body's CFL bound CFL dx / (c + |v|max) [s]: cfl (0, 1], dx [m], wave_speed c [m/s] (solid p-wave speed
-/// sqrt((lambda + 2 mu)/rho), fluid sound speed), max_speed [m/s] the largest grid velocity magnitude.
+/// The largest acoustic Courant number c dt / dx of any step (see the file comment: a lone particle's limit is
+/// 1 / sqrt(3)).
+inline constexpr double kAcousticCourant = 0.5;
+
+/// One body's CFL bound min(CFL dx / (c + |v|max), kAcousticCourant dx / c) [s]: cfl (0, 1], dx [m], wave_speed c
+/// [m/s] (solid p-wave speed sqrt((lambda + 2 mu)/rho), fluid sound speed), max_speed [m/s] the largest grid
+/// velocity magnitude.
 template <typename T>
 FBAR_HOST_DEVICE constexpr T cfl_time_step(T cfl, T dx, T wave_speed, T max_speed) {
-  return cfl * dx / (wave_speed + max_speed);
+  const T flow = cfl * dx / (wave_speed + max_speed);
+  const T acoustic = T(kAcousticCourant) * dx / wave_speed;  // +inf for c = 0
+  return acoustic < flow ? acoustic : flow;
 }
 
 /// Divisor k of the explicit viscous bound dt <= CFL rho dx^2 / (k mu). Measured on the CPU engine (a JFluid cube

@@ -146,7 +146,8 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
       row(os, "particles", std::to_string(bs.particles) + " (volume " + num(bs.particle_volume) + " m^3, mass " +
                                num(bs.particle_mass) + " kg each)");
       row(os, "p-wave speed", num(bs.wave_speed) + " m/s");
-      row(os, "time step bound", num(bs.dt_bound) + " s (CFL x dx / (wave speed + |velocity|))");
+      row(os, "time step bound",
+          num(bs.dt_bound) + " s (min(CFL x dx / (wave speed + |velocity|), 0.5 x dx / wave speed))");
       if (std::isfinite(bs.viscous_dt))
         row(os, "viscous bound", num(bs.viscous_dt) + " s (CFL x rho x dx^2 / (3 x viscosity), explicit viscosity)");
       row(os, "GPU per particle", std::to_string(bs.gpu_bytes_per_particle) + " B: " + bs.gpu_bytes_detail);

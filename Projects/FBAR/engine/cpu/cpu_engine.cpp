@@ -95,6 +95,8 @@ const char* to_string(FailureKind kind) {
       return "moved more than one cell in one step (CFL violation)";
     case FailureKind::LeftDomain:
       return "left the domain";
+    case FailureKind::Inverted:
+      return "volume ratio J <= 0 (collapsed or inverted: the step outran the material's stability)";
   }
   return "?";
 }
@@ -150,8 +152,10 @@ template <typename T, typename TG>
 CpuEngine<T, TG>::CpuEngine(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions)
     : scene_(scene), log_(&std::cerr) {
   init(positions);
-  std::vector<Aabb> bounds;
-  for (const std::vector<Vec3d>& x : positions) bounds.push_back(points_bounds(x));
+  std::vector<Aabb> bounds(scene.bodies.size());
+  for (std::size_t b = 0; b < scene.bodies.size(); ++b)
+    if (scene.bodies[b].initial_state == InitialState::Hydrostatic)
+      bounds[b] = body_geometry_bounds(scene.bodies[b], scene.simulation, static_cast<int>(b));
   apply_hydrostatic(bounds);
 }
 
@@ -710,9 +714,9 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
   const T dx = k_.dx, inv_dx = k_.inv_dx, d_inv = k_.d_inv;
   const Vec3T domain = k_.domain;
   const int nb = static_cast<int>(part.block_keys.size());
-  long long count[3] = {0, 0, 0};
-  long long first[3] = {std::numeric_limits<long long>::max(), std::numeric_limits<long long>::max(),
-                        std::numeric_limits<long long>::max()};
+  long long count[kFailureKinds] = {};
+  long long first[kFailureKinds];
+  std::fill(first, first + kFailureKinds, std::numeric_limits<long long>::max());
   double max_wave = 0.0;
   std::visit(
       [&](auto& mb) {
@@ -726,8 +730,9 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
           T arena_v[3][kArenaNodes];      // (component, node) grid velocities around one particle block
           T arena_v_old[3][kArenaNodes];  // (component, node) ASFLIP's v^n, when the body uses it
           T arena_fbar[2][kArenaNodes];   // (sum, node) F-bar's cell sums, when the body uses it
-          long long my_count[3] = {0, 0, 0};
-          long long my_first[3] = {first[0], first[1], first[2]};
+          long long my_count[kFailureKinds] = {};
+          long long my_first[kFailureKinds];
+          std::copy(first, first + kFailureKinds, my_first);
           T my_wave = T(0);
 #pragma omp for schedule(dynamic, 1)
           for (int pb = 0; pb < nb; ++pb) {
@@ -793,6 +798,8 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
               int failed = -1;
               if (!finite) {
                 failed = static_cast<int>(FailureKind::NonFinite);
+              } else if (!(M::volume_ratio(s_new) > T(0))) {
+                failed = static_cast<int>(FailureKind::Inverted);
               } else {
                 bool inside = true;
                 for (int a = 0; a < 3; ++a) inside = inside && x_new[a] >= T(0) && x_new[a] <= domain[a];
@@ -811,7 +818,7 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
           }
 #pragma omp critical(fbar_cpu_g2p_reduce)
           {
-            for (int k = 0; k < 3; ++k) {
+            for (int k = 0; k < kFailureKinds; ++k) {
               count[k] += my_count[k];
               first[k] = std::min(first[k], my_first[k]);
             }
@@ -824,7 +831,7 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
       body.material);
 
   result.max_wave_speed[body_index] = max_wave;
-  for (int k = 0; k < 3; ++k) {
+  for (int k = 0; k < kFailureKinds; ++k) {
     result.count[body_index][k] = count[k];
     result.first[body_index][k] = first[k];
   }
@@ -838,20 +845,20 @@ void CpuEngine<T, TG>::reduce_try(TryResult& result, double dt) {
     transport_->allreduce_max(result.max_wave_speed.data(), nb);
     std::vector<long long> counts, firsts;
     for (int b = 0; b < nb; ++b)
-      for (int k = 0; k < 3; ++k) {
+      for (int k = 0; k < kFailureKinds; ++k) {
         counts.push_back(result.count[b][k]);
         firsts.push_back(result.first[b][k]);
       }
     transport_->allreduce_sum(counts.data(), static_cast<int>(counts.size()));
     transport_->allreduce_min(firsts.data(), static_cast<int>(firsts.size()));
     for (int b = 0; b < nb; ++b)
-      for (int k = 0; k < 3; ++k) {
-        result.count[b][k] = counts[static_cast<std::size_t>(3 * b + k)];
-        result.first[b][k] = firsts[static_cast<std::size_t>(3 * b + k)];
+      for (int k = 0; k < kFailureKinds; ++k) {
+        result.count[b][k] = counts[static_cast<std::size_t>(kFailureKinds * b + k)];
+        result.first[b][k] = firsts[static_cast<std::size_t>(kFailureKinds * b + k)];
       }
   }
   for (int b = 0; b < nb; ++b)
-    for (int k = 0; k < 3; ++k) {
+    for (int k = 0; k < kFailureKinds; ++k) {
       if (result.count[b][k] == 0) continue;
       FailureReport f;
       f.kind = static_cast<FailureKind>(k);
@@ -873,8 +880,8 @@ typename CpuEngine<T, TG>::TryResult CpuEngine<T, TG>::try_step(double dt_in) {
   const T dt = static_cast<T>(dt_in);
   TryResult result;
   result.max_wave_speed.assign(bodies_.size(), 0.0);
-  result.count.assign(bodies_.size(), {0, 0, 0});
-  result.first.assign(bodies_.size(), {0, 0, 0});
+  result.count.assign(bodies_.size(), {});
+  result.first.assign(bodies_.size(), {});
   const int nblocks = static_cast<int>(grid_.blocks.size());
 #pragma omp parallel for schedule(static) if (nblocks >= kMinParallelBlocks)
   for (int gb = 0; gb < nblocks; ++gb) {

@@ -74,7 +74,10 @@ enum class FailureKind {
   NonFinite,     ///< NaN or Inf in a particle's position, velocity, affine matrix or material state
   CflViolation,  ///< a particle moved more than one cell along an axis in one step
   LeftDomain,    ///< a particle's new position lies outside [0, simulation.domain]
+  Inverted,      ///< a particle's volume ratio J <= 0: collapsed or turned inside out (no state means anything there)
 };
+/// How many FailureKind values there are (the per-kind counters).
+inline constexpr int kFailureKinds = 4;
 const char* to_string(FailureKind kind);
 
 /// One failed check of one body in one step.
@@ -342,8 +345,8 @@ class CpuEngine {
     std::vector<FailureReport> failures;  // built from counts / first after the reduction over ranks
     double max_grid_speed = 0.0;
     std::vector<double> max_wave_speed;  // per body, of the new state
-    std::vector<std::array<long long, 3>> count;  // (body, FailureKind) failing particles
-    std::vector<std::array<long long, 3>> first;  // (body, FailureKind) smallest failing ID
+    std::vector<std::array<long long, kFailureKinds>> count;  // (body, FailureKind) failing particles
+    std::vector<std::array<long long, kFailureKinds>> first;  // (body, FailureKind) smallest failing ID
   };
 
   void init(const std::vector<std::vector<Vec3d>>& positions);

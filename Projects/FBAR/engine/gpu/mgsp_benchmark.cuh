@@ -896,7 +896,8 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
           if (!(x[p][a] >= 0.0 && x[p][a] <= sim.domain[a]))
             throw std::invalid_argument(where + ": particle " + std::to_string(p) + " lies outside the domain");
       counts_.push_back(count_points(x, sim.dx));
-      geometry_bounds = points_bounds(x);
+      if (spec.initial_state == InitialState::Hydrostatic)
+        geometry_bounds = body_geometry_bounds(spec, sim, static_cast<int>(b));
     } else {
       // Counted without storing a point (throws SceneError for particles outside the domain, or none at all).
       BodySampler sampler(spec, sim, static_cast<int>(b));
@@ -1603,7 +1604,7 @@ template <typename T, typename TG>
 std::vector<FailureReport> MgspBenchmark<T, TG>::failures_of_try(double dt) const {
   std::vector<FailureReport> out;
   static constexpr FailureKind kKinds[kFailKinds] = {FailureKind::NonFinite, FailureKind::CflViolation,
-                                                     FailureKind::LeftDomain};
+                                                     FailureKind::LeftDomain, FailureKind::Inverted};
   for (const auto& b : bodies_) {
     const BodyStepStats& s = body_stats_[b->index];
     for (int k = 0; k < kFailKinds; ++k) {

@@ -465,6 +465,8 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
         if (!(all_finite(x_new) && all_finite(v) && all_finite(C) &&
               g2p2g_detail::state_finite<T, kStateScalars>(state_new))) {
           failed = kFailNonFinite;
+        } else if (!(M::volume_ratio(state_new) > T(0))) {
+          failed = kFailInverted;
         } else {
           bool inside = true;
           for (int a = 0; a < 3; ++a) inside = inside && x_new[a] >= T(0) && x_new[a] <= p.domain[a];

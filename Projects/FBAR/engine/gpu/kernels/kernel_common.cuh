@@ -10,7 +10,7 @@
 namespace fbar {
 
 /// Failure kinds counted on the device; the order matches FailureKind of the CPU engine (cpu_engine.h).
-enum : int { kFailNonFinite = 0, kFailCfl = 1, kFailLeftDomain = 2, kFailKinds = 3 };
+enum : int { kFailNonFinite = 0, kFailCfl = 1, kFailLeftDomain = 2, kFailInverted = 3, kFailKinds = 4 };
 
 /// Per-body counters of one step try (zeroed before the try).
 struct BodyStepStats {
