@@ -56,6 +56,7 @@ struct CliOptions {
   std::optional<int> frames;
   bool quiet = false;
   int gpus = 1;  ///< GPU ranks of one process (threads); under mpirun each process is one rank
+  bool halo_overlap = false;  ///< --halo-overlap=on: GPU ranks overlap the halo sums with G2P2G
   bool allow_unknown_keys = false;
   std::string data_dir;
   std::string restart;  ///< --restart=FILE: a checkpoint to continue from
@@ -81,6 +82,9 @@ const char* kHelp =
     "                          GPU (rank mod visible GPUs), NCCL between them (default 1; more ranks than GPUs\n"
     "                          share them through host-ordered peer copies: for testing). Under mpirun / srun\n"
     "                          each process is one rank on its node's GPU (local rank mod visible GPUs)\n"
+    "  --halo-overlap=on|off   GPU ranks: run G2P2G on the particle blocks next to the cuts first and the rest\n"
+    "                          while the halo sums travel (default off: between GPUs of one node the sums are\n"
+    "                          faster than the overlap costs; on can pay between nodes on slow links)\n"
     "  --allow-unknown-keys    unknown keys (and parameters the chosen law does not use) are warnings, not errors\n"
     "  --data-dir=DIR          where geometry and motion files are looked up first (then $AssetDirPath, the\n"
     "                          scene's folder and the source tree's Data/)\n"
@@ -98,7 +102,7 @@ const char* kHelp =
 
 const std::vector<std::string_view> kLongOptions = {"--file",   "--check",  "--backend",           "--output",
                                                     "--frames", "--quiet",  "--allow-unknown-keys", "--data-dir",
-                                                    "--version", "--help",  "--gpus", "--restart"};
+                                                    "--version", "--help",  "--gpus", "--restart", "--halo-overlap"};
 
 CliOptions parse_arguments(int argc, char** argv) {
   CliOptions o;
@@ -177,6 +181,10 @@ CliOptions parse_arguments(int argc, char** argv) {
       if (used != v.size() || v.empty() || n < 1 || n > 1024)
         throw UsageError("--gpus: got '" + v + "'; expected an integer from 1 to 1024");
       o.gpus = static_cast<int>(n);
+    } else if (name == "--halo-overlap") {
+      const std::string v = take_value();
+      if (v != "on" && v != "off") throw UsageError("--halo-overlap: got '" + v + "'; expected on or off");
+      o.halo_overlap = v == "on";
     } else if (name == "--allow-unknown-keys") {
       no_value();
       o.allow_unknown_keys = true;
@@ -382,6 +390,7 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
   const auto t0 = std::chrono::steady_clock::now();
   RunOptions ro;
   ro.quiet = o.quiet;
+  ro.halo_overlap = o.halo_overlap;
   if (!o.restart.empty()) {
     std::error_code exists_ec;
     if (!fs::is_regular_file(o.restart, exists_ec)) {

@@ -34,15 +34,17 @@ struct RunResult {
   std::size_t halo_particle_blocks = 0;  ///< most particle blocks a step ran before the halo exchange
   bool always_owned = true;
   int rebalances = 0;        ///< times the slabs were chosen again
+  long long migration_repeats = 0;  ///< steps repeated because migrants overflowed the messages (summed over ranks)
   double imbalance = 0.0;    ///< particles per rank at the end, max / mean - 1
 };
 
 /// One rank: `steps` CFL steps on CUDA device `gpu`, then every particle it holds. host: null for a run without
 /// decomposition; nccl: NCCL between the ranks (each on its own GPU), else peer copies between threads; overlap:
 /// GpuEngineOptions::overlap_halo; rebalance_every > 0: every that many steps the step keeps the checkpoint inputs
-/// and rebalance_if_drifted() follows it (as the run loop does at frames).
+/// and rebalance_if_drifted() follows it (as the run loop does at frames); migrant_capacity > 0: the migration
+/// messages' first capacity (GpuEngineOptions::migrant_capacity).
 inline RunResult run_rank(const Scene& scene, comm::Transport* host, int steps, int gpu = 0, bool nccl = false,
-                          bool overlap = true, int rebalance_every = 0) {
+                          bool overlap = true, int rebalance_every = 0, int migrant_capacity = 0) {
   RunResult out;
   try {
     FBAR_CUDA_CHECK(cudaSetDevice(gpu));
@@ -53,6 +55,7 @@ inline RunResult run_rank(const Scene& scene, comm::Transport* host, int steps, 
       options.ranks = host;
       options.device_ranks = device.get();
       options.overlap_halo = overlap;
+      if (migrant_capacity > 0) options.migrant_capacity = migrant_capacity;
     }
     GpuEngine<double> engine(scene, options);
     engine.set_log(nullptr);
@@ -72,6 +75,7 @@ inline RunResult run_rank(const Scene& scene, comm::Transport* host, int steps, 
     out.time = engine.time();
     out.steps = engine.steps();
     out.migrated = engine.migrated();
+    out.migration_repeats = engine.migration_repeats();
     out.rebalances = engine.rebalances();
     out.imbalance = engine.imbalance();
     const comm::SlabPartition& slabs = engine.slabs();

@@ -3,7 +3,8 @@
 
 usage: gpu_cli_ranks_test.py FBAR MPIEXEC SCENE WORKDIR
 
-Runs the scene with --gpus=1, 2 and 3 (ranks beyond the visible GPUs share them: peer copies between threads), and,
+Runs the scene with --gpus=1, 2 (with the halo overlap off, the default, and on) and 3 (ranks beyond the visible GPUs
+share them: peer copies between threads), and,
 when two GPUs are visible and MPIEXEC is given, with 2 MPI processes (NCCL). Each rank writes
 model0_dev[rank]_frame[f].csv. Checks that every run completes (run.json: status completed, ranks N, the same step
 count), that the merged last frame holds every particle ID exactly once, and that positions (double) agree with one
@@ -42,7 +43,8 @@ def run(label, ranks, prefix, extra):
 
 
 steps1, one = run("gpus1", 1, [], [])
-cases = [("gpus2", 2, [], ["--gpus=2"]), ("gpus3", 3, [], ["--gpus=3"])]
+cases = [("gpus2", 2, [], ["--gpus=2"]), ("gpus2_overlap", 2, [], ["--gpus=2", "--halo-overlap=on"]),
+         ("gpus3", 3, [], ["--gpus=3"])]
 if gpus >= 2 and mpiexec:
     cases.append(("mpi2", 2, [mpiexec, "-np", "2", "--allow-run-as-root", "-x", "NCCL_NVLS_ENABLE"], []))
 for label, n, prefix, extra in cases:

@@ -37,11 +37,11 @@ using test::travelling_block;
 
 /// `ranks` threads; rank r on GPU r % gpus, NCCL when nccl (then every rank needs its own GPU).
 RunResult run_decomposed(const Scene& scene, int ranks, int steps, int gpus = 1, bool nccl = false,
-                         bool overlap = true, int rebalance_every = 0) {
+                         bool overlap = true, int rebalance_every = 0, int migrant_capacity = 0) {
   std::vector<std::unique_ptr<comm::Transport>> hosts = comm::make_thread_transports(ranks);
   std::vector<RunResult> results(static_cast<std::size_t>(ranks));
   std::vector<std::thread> threads;
-  for (int r = 0; r < ranks; ++r) threads.emplace_back([&, r] { results[r] = run_rank(scene, hosts[r].get(), steps, r % gpus, nccl, overlap, rebalance_every); });
+  for (int r = 0; r < ranks; ++r) threads.emplace_back([&, r] { results[r] = run_rank(scene, hosts[r].get(), steps, r % gpus, nccl, overlap, rebalance_every, migrant_capacity); });
   for (auto& t : threads) t.join();
   RunResult merged;
   merged.mass = results[0].mass;
@@ -49,6 +49,7 @@ RunResult run_decomposed(const Scene& scene, int ranks, int steps, int gpus = 1,
     const RunResult& one = results[static_cast<std::size_t>(r)];
     if (!one.error.empty()) merged.error += "rank " + std::to_string(r) + ": " + one.error + "\n";
     merged.migrated += one.migrated;
+    merged.migration_repeats = std::max(merged.migration_repeats, one.migration_repeats);  // the same on every rank
     merged.halo_blocks = std::max(merged.halo_blocks, one.halo_blocks);
     merged.halo_particle_blocks = std::max(merged.halo_particle_blocks, one.halo_particle_blocks);
     merged.always_owned = merged.always_owned && one.always_owned;
@@ -114,6 +115,33 @@ TEST(GpuDecomposition, DamBreakWithoutOverlap) { expect_same_run(dam_break(true)
 
 TEST(GpuDecomposition, TravellingBlockMigratesEveryParticle) { expect_same_run(travelling_block(), 120, true); }
 
+// Migration messages of 2 particles per body and side: the travelling block sends about 50 a step, so the first
+// steps overflow them, are repeated with larger messages on every rank, and the run is still the one-rank run.
+TEST(GpuDecomposition, MigrationMessagesGrowAndTheStepIsRepeated) {
+  FBAR_REQUIRE_DEVICE();
+  const Scene scene = travelling_block();
+  const RunResult one = run_rank(scene, nullptr, 120);
+  ASSERT_TRUE(one.error.empty()) << one.error;
+  for (int ranks : {2, 3}) {
+    SCOPED_TRACE(std::to_string(ranks) + " ranks, messages of 2 particles at first");
+    const RunResult many = run_decomposed(scene, ranks, 120, 1, false, true, 0, 2);
+    ASSERT_TRUE(many.error.empty()) << many.error;
+    ASSERT_EQ(many.states.size(), one.states.size()) << "particles lost or doubled";
+    EXPECT_EQ(many.mass, one.mass);
+    EXPECT_EQ(many.steps, one.steps);
+    EXPECT_GT(many.migration_repeats, 0) << "the messages never overflowed";
+    EXPECT_LE(many.migration_repeats, 8) << "the messages grow geometrically";
+    EXPECT_TRUE(many.always_owned);
+    const test::Comparison c = test::compare(one, many.states);
+    std::printf("[ GPU ranks %d ] messages from 2 particles: migrated %lld, %lld steps repeated, max |dx| %.3g m, "
+                "max |dv| %.3g m/s, momentum %.3g\n", ranks, many.migrated, many.migration_repeats, c.max_dx, c.max_dv,
+                c.momentum);
+    EXPECT_LT(c.max_dx, kPositionTolerance);
+    EXPECT_LT(c.max_dv, kVelocityTolerance);
+    EXPECT_LT(c.momentum, kMomentumTolerance);
+  }
+}
+
 // The travelling block leaves its first slabs: without rebalancing it ends on one rank; rebalancing every 10 steps
 // (as the run loop does at frames) chooses the slabs again from the particles, moves them through the restart path,
 // and the run stays the one-rank run (to the restart's tolerance: the rebuilt state's first grid is a fresh P2G).
@@ -164,6 +192,17 @@ TEST(GpuDecomposition, NcclDamBreakOnEveryGpu) {
 TEST(GpuDecomposition, NcclTravellingBlockOnEveryGpu) {
   FBAR_REQUIRE_GPUS(2);
   expect_same_run(travelling_block(visible_gpus()), 120, true, visible_gpus());
+}
+
+// The same with the halo sums after the whole G2P2G (GpuEngineOptions::overlap_halo off, fbar's default).
+TEST(GpuDecomposition, NcclDamBreakOnEveryGpuWithoutOverlap) {
+  FBAR_REQUIRE_GPUS(2);
+  expect_same_run(dam_break(true), 120, true, visible_gpus(), false);
+}
+
+TEST(GpuDecomposition, NcclTravellingBlockOnEveryGpuWithoutOverlap) {
+  FBAR_REQUIRE_GPUS(2);
+  expect_same_run(travelling_block(visible_gpus()), 120, true, visible_gpus(), false);
 }
 
 // A decomposed rank's .bgeo frame: the GPU writes the point records (pack_bgeo_records) with each entry's ID taken

@@ -131,7 +131,8 @@ TEST(Cli, HelpListsEveryOption) {
   const CliResult r = run_cli({"--help"});
   EXPECT_EQ(r.code, 0);
   for (const char* o : {"--file", "-f FILE", "--check", "--backend=auto|gpu|cpu", "--output", "--frames", "--quiet",
-                        "--allow-unknown-keys", "--data-dir", "--version", "--help", "--gpus=N"})
+                        "--allow-unknown-keys", "--data-dir", "--version", "--help", "--gpus=N",
+                        "--halo-overlap=on|off"})
     EXPECT_NE(r.out.find(o), std::string::npos) << o;
 }
 
@@ -158,6 +159,9 @@ TEST(Cli, BadOptionsExitOne) {
   r = run_cli({"--gpus=0", "x.json"});
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("--gpus: got '0'; expected an integer from 1 to 1024"), std::string::npos) << r.err;
+  r = run_cli({"--halo-overlap=yes", "x.json"});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--halo-overlap: got 'yes'; expected on or off"), std::string::npos) << r.err;
 }
 
 // GPU ranks need the GPU engine: with the CPU engine (--backend=cpu, or a build without the GPU engine) --gpus=2 is

@@ -60,7 +60,13 @@ double precision; --gpu: single. Writes stability_maps{,_gpu}.csv and stability_
 so it charts what single, mixed and double precision deliver and cost. Writes translation_study{,_gpu}.csv,
 translation_pareto{,_gpu}.png and translation_precision{,_gpu}.png.
 
-usage: run_study.py [--problem dam_break|bar|hydrostatic|granular|disks|wall_pressure|stability|translation] [--fbar build/release/fbar] [--gpu] [--out docs/validation]
+--problem dam_break_ppc: the dam break over particles per cell (1, 8, 27) and resolution (APIC, single), against the
+dam break study's reference. Writes dam_break_ppc_study{,_gpu}.csv and dam_break_ppc_pareto{,_gpu}.png.
+
+--problem all: every problem above in turn (and the dam break's stability map): the one command that regenerates
+every chart (python3 tools/study/run_study.py --problem all --gpu on a GPU machine; without --gpu, the CPU charts).
+
+usage: run_study.py [--problem dam_break|dam_break_ppc|bar|hydrostatic|granular|disks|wall_pressure|stability|translation|all] [--fbar build/release/fbar] [--gpu] [--out docs/validation]
                     [--work /tmp/fbar_study]
 """
 import argparse
@@ -88,7 +94,7 @@ SCHEMES = {  # name: algorithm keys
 }
 
 
-def scene(cells, scheme, precision, cfl=0.5):
+def scene(cells, scheme, precision, cfl=0.5, ppc=8):
     dx = A / cells
     x0 = y0 = z0 = 2 * dx  # the walls one cell outside the column's faces, on node planes
     c0 = 10 * 2 * math.sqrt(G * 2 * A)
@@ -99,7 +105,7 @@ def scene(cells, scheme, precision, cfl=0.5):
         "simulation": {"domain": domain, "default_dx": dx, "gravity": [0, -G, 0], "fps": 1 / t_end, "frames": 1,
                        "precision": precision, "save_suffix": ".csv"},
         "bodies": [{"material": {"constitutive": "JFluid", "rho": 1000, "bulk_modulus": 1000 * c0 * c0, "gamma": 7,
-                                 "viscosity": 1e-3, "ppc": 8, "CFL": cfl},
+                                 "viscosity": 1e-3, "ppc": ppc, "CFL": cfl},
                     "algorithm": algorithm,
                     "geometry": [{"object": "Box", "span": [A, 2 * A, dx], "offset": [x0, y0, z0]}],
                     "output_attribs": ["ID"]}],
@@ -128,16 +134,18 @@ def first_reach(T, Z, z):
     return None
 
 
-def run(fbar, backend, cells, scheme, precision, work, cfl=0.5):
-    s, x0, t_end = scene(cells, scheme, precision, cfl)
-    label = f"{backend}_{cells}_{scheme.replace(' ', '')}_{precision}_{cfl}"
+def run(fbar, backend, cells, scheme, precision, work, cfl=0.5, ppc=8):
+    s, x0, t_end = scene(cells, scheme, precision, cfl, ppc)
+    label = f"{backend}_{cells}_{scheme.replace(' ', '')}_{precision}_{cfl}" + (f"_ppc{ppc}" if ppc != 8 else "")
+    per_axis = round(ppc ** (1.0 / 3.0))  # particles along an axis of a cell (1, 2, 3 for ppc 1, 8, 27)
     out = os.path.join(work, label)
     os.makedirs(out, exist_ok=True)
     path = os.path.join(out, "scene.json")
     with open(path, "w") as f:
         json.dump(s, f)
     p = subprocess.run([fbar, f"--backend={backend}", f"--output={out}", path], capture_output=True, text=True)
-    row = {"backend": backend, "cells_per_a": cells, "scheme": scheme, "precision": precision, "cfl": cfl}
+    row = {"backend": backend, "cells_per_a": cells, "scheme": scheme, "precision": precision, "cfl": cfl,
+           "ppc": ppc}
     if p.returncode != 0:
         row.update(status="failed", error_vs_experiment="", gauges_within_bounds="", wall_s="", steps="",
                    particles="", s_per_simulated_s="", message=(p.stderr.strip().splitlines() or [""])[-1], arrivals=None)
@@ -153,14 +161,14 @@ def run(fbar, backend, cells, scheme, precision, work, cfl=0.5):
         rows = list(csv.reader(f))[1:]
     for t, x in rows:
         T.append(float(t) * math.sqrt(2 * G / A))
-        Z.append((float(x) + 0.5 * A / cells / 2 - x0) / A)  # the front particle's edge (half a particle spacing)
+        Z.append((float(x) + 0.5 * A / cells / per_axis - x0) / A)  # the front particle's edge (half a spacing)
     err = sum(abs(interpolate(T, Z, te) - ze) / ze for te, ze in zip(FRONT_T, FRONT_Z)) / len(FRONT_T)
     arrivals = [first_reach(T, Z, z) for z in FRONT_Z[1:]]
     within = sum(1 for t, te, z in zip(arrivals, FRONT_T[1:], FRONT_Z[1:]) if t is not None and (z - 1) / 2 <= t <= te)
     # Physically impossible: a front ahead of Ritter's ideal dam break (Z <= 1 + 2 T) by more than a cell, or a
     # non-finite position. A run that completes with one of these failed silently.
     row["impossible"] = "yes" if any(not math.isfinite(z) or z > 1 + 2 * t + 1.0 / cells for t, z in zip(T, Z)) else ""
-    particles = int(round(cells * 2 * cells * 8))
+    particles = int(round(cells * 2 * cells * per_axis ** 3))  # a slab one cell thick
     row.update(status="ok", error_vs_experiment=f"{err:.5f}", gauges_within_bounds=f"{within}/{len(arrivals)}",
                wall_s=f"{meta['wall_time_s']:.4f}", steps=meta["steps"], particles=particles,
                s_per_simulated_s=f"{simulate_s / t_end:.4f}", message="", arrivals=arrivals)
@@ -549,10 +557,94 @@ def main():
                     help="cells per a (default 4 6 8 12 16 24, --gpu: 8 12 16 24 32 48); --problem bar: L/dx")
     ap.add_argument("--replot", action="store_true", help="draw the charts again from the CSV in --out, run nothing")
     ap.add_argument("--stability", action="store_true", help="the stability map (CFL number against scheme) only")
-    ap.add_argument("--problem", choices=["dam_break", "bar", "hydrostatic", "granular", "disks", "wall_pressure",
-                                          "stability", "translation"], default="dam_break")
+    ap.add_argument("--problem", choices=PROBLEMS + ["all"], default="dam_break",
+                    help="one problem, or all: every problem in turn (and the dam break's stability map), which "
+                         "regenerates every chart of docs/validation.md for the engine chosen")
     ap.add_argument("--driver", help="fbar_study_cases (default: beside --fbar)")
     a = ap.parse_args()
+    if a.problem != "all":
+        return run_problem(a)
+    failed = []
+    for problem in PROBLEMS:
+        # (the dam break's stability map has no --replot: its chart is drawn as its runs end)
+        for stability_map in ([False, True] if problem == "dam_break" and not a.replot else [False]):
+            one = argparse.Namespace(**vars(a))
+            one.problem, one.stability, one.cells = problem, stability_map, None
+            print(f"== {problem}{' (stability map)' if stability_map else ''}{' --gpu' if a.gpu else ''}", flush=True)
+            try:
+                if run_problem(one):
+                    failed.append(problem)
+            except FileNotFoundError as e:  # --replot of a study this engine has no CSV of (granular: GPU only)
+                if not a.replot:
+                    raise
+                print(f"   skipped: {e.filename} not found", flush=True)
+    if failed:
+        print("failed: " + ", ".join(failed))
+    return 1 if failed else 0
+
+
+PROBLEMS = ["dam_break", "dam_break_ppc", "bar", "hydrostatic", "granular", "disks", "wall_pressure", "stability",
+            "translation"]
+
+
+def ppc_study(a):
+    """The dam break of --problem dam_break swept over particles per cell (1, 8, 27) and resolution, APIC in single
+    precision, against the same reference as that study (its finest APIC double run at 8 ppc, run here again)."""
+    backend = "gpu" if a.gpu else "cpu"
+    suffix = "_gpu" if a.gpu else ""
+    csv_path = os.path.join(a.out, f"dam_break_ppc_study{suffix}.csv")
+    fields = ["backend", "cells_per_a", "ppc", "scheme", "precision", "status", "reference", "error",
+              "error_vs_experiment", "wall_s", "s_per_simulated_s", "steps", "particles", "message"]
+    if a.replot:
+        with open(csv_path) as f:
+            rows = list(csv.DictReader(f))
+    else:
+        cells = [int(c) for c in a.cells] if a.cells else ([16, 32, 48] if a.gpu else [8, 16, 24])
+        os.makedirs(a.out, exist_ok=True)
+        rows = [run(a.fbar, backend, max(cells), "APIC", "double", a.work)]
+        for n in cells:
+            for ppc in (1, 8, 27):
+                r = run(a.fbar, backend, n, "APIC", "single", a.work, ppc=ppc)
+                rows.append(r)
+                print(f"{backend} {n:3d}/a ppc {ppc:2d} {r['status']:6s} wall {r['wall_s']:>8s} s {r['message']}",
+                      flush=True)
+        against_reference(rows)
+        with open(csv_path, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=fields)
+            w.writeheader()
+            for r in rows:
+                w.writerow({k: r.get(k, "") for k in fields})
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    ok = [r for r in rows if r["status"] == "ok" and r["error"] != "" and not r["reference"]]
+    colors = {1: "#1f77b4", 8: "#ff7f0e", 27: "#2ca02c"}
+    ref = next(r for r in rows if r["reference"])
+    label = f"mean |T - T_ref| at the gauges (ref: APIC, double, {ref['cells_per_a']}/a, 8 ppc)"
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    pts = [(float(r["s_per_simulated_s"]), max(float(r["error"]), 1e-4)) for r in ok]
+    front = pareto(pts)
+    for ppc in (1, 8, 27):
+        rs = [(p, r) for p, r in zip(pts, ok) if int(r["ppc"]) == ppc]
+        ax.plot([p[0] for p, _ in rs], [p[1] for p, _ in rs], "o", color=colors[ppc], label=f"{ppc} ppc")
+        for p, r in rs:
+            ax.annotate(f"{r['cells_per_a']}/a", p, fontsize=7, xytext=(3, 3), textcoords="offset points")
+    fp = [pts[i] for i in front]
+    ax.plot([p[0] for p in fp], [p[1] for p in fp], "k--", lw=0.8, label="Pareto front")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel(f"wall time per simulated second [s] ({rows[0]['backend']} engine)")
+    ax.set_ylabel(label, fontsize=8)
+    ax.set_title("Dam break: particles per cell against resolution (APIC, single)")
+    ax.legend(fontsize=8)
+    ax.grid(True, which="both", alpha=0.3)
+    save(fig, a.out, f"dam_break_ppc_pareto{suffix}.png")
+    return 0
+
+
+def run_problem(a):
+    if a.problem == "dam_break_ppc":
+        return ppc_study(a)
     if a.problem == "stability":
         return stability_study(a)
     if a.problem == "translation":
@@ -598,6 +690,7 @@ def main():
         for r in rows:
             w.writerow({k: r[k] for k in fields})
     charts(rows, a.out, f"{backend} engine", suffix)
+    return 0
 
 
 if __name__ == "__main__":

@@ -69,6 +69,8 @@ struct RunOptions {
   /// device data moves by peer copies between threads; otherwise through NCCL).
   int gpu = -1;
   bool shared_gpus = false;
+  /// GPU ranks: the halo-first G2P2G overlapped with the halo sums (GpuEngineOptions::overlap_halo; --halo-overlap).
+  bool halo_overlap = false;
   /// --restart: a checkpoint file (io/checkpoint.h; any rank's file of the set) to continue from, or empty.
   std::string restart{};
 };

@@ -244,6 +244,10 @@ const comm::SlabPartition& GpuEngine<T, TG>::slabs() const { return impl_->slabs
 template <typename T, typename TG>
 long long GpuEngine<T, TG>::migrated() const { return earlier_migrated_ + impl_->migrated(); }
 template <typename T, typename TG>
+long long GpuEngine<T, TG>::migration_repeats() const {
+  return earlier_migration_repeats_ + impl_->migration_repeats();
+}
+template <typename T, typename TG>
 std::size_t GpuEngine<T, TG>::halo_blocks() const { return impl_->halo_blocks(); }
 template <typename T, typename TG>
 std::size_t GpuEngine<T, TG>::halo_particle_blocks() const { return impl_->halo_particle_blocks(); }
@@ -295,6 +299,7 @@ bool GpuEngine<T, TG>::rebalance_if_drifted() {
   impl_->wait_for_frames();
   earlier_times_ = kernel_times();
   earlier_migrated_ = migrated();
+  earlier_migration_repeats_ = migration_repeats();
   earlier_repeats_ = p2g_range_repeats();
   earlier_wait_s_ = output_wait_seconds();
   earlier_peak_ = peak_device_bytes();
@@ -344,6 +349,7 @@ RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& 
                                  : comm::make_nccl_transport(*options.transport);
     engine_options.ranks = options.transport;
     engine_options.device_ranks = device.get();
+    engine_options.overlap_halo = options.halo_overlap;
   }
   const auto setup_start = std::chrono::steady_clock::now();
   // A restart: every rank reads the whole set (in ID order) and keeps the particles of its slab.

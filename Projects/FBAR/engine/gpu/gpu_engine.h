@@ -78,8 +78,15 @@ struct GpuEngineOptions {
   comm::DeviceTransport* device_ranks = nullptr;
   /// Decomposed runs: G2P2G runs the particle blocks that scatter into a shared grid plane first, then the others
   /// while a second stream sums the shared planes with the neighbours (false: the sums after the whole G2P2G; the
-  /// benchmark compares both). The result is the same either way, to the order of the atomic sums.
-  bool overlap_halo = true;
+  /// benchmark compares both). The result is the same either way, to the order of the atomic sums. Off by default:
+  /// between H100s of one node the sums take 0.03 ms exposed, less than the overlap costs G2P2G (a second launch,
+  /// NCCL's kernels beside it; docs/benchmarks/2026-11-27-h100x4-multi-gpu.md). On for slow links between nodes
+  /// (fbar --halo-overlap=on).
+  bool overlap_halo = false;
+  /// Decomposed runs: the particles per body that one migration message to a neighbour holds at first (the
+  /// messages grow, on every rank alike, when a step fills more than half; a step that overflows them is repeated).
+  /// Tests make it small to run the growth.
+  int migrant_capacity = 512;
   /// Decomposed runs: rebalance_if_drifted() chooses the slabs again when the particles per rank drifted apart by
   /// more than this (max / mean - 1) and by 1.5 x the imbalance the last choice left (<= 0: never). The CPU
   /// engine's rule and default.
@@ -182,6 +189,8 @@ class GpuEngine {
   int ranks() const;
   const comm::SlabPartition& slabs() const;  ///< the particle-block planes of every rank
   long long migrated() const;               ///< particles this rank sent to others so far
+  /// Steps repeated because some rank's migrants overflowed the migration messages (GpuEngineOptions).
+  long long migration_repeats() const;
   std::size_t halo_blocks() const;          ///< grid blocks this rank shares with its neighbours now
   /// Particle blocks (all bodies) the next G2P2G runs first because they scatter into a shared plane.
   std::size_t halo_particle_blocks() const;
@@ -213,7 +222,7 @@ class GpuEngine {
   std::vector<ParticleSensorSpec> particle_sensors_;
   std::vector<std::pair<int, TrackerSet>> trackers_;
   KernelTimes earlier_times_;          ///< of the engines before the last rebalance
-  long long earlier_migrated_ = 0, earlier_repeats_ = 0;
+  long long earlier_migrated_ = 0, earlier_repeats_ = 0, earlier_migration_repeats_ = 0;
   double earlier_wait_s_ = 0.0;
   std::size_t earlier_peak_ = 0;
   double chosen_imbalance_ = 0.0;     ///< right after the slabs were last chosen

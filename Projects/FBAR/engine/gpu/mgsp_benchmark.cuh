@@ -156,11 +156,14 @@ static __global__ void reset_step_stats(StepStats* stats, BodyStepStats* bodies,
     stats->table_overflow = 0;
   }
   for (int b = t; b < body_count; b += blockDim.x) {
-    if (!partition_only)
+    if (!partition_only) {
       for (int k = 0; k < kFailKinds; ++k) {
         bodies[b].failures[k] = 0;
         bodies[b].first_id[k] = INT_MAX;
       }
+      for (int side = 0; side < 2; ++side) bodies[b].emigrants[side] = bodies[b].immigrants[side] = 0;
+      bodies[b].emigrant_list = 0;
+    }
     bodies[b].total_bins = 0;
     bodies[b].particles = 0;
     bodies[b].halo_blocks = 0;
@@ -268,6 +271,7 @@ class MgspBenchmark {
     }
   }
   long long migrated() const { return migrated_; }
+  long long migration_repeats() const { return migration_repeats_; }
   std::size_t halo_blocks() const { return halo_[0].keys.size() + halo_[1].keys.size(); }
   std::size_t halo_particle_blocks() const {
     std::size_t n = 0;
@@ -285,6 +289,8 @@ class MgspBenchmark {
     /// Slots of bins[1 - cur] the partition reads: the G2P2G's layout slots, then the particles received this try.
     int source_slots = 0;
     int pending_particles = 0;     ///< particles on this rank after this try's migration
+    /// Decomposed runs: the slots of a try's emigrants, as G2P2G lists them (2 x migrant_capacity_ entries).
+    mgsp_detail::DeviceArray<int> emigrant_slots;
     T mass = T(0), volume = T(0);
     double rest_wave_speed = 0.0;
     HydrostaticProfile hydrostatic;  ///< bodies[].initial_state "hydrostatic": the upload's states (inactive: rest)
@@ -366,10 +372,14 @@ class MgspBenchmark {
     virtual void g2p2g(MgspBenchmark& e, bool initial, T dt, G2P2GPass pass = G2P2GPass::All) = 0;
     virtual void dest_from_positions(MgspBenchmark& e, int bins_which, const int* valid, int first, int slots) = 0;
     virtual std::size_t migrant_bytes(const MgspBenchmark& e) const = 0;
-    /// Emigrants among the first `slots` slots of bins[1 - cur] into out[0] / out[1] (count: 2 device ints).
-    virtual void pack_emigrants(MgspBenchmark& e, int slots, std::byte* lo, std::byte* hi, int capacity, int* count) = 0;
-    /// n received records into slots first .. first + n - 1 of bins[1 - cur].
-    virtual void unpack_immigrants(MgspBenchmark& e, int first, const std::byte* in, int n) = 0;
+    /// The emigrants G2P2G listed (emigrant_slots) from bins[1 - cur] into the areas lo / hi of `capacity` records
+    /// (count_lo / count_hi: the body's device ints in the two message headers).
+    virtual void pack_emigrants(MgspBenchmark& e, std::byte* lo, std::byte* hi, int capacity, int* count_lo,
+                                int* count_hi) = 0;
+    /// The min(*count, capacity) received records into slots first .. of bins[1 - cur]; the rest of the `capacity`
+    /// slots marked empty.
+    virtual void unpack_immigrants(MgspBenchmark& e, int first, const std::byte* in, const int* count,
+                                   int capacity) = 0;
     virtual void rescale_impulse(MgspBenchmark& e, T ddt) = 0;
     virtual void gather(MgspBenchmark& e, T* out, int* missing, cudaStream_t s) = 0;
     /// Particle sensors over this body's particles into partials (sensor, CUDA block); aux: v and C, or nullptr
@@ -501,6 +511,8 @@ class MgspBenchmark {
       p.stats = e.stats_d_;
       p.body_stats = e.body_stats_d_ + this->index;
       p.slab = e.slab_;
+      p.emigrant_slots = e.decomposed() ? this->emigrant_slots.get() : nullptr;
+      p.emigrant_capacity = static_cast<int>(this->emigrant_slots.size());
       p.wave_speed = e.wave_d_.get() + (1 - e.wave_cur_) * e.bodies_.size() + this->index;
       p.p2g_bound_in = e.p2g_bound_d_.get() + e.bound_cur_ * e.bodies_.size() + this->index;
       p.p2g_bound_out = e.p2g_bound_d_.get() + (1 - e.bound_cur_) * e.bodies_.size() + this->index;
@@ -578,19 +590,22 @@ class MgspBenchmark {
     std::size_t migrant_bytes(const MgspBenchmark& e) const override {
       return fbar::migrant_bytes<M, T>(this->asflip, e.record_);
     }
-    void pack_emigrants(MgspBenchmark& e, int slots, std::byte* lo, std::byte* hi, int capacity, int* count) override {
-      if (slots == 0) return;
-      fbar::pack_emigrants<M, T><<<mgsp_detail::grid_for(slots, kHaloThreads), kHaloThreads, 0, e.stream_>>>(
-          bins[1 - e.cur_].instance(), this->partition.layout(e.cur_).src, slots, this->partition.dest(),
-          this->asflip ? this->particle_v[1 - e.cur_].get() : nullptr, e.record_ ? this->aux.get() : nullptr, lo, hi,
-          capacity, count);
+    void pack_emigrants(MgspBenchmark& e, std::byte* lo, std::byte* hi, int capacity, int* count_lo,
+                        int* count_hi) override {
+      const int listed = static_cast<int>(this->emigrant_slots.size());
+      if (listed == 0) return;
+      fbar::pack_emigrants<M, T><<<mgsp_detail::grid_for(listed, kHaloThreads), kHaloThreads, 0, e.stream_>>>(
+          bins[1 - e.cur_].instance(), this->emigrant_slots.get(), &e.body_stats_d_[this->index].emigrant_list,
+          listed, this->partition.dest(), this->asflip ? this->particle_v[1 - e.cur_].get() : nullptr,
+          e.record_ ? this->aux.get() : nullptr, lo, hi, capacity, count_lo, count_hi);
       mgsp_detail::check_launch("pack_emigrants");
     }
-    void unpack_immigrants(MgspBenchmark& e, int first, const std::byte* in, int n) override {
-      if (n == 0) return;
-      fbar::unpack_immigrants<M, T><<<mgsp_detail::grid_for(n, kHaloThreads), kHaloThreads, 0, e.stream_>>>(
-          bins[1 - e.cur_].instance(), first, in, n, this->asflip ? this->particle_v[1 - e.cur_].get() : nullptr,
-          e.record_ ? this->aux.get() : nullptr, this->partition.layout(e.cur_).src);
+    void unpack_immigrants(MgspBenchmark& e, int first, const std::byte* in, const int* count, int capacity) override {
+      if (capacity == 0) return;
+      fbar::unpack_immigrants<M, T><<<mgsp_detail::grid_for(capacity, kHaloThreads), kHaloThreads, 0, e.stream_>>>(
+          bins[1 - e.cur_].instance(), first, in, count, capacity,
+          this->asflip ? this->particle_v[1 - e.cur_].get() : nullptr, e.record_ ? this->aux.get() : nullptr,
+          this->partition.layout(e.cur_).src);
       mgsp_detail::check_launch("unpack_immigrants");
     }
 
@@ -730,8 +745,15 @@ class MgspBenchmark {
   void rebuild_halo(int summed_grid);
   /// Collective, after G2P2G and the halo sums: emigrants out, immigrants in (behind the G2P2G's slots).
   void migrate_particles();
-  /// Collective, after read_stats: failure counts, first IDs, repeats, grid speed and new halo blocks over ranks.
-  void agree_on_try();
+  /// After read_stats: each body's particles after the migration, from the counts the step's readback brought;
+  /// true when some count passed migrant_capacity_ on this rank (agree_on_try makes it every rank's).
+  bool settle_migration();
+  /// Decomposed runs, before a G2P2G: each body's emigrant list holds 2 x migrant_capacity_ slots.
+  void ensure_emigrant_lists();
+  /// Collective, after read_stats (and settle_migration, whose overflow it takes): failure counts, first IDs,
+  /// repeats, grid speed, the most particles and migrants of a rank and new halo blocks over ranks, in one
+  /// collective. Returns whether any rank's migration overflowed its messages.
+  bool agree_on_try(bool migrant_overflow);
 
   static constexpr Precision kPrecision = !std::is_same_v<T, TG>      ? Precision::Mixed
                                            : std::is_same_v<T, double> ? Precision::Double
@@ -832,7 +854,11 @@ class MgspBenchmark {
   std::array<HaloSide, 2> halo_;
   int halo_scanned_ = 0;                        ///< table blocks already looked at for the halo planes
   int halo_fresh_capacity_ = 0;
-  mgsp_detail::DeviceArray<int> migrant_count_d_;  ///< (body, side) emigrants packed this try
+  /// Records per body and side in a migration message (MigrantMessage): the same on every rank, grown (by all
+  /// ranks at once, after agree_on_try) when a step sent more than half of it; a step that sent more is repeated.
+  int migrant_capacity_ = 512;     ///< options_.migrant_capacity at start
+  long long migration_repeats_ = 0;  ///< tries repeated because migrants overflowed the messages
+  int migrant_most_ = 0;            ///< agree_on_try: the most particles one rank sent one side for one body
   long long migrated_ = 0;
   long long pending_migrated_ = 0;
   bool halo_grew_ = false;  ///< agree_on_try: some rank has new halo blocks (every rank then calls rebuild_halo)
@@ -858,6 +884,9 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
     host_ = options.ranks;
     device_ = options.device_ranks;
   }
+  if (options.migrant_capacity < 1)
+    throw std::invalid_argument("GpuEngine: migrant_capacity must be at least 1");
+  migrant_capacity_ = options.migrant_capacity;
   slabs_ = comm::choose_slabs(comm::PlaneCounts{}, 1);  // all of space (a decomposed run chooses below)
   if (positions && positions->size() != scene_.bodies.size())
     throw std::invalid_argument("GpuEngine: one position list per body");
@@ -1183,6 +1212,7 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
     b->source_slots = b->total_bins[0] * 32;
     b->pending_particles = b->particles;
   }
+  ensure_emigrant_lists();
   for (auto& b : bodies_) b->g2p2g(*this, true, T(0));
   if (decomposed()) {
     if (asflip_)
@@ -1197,7 +1227,8 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
   read_stats();
   while (handle_overflow()) {
   }
-  if (decomposed()) agree_on_try();
+  if (decomposed() && agree_on_try(settle_migration()))  // the initial P2G moves nothing: no rank sends any
+    throw std::runtime_error("GpuEngine: internal error: the initial P2G sent more particles than one message holds");
   if (stats_->internal_error) throw std::runtime_error("GpuEngine: internal error in the initial P2G");
   for (auto& b : bodies_) {
     take_layout_stats(*b, 1);
@@ -1633,13 +1664,14 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
       b->initial_v.swap(done);
     }
   StepReport report;
-  int range_repeats = 0;
+  int range_repeats = 0, migration_tries = 0;
   for (;;) {
     reset_stats(false);
     for (auto& b : bodies_) {
       b->source_slots = b->total_bins[cur_] * 32;
       b->pending_particles = b->particles;
     }
+    ensure_emigrant_lists();
     pending_migrated_ = 0;
     // 0. the grid must hold the impulse of this dt
     if (dt != dt_p2g_) {
@@ -1752,11 +1784,23 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
     event_record(3);
     // 5. the step's one readback
     read_stats();
-    if (decomposed()) agree_on_try();
+    const bool migrant_overflow = decomposed() && agree_on_try(settle_migration());
     if (stats_->internal_error)
       throw std::runtime_error("GpuEngine: internal error (" + std::to_string(stats_->internal_error) +
                                " arena lookups or particles outside their block) at step " +
                                std::to_string(steps_ + 1));
+    if (migrant_overflow) {
+      // Some rank sent more particles one way than a message holds: every rank grows the messages alike and
+      // repeats the try (the try's state is still the step's start). Twice in a row is an engine bug.
+      if (++migration_tries > 2)
+        throw std::runtime_error("GpuEngine: the migration messages did not grow enough at step " +
+                                 std::to_string(steps_ + 1));
+      migrant_capacity_ = std::max(2 * migrant_capacity_, 2 * migrant_most_);
+      ++migration_repeats_;
+      continue;
+    }
+    // A step that used more than half of the messages' room grows them for the next one (every rank alike).
+    if (decomposed() && 2 * migrant_most_ > migrant_capacity_) migrant_capacity_ = 2 * migrant_most_;
     std::vector<FailureReport> failures = failures_of_try(dt);
     if (failures.empty() && stats_->p2g_range > 0) {
       // Contributions grew past the fixed-point bound (kernels/g2p2g_kernel.cuh): repeat the try with the bound it
@@ -2695,144 +2739,151 @@ void MgspBenchmark<T, TG>::rebuild_halo(int summed_grid) {
 
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::migrate_particles() {
+  // No host round trip: the messages have a size every rank knows (MigrantMessage), the counts travel in their
+  // headers, and the host reads them with the step's one readback (settle_migration).
+  static_assert(MigrantMessage::kHeaderBytes >= sizeof(int) * DtParams::kMaxBodies, "a count per body in the header");
   const int nb = body_count();
-  if (migrant_count_d_.size() < static_cast<std::size_t>(2 * nb)) migrant_count_d_.allocate(static_cast<std::size_t>(2 * nb));
-  std::vector<std::size_t> record(static_cast<std::size_t>(nb));
-  std::size_t widest = 0;
-  for (auto& b : bodies_) widest = std::max(widest, record[b->index] = b->migrant_bytes(*this));
-  // 1. Pack (repeated once, with room for all, when a side's buffer was too small). Per side: nb areas of
-  // `capacity` records of `widest` bytes.
-  std::vector<int> counts(static_cast<std::size_t>(2 * nb));
-  auto capacity_now = [&] { return halo_[0].migrants_out.size() / (widest * static_cast<std::size_t>(nb)); };
-  auto allocate = [&](std::size_t records) {
-    for (HaloSide& h : halo_) h.migrants_out.allocate(records * widest * static_cast<std::size_t>(nb));
-  };
-  if (capacity_now() < 1024) allocate(1024);
-  for (int attempt = 0;; ++attempt) {
-    const std::size_t capacity = capacity_now();
-    FBAR_CUDA_CHECK(cudaMemsetAsync(migrant_count_d_.get(), 0, sizeof(int) * 2 * nb, stream_));
-    for (auto& b : bodies_) {
-      const std::size_t at = capacity * widest * static_cast<std::size_t>(b->index);
-      b->pack_emigrants(*this, b->source_slots, halo_[0].migrants_out.get() + at, halo_[1].migrants_out.get() + at,
-                        static_cast<int>(capacity), migrant_count_d_.get() + 2 * b->index);
-    }
-    FBAR_CUDA_CHECK(cudaMemcpyAsync(counts.data(), migrant_count_d_.get(), sizeof(int) * 2 * nb,
-                                    cudaMemcpyDeviceToHost, stream_));
-    FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
-    const int most = *std::max_element(counts.begin(), counts.end());
-    if (static_cast<std::size_t>(most) <= capacity) break;
-    if (attempt == 1) throw std::logic_error("GpuEngine: emigrants do not fit the buffer sized for them");
-    allocate(static_cast<std::size_t>(most) * 2);
+  MigrantMessage msg;
+  msg.capacity = migrant_capacity_;
+  msg.bodies = nb;
+  for (auto& b : bodies_) msg.widest = std::max(msg.widest, b->migrant_bytes(*this));
+  const std::size_t bytes = msg.bytes();
+  for (HaloSide& h : halo_) {
+    if (h.migrants_out.size() < bytes) h.migrants_out.allocate(bytes);
+    if (h.peer >= 0 && h.migrants_in.size() < bytes) h.migrants_in.allocate(bytes);
   }
-  const std::size_t capacity = capacity_now();
-  // 2. Counts to the neighbours (host), then the records (device): per side one message, body after body.
-  std::vector<int> peers;
-  std::vector<comm::Bytes> send;
-  for (int side = 0; side < 2; ++side) {
-    if (halo_[side].peer < 0) continue;
-    peers.push_back(halo_[side].peer);
-    comm::Bytes c(sizeof(int) * static_cast<std::size_t>(nb));
-    for (int b = 0; b < nb; ++b) std::memcpy(c.data() + sizeof(int) * b, &counts[2 * b + side], sizeof(int));
-    send.push_back(std::move(c));
-  }
-  const std::vector<comm::Bytes> received = host_->exchange(peers, send);
-  std::array<std::vector<int>, 2> incoming;
+  // 1. Pack: each body into its area of both sides' messages, counted in the headers.
+  for (HaloSide& h : halo_)
+    FBAR_CUDA_CHECK(cudaMemsetAsync(h.migrants_out.get(), 0, MigrantMessage::kHeaderBytes, stream_));
+  auto header = [](mgsp_detail::DeviceArray<std::byte>& a) { return reinterpret_cast<int*>(a.get()); };
+  for (auto& b : bodies_)
+    b->pack_emigrants(*this, halo_[0].migrants_out.get() + msg.area(b->index),
+                      halo_[1].migrants_out.get() + msg.area(b->index), msg.capacity,
+                      header(halo_[0].migrants_out) + b->index, header(halo_[1].migrants_out) + b->index);
+  // 2. The whole messages to the neighbours (the same size both ways).
   std::vector<comm::DeviceTransport::Message> messages;
-  std::size_t i = 0;
-  for (int side = 0; side < 2; ++side) {
-    HaloSide& h = halo_[side];
+  for (HaloSide& h : halo_) {
     if (h.peer < 0) continue;
-    incoming[side].resize(static_cast<std::size_t>(nb));
-    std::memcpy(incoming[side].data(), received[i++].data(), sizeof(int) * static_cast<std::size_t>(nb));
-    std::size_t in_bytes = 0;
-    for (int b = 0; b < nb; ++b) in_bytes += record[b] * static_cast<std::size_t>(incoming[side][b]);
-    if (h.migrants_in.size() < in_bytes) h.migrants_in.allocate(in_bytes * 2);
-    // The records of body b sit at b x (capacity x widest) in the packed buffer: send them body by body, packed
-    // tight, in one message (a device-to-device compaction first when several bodies migrate).
-    std::size_t out_bytes = 0;
-    for (int b = 0; b < nb; ++b) out_bytes += record[b] * static_cast<std::size_t>(counts[2 * b + side]);
     comm::DeviceTransport::Message m;
     m.peer = h.peer;
-    m.send_bytes = out_bytes;
-    m.recv_bytes = in_bytes;
+    m.send = h.migrants_out.get();
+    m.send_bytes = bytes;
     m.recv = h.migrants_in.get();
-    if (nb == 1) {
-      m.send = h.migrants_out.get();
-    } else {
-      if (h.migrants_in.size() < in_bytes + out_bytes) {  // the compacted send goes behind the receive area
-        mgsp_detail::DeviceArray<std::byte> bigger;
-        bigger.allocate(2 * (in_bytes + out_bytes));
-        h.migrants_in.swap(bigger);
-        m.recv = h.migrants_in.get();
-      }
-      std::byte* tight = h.migrants_in.get() + in_bytes;
-      std::size_t at = 0;
-      for (int b = 0; b < nb; ++b) {
-        const std::size_t bytes = record[b] * static_cast<std::size_t>(counts[2 * b + side]);
-        if (bytes)
-          FBAR_CUDA_CHECK(cudaMemcpyAsync(tight + at, h.migrants_out.get() + capacity * widest * b, bytes,
-                                          cudaMemcpyDeviceToDevice, stream_));
-        at += bytes;
-      }
-      m.send = tight;
-    }
+    m.recv_bytes = bytes;
     messages.push_back(m);
   }
   device_->exchange(messages, stream_);
-  // 3. Immigrants behind the G2P2G's slots, lower neighbour's first; their (block, rank) before the partition.
+  // 3. Immigrants behind the G2P2G's slots, `capacity` slots per neighbour (those past its count marked empty);
+  // their (block, rank) before the partition.
   for (auto& bp : bodies_) {
     BodyBase& b = *bp;
-    int arriving = 0;
-    for (int side = 0; side < 2; ++side)
-      if (halo_[side].peer >= 0) arriving += incoming[side][b.index];
-    const int leaving = counts[2 * b.index] + counts[2 * b.index + 1];
-    pending_migrated_ += leaving;
-    b.pending_particles = b.particles - leaving + arriving;
-    if (arriving == 0) continue;
     const int first = b.source_slots;
+    int sides = 0;
+    for (const HaloSide& h : halo_) sides += h.peer >= 0 ? 1 : 0;
+    const long long end = first + static_cast<long long>(sides) * msg.capacity;
     const long long room = 32LL * std::min(b.bins_capacity(1 - cur_), b.partition.bin_capacity());
-    if (first + static_cast<long long>(arriving) > room) grow_for_arrivals(b, first, (first + arriving + 31) / 32);
+    if (end > room) grow_for_arrivals(b, first, (end + 31) / 32);
     int slot = first;
-    for (int side = 0; side < 2; ++side) {
-      if (halo_[side].peer < 0 || incoming[side][b.index] == 0) continue;
-      std::size_t at = 0;
-      for (int o = 0; o < b.index; ++o) at += record[o] * static_cast<std::size_t>(incoming[side][o]);
-      b.unpack_immigrants(*this, slot, halo_[side].migrants_in.get() + at, incoming[side][b.index]);
-      slot += incoming[side][b.index];
+    for (HaloSide& h : halo_) {
+      if (h.peer < 0) continue;
+      b.unpack_immigrants(*this, slot, h.migrants_in.get() + msg.area(b.index), header(h.migrants_in) + b.index,
+                          msg.capacity);
+      slot += msg.capacity;
     }
     b.source_slots = slot;
     b.dest_from_positions(*this, 1 - cur_, b.partition.layout(cur_).src, first, slot);
   }
+  record_migrant_counts<<<1, 64, 0, stream_>>>(
+      nb, header(halo_[0].migrants_out), header(halo_[1].migrants_out),
+      halo_[0].peer >= 0 ? header(halo_[0].migrants_in) : nullptr,
+      halo_[1].peer >= 0 ? header(halo_[1].migrants_in) : nullptr, body_stats_d_);
+  mgsp_detail::check_launch("record_migrant_counts");
 }
 
 template <typename T, typename TG>
-void MgspBenchmark<T, TG>::agree_on_try() {
+bool MgspBenchmark<T, TG>::settle_migration() {
+  bool overflow = false;
+  migrant_most_ = 0;
+  for (auto& b : bodies_) {
+    const BodyStepStats& s = body_stats_[b->index];
+    int leaving = 0, arriving = 0;
+    for (int side = 0; side < 2; ++side) {
+      leaving += s.emigrants[side];
+      arriving += s.immigrants[side];
+      migrant_most_ = std::max({migrant_most_, s.emigrants[side], s.immigrants[side]});
+      overflow = overflow || s.emigrants[side] > migrant_capacity_ || s.immigrants[side] > migrant_capacity_;
+    }
+    // G2P2G lists at most 2 x capacity emigrants (emigrant_slots): more, and the try is repeated as well.
+    overflow = overflow || s.emigrant_list > 2 * migrant_capacity_;
+    migrant_most_ = std::max(migrant_most_, (s.emigrant_list + 1) / 2);
+    pending_migrated_ += leaving;
+    b->pending_particles = b->particles - leaving + arriving;
+  }
+  return overflow;
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::ensure_emigrant_lists() {
+  if (!decomposed()) return;
+  const std::size_t entries = 2 * static_cast<std::size_t>(migrant_capacity_);
+  for (auto& b : bodies_)
+    if (b->emigrant_slots.size() != entries) b->emigrant_slots.allocate(entries);
+}
+
+template <typename T, typename TG>
+bool MgspBenchmark<T, TG>::agree_on_try(bool migrant_overflow) {
+  // One allgather of every rank's numbers, reduced here in rank order (the same result on every rank): the host
+  // round trips of a decomposed step cost GPU idle time, so the step has this one.
   const int nb = body_count();
-  std::vector<long long> sums = {stats_->internal_error, stats_->p2g_range,
-                                 static_cast<long long>(stats_->halo_new[0]) + stats_->halo_new[1]};
-  std::vector<long long> firsts;
+  enum : int { kInternal, kRange, kHaloNew, kOverflow, kSpeed, kParticles, kMigrants, kFixed };
+  std::vector<long long> mine(static_cast<std::size_t>(kFixed + 2 * kFailKinds * nb));
+  mine[kInternal] = stats_->internal_error;
+  mine[kRange] = stats_->p2g_range;
+  mine[kHaloNew] = static_cast<long long>(stats_->halo_new[0]) + stats_->halo_new[1];
+  mine[kOverflow] = migrant_overflow ? 1 : 0;
+  mine[kSpeed] = static_cast<long long>(stats_->max_speed_sq);  // bits of a non-negative double: integer order
+  long long held = 0;
+  for (const auto& b : bodies_) held += b->pending_particles;
+  mine[kParticles] = held;
+  mine[kMigrants] = migrant_most_;
   for (int b = 0; b < nb; ++b)
     for (int k = 0; k < kFailKinds; ++k) {
-      sums.push_back(body_stats_[b].failures[k]);
-      firsts.push_back(body_stats_[b].first_id[k]);
+      mine[static_cast<std::size_t>(kFixed + kFailKinds * b + k)] = body_stats_[b].failures[k];
+      mine[static_cast<std::size_t>(kFixed + kFailKinds * (nb + b) + k)] = body_stats_[b].first_id[k];
     }
-  host_->allreduce_sum(sums.data(), static_cast<int>(sums.size()));
-  host_->allreduce_min(firsts.data(), static_cast<int>(firsts.size()));
-  // The largest grid speed and the most particles a rank holds after this try, in one reduction.
-  double most[2] = {0.0, 0.0};
-  std::memcpy(&most[0], &stats_->max_speed_sq, sizeof(double));
-  for (const auto& b : bodies_) most[1] += static_cast<double>(b->pending_particles);
-  host_->allreduce_max(most, 2);
-  std::memcpy(&stats_->max_speed_sq, &most[0], sizeof(double));
-  most_rank_particles_ = most[1];
-  stats_->internal_error = static_cast<int>(sums[0]);
-  stats_->p2g_range = static_cast<int>(sums[1]);
-  halo_grew_ = sums[2] > 0;  // stats_->halo_new stays this rank's: rebuild_halo sends those
+  comm::Bytes packed(mine.size() * sizeof(long long));
+  std::memcpy(packed.data(), mine.data(), packed.size());
+  const std::vector<comm::Bytes> all = host_->allgather(packed);
+  std::vector<long long> v(mine.size()), agreed(mine.size());
+  for (std::size_t r = 0; r < all.size(); ++r) {
+    if (all[r].size() != packed.size()) throw std::logic_error("GpuEngine: ranks disagree on the step's counters");
+    std::memcpy(v.data(), all[r].data(), packed.size());
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      const bool first_ids = i >= static_cast<std::size_t>(kFixed + kFailKinds * nb);
+      const bool maximum = i == kSpeed || i == kParticles || i == kMigrants;
+      if (r == 0)
+        agreed[i] = v[i];
+      else if (first_ids)
+        agreed[i] = std::min(agreed[i], v[i]);
+      else if (maximum)
+        agreed[i] = std::max(agreed[i], v[i]);
+      else
+        agreed[i] += v[i];
+    }
+  }
+  stats_->internal_error = static_cast<int>(agreed[kInternal]);
+  stats_->p2g_range = static_cast<int>(agreed[kRange]);
+  halo_grew_ = agreed[kHaloNew] > 0;  // stats_->halo_new stays this rank's: rebuild_halo sends those
+  stats_->max_speed_sq = static_cast<unsigned long long>(agreed[kSpeed]);
+  most_rank_particles_ = static_cast<double>(agreed[kParticles]);
+  migrant_most_ = static_cast<int>(agreed[kMigrants]);
   for (int b = 0; b < nb; ++b)
     for (int k = 0; k < kFailKinds; ++k) {
-      body_stats_[b].failures[k] = static_cast<int>(sums[3 + kFailKinds * b + k]);
-      body_stats_[b].first_id[k] = static_cast<int>(firsts[static_cast<std::size_t>(kFailKinds * b + k)]);
+      body_stats_[b].failures[k] = static_cast<int>(agreed[static_cast<std::size_t>(kFixed + kFailKinds * b + k)]);
+      body_stats_[b].first_id[k] =
+          static_cast<int>(agreed[static_cast<std::size_t>(kFixed + kFailKinds * (nb + b) + k)]);
     }
+  return agreed[kOverflow] > 0;
 }
 
 }  // namespace fbar

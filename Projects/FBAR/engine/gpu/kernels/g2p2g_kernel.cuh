@@ -149,6 +149,9 @@ struct G2P2GParams {
   StepStats* stats;
   BodyStepStats* body_stats;
   SlabBounds slab;           ///< the particle blocks this rank owns: a particle leaving them is an emigrant
+  int* emigrant_slots;       ///< decomposed runs: the slots of this try's emigrants (body_stats->emigrant_list
+                             ///< counts them all; at most emigrant_capacity stored); nullptr on one GPU
+  int emigrant_capacity;
   unsigned long long* wave_speed;  ///< (this body) bits of the largest wave speed of the new state
   const unsigned long long* p2g_bound_in;  ///< (this body) bits of the momentum bound B of the last try [kg m/s]
   unsigned long long* p2g_bound_out;       ///< (this body) bits of the largest p2g_momentum_bound of this try
@@ -583,6 +586,11 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
     const ParticleDest d =
         g2p2g_detail::claim_block_rank<TG>(has_key, key, p.table, p.next_count, p.grid_next, p.grid_this);
     if (active) p.dest[slot] = emigrant >= 0 ? ParticleDest{kEmigrant, emigrant} : d;
+    // The emigrants' slots, listed so that the migration reads those few instead of every slot's destination.
+    if (active && emigrant >= 0 && p.emigrant_slots) {
+      const int k = atomicAdd(&p.body_stats->emigrant_list, 1);
+      if (k < p.emigrant_capacity) p.emigrant_slots[k] = slot;
+    }
   }
   // Per-body maxima: warp, then CUDA block, then one global atomic per block (per-warp atomics on one address
   // serialise in L2).

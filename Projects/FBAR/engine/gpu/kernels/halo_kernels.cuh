@@ -9,6 +9,9 @@
 // Migration: G2P2G marks a particle whose next particle block another rank owns (ParticleDest kEmigrant, the side
 // in rank); pack_emigrants copies its record (stored scalars and ID, the ASFLIP velocity, the recorded v and C) into
 // the message for that side; unpack_immigrants appends the records a neighbour sent behind the slots G2P2G wrote.
+// A message has a fixed size that every rank knows (MigrantMessage): a header with each body's count, then each
+// body's area of `capacity` records. The counts travel inside the message, so no rank waits for the host to learn
+// them before the exchange; the host reads them with the step's one readback (record_migrant_counts).
 #pragma once
 
 #include <cuda_runtime.h>
@@ -107,17 +110,36 @@ constexpr std::size_t migrant_bytes(bool asflip, bool aux) {
   return sizeof(ParticleRecord<M, T>) + sizeof(T) * ((asflip ? 3 : 0) + (aux ? kAuxScalars : 0));
 }
 
-/// Copies every emigrant among slots [0, slots) of `bins` (valid[slot] >= 0, dest kEmigrant) into the message of
-/// its side (at most `capacity` records each; count[side] counts them all).
+/// The layout of one side's migration message, the same on every rank: a header of one int per body (that body's
+/// emigrants to this side, all of them counted even past `capacity`), padded to kHeaderBytes, then body b's area of
+/// `capacity` records of `widest` bytes at header + b x capacity x widest.
+struct MigrantMessage {
+  static constexpr std::size_t kHeaderBytes = 256;  ///< room for 64 bodies' counts (DtParams::kMaxBodies)
+  std::size_t widest = 0;                           ///< bytes of the largest body's record
+  int capacity = 0;                                 ///< records per body
+  int bodies = 0;
+  FBAR_HOST_DEVICE std::size_t bytes() const {
+    return kHeaderBytes + widest * static_cast<std::size_t>(capacity) * static_cast<std::size_t>(bodies);
+  }
+  FBAR_HOST_DEVICE std::size_t area(int body) const {
+    return kHeaderBytes + widest * static_cast<std::size_t>(capacity) * static_cast<std::size_t>(body);
+  }
+};
+
+/// Copies the emigrants G2P2G listed (list[0 .. min(*listed, list_capacity)): slots of `bins` whose dest is
+/// kEmigrant) into the message of their side (at most `capacity` records each; count_lo / count_hi, the body's ints
+/// in the two headers, count them all).
 template <typename M, typename T>
 __global__ void __launch_bounds__(kHaloThreads)
-    pack_emigrants(typename ParticleLayout<M, T>::Buffer bins, const int* valid, int slots, const ParticleDest* dest,
-                   const T* particle_v, const T* aux, std::byte* out_lo, std::byte* out_hi, int capacity, int* count) {
-  const int slot = blockIdx.x * blockDim.x + threadIdx.x;
-  if (slot >= slots || valid[slot] < 0) return;
+    pack_emigrants(typename ParticleLayout<M, T>::Buffer bins, const int* list, const int* listed, int list_capacity,
+                   const ParticleDest* dest, const T* particle_v, const T* aux, std::byte* out_lo, std::byte* out_hi,
+                   int capacity, int* count_lo, int* count_hi) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= list_capacity || i >= *listed) return;
+  const int slot = list[i];
   const ParticleDest d = dest[slot];
   if (d.block != kEmigrant) return;
-  const int k = atomicAdd(&count[d.rank], 1);
+  const int k = atomicAdd(d.rank == 0 ? count_lo : count_hi, 1);
   if (k >= capacity) return;
   const std::size_t bytes = migrant_bytes<M, T>(particle_v != nullptr, aux != nullptr);
   std::byte* o = (d.rank == 0 ? out_lo : out_hi) + bytes * static_cast<std::size_t>(k);
@@ -131,15 +153,20 @@ __global__ void __launch_bounds__(kHaloThreads)
   if (aux) memcpy(o, aux + kAuxScalars * static_cast<std::size_t>(slot), kAuxScalars * sizeof(T));
 }
 
-/// Writes n received records to slots first .. first + n - 1 of `bins` (and of particle_v / aux), and marks the
-/// slots valid (valid[slot] = slot) for the partition.
+/// Writes the n = min(*count, capacity) received records to slots first .. first + n - 1 of `bins` (and of
+/// particle_v / aux) and marks them valid (valid[slot] = slot) for the partition; slots first + n .. first +
+/// capacity - 1 are marked empty (-1). The count is read on the device: the host learns it with the step's readback.
 template <typename M, typename T>
 __global__ void __launch_bounds__(kHaloThreads)
-    unpack_immigrants(typename ParticleLayout<M, T>::Buffer bins, int first, const std::byte* in, int n, T* particle_v,
-                      T* aux, int* valid) {
+    unpack_immigrants(typename ParticleLayout<M, T>::Buffer bins, int first, const std::byte* in, const int* count,
+                      int capacity, T* particle_v, T* aux, int* valid) {
   const int k = blockIdx.x * blockDim.x + threadIdx.x;
-  if (k >= n) return;
+  if (k >= capacity) return;
   const int slot = first + k;
+  if (k >= *count) {  // past the records sent (a count past the capacity is an overflow: the step is repeated)
+    valid[slot] = -1;
+    return;
+  }
   const std::size_t bytes = migrant_bytes<M, T>(particle_v != nullptr, aux != nullptr);
   const std::byte* r = in + bytes * static_cast<std::size_t>(k);
   ParticleRecord<M, T> p;
@@ -152,6 +179,18 @@ __global__ void __launch_bounds__(kHaloThreads)
   }
   if (aux) memcpy(aux + kAuxScalars * static_cast<std::size_t>(slot), r, kAuxScalars * sizeof(T));
   valid[slot] = slot;
+}
+
+/// The step's migration counts for the host: body b's emigrants to each side (the headers of the outgoing messages)
+/// and immigrants from each side (the received headers; nullptr: no neighbour there), into its BodyStepStats.
+static __global__ void record_migrant_counts(int bodies, const int* out_lo, const int* out_hi, const int* in_lo,
+                                             const int* in_hi, BodyStepStats* body_stats) {
+  const int b = blockIdx.x * blockDim.x + threadIdx.x;
+  if (b >= bodies) return;
+  body_stats[b].emigrants[0] = out_lo[b];
+  body_stats[b].emigrants[1] = out_hi[b];
+  body_stats[b].immigrants[0] = in_lo ? in_lo[b] : 0;
+  body_stats[b].immigrants[1] = in_hi ? in_hi[b] : 0;
 }
 
 }  // namespace fbar

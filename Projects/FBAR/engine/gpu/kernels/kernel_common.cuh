@@ -20,6 +20,9 @@ struct BodyStepStats {
   int particles;             ///< particles placed in the next layout
   int halo_blocks;           ///< decomposed runs: blocks of the next layout listed first (list_particle_blocks)
   int interior_blocks;       ///< decomposed runs: the other blocks with particles of the next layout
+  int emigrants[2];          ///< decomposed runs: particles sent to the rank below / above (all, past the capacity too)
+  int immigrants[2];         ///< decomposed runs: particles the rank below / above sent (as its header counts them)
+  int emigrant_list;         ///< decomposed runs: emigrants G2P2G listed (all, past the list's capacity too)
 };
 
 /// The particle blocks a rank owns (comm/slab_partition.h): planes [lo, hi) along `axis`; one rank owns all.
