@@ -15,7 +15,7 @@
 #          under mpirun -np 2
 #   four   on 4 GPUs: the NCCL decomposition tests on 4 GPUs (a body over all four, particles crossing three cuts),
 #          the MPI check with 4 processes on the network path, fbar_scaling strong STRONG4 M and weak WEAK M per GPU
-#          on 1, 2 and 4 GPUs (threads), then under mpirun -np 4
+#          on 1, 2 and 4 GPUs (threads), then under mpirun -np 4 (the MPI runs with fbar's default, the overlap off)
 set -uo pipefail
 OUT=${OUT:-$PWD/out}
 mkdir -p "$OUT"
@@ -33,6 +33,16 @@ FBAR=$(find_bin fbar)
 STEPS=${STEPS:-50}
 summary() { echo "$1" | tee -a "$OUT/summary.txt"; }
 has() { [[ " $STAGES " == *" $1 "* ]]; }
+# scaling GPUS RANKS STRONG NAME: fbar_scaling on the visible GPUs as threads (every listed rank count, the halo
+# overlap on and off), then under mpirun with one process per GPU (fbar's default, the overlap off).
+scaling() {
+  timeout 300 "$SCALING" --ranks="$2" --strong="$3" --weak="${WEAK:-16}" --steps="$STEPS" \
+    --csv="$OUT/scaling_$4.csv" > "$OUT/scaling_$4.log" 2>&1
+  summary "$1 GPUs: scaling (threads) rc=$?"
+  timeout 200 "${MPI[@]}" -np "$1" "$SCALING" --strong="$3" --weak="${WEAK:-16}" --steps="$STEPS" \
+    --overlap=off --csv="$OUT/scaling_$4_mpi.csv" >> "$OUT/scaling_$4.log" 2>&1
+  summary "$1 GPUs: scaling (mpirun -np $1) rc=$?"
+}
 
 suite_pid=
 if has suite && [ "$GPUS" -ge 3 ]; then
@@ -57,12 +67,7 @@ fi
 
 if has scale2 && [ "$GPUS" -ge 2 ]; then
   export CUDA_VISIBLE_DEVICES=0,1
-  timeout 300 "$SCALING" --ranks=1,2 --strong="${STRONG2:-32}" --weak="${WEAK:-16}" --steps="$STEPS" \
-    --csv="$OUT/scaling_two.csv" > "$OUT/scaling_two.log" 2>&1
-  summary "2 GPUs: scaling (threads) rc=$?"
-  timeout 200 "${MPI[@]}" -np 2 "$SCALING" --strong="${STRONG2:-32}" --weak="${WEAK:-16}" --steps="$STEPS" \
-    --overlap=on --csv="$OUT/scaling_two_mpi.csv" >> "$OUT/scaling_two.log" 2>&1
-  summary "2 GPUs: scaling (mpirun -np 2) rc=$?"
+  scaling 2 1,2 "${STRONG2:-32}" two
   unset CUDA_VISIBLE_DEVICES
 fi
 
@@ -72,12 +77,7 @@ if has four && [ "$GPUS" -ge 4 ]; then
   summary "4 GPUs: NCCL decomposition tests (threads) rc=$?"
   timeout 200 "${MPI[@]}" -np 4 "${NET[@]}" "$CHECK" > "$OUT/four_mpi.log" 2>&1
   summary "4 GPUs: MPI check, 4 processes, P2P and SHM off (network path) rc=$?"
-  timeout 300 "$SCALING" --ranks=1,2,4 --strong="${STRONG4:-64}" --weak="${WEAK:-16}" --steps="$STEPS" \
-    --csv="$OUT/scaling_four.csv" > "$OUT/scaling_four.log" 2>&1
-  summary "4 GPUs: scaling (threads) rc=$?"
-  timeout 200 "${MPI[@]}" -np 4 "$SCALING" --strong="${STRONG4:-64}" --weak="${WEAK:-16}" --steps="$STEPS" \
-    --overlap=on --csv="$OUT/scaling_four_mpi.csv" >> "$OUT/scaling_four.log" 2>&1
-  summary "4 GPUs: scaling (mpirun -np 4) rc=$?"
+  scaling 4 1,2,4 "${STRONG4:-64}" four
   unset CUDA_VISIBLE_DEVICES
 fi
 

@@ -200,6 +200,36 @@ def pareto(points):
     return sorted(front, key=lambda i: points[i][0])
 
 
+def draw_pareto(ax, rows, pts, style, label, colors, markers, fontsize=7, label_close=True):
+    """Error against cost on log axes: each row's point (pts, as (cost, error)) drawn as style(row) = (colour key,
+    marker key, marker size), the Pareto front dashed with its points labelled label(row) (label_close=False: a
+    front point within 5 % in error of the last one labelled is left unlabelled), and one legend entry for each
+    colour and marker key used."""
+    front = pareto(pts)
+    used_colors, used_markers = set(), set()
+    for r, p in zip(rows, pts):
+        c, m, size = style(r)
+        used_colors.add(c)
+        used_markers.add(m)
+        ax.scatter(p[0], p[1], marker=markers[m], color=colors[c], s=size)
+    ax.plot([pts[i][0] for i in front], [pts[i][1] for i in front], "k--", lw=1, label="Pareto front")
+    labelled = None
+    for i in front:
+        if not label_close and labelled is not None and abs(pts[i][1] / pts[labelled][1] - 1) < 0.05:
+            continue
+        labelled = i
+        ax.annotate(label(rows[i]), pts[i], xytext=(4, 4), textcoords="offset points", fontsize=fontsize)
+    for c, color in colors.items():
+        if c in used_colors:
+            ax.scatter([], [], color=color, label=c)
+    for m, marker in markers.items():
+        if m in used_markers:
+            ax.scatter([], [], marker=marker, color="gray", label=m)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.grid(True, which="both", alpha=0.3)
+
+
 def save(fig, out, name):
     """Writes a finished chart as out/name (PNG) and frees it."""
     import matplotlib.pyplot as plt
@@ -221,30 +251,15 @@ def charts(rows, out, title_backend, suffix=""):
     for r in ok:
         r["cells_per_a"] = int(r["cells_per_a"])
     pts = [(float(r["s_per_simulated_s"]), float(r["error"])) for r in ok]
-    front = pareto(pts)
     fig, ax = plt.subplots(figsize=(8, 5.5))
     markers = {"single": "o", "double": "s"}
     colors = {name: c for name, c in zip(SCHEMES, ["C0", "C1", "C2", "C3"])}
-    for r, (c, e) in zip(ok, pts):
-        ax.scatter(c, e, marker=markers[r["precision"]], color=colors[r["scheme"]], s=18 + 3 * r["cells_per_a"])
-    fx = [pts[i][0] for i in front]
-    fy = [pts[i][1] for i in front]
-    ax.plot(fx, fy, "k--", lw=1, label="Pareto front")
-    for i in front:
-        r = ok[i]
-        ax.annotate(f"{r['scheme']}, {r['cells_per_a']}/a, {r['precision']}", pts[i], xytext=(4, 4),
-                    textcoords="offset points", fontsize=7)
-    for name in SCHEMES:
-        ax.scatter([], [], color=colors[name], label=name)
-    for p, m in markers.items():
-        ax.scatter([], [], marker=m, color="gray", label=p)
-    ax.set_xscale("log")
+    draw_pareto(ax, ok, pts, lambda r: (r["scheme"], r["precision"], 18 + 3 * r["cells_per_a"]),
+                lambda r: f"{r['scheme']}, {r['cells_per_a']}/a, {r['precision']}", colors, markers)
     ax.set_xlabel(f"wall time per simulated second [s] ({title_backend})")
-    ax.set_yscale("log")
     ax.set_ylabel(error_label)
     ax.set_title("Dam break front: error against cost (marker size: cells per a)")
     ax.legend(fontsize=8)
-    ax.grid(True, which="both", alpha=0.3)
     save(fig, out, f"dam_break_pareto{suffix}.png")
 
     fig, ax = plt.subplots(figsize=(7, 5))
@@ -382,32 +397,17 @@ def case_charts(problem, rows, out, title_backend, suffix=""):
         r[key] = str(r[key])
     groups = [g for g in spec["groups"] if any(r[key] == g for r in ok)]
     pts = [(float(r["s_per_simulated_s"]), float(r[err])) for r in ok]
-    front = pareto(pts)
-    colors = {g: c for g, c in zip(groups, ["C0", "C1", "C2", "C3"])}
-    markers = {"single": "o", "double": "s", "mixed": "^"}
+    colors = {spec["group_label"](g): c for g, c in zip(groups, ["C0", "C1", "C2", "C3"])}
+    markers = {"double": "s", "mixed": "^", "single": "o"}
     fig, ax = plt.subplots(figsize=(8, 5.5))
-    for r, (c, e) in zip(ok, pts):
-        ax.scatter(c, e, marker=markers[r["precision"]], color=colors[r[key]], s=10 + 0.3 * r["cells"])
-    ax.plot([pts[i][0] for i in front], [pts[i][1] for i in front], "k--", lw=1, label="Pareto front")
-    labelled = None  # the front's points at one resolution often differ by round-off in error: label the cheapest
-    for i in front:
-        r = ok[i]
-        if labelled is not None and abs(pts[i][1] / pts[labelled][1] - 1) < 0.05:
-            continue
-        labelled = i
-        ax.annotate(f"{spec['group_label'](r[key])}, {spec['res']} {r['cells']:g}, {r['precision']}", pts[i],
-                    xytext=(4, 4), textcoords="offset points", fontsize=7)
-    for g in groups:
-        ax.scatter([], [], color=colors[g], label=spec["group_label"](g))
-    for prec in sorted({r["precision"] for r in ok}):
-        ax.scatter([], [], marker=markers[prec], color="gray", label=prec)
-    ax.set_xscale("log")
-    ax.set_yscale("log")
+    # The front's points at one resolution often differ by round-off in error: only the cheapest is labelled.
+    draw_pareto(ax, ok, pts, lambda r: (spec["group_label"](r[key]), r["precision"], 10 + 0.3 * r["cells"]),
+                lambda r: f"{spec['group_label'](r[key])}, {spec['res']} {r['cells']:g}, {r['precision']}", colors,
+                markers, label_close=False)
     ax.set_xlabel(f"wall time per simulated second [s] ({title_backend})")
     ax.set_ylabel(spec["error_label"])
     ax.set_title(f"{spec['name']}: error against cost (marker size: {spec['res']})")
     ax.legend(fontsize=8)
-    ax.grid(True, which="both", alpha=0.3)
     save(fig, out, f"{spec['prefix']}_pareto{suffix}.png")
 
     fig, ax = plt.subplots(figsize=(7, 5))
@@ -420,7 +420,8 @@ def case_charts(problem, rows, out, title_backend, suffix=""):
             n = [r["cells"] for r in rs]
             e = [float(r[err]) for r in rs]
             order = f", order {math.log(e[-2] / e[-1]) / math.log(n[-1] / n[-2]):.2f}" if len(rs) >= 3 else ""
-            ax.plot(n, e, style, marker="o", color=colors[g], label=f"{spec['group_label'](g)} ({prec}{order})")
+            ax.plot(n, e, style, marker="o", color=colors[spec["group_label"](g)],
+                    label=f"{spec['group_label'](g)} ({prec}{order})")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ticks = sorted({r["cells"] for r in ok})
@@ -617,27 +618,20 @@ def ppc_study(a):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    ok = [r for r in rows if r["status"] == "ok" and r["error"] != "" and not r["reference"]]
-    colors = {1: "#1f77b4", 8: "#ff7f0e", 27: "#2ca02c"}
     ref = next(r for r in rows if r["reference"])
+    # The reference's configuration in single precision differs from it by round-off only: left out.
+    ok = [r for r in rows if r["status"] == "ok" and r["error"] != "" and not r["reference"] and
+          not (int(r["ppc"]) == 8 and int(r["cells_per_a"]) == int(ref["cells_per_a"]))]
+    colors = {"1 ppc": "C0", "8 ppc": "C1", "27 ppc": "C2"}
     label = f"mean |T - T_ref| at the gauges (ref: APIC, double, {ref['cells_per_a']}/a, 8 ppc)"
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    pts = [(float(r["s_per_simulated_s"]), max(float(r["error"]), 1e-4)) for r in ok]
-    front = pareto(pts)
-    for ppc in (1, 8, 27):
-        rs = [(p, r) for p, r in zip(pts, ok) if int(r["ppc"]) == ppc]
-        ax.plot([p[0] for p, _ in rs], [p[1] for p, _ in rs], "o", color=colors[ppc], label=f"{ppc} ppc")
-        for p, r in rs:
-            ax.annotate(f"{r['cells_per_a']}/a", p, fontsize=7, xytext=(3, 3), textcoords="offset points")
-    fp = [pts[i] for i in front]
-    ax.plot([p[0] for p in fp], [p[1] for p in fp], "k--", lw=0.8, label="Pareto front")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
+    pts = [(float(r["s_per_simulated_s"]), float(r["error"])) for r in ok]
+    draw_pareto(ax, ok, pts, lambda r: (f"{int(r['ppc'])} ppc", "APIC single", 10 + 0.6 * int(r["cells_per_a"])),
+                lambda r: f"{int(r['ppc'])} ppc, {r['cells_per_a']}/a", colors, {"APIC single": "o"})
     ax.set_xlabel(f"wall time per simulated second [s] ({rows[0]['backend']} engine)")
     ax.set_ylabel(label, fontsize=8)
-    ax.set_title("Dam break: particles per cell against resolution (APIC, single)")
+    ax.set_title("Dam break: particles per cell (marker size: cells per a)")
     ax.legend(fontsize=8)
-    ax.grid(True, which="both", alpha=0.3)
     save(fig, a.out, f"dam_break_ppc_pareto{suffix}.png")
     return 0
 
@@ -649,10 +643,10 @@ def run_problem(a):
         return stability_study(a)
     if a.problem == "translation":
         import translation  # tools/study/translation.py
-        return translation.study(a, pareto, save)
+        return translation.study(a, draw_pareto, save)
     if a.problem == "wall_pressure":
         import wall_pressure  # tools/study/wall_pressure.py
-        return wall_pressure.study(a, pareto, save)
+        return wall_pressure.study(a, draw_pareto, save)
     if a.problem in CASES:
         return case_study(a)
     suffix = "_gpu" if a.gpu else ""  # the CPU study's files are dam_break_*.{csv,png}, the GPU's dam_break_*_gpu.*

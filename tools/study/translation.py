@@ -87,7 +87,7 @@ FIELDS = ["backend", "cells_per_a", "scheme", "precision", "status", "error", "d
           "pressure_over_rho_v2", "wall_s", "s_per_simulated_s", "steps", "particles", "message"]
 
 
-def charts(rows, out, title_backend, suffix, pareto, save):
+def charts(rows, out, title_backend, suffix, draw_pareto, save):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -95,29 +95,15 @@ def charts(rows, out, title_backend, suffix, pareto, save):
     ok = [r for r in rows if r["status"] == "ok"]
     floor = 1e-17  # an exact zero drawn at the axis' floor
     pts = [(float(r["s_per_simulated_s"]), max(float(r["error"]), floor)) for r in ok]
-    front = pareto(pts)
     colors = {"single": "C0", "mixed": "C1", "double": "C2"}
     markers = {"APIC": "o", "FLIP": "^"}
     fig, ax = plt.subplots(figsize=(8, 5.5))
-    for r, (c, e) in zip(ok, pts):
-        ax.scatter(c, e, marker=markers[r["scheme"]], color=colors[r["precision"]], s=10 + 0.6 * int(r["cells_per_a"]))
-    ax.plot([pts[i][0] for i in front], [pts[i][1] for i in front], "k--", lw=1, label="Pareto front")
-    for i in front:
-        r = ok[i]
-        ax.annotate(f"{r['scheme']}, {r['precision']}, a/dx {r['cells_per_a']}", pts[i], xytext=(4, 4),
-                    textcoords="offset points", fontsize=7)
-    for p_, c in colors.items():
-        if any(r["precision"] == p_ for r in ok):
-            ax.scatter([], [], color=c, label=p_)
-    for s, m in markers.items():
-        ax.scatter([], [], marker=m, color="gray", label=s)
-    ax.set_xscale("log")
-    ax.set_yscale("log")
+    draw_pareto(ax, ok, pts, lambda r: (r["precision"], r["scheme"], 10 + 0.6 * int(r["cells_per_a"])),
+                lambda r: f"{r['scheme']}, {r['precision']}, a/dx {r['cells_per_a']}", colors, markers)
     ax.set_xlabel(f"wall time per simulated second [s] ({title_backend})")
     ax.set_ylabel("max(position drift / dx, velocity spread / |v|)")
     ax.set_title("Rigid translation (exact: zero error): round-off against cost")
     ax.legend(fontsize=8)
-    ax.grid(True, which="both", alpha=0.3)
     save(fig, out, f"translation_pareto{suffix}.png")
 
     fig, ax = plt.subplots(figsize=(7, 5))
@@ -138,14 +124,14 @@ def charts(rows, out, title_backend, suffix, pareto, save):
     save(fig, out, f"translation_precision{suffix}.png")
 
 
-def study(a, pareto, save):
+def study(a, draw_pareto, save):
     backend = "gpu" if a.gpu else "cpu"
     suffix = "_gpu" if a.gpu else ""
     csv_path = os.path.join(a.out, f"translation_study{suffix}.csv")
     if a.replot:
         with open(csv_path) as f:
             rows = list(csv.DictReader(f))
-        charts(rows, a.out, f"{rows[0]['backend']} engine", suffix, pareto, save)
+        charts(rows, a.out, f"{rows[0]['backend']} engine", suffix, draw_pareto, save)
         return 0
     cells = [int(c) for c in a.cells] if a.cells else ([16, 32, 64, 128] if a.gpu else [8, 16, 32])
     precisions = ("single", "mixed", "double")
@@ -165,5 +151,5 @@ def study(a, pareto, save):
                     w.writeheader()
                     for done in rows:
                         w.writerow({k: done.get(k, "") for k in FIELDS})
-    charts(rows, a.out, f"{backend} engine", suffix, pareto, save)
+    charts(rows, a.out, f"{backend} engine", suffix, draw_pareto, save)
     return 0

@@ -309,7 +309,7 @@ def label_of(r):
     return f"{r['scheme']}, {r['options']}, H/dx {int(r['cells_per_h'])}"
 
 
-def charts(rows, series, out, title_backend, suffix, pareto, save):
+def charts(rows, series, out, title_backend, suffix, draw_pareto, save):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -319,28 +319,15 @@ def charts(rows, series, out, title_backend, suffix, pareto, save):
         r["cells_per_h"] = int(r["cells_per_h"])
     # Error against cost, the Pareto front labelled.
     pts = [(float(r["s_per_simulated_s"]), float(r["rms"])) for r in ok]
-    front = pareto(pts)
     colors = {o: c for o, c in zip(OPTIONS, ["C0", "C1", "C2", "C3"])}
     markers = {"APIC": "o", "PIC-FLIP 0.95": "s", "FLIP": "^", "ASFLIP": "D"}
     fig, ax = plt.subplots(figsize=(8.5, 5.5))
-    for r, (c, e) in zip(ok, pts):
-        ax.scatter(c, e, marker=markers[r["scheme"]], color=colors[r["options"]], s=12 + 0.6 * r["cells_per_h"])
-    ax.plot([pts[i][0] for i in front], [pts[i][1] for i in front], "k--", lw=1, label="Pareto front")
-    for i in front:
-        r = ok[i]
-        ax.annotate(f"{r['scheme']}, {r['options']}, {r['cells_per_h']}", pts[i], xytext=(4, 4),
-                    textcoords="offset points", fontsize=6.5)
-    for o in OPTIONS:
-        ax.scatter([], [], color=colors[o], label=o)
-    for s, m in markers.items():
-        ax.scatter([], [], marker=m, color="gray", label=s)
-    ax.set_xscale("log")
-    ax.set_yscale("log")
+    draw_pareto(ax, ok, pts, lambda r: (r["options"], r["scheme"], 12 + 0.6 * r["cells_per_h"]),
+                lambda r: f"{r['scheme']}, {r['options']}, {r['cells_per_h']}", colors, markers, fontsize=6.5)
     ax.set_xlabel(f"wall time per simulated second [s] ({title_backend})")
     ax.set_ylabel("RMS of p / (rho g H) against Lobovsky et al. 2014, sensors 1 and 3, t* 2-7")
     ax.set_title("Dam break wall pressure: error against cost (marker size: H/dx)")
     ax.legend(fontsize=7)
-    ax.grid(True, which="both", alpha=0.3)
     save(fig, out, f"wall_pressure_pareto{suffix}.png")
 
     # Convergence per option set (APIC).
@@ -409,7 +396,7 @@ def charts(rows, series, out, title_backend, suffix, pareto, save):
     save(fig, out, f"wall_pressure_noise{suffix}.png")
 
 
-def study(a, pareto, save):
+def study(a, draw_pareto, save):
     backend = "gpu" if a.gpu else "cpu"
     suffix = "_gpu" if a.gpu else ""
     csv_path = os.path.join(a.out, f"wall_pressure_study{suffix}.csv")
@@ -420,7 +407,7 @@ def study(a, pareto, save):
         series = read_series_file(series_path)
         score(rows, series)
         write_rows(csv_path, rows)
-        charts(rows, series, a.out, f"{rows[0]['backend']} engine", suffix, pareto, save)
+        charts(rows, series, a.out, f"{rows[0]['backend']} engine", suffix, draw_pareto, save)
         return 0
     os.makedirs(a.out, exist_ok=True)
     runs = sweep(a.gpu)
@@ -442,7 +429,7 @@ def study(a, pareto, save):
         return 0
     score(rows, series)
     write_rows(csv_path, rows)
-    charts(rows, series, a.out, f"{backend} engine", suffix, pareto, save)
+    charts(rows, series, a.out, f"{backend} engine", suffix, draw_pareto, save)
     return 0
 
 

@@ -745,15 +745,15 @@ class MgspBenchmark {
   void rebuild_halo(int summed_grid);
   /// Collective, after G2P2G and the halo sums: emigrants out, immigrants in (behind the G2P2G's slots).
   void migrate_particles();
-  /// After read_stats: each body's particles after the migration, from the counts the step's readback brought;
-  /// true when some count passed migrant_capacity_ on this rank (agree_on_try makes it every rank's).
-  bool settle_migration();
+  /// After read_stats: each body's particles after the migration, from the counts the step's readback brought, and
+  /// migrant_most_, this rank's largest count (agree_on_try makes it every rank's; above migrant_capacity_ a message
+  /// overflowed).
+  void settle_migration();
   /// Decomposed runs, before a G2P2G: each body's emigrant list holds 2 x migrant_capacity_ slots.
   void ensure_emigrant_lists();
-  /// Collective, after read_stats (and settle_migration, whose overflow it takes): failure counts, first IDs,
-  /// repeats, grid speed, the most particles and migrants of a rank and new halo blocks over ranks, in one
-  /// collective. Returns whether any rank's migration overflowed its messages.
-  bool agree_on_try(bool migrant_overflow);
+  /// Collective, after read_stats and settle_migration: failure counts, first IDs, repeats, grid speed, the most
+  /// particles and migrants of a rank and new halo blocks over ranks, in one collective.
+  void agree_on_try();
 
   static constexpr Precision kPrecision = !std::is_same_v<T, TG>      ? Precision::Mixed
                                            : std::is_same_v<T, double> ? Precision::Double
@@ -858,7 +858,9 @@ class MgspBenchmark {
   /// ranks at once, after agree_on_try) when a step sent more than half of it; a step that sent more is repeated.
   int migrant_capacity_ = 512;     ///< options_.migrant_capacity at start
   long long migration_repeats_ = 0;  ///< tries repeated because migrants overflowed the messages
-  int migrant_most_ = 0;            ///< agree_on_try: the most particles one rank sent one side for one body
+  /// agree_on_try: the most particles one rank sent one side for one body (or half its emigrant list); a message
+  /// overflowed when it is above migrant_capacity_
+  int migrant_most_ = 0;
   long long migrated_ = 0;
   long long pending_migrated_ = 0;
   bool halo_grew_ = false;  ///< agree_on_try: some rank has new halo blocks (every rank then calls rebuild_halo)
@@ -1227,8 +1229,12 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
   read_stats();
   while (handle_overflow()) {
   }
-  if (decomposed() && agree_on_try(settle_migration()))  // the initial P2G moves nothing: no rank sends any
-    throw std::runtime_error("GpuEngine: internal error: the initial P2G sent more particles than one message holds");
+  if (decomposed()) {
+    settle_migration();
+    agree_on_try();
+    if (migrant_most_ > migrant_capacity_)  // the initial P2G moves nothing: no rank sends any
+      throw std::runtime_error("GpuEngine: internal error: the initial P2G sent more particles than one message holds");
+  }
   if (stats_->internal_error) throw std::runtime_error("GpuEngine: internal error in the initial P2G");
   for (auto& b : bodies_) {
     take_layout_stats(*b, 1);
@@ -1784,12 +1790,15 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
     event_record(3);
     // 5. the step's one readback
     read_stats();
-    const bool migrant_overflow = decomposed() && agree_on_try(settle_migration());
+    if (decomposed()) {
+      settle_migration();
+      agree_on_try();
+    }
     if (stats_->internal_error)
       throw std::runtime_error("GpuEngine: internal error (" + std::to_string(stats_->internal_error) +
                                " arena lookups or particles outside their block) at step " +
                                std::to_string(steps_ + 1));
-    if (migrant_overflow) {
+    if (decomposed() && migrant_most_ > migrant_capacity_) {
       // Some rank sent more particles one way than a message holds: every rank grows the messages alike and
       // repeats the try (the try's state is still the step's start). Twice in a row is an engine bug.
       if (++migration_tries > 2)
@@ -2775,11 +2784,11 @@ void MgspBenchmark<T, TG>::migrate_particles() {
   device_->exchange(messages, stream_);
   // 3. Immigrants behind the G2P2G's slots, `capacity` slots per neighbour (those past its count marked empty);
   // their (block, rank) before the partition.
+  int sides = 0;
+  for (const HaloSide& h : halo_) sides += h.peer >= 0 ? 1 : 0;
   for (auto& bp : bodies_) {
     BodyBase& b = *bp;
     const int first = b.source_slots;
-    int sides = 0;
-    for (const HaloSide& h : halo_) sides += h.peer >= 0 ? 1 : 0;
     const long long end = first + static_cast<long long>(sides) * msg.capacity;
     const long long room = 32LL * std::min(b.bins_capacity(1 - cur_), b.partition.bin_capacity());
     if (end > room) grow_for_arrivals(b, first, (end + 31) / 32);
@@ -2801,8 +2810,7 @@ void MgspBenchmark<T, TG>::migrate_particles() {
 }
 
 template <typename T, typename TG>
-bool MgspBenchmark<T, TG>::settle_migration() {
-  bool overflow = false;
+void MgspBenchmark<T, TG>::settle_migration() {
   migrant_most_ = 0;
   for (auto& b : bodies_) {
     const BodyStepStats& s = body_stats_[b->index];
@@ -2811,15 +2819,12 @@ bool MgspBenchmark<T, TG>::settle_migration() {
       leaving += s.emigrants[side];
       arriving += s.immigrants[side];
       migrant_most_ = std::max({migrant_most_, s.emigrants[side], s.immigrants[side]});
-      overflow = overflow || s.emigrants[side] > migrant_capacity_ || s.immigrants[side] > migrant_capacity_;
     }
-    // G2P2G lists at most 2 x capacity emigrants (emigrant_slots): more, and the try is repeated as well.
-    overflow = overflow || s.emigrant_list > 2 * migrant_capacity_;
+    // G2P2G lists at most 2 x capacity emigrants (emigrant_slots): more, and half the list is above the capacity.
     migrant_most_ = std::max(migrant_most_, (s.emigrant_list + 1) / 2);
     pending_migrated_ += leaving;
     b->pending_particles = b->particles - leaving + arriving;
   }
-  return overflow;
 }
 
 template <typename T, typename TG>
@@ -2831,16 +2836,15 @@ void MgspBenchmark<T, TG>::ensure_emigrant_lists() {
 }
 
 template <typename T, typename TG>
-bool MgspBenchmark<T, TG>::agree_on_try(bool migrant_overflow) {
+void MgspBenchmark<T, TG>::agree_on_try() {
   // One allgather of every rank's numbers, reduced here in rank order (the same result on every rank): the host
   // round trips of a decomposed step cost GPU idle time, so the step has this one.
   const int nb = body_count();
-  enum : int { kInternal, kRange, kHaloNew, kOverflow, kSpeed, kParticles, kMigrants, kFixed };
+  enum : int { kInternal, kRange, kHaloNew, kSpeed, kParticles, kMigrants, kFixed };
   std::vector<long long> mine(static_cast<std::size_t>(kFixed + 2 * kFailKinds * nb));
   mine[kInternal] = stats_->internal_error;
   mine[kRange] = stats_->p2g_range;
   mine[kHaloNew] = static_cast<long long>(stats_->halo_new[0]) + stats_->halo_new[1];
-  mine[kOverflow] = migrant_overflow ? 1 : 0;
   mine[kSpeed] = static_cast<long long>(stats_->max_speed_sq);  // bits of a non-negative double: integer order
   long long held = 0;
   for (const auto& b : bodies_) held += b->pending_particles;
@@ -2883,7 +2887,6 @@ bool MgspBenchmark<T, TG>::agree_on_try(bool migrant_overflow) {
       body_stats_[b].first_id[k] =
           static_cast<int>(agreed[static_cast<std::size_t>(kFixed + kFailKinds * (nb + b) + k)]);
     }
-  return agreed[kOverflow] > 0;
 }
 
 }  // namespace fbar
