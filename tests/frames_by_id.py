@@ -8,6 +8,7 @@ particle written twice is an error.
 import csv
 import glob
 import json
+import math
 import os
 
 
@@ -38,3 +39,43 @@ def max_differences(many, one):
     dx = max(max(abs(a - b) for a, b in zip(many[k][:3], one[k][:3])) for k in one)
     dv = max(max(abs(a - b) for a, b in zip(many[k][3:], one[k][3:])) for k in one)
     return dx, dv
+
+
+SENSOR_PATTERNS = ("gridTarget*.csv", "particleTarget*.csv", "particleTrack*.csv")
+
+
+def read_sensors(out):
+    """Every sensor and tracker CSV of a run: {file name: (header, rows of floats)}. They are written once per run
+    (reduced over the ranks), so each name appears once whatever the rank count."""
+    found = {}
+    for pattern in SENSOR_PATTERNS:
+        for name in glob.glob(os.path.join(glob.escape(out), pattern)):
+            with open(name) as f:
+                rows = csv.reader(f)
+                header = next(rows)
+                found[os.path.basename(name)] = (header, [[float(v) for v in row] for row in rows])
+    return found
+
+
+def max_sensor_difference(many, one, label):
+    """Checks that `many` has the files, headers and sample times of `one` and returns the largest difference of a
+    value relative to its column's largest |value| in `one` (0 for columns that are exactly 0), with where it is."""
+    assert many.keys() == one.keys(), f"{label}: sensor files {sorted(many)} against {sorted(one)}"
+    worst = (0.0, "")
+    for name, (header, rows) in one.items():
+        h, r = many[name]
+        assert h == header, f"{label}: {name} header {h} against {header}"
+        assert len(r) == len(rows), f"{label}: {name} has {len(r)} rows against {len(rows)}"
+        for c in range(len(header)):
+            scale = max(abs(row[c]) for row in rows)
+            for i, (a, b) in enumerate(zip(r, rows)):
+                if c == 0:
+                    assert a[0] == b[0], f"{label}: {name} row {i}: sample time {a[0]} against {b[0]}"
+                    continue
+                if math.isnan(b[c]) or math.isnan(a[c]):
+                    assert math.isnan(b[c]) and math.isnan(a[c]), f"{label}: {name} row {i} column {header[c]}"
+                    continue
+                d = abs(a[c] - b[c]) / scale if scale > 0 else abs(a[c] - b[c])
+                if d > worst[0]:
+                    worst = (d, f"{name} row {i} column {header[c]}: {a[c]} against {b[c]}")
+    return worst

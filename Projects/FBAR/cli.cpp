@@ -23,6 +23,7 @@
 #include "engine/engine_api.h"
 #include "comm/device_transport.h"
 #include "comm/mpi_transport.h"
+#include "comm/placement.h"
 #include "engine/stop_request.h"
 #include "engine/gpu/memory_plan.h"
 #include "scene/scene_parse.h"
@@ -335,9 +336,10 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
   }
   const int mpi_ranks = transport ? transport->size() : 1;
   const int rank = transport ? transport->rank() : 0;
-  if (o.gpus > 1 && (mpi_ranks > 1 || !gpu)) {
+  const int gpus = o.gpus;
+  if (gpus > 1 && (mpi_ranks > 1 || !gpu)) {
     if (rank == 0)
-      std::cerr << "fbar: error: --gpus=" << o.gpus
+      std::cerr << "fbar: error: --gpus=" << gpus
                 << (mpi_ranks > 1 ? ": under an MPI launcher every process is one GPU rank (drop --gpus)"
                                   : ": the scene runs on the CPU reference engine (use --backend=gpu on a machine "
                                     "with a CUDA device)")
@@ -366,17 +368,23 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
     }
     local_gpu = local_rank % devices;
   }
-  const bool thread_ranks = gpu && o.gpus > 1;
-  const bool shared_gpus = thread_ranks && o.gpus > devices;
+  const bool thread_ranks = gpu && gpus > 1;
+  const bool shared_gpus = thread_ranks && gpus > devices;
   if (thread_ranks && !shared_gpus && !comm::nccl_available()) {
-    std::cerr << "fbar: error: --gpus=" << o.gpus << ": this build has no NCCL (install it and configure again)\n";
+    std::cerr << "fbar: error: --gpus=" << gpus << ": this build has no NCCL (install it and configure again)\n";
     return kExitInput;
   }
   if (shared_gpus)
-    std::cerr << "fbar: warning: --gpus=" << o.gpus << " with " << devices
+    std::cerr << "fbar: warning: --gpus=" << gpus << " with " << devices
               << " visible GPU(s): ranks share GPUs and exchange through the host (for testing; slower than one "
                  "rank per GPU)\n";
-  const int ranks = thread_ranks ? o.gpus : mpi_ranks;
+  const int ranks = thread_ranks ? gpus : mpi_ranks;
+  try {
+    (void)comm::body_ranks(scene, ranks);  // a body placed on a GPU this run does not have: the scene's error
+  } catch (const std::invalid_argument& e) {
+    if (rank == 0) std::cerr << "fbar: error: " << e.what() << '\n';
+    return kExitInput;
+  }
 
   const fs::path out_dir(scene.simulation.save_path);
   std::error_code ec;

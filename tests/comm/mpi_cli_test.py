@@ -6,7 +6,9 @@ usage: mpi_cli_test.py FBAR MPIEXEC SCENE WORKDIR
 Runs the scene on 1 rank (no launcher), 2, 3 and 4 MPI ranks; each rank writes model0_dev[rank]_frame[f].csv. Checks
 that every run completes (exit 0, run.json: status completed, ranks N, the same step count), that the merged last
 frame holds every particle ID exactly once, and that positions and velocities agree with one rank's to 1e-12
-(double precision; the unit test tests/physics/test_decomposition.cpp measures 2e-16 m and 5e-15 m/s).
+(double precision; the unit test tests/physics/test_decomposition.cpp measures 2e-16 m and 5e-15 m/s). When the scene
+has sensors or trackers, their CSV files (written once, reduced over the ranks) must have the same names, headers
+and sample times as one rank's, and values within 1e-8 of each column's largest value (the CSVs print 9 digits).
 """
 import os
 import shutil
@@ -31,15 +33,20 @@ def run(ranks):
     if p.returncode != 0:
         sys.exit(f"{ranks} ranks: exit {p.returncode}\n{p.stdout}\n{p.stderr}")
     meta, particles = frames_by_id.read_run(out, ranks, f"{ranks} ranks")
-    return meta["steps"], particles
+    return meta["steps"], particles, frames_by_id.read_sensors(out)
 
 
-steps1, one = run(1)
+steps1, one, sensors1 = run(1)
 for n in (2, 3, 4):
-    steps, many = run(n)
+    steps, many, sensors = run(n)
     assert steps == steps1, f"{n} ranks: {steps} steps, one rank {steps1}"
     assert many.keys() == one.keys(), f"{n} ranks: particle IDs differ ({len(many)} vs {len(one)})"
     dx, dv = frames_by_id.max_differences(many, one)
     print(f"{n} ranks: {len(many)} particles, {steps} steps, max |dx| {dx:.3g} m, max |dv| {dv:.3g} m/s")
     assert dx < 1e-12 and dv < 1e-12, "states differ"
+    if sensors1:
+        # CSV values carry 9 significant digits: sums over ranks agree with one rank's to their last digit.
+        worst, where = frames_by_id.max_sensor_difference(sensors, sensors1, f"{n} ranks")
+        print(f"{n} ranks: {len(sensors)} sensor and tracker files, largest difference {worst:.3g} of the column ({where})")
+        assert worst < 1e-8, "sensor or tracker values differ"
 print("ok")

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "comm/device_transport.h"
+#include "comm/placement.h"
 #include "comm/slab_partition.h"
 #include "comm/transport.h"
 #include "engine/gpu/gpu_engine.h"
@@ -80,6 +81,7 @@ inline RunResult run_rank(const Scene& scene, comm::Transport* host, int steps, 
     out.imbalance = engine.imbalance();
     const comm::SlabPartition& slabs = engine.slabs();
     const double inv_dx = 1.0 / scene.simulation.dx;
+    const std::vector<int> homes = comm::body_ranks(scene, host ? host->size() : 1);  // bodies[].gpu
     for (int b = 0; b < engine.body_count(); ++b) {
       out.mass.push_back(engine.particle_mass(b));
       const ParticleSnapshot<double> s = engine.snapshot(b);
@@ -100,7 +102,8 @@ inline RunResult run_rank(const Scene& scene, comm::Transport* host, int steps, 
         // The GPU engine's particle block: floor((base - 1) / 4), base = floor(x / dx - 0.5).
         const double x = s.x[p][slabs.axis];
         const int block = static_cast<int>(std::floor((std::floor(x * inv_dx - 0.5) - 1.0) / 4.0));
-        if (slabs.owner(block) != engine.rank()) out.always_owned = false;
+        const int home = homes[static_cast<std::size_t>(b)];  // a placed body: its rank, wherever it goes
+        if ((home >= 0 ? home : slabs.owner(block)) != engine.rank()) out.always_owned = false;
       }
     }
   } catch (const std::exception& e) {

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "MnSystem/Cuda/device_query.h"
+#include "comm/device_transport.h"
 #include "geometry/geometry.h"
 #include "scene/scene.h"
 
@@ -16,7 +17,18 @@
     if (::fbar::cuda::device_count() == 0) GTEST_SKIP() << ::fbar::cuda::no_device_reason(); \
   } while (0)
 
+/// Tests of ranks on separate GPUs through NCCL: skip without NCCL in the build or with fewer than n GPUs visible.
+#define FBAR_REQUIRE_GPUS(n)                                                                                     \
+  do {                                                                                                           \
+    FBAR_REQUIRE_DEVICE();                                                                                       \
+    if (!::fbar::comm::nccl_available()) GTEST_SKIP() << "this build has no NCCL";                               \
+    if (::fbar::test::visible_gpus() < (n))                                                                      \
+      GTEST_SKIP() << "needs " << (n) << " GPUs, " << ::fbar::test::visible_gpus() << " visible";                \
+  } while (0)
+
 namespace fbar::test {
+
+inline int visible_gpus() { return cuda::device_count(); }
 
 /// A 1 m box, dx = 0.05, Walls on its faces; one body: a 0.3 x 0.25 x 0.3 m block (6 x 5 x 6 cells, 8 ppc = 1440
 /// particles) whose bottom sits 0.09 m above the floor, moving at `velocity`.

@@ -15,6 +15,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <stdexcept>
 #include <thread>
 #include <vector>
 
@@ -142,6 +143,19 @@ TEST(GpuDecomposition, MigrationMessagesGrowAndTheStepIsRepeated) {
   }
 }
 
+// ClaymoreUW's bodies[].gpu: the water whole on rank 0 and the falling block whole on rank 1 (on 3 ranks the third
+// holds nothing); their blocks are shared by ranks that need not be slab neighbours and are summed over all holders
+// in rank order (no halo-first G2P2G: placed runs switch the overlap off). Nothing migrates.
+TEST(GpuDecomposition, PlacedBodiesStayOnTheirRanks) {
+  expect_same_run(test::placed_bodies(false), 120, false, 1, false);
+}
+
+// Placed and spread ("gpu": "all") bodies together: the spread column migrates between its slabs, whose blocks are
+// also held by the placed bodies' ranks.
+TEST(GpuDecomposition, PlacedAndSpreadBodiesTogether) {
+  expect_same_run(test::placed_bodies(true), 120, true, 1, false);
+}
+
 // The travelling block leaves its first slabs: without rebalancing it ends on one rank; rebalancing every 10 steps
 // (as the run loop does at frames) chooses the slabs again from the particles, moves them through the restart path,
 // and the run stays the one-rank run (to the restart's tolerance: the rebuilt state's first grid is a fresh P2G).
@@ -176,33 +190,33 @@ TEST(GpuDecomposition, TravellingBlockIsRebalanced) {
 
 // The same runs on every visible GPU, one rank each, through NCCL (the device script runs them on nvidia-h200-x2
 // with NCCL_NVLS_ENABLE=0, and again with NCCL_P2P_DISABLE=1 NCCL_SHM_DISABLE=1 so the network path runs).
-int visible_gpus() { return cuda::device_count(); }
-#define FBAR_REQUIRE_GPUS(n)                                                                               \
-  do {                                                                                                     \
-    FBAR_REQUIRE_DEVICE();                                                                                 \
-    if (!comm::nccl_available()) GTEST_SKIP() << "this build has no NCCL";                                 \
-    if (visible_gpus() < (n)) GTEST_SKIP() << "needs " << (n) << " GPUs, " << visible_gpus() << " visible"; \
-  } while (0)
+// (FBAR_REQUIRE_GPUS and test::visible_gpus(): gpu_test_support.h)
 
 TEST(GpuDecomposition, NcclDamBreakOnEveryGpu) {
   FBAR_REQUIRE_GPUS(2);
-  expect_same_run(dam_break(true), 120, true, visible_gpus());
+  expect_same_run(dam_break(true), 120, true, test::visible_gpus());
 }
 
 TEST(GpuDecomposition, NcclTravellingBlockOnEveryGpu) {
   FBAR_REQUIRE_GPUS(2);
-  expect_same_run(travelling_block(visible_gpus()), 120, true, visible_gpus());
+  expect_same_run(travelling_block(test::visible_gpus()), 120, true, test::visible_gpus());
 }
 
 // The same with the halo sums after the whole G2P2G (GpuEngineOptions::overlap_halo off, fbar's default).
 TEST(GpuDecomposition, NcclDamBreakOnEveryGpuWithoutOverlap) {
   FBAR_REQUIRE_GPUS(2);
-  expect_same_run(dam_break(true), 120, true, visible_gpus(), false);
+  expect_same_run(dam_break(true), 120, true, test::visible_gpus(), false);
 }
 
 TEST(GpuDecomposition, NcclTravellingBlockOnEveryGpuWithoutOverlap) {
   FBAR_REQUIRE_GPUS(2);
-  expect_same_run(travelling_block(visible_gpus()), 120, true, visible_gpus(), false);
+  expect_same_run(travelling_block(test::visible_gpus()), 120, true, test::visible_gpus(), false);
+}
+
+// Placed bodies on separate GPUs (NCCL between any pair of ranks, not only neighbours).
+TEST(GpuDecomposition, NcclPlacedAndSpreadBodiesOnEveryGpu) {
+  FBAR_REQUIRE_GPUS(2);
+  expect_same_run(test::placed_bodies(true), 120, true, test::visible_gpus(), false);
 }
 
 // A decomposed rank's .bgeo frame: the GPU writes the point records (pack_bgeo_records) with each entry's ID taken
@@ -269,6 +283,70 @@ TEST(GpuDecomposition, RankBgeoFramesHoldTheirIds) {
   for (int r = 0; r < ranks; ++r) EXPECT_TRUE(errors[r].empty()) << "rank " << r << ": " << errors[r];
   EXPECT_GT(counts[0], 0u);
   EXPECT_GT(counts[1], 0u);
+}
+
+/// Two ranks (threads) each send the other two messages in one exchange call, of different sizes and contents: the
+/// k-th message one rank sends the other arrives in the other's k-th message with it (the step sends its halo sums
+/// and its migrants to a neighbour in one call). nccl: rank r on GPU r through NCCL; else peer copies on device 0.
+void expect_messages_pair_in_order(bool nccl) {
+  std::vector<std::unique_ptr<comm::Transport>> hosts = comm::make_thread_transports(2);
+  std::vector<std::string> errors(2);
+  std::vector<std::thread> threads;
+  for (int r = 0; r < 2; ++r)
+    threads.emplace_back([&, r] {
+      try {
+        FBAR_CUDA_CHECK(cudaSetDevice(nccl ? r : 0));
+        std::unique_ptr<comm::DeviceTransport> device =
+            nccl ? comm::make_nccl_transport(*hosts[r]) : comm::make_thread_device_transport(*hosts[r]);
+        cudaStream_t stream;
+        FBAR_CUDA_CHECK(cudaStreamCreate(&stream));
+        const std::size_t sizes[2] = {64, 1000};  // ints per message: the first, then the second
+        std::vector<int*> out(2), in(2);
+        std::vector<comm::DeviceTransport::Message> messages;
+        for (int k = 0; k < 2; ++k) {
+          std::vector<int> values(sizes[k]);
+          for (std::size_t i = 0; i < values.size(); ++i) values[i] = 1000000 * r + 1000 * k + static_cast<int>(i % 997);
+          FBAR_CUDA_CHECK(cudaMalloc(&out[k], sizeof(int) * sizes[k]));
+          FBAR_CUDA_CHECK(cudaMalloc(&in[k], sizeof(int) * sizes[k]));
+          FBAR_CUDA_CHECK(cudaMemcpy(out[k], values.data(), sizeof(int) * sizes[k], cudaMemcpyHostToDevice));
+          comm::DeviceTransport::Message m;
+          m.peer = 1 - r;
+          m.send = out[k];
+          m.recv = in[k];
+          m.send_bytes = m.recv_bytes = sizeof(int) * sizes[k];
+          messages.push_back(m);
+        }
+        device->exchange(messages, stream);
+        FBAR_CUDA_CHECK(cudaStreamSynchronize(stream));
+        for (int k = 0; k < 2; ++k) {
+          std::vector<int> got(sizes[k]);
+          FBAR_CUDA_CHECK(cudaMemcpy(got.data(), in[k], sizeof(int) * sizes[k], cudaMemcpyDeviceToHost));
+          for (std::size_t i = 0; i < got.size(); ++i)
+            if (got[i] != 1000000 * (1 - r) + 1000 * k + static_cast<int>(i % 997))
+              throw std::runtime_error("message " + std::to_string(k) + " entry " + std::to_string(i) + ": got " +
+                                       std::to_string(got[i]));
+          FBAR_CUDA_CHECK(cudaFree(out[k]));
+          FBAR_CUDA_CHECK(cudaFree(in[k]));
+        }
+        hosts[r]->barrier();  // the peer's copies out of this rank's buffers are done (the exchange waited for them)
+        FBAR_CUDA_CHECK(cudaStreamDestroy(stream));
+      } catch (const std::exception& e) {
+        errors[r] = e.what();
+        hosts[r]->abort(1);
+      }
+    });
+  for (auto& t : threads) t.join();
+  for (int r = 0; r < 2; ++r) EXPECT_EQ(errors[r], "") << "rank " << r;
+}
+
+TEST(GpuDecomposition, SeveralMessagesToOneRankPairInOrder) {
+  FBAR_REQUIRE_DEVICE();
+  expect_messages_pair_in_order(false);
+}
+
+TEST(GpuDecomposition, NcclSeveralMessagesToOneRankPairInOrder) {
+  FBAR_REQUIRE_GPUS(2);
+  expect_messages_pair_in_order(true);
 }
 
 TEST(GpuDecomposition, RefusesOneSidedTransports) {

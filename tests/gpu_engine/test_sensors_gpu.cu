@@ -99,10 +99,10 @@ TEST(GpuGridSensors, MatchTheCpuEngine) {
   EXPECT_GT(c.back()[0], 0.0);  // the floor carries the water
 }
 
-/// `ranks` GPU ranks as threads on device 0 (peer copies), each running sample(engine, host) on its engine; returns
-/// every rank's series (every rank must complete).
+/// `ranks` GPU ranks as threads, each running sample(engine, host) on its engine; returns every rank's series (every
+/// rank must complete). nccl: rank r on GPU r through NCCL (FBAR_REQUIRE_GPUS); otherwise all on device 0 (peer copies).
 template <class Sample>
-std::vector<Series> run_gpu_ranks(const Scene& scene, int ranks, const Sample& sample) {
+std::vector<Series> run_gpu_ranks(const Scene& scene, int ranks, const Sample& sample, bool nccl = false) {
   std::vector<std::unique_ptr<comm::Transport>> hosts = comm::make_thread_transports(ranks);
   std::vector<Series> series(ranks);
   std::vector<std::string> errors(ranks);
@@ -110,8 +110,9 @@ std::vector<Series> run_gpu_ranks(const Scene& scene, int ranks, const Sample& s
   for (int r = 0; r < ranks; ++r)
     threads.emplace_back([&, r] {
       try {
-        FBAR_CUDA_CHECK(cudaSetDevice(0));
-        std::unique_ptr<comm::DeviceTransport> device = comm::make_thread_device_transport(*hosts[r]);
+        FBAR_CUDA_CHECK(cudaSetDevice(nccl ? r : 0));
+        std::unique_ptr<comm::DeviceTransport> device =
+            nccl ? comm::make_nccl_transport(*hosts[r]) : comm::make_thread_device_transport(*hosts[r]);
         GpuEngineOptions options;
         options.ranks = hosts[r].get();
         options.device_ranks = device.get();
@@ -128,22 +129,34 @@ std::vector<Series> run_gpu_ranks(const Scene& scene, int ranks, const Sample& s
   return series;
 }
 
-TEST(GpuGridSensors, RanksSumToOneRank) {
-  FBAR_REQUIRE_DEVICE();
+/// Grid sensors of the dam break on 1 rank and on each of `rank_counts` ranks (nccl: one GPU per rank).
+void expect_grid_sums_as_one_rank(std::initializer_list<int> rank_counts, bool nccl) {
   const Scene scene = test::dam_break(false);
   const std::vector<GridSensorSpec> sensors = dam_break_sensors();
   GpuEngine<double> one(scene);
   one.set_log(nullptr);
   const Series s1 = sample_every_step(one, nullptr, sensors);
-  for (int ranks : {2, 3}) {
+  for (int ranks : rank_counts) {
     const std::vector<Series> all = run_gpu_ranks(
-        scene, ranks, [&](GpuEngine<double>& e, comm::Transport* host) { return sample_every_step(e, host, sensors); });
+        scene, ranks, [&](GpuEngine<double>& e, comm::Transport* host) { return sample_every_step(e, host, sensors); },
+        nccl);
     for (int r = 1; r < ranks; ++r) EXPECT_EQ(all[r], all[0]) << "every rank reduces to the same values";
     const Series& sn = all[0];
     if (sn.empty()) continue;
     expect_series_near(s1, sn, 1e-9, ranks == 2 ? "2 ranks" : "3 ranks");
     for (int s = 0; s < kSteps; ++s) EXPECT_EQ(s1[s][5], sn[s][5]) << "halo nodes counted once, step " << s + 1;
   }
+}
+
+TEST(GpuGridSensors, RanksSumToOneRank) {
+  FBAR_REQUIRE_DEVICE();
+  expect_grid_sums_as_one_rank({2, 3}, false);
+}
+
+// The same sums with each rank on its own GPU, the halo and migration through NCCL.
+TEST(GpuGridSensors, NcclRanksSumToOneRank) {
+  FBAR_REQUIRE_GPUS(2);
+  expect_grid_sums_as_one_rank({2}, true);
 }
 
 /// The dam break's particle sensors: a gauge (Position_Y Max) over the column, the water's Velocity_X Average, the
@@ -226,19 +239,28 @@ TEST(GpuParticleSensors, SolidStressesMatchTheCpuEngine) {
   EXPECT_LT(c.back()[0], -1.0);  // the impact compresses the block: a compressive nominal stress [Pa]
 }
 
-TEST(GpuParticleSensors, RanksSumToOneRank) {
-  FBAR_REQUIRE_DEVICE();
+void expect_particle_sums_as_one_rank(bool nccl) {
   const Scene scene = test::dam_break(false);
   const std::vector<ParticleSensorSpec> sensors = dam_break_particle_sensors();
   GpuEngine<double> one(scene);
   one.set_log(nullptr);
   const Series s1 = sample_particles_every_step(one, nullptr, sensors);
-  const std::vector<Series> series = run_gpu_ranks(scene, 2, [&](GpuEngine<double>& e, comm::Transport* host) {
-    return sample_particles_every_step(e, host, sensors);
-  });
+  const std::vector<Series> series = run_gpu_ranks(
+      scene, 2, [&](GpuEngine<double>& e, comm::Transport* host) { return sample_particles_every_step(e, host, sensors); },
+      nccl);
   ASSERT_FALSE(series[0].empty());
   EXPECT_EQ(series[1], series[0]) << "every rank reduces to the same values";
-  expect_series_near(s1, series[0], 1e-9, "particle sensors, 2 ranks");
+  expect_series_near(s1, series[0], 1e-9, nccl ? "particle sensors, 2 GPUs" : "particle sensors, 2 ranks");
+}
+
+TEST(GpuParticleSensors, RanksSumToOneRank) {
+  FBAR_REQUIRE_DEVICE();
+  expect_particle_sums_as_one_rank(false);
+}
+
+TEST(GpuParticleSensors, NcclRanksSumToOneRank) {
+  FBAR_REQUIRE_GPUS(2);
+  expect_particle_sums_as_one_rank(true);
 }
 
 /// Tracked particles of the travelling block (every particle migrates; bins are reordered every step): IDs 0, 100,
@@ -294,6 +316,19 @@ TEST(GpuTrackers, FollowParticlesThroughReorderingAndMigration) {
   expect_series_near(g, series[0], 1e-9, "trackers, 2 ranks", 1e-9);
   // The block moves at 2 m/s: each tracked particle too.
   for (int i = 0; i < 3; ++i) EXPECT_NEAR(g.back()[i * 3 + 1], 2.0, 1e-9);
+}
+
+// The tracked particles cross from one GPU to the other (NCCL migration) and are followed there.
+TEST(GpuTrackers, FollowParticlesAcrossGpus) {
+  FBAR_REQUIRE_GPUS(2);
+  const Scene scene = test::travelling_block();
+  GpuEngine<double> gpu(scene);
+  gpu.set_log(nullptr);
+  const Series g = track_every_step(gpu, nullptr);
+  const std::vector<Series> series = run_gpu_ranks(
+      scene, 2, [](GpuEngine<double>& e, comm::Transport* host) { return track_every_step(e, host); }, true);
+  ASSERT_FALSE(series[0].empty());
+  expect_series_near(g, series[0], 1e-9, "trackers, 2 GPUs", 1e-9);
 }
 
 }  // namespace

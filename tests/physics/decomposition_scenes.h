@@ -44,4 +44,27 @@ inline Scene travelling_block(int ranks = 1) {
   return scene;
 }
 
+/// ClaymoreUW's placement (bodies[].gpu): the dam break's water column whole on GPU 0 and a soft block (E 1e5 Pa,
+/// rho 500) falling into it at 1 m/s whole on GPU 1, so that their grid blocks are shared by ranks that are not
+/// slab neighbours. `mixed`: also a second, taller water column on the right spread over every rank by space
+/// ("gpu": "all"); its slabs (along y, its tallest extent) cut through the other two bodies' blocks.
+inline Scene placed_bodies(bool mixed) {
+  Scene scene = dam_break(false);
+  scene.bodies[0].gpu = 0;
+  BodySpec block = box_body(Constitutive::FixedCorotated, r3(0.2, 0.26, 0.06), r3(0.08, 0.06, 0.08), r3(0, -1, 0));
+  block.material.youngs_modulus = 1e5;
+  block.material.rho = 500.0;
+  block.gpu = 1;
+  scene.bodies.push_back(block);
+  if (mixed) {
+    BodySpec right = box_body(Constitutive::JFluid, r3(0.44, 0.04, 0.04), r3(0.14, 0.28, 0.12));
+    right.material.bulk_modulus = 2e5;
+    right.material.viscosity = 1e-3;
+    right.gpu = kAllGpus;
+    right.model = 1;
+    scene.bodies.push_back(right);
+  }
+  return scene;
+}
+
 }  // namespace fbar::test

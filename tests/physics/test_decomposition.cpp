@@ -59,7 +59,8 @@ RankResult run_rank(const Scene& scene, comm::Transport& transport, int steps) {
       for (int b = 0; b < engine.body_count(); ++b)
         for (const Vec3d& x : engine.positions(b)) {
           const int axis = engine.slabs().axis;
-          if (engine.slabs().owner(block_of(x[axis], dx)) != engine.rank()) out.always_owned = false;
+          const int home = engine.body_home(b);  // a placed body: its rank, wherever it goes
+          if ((home >= 0 ? home : engine.slabs().owner(block_of(x[axis], dx))) != engine.rank()) out.always_owned = false;
         }
     }
     out.migrated = engine.migrated();
@@ -140,7 +141,7 @@ constexpr double kMomentumTolerance = 3e-14;  // [-] relative to sum m |v|
 void expect_same_run(const Scene& scene, int steps, bool expect_migration, bool expect_rebalance = false) {
   const RankResult one = run_single(scene, steps);
   ASSERT_TRUE(one.error.empty()) << one.error;
-  for (int ranks : {2, 3}) {
+  for (int ranks : {2, 3}) {  // placed bodies on 2 GPUs: the third rank holds only what the slabs give it
     SCOPED_TRACE(std::to_string(ranks) + " ranks");
     const RankResult many = run_decomposed(scene, ranks, steps);
     ASSERT_TRUE(many.error.empty()) << many.error;
@@ -172,6 +173,19 @@ void expect_same_run(const Scene& scene, int steps, bool expect_migration, bool 
 TEST(Decomposition, DamBreakCrossesTheCuts) { expect_same_run(dam_break(false), 120, true); }
 TEST(Decomposition, DamBreakWithAsflipAndFbar) { expect_same_run(dam_break(true), 80, true); }
 TEST(Decomposition, TravellingBlockMigratesAndRebalances) { expect_same_run(travelling_block(), 80, true, true); }
+
+// ClaymoreUW's way, bodies[].gpu: the water whole on rank 0, the falling block whole on rank 1 (on 3 ranks the third
+// has nothing); their shared grid blocks are summed although the ranks are no slab neighbours. Nothing migrates.
+TEST(Decomposition, PlacedBodiesStayOnTheirRanks) {
+  const Scene scene = test::placed_bodies(false);
+  expect_same_run(scene, 100, false);
+  const RankResult two = run_decomposed(scene, 2, 100);
+  EXPECT_EQ(two.migrated, 0);
+}
+
+// Placed and spread bodies together: the right-hand column's slabs cut through the placed bodies' blocks, so some
+// blocks are held by a rank and several others (summed in rank order on each: the same bits everywhere).
+TEST(Decomposition, PlacedAndSpreadBodiesTogether) { expect_same_run(test::placed_bodies(true), 100, true); }
 
 }  // namespace
 }  // namespace fbar

@@ -296,6 +296,27 @@ TEST(SceneParse, ModelIdsAreAssignedInOrderPerGpu) {
   EXPECT_NE(error_of(scene_with(body(R"({})", R"("model": 2)"))).find("without gaps"), std::string::npos);
 }
 
+// bodies[].gpu "all" (spread over every GPU by space, comm/placement.h): its model id is taken on every GPU the scene
+// names, because it writes model[m]_dev[d] on each.
+TEST(SceneParse, GpuAllTakesItsModelIdOnEveryGpu) {
+  const Scene s = parse(scene_with(body(R"({})", R"("gpu": 0)") + "," + body(R"({})", R"("gpu": 1)") + "," +
+                                   body(R"({})", R"("gpu": "all")") + "," + body(R"({})", R"("gpu": 1)")));
+  EXPECT_EQ(s.bodies[2].gpu, kAllGpus);
+  EXPECT_EQ(s.bodies[0].model, 0);
+  EXPECT_EQ(s.bodies[1].model, 0);
+  EXPECT_EQ(s.bodies[2].model, 1);  // free on GPU 0 and on GPU 1
+  EXPECT_EQ(s.bodies[3].model, 2);
+  EXPECT_NE(error_of(scene_with(body(R"({})", R"("gpu": 1, "model": 0)") + "," +
+                                body(R"({})", R"("gpu": "all", "model": 0)")))
+                .find("bodies[1].model: got 0; expected a model id not used by another body on gpu 1 (bodies[0] has "
+                      "model 0; a body on \"all\" GPUs takes its model id on every GPU)"),
+            std::string::npos);
+  EXPECT_NE(error_of(scene_with(body(R"({})", R"("gpu": "two")")))
+                .find("bodies[0].gpu: got \"two\"; expected an integer >= 0 (the GPU that holds the whole body) or "
+                      "\"all\""),
+            std::string::npos);
+}
+
 TEST(SceneParse, CrossChecks) {
   EXPECT_NE(error_of(scene_with(body(), R"("boundaries": [{"object": "Walls", "domain_start": [0, 0, 0],
                                                           "domain_end": [1, 0, 1]}])"))

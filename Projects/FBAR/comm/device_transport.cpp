@@ -65,7 +65,11 @@ class ThreadDeviceTransport final : public DeviceTransport {
       put(mine, static_cast<std::uint64_t>(m.send_bytes));
     }
     const std::vector<Bytes> all = host_.allgather(mine);
+    // Several messages between two ranks in one call pair up in order (as NCCL's grouped sends and receives do): my
+    // k-th message with rank p receives p's k-th message to me.
+    std::vector<int> seen(all.size(), 0);
     for (const Message& m : messages) {
+      const int kth = seen.at(static_cast<std::size_t>(m.peer))++;
       if (m.recv_bytes == 0) continue;
       std::size_t at = 0;
       const Bytes& theirs = all.at(static_cast<std::size_t>(m.peer));
@@ -73,11 +77,11 @@ class ThreadDeviceTransport final : public DeviceTransport {
       const auto event = reinterpret_cast<cudaEvent_t>(take<std::uintptr_t>(theirs, at));
       const auto n = take<std::uint64_t>(theirs, at);
       bool found = false;
-      for (std::uint64_t i = 0; i < n; ++i) {
+      for (std::uint64_t i = 0, match = 0; i < n && !found; ++i) {
         const int to = take<int>(theirs, at);
         const auto ptr = reinterpret_cast<const void*>(take<std::uintptr_t>(theirs, at));
         const auto bytes = take<std::uint64_t>(theirs, at);
-        if (to != rank()) continue;
+        if (to != rank() || static_cast<int>(match++) != kth) continue;
         if (bytes != m.recv_bytes)
           throw std::logic_error("device transport: rank " + std::to_string(m.peer) + " sends " +
                                  std::to_string(bytes) + " bytes, rank " + std::to_string(rank()) + " expects " +

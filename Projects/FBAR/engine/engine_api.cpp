@@ -114,7 +114,7 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
   const double dx = sim.dx;
 
   int max_gpu = -1;
-  for (const BodySpec& b : scene.bodies) max_gpu = std::max(max_gpu, b.gpu);
+  for (const BodySpec& b : scene.bodies) max_gpu = std::max(max_gpu, std::max(b.gpu, 0));  // "all": GPU 0's estimate
   // Every body's particle blocks (their 2x2x2 footprints are the grid blocks, per GPU and for the CPU engine).
   std::vector<SampleCount> counts;
   std::vector<std::vector<BodyMemoryInput>> gpu_inputs(max_gpu + 1);
@@ -211,7 +211,7 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     if (frame_columns >= 0) in.frame_columns = frame_columns;
     asflip = asflip || in.asflip;
     fbar = fbar || in.fbar;
-    gpu_inputs[body.gpu].push_back(in);
+    gpu_inputs[std::max(body.gpu, 0)].push_back(in);
     // GPU set-up: one batch of sampled positions (double) in their per-plane vectors and concatenated, its bin
     // records, and the block counts.
     const std::size_t batch = static_cast<std::size_t>(std::min(count.particles, kSampleBatchParticles));
@@ -250,7 +250,7 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
   for (int g = 0; g <= max_gpu; ++g) {
     std::vector<const SampleCount*> on_gpu;
     for (std::size_t i = 0; i < counts.size(); ++i)
-      if (scene.bodies[i].gpu == g) on_gpu.push_back(&counts[i]);
+      if (std::max(scene.bodies[i].gpu, 0) == g) on_gpu.push_back(&counts[i]);
     summary.gpu_plans.push_back(plan_device_memory(sim.precision, footprint_blocks(on_gpu), gpu_inputs[g]));
     summary.gpu_plans.back().small += sensor_device_bytes(scene);
     summary.gpu_bytes[g] = summary.gpu_plans.back().total();

@@ -48,6 +48,7 @@
 
 #include "MnSystem/IO/async_writer.h"
 #include "MnSystem/IO/particle_io.h"
+#include "comm/placement.h"
 #include "engine/engine_api.h"
 #include "engine/run_constants.h"
 #include "engine/stop_request.h"
@@ -109,11 +110,13 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
   // One frame may wait while one is written: the engines' frame buffers bound the rest, so memory stays flat however
   // slow the disk (the GPU engine downloads into one pinned buffer per body; the CPU engine builds its frame here).
   io::AsyncWriter writer(1);
+  const std::vector<int> homes = comm::body_ranks(scene, transport ? transport->size() : 1);  // bodies[].gpu
   auto write_frame = [&](int frame) {
     for (int b = 0; b < engine.body_count(); ++b) {
       const BodySpec& spec = scene.bodies[b];
+      if (homes[b] >= 0 && homes[b] != rank) continue;  // a placed body: its rank's file only (dev[gpu])
       // A decomposed body is written by every rank, its particles in the rank's file (ClaymoreUW's dev[d] names).
-      const int device = decomposed ? rank : spec.gpu;
+      const int device = decomposed ? rank : std::max(spec.gpu, 0);  // "all" on one rank: dev[0]
       engine.submit_frame(b, io::frame_file_path(sim.save_path, spec.model, device, frame, suffix), writer);
     }
     result.frames_written = frame;

@@ -129,7 +129,13 @@ struct GeometrySpec {
   bool use_custom_bathymetry = false;
 };
 
+/// BodySpec::gpu "all": the body is spread over every GPU rank by space (comm/placement.h).
+constexpr int kAllGpus = -1;
+
 struct BodySpec {
+  /// ClaymoreUW's GPU of the whole body (>= 0), or kAllGpus. fbar places bodies on GPUs only when the scene's bodies
+  /// name more than one GPU (comm/placement.h); otherwise every body is spread over the ranks by space and `gpu`
+  /// names the frame files of a one-rank run (dev[gpu]).
   int gpu = 0;
   int model = 0;
   Real3 velocity{0.0, 0.0, 0.0};        ///< [m/s] initial velocity

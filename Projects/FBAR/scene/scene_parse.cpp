@@ -1011,7 +1011,15 @@ BodyRead parse_body(const rj::Value& v, const std::string& path, const Context& 
   ObjectReader* algo = algorithm ? &*algorithm : nullptr;
 
   auto id_reader = [](const rj::Value& x, const std::string& p) { return read_int(x, p, kNonNegative); };
-  if (auto gpu = read_either<int>(o, part, "gpu", id_reader)) b.gpu = *gpu;
+  auto gpu_reader = [](const rj::Value& x, const std::string& p) {
+    if (x.IsString() && std::string_view(x.GetString()) == "all") return kAllGpus;
+    if (x.IsString())
+      throw SceneError(p, json_text(x),
+                       "an integer >= 0 (the GPU that holds the whole body) or \"all\" (the body spread over every "
+                       "GPU by space)");
+    return read_int(x, p, kNonNegative);
+  };
+  if (auto gpu = read_either<int>(o, part, "gpu", gpu_reader)) b.gpu = *gpu;
   if (auto model = read_either<int>(o, part, "model", id_reader)) {
     b.model = *model;
     out.model_given = true;
@@ -1312,37 +1320,56 @@ ParticleSensorSpec parse_particle_sensor(const rj::Value& v, const std::string& 
 // The document
 // ---------------------------------------------------------------------------------------------------------------
 
-/// Assigns omitted model ids in order per GPU and checks that each GPU's ids are 0..n-1 without duplicates.
+/// Assigns omitted model ids in order per GPU and checks that each GPU's ids are 0..n-1 without duplicates. A body
+/// with "gpu": "all" writes model[m]_dev[d] on every GPU d, so its model id counts on every GPU the scene names.
 void assign_models(std::vector<BodyRead>& bodies, const std::string& bodies_key) {
+  std::set<int> gpus{0};  // every GPU the scene names (an "all" body alone: GPU 0)
+  for (const BodyRead& b : bodies)
+    if (b.spec.gpu != kAllGpus) gpus.insert(b.spec.gpu);
+  auto on = [&](const BodyRead& b) { return b.spec.gpu == kAllGpus ? gpus : std::set<int>{b.spec.gpu}; };
+  auto gpu_text = [](int gpu) { return gpu == kAllGpus ? std::string("\"all\"") : std::to_string(gpu); };
   std::map<int, std::set<int>> taken;  // gpu -> explicit model ids
   std::map<std::pair<int, int>, std::size_t> owner;
   for (std::size_t i = 0; i < bodies.size(); ++i) {
     const BodyRead& b = bodies[i];
     if (!b.model_given) continue;
-    const auto key = std::make_pair(b.spec.gpu, b.spec.model);
-    const auto it = owner.find(key);
-    if (it != owner.end())
-      throw SceneError(b.model_path, std::to_string(b.spec.model),
-                       "a model id not used by another body on gpu " + std::to_string(b.spec.gpu) + " (" +
-                           index_path(bodies_key, it->second) + " has model " + std::to_string(b.spec.model) + ")");
-    owner[key] = i;
-    taken[b.spec.gpu].insert(b.spec.model);
+    for (int g : on(b)) {
+      const auto key = std::make_pair(g, b.spec.model);
+      const auto it = owner.find(key);
+      if (it != owner.end())
+        throw SceneError(b.model_path, std::to_string(b.spec.model),
+                         "a model id not used by another body on gpu " + std::to_string(g) + " (" +
+                             index_path(bodies_key, it->second) + " has model " + std::to_string(b.spec.model) +
+                             (b.spec.gpu == kAllGpus || bodies[it->second].spec.gpu == kAllGpus
+                                  ? "; a body on \"all\" GPUs takes its model id on every GPU"
+                                  : "") +
+                             ")");
+      owner[key] = i;
+      taken[g].insert(b.spec.model);
+    }
   }
   for (BodyRead& b : bodies) {
     if (b.model_given) continue;
+    auto free_everywhere = [&](int m) {
+      for (int g : on(b))
+        if (taken[g].count(m)) return false;
+      return true;
+    };
     int m = 0;
-    while (taken[b.spec.gpu].count(m)) ++m;
+    while (!free_everywhere(m)) ++m;
     b.spec.model = m;
-    taken[b.spec.gpu].insert(m);
+    for (int g : on(b)) taken[g].insert(m);
   }
   // Engines index a GPU's models 0..n-1 (ClaymoreUW requires it too).
-  for (const BodyRead& b : bodies) {
-    const int n = static_cast<int>(taken[b.spec.gpu].size());
-    if (b.spec.model >= n)
-      throw SceneError(b.model_path, std::to_string(b.spec.model),
-                       "model ids on gpu " + std::to_string(b.spec.gpu) + " to be 0.." + std::to_string(n - 1) +
-                           " without gaps (omit model to number bodies in order)");
-  }
+  for (const BodyRead& b : bodies)
+    for (int g : on(b)) {
+      const int n = static_cast<int>(taken[g].size());
+      if (b.spec.model >= n)
+        throw SceneError(b.model_path, std::to_string(b.spec.model),
+                         "model ids on gpu " + std::to_string(g) + " to be 0.." + std::to_string(n - 1) +
+                             " without gaps (omit model to number bodies in order; the body's gpu is " +
+                             gpu_text(b.spec.gpu) + ")");
+    }
 }
 
 const rj::Value* optional_array(ObjectReader& root, std::initializer_list<std::string_view> keys, std::string& path,

@@ -127,7 +127,8 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
   long long total = 0;
   for (std::size_t i = 0; i < scene.bodies.size(); ++i) {
     const BodySpec& b = scene.bodies[i];
-    os << "bodies[" << i << "]  gpu " << b.gpu << ", model " << b.model << '\n';
+    os << "bodies[" << i << "]  gpu " << (b.gpu == kAllGpus ? std::string("all") : std::to_string(b.gpu)) << ", model "
+       << b.model << '\n';
     row(os, "material", material_line(b.material));
     row(os, "algorithm", algorithm_line(b.algorithm));
     row(os, "velocity", vec(b.velocity) + " m/s");

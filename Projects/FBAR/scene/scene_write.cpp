@@ -243,7 +243,10 @@ class SceneWriter {
 
   void body(const BodySpec& b) {
     w_.StartObject();
-    integer("gpu", b.gpu);
+    if (b.gpu == kAllGpus)
+      str("gpu", "all");
+    else
+      integer("gpu", b.gpu);
     integer("model", b.model);
     reals("velocity", b.velocity);
     if (b.initial_state != InitialState::Rest) str("initial_state", to_string(b.initial_state));

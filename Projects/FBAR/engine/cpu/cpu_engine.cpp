@@ -15,6 +15,7 @@
 #include <type_traits>
 
 #include "MnBase/Math/bspline.h"
+#include "comm/placement.h"
 #include "scene/attributes.h"
 #include "geometry/geometry.h"
 #include "physics/grid_update.cuh"
@@ -179,7 +180,7 @@ void CpuEngine<T, TG>::divide_replicated() {
   choose_slabs_now(true);
   for (Body& body : bodies_) {
     std::vector<int> owner(body.x.size());
-    for (std::size_t p = 0; p < body.x.size(); ++p) owner[p] = owner_of(body.x[p]);
+    for (std::size_t p = 0; p < body.x.size(); ++p) owner[p] = owner_of(body, body.x[p]);
     keep_own_particles(body, owner);
   }
   measure_balance();
@@ -231,7 +232,8 @@ CpuEngine<T, TG>::CpuEngine(const Scene& scene, const io::Checkpoint& cp, comm::
   dt_scale_ = cp.dt_scale;
   clean_steps_ = cp.clean_steps;
   if (ranks() > 1) {
-    if (cp.ranks == ranks() && cp.rank == rank() && static_cast<int>(cp.slab_cuts.size()) == ranks() + 1) {
+    // (one slab when only placed bodies have particles: comm/placement.h)
+    if (cp.ranks == ranks() && cp.rank == rank() && cp.slab_cuts.size() >= 2) {
       slabs_.axis = cp.slab_axis;  // this rank's own particles, in their slot order
       slabs_.cuts = cp.slab_cuts;
       measure_balance();
@@ -323,6 +325,11 @@ void CpuEngine<T, TG>::init(const std::vector<std::vector<Vec3d>>& positions) {
 
   double max_speed = 0.0;
   bodies_.resize(scene_.bodies.size());
+  const std::vector<int> homes = comm::body_ranks(scene_, ranks());  // bodies[].gpu (comm/placement.h)
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    bodies_[b].home = homes[b];
+    placed_ = placed_ || homes[b] >= 0;
+  }
   for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {
     const BodySpec& spec = scene_.bodies[b];
     const std::string where = "bodies[" + std::to_string(b) + "]";
@@ -601,7 +608,9 @@ double CpuEngine<T, TG>::update_grid(TG dt) {
     GridBlock& g = grid_.blocks[gb];
     const Vec3i& c = grid_.coords[gb];
     // A halo block is held by two ranks: its nodes count (mass, sensors) on the rank owning its plane.
-    const bool owned = ranks() == 1 || slabs_.owner(c[0], c[1], c[2]) == rank();
+    // With placed bodies: on the lowest rank holding it (find_shared_blocks).
+    const bool owned = ranks() == 1 || (placed_ ? counted_[static_cast<std::size_t>(gb)] != 0
+                                                : slabs_.owner(c[0], c[1], c[2]) == rank());
     double mass_sum = 0.0;
     for (int i = 0; i < kBlockSide; ++i)
       for (int j = 0; j < kBlockSide; ++j)
@@ -1460,13 +1469,130 @@ V take(const comm::Bytes& in, std::size_t& at) {
 }  // namespace
 
 template <typename T, typename TG>
-int CpuEngine<T, TG>::owner_of(const Vec3T& x) const {
+int CpuEngine<T, TG>::owner_of(const Body& body, const Vec3T& x) const {
+  if (body.home >= 0) return body.home;
   const Vec3i b = block_of_node(quadratic_bspline_inv(x, k_.inv_dx).base);
   return slabs_.owner(b[0], b[1], b[2]);
 }
 
 template <typename T, typename TG>
+void CpuEngine<T, TG>::find_shared_blocks() {
+  const int r = rank(), n = ranks();
+  comm::Bytes mine(grid_.coords.size() * sizeof(std::uint64_t));
+  for (std::size_t gb = 0; gb < grid_.coords.size(); ++gb) {
+    const std::uint64_t key = pack_block(grid_.coords[gb]);
+    std::memcpy(mine.data() + gb * sizeof(key), &key, sizeof(key));
+  }
+  const std::vector<comm::Bytes> all = transport_->allgather(mine);
+  shared_.assign(static_cast<std::size_t>(n), {});
+  counted_.assign(grid_.coords.size(), 1);
+  for (int q = 0; q < n; ++q) {
+    if (q == r) continue;
+    const comm::Bytes& theirs = all[static_cast<std::size_t>(q)];
+    std::vector<std::pair<std::uint64_t, int>> both;  // (key, this rank's block)
+    for (std::size_t at = 0; at + sizeof(std::uint64_t) <= theirs.size(); at += sizeof(std::uint64_t)) {
+      std::uint64_t key;
+      std::memcpy(&key, theirs.data() + at, sizeof(key));
+      const auto it = grid_.index.find(key);
+      if (it != grid_.index.end()) both.emplace_back(key, it->second);
+    }
+    std::sort(both.begin(), both.end());  // key order: the same list on both ranks
+    std::vector<int>& list = shared_[static_cast<std::size_t>(q)];
+    for (const auto& [key, gb] : both) {
+      list.push_back(gb);
+      if (q < r) counted_[static_cast<std::size_t>(gb)] = 0;
+    }
+  }
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::exchange_shared_blocks(bool fbar_sums) {
+  const int r = rank(), n = ranks();
+  if (!fbar_sums) find_shared_blocks();  // the F-bar sums follow the P2G sums of the same step: the same blocks
+  std::vector<int> peers;
+  std::vector<comm::Bytes> send;
+  for (int q = 0; q < n; ++q) {
+    if (q == r) continue;
+    peers.push_back(q);
+    send.emplace_back();
+    for (int gb : shared_[static_cast<std::size_t>(q)]) {
+      if (fbar_sums) {
+        put(send.back(), grid_.fbar[gb]);
+      } else {
+        put(send.back(), grid_.blocks[gb]);
+        if (asflip_) put(send.back(), grid_.asflip[gb]);
+      }
+    }
+  }
+  const std::vector<comm::Bytes> received = transport_->exchange(peers, send);
+  // Every holder adds the contributions in rank order, its own at its place, from zero: the same bits on all of them
+  // (a block of three ranks: (0 + a) + b) + c everywhere; a + b = b + a is not enough there).
+  std::vector<int> blocks;  // every shared block once
+  {
+    std::vector<unsigned char> seen(grid_.coords.size(), 0);
+    for (const std::vector<int>& list : shared_)
+      for (int gb : list)
+        if (!seen[static_cast<std::size_t>(gb)]++) blocks.push_back(gb);
+  }
+  std::vector<GridBlock> own_grid;
+  std::vector<AsflipBlock> own_asflip;
+  std::vector<FbarBlock> own_fbar;
+  for (int gb : blocks) {
+    if (fbar_sums) {
+      own_fbar.push_back(grid_.fbar[gb]);
+      std::memset(&grid_.fbar[gb], 0, sizeof(FbarBlock));
+    } else {
+      own_grid.push_back(grid_.blocks[gb]);
+      std::memset(&grid_.blocks[gb], 0, sizeof(GridBlock));
+      if (asflip_) {
+        own_asflip.push_back(grid_.asflip[gb]);
+        std::memset(&grid_.asflip[gb], 0, sizeof(AsflipBlock));
+      }
+    }
+  }
+  auto add = [](TG* into, const TG* from, int count) {
+    for (int k = 0; k < count; ++k) into[k] += from[k];
+  };
+  auto add_block = [&](int gb, const GridBlock* g, const AsflipBlock* a, const FbarBlock* f) {
+    if (f) {
+      add(&grid_.fbar[gb].sums[0][0], &f->sums[0][0], 2 * 64);
+      return;
+    }
+    add(grid_.blocks[gb].mass, g->mass, 64);
+    add(&grid_.blocks[gb].momentum[0][0], &g->momentum[0][0], 3 * 64);
+    if (asflip_) add(&grid_.asflip[gb].old_velocity[0][0], &a->old_velocity[0][0], 3 * 64);
+  };
+  for (int q = 0; q < n; ++q) {
+    if (q == r) {
+      for (std::size_t i = 0; i < blocks.size(); ++i)
+        add_block(blocks[i], fbar_sums ? nullptr : &own_grid[i], asflip_ && !fbar_sums ? &own_asflip[i] : nullptr,
+                  fbar_sums ? &own_fbar[i] : nullptr);
+      continue;
+    }
+    const std::size_t peer = static_cast<std::size_t>(q < r ? q : q - 1);
+    const comm::Bytes& in = received[peer];
+    std::size_t at = 0;
+    for (int gb : shared_[static_cast<std::size_t>(q)]) {
+      if (fbar_sums) {
+        const FbarBlock f = take<FbarBlock>(in, at);
+        add_block(gb, nullptr, nullptr, &f);
+      } else {
+        const GridBlock g = take<GridBlock>(in, at);
+        AsflipBlock a{};
+        if (asflip_) a = take<AsflipBlock>(in, at);
+        add_block(gb, &g, &a, nullptr);
+      }
+    }
+    if (at != in.size()) throw std::runtime_error("CpuEngine: rank " + std::to_string(q) + " shares other blocks");
+  }
+}
+
+template <typename T, typename TG>
 void CpuEngine<T, TG>::exchange_halo(bool fbar_sums) {
+  if (placed_) {
+    exchange_shared_blocks(fbar_sums);
+    return;
+  }
   const int r = rank(), n = ranks();
   std::vector<int> peers;
   std::vector<int> planes;
@@ -1577,7 +1703,7 @@ void CpuEngine<T, TG>::migrate() {
   for (Body& body : bodies_) {
     const std::size_t count = body.x.size();
     std::vector<int> dest(count);
-    for (std::size_t p = 0; p < count; ++p) dest[p] = owner_of(body.x[p]);
+    for (std::size_t p = 0; p < count; ++p) dest[p] = owner_of(body, body.x[p]);
     // Per peer: this body's particle count, then their records (ID, x, v, C, mass, V0, material state).
     std::vector<std::uint64_t> per_peer(peers.size(), 0);
     for (std::size_t p = 0; p < count; ++p)
@@ -1618,7 +1744,7 @@ void CpuEngine<T, TG>::migrate() {
               body.mass.push_back(take<T>(received[i], at[i]));
               body.volume.push_back(take<T>(received[i], at[i]));
               mb.state.push_back(take<State>(received[i], at[i]));
-              if (owner_of(body.x.back()) != r)
+              if (owner_of(body, body.x.back()) != r)
                 throw std::runtime_error("particle " + std::to_string(body.id.back()) +
                                          " crossed a whole slab in one step (rank " + std::to_string(r) + ")");
             }
@@ -1659,7 +1785,8 @@ void CpuEngine<T, TG>::choose_slabs_now(bool replicated) {
     lo[a] = std::numeric_limits<double>::infinity();
     hi[a] = -std::numeric_limits<double>::infinity();
   }
-  for (const Body& body : bodies_)
+  for (const Body& body : bodies_) {
+    if (body.home >= 0) continue;  // placed bodies have no say in the slabs
     for (const Vec3T& x : body.x) {
       const Vec3i b = block_of_node(quadratic_bspline_inv(x, k_.inv_dx).base);
       for (int a = 0; a < 3; ++a) {
@@ -1667,6 +1794,7 @@ void CpuEngine<T, TG>::choose_slabs_now(bool replicated) {
         hi[a] = std::max(hi[a], static_cast<double>(b[a]));
       }
     }
+  }
   if (!replicated) {
     transport_->allreduce_min(lo, 3);
     transport_->allreduce_max(hi, 3);
@@ -1679,11 +1807,13 @@ void CpuEngine<T, TG>::choose_slabs_now(bool replicated) {
   planes.axis = comm::longest_axis(lo, hi);
   planes.first = static_cast<int>(lo[planes.axis]);
   planes.counts.assign(static_cast<std::size_t>(hi[planes.axis] - lo[planes.axis]) + 1, 0);
-  for (const Body& body : bodies_)
+  for (const Body& body : bodies_) {
+    if (body.home >= 0) continue;
     for (const Vec3T& x : body.x) {
       const Vec3i b = block_of_node(quadratic_bspline_inv(x, k_.inv_dx).base);
       ++planes.counts[static_cast<std::size_t>(b[planes.axis] - planes.first)];
     }
+  }
   if (!replicated) transport_->allreduce_sum(planes.counts.data(), static_cast<int>(planes.counts.size()));
   slabs_ = comm::choose_slabs(planes, ranks());
 }

@@ -214,6 +214,8 @@ class CpuEngine {
   int rank() const { return transport_->rank(); }
   int ranks() const { return transport_->size(); }
   const comm::SlabPartition& slabs() const { return slabs_; }
+  /// The rank holding body b whole (bodies[].gpu, comm/placement.h), or kAllGpus when it is spread by space.
+  int body_home(int body) const { return body_at(body).home; }
   /// max / mean - 1 of the particles per rank after the last step (0 on one rank).
   double imbalance() const { return imbalance_; }
   long long migrated() const { return migrated_; }      ///< particles this rank sent to others so far
@@ -311,6 +313,7 @@ class CpuEngine {
     std::vector<T> mass, volume;
     MaterialVariant material;
     double max_wave_speed = 0.0;  // [m/s] over the particles of the committed state
+    int home = kAllGpus;          // the rank holding the whole body (bodies[].gpu, comm/placement.h), or spread by space
     bool asflip = false;          // PIC-FLIP / ASFLIP velocity and position update (transfer.cuh)
     AsflipParams<T> asflip_params{T(0), T(0), T(0)};
     T fbar_psi = T(0);  // F-bar: the fraction of J pulled to its cell's mean per step (transfer.cuh); 0: off
@@ -363,6 +366,11 @@ class CpuEngine {
   void g2p(int body_index, Body& body, T dt, TryResult& result);
   void commit(const TryResult& result, double dt);
   void exchange_halo(bool fbar_sums);  // sums the halo planes with the neighbours (P2G channels or F-bar sums)
+  /// Placed bodies (comm/placement.h): the grid blocks this rank shares with each other rank, from every rank's
+  /// block keys (collective; after P2G), and which blocks count here (sensors, grid mass).
+  void find_shared_blocks();
+  /// exchange_halo of a run with placed bodies: every shared block summed over all its holders in rank order.
+  void exchange_shared_blocks(bool fbar_sums);
   void reduce_try(TryResult& result, double dt);  // over ranks: speeds, failure counts; builds the reports
   void migrate();                      // particles whose block left this rank's slab go to their owner
   void keep_own_particles(Body& body, const std::vector<int>& owner);  // drops those of other ranks, in order
@@ -372,7 +380,7 @@ class CpuEngine {
   /// Slabs from the particles: of this rank only when every rank holds every particle (`replicated`, at start),
   /// else of every rank (to rebalance).
   void choose_slabs_now(bool replicated);
-  int owner_of(const Vec3T& x) const;  // rank owning the particle block of x
+  int owner_of(const Body& body, const Vec3T& x) const;  // rank owning a particle of `body` at x
   /// fn(p, inputs) for every particle p of `b` that accept(p) takes, with frame_value()'s inputs of its current state
   /// (particle_frame_inputs, the GPU's formula; the Cauchy stress only when `sigma`), in slot order.
   template <class Accept, class Fn>
@@ -385,6 +393,9 @@ class CpuEngine {
   comm::LocalTransport local_transport_;        // the transport of a one-rank engine
   comm::Transport* transport_ = &local_transport_;
   comm::SlabPartition slabs_;                   // one slab (all of space) on one rank
+  bool placed_ = false;                         // some body is placed whole on a rank: the general halo
+  std::vector<std::vector<int>> shared_;        // placed_: per rank, the grid blocks shared with it, in key order
+  std::vector<unsigned char> counted_;          // placed_: per grid block, 1 when its nodes count on this rank
   double rebalance_threshold_ = 0.0;
   double imbalance_ = 0.0;
   double chosen_imbalance_ = 0.0;               // imbalance right after the slabs were last chosen

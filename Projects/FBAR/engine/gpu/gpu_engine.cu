@@ -2,6 +2,7 @@
 #include "engine/gpu/gpu_engine.h"
 
 #include "comm/device_transport.h"
+#include "comm/placement.h"
 #include "comm/slab_partition.h"
 #include "comm/transport.h"
 
@@ -284,14 +285,18 @@ bool GpuEngine<T, TG>::rebalance_if_drifted() {
   // The slabs the particles ask for now, as the engine would choose them: nothing to do when they are the same.
   {
     std::vector<SampleCount> counts;
-    for (const io::CheckpointBody& b : merged.bodies) {
+    const std::vector<int> homes = comm::body_ranks(*scene_, ranks());  // placed bodies have no say in the slabs
+    for (std::size_t i = 0; i < merged.bodies.size(); ++i) {
+      if (homes[i] >= 0) continue;
+      const io::CheckpointBody& b = merged.bodies[i];
       std::vector<Vec3d> x(b.particles());
       for (std::size_t p = 0; p < x.size(); ++p) x[p] = Vec3d{{b.x[3 * p], b.x[3 * p + 1], b.x[3 * p + 2]}};
       counts.push_back(count_points(x, scene_->simulation.dx));
     }
     std::vector<const SampleCount*> pointers;
     for (const SampleCount& c : counts) pointers.push_back(&c);
-    if (comm::choose_slabs(comm::plane_counts(pointers), ranks()).cuts == before.cuts) {
+    const comm::PlaneCounts planes = comm::plane_counts(pointers);
+    if (planes.total() == 0 || comm::choose_slabs(planes, ranks()).cuts == before.cuts) {
       chosen_imbalance_ = drifted;  // whole block planes allow no better split: wait for a larger drift
       return false;
     }

@@ -142,8 +142,7 @@ std::string memory_fit_message(const DeviceMemoryPlan& plan, std::size_t free_by
   for (const BodySpec& b : scene.bodies) ppc = std::max(ppc, b.material.ppc);
   if (ppc > 1.0) os << ", or material.ppc " << ppc << " -> " << std::max(1.0, std::floor(ppc / (ratio * 1.05)));
   os << ", or " << static_cast<int>(std::ceil(ratio * 1.05))
-     << " GPUs of this size (one body spanning several GPUs: the multi-GPU release; today bodies[].gpu places whole "
-        "bodies)";
+     << " GPUs of this size (--gpus=N, or one MPI rank per GPU: every body is spread over them by space)";
   return os.str();
 }
 

@@ -52,11 +52,14 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include "MnBase/Math/bspline.h"
 #include "MnSystem/Cuda/device_query.h"
 #include "comm/device_transport.h"
+#include "comm/placement.h"
 #include "comm/slab_partition.h"
 #include "scene/attributes.h"
 #include "physics/boundary.cuh"
@@ -272,7 +275,9 @@ class MgspBenchmark {
   }
   long long migrated() const { return migrated_; }
   long long migration_repeats() const { return migration_repeats_; }
-  std::size_t halo_blocks() const { return halo_[0].keys.size() + halo_[1].keys.size(); }
+  std::size_t halo_blocks() const {
+    return placed_ ? union_blocks_.size() : halo_[0].keys.size() + halo_[1].keys.size();
+  }
   std::size_t halo_particle_blocks() const {
     std::size_t n = 0;
     for (const auto& b : bodies_) n += static_cast<std::size_t>(b->halo_blocks[cur_]);
@@ -510,7 +515,7 @@ class MgspBenchmark {
       p.dt_next = &e.stats_d_->dt_next;
       p.stats = e.stats_d_;
       p.body_stats = e.body_stats_d_ + this->index;
-      p.slab = e.slab_;
+      p.slab = e.slab_of(this->index);
       p.emigrant_slots = e.decomposed() ? this->emigrant_slots.get() : nullptr;
       p.emigrant_capacity = static_cast<int>(this->emigrant_slots.size());
       p.wave_speed = e.wave_d_.get() + (1 - e.wave_cur_) * e.bodies_.size() + this->index;
@@ -581,7 +586,7 @@ class MgspBenchmark {
       if (slots <= first) return;
       fbar::dest_from_positions<M, T, TG><<<mgsp_detail::grid_for(slots - first, kPartitionThreads), kPartitionThreads,
                                         0, e.stream_>>>(
-          bins[which].instance(), valid, this->particles, first, slots, e.k_.inv_dx, e.slab_, e.table_.view(),
+          bins[which].instance(), valid, this->particles, first, slots, e.k_.inv_dx, e.slab_of(this->index), e.table_.view(),
           this->partition.layout(1 - e.cur_).count, this->partition.dest(), e.grid_[0].instance(),
           e.grid_[1].instance(), e.body_stats_d_ + this->index);
       mgsp_detail::check_launch("dest_from_positions");
@@ -717,13 +722,38 @@ class MgspBenchmark {
   /// Chooses the slabs from every body's counts (the same on every rank: each counted the whole scene) and keeps
   /// this rank's part of each count.
   void choose_slabs(const std::vector<std::vector<Vec3d>>* positions);
-  /// Whether this rank owns the particle at x (the device's arithmetic: x in T, its particle block).
-  bool owns(const Vec3d& x) const;
+  /// Whether this rank holds body b's particle at x: a placed body's rank holds all of it (comm/placement.h); else
+  /// the slab of x's particle block (the device's arithmetic: x in T).
+  bool owns(int body, const Vec3d& x) const;
+  /// The particle blocks body b keeps on this rank: a placed body all of them (it never migrates), else the slab.
+  SlabBounds slab_of(int body) const {
+    return homes_.empty() || homes_[static_cast<std::size_t>(body)] < 0 ? slab_ : SlabBounds{};
+  }
+  /// Placed bodies: the lists of blocks shared with each rank, from every rank's new table keys (collective; the
+  /// counterpart of rebuild_halo). A block that a rank has just created takes the sums of grid[summed_grid] from
+  /// the lowest rank that held it before (when summed_grid >= 0), so every holder has the same values.
+  void rebuild_shared(int summed_grid, const std::vector<unsigned long long>& fresh);
+  /// Placed bodies: halo_exchange over the shared lists, every holder's contribution added in rank order.
+  void shared_exchange(std::initializer_list<std::pair<std::byte*, std::size_t>> buffers, int grid, bool delta,
+                       cudaStream_t stream);
+  /// Placed bodies: not_counted_ from the lists (a block shared with a lower rank counts there).
+  void mark_not_counted();
   /// Sums the listed block buffers' halo blocks with the neighbours (data, bytes per block). grid >= 0: the first
   /// buffer is grid_[grid], whose summed halo is kept for a later delta exchange; delta: add (mine + theirs) - saved.
   /// On `stream` (nullptr: the compute stream).
   void halo_exchange(std::initializer_list<std::pair<std::byte*, std::size_t>> buffers, int grid, bool delta = false,
                      cudaStream_t stream = nullptr);
+  using BlockBuffers = std::vector<std::pair<std::byte*, std::size_t>>;
+  /// halo_exchange in two halves (neighbour planes only), so that one exchange can carry other messages too: the
+  /// packed halo messages, then, after the exchange, the sums.
+  std::vector<comm::DeviceTransport::Message> pack_halo_messages(const BlockBuffers& buffers, cudaStream_t stream);
+  void add_halo_messages(const BlockBuffers& buffers, int grid, bool delta, cudaStream_t stream);
+  /// The buffers a step's halo sums: grid[g] and, with ASFLIP, the transported momentum.
+  BlockBuffers step_halo_buffers(int g) {
+    BlockBuffers out{{grid_[g].instance().data(), GridBuffer<TG>::kBlockBytes}};
+    if (asflip_) out.emplace_back(transported_[g].instance().data(), GridVelocityBuffer<TG>::kBlockBytes);
+    return out;
+  }
   /// Step 3 of a decomposed rank: G2P2G of the halo particle blocks, then of the others on the compute stream while
   /// the halo stream sums grid[1 - gc] (and the transported momentum) with the neighbours; the compute stream then
   /// waits for the sums (options_.overlap_halo; otherwise G2P2G and the sums one after the other).
@@ -745,6 +775,10 @@ class MgspBenchmark {
   void rebuild_halo(int summed_grid);
   /// Collective, after G2P2G and the halo sums: emigrants out, immigrants in (behind the G2P2G's slots).
   void migrate_particles();
+  /// migrate_particles in two halves: the emigrants packed (the messages to send; msg: their layout), then, after
+  /// the exchange, the immigrants appended.
+  std::vector<comm::DeviceTransport::Message> pack_migrant_messages(MigrantMessage& msg);
+  void unpack_migrant_messages(const MigrantMessage& msg);
   /// After read_stats: each body's particles after the migration, from the counts the step's readback brought, and
   /// migrant_most_, this rank's largest count (agree_on_try makes it every rank's; above migrant_capacity_ a message
   /// overflowed).
@@ -865,6 +899,24 @@ class MgspBenchmark {
   long long pending_migrated_ = 0;
   bool halo_grew_ = false;  ///< agree_on_try: some rank has new halo blocks (every rank then calls rebuild_halo)
   double most_rank_particles_ = 0.0;  ///< agree_on_try: the most particles any rank holds after the last step
+
+  // Placed bodies (bodies[].gpu, comm/placement.h): any set of ranks may hold a block; the sums go over these lists
+  // (shared_exchange) instead of the neighbour planes, and halo_[0].fresh collects every new table block.
+  mgsp_detail::DeviceArray<unsigned long long> dt_inputs_d_;  ///< gather_dt_inputs: one reduction over the ranks
+  std::vector<int> homes_;  ///< per body: the rank holding it whole, or kAllGpus (spread by space); empty: one GPU
+  bool placed_ = false;     ///< some body is placed
+  struct SharedPeer {
+    std::vector<unsigned long long> keys;       ///< blocks both ranks hold, sorted (the same list on both)
+    std::vector<int> blocks;                    ///< their table indices here
+    mgsp_detail::DeviceArray<int> index, upos;  ///< the same on the device; upos: each entry's union position
+    mgsp_detail::DeviceArray<TG> send, recv;
+  };
+  std::vector<SharedPeer> shared_;                                   ///< per rank (this rank's entry unused)
+  std::vector<std::unordered_set<unsigned long long>> rank_keys_;    ///< every rank's table keys so far
+  std::vector<int> union_blocks_;                                    ///< every shared block once, ascending
+  mgsp_detail::DeviceArray<int> union_index_;
+  mgsp_detail::DeviceArray<TG> union_own_, union_saved_[2];          ///< this rank's part; grid[g]'s summed values
+  mgsp_detail::DeviceArray<unsigned char> not_counted_;              ///< per table block (sensors count it once)
 };
 
 // =====================================================================================================================
@@ -1115,7 +1167,7 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
       std::vector<int> ids;
       const std::vector<Vec3d>& x = (*positions)[b];
       for (std::size_t p = 0; p < x.size(); ++p)
-        if (owns(x[p])) {
+        if (owns(static_cast<int>(b), x[p])) {
           mine.push_back(x[p]);
           ids.push_back(static_cast<int>(p));
         }
@@ -1249,7 +1301,11 @@ void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* pos
   if (decomposed() && halo_grew_) rebuild_halo(0);
   cur_ = 1;
   gc_ = 0;
-  wave_cur_ = 0;
+  // The initial G2P2G measured the wave speed of the state the run starts from into slot 1: the first step's dt
+  // reads it (with the rest wave speed as a floor), as every later step reads what the step before measured. A
+  // restart then takes the dt the uninterrupted run took (slot 0 held only the rest wave speed: 1e-7 m apart after
+  // 40 steps of a dam break).
+  wave_cur_ = 1;
   bound_cur_ = 1;
   dt_p2g_ = dt0;
   next_dt_ = dt0;
@@ -1329,7 +1385,7 @@ void MgspBenchmark<T, TG>::upload_sampled(BodyBase& body) {
       sampled.clear();
       sampler.sample_planes(plane, end, sampled);
       for (const Vec3d& x : sampled) {
-        if (owns(x)) {
+        if (owns(body.index, x)) {
           pending.push_back(x);
           pending_ids.push_back(static_cast<int>(next_id));
         }
@@ -1545,6 +1601,7 @@ void MgspBenchmark<T, TG>::grow_blocks_to(int capacity) {
                                                 block_capacity_ + 1, stream_));
   scan_temp_.allocate(temp);
   scan_temp_bytes_ = temp;
+  if (placed_) mark_not_counted();  // per table block: the flags at the new capacity
 }
 
 template <typename T, typename TG>
@@ -1721,6 +1778,7 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
         sp.dx = gp.dx;
         sp.gravity = gp.gravity;
         sp.slab = slab_;
+        sp.not_counted = placed_ ? not_counted_.get() : nullptr;
         sp.sensors = grid_sensors_;
         sp.partials = sensor_partials_d_.get();
         const long long nodes = static_cast<long long>(block_count_) * 64;
@@ -1750,10 +1808,14 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
       // Landing on the target, the next step heads for `following`: its dt is clamped for that one.
       dp.t_target = reaches && !std::isnan(following) ? following : target;
       dp.stats = stats_d_;
-      if (decomposed()) {  // the maxima are stored as the bits of non-negative doubles: reduce them as doubles
-        device_->allreduce_max(reinterpret_cast<double*>(&stats_d_->max_speed_sq), 1, stream_);
-        device_->allreduce_max(reinterpret_cast<double*>(wave_d_.get() + wave_cur_ * bodies_.size()), body_count(),
-                               stream_);
+      if (decomposed()) {  // the maxima are stored as the bits of non-negative doubles: reduce them as doubles,
+        // the grid speed and every body's wave speed in one message (one NCCL call a step)
+        if (dt_inputs_d_.size() < bodies_.size() + 1) dt_inputs_d_.allocate(bodies_.size() + 1);
+        gather_dt_inputs<<<1, DtParams::kMaxBodies, 0, stream_>>>(stats_d_, wave_d_.get() + wave_cur_ * bodies_.size(),
+                                                                   body_count(), dt_inputs_d_.get());
+        mgsp_detail::check_launch("gather_dt_inputs");
+        device_->allreduce_max(reinterpret_cast<double*>(dt_inputs_d_.get()), body_count() + 1, stream_);
+        dp.reduced = dt_inputs_d_.get();
       }
       compute_next_dt<<<1, 1, 0, stream_>>>(dp);
       mgsp_detail::check_launch("compute_next_dt");
@@ -1774,7 +1836,21 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
         if (b->frame_copied) FBAR_CUDA_CHECK(cudaStreamWaitEvent(stream_, b->frame_copied, 0));
         if (decomposed() && b->capture.x) prepare_capture(*b);
       }
-    if (decomposed()) {
+    if (decomposed() && !options_.overlap_halo && !placed_) {
+      // The halo sums and the migration in one exchange (one NCCL group a step): both follow the whole G2P2G.
+      for (auto& b : bodies_) b->g2p2g(*this, false, static_cast<T>(dt));
+      event_record(2);
+      const BlockBuffers halo = step_halo_buffers(1 - gc_);
+      std::vector<comm::DeviceTransport::Message> messages = pack_halo_messages(halo, stream_);
+      MigrantMessage msg;
+      const std::vector<comm::DeviceTransport::Message> migrants = pack_migrant_messages(msg);
+      messages.insert(messages.end(), migrants.begin(), migrants.end());
+      device_->exchange(messages, stream_);
+      add_halo_messages(halo, 1 - gc_, false, stream_);
+      event_record(4);
+      unpack_migrant_messages(msg);
+      event_record(5);
+    } else if (decomposed()) {
       g2p2g_and_halo(static_cast<T>(dt));
       event_record(4);
       migrate_particles();
@@ -2471,10 +2547,25 @@ std::size_t MgspBenchmark<T, TG>::device_bytes() const {
 
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::choose_slabs(const std::vector<std::vector<Vec3d>>* positions) {
-  std::vector<const SampleCount*> all;
-  for (const SampleCount& c : counts_) all.push_back(&c);
   const int n = ranks(), r = rank();
-  slabs_ = comm::choose_slabs(comm::plane_counts(all), n);
+  homes_ = comm::body_ranks(scene_, n);
+  placed_ = std::any_of(homes_.begin(), homes_.end(), [](int h) { return h >= 0; });
+  std::vector<const SampleCount*> spread;  // placed bodies have no say in the slabs
+  for (std::size_t b = 0; b < counts_.size(); ++b)
+    if (homes_[b] < 0) spread.push_back(&counts_[b]);
+  if (placed_) {
+    options_.overlap_halo = false;  // the halo-first G2P2G lists the particle blocks next to the cuts only
+    shared_ = std::vector<SharedPeer>(static_cast<std::size_t>(n));  // built in place: SharedPeer does not move
+    rank_keys_.assign(static_cast<std::size_t>(n), {});
+  }
+  const comm::PlaneCounts planes = comm::plane_counts(spread);
+  if (planes.total() > 0) {
+    slabs_ = comm::choose_slabs(planes, n);
+  } else {  // only placed bodies: rank 0 "owns" all of space, which nothing asks about
+    slabs_.axis = 0;
+    slabs_.cuts.assign(static_cast<std::size_t>(n) + 1, INT_MAX);
+    slabs_.cuts.front() = INT_MIN;
+  }
   slab_.axis = slabs_.axis;
   slab_.lo = slabs_.cuts[static_cast<std::size_t>(r)];
   slab_.hi = slabs_.cuts[static_cast<std::size_t>(r) + 1];
@@ -2487,8 +2578,10 @@ void MgspBenchmark<T, TG>::choose_slabs(const std::vector<std::vector<Vec3d>>* p
   for (std::size_t b = 0; b < counts_.size(); ++b) {
     SampleCount mine;
     mine.per_plane = counts_[b].per_plane;  // the sampler's batching (whole planes, every rank samples them all)
+    const SlabBounds kept = slab_of(static_cast<int>(b));
+    const bool here = homes_[b] < 0 || homes_[b] == r;
     for (const BlockCount& c : counts_[b].blocks)
-      if (slab_.owns(c.bx, c.by, c.bz)) {
+      if (here && kept.owns(c.bx, c.by, c.bz)) {
         mine.blocks.push_back(c);
         mine.particles += c.particles;
       }
@@ -2500,7 +2593,7 @@ void MgspBenchmark<T, TG>::choose_slabs(const std::vector<std::vector<Vec3d>>* p
     BodyBase& body = *bodies_[b];
     long long mine = 0;
     if (positions) {
-      for (const Vec3d& p : (*positions)[b]) mine += owns(p) ? 1 : 0;
+      for (const Vec3d& p : (*positions)[b]) mine += owns(static_cast<int>(b), p) ? 1 : 0;
       body.particles = static_cast<int>(mine);
       continue;
     }
@@ -2510,16 +2603,25 @@ void MgspBenchmark<T, TG>::choose_slabs(const std::vector<std::vector<Vec3d>>* p
       const long long end = std::min(sampler.planes(), plane + 64);
       x.clear();
       sampler.sample_planes(plane, end, x);
-      for (const Vec3d& p : x) mine += owns(p) ? 1 : 0;
+      for (const Vec3d& p : x) mine += owns(static_cast<int>(b), p) ? 1 : 0;
       plane = end;
     }
     body.particles = static_cast<int>(mine);
   }
-  if (log_ && r == 0) *log_ << "fbar: GPU ranks " << n << ": " << slabs_.describe() << " (" << device_->describe() << ")\n";
+  if (log_ && r == 0) {
+    *log_ << "fbar: GPU ranks " << n << ": " << slabs_.describe() << " (" << device_->describe() << ")";
+    if (placed_) {
+      *log_ << "; placed bodies (bodies[].gpu):";
+      for (std::size_t b = 0; b < homes_.size(); ++b)
+        if (homes_[b] >= 0) *log_ << " " << b << " on rank " << homes_[b];
+    }
+    *log_ << "\n";
+  }
 }
 
 template <typename T, typename TG>
-bool MgspBenchmark<T, TG>::owns(const Vec3d& x) const {
+bool MgspBenchmark<T, TG>::owns(int body, const Vec3d& x) const {
+  if (!homes_.empty() && homes_[static_cast<std::size_t>(body)] >= 0) return homes_[static_cast<std::size_t>(body)] == rank();
   const QuadraticBspline<T> s = quadratic_bspline_inv(x.template cast<T>(), k_.inv_dx);
   return slab_.owns(floor_div4(s.base[0] - 1), floor_div4(s.base[1] - 1), floor_div4(s.base[2] - 1));
 }
@@ -2569,7 +2671,18 @@ template <typename T, typename TG>
 void MgspBenchmark<T, TG>::halo_exchange(std::initializer_list<std::pair<std::byte*, std::size_t>> buffers, int grid,
                                          bool delta, cudaStream_t stream) {
   if (!stream) stream = stream_;
-  const bool save = grid >= 0;
+  if (placed_) {
+    shared_exchange(buffers, grid, delta, stream);
+    return;
+  }
+  const BlockBuffers list(buffers);
+  device_->exchange(pack_halo_messages(list, stream), stream);
+  add_halo_messages(list, grid, delta, stream);
+}
+
+template <typename T, typename TG>
+std::vector<comm::DeviceTransport::Message> MgspBenchmark<T, TG>::pack_halo_messages(const BlockBuffers& buffers,
+                                                                                     cudaStream_t stream) {
   std::size_t per_block = 0;  // scalars of every listed buffer's block
   for (const auto& [data, bytes] : buffers) per_block += bytes / sizeof(TG);
   std::vector<comm::DeviceTransport::Message> messages;
@@ -2599,7 +2712,12 @@ void MgspBenchmark<T, TG>::halo_exchange(std::initializer_list<std::pair<std::by
     m.send_bytes = m.recv_bytes = scalars * sizeof(TG);
     messages.push_back(m);
   }
-  device_->exchange(messages, stream);
+  return messages;
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::add_halo_messages(const BlockBuffers& buffers, int grid, bool delta, cudaStream_t stream) {
+  const bool save = grid >= 0;
   for (HaloSide& h : halo_) {
     if (h.peer < 0 || h.keys.empty()) continue;
     const int n = static_cast<int>(h.keys.size());
@@ -2634,6 +2752,12 @@ void MgspBenchmark<T, TG>::collect_halo() {
   }
   const int limit = block_capacity_ - halo_scanned_;
   if (limit <= 0) return;
+  if (placed_) {  // every new block may be shared with any rank
+    collect_new_blocks<<<mgsp_detail::grid_for(limit, kHaloThreads), kHaloThreads, 0, stream_>>>(
+        table_.view(), halo_scanned_, halo_[0].fresh.get(), halo_fresh_capacity_, stats_d_->halo_new);
+    mgsp_detail::check_launch("collect_new_blocks");
+    return;
+  }
   collect_halo_blocks<<<mgsp_detail::grid_for(limit, kHaloThreads), kHaloThreads, 0, stream_>>>(
       table_.view(), halo_scanned_, slab_.axis, halo_[0].peer >= 0 ? halo_[0].plane : INT_MIN,
       halo_[1].peer >= 0 ? halo_[1].plane : INT_MIN, halo_[0].fresh.get(), halo_[1].fresh.get(), halo_fresh_capacity_,
@@ -2685,6 +2809,10 @@ void MgspBenchmark<T, TG>::rebuild_halo(int summed_grid) {
   }
   FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
   halo_scanned_ = std::max(halo_scanned_, std::min(stats_->block_count, block_capacity_));
+  if (placed_) {
+    rebuild_shared(summed_grid, fresh[0]);
+    return;
+  }
   // 2. To the neighbours, and theirs back.
   std::vector<int> peers;
   std::vector<comm::Bytes> send;
@@ -2747,12 +2875,296 @@ void MgspBenchmark<T, TG>::rebuild_halo(int summed_grid) {
 }
 
 template <typename T, typename TG>
+void MgspBenchmark<T, TG>::rebuild_shared(int summed_grid, const std::vector<unsigned long long>& fresh_here) {
+  using Key = unsigned long long;
+  const int r = rank(), n = ranks();
+  // 1. Every rank's new keys (table blocks are never removed: a rank's keys only grow).
+  std::vector<std::vector<Key>> fresh(static_cast<std::size_t>(n));
+  {
+    comm::Bytes packed(sizeof(Key) * fresh_here.size());
+    if (!packed.empty()) std::memcpy(packed.data(), fresh_here.data(), packed.size());
+    const std::vector<comm::Bytes> all = host_->allgather(packed);
+    for (int q = 0; q < n; ++q) {
+      fresh[q].resize(all[q].size() / sizeof(Key));
+      if (!fresh[q].empty()) std::memcpy(fresh[q].data(), all[q].data(), all[q].size());
+      std::sort(fresh[q].begin(), fresh[q].end());
+    }
+  }
+  // 2. Before the new keys join: a new block's lowest earlier holder (-1: nobody held it, its sums are zero
+  // everywhere). It sends grid[summed_grid]'s values of the block to the ranks that have just created it.
+  auto earliest = [&](Key k) {
+    for (int q = 0; q < n; ++q)
+      if (rank_keys_[q].count(k)) return q;
+    return -1;
+  };
+  std::vector<std::vector<Key>> sync_out(static_cast<std::size_t>(n)), sync_in(static_cast<std::size_t>(n));
+  for (int q = 0; q < n; ++q) {
+    if (q == r) continue;
+    for (Key k : fresh[q])
+      if (earliest(k) == r) sync_out[q].push_back(k);
+  }
+  for (Key k : fresh[r]) {
+    const int d = earliest(k);
+    if (d >= 0) sync_in[d].push_back(k);
+  }
+  // 3. New entries of each peer's list: a block both ranks now hold that one of them has just created.
+  std::vector<bool> changed(static_cast<std::size_t>(n), false);
+  for (int q = 0; q < n; ++q) {
+    if (q == r) continue;
+    std::vector<Key> added;
+    for (Key k : fresh[r])
+      if (rank_keys_[q].count(k) || std::binary_search(fresh[q].begin(), fresh[q].end(), k)) added.push_back(k);
+    for (Key k : fresh[q])
+      if (rank_keys_[r].count(k)) added.push_back(k);
+    if (added.empty()) continue;
+    SharedPeer& peer = shared_[q];
+    peer.keys.insert(peer.keys.end(), added.begin(), added.end());
+    std::sort(peer.keys.begin(), peer.keys.end());
+    peer.keys.erase(std::unique(peer.keys.begin(), peer.keys.end()), peer.keys.end());
+    changed[q] = true;
+  }
+  for (int q = 0; q < n; ++q) rank_keys_[q].insert(fresh[q].begin(), fresh[q].end());
+  // 4. Table indices of the changed lists (every key is in the table here: found, not inserted), the union and each
+  // entry's place in it.
+  bool any = false;
+  for (int q = 0; q < n; ++q) {
+    if (!changed[q]) continue;
+    any = true;
+    SharedPeer& peer = shared_[q];
+    const int count = static_cast<int>(peer.keys.size());
+    mgsp_detail::DeviceArray<Key> keys;
+    keys.allocate(peer.keys.size());
+    peer.index.allocate(peer.keys.size());
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(keys.get(), peer.keys.data(), sizeof(Key) * peer.keys.size(),
+                                    cudaMemcpyHostToDevice, stream_));
+    insert_halo_blocks<TG><<<mgsp_detail::grid_for(count, kHaloThreads), kHaloThreads, 0, stream_>>>(
+        table_.view(), keys.get(), count, peer.index.get(), grid_[0].instance(), grid_[1].instance());
+    mgsp_detail::check_launch("insert_halo_blocks");
+    peer.blocks.resize(peer.keys.size());
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(peer.blocks.data(), peer.index.get(), sizeof(int) * peer.blocks.size(),
+                                    cudaMemcpyDeviceToHost, stream_));
+    FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+    for (int b : peer.blocks)
+      if (b < 0)
+        throw std::logic_error("GpuEngine: a shared block is missing from this rank's table (rank " + std::to_string(r) +
+                               ", peer " + std::to_string(q) + ")");
+  }
+  if (any) {
+    std::vector<int> all;
+    for (int q = 0; q < n; ++q) all.insert(all.end(), shared_[q].blocks.begin(), shared_[q].blocks.end());
+    std::sort(all.begin(), all.end());
+    all.erase(std::unique(all.begin(), all.end()), all.end());
+    union_blocks_ = std::move(all);
+    union_index_.allocate(std::max<std::size_t>(union_blocks_.size(), 1));
+    if (!union_blocks_.empty())
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(union_index_.get(), union_blocks_.data(), sizeof(int) * union_blocks_.size(),
+                                      cudaMemcpyHostToDevice, stream_));
+    for (int q = 0; q < n; ++q) {
+      SharedPeer& peer = shared_[q];
+      if (q == r || peer.blocks.empty()) continue;
+      std::vector<int> upos(peer.blocks.size());
+      for (std::size_t k = 0; k < upos.size(); ++k)
+        upos[k] = static_cast<int>(std::lower_bound(union_blocks_.begin(), union_blocks_.end(), peer.blocks[k]) -
+                                   union_blocks_.begin());
+      peer.upos.allocate(upos.size());
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(peer.upos.get(), upos.data(), sizeof(int) * upos.size(), cudaMemcpyHostToDevice,
+                                      stream_));
+      FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));  // upos is a host temporary
+    }
+  }
+  if (any || not_counted_.size() < static_cast<std::size_t>(block_capacity_)) mark_not_counted();
+  // 5. The just-created blocks take their summed values (grid[summed_grid]) from their lowest earlier holder, whose
+  // values every earlier holder shares; then the summed values of the whole union are kept for a delta exchange.
+  if (summed_grid < 0) return;
+  constexpr int kScalars = static_cast<int>(GridBuffer<TG>::kBlockBytes / sizeof(TG));
+  TG* grid = reinterpret_cast<TG*>(grid_[summed_grid].instance().data());
+  std::unordered_map<Key, int> where;
+  for (int q = 0; q < n; ++q)
+    for (std::size_t k = 0; k < shared_[q].keys.size(); ++k) where[shared_[q].keys[k]] = shared_[q].blocks[k];
+  auto indices = [&](const std::vector<Key>& keys) {
+    std::vector<int> out;
+    for (Key k : keys) {
+      const auto it = where.find(k);
+      if (it == where.end()) throw std::logic_error("GpuEngine: a block to synchronise is not shared");
+      out.push_back(it->second);
+    }
+    return out;
+  };
+  std::vector<mgsp_detail::DeviceArray<int>> out_index(static_cast<std::size_t>(n)), in_index(static_cast<std::size_t>(n));
+  std::vector<mgsp_detail::DeviceArray<TG>> out_values(static_cast<std::size_t>(n)), in_values(static_cast<std::size_t>(n));
+  std::vector<comm::DeviceTransport::Message> messages;
+  for (int q = 0; q < n; ++q) {
+    if (q == r || (sync_out[q].empty() && sync_in[q].empty())) continue;
+    comm::DeviceTransport::Message m;
+    m.peer = q;
+    if (!sync_out[q].empty()) {
+      const std::vector<int> idx = indices(sync_out[q]);
+      out_index[q].allocate(idx.size());
+      out_values[q].allocate(idx.size() * kScalars);
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(out_index[q].get(), idx.data(), sizeof(int) * idx.size(), cudaMemcpyHostToDevice,
+                                      stream_));
+      const int count = static_cast<int>(idx.size());
+      pack_halo<TG><<<mgsp_detail::grid_for(static_cast<long long>(count) * kScalars, kHaloThreads), kHaloThreads, 0,
+                      stream_>>>(grid, kScalars, out_index[q].get(), count, out_values[q].get());
+      mgsp_detail::check_launch("pack_halo");
+      m.send = out_values[q].get();
+      m.send_bytes = sizeof(TG) * idx.size() * kScalars;
+      FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));  // idx is a host temporary
+    }
+    if (!sync_in[q].empty()) {
+      const std::vector<int> idx = indices(sync_in[q]);
+      in_index[q].allocate(idx.size());
+      in_values[q].allocate(idx.size() * kScalars);
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(in_index[q].get(), idx.data(), sizeof(int) * idx.size(), cudaMemcpyHostToDevice,
+                                      stream_));
+      m.recv = in_values[q].get();
+      m.recv_bytes = sizeof(TG) * idx.size() * kScalars;
+      FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+    }
+    messages.push_back(m);
+  }
+  device_->exchange(messages, stream_);
+  for (int q = 0; q < n; ++q) {
+    if (sync_in[q].empty()) continue;
+    const int count = static_cast<int>(sync_in[q].size());  // a new block is zero here: adding sets it
+    add_halo<TG><<<mgsp_detail::grid_for(static_cast<long long>(count) * kScalars, kHaloThreads), kHaloThreads, 0,
+                   stream_>>>(grid, kScalars, in_index[q].get(), count, in_values[q].get(), nullptr);
+    mgsp_detail::check_launch("add_halo");
+  }
+  const std::size_t count = union_blocks_.size() * kScalars;
+  for (int g = 0; g < 2; ++g)
+    if (union_saved_[g].size() < count) union_saved_[g].allocate(count);  // the other grid: saved at its sum
+  if (!union_blocks_.empty()) {
+    pack_halo<TG><<<mgsp_detail::grid_for(static_cast<long long>(count), kHaloThreads), kHaloThreads, 0, stream_>>>(
+        grid, kScalars, union_index_.get(), static_cast<int>(union_blocks_.size()), union_saved_[summed_grid].get());
+    mgsp_detail::check_launch("pack_halo");
+  }
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));  // the message buffers are freed on return
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::shared_exchange(std::initializer_list<std::pair<std::byte*, std::size_t>> buffers, int grid,
+                                           bool delta, cudaStream_t stream) {
+  const int r = rank(), n = ranks();
+  const int held = static_cast<int>(union_blocks_.size());
+  if (held == 0) {  // nothing shared here (no rank has a message for this one): still a collective for the others
+    device_->exchange({}, stream);
+    return;
+  }
+  std::size_t per_block = 0;
+  for (const auto& [data, bytes] : buffers) per_block += bytes / sizeof(TG);
+  // 1. Each peer's blocks out, theirs in.
+  std::vector<comm::DeviceTransport::Message> messages;
+  for (int q = 0; q < n; ++q) {
+    SharedPeer& peer = shared_[q];
+    if (q == r || peer.blocks.empty()) continue;
+    const int count = static_cast<int>(peer.blocks.size());
+    const std::size_t scalars = static_cast<std::size_t>(count) * per_block;
+    if (peer.send.size() < scalars) {
+      peer.send.allocate(scalars);
+      peer.recv.allocate(scalars);
+    }
+    std::size_t offset = 0;
+    for (const auto& [data, bytes] : buffers) {
+      const int block_scalars = static_cast<int>(bytes / sizeof(TG));
+      pack_halo<TG><<<mgsp_detail::grid_for(static_cast<long long>(count) * block_scalars, kHaloThreads), kHaloThreads,
+                      0, stream>>>(reinterpret_cast<const TG*>(data), block_scalars, peer.index.get(), count,
+                                   peer.send.get() + offset);
+      mgsp_detail::check_launch("pack_halo");
+      offset += static_cast<std::size_t>(count) * block_scalars;
+    }
+    comm::DeviceTransport::Message m;
+    m.peer = q;
+    m.send = peer.send.get();
+    m.recv = peer.recv.get();
+    m.send_bytes = m.recv_bytes = scalars * sizeof(TG);
+    messages.push_back(m);
+  }
+  // 2. This rank's own part of every shared block (before the exchange returns: the sums below overwrite it).
+  const std::size_t own = static_cast<std::size_t>(held) * per_block;
+  if (union_own_.size() < own) union_own_.allocate(own);
+  {
+    std::size_t offset = 0;
+    for (const auto& [data, bytes] : buffers) {
+      const int block_scalars = static_cast<int>(bytes / sizeof(TG));
+      pack_halo<TG><<<mgsp_detail::grid_for(static_cast<long long>(held) * block_scalars, kHaloThreads), kHaloThreads,
+                      0, stream>>>(reinterpret_cast<const TG*>(data), block_scalars, union_index_.get(), held,
+                                   union_own_.get() + offset);
+      mgsp_detail::check_launch("pack_halo");
+      offset += static_cast<std::size_t>(held) * block_scalars;
+    }
+  }
+  device_->exchange(messages, stream);
+  // 3. Every holder: from zero (a delta exchange: from the saved sums, adding each part minus them), each rank's part
+  // in rank order.
+  std::size_t offset = 0, own_offset = 0;
+  bool first = true;
+  for (const auto& [data, bytes] : buffers) {
+    const int block_scalars = static_cast<int>(bytes / sizeof(TG));
+    TG* target = reinterpret_cast<TG*>(data);
+    const bool use_saved = first && delta;
+    if (use_saved && union_saved_[grid].size() < static_cast<std::size_t>(held) * block_scalars)
+      throw std::logic_error("GpuEngine: a delta exchange before any sum");
+    const TG* saved = use_saved ? union_saved_[grid].get() : nullptr;
+    const long long all = static_cast<long long>(held) * block_scalars;
+    start_shared<TG><<<mgsp_detail::grid_for(all, kHaloThreads), kHaloThreads, 0, stream>>>(
+        target, block_scalars, union_index_.get(), held, saved);
+    mgsp_detail::check_launch("start_shared");
+    for (int q = 0; q < n; ++q) {
+      if (q == r) {
+        add_shared<TG><<<mgsp_detail::grid_for(all, kHaloThreads), kHaloThreads, 0, stream>>>(
+            target, block_scalars, union_index_.get(), held, union_own_.get() + own_offset, saved, nullptr);
+        mgsp_detail::check_launch("add_shared");
+        continue;
+      }
+      SharedPeer& peer = shared_[q];
+      if (peer.blocks.empty()) continue;
+      const int count = static_cast<int>(peer.blocks.size());
+      add_shared<TG><<<mgsp_detail::grid_for(static_cast<long long>(count) * block_scalars, kHaloThreads), kHaloThreads,
+                       0, stream>>>(target, block_scalars, peer.index.get(), count,
+                                    peer.recv.get() + offset * count, saved, peer.upos.get());
+      mgsp_detail::check_launch("add_shared");
+    }
+    if (first && grid >= 0) {  // the sums every holder now has, for a later delta exchange
+      if (union_saved_[grid].size() < static_cast<std::size_t>(all)) union_saved_[grid].allocate(all);
+      pack_halo<TG><<<mgsp_detail::grid_for(all, kHaloThreads), kHaloThreads, 0, stream>>>(
+          target, block_scalars, union_index_.get(), held, union_saved_[grid].get());
+      mgsp_detail::check_launch("pack_halo");
+    }
+    offset += static_cast<std::size_t>(block_scalars);
+    own_offset += static_cast<std::size_t>(held) * block_scalars;
+    first = false;
+  }
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::mark_not_counted() {
+  not_counted_.allocate(static_cast<std::size_t>(block_capacity_));
+  FBAR_CUDA_CHECK(cudaMemsetAsync(not_counted_.get(), 0, static_cast<std::size_t>(block_capacity_), stream_));
+  for (int q = 0; q < rank(); ++q) {
+    const SharedPeer& peer = shared_[q];
+    if (peer.blocks.empty()) continue;
+    const int count = static_cast<int>(peer.blocks.size());
+    mark_blocks<<<mgsp_detail::grid_for(count, kHaloThreads), kHaloThreads, 0, stream_>>>(peer.index.get(), count,
+                                                                                       not_counted_.get());
+    mgsp_detail::check_launch("mark_blocks");
+  }
+}
+
+template <typename T, typename TG>
 void MgspBenchmark<T, TG>::migrate_particles() {
+  MigrantMessage msg;
+  device_->exchange(pack_migrant_messages(msg), stream_);
+  unpack_migrant_messages(msg);
+}
+
+template <typename T, typename TG>
+std::vector<comm::DeviceTransport::Message> MgspBenchmark<T, TG>::pack_migrant_messages(MigrantMessage& msg) {
   // No host round trip: the messages have a size every rank knows (MigrantMessage), the counts travel in their
   // headers, and the host reads them with the step's one readback (settle_migration).
   static_assert(MigrantMessage::kHeaderBytes >= sizeof(int) * DtParams::kMaxBodies, "a count per body in the header");
   const int nb = body_count();
-  MigrantMessage msg;
+  msg = MigrantMessage{};
   msg.capacity = migrant_capacity_;
   msg.bodies = nb;
   for (auto& b : bodies_) msg.widest = std::max(msg.widest, b->migrant_bytes(*this));
@@ -2781,7 +3193,13 @@ void MgspBenchmark<T, TG>::migrate_particles() {
     m.recv_bytes = bytes;
     messages.push_back(m);
   }
-  device_->exchange(messages, stream_);
+  return messages;
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::unpack_migrant_messages(const MigrantMessage& msg) {
+  const int nb = body_count();
+  auto header = [](mgsp_detail::DeviceArray<std::byte>& a) { return reinterpret_cast<int*>(a.get()); };
   // 3. Immigrants behind the G2P2G's slots, `capacity` slots per neighbour (those past its count marked empty);
   // their (block, rank) before the partition.
   int sides = 0;

@@ -94,6 +94,8 @@ struct GridSensorSampleParams {
   T dx;
   Vec3<T> gravity;
   SlabBounds slab;
+  /// Placed bodies: per table block, 1 when a lower rank also holds it (its nodes count there); null: the slab rule.
+  const unsigned char* not_counted;
   GridSensorSet<T> sensors;
   SensorAccum* partials;  ///< (sensor, CUDA block) partial reductions
 };
@@ -146,7 +148,7 @@ __global__ void __launch_bounds__(kSensorThreads) sample_grid_sensors(GridSensor
        idx += static_cast<long long>(gridDim.x) * blockDim.x) {
     const int block = static_cast<int>(idx / 64), node = static_cast<int>(idx % 64);
     const int c0 = p.coords[3 * block], c1 = p.coords[3 * block + 1], c2 = p.coords[3 * block + 2];
-    if (!p.slab.owns(c0, c1, c2)) continue;
+    if (p.not_counted ? p.not_counted[block] != 0 : !p.slab.owns(c0, c1, c2)) continue;
     const int c[3] = {c0, c1, c2};
     bool overlaps = true;
     for (int d = 0; d < 3; ++d)
@@ -196,19 +198,34 @@ struct DtParams {
   double t_next;                         ///< [s] time at the start of the next step
   double t_target;                       ///< [s] the next step is shortened to land here (inf: no target)
   StepStats* stats;
+  /// Decomposed runs: the largest grid speed (bits of |v|^2) then each body's wave speed, reduced over the ranks in
+  /// one message (gather_dt_inputs); read instead of stats->max_speed_sq and wave_speed, and the speed is written
+  /// back to stats. nullptr: one GPU.
+  const unsigned long long* reduced;
 };
+
+/// The inputs of compute_next_dt of a decomposed rank, side by side for one reduction over the ranks: out[0] the
+/// largest |v|^2 of the grid update, out[1 + b] body b's wave speed (all as bits of non-negative doubles).
+static __global__ void gather_dt_inputs(const StepStats* stats, const unsigned long long* wave_speed, int bodies,
+                                        unsigned long long* out) {
+  const int i = threadIdx.x;
+  if (i == 0) out[0] = stats->max_speed_sq;
+  if (i < bodies) out[1 + i] = wave_speed[i];
+}
 
 /// dt of the next step: min(default_dt, min_b CFL_b dx / (c_b + |v|max)) x scale, clamped to the target time.
 static __global__ void compute_next_dt(DtParams p) {
   if (threadIdx.x != 0 || blockIdx.x != 0) return;
+  if (p.reduced) p.stats->max_speed_sq = p.reduced[0];  // the host reads the largest speed over the ranks
   double dt;
   if (p.fixed_dt > 0.0) {
     dt = p.fixed_dt;
   } else {
+    const unsigned long long* wave = p.reduced ? p.reduced + 1 : p.wave_speed;
     const double vmax = sqrt(__longlong_as_double(static_cast<long long>(p.stats->max_speed_sq)));
     dt = p.default_dt;
     for (int b = 0; b < p.body_count; ++b) {
-      const double c = fmax(__longlong_as_double(static_cast<long long>(p.wave_speed[b])), p.bodies[b].rest_wave_speed);
+      const double c = fmax(__longlong_as_double(static_cast<long long>(wave[b])), p.bodies[b].rest_wave_speed);
       dt = min_time_step(dt, cfl_time_step(p.bodies[b].cfl, p.dx, c, vmax));
     }
     dt *= p.scale;

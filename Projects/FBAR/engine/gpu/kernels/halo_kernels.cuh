@@ -70,6 +70,55 @@ static __global__ void __launch_bounds__(kHaloThreads)
   }
 }
 
+// Placed bodies (comm/placement.h): a grid block may be held by any set of ranks. Each rank lists the blocks it
+// shares with each other rank (sorted keys, the same list on both), and the union of those lists. A sum starts every
+// shared block from zero (or from the saved sums, a delta exchange) and adds each holder's contribution in rank order,
+// its own at its place: the same bits on every holder however many there are.
+
+/// Keys of every table block [first, block count) (all are candidates for sharing), at most `capacity` into keys;
+/// *count counts them all.
+static __global__ void __launch_bounds__(kHaloThreads)
+    collect_new_blocks(BlockHashTableView table, int first, unsigned long long* keys, int capacity, int* count) {
+  const int b = first + blockIdx.x * blockDim.x + threadIdx.x;
+  if (b >= table.counters->block_count || b >= table.block_capacity) return;
+  const Vec3i c = table.block_coords(b);
+  const int k = atomicAdd(count, 1);
+  if (k < capacity) keys[k] = BlockKey::pack(c[0], c[1], c[2]);
+}
+
+/// buffer[index[k], i] = saved[k, i] (a delta exchange's start), or 0.
+template <typename TG>
+__global__ void __launch_bounds__(kHaloThreads)
+    start_shared(TG* buffer, int scalars, const int* index, int n, const TG* saved) {
+  const long long t = static_cast<long long>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (t >= static_cast<long long>(n) * scalars) return;
+  const int k = static_cast<int>(t / scalars), i = static_cast<int>(t % scalars);
+  buffer[static_cast<std::size_t>(index[k]) * scalars + i] = saved ? saved[t] : TG(0);
+}
+
+/// buffer[index[k], i] += in[k, i] - saved[upos[k], i] (a delta exchange: saved in the union's order, upos: the
+/// union position of list entry k; nullptr: k itself), or += in[k, i].
+template <typename TG>
+__global__ void __launch_bounds__(kHaloThreads)
+    add_shared(TG* buffer, int scalars, const int* index, int n, const TG* in, const TG* saved, const int* upos) {
+  const long long t = static_cast<long long>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (t >= static_cast<long long>(n) * scalars) return;
+  const int k = static_cast<int>(t / scalars), i = static_cast<int>(t % scalars);
+  TG& v = buffer[static_cast<std::size_t>(index[k]) * scalars + i];
+  if (saved) {
+    const int u = upos ? upos[k] : k;
+    v += in[t] - saved[static_cast<std::size_t>(u) * scalars + i];
+  } else {
+    v += in[t];
+  }
+}
+
+/// flags[index[k]] = 1 for the n listed blocks.
+static __global__ void __launch_bounds__(kHaloThreads) mark_blocks(const int* index, int n, unsigned char* flags) {
+  const int k = blockIdx.x * blockDim.x + threadIdx.x;
+  if (k < n) flags[index[k]] = 1;
+}
+
 /// The blocks of a layout that have particles, listed for the halo-first G2P2G (partition_domain.h): a particle
 /// block in plane `first_lo` (the lowest plane of the slab, when there is a lower neighbour) or `first_hi` (the
 /// highest, when there is an upper one) scatters into a shared grid plane (its arena is blocks B .. B + 1), so it

@@ -1,0 +1,28 @@
+// Which bodies are placed whole on one rank (ClaymoreUW's bodies[].gpu) and which are spread over the ranks by space.
+//
+// fbar spreads every body over the ranks by space (comm/slab_partition.h) unless the scene places bodies the way
+// ClaymoreUW does: when its bodies name more than one GPU (`"gpu": 0` and `"gpu": 1`, or an integer and "all"),
+// each body with an integer `gpu` lives whole on that rank (it never migrates; partition_start / partition_end clip
+// it, so one geometry can be cut into pieces on several GPUs as in ClaymoreUW) and each body with `"gpu": "all"` is
+// spread by space. Placed bodies interact with everything else through a general halo: every grid block held by
+// several ranks is summed over all of them (CpuEngine::exchange_halo, MgspBenchmark::rebuild_halo).
+#pragma once
+
+#include <vector>
+
+#include "scene/scene.h"
+
+namespace fbar::comm {
+
+/// Whether the scene places bodies on GPUs (its bodies name more than one GPU, "all" counting as one).
+bool places_bodies(const Scene& scene);
+
+/// The ranks a placing scene asks for (its largest `gpu` + 1); 1 for a scene that places nothing.
+int ranks_asked(const Scene& scene);
+
+/// Per body, the rank that holds it whole, or kAllGpus (-1) for a body spread by space. Every body is spread when
+/// the scene places nothing or runs on one rank. Throws std::invalid_argument naming bodies[i].gpu when a body names
+/// a GPU the run does not have.
+std::vector<int> body_ranks(const Scene& scene, int ranks);
+
+}  // namespace fbar::comm
