@@ -17,17 +17,21 @@
 //      dt_{n+1}, block and bin counts. A failed step leaves cur/gc untouched (on_failure reduce_dt repeats it with
 //      dt/2 from the same buffers); an overflow grows the capacities and redoes step 4 from the new positions.
 // Decomposed (GpuEngineOptions::ranks; comm/slab_partition.h): each rank holds the particles of its slab of
-// particle-block planes and the grid blocks they touch; step n adds
+// particle-block planes and the grid blocks they touch (a body placed with bodies[].gpu: all of it on its rank, and
+// the halo is then every block several ranks hold, summed in rank order: rebuild_shared, shared_exchange); step n adds
 //   0'. after a rescale: a delta exchange of the halo blocks of grid[gc]
-//   2'. dt_{n+1} from the largest grid speed and wave speeds over ranks (DeviceTransport::allreduce_max on the
-//       device, before compute_next_dt): every rank computes the same dt (min over ranks of each rank's dt would not
-//       do: the fastest node and the stiffest particle may sit on different ranks)
+//   2'. dt_{n+1} from the largest grid speed and wave speeds over ranks (gathered side by side, one
+//       DeviceTransport::allreduce_max on the device, before compute_next_dt): every rank computes the same dt
+//       (min over ranks of each rank's dt would not do: the fastest node and the stiffest particle may sit on
+//       different ranks)
 //   3'. F-bar: the cell sums' halo exchange between fbar_cell_sums and G2P2G; after G2P2G: the halo exchange of
 //       grid[1 - gc] (and the transported momentum), then migration: G2P2G marked the particles whose next block a
 //       neighbour owns (kEmigrant); their records go to the neighbour, which appends the ones it receives behind
-//       its own slots and records their (block, rank) before the partition
+//       its own slots and records their (block, rank) before the partition. Without the halo-first overlap (the
+//       default) the halo and migration messages travel in one exchange.
 //   5'. agreement on the host: failures, repeats and the grid speed over ranks (so every rank takes the same
-//       decision), and a rebuild of the halo lists when a rank has new blocks in a halo plane.
+//       decision), and a rebuild of the halo lists when a rank has new blocks in a halo plane (placed bodies: any
+//       new block).
 #pragma once
 
 #include <cub/device/device_scan.cuh>
@@ -900,9 +904,10 @@ class MgspBenchmark {
   bool halo_grew_ = false;  ///< agree_on_try: some rank has new halo blocks (every rank then calls rebuild_halo)
   double most_rank_particles_ = 0.0;  ///< agree_on_try: the most particles any rank holds after the last step
 
+  mgsp_detail::DeviceArray<unsigned long long> dt_inputs_d_;  ///< gather_dt_inputs: one reduction over the ranks
+
   // Placed bodies (bodies[].gpu, comm/placement.h): any set of ranks may hold a block; the sums go over these lists
   // (shared_exchange) instead of the neighbour planes, and halo_[0].fresh collects every new table block.
-  mgsp_detail::DeviceArray<unsigned long long> dt_inputs_d_;  ///< gather_dt_inputs: one reduction over the ranks
   std::vector<int> homes_;  ///< per body: the rank holding it whole, or kAllGpus (spread by space); empty: one GPU
   bool placed_ = false;     ///< some body is placed
   struct SharedPeer {
@@ -2609,11 +2614,15 @@ void MgspBenchmark<T, TG>::choose_slabs(const std::vector<std::vector<Vec3d>>* p
     body.particles = static_cast<int>(mine);
   }
   if (log_ && r == 0) {
-    *log_ << "fbar: GPU ranks " << n << ": " << slabs_.describe() << " (" << device_->describe() << ")";
+    *log_ << "fbar: GPU ranks " << n << ": " << (planes.total() > 0 ? slabs_.describe() : std::string("no slabs"))
+          << " (" << device_->describe() << ")";
     if (placed_) {
-      *log_ << "; placed bodies (bodies[].gpu):";
+      const char* sep = "; placed (bodies[].gpu): ";
       for (std::size_t b = 0; b < homes_.size(); ++b)
-        if (homes_[b] >= 0) *log_ << " " << b << " on rank " << homes_[b];
+        if (homes_[b] >= 0) {
+          *log_ << sep << "bodies[" << b << "] on rank " << homes_[b];
+          sep = ", ";
+        }
     }
     *log_ << "\n";
   }
