@@ -1,15 +1,18 @@
-"""The last frame of a decomposed command-line run, merged by particle ID (tests/comm/mpi_cli_test.py and
-tests/gpu_engine/gpu_cli_ranks_test.py).
+"""The outputs of decomposed command-line runs, for the rank tests (tests/comm/mpi_cli_test.py,
+tests/comm/mpi_placement_test.py, tests/gpu_engine/gpu_cli_ranks_test.py).
 
 read_run(out, ranks, label) checks run.json (status completed, `ranks` ranks), finds the last frame's CSV files
 (model[0]_dev[rank]_frame[f].csv, one per rank) and returns (run.json as a dict, {ID: [x, y, z, vx, vy, vz]}); a
-particle written twice is an error.
+particle written twice is an error. read_frame() reads one such file; read_sensors() and max_sensor_difference()
+compare the sensor and tracker CSVs; visible_gpus_or_skip() ends a GPU test with exit 77 without a device.
 """
 import csv
 import glob
 import json
 import math
 import os
+import subprocess
+import sys
 
 
 def read_run(out, ranks, label):
@@ -22,16 +25,33 @@ def read_run(out, ranks, label):
     assert len(files) == ranks, f"{label}: wrote {files}"
     particles = {}
     for name in files:
-        with open(name) as f:
-            rows = csv.reader(f)
-            header = next(rows)
-            col = {h.split(" [")[0]: i for i, h in enumerate(header)}
-            for row in rows:
-                pid = int(row[col["ID"]])
-                assert pid not in particles, f"{label}: particle {pid} written twice"
-                particles[pid] = [float(row[col[k]]) for k in
-                                  ("Position_X", "Position_Y", "Position_Z", "Velocity_X", "Velocity_Y", "Velocity_Z")]
+        read_frame(name, particles, label)
     return meta, particles
+
+
+def read_frame(name, particles, label):
+    """Adds the rows of one frame CSV to `particles` ({ID: [x, y, z, vx, vy, vz]}); an ID already there is an
+    error."""
+    with open(name) as f:
+        rows = csv.reader(f)
+        col = {h.split(" [")[0]: i for i, h in enumerate(next(rows))}
+        for row in rows:
+            pid = int(row[col["ID"]])
+            assert pid not in particles, f"{label}: particle {pid} written twice"
+            particles[pid] = [float(row[col[k]]) for k in
+                              ("Position_X", "Position_Y", "Position_Z", "Velocity_X", "Velocity_Y", "Velocity_Z")]
+
+
+def visible_gpus_or_skip():
+    """The CUDA devices nvidia-smi lists; without one, prints why and exits 77 (ctest's SKIP_RETURN_CODE)."""
+    try:
+        gpus = subprocess.run(["nvidia-smi", "-L"], capture_output=True, text=True, timeout=60).stdout.count("GPU ")
+    except (OSError, subprocess.SubprocessError):
+        gpus = 0
+    if gpus == 0:
+        print("no CUDA device: skipped")
+        sys.exit(77)
+    return gpus
 
 
 def max_differences(many, one):

@@ -14,7 +14,6 @@ ranks a placed body is written by its own rank only (the same name) and a spread
 Checks the file names, that every particle of each body is there once, the states, and the sensor CSVs (reduced
 over the ranks, each node counted once) to 1e-8 of each column's largest value.
 """
-import csv
 import glob
 import json
 import os
@@ -32,15 +31,7 @@ for arg in sys.argv[6:]:
     if arg.startswith("--engine="):
         engine = arg.split("=", 1)[1]
 spread = {int(m) for m in spread_arg.split(",") if m}
-gpus = 0
-if engine == "gpu":
-    try:
-        gpus = subprocess.run(["nvidia-smi", "-L"], capture_output=True, text=True, timeout=60).stdout.count("GPU ")
-    except (OSError, subprocess.SubprocessError):
-        gpus = 0
-    if gpus == 0:
-        print("no CUDA device: skipped")
-        sys.exit(77)
+gpus = frames_by_id.visible_gpus_or_skip() if engine == "gpu" else 0
 shutil.rmtree(work, ignore_errors=True)
 os.makedirs(work)
 env = dict(os.environ, OMP_NUM_THREADS="1", OMP_WAIT_POLICY="PASSIVE", NCCL_NVLS_ENABLE="0")
@@ -69,15 +60,7 @@ def run(label, ranks, mpi):
         model, dev = int(m.group(1)), int(m.group(2))
         files.append((model, dev))
         key = ("spread", model) if model in spread else ("placed", model, dev)
-        body = bodies.setdefault(key, {})
-        with open(path) as f:
-            rows = csv.reader(f)
-            col = {h.split(" [")[0]: i for i, h in enumerate(next(rows))}
-            for row in rows:
-                pid = int(row[col["ID"]])
-                assert pid not in body, f"{label}: {key} particle {pid} written twice"
-                body[pid] = [float(row[col[k]]) for k in ("Position_X", "Position_Y", "Position_Z", "Velocity_X",
-                                                           "Velocity_Y", "Velocity_Z")]
+        frames_by_id.read_frame(path, bodies.setdefault(key, {}), f"{label} {key}")
     return meta["steps"], sorted(files), bodies, frames_by_id.read_sensors(out)
 
 

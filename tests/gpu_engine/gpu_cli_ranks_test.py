@@ -23,13 +23,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 import frames_by_id  # noqa: E402
 
 fbar, mpiexec, scene, work = sys.argv[1:5]
-try:
-    gpus = subprocess.run(["nvidia-smi", "-L"], capture_output=True, text=True, timeout=60).stdout.count("GPU ")
-except (OSError, subprocess.SubprocessError):
-    gpus = 0
-if gpus == 0:
-    print("no CUDA device: skipped")
-    sys.exit(77)
+gpus = frames_by_id.visible_gpus_or_skip()
 shutil.rmtree(work, ignore_errors=True)
 os.makedirs(work)
 env = dict(os.environ, NCCL_NVLS_ENABLE="0")
