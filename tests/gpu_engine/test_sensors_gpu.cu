@@ -159,6 +159,31 @@ TEST(GpuGridSensors, NcclRanksSumToOneRank) {
   expect_grid_sums_as_one_rank({2}, true);
 }
 
+// ClaymoreUW-placed load cells (against each wall of a hydrostatic tank, from outside; decomposition_scenes.h
+// claymore_tank): the GPU reads what the CPU engine reads, step by step, on 1 rank and on 2 (threads on one GPU, the
+// cut between the walls), and both walls read rho g H^2 D / 2 within the budget of the CPU test
+// (test_sensors.cpp GridSensors.ClaymorePlacedTankLoadCellsReadTheWallLoad: 1 %, the compressibility dominating).
+TEST(GpuGridSensors, ClaymorePlacedTankLoadCellsMatchTheCpuEngine) {
+  FBAR_REQUIRE_DEVICE();
+  const Scene scene = test::claymore_tank();
+  CpuEngine<double> cpu(scene);
+  cpu.set_log(nullptr);
+  GpuEngine<double> gpu(scene);
+  gpu.set_log(nullptr);
+  const Series c = sample_every_step(cpu, nullptr, scene.grid_sensors);
+  const Series g = sample_every_step(gpu, nullptr, scene.grid_sensors);
+  expect_series_near(c, g, 1e-9, "GPU vs CPU");
+  for (int wall : {0, 1}) {
+    double mean = 0.0;
+    for (const auto& row : g) mean += row[wall] / g.size();
+    EXPECT_NEAR(mean, test::kClaymoreTankLoad, 0.01 * test::kClaymoreTankLoad) << "wall " << wall;
+  }
+  const std::vector<Series> two = run_gpu_ranks(scene, 2, [&](GpuEngine<double>& e, comm::Transport* host) {
+    return sample_every_step(e, host, scene.grid_sensors);
+  });
+  if (!two[0].empty()) expect_series_near(g, two[0], 1e-9, "2 ranks");
+}
+
 /// The dam break's particle sensors: a gauge (Position_Y Max) over the column, the water's Velocity_X Average, the
 /// Pressure Average and the Count over the whole tank, the speed's Max.
 std::vector<ParticleSensorSpec> dam_break_particle_sensors() {

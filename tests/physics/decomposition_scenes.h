@@ -26,11 +26,35 @@ inline Scene dam_break(bool schemes) {
   BoundarySpec walls;
   walls.object = BoundaryObject::Walls;
   walls.contact = Contact::Slip;
-  walls.domain_start = r3(0.02, 0.02, 0.02);
-  walls.domain_end = r3(0.62, 0.38, 0.18);
+  walls.domain_start = r3(0.04, 0.04, 0.04);  // the water's faces: it fills the tank's corner
+  walls.domain_end = r3(0.60, 0.36, 0.16);
   scene.boundaries.push_back(walls);
   return scene;
 }
+
+/// ClaymoreUW users' load-cell check (issue 31): water H = 0.2 m deep filling a Walls box [0, 0.2] x [0, 0.3] x
+/// [0, D = 0.04] m to its faces (dx 0.01, JFluid rho 1000, K 5e5 Pa, started hydrostatic), with a Force load cell
+/// against each x wall from outside, as scenes written for ClaymoreUW place them: [-0.05, 0] read X-, [0.2, 0.25]
+/// read X+ (both boxes over every y and z). Each reads the wall's load rho g H^2 D / 2 = 7.848 N (kClaymoreTankLoad).
+inline Scene claymore_tank(Contact contact = Contact::Separable) {
+  Scene scene = empty_scene(r3(0.2, 0.3, 0.04), 0.01, r3(0, -9.81, 0));
+  BodySpec water = box_body(Constitutive::JFluid, r3(0, 0, 0), r3(0.2, 0.2, 0.04));
+  water.material.bulk_modulus = 5e5;  // c = 22 m/s: the GPU tests' fixed 2e-4 s steps are at CFL 0.45
+  water.initial_state = InitialState::Hydrostatic;
+  scene.bodies.push_back(water);
+  BoundarySpec walls;
+  walls.object = BoundaryObject::Walls;
+  walls.contact = contact;
+  walls.domain_start = r3(0, 0, 0);
+  walls.domain_end = r3(0.2, 0.3, 0.04);
+  scene.boundaries.push_back(walls);
+  scene.grid_sensors = {grid_sensor_spec("Force", SensorOperation::Sum, r3(-0.05, -0.05, -0.05), r3(0, 0.35, 0.09),
+                                         r3(1, 0, 0), -1),
+                        grid_sensor_spec("Force", SensorOperation::Sum, r3(0.2, -0.05, -0.05), r3(0.25, 0.35, 0.09),
+                                         r3(1, 0, 0), 1)};
+  return scene;
+}
+constexpr double kClaymoreTankLoad = 1000.0 * 9.81 * 0.2 * 0.2 * 0.04 / 2;  ///< [N] rho g H^2 D / 2
 
 /// A soft block (E 1e4 Pa) travelling at 2 m/s along x without gravity: every particle crosses one or more cuts.
 /// `ranks` > 3 lengthens it (0.08 m, two GPU particle-block planes, per rank) so that every rank's slab is at least

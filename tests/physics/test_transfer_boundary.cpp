@@ -160,22 +160,25 @@ BoundaryParams<double> make(BoundaryObject object, Contact contact, Real3 lo = {
 
 const Vec3d kV{{0.3, -0.7, 0.2}};
 
-TEST(Boundary, WallsDefaultToDomainWithOneCellLayer) {
+// Walls act on ClaymoreUW's nodes (mgmpm_kernels.cuh, grid update, Walls): x <= lo or x >= hi along an axis.
+TEST(Boundary, WallsDefaultToDomainOnTheFaceNodesAndOutside) {
   const auto b = make(BoundaryObject::Walls, Contact::Sticky);
   EXPECT_EQ(b.hi, (Vec3d{{1.0, 2.0, 1.0}}));
-  // Node planes at the face (0) and one cell in (dx) are wall, two cells in (2 dx) is not.
+  // Sticky: the face's node plane (0) and everything outside it are held; one cell in (dx) is free.
   EXPECT_EQ(apply_boundary(b, Vec3d{{0.0, 1.0, 0.5}}, kV), Vec3d::zero());
-  EXPECT_EQ(apply_boundary(b, Vec3d{{0.1, 1.0, 0.5}}, kV), Vec3d::zero());
-  EXPECT_EQ(apply_boundary(b, Vec3d{{0.2, 1.0, 0.5}}, kV), kV);
-  EXPECT_EQ(apply_boundary(b, Vec3d{{0.5, 1.9, 0.5}}, kV), Vec3d::zero());  // high y face, one cell in
-  EXPECT_EQ(apply_boundary(b, Vec3d{{0.5, 1.8, 0.5}}, kV), kV);
-  EXPECT_EQ(apply_boundary(b, Vec3d{{-0.1, 1.0, 0.5}}, kV), Vec3d::zero());  // beyond the face
+  EXPECT_EQ(apply_boundary(b, Vec3d{{-0.1, 1.0, 0.5}}, kV), Vec3d::zero());
+  EXPECT_EQ(apply_boundary(b, Vec3d{{0.1, 1.0, 0.5}}, kV), kV);
+  EXPECT_EQ(apply_boundary(b, Vec3d{{0.5, 2.0, 0.5}}, kV), Vec3d::zero());  // high y face
+  EXPECT_EQ(apply_boundary(b, Vec3d{{0.5, 1.9, 0.5}}, kV), kV);
+  // A node position a round-off below the face still lies on it (snap: dx / 128).
+  EXPECT_EQ(apply_boundary(b, Vec3d{{0.5, 2.0 - 1e-6, 0.5}}, kV), Vec3d::zero());
+  EXPECT_EQ(apply_boundary(b, Vec3d{{0.5, 2.0 - 0.01, 0.5}}, kV), kV);
 }
 
 TEST(Boundary, WallsSlipRemovesNormalSeparableOnlyInward) {
   const auto slip = make(BoundaryObject::Walls, Contact::Slip);
   const auto sep = make(BoundaryObject::Walls, Contact::Separable);
-  const Vec3d floor_node{{0.5, 0.1, 0.5}}, ceiling_node{{0.5, 2.0, 0.5}};
+  const Vec3d floor_node{{0.5, 0.0, 0.5}}, ceiling_node{{0.5, 2.0, 0.5}};
   // Floor, moving down (into the wall): both remove v_y.
   EXPECT_EQ(apply_boundary(slip, floor_node, kV), (Vec3d{{0.3, 0.0, 0.2}}));
   EXPECT_EQ(apply_boundary(sep, floor_node, kV), (Vec3d{{0.3, 0.0, 0.2}}));
@@ -189,12 +192,29 @@ TEST(Boundary, WallsSlipRemovesNormalSeparableOnlyInward) {
   // Corner (x low, y low): both normals removed.
   const Vec3d into_corner{{-0.3, -0.7, 0.2}};
   EXPECT_EQ(apply_boundary(slip, Vec3d{{0.0, 0.0, 0.5}}, into_corner), (Vec3d{{0.0, 0.0, 0.2}}));
+  // One cell inside the face the node is free; one cell outside it is still a normal-only node.
+  EXPECT_EQ(apply_boundary(slip, Vec3d{{0.5, 0.1, 0.5}}, kV), kV);
+  EXPECT_EQ(apply_boundary(slip, Vec3d{{0.5, -0.1, 0.5}}, kV), (Vec3d{{0.3, 0.0, 0.2}}));
+  // 1.5 dx or more outside a face every component is held, for Slip and Separable alike.
+  EXPECT_EQ(apply_boundary(slip, Vec3d{{0.5, -0.2, 0.5}}, kV), Vec3d::zero());
+  EXPECT_EQ(apply_boundary(sep, Vec3d{{0.5, -0.2, 0.5}}, up), Vec3d::zero());
+  EXPECT_EQ(apply_boundary(sep, Vec3d{{1.15, 1.0, 0.5}}, kV), Vec3d::zero());
 }
 
 TEST(Boundary, WallsUseTheirOwnBox) {
   const auto b = make(BoundaryObject::Walls, Contact::Slip, {0.2, 0.2, 0.2}, {0.8, 1.6, 0.8});
-  EXPECT_EQ(apply_boundary(b, Vec3d{{0.3, 1.0, 0.5}}, kV), (Vec3d{{0.0, -0.7, 0.2}}));  // 0.1 from the x face
+  EXPECT_EQ(apply_boundary(b, Vec3d{{0.2, 1.0, 0.5}}, kV), (Vec3d{{0.0, -0.7, 0.2}}));  // on the x face
+  EXPECT_EQ(apply_boundary(b, Vec3d{{0.3, 1.0, 0.5}}, kV), kV);                          // 0.1 inside it
   EXPECT_EQ(apply_boundary(b, Vec3d{{0.5, 1.0, 0.5}}, kV), kV);
+}
+
+// Particles may stand up to kDomainMarginCells cells outside simulation.domain (material fills Walls to the faces).
+TEST(Boundary, DomainMarginOfTwoCells) {
+  const Vec3d domain{{1.0, 2.0, 1.0}};
+  EXPECT_TRUE(inside_domain(Vec3d{{-0.19, 1.0, 0.5}}, domain, 0.1));
+  EXPECT_TRUE(inside_domain(Vec3d{{0.5, 2.19, 0.5}}, domain, 0.1));
+  EXPECT_FALSE(inside_domain(Vec3d{{-0.21, 1.0, 0.5}}, domain, 0.1));
+  EXPECT_FALSE(inside_domain(Vec3d{{0.5, 1.0, 1.21}}, domain, 0.1));
 }
 
 TEST(Boundary, BoxObstacleNearestFaceNormal) {
@@ -205,6 +225,10 @@ TEST(Boundary, BoxObstacleNearestFaceNormal) {
   EXPECT_EQ(apply_boundary(stick, Vec3d{{0.5, 0.2, 0.5}}, kV), Vec3d::zero());              // inside
   EXPECT_EQ(apply_boundary(slip, Vec3d{{0.5, 0.48, 0.5}}, kV), (Vec3d{{0.3, 0.0, 0.2}}));   // top face nearest
   EXPECT_EQ(apply_boundary(slip, Vec3d{{0.41, 0.2, 0.5}}, kV), (Vec3d{{0.0, -0.7, 0.2}}));  // x-low face nearest
+  // ClaymoreUW's held core: a node 0.99 dx or more inside every face is held, for Slip and Separable too.
+  EXPECT_EQ(apply_boundary(slip, Vec3d{{0.5, 0.2, 0.5}}, kV), Vec3d::zero());
+  EXPECT_EQ(apply_boundary(sep, Vec3d{{0.5, 0.2, 0.5}}, -kV), Vec3d::zero());
+  EXPECT_EQ(apply_boundary(slip, Vec3d{{0.5, 0.405, 0.5}}, kV), (Vec3d{{0.3, 0.0, 0.2}}));  // 0.095 below the top
   // Separable at the top face: falling (into the box) is stopped, rising is free.
   EXPECT_EQ(apply_boundary(sep, Vec3d{{0.5, 0.48, 0.5}}, kV), (Vec3d{{0.3, 0.0, 0.2}}));
   const Vec3d up{{0.3, 0.7, 0.2}};
@@ -224,7 +248,7 @@ TEST(Boundary, CoulombFriction) {
   BoundaryParams<double> b{};
   std::string error;
   ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1), b, error));
-  const Vec3d floor_node{{0.5, 0.0, 0.5}};
+  const Vec3d floor_node{{0.5, 0.0, 0.5}};  // on the floor's face
   // v_n = -1 (into the floor), |v_t| = 0.4 <= 0.5: sticks.
   EXPECT_EQ(apply_boundary(b, floor_node, Vec3d{{0.4, -1.0, 0.0}}), Vec3d::zero());
   // |v_t| = 2 > 0.5: slides with |v_t| = 2 - 0.2 = 1.8 in the same direction.

@@ -2,16 +2,19 @@
 //
 // Problem: the hydrostatic JFluid column of hydrostatic_column_case.h (H = 0.1 m, rho0 = 1800 kg/m^3, K = 1e6 Pa,
 // gamma 7, slip Walls), started in its exact compressible equilibrium, width w = 4 cells along x and 2 along z. A
-// grid sensor (Force, direction X+, Sum) around the +x wall's nodes reads the force the water exerts on that wall:
+// grid sensor (direction X+, Sum) around the +x wall's nodes reads the force the water exerts on that wall:
 //   F = w_z * int_0^H p(d) dd  ~ w_z rho0 g H^2 / 2   (the Tait p(d) of the case; 0.06 % above rho0 g H^2 / 2).
-// The sensor's force is m (v* - v) / dt at the wall nodes: the impulse the slip projection removes, per step. At
+// BoundaryForce is m (v* - v) / dt at the wall nodes: the impulse the slip projection removes, per step; Force
+// (ClaymoreUW's) is p / dt, the P2G momentum over dt. Along the wall's normal, where the wall holds the node, the two
+// are the same number (v_x = 0 after the projection and g_x = 0), and both are checked. At
 // equilibrium it equals the MLS internal force the particles put on those nodes, which for a pressure quadratic in
 // depth is the exact face load (the discrete-equilibrium argument of test_hydrostatic_column.cpp), except for the
 // free-surface row whose stencil is truncated. Measured (double): -0.016 % at dx = 0.01, -0.0039 % at 0.005 (second
 // order: the surface row's imbalance, a fraction of rho0 g dx / 4 over a cell, against a load growing as H^2).
 // Tolerance 0.1 % at both (6x the coarse value; an O(dx) error of the method, >= 1 % here, or a wrong force sign or
 // scale fails it), with the error falling on refinement. The reading of a rest state must be steady (spread 0.1 %).
-// The floor's load cell (Y-) must carry the whole weight m g (every particle's weight reaches the floor at rest).
+// The floor's load cell (BoundaryForce, Y-) must carry the whole weight m g (every particle's weight reaches the floor
+// at rest; Force would leave out the weight of the floor nodes' own mass, which gravity adds after P2G).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -39,7 +42,7 @@ double exact_wall_force(double depth_width) {
 }
 
 struct LoadCellResult {
-  double wall_mean = 0.0, wall_exact = 0.0;
+  double wall_mean = 0.0, wall_exact = 0.0, wall_claymore_mean = 0.0;
   double wall_spread = 0.0;  // (max - min) / exact over the samples
   double floor_mean = 0.0, weight = 0.0;
   bool ok = false;
@@ -64,22 +67,24 @@ LoadCellResult run_tank(double dx) {
   const double surface = y0 + kH;
   engine.set_volume_ratios(0, [&](const Vec3d& x) { return volume_ratio(hydrostatic_pressure(surface - x[1])); });
 
-  // Wall nodes: within 1.5 dx of the +x face (boundary.cuh); the box takes every node from the face's last interior
-  // plane outwards, at every height and depth. The floor: nodes within 1.5 dx of the bottom face.
+  // Wall nodes: on the +x face's node plane and outside it (boundary.cuh); the box takes every node from the face
+  // outwards, at every height and depth. The floor: nodes on or below the bottom face.
   const double face_x = walls.domain_end[0], face_y = walls.domain_start[1];
   GridSensorSpec wall;
-  wall.attribute = "Force";
+  wall.attribute = "BoundaryForce";
   wall.operation = SensorOperation::Sum;
   wall.direction = r3(1, 0, 0);
   wall.direction_sign = 1;
-  wall.domain_start = r3(face_x - 1.5 * dx, -1.0, -1.0);
+  wall.domain_start = r3(face_x - 0.5 * dx, -1.0, -1.0);
   wall.domain_end = r3(10.0, 10.0, 10.0);
   GridSensorSpec floor = wall;
   floor.direction = r3(0, 1, 0);
   floor.direction_sign = -1;
   floor.domain_start = r3(-1.0, -1.0, -1.0);
-  floor.domain_end = r3(10.0, face_y + 1.5 * dx, 10.0);
-  engine.set_grid_sensors({wall, floor});
+  floor.domain_end = r3(10.0, face_y + 0.5 * dx, 10.0);
+  GridSensorSpec wall_claymore = wall;
+  wall_claymore.attribute = "Force";
+  engine.set_grid_sensors({wall, floor, wall_claymore});
 
   out.wall_exact = exact_wall_force(wz);
   out.weight = engine.total_mass() * kG;
@@ -95,12 +100,14 @@ LoadCellResult run_tank(double dx) {
     const std::vector<SensorAccum> s = engine.grid_samples(1);
     const double f = sensor_result(SensorOperation::Sum, s[0]);
     out.wall_mean += f;
+    out.wall_claymore_mean += sensor_result(SensorOperation::Sum, s[2]);
     out.floor_mean += sensor_result(SensorOperation::Sum, s[1]);
     lo = std::min(lo, f);
     hi = std::max(hi, f);
     ++samples;
   }
   out.wall_mean /= samples;
+  out.wall_claymore_mean /= samples;
   out.floor_mean /= samples;
   out.wall_spread = (hi - lo) / out.wall_exact;
   out.ok = true;
@@ -118,6 +125,7 @@ TEST(LoadCell, HydrostaticTankWallReadsRhoGHSquaredOverTwo) {
                 r->wall_mean, r->wall_exact, kRho * kG * kH * kH / 2 * (r == &coarse ? 0.02 : 0.01), 100 * err,
                 100 * r->wall_spread, r->floor_mean, r->weight, r->floor_mean / r->weight - 1.0);
     EXPECT_LE(std::fabs(err), 1e-3);
+    EXPECT_NEAR(r->wall_claymore_mean, r->wall_mean, 1e-9 * r->wall_exact);  // the same number on a held wall node
     EXPECT_LE(r->wall_spread, 1e-3);  // a rest state: the reading is steady
     EXPECT_NEAR(r->floor_mean, r->weight, 1e-6 * r->weight);  // measured 2e-8: every weight reaches the floor
   }

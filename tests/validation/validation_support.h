@@ -1,28 +1,27 @@
 // Helpers of the validation tests: build reference-problem Scenes in code and reduce time series (SI units).
 //
 // Conventions of the CPU engine these helpers rely on (boundary.cuh, geometry.h):
-//  * A Walls boundary projects every grid node closer than 1.5 dx to a face of its box: the face's node plane F and
-//    the next one F + dx (and any node outside). Two planes inside matter for a body against the wall:
-//      F + dx/2  the ZERO-VELOCITY plane. The first free node plane F + 2 dx has its quadratic B-spline support
+//  * A Walls boundary acts on ClaymoreUW's nodes (boundary.cuh): the face's node plane F and every node outside it
+//    (the planes 1.5 dx or more outside are held still). Two planes matter for a body against the wall:
+//      F - dx/2  the ZERO-VELOCITY plane. The first free node plane F + dx has its quadratic B-spline support
 //                starting there, so the grid velocity's normal component vanishes IDENTICALLY below it. A body
 //                placed against it gives every free node a complete support: a fluid at rest is in exact discrete
-//                equilibrium. But its first particle layer (at F + 3dx/4 with 2 particles per cell) puts 97 % of its
+//                equilibrium. But its first particle layer (at F - dx/4 with 2 particles per cell) puts 97 % of its
 //                normal-direction weight on wall nodes: its normal strain is frozen and its pressure barely reaches
 //                a free node. Such a layer behaves as part of the wall: under a stress-free start it never takes
 //                its share of the load (-82 % pressure in the bottom row of the hydrostatic column), and a fluid
 //                layer along a vertical wall stands on its own pressure instead of draining (the dam break's back
 //                wall keeps a one-particle film at full height).
-//      F + dx    the LAST WALL NODE plane, "one cell inside the face" (boundary.cuh; ClaymoreUW's convention).
-//                The first particle layer (F + 5dx/4) puts 28 % of its weight on the free node F + 2 dx, enough
-//                to drain and load normally (dam-break residual height follows the data), but the node F + 2 dx
-//                lacks the half cell [F + dx/2, F + dx] of its support, and a fluid's bottom cell carries about
-//                +10 % excess pressure at every resolution (+11 % at rest from an equilibrium start, +9.5 % after a
-//                stress-free start).
+//      F         the LAST WALL NODE plane, the box face itself: material filling the box to its faces, as scenes
+//                written for ClaymoreUW place it. The first particle layer (F + dx/4) puts 28 % of its weight on the
+//                free node F + dx, enough to drain and load normally (dam-break residual height follows the data),
+//                but the node F + dx lacks the half cell [F - dx/2, F] of its support, and a fluid's bottom cell
+//                carries about +10 % excess pressure at every resolution (+11 % at rest from an equilibrium start,
+//                +9.5 % after a stress-free start).
 //    These are limitations of node-layer walls with C1 quadratic B-splines (the boundary treatment decides spatial
 //    convergence near walls: Steffen, Wallstedt, Guilkey, Kirby & Berzins 2008, CMES 31(2)), measured and reported
 //    in docs/validation.md. Each test names the placement it uses and why; wall_box() takes the planes of the
-//    material faces and the placement, and returns the Walls box. Its faces always fall on node planes, so the
-//    1.5 dx test never compares near-equal distances.
+//    material faces and the placement, and returns the Walls box. Its faces always fall on node planes.
 //  * A Walls box far away along an axis never acts along it: thin slabs (2D problems in 3D) use one box whose
 //    faces along the slab's thin axis are active and whose other faces lie outside the domain.
 //  * Bodies are sampled on the grid-aligned sub-lattice x_i = (i + 1/2) dx / n per axis (ppc = n^3), so a box whose
@@ -128,17 +127,17 @@ inline void add_disk(BodySpec& body, double cx, double cy, double radius, double
   body.geometry.push_back(g);
 }
 
-/// Far enough to never act: a Walls face this far outside the domain has no grid node within 1.5 dx of it.
+/// Far enough to never act: a Walls face this far outside the domain has no grid node on or beyond it.
 constexpr double kFar = 1e3;
 
 /// Where a body's face sits relative to the Walls box that holds it (see the file comment).
 enum class WallFit {
-  ZeroVelocityPlane,  ///< material face at F + dx/2: exact resting equilibrium, frozen first particle layer
-  LastWallNodePlane,  ///< material face at F + dx (ClaymoreUW): draining first layer, ~+10 % bottom cell
+  ZeroVelocityPlane,  ///< material face at F - dx/2: exact resting equilibrium, frozen first particle layer
+  LastWallNodePlane,  ///< material face at F (ClaymoreUW's scenes): draining first layer, ~+10 % bottom cell
 };
 
-/// Distance [m] from the box face F to the material face for a placement.
-inline double wall_inset(WallFit fit, double dx) { return fit == WallFit::ZeroVelocityPlane ? 0.5 * dx : dx; }
+/// Distance [m] from the box face F to the material face for a placement (inwards positive).
+inline double wall_inset(WallFit fit, double dx) { return fit == WallFit::ZeroVelocityPlane ? -0.5 * dx : 0.0; }
 
 /// True when c [m] lies on a grid node plane, k dx.
 inline bool is_node_plane(double c, double dx) { return std::fabs(c / dx - std::round(c / dx)) < 1e-9; }

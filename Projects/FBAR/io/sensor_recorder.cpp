@@ -21,6 +21,7 @@ namespace {
 
 GridSensorQuantity quantity_of(const std::string& attribute) {
   if (attribute == "Force") return GridSensorQuantity::Force;
+  if (attribute == "BoundaryForce") return GridSensorQuantity::BoundaryForce;
   if (attribute == "Acceleration") return GridSensorQuantity::Acceleration;
   if (attribute == "Momentum") return GridSensorQuantity::Momentum;
   if (attribute == "Velocity") return GridSensorQuantity::Velocity;
@@ -32,6 +33,7 @@ GridSensorQuantity quantity_of(const std::string& attribute) {
 const char* unit_of(GridSensorQuantity q) {
   switch (q) {
     case GridSensorQuantity::Force: return "N";
+    case GridSensorQuantity::BoundaryForce: return "N";
     case GridSensorQuantity::Acceleration: return "m/s^2";
     case GridSensorQuantity::Momentum: return "kg m/s";
     case GridSensorQuantity::Velocity: return "m/s";

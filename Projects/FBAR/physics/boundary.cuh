@@ -12,10 +12,18 @@
 // |v_t| <= mu_s |v_rel.n| and otherwise shortened by mu_d |v_rel.n|, so the friction impulse is mu_d x the normal one.
 //
 // Shapes (ClaymoreUW's, from domain_start = lo and domain_end = hi; "keeps out": material stays outside):
-//   Walls     keeps the material INSIDE the box [lo, hi] (the simulation domain when both are 0). Along each axis a
-//             node belongs to the low wall when x_i - lo < 1.5 dx and to the high wall when hi - x_i < 1.5 dx: the
-//             face node plane and the first plane inside it. A node in several walls gets each projection in turn.
-//   Box       keeps out of [lo, hi]; a node inside is projected with the outward normal of the nearest face.
+//   Walls     keeps the material INSIDE the box [lo, hi] (the simulation domain when both are 0), on ClaymoreUW's
+//             nodes (mgmpm_kernels.cuh, grid update, Walls): along each axis a node belongs to the low wall when
+//             x_i <= lo and to the high wall when x_i >= hi, i.e. the face node plane and the planes outside it.
+//             Sticky: every component of v_rel is removed there. Slip and Separable: the contact law acts along the
+//             wall's normal (per axis, in turn for a node in several walls), and nodes 1.5 dx or more outside a face
+//             (x_i <= lo - 1.5 dx, x_i >= hi + 1.5 dx) are held (v_rel = 0), so material that crossed the face stops.
+//             Material may therefore fill the box to its faces; the outermost particles can cross a face by up to
+//             half a cell (kDomainMarginCells lets them stand outside simulation.domain).
+//   Box       keeps out of [lo, hi] (ClaymoreUW's nodes: inside, faces included). A node less than 0.99 dx inside
+//             the nearest face is projected with that face's outward normal (on an edge the first axis of x, y, z
+//             wins a tie; ClaymoreUW favours x too but leaves y-z edge nodes free); a node 0.99 dx or more inside
+//             every face is held (v_rel = 0), as ClaymoreUW holds its core. Sticky holds every node inside.
 //   Sphere    keeps out of the ball of center (lo + hi) / 2 and radius (hi_x - lo_x) / 2; n radial.
 //   Cylinder  keeps out of the cylinder along y from lo_y to hi_y, axis at the box's center in x and z, radius
 //             (hi_x - lo_x) / 2; n radial, or +-y at the nearer cap (ClaymoreUW has no caps: material on top sank in).
@@ -71,7 +79,8 @@ struct BoundaryParams {
   Vec3<T> lo;          ///< [m] box min corner (at time t_begin)
   Vec3<T> hi;          ///< [m] box max corner
   Vec3<T> velocity;    ///< [m/s] v_b: the boundary moves with it, and contact acts on v - v_b
-  T layer;             ///< [m] Walls: nodes closer than this to a face are wall nodes (1.5 dx)
+  T layer;             ///< [m] Walls: nodes this far or farther outside a face are held (1.5 dx); sloped beds: band
+  T dx;                ///< [m] grid spacing (Walls: a node within dx / 128 of a face lies on it; Box: its held core)
   T friction_static;   ///< [-] mu_s
   T friction_dynamic;  ///< [-] mu_d
   double t_begin;      ///< [s] active window (double: compared with the simulation clock)
@@ -139,19 +148,29 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
     return true;
   };
   switch (b.shape) {
-    case BoundaryShape::Walls:
+    case BoundaryShape::Walls: {
+      const T snap = b.dx * T(1.0 / 128);  // node positions' round-off
+      bool on_face = false, held = false;
+      for (int a = 0; a < 3; ++a) {
+        const T below = b.lo[a] - x_node[a], above = x_node[a] - b.hi[a];  // >= 0: on or outside that face
+        on_face = on_face || below >= -snap || above >= -snap;
+        held = held || below >= b.layer - snap || above >= b.layer - snap;
+      }
+      if (!on_face) return v;
+      if (held || b.contact == Contact::Sticky) return b.velocity;
       for (int a = 0; a < 3; ++a) {
         Vec3<T> n = Vec3<T>::zero();
-        if (x_node[a] - b.lo[a] < b.layer) {
+        if (b.lo[a] - x_node[a] >= -snap) {
           n[a] = T(1);
           v = project_moving(b, v, n);
         }
-        if (b.hi[a] - x_node[a] < b.layer) {
+        if (x_node[a] - b.hi[a] >= -snap) {
           n[a] = T(-1);
           v = project_moving(b, v, n);
         }
       }
       return v;
+    }
     case BoundaryShape::Box: {
       if (!inside_box()) return v;
       int axis = 0;
@@ -163,6 +182,7 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
         if (to_lo < nearest) nearest = to_lo, axis = a, sign = T(-1);
         if (to_hi < nearest) nearest = to_hi, axis = a, sign = T(1);
       }
+      if (nearest >= b.dx * T(0.99)) return b.velocity;  // ClaymoreUW's held core: a cell or more inside every face
       Vec3<T> n = Vec3<T>::zero();
       n[axis] = sign;
       return project_moving(b, v, n);
@@ -274,6 +294,21 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
 /// band also reaches one cell above the bed.
 constexpr double kBedLayerCells = 1.0;
 
+/// Particles may stand up to this many cells outside simulation.domain before they count as having left it: Walls on
+/// the domain's faces hold material with their face node plane and the planes outside it (ClaymoreUW's nodes), so
+/// the outermost particles can cross a face by up to half a cell before those nodes stop them, and the nodes 1.5 dx
+/// outside hold them. ClaymoreUW keeps 8 cells of grid below the domain (settings.cuh g_offset) for the same reason.
+constexpr double kDomainMarginCells = 2.0;
+
+/// Is the particle position x [m] inside simulation.domain [0, domain] widened by kDomainMarginCells cells of dx?
+template <typename T>
+FBAR_HOST_DEVICE inline bool inside_domain(const Vec3<T>& x, const Vec3<T>& domain, T dx) {
+  const T margin = static_cast<T>(kDomainMarginCells) * dx;
+  bool inside = true;
+  for (int a = 0; a < 3; ++a) inside = inside && x[a] >= -margin && x[a] <= domain[a] + margin;
+  return inside;
+}
+
 /// The copies of a boundary that `array` [nx, ny, nz] and `spacing` [m] ask for (ClaymoreUW's boundary arrays):
 /// copy (i, j, k) is translated by (i sx, j sy, k sz), in i-major order; [1, 1, 1] gives the boundary itself.
 template <typename T>
@@ -344,6 +379,7 @@ inline bool make_boundary_params(const BoundarySpec& spec, const SimulationSpec&
     out.velocity[a] = static_cast<T>(spec.velocity[a]);
   }
   out.layer = static_cast<T>(1.5 * sim.dx);
+  out.dx = static_cast<T>(sim.dx);
   if (spec.object == BoundaryObject::Bathymetry || spec.object == BoundaryObject::Plane)
     out.layer = static_cast<T>(kBedLayerCells * sim.dx);
   out.friction_static = static_cast<T>(spec.friction_static);

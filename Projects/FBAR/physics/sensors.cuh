@@ -4,15 +4,22 @@
 // the formula frames use); the run loop reduces the ranks' SensorAccum (io/sensor_recorder.h) into one value per
 // sensor and sample.
 //
-// What a node contributes (node of mass m > 0 whose position lies in [domain_start, domain_end], both ends included;
-// v* = p/m + dt g is its velocity before the boundary projections of this step, v the velocity after them):
-//   Force         [N]     m (v* - v) / dt: the force the material exerts on the boundaries at the node, i.e. minus
-//                         the momentum change the boundary projections cause divided by dt (zero at nodes no
-//                         boundary touches). A wall pushed by water in +x reads positive along X.
-//   Acceleration  [m/s^2] (v* - v) / dt: that force per unit node mass.
-//   Momentum      [kg m/s] m v
-//   Velocity      [m/s]   v
-//   Mass          [kg]    m (no direction)
+// What a node contributes (node of mass m > 0 whose position lies in [domain_start, domain_end], both ends included).
+// p is the node's momentum as P2G left it (m v of the particles plus the impulse dt f_int of their stresses), before
+// gravity and the boundary projections of the step; v* = p/m + dt g its velocity before the projections, v after them.
+// ClaymoreUW's attributes read the P2G state, as ClaymoreUW's grid sensors do (mgmpm_kernels.cuh,
+// retrieve_selected_grid_cells): a scene written for ClaymoreUW reads the same numbers.
+//   Force          [N]     p / dt = m v + f_int: at nodes a wall holds at rest, the load the material puts on the wall
+//                          (a wall pushed by water in +x reads positive along X); at free nodes it also counts the
+//                          material's momentum over dt, which is large wherever it moves (ClaymoreUW's meaning).
+//   Velocity       [m/s]   p / m
+//   Momentum       [kg m/s] p
+//   Mass           [kg]    m (no direction)
+// fbar's own attributes read what the boundaries did:
+//   BoundaryForce  [N]     m (v* - v) / dt: the force the material exerts on the boundaries at the node, i.e. minus
+//                          the momentum change the boundary projections cause divided by dt (zero at nodes no
+//                          boundary touches); gravity included. Along a wall's normal at its held nodes it equals Force.
+//   Acceleration   [m/s^2] (v* - v) / dt: that force per unit node mass.
 // A vector quantity is projected on the sensor's unit direction; a direction with a sign keeps only that side of the
 // projection, as a magnitude (ClaymoreUW's X+ / X-): X+ gives max(q.x, 0), X- gives max(-q.x, 0).
 #pragma once
@@ -26,7 +33,7 @@
 
 namespace fbar {
 
-enum class GridSensorQuantity : int { Force, Acceleration, Momentum, Velocity, Mass };
+enum class GridSensorQuantity : int { Force, Acceleration, Momentum, Velocity, Mass, BoundaryForce };
 
 /// One grid sensor as the grid update sees it (trivially copyable; built by make_grid_sensor_params).
 template <typename T>
@@ -130,28 +137,37 @@ FBAR_HOST_DEVICE inline T sensor_projection(const GridSensorParams<T>& s, const 
   return p;
 }
 
-/// What a node (mass m > 0 inside the sensor's box) contributes: m, the velocity v* before and v after the boundary
+/// What a grid sensor reads of one node: its mass, its P2G momentum and its velocity before and after the boundary
 /// projections of a step of dt.
 template <typename T>
-FBAR_HOST_DEVICE inline T grid_sensor_value(const GridSensorParams<T>& s, T m, const Vec3<T>& v_free, const Vec3<T>& v,
-                                            T dt) {
+struct GridNodeSample {
+  T m;             ///< [kg] mass (> 0)
+  Vec3<T> p;       ///< [kg m/s] momentum from P2G (m v + dt f_int), before gravity and boundaries
+  Vec3<T> v_free;  ///< [m/s] v* = p/m + dt g
+  Vec3<T> v;       ///< [m/s] after the boundary projections
+  T dt;            ///< [s]
+};
+
+/// What a node (mass m > 0 inside the sensor's box) contributes.
+template <typename T>
+FBAR_HOST_DEVICE inline T grid_sensor_value(const GridSensorParams<T>& s, const GridNodeSample<T>& n) {
   switch (s.quantity) {
-    case GridSensorQuantity::Force: return sensor_projection(s, (v_free - v) * (m / dt));
-    case GridSensorQuantity::Acceleration: return sensor_projection(s, (v_free - v) / dt);
-    case GridSensorQuantity::Momentum: return sensor_projection(s, v * m);
-    case GridSensorQuantity::Velocity: return sensor_projection(s, v);
-    case GridSensorQuantity::Mass: return m;
+    case GridSensorQuantity::Force: return sensor_projection(s, n.p / n.dt);
+    case GridSensorQuantity::BoundaryForce: return sensor_projection(s, (n.v_free - n.v) * (n.m / n.dt));
+    case GridSensorQuantity::Acceleration: return sensor_projection(s, (n.v_free - n.v) / n.dt);
+    case GridSensorQuantity::Momentum: return sensor_projection(s, n.p);
+    case GridSensorQuantity::Velocity: return sensor_projection(s, n.p / n.m);
+    case GridSensorQuantity::Mass: return n.m;
   }
   return T(0);
 }
 
-/// Adds a node to every sensor of `set` whose box holds it (mass m > 0, position x).
+/// Adds a node at x to every sensor of `set` whose box holds it.
 template <typename T>
-FBAR_HOST_DEVICE inline void accumulate_grid_sensors(const GridSensorSet<T>& set, const Vec3<T>& x, T m,
-                                                     const Vec3<T>& v_free, const Vec3<T>& v, T dt, SensorAccum* acc) {
+FBAR_HOST_DEVICE inline void accumulate_grid_sensors(const GridSensorSet<T>& set, const Vec3<T>& x,
+                                                     const GridNodeSample<T>& n, SensorAccum* acc) {
   for (int i = 0; i < set.count; ++i)
-    if (sensor_box_contains(set.s[i].lo, set.s[i].hi, x))
-      acc[i].add(static_cast<double>(grid_sensor_value(set.s[i], m, v_free, v, dt)));
+    if (sensor_box_contains(set.s[i].lo, set.s[i].hi, x)) acc[i].add(static_cast<double>(grid_sensor_value(set.s[i], n)));
 }
 
 }  // namespace fbar

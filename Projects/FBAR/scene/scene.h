@@ -186,7 +186,7 @@ enum class SensorOperation { Sum, Max, Min, Count, Average, STDEV, Variance };
 struct GridSensorSpec {
   std::string name;                     ///< label (ClaymoreUW's "name"; files are named by index)
   bool toggle = true;                   ///< false: the sensor is switched off (no file)
-  std::string attribute = "Force";      ///< Force, Acceleration, Momentum, Velocity, Mass, Volume, JBar
+  std::string attribute = "Force";      ///< Force, BoundaryForce, Acceleration, Momentum, Velocity, Mass, Volume, JBar
   SensorOperation operation = SensorOperation::Sum;
   Real3 direction{1.0, 0.0, 0.0};       ///< unit projection direction
   int direction_sign = 0;               ///< +1: only positive projections, -1: only negative, 0: both

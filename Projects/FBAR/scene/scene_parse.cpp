@@ -321,7 +321,8 @@ const std::vector<EnumName<SensorOperation>> kParticleSensorOperations = {
     {SensorOperation::Variance, {"Variance"}},
 };
 const std::vector<EnumName<std::string>> kGridSensorAttributes = {
-    {"Force", {"Force"}},       {"Acceleration", {"Acceleration"}}, {"Momentum", {"Momentum"}},
+    {"Force", {"Force"}},       {"BoundaryForce", {"BoundaryForce"}}, {"Acceleration", {"Acceleration"}},
+    {"Momentum", {"Momentum"}},
     {"Velocity", {"Velocity"}}, {"Mass", {"Mass"}},                 {"Volume", {"Volume"}},
     {"JBar", {"JBar", "J Bar"}},
     // ClaymoreUW's CoupledUP grid channels (refused: scene_support.cpp)

@@ -5,8 +5,9 @@
 // .pos, .bgeo, .h5 positions) with every operation, rotation and arrays; every boundary object (Sticky / Slip /
 // Separable, Coulomb friction, constant velocity or motion files, any time window);
 // .bgeo / .geo / .csv frames with the attributes cpu_engine_supports_attribute() accepts; grid sensors of Force,
-// Acceleration, Momentum, Velocity and Mass; particle sensors of every particle quantity frames write. Everything else SCHEMA.md lists is parsed
-// and range-checked by scene_parse.cpp, then refused here. A later release enables a feature by deleting its line.
+// BoundaryForce, Acceleration, Momentum, Velocity and Mass; particle sensors of every particle quantity frames write.
+// Everything else the scene schema names is parsed and range-checked by scene_parse.cpp, then refused here. A later
+// release enables a feature by deleting its line.
 #include <algorithm>
 #include <array>
 #include <iomanip>
@@ -120,11 +121,11 @@ void check_supported(const Scene& scene) {
     ++enabled;
     if (g.attribute == "Volume" || g.attribute == "JBar")
       refuse(idx("grid-sensors", i) + ".attribute", q(g.attribute),
-             "one of Force, Acceleration, Momentum, Velocity, Mass (the grid stores no volume)",
+             "one of Force, BoundaryForce, Acceleration, Momentum, Velocity, Mass (the grid stores no volume)",
              "grid-sensor attribute " + g.attribute);
     if (g.attribute == "MassWater" || g.attribute == "PorePressure")
       refuse(idx("grid-sensors", i) + ".attribute", q(g.attribute),
-             "one of Force, Acceleration, Momentum, Velocity, Mass (" + g.attribute +
+             "one of Force, BoundaryForce, Acceleration, Momentum, Velocity, Mass (" + g.attribute +
                  " is a channel of ClaymoreUW's CoupledUP law, which this release does not have)",
              "grid-sensor attribute " + g.attribute);
   }

@@ -362,9 +362,8 @@ void CpuEngine<T, TG>::init(const std::vector<std::vector<Vec3d>>& positions) {
     body.x.resize(n);
     for (std::size_t p = 0; p < n; ++p) {
       const Vec3d& q = positions[b][p];
-      for (int a = 0; a < 3; ++a)
-        if (!(q[a] >= 0.0 && q[a] <= sim.domain[a]))
-          throw std::invalid_argument(where + ": particle " + std::to_string(p) + " lies outside the domain");
+      if (!inside_domain(q, Vec3d{{sim.domain[0], sim.domain[1], sim.domain[2]}}, sim.dx))
+        throw std::invalid_argument(where + ": particle " + std::to_string(p) + " lies outside the domain");
       body.x[p] = q.template cast<T>();
     }
     body.v.assign(n, v0);
@@ -633,7 +632,7 @@ double CpuEngine<T, TG>::update_grid(TG dt) {
             const Vec3G v_free = v;
             for (const BoundaryParams<TG>& b : active) v = apply_boundary(b, x_node, v, &kg_.profiles);
             if (sensors > 0 && owned)
-              accumulate_grid_sensors(grid_sensors_, x_node, m, v_free, v, dt,
+              accumulate_grid_sensors(grid_sensors_, x_node, GridNodeSample<TG>{m, momentum, v_free, v, dt},
                                       &block_sensors[static_cast<std::size_t>(gb) * sensors]);
           }
           g.momentum[0][node] = v[0];
@@ -810,9 +809,7 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
               } else if (!(M::volume_ratio(s_new) > T(0))) {
                 failed = static_cast<int>(FailureKind::Inverted);
               } else {
-                bool inside = true;
-                for (int a = 0; a < 3; ++a) inside = inside && x_new[a] >= T(0) && x_new[a] <= domain[a];
-                if (!inside)
+                if (!inside_domain(x_new, domain, dx))
                   failed = static_cast<int>(FailureKind::LeftDomain);
                 else if (max_abs(x_new - x) > dx)
                   failed = static_cast<int>(FailureKind::CflViolation);

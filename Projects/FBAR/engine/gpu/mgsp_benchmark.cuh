@@ -980,9 +980,8 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
     if (positions) {
       const std::vector<Vec3d>& x = (*positions)[b];
       for (std::size_t p = 0; p < x.size(); ++p)
-        for (int a = 0; a < 3; ++a)
-          if (!(x[p][a] >= 0.0 && x[p][a] <= sim.domain[a]))
-            throw std::invalid_argument(where + ": particle " + std::to_string(p) + " lies outside the domain");
+        if (!inside_domain(x[p], Vec3d{{sim.domain[0], sim.domain[1], sim.domain[2]}}, sim.dx))
+          throw std::invalid_argument(where + ": particle " + std::to_string(p) + " lies outside the domain");
       counts_.push_back(count_points(x, sim.dx));
       if (spec.initial_state == InitialState::Hydrostatic)
         geometry_bounds = body_geometry_bounds(spec, sim, static_cast<int>(b));

@@ -471,9 +471,7 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
         } else if (!(M::volume_ratio(state_new) > T(0))) {
           failed = kFailInverted;
         } else {
-          bool inside = true;
-          for (int a = 0; a < 3; ++a) inside = inside && x_new[a] >= T(0) && x_new[a] <= p.domain[a];
-          if (!inside)
+          if (!inside_domain(x_new, p.domain, p.dx))
             failed = kFailLeftDomain;
           else if (max_abs(x_new - in.x) > p.dx)
             failed = kFailCfl;

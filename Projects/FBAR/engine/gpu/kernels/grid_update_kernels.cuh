@@ -165,7 +165,7 @@ __global__ void __launch_bounds__(kSensorThreads) sample_grid_sensors(GridSensor
     const Vec3<T> v_free = grid_node_velocity(m, momentum, p.gravity, p.dt);
     const Vec3<T> v{{block_val(p.velocity, grid_velocity_x, block, node), block_val(p.velocity, grid_velocity_y, block, node),
                      block_val(p.velocity, grid_velocity_z, block, node)}};
-    a.add(static_cast<double>(grid_sensor_value(g, m, v_free, v, p.dt)));
+    a.add(static_cast<double>(grid_sensor_value(g, GridNodeSample<T>{m, momentum, v_free, v, p.dt})));
   }
   a = block_reduce_sensor(a);
   if (threadIdx.x == 0) p.partials[static_cast<std::size_t>(blockIdx.y) * gridDim.x + blockIdx.x] = a;

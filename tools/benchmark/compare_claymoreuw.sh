@@ -1,0 +1,85 @@
+#!/usr/bin/env bash
+# Side by side with ClaymoreUW on the same GPU: each scene file run by ClaymoreUW's osu_lwf (built outside the
+# repository) and by fbar, one after the other, for the same simulated time; then one table per scene: particles per
+# body (frame 0) and, per sensor file both wrote, both means, the RMS difference and the correlation over common times.
+# usage: tools/benchmark/compare_claymoreuw.sh OSU_LWF FBAR WORK SCENE.json[:SECONDS] ...
+#   OSU_LWF  ClaymoreUW's binary (it runs in the scene's folder, writes there and never exits: it is stopped once its
+#            last frame file exists, or after 20 x the simulated time in seconds of wall time)
+#   SECONDS  simulated time to run (default 1); frames = ceil(SECONDS x fps) for both
+#   Motion files a scene names are looked up beside the scene file and copied next to it and one folder up.
+# Prints the tables (markdown) and writes WORK/<scene>/{cuw,fbar}/... and WORK/compare.md.
+set -u
+CUW=$(realpath "$1"); FBAR=$(realpath "$2"); WORK=$3; shift 3
+ROOT=$(cd "$(dirname "$0")/../.." && pwd)
+mkdir -p "$WORK"
+: > "$WORK/compare.md"
+for arg in "$@"; do
+  scene=${arg%%:*}; secs=1; [ "$scene" != "$arg" ] && secs=${arg#*:}
+  name=$(basename "$scene" .json); dir="$WORK/$name"
+  rm -rf "$dir"; mkdir -p "$dir/cuw/run" "$dir/fbar"
+  # The scene with frames set to cover `secs` (the only key changed), and the files it names.
+  frames=$(python3 - "$scene" "$secs" "$dir/cuw/run/scene.json" <<'PY'
+import json, math, sys, shutil, os
+s = json.load(open(sys.argv[1])); secs = float(sys.argv[2])
+fps = s["simulation"].get("fps", 60)
+s["simulation"]["frames"] = max(1, math.ceil(secs * fps - 1e-9))
+json.dump(s, open(sys.argv[3], "w"), indent=1)
+src = os.path.dirname(os.path.abspath(sys.argv[1])); run = os.path.dirname(sys.argv[3])
+for b in s.get("boundaries", []) + s.get("grid-boundaries", []):
+    f = b.get("file")
+    if f:
+        p = os.path.join(src, os.path.basename(f))
+        for d in (run, os.path.dirname(run)):
+            if os.path.exists(p): shutil.copy(p, d)
+print(s["simulation"]["frames"])
+PY
+)
+  last="model[0]_dev[0]_frame[$frames].bgeo"
+  ( cd "$dir/cuw/run" && s0=$(date +%s.%N)
+    "$CUW" --file=scene.json > ../log.txt 2>&1 & pid=$!
+    limit=$(python3 -c "print(int(20 * $secs + 60))"); t=0
+    while [ ! -f "$last" ] && kill -0 $pid 2>/dev/null && [ $t -lt $((limit * 10)) ]; do sleep 0.1; t=$((t + 1)); done
+    sleep 1; kill $pid 2>/dev/null; wait $pid 2>/dev/null
+    echo "wall $(python3 -c "import time; print(round(time.time() - $s0, 1))") s" > ../time.txt )
+  ( cd "$dir/cuw/run" && s0=$(date +%s.%N)
+    "$FBAR" --backend=gpu --quiet --file=scene.json --output="$dir/fbar" > "$dir/fbar/log.txt" 2>&1
+    echo "rc $? wall $(python3 -c "import time; print(round(time.time() - $s0, 1))") s" > "$dir/fbar/time.txt" )
+  python3 - "$ROOT" "$dir" "$name" "$secs" >> "$WORK/compare.md" <<'PY'
+import sys, os, glob, csv
+import numpy as np
+sys.path.insert(0, sys.argv[1] + "/tools/plot")
+from fbar_frames import read_frame
+d, name, secs = sys.argv[2], sys.argv[3], float(sys.argv[4])
+cuw, fb = d + "/cuw/run", d + "/fbar"
+print(f"\n### {name} (first {secs:g} s)\n")
+print(f"ClaymoreUW: {open(d + '/cuw/time.txt').read().strip()}; fbar: {open(fb + '/time.txt').read().strip()}\n")
+print("| body | particles ClaymoreUW | particles fbar |\n| --- | --- | --- |")
+for m in range(8):
+    a, b = f"{cuw}/model[{m}]_dev[0]_frame[0].bgeo", f"{fb}/model[{m}]_dev[0]_frame[0].bgeo"
+    if not os.path.exists(a) and not os.path.exists(b): continue
+    n = lambda p: len(read_frame(p)["P"]) if os.path.exists(p) else "-"
+    print(f"| {m} | {n(a)} | {n(b)} |")
+def series(p):
+    t, v = [], []
+    with open(p) as f:
+        r = csv.reader(f); next(r, None)
+        for row in r:
+            try: t.append(float(row[0])); v.append(float(row[1]))
+            except (ValueError, IndexError): pass
+    return np.array(t), np.array(v)
+print("\n| file | samples | mean ClaymoreUW | mean fbar | RMS difference | correlation |\n| --- | --- | --- | --- | --- | --- |")
+for a in sorted(glob.glob(cuw + "/gridTarget*.csv") + glob.glob(cuw + "/particleTarget*.csv")):
+    f = os.path.basename(a); b = fb + "/" + f
+    if not os.path.exists(b): print(f"| {f} | fbar wrote none | | | | |"); continue
+    ta, va = series(a); tb, vb = series(b)
+    keep = (ta <= secs + 1e-9) & np.isfinite(va)
+    ta, va = ta[keep], va[keep]
+    if len(ta) < 2 or len(tb) < 2: print(f"| {f} | {len(ta)} / {len(tb)} | | | | |"); continue
+    vbi = np.interp(ta, tb, vb)  # fbar's samples at ClaymoreUW's times (ClaymoreUW writes step-end times)
+    ok = np.isfinite(vbi)
+    c = np.corrcoef(va[ok], vbi[ok])[0, 1] if np.std(va[ok]) > 0 and np.std(vbi[ok]) > 0 else float("nan")
+    print(f"| {f} | {ok.sum()} | {va[ok].mean():.5g} | {vbi[ok].mean():.5g} | "
+          f"{np.sqrt(np.mean((va[ok] - vbi[ok]) ** 2)):.4g} | {c:.3f} |")
+PY
+done
+cat "$WORK/compare.md"
