@@ -68,7 +68,7 @@ struct CliOptions {
 const char* kHelp =
     "usage: fbar [options] [scene.json]\n"
     "\n"
-    "Runs a material point method scene (SCHEMA.md). Without a file, runs ./scene.json.\n"
+    "Runs a material point method scene (docs/user_guide.md). Without a file, runs ./scene.json.\n"
     "\n"
     "options:\n"
     "  -f FILE, --file=FILE    scene file (also the first positional argument; default: scene.json)\n"
