@@ -322,8 +322,8 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
     }
   }
 
-  // Ranks: under mpirun / srun one per process (MPI); otherwise one. The CPU engine decomposes the scene over them;
-  // the GPU engine runs one GPU per run in this release.
+  // Ranks: under mpirun / srun one per process (MPI); otherwise one, or --gpus=N GPU ranks as threads of this process.
+  // Either engine decomposes the scene over them.
   std::unique_ptr<comm::Transport> transport;
   if (comm::launched_by_mpi()) {
 #ifdef FBAR_HAS_MPI
