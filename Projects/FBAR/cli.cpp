@@ -68,7 +68,7 @@ struct CliOptions {
 const char* kHelp =
     "usage: fbar [options] [scene.json]\n"
     "\n"
-    "Runs a material point method scene (SCHEMA.md). Without a file, runs ./scene.json.\n"
+    "Runs a material point method scene (docs/user_guide.md). Without a file, runs ./scene.json.\n"
     "\n"
     "options:\n"
     "  -f FILE, --file=FILE    scene file (also the first positional argument; default: scene.json)\n"
@@ -322,8 +322,8 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
     }
   }
 
-  // Ranks: under mpirun / srun one per process (MPI); otherwise one. The CPU engine decomposes the scene over them;
-  // the GPU engine runs one GPU per run in this release.
+  // Ranks: under mpirun / srun one per process (MPI); otherwise one, or --gpus=N GPU ranks as threads of this process.
+  // Either engine decomposes the scene over them.
   std::unique_ptr<comm::Transport> transport;
   if (comm::launched_by_mpi()) {
 #ifdef FBAR_HAS_MPI

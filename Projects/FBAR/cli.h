@@ -1,4 +1,4 @@
-// The command line of SCHEMA.md: parses arguments, loads and validates the scene, runs or checks it.
+// The command line (docs/user_guide.md §1): parses arguments, loads and validates the scene, runs or checks it.
 #pragma once
 
 #include "engine/engine_api.h"

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Accuracy against cost (issue 13): sweeps fbar over a reference problem and charts error against time.
 
-Problem (this first version): Martin & Moyce's dam break (1952; VALIDATION.md item 1), as the validation test
+Problem (this first version): Martin & Moyce's dam break (1952), as the validation test
 tests/validation/test_dam_break.cpp sets it up: a water column of width a = 0.05715 m and height 2a on a dry bed,
 a slab one cell thick between slip walls (2D flow), JFluid with c0 = 10 x Ritter's front speed. Every run is a
 scene file given to the fbar command line; a particle sensor (Max of Position_X, 200 samples) records the surge
@@ -21,7 +21,7 @@ against cost, the Pareto front marked and labelled) and dam_break_convergence.pn
 scheme, with the observed order between the two finest pairs in the legend); with --gpu the same names ending in
 _gpu. Cost: the run's wall time less the engine's set-up (which the GPU engine prints), per simulated second.
 
---problem bar: Bardenhagen's vibrating bar (VALIDATION.md item 3; tests/validation/vibrating_bar_case.h), a clamped
+--problem bar: Bardenhagen's vibrating bar (tests/validation/vibrating_bar_case.h), a clamped
 bar of L = 25 m started in its first mode; exact period T1 = 10 s. A scene file cannot start a bar in a mode, so
 these runs go through fbar_study_cases (tools/study/study_cases.cu), which runs the validation case itself on either
 engine. Error: |T / T1 - 1| of the period from the centre-of-mass velocity's zero crossings (2.6 periods); the CSV
@@ -29,7 +29,7 @@ also has the amplitude lost per period and the largest energy over the run. Swee
 400), the four schemes, single and double (and mixed on the CPU engine). Writes vibrating_bar_study{,_gpu}.csv,
 vibrating_bar_pareto{,_gpu}.png and vibrating_bar_convergence{,_gpu}.png.
 
---problem hydrostatic: the cb-geo hydrostatic column (VALIDATION.md item 5; tests/validation/hydrostatic_column_case.h)
+--problem hydrostatic: the cb-geo hydrostatic column (tests/validation/hydrostatic_column_case.h)
 from a stress-free start, through fbar_study_cases too. Error: the RMS over particle rows of the time-averaged
 pressure error over rho0 g H; the CSV also has the base pressure error of the middle-half fit, the row
 checkerboard and the bottom cell's error. Sweep: H/dx 5 .. 40 (--gpu: up to 80), F-bar off and on (psi 1), single,

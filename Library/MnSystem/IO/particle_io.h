@@ -162,7 +162,7 @@ inline FrameFormat frame_format(std::string_view suffix) {
 }
 
 /// ClaymoreUW's frame file name: "model[<m>]_dev[<d>]_frame[<f>]<suffix>", e.g. model[0]_dev[0]_frame[12].bgeo
-/// (SCHEMA.md; its mgsp_benchmark.cuh writes these, and its resume scenes read them).
+/// (docs/user_guide.md §4.1; ClaymoreUW's mgsp_benchmark.cuh writes these, and its resume scenes read them).
 inline std::string frame_file_name(int model, int device, int frame, std::string_view suffix) {
   return "model[" + std::to_string(model) + "]_dev[" + std::to_string(device) + "]_frame[" + std::to_string(frame) +
          "]" + std::string(suffix);

@@ -44,7 +44,7 @@ MaterialFacts material_facts(const MaterialSpec& m) {
     facts.stored_scalars = M::kStoredScalars;
   });
   if (!known) {
-    // The plastic laws not in MaterialTypes yet: p-wave speed sqrt((lambda + 2 mu) / rho) (VALIDATION.md); bins
+    // The plastic laws not in MaterialTypes yet: p-wave speed sqrt((lambda + 2 mu) / rho); bins
     // store position + F + log Jp.
     const double E = m.youngs_modulus, nu = m.poisson_ratio;
     const double mu = E / (2.0 * (1.0 + nu));

@@ -18,7 +18,7 @@ struct BodySummary {
   long long particles = 0;        ///< particles after sampling and partition clipping
   double particle_volume = 0.0;   ///< [m^3] dx^3 / ppc
   double particle_mass = 0.0;     ///< [kg] rho * particle_volume
-  double wave_speed = 0.0;        ///< [m/s] p-wave speed at rest (VALIDATION.md formulas)
+  double wave_speed = 0.0;        ///< [m/s] p-wave speed at rest (docs/user_guide.md §2.4)
   double dt_bound = 0.0;          ///< [s] CFL * dx / (wave_speed + |initial velocity|)
   double viscous_dt = 0.0;        ///< [s] CFL rho dx^2 / (3 mu) (time_step.cuh); +infinity when inviscid
   // What the body costs on the GPU engine (a scene pays only for what it uses):
@@ -76,7 +76,7 @@ struct RunOptions {
 };
 
 struct RunResult {
-  int exit_code = 0;               ///< 0 success, 2 run-time failure (SCHEMA.md), 128 + signal when stopped by one
+  int exit_code = 0;               ///< 0 success, 2 run-time failure (docs/user_guide.md §1), 128 + signal when stopped by one
   std::string message;             ///< failure report: body, step, time, what happened
   long long steps = 0;
   double end_time = 0.0;           ///< [s]

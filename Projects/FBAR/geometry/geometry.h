@@ -1,6 +1,6 @@
 // Initial particle positions of a body: its geometry[] list (Box / Sphere / Cylinder CSG) sampled at ppc per cell.
 //
-// Conventions (SCHEMA.md "bodies[].geometry[]", seed 0.4.2; SI units, metres and degrees). They follow ClaymoreUW
+// Conventions (docs/user_guide.md §2.6 and §3; SI units, metres and degrees). They follow ClaymoreUW
 // (read_scene_input.h: make_box / make_sphere / make_cylinder, inside_sphere / inside_cylinder,
 // elementaryToRotationMatrix, translate_rotate_translate_point, inside_partition), so its scenes keep their meaning:
 //  * offset is the MIN CORNER of the object's bounding box, for every object (as scene.h documents):

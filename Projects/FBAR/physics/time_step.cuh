@@ -1,4 +1,4 @@
-// The explicit time-step bounds (VALIDATION.md): dt = min(default_dt, every viscous body's viscous bound,
+// The explicit time-step bounds (docs/user_guide.md, "What --check prints"): dt = min(default_dt, every viscous body's viscous bound,
 // min_b min(CFL_b dx / (c_b + |v|max), kAcousticCourant dx / c_b)).
 //
 // The acoustic cap. A particle alone in its grid cells (a splash droplet, the tip of a jet) is the stiffest
@@ -53,7 +53,7 @@ FBAR_HOST_DEVICE constexpr T min_time_step(T a, T b) {
 }
 
 /// The scene's default_dt, resolved: the given value, or dx / 100 (numerically, dx in metres -> seconds, ClaymoreUW's
-/// default and SCHEMA.md's) when the scene left it out (<= 0).
+/// default and docs/user_guide.md's) when the scene left it out (<= 0).
 inline double resolved_default_dt(const SimulationSpec& sim) {
   return sim.default_dt > 0.0 ? sim.default_dt : sim.dx / 100.0;
 }

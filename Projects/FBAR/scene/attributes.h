@@ -1,6 +1,6 @@
 // Particle attribute names (output_attribs, track_attribs, target_attribs, particle-sensors).
 //
-// The canonical names are SCHEMA.md's; aliases map onto them. Which attributes a body can
+// The canonical names are those of docs/user_guide.md §4.2; aliases map onto them. Which attributes a body can
 // produce depends on its material and on the engine: see attribute_supported().
 #pragma once
 

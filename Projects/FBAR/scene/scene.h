@@ -1,6 +1,6 @@
 // The resolved scene: what the JSON front end produces and every engine consumes (SI units).
 //
-// scene_parse.cpp fills these structs from a scene file (SCHEMA.md), applying defaults,
+// scene_parse.cpp fills these structs from a scene file (docs/user_guide.md §2), applying defaults,
 // validation and Froude scaling; engines never look at JSON. Every field documents its unit.
 #pragma once
 

@@ -575,7 +575,7 @@ std::string read_attribute(const rj::Value& v, const std::string& path, bool all
   if (canonical.empty()) {
     Keys all(kParticleAttributeNames.begin(), kParticleAttributeNames.end());
     for (const auto& a : kParticleAttributeAliases) all.push_back(a.first);
-    std::string expected = "a particle attribute name (SCHEMA.md, e.g. ID, Position_X, Velocity_Magnitude, J, Pressure)";
+    std::string expected = "a particle attribute name (user guide §4.2, e.g. ID, Position_X, Velocity_Magnitude, J, Pressure)";
     const std::string near = closest_key(name, all);
     if (!near.empty()) expected += "; did you mean " + in_quotes(near) + "?";
     throw SceneError(path, json_text(v), expected);

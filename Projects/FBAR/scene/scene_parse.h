@@ -1,4 +1,4 @@
-// The scene front end: reads a scene JSON (SCHEMA.md) into the resolved Scene, validates it, writes it back.
+// The scene front end: reads a scene JSON (docs/user_guide.md §2) into the resolved Scene, validates it, writes it back.
 //
 // Reading applies, in this order: syntax (RapidJSON, with // comments and trailing commas allowed), every key's
 // type / range / array length / enum value (ClaymoreUW's aliases accepted), unknown keys (error naming the closest

@@ -3,7 +3,7 @@
 // Elasticity (St. Venant-Kirchhoff in Hencky strain): with F = U diag(s) V^T and eps = ln s (principal),
 //     tau = U diag(2 mu eps_i + lambda tr eps) U^T                              (Kirchhoff stress)
 //     psi = mu |eps|^2 + lambda/2 (tr eps)^2                                     (per reference volume)
-// Uniaxial check (VALIDATION.md item 2, inside the cone): F = diag(s, 1, 1) gives sigma = tau / s with
+// Uniaxial check (the constitutive patch test, inside the cone): F = diag(s, 1, 1) gives sigma = tau / s with
 // sigma11 = (lambda + 2 mu) ln(s) / s, sigma22 = lambda ln(s) / s.
 //
 // Plasticity (Klar et al. 2016, sec. 4.3.2 and 6.3; every case defined, including friction_angle = 0):
@@ -139,7 +139,7 @@ struct DruckerPrager : HenckyElastoplastic<DruckerPragerParams, PlasticState> {
     return {};
   }
 
-  /// Cone coefficient alpha = sqrt(2/3) 2 sin(phi) / (3 - sin(phi)) [-], phi in degrees (VALIDATION.md).
+  /// Cone coefficient alpha = sqrt(2/3) 2 sin(phi) / (3 - sin(phi)) [-], phi in degrees (Klar et al. 2016).
   static double cone_coefficient(double friction_angle_deg) {
     const double s = std::sin(friction_angle_deg * 3.14159265358979323846 / 180.0);
     return std::sqrt(2.0 / 3.0) * 2.0 * s / (3.0 - s);

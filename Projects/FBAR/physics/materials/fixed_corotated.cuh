@@ -5,10 +5,10 @@
 // With the SVD F = U diag(s) V^T (R = U V^T) the Kirchhoff stress tau = P F^T is
 //     tau = U diag(2 mu (s_i - 1) s_i) U^T + lambda (J - 1) J I,     J = s0 s1 s2,
 // exactly symmetric and free of F^-T (no division, defined for any F).
-// Uniaxial check (VALIDATION.md item 2): F = diag(s, 1, 1) gives sigma = tau / J with
+// Uniaxial check (the constitutive patch test): F = diag(s, 1, 1) gives sigma = tau / J with
 //     sigma11 = (lambda + 2 mu)(s - 1),  sigma22 = sigma33 = lambda (s - 1).
 // Energy psi = mu sum_i (s_i - 1)^2 + lambda/2 (J - 1)^2 per reference volume.
-// P-wave speed c_p = sqrt((lambda + 2 mu) / rho0) (VALIDATION.md: not ClaymoreUW's sqrt(K/rho)).
+// P-wave speed c_p = sqrt((lambda + 2 mu) / rho0) (not ClaymoreUW's sqrt(K/rho): docs/user_guide.md §7 item 1).
 #pragma once
 
 #include <cmath>
@@ -48,7 +48,7 @@ struct FixedCorotated {
   static constexpr int kStoredScalars = 12;
   static constexpr MaterialOutputs kOutputs{true, false};
 
-  /// Lame parameters from Young's modulus and Poisson's ratio (VALIDATION.md formulas), host only.
+  /// Lame parameters from Young's modulus and Poisson's ratio, host only.
   template <typename T>
   static Params<T> make_params(const MaterialSpec& m) {
     const double E = m.youngs_modulus;

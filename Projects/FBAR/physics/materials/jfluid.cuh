@@ -1,6 +1,6 @@
 // JFluid: a weakly compressible Tait-Murnaghan fluid with Newtonian viscosity, state = 1 - J (material header).
 //
-// Equation of state (VALIDATION.md): p = (K / gamma) (J^-gamma - 1), K = bulk modulus at rest, J = V / V0.
+// Equation of state (docs/user_guide.md §2.4): p = (K / gamma) (J^-gamma - 1), K = bulk modulus at rest, J = V / V0.
 // Cauchy stress sigma = -p I + 2 mu_visc dev(sym(grad v)), grad v = C (APIC affine matrix, see material_common).
 // Sound speed c^2 = dp/drho = (K / rho0) J^(1 - gamma)  (= (K + gamma p) / rho, rho = rho0 / J).
 //

@@ -57,7 +57,7 @@ constexpr MaterialParameter flag_parameter(const char* key, FlagField field, con
   return MaterialParameter{key, "-", meaning, kAnyValue, nullptr, field, 0.0};
 }
 
-/// The elastic pair every solid reads (E, nu): Lame parameters follow VALIDATION.md's formulas.
+/// The elastic pair every solid reads (E, nu): Lame parameters mu = E / (2 (1 + nu)), lambda = E nu / ((1 + nu)(1 - 2 nu)).
 inline constexpr MaterialParameter kYoungsModulusParameter =
     number_parameter("youngs_modulus", "Pa", &MaterialSpec::youngs_modulus, kPositiveValue, 1.0, "Young's modulus E");
 inline constexpr MaterialParameter kPoissonRatioParameter =

@@ -1,7 +1,7 @@
 // NeoHookean: the compressible Neo-Hookean hyperelastic solid (ClaymoreUW's law), state = F (material header).
 //
 // Energy per reference volume psi = mu/2 (tr(F^T F) - 3) - mu ln J + lambda/2 (ln J)^2, J = det F, so
-//     P   = mu (F - F^-T) + lambda ln J F^-T        (VALIDATION.md item 2)
+//     P   = mu (F - F^-T) + lambda ln J F^-T        (the constitutive patch test)
 //     tau = P F^T = mu (F F^T - I) + lambda ln J I  (symmetric, no inverse needed).
 // Uniaxial check: F = diag(s, 1, 1), sigma = tau / J: sigma11 = mu (s - 1/s) + lambda ln(s) / s,
 // sigma22 = sigma33 = lambda ln(s) / s. ln J is undefined for an inverted element (J <= 0): the stress is then
