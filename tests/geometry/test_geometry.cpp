@@ -88,7 +88,12 @@ TEST(SamplingPattern, PerfectCubesAreLatticesOthersJitter) {
     EXPECT_TRUE(p.lattice) << ppc;
     EXPECT_EQ(p.per_axis, n) << ppc;
   }
-  for (double ppc : {2.0, 4.0, 5.0, 9.0, 8.5, 0.5}) EXPECT_FALSE(sampling_pattern(ppc).lattice) << ppc;
+  // HydroUQ's 27.000001 (ClaymoreUW's YIELD and DKT_2D scenes) is ClaymoreUW's lattice of spacing dx / 3.
+  for (double ppc : {27.000001, 26.99999}) {
+    EXPECT_TRUE(sampling_pattern(ppc).lattice) << ppc;
+    EXPECT_EQ(sampling_pattern(ppc).per_axis, 3) << ppc;
+  }
+  for (double ppc : {2.0, 4.0, 5.0, 9.0, 8.5, 0.5, 27.001, 7.99}) EXPECT_FALSE(sampling_pattern(ppc).lattice) << ppc;
   EXPECT_THROW(sampling_pattern(0.0), std::invalid_argument);
   EXPECT_THROW(sampling_pattern(-8.0), std::invalid_argument);
 }
@@ -333,11 +338,11 @@ TEST(SampleBody, PartitionClipsTheBody) {
     ASSERT_LE(p[0], 0.5);
     ASSERT_GE(p[1], 0.25);
   }
-  // A body reaching outside the domain is fine once the partition clips it back inside.
+  // A body reaching outside the domain keeps the part inside it (the rest is dropped, body_drops counts it).
   BodySpec wide = make_body({make_box({0.5, 0.0, 0.0}, {1.0, 0.5, 0.5})}, 1);
-  EXPECT_THROW(sample_body(wide, sim, 0), SceneError);
-  wide.partition_end = {1.0, 1.0, 1.0};
   EXPECT_EQ(sample_body(wide, sim, 0).size(), 5u * 5u * 5u);
+  wide.partition_end = {0.8, 1.0, 1.0};  // x = 0.55, 0.65, 0.75
+  EXPECT_EQ(sample_body(wide, sim, 0).size(), 3u * 5u * 5u);
 }
 
 // A body split between two GPUs at a plane through lattice points (x = 0.45 = 4.5 dx, ppc 1): the half-open
@@ -414,17 +419,54 @@ TEST(SampleBody, FractionalPpcJittersTheCount) {
   for (const auto& [cell, n] : cells) ASSERT_TRUE(n == 2 || n == 3) << n;
 }
 
-TEST(SampleBody, OutsideDomainNamesThePathAndCount) {
+// Particles outside [0, domain] are dropped (ClaymoreUW keeps them in its grid margin; fbar's engines cannot), and
+// body_drops counts them apart from what the partition drops.
+TEST(SampleBody, OutsideDomainIsDroppedAndCounted) {
   const SimulationSpec sim = make_sim(0.1, {1.0, 1.0, 1.0});
   // x = 0.85, 0.95, 1.05, 1.15: two of the four points are beyond x = 1.
   const BodySpec body = make_body({make_box({0.8, 0.1, 0.1}, {0.4, 0.1, 0.1})}, 1);
-  const auto [path, what] = scene_error_of([&] { sample_body(body, sim, 3); });
-  EXPECT_EQ(path, "bodies[3].geometry");
-  EXPECT_NE(what.find("2 of 4 particles outside simulation.domain"), std::string::npos) << what;
-  EXPECT_NE(what.find("first at [1.05, 0.15, 0.15]"), std::string::npos) << what;
-  // Below zero too.
-  const BodySpec below = make_body({make_sphere({-0.05, 0.3, 0.3}, 0.2)}, 8);
-  EXPECT_EQ(scene_error_of([&] { sample_body(below, sim, 0); }).first, "bodies[0].geometry");
+  const std::vector<Vec3d> pts = sample_body(body, sim, 3);
+  ASSERT_EQ(pts.size(), 2u);
+  EXPECT_NEAR(pts[0][0], 0.85, 1e-12);
+  EXPECT_NEAR(pts[1][0], 0.95, 1e-12);
+  BodyDrops d = body_drops(body, sim, 3);
+  EXPECT_EQ(d.particles, 2);
+  EXPECT_EQ(d.outside_domain, 2);
+  EXPECT_EQ(d.outside_partition, 0);
+  // Below zero too: a box from y = -0.2 to 0.3 keeps y = 0.05 .. 0.25 (3 of 5 planes).
+  const BodySpec below = make_body({make_box({0.1, -0.2, 0.1}, {0.1, 0.5, 0.1})}, 1);
+  EXPECT_EQ(sample_body(below, sim, 0).size(), 3u);
+  d = body_drops(below, sim, 0);
+  EXPECT_EQ(d.outside_domain, 2);
+  // Entirely outside: no particle remains, an error that names the body's geometry.
+  const BodySpec gone = make_body({make_box({-0.5, 0.1, 0.1}, {0.3, 0.1, 0.1})}, 1);
+  const auto [path, what] = scene_error_of([&] { sample_body(gone, sim, 2); });
+  EXPECT_EQ(path, "bodies[2].geometry");
+  EXPECT_NE(what.find("simulation.domain must contain a sampling point"), std::string::npos) << what;
+}
+
+// ClaymoreUW's inside_partition drops geometry outside [partition_start, partition_end) without a word; body_drops
+// counts what fbar drops so that the parser can say so.
+TEST(SampleBody, BodyDropsCountsThePartitionClip) {
+  const SimulationSpec sim = make_sim(0.1, {1.0, 1.0, 1.0});
+  BodySpec body = make_body({make_box({0.0, 0.0, 0.0}, {1.0, 1.0, 1.0})}, 1);  // 1000 points
+  BodyDrops d = body_drops(body, sim, 0);
+  EXPECT_EQ(d.particles, 1000);
+  EXPECT_EQ(d.outside_partition, 0);
+  EXPECT_TRUE(d.partition_counted);
+  body.partition_end = {0.5, 1.0, 1.0};
+  d = body_drops(body, sim, 0);
+  EXPECT_EQ(d.particles, 500);
+  EXPECT_EQ(d.outside_partition, 500);
+  EXPECT_EQ(d.outside_domain, 0);
+  // Both clips: a box from x = 0.5 to 1.5 clipped at x < 1.3 by the partition; x = 1.05, 1.15, 1.25 lie in the
+  // partition but outside the domain, x = 1.35, 1.45 outside the partition.
+  BodySpec both = make_body({make_box({0.5, 0.1, 0.1}, {1.0, 0.1, 0.1})}, 1);
+  both.partition_end = {1.3, 1.0, 1.0};
+  d = body_drops(both, sim, 0);
+  EXPECT_EQ(d.particles, 5);
+  EXPECT_EQ(d.outside_domain, 3);
+  EXPECT_EQ(d.outside_partition, 2);
 }
 
 TEST(SampleBody, InvalidEntriesNameTheirKey) {
@@ -497,14 +539,18 @@ TEST(BodySampler, CountAndBatchesAgreeWithSampling) {
   }
 }
 
-// The count refuses what sampling refuses, with the same message (particles outside the domain).
-TEST(BodySampler, CountRefusesParticlesOutsideTheDomain) {
+// The count drops what sampling drops (particles outside the domain), and refuses what it refuses (no particle).
+TEST(BodySampler, CountAgreesWithSamplingOutsideTheDomain) {
   const SimulationSpec sim = make_sim(0.05, {1.0, 1.0, 1.0});
   const BodySpec body = make_body({make_box({0.8, 0.1, 0.1}, {0.4, 0.2, 0.2})}, 8);
-  const auto sampled = scene_error_of([&] { sample_body(body, sim, 0); });
-  const auto counted = scene_error_of([&] { BodySampler(body, sim, 0).count(sim.dx); });
-  EXPECT_EQ(sampled.first, counted.first);
-  EXPECT_EQ(sampled.second, counted.second);
+  const std::vector<Vec3d> sampled = sample_body(body, sim, 0);
+  EXPECT_EQ(static_cast<long long>(sampled.size()), BodySampler(body, sim, 0).count(sim.dx).particles);
+  EXPECT_EQ(sampled.size(), 8u * 8u * 8u);  // x 0.8 .. 1.0: 8 lattice planes of 8 x 8 (ppc 8, dx 0.05)
+  const BodySpec gone = make_body({make_box({1.2, 0.1, 0.1}, {0.4, 0.2, 0.2})}, 8);
+  const auto sampled_error = scene_error_of([&] { sample_body(gone, sim, 0); });
+  const auto counted_error = scene_error_of([&] { BodySampler(gone, sim, 0).count(sim.dx); });
+  EXPECT_EQ(sampled_error.first, counted_error.first);
+  EXPECT_EQ(sampled_error.second, counted_error.second);
 }
 
 }  // namespace

@@ -401,16 +401,49 @@ TEST(Trackers, FollowParticlesAcrossRanks) {
   EXPECT_NE(r1[0][1], r1[0][3]);
 }
 
-TEST(Trackers, AnIdNoParticleHasStopsTheRunNamingIt) {
-  Scene scene = test::travelling_block();
-  scene.simulation.frames = 1;
-  scene.simulation.save_path = (std::filesystem::path(::testing::TempDir()) / "fbar_trackers_missing").string();
-  scene.bodies[0].track_particle_id = {9999999};
-  RunOptions o;
-  o.quiet = true;
-  const RunResult r = run_cpu(scene, o);
-  EXPECT_NE(r.exit_code, 0);
-  EXPECT_NE(r.message.find("track_particle_id: particle ID 9999999 does not exist"), std::string::npos) << r.message;
+// ClaymoreUW's scene.json tracks IDs its body does not have: ClaymoreUW writes 0.0 for them, fbar runs and writes
+// NaN in their columns (the parser warns). Empty (inverted) sensor boxes run too: Sum and Count read 0, the other
+// operations NaN. One rank and two (the IDs' presence is reduced over ranks).
+TEST(Trackers, AnIdNoParticleHasReadsNaNAndEmptySensorsRun) {
+  for (int ranks : {1, 2}) {
+    Scene scene = test::travelling_block();
+    scene.simulation.frames = 2;
+    scene.simulation.save_path =
+        (std::filesystem::path(::testing::TempDir()) / ("fbar_trackers_missing" + std::to_string(ranks))).string();
+    std::filesystem::remove_all(scene.simulation.save_path);
+    scene.bodies[0].track_particle_id = {9999999, 0};
+    scene.bodies[0].track_attribs = {"Position_X"};
+    // Boxes with domain_end[0] < domain_start[0] (ClaymoreUW's DKT_2D scene has one): they hold nothing.
+    ParticleSensorSpec max = particle_sensor_spec("Position_Y", SensorOperation::Max, {0.5, 0, 0}, {0.1, 0.2, 0.2});
+    ParticleSensorSpec count = particle_sensor_spec("Position_Y", SensorOperation::Count, {0.5, 0, 0}, {0.1, 0.2, 0.2});
+    scene.particle_sensors = {max, count};
+    GridSensorSpec mass = grid_sensor_spec("Mass", SensorOperation::Sum, {0.5, 0, 0}, {0.1, 0.2, 0.2});
+    GridSensorSpec mean = grid_sensor_spec("Mass", SensorOperation::Average, {0.5, 0, 0}, {0.1, 0.2, 0.2});
+    scene.grid_sensors = {mass, mean};
+    run_on_ranks(scene, ranks);
+    const std::filesystem::path dir(scene.simulation.save_path);
+    const Csv t = read_csv(dir / "particleTrack_model[0]_dev[0].csv");
+    EXPECT_EQ(t.header, "Time [s],Position_X[9999999] [m],Position_X[0] [m]");
+    ASSERT_EQ(t.rows.size(), 3u) << ranks;  // the start and 2 frames
+    for (const auto& row : t.rows) {
+      ASSERT_EQ(row.size(), 3u);
+      EXPECT_TRUE(std::isnan(row[1])) << row[1];
+      EXPECT_NEAR(row[2] - t.rows[0][2], 2.0 * row[0], 1e-6);  // particle 0 is there, moving at 2 m/s
+    }
+    for (const char* name : {"particleTarget[0]_model[0]_dev[0].csv", "particleTarget[1]_model[0]_dev[0].csv",
+                             "gridTarget[0]_dev[0].csv", "gridTarget[1]_dev[0].csv"}) {
+      const Csv c = read_csv(dir / name);
+      ASSERT_FALSE(c.rows.empty()) << name;
+      const bool zero = std::string(name).find("Target[1]") == std::string::npos
+                            ? std::string(name).rfind("grid", 0) == 0  // gridTarget[0]: Sum
+                            : std::string(name).rfind("particle", 0) == 0;  // particleTarget[1]: Count
+      for (const auto& row : c.rows) {
+        ASSERT_EQ(row.size(), 2u) << name;
+        if (zero) EXPECT_EQ(row[1], 0.0) << name;
+        else EXPECT_TRUE(std::isnan(row[1])) << name << ": " << row[1];
+      }
+    }
+  }
 }
 
 }  // namespace

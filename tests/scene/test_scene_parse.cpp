@@ -2,6 +2,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <limits>
 #include <string>
 #include <vector>
@@ -921,6 +923,177 @@ TEST(SceneWrite, RoundTripOfASceneBuiltInCode) {
   w.time = {0.5, kInf};
   s.boundaries.push_back(w);
   expect_round_trip(s);
+}
+
+
+// ---------------------------------------------------------------------------------------------------------------
+// ClaymoreUW's silent tolerances that its HEAD scenes rely on (issue 31): each runs with exactly one warning that
+// names the key, what ClaymoreUW does and what fbar does.
+
+/// The warnings that contain `needle`.
+std::vector<std::string> with(const std::vector<std::string>& warnings, const std::string& needle) {
+  std::vector<std::string> out;
+  for (const std::string& w : warnings)
+    if (w.find(needle) != std::string::npos) out.push_back(w);
+  return out;
+}
+
+// ClaymoreUW's YIELD scene gives a cylinder both axis and long_axis ("Z"); ClaymoreUW reads axis only.
+TEST(ClaymoreUWTolerances, CylinderAxisAndLongAxis) {
+  auto cylinder = [](const std::string& keys) {
+    return scene_with(R"({"material": {}, "geometry": [{"object": "Cylinder", "radius": 0.1, "span": [0.2, 0.2, 0.2],
+                         "offset": [0.3, 0.3, 0.3], )" + keys + "}]}");
+  };
+  std::vector<std::string> warnings;
+  Scene s = parse(cylinder(R"("axis": "Z", "long_axis": "Z")"), true, &warnings);
+  EXPECT_EQ(s.bodies[0].geometry[0].axis, 2);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_EQ(warnings[0], "bodies[0].geometry[0].long_axis: \"Z\" is redundant: ClaymoreUW ignores long_axis and reads "
+                         "axis; fbar checks that the two agree and uses axis (\"Z\")");
+  // Disagreeing: an error that says which one ClaymoreUW would use.
+  EXPECT_NE(error_of(cylinder(R"("axis": "Y", "long_axis": "Z")"))
+                .find("bodies[0].geometry[0].long_axis: got \"Z\"; expected the same axis as axis (\"Y\"), or only one "
+                      "of them: ClaymoreUW would use axis and ignore long_axis"),
+            std::string::npos);
+  // long_axis alone is fbar's alias of axis, without a warning.
+  warnings.clear();
+  s = parse(cylinder(R"("long_axis": "Y")"), true, &warnings);
+  EXPECT_EQ(s.bodies[0].geometry[0].axis, 1);
+  EXPECT_TRUE(warnings.empty());
+  // An unknown key beside them stays an error.
+  EXPECT_NE(error_of(cylinder(R"("axis": "Z", "long_axes": "Z")")).find("long_axes"), std::string::npos);
+}
+
+// ClaymoreUW's DKT_2D scene has a particle sensor with domain_end[0] < domain_start[0]: it runs, the box holds
+// nothing. Grid sensors the same; a boundary box stays an error; a zero-length grid-sensor box grows by one cell.
+TEST(ClaymoreUWTolerances, InvertedSensorBoxesRunEmpty) {
+  std::vector<std::string> warnings;
+  const Scene s = parse(scene_with(body(), R"("particle-sensors": [{"attribute": "Position_Y", "operation": "Max",
+      "domain_start": [0.0099, 0, 0], "domain_end": [0.0011, 0.08, 0.0001]}],
+      "grid-sensors": [{"attribute": "Mass", "domain_start": [0, 0.5, 0], "domain_end": [1, 0.2, 0.1]},
+                       {"attribute": "Mass", "domain_start": [0.2, 0.2, 0.2], "domain_end": [0.2, 0.4, 0.4]}])"),
+                        true, &warnings);
+  ASSERT_EQ(warnings.size(), 2u);
+  EXPECT_EQ(warnings[0].rfind("grid-sensors[0].domain_end[1]: 0.2 m is below domain_start[1] (0.5 m): the sensor's box "
+                              "holds nothing. ClaymoreUW runs the scene with this empty sensor; fbar runs it too and "
+                              "writes the sensor's file with 0 for Sum and Count and NaN for Max",
+                              0),
+            0u)
+      << warnings[0];
+  EXPECT_EQ(warnings[1].rfind("particle-sensors[0].domain_end[0]: 0.0011 m is below domain_start[0] (0.0099 m)", 0), 0u)
+      << warnings[1];
+  ASSERT_EQ(s.particle_sensors.size(), 1u);
+  EXPECT_EQ(s.particle_sensors[0].domain_start[0], 0.0099);  // kept as given: the box contains nothing
+  EXPECT_EQ(s.particle_sensors[0].domain_end[0], 0.0011);
+  EXPECT_EQ(s.grid_sensors[0].domain_end[1], 0.2);
+  EXPECT_EQ(s.grid_sensors[1].domain_end[0], 0.2 + 0.05);  // zero length along x: one cell (dx 0.05), as ClaymoreUW
+  EXPECT_EQ(s.grid_sensors[1].domain_end[1], 0.4);
+  EXPECT_NE(error_of(scene_with(body(), R"("boundaries": [{"object": "Box", "domain_start": [0.5, 0, 0],
+                                                          "domain_end": [0.2, 1, 1]}])"))
+                .find("boundaries[0].domain_end[0]: got 0.2; expected a number > domain_start[0] (0.5)"),
+            std::string::npos);
+}
+
+// ClaymoreUW's scene.json tracks IDs 100000.. of bodies with fewer particles; geometry outside the partition is
+// dropped silently by ClaymoreUW; particles outside the domain (YIELD: below y = 0) it keeps in its grid margin.
+// The test scene shipped in tests/scenes/good has one of each: one warning each, with the counts.
+TEST(ClaymoreUWTolerances, TrackedIdsPartitionAndDomainDropsWarnWithCounts) {
+  std::vector<std::string> warnings;
+  ParseOptions o;
+  o.warnings = &warnings;
+  const Scene s =
+      parse_scene_file(std::string(FBAR_SCENE_TEST_DIR) + "/../scenes/good/claymoreuw_tolerances.json", o);
+  ASSERT_EQ(warnings.size(), 6u);
+  const auto ids = with(warnings, "track_particle_id");
+  ASSERT_EQ(ids.size(), 1u);
+  EXPECT_EQ(ids[0], "bodies[0].track_particle_id[1]: 100000 is not the ID of one of the body's 64 particles (0 .. 63, "
+                    "in sampling order); ClaymoreUW matches no particle and writes 0.0 for it every frame; fbar writes "
+                    "NaN in its columns of particleTrack_model[0]_dev[0].csv");
+  const auto domain = with(warnings, "outside simulation.domain");
+  ASSERT_EQ(domain.size(), 1u);
+  EXPECT_EQ(domain[0].rfind("bodies[0].geometry: 64 of the body's 128 particles lie outside simulation.domain [0, 0.4] "
+                            "x [0, 0.4] x [0, 0.4] m and are dropped (64 remain); ClaymoreUW keeps them in its grid's "
+                            "8-cell margin",
+                            0),
+            0u)
+      << domain[0];
+  const auto partition = with(warnings, "partition_start/partition_end");
+  ASSERT_EQ(partition.size(), 1u);
+  EXPECT_EQ(partition[0], "bodies[1].partition_start/partition_end: 24 of the 48 particles of the body's geometry lie "
+                          "outside [0, 0, 0] .. [0.25, 0.4, 0.4] m and are dropped; ClaymoreUW drops them too, without "
+                          "a word");
+  EXPECT_EQ(with(warnings, "long_axis").size(), 1u);
+  EXPECT_EQ(with(warnings, "the sensor's box holds nothing").size(), 2u);
+  // The counts the engines sample.
+  EXPECT_EQ(sample_body(s.bodies[0], s.simulation, 0).size(), 64u);
+  EXPECT_EQ(sample_body(s.bodies[1], s.simulation, 1).size(), 24u);
+  // IDs within the body: no warning.
+  warnings.clear();
+  parse(scene_with(body(R"({"constitutive": "JFluid"})", R"("track_particle_id": [0, 63])")), true, &warnings);
+  EXPECT_TRUE(warnings.empty()) << warnings.front();
+}
+
+// Asset files (geometry and motion files) are found where ClaymoreUW users keep them and where fbar ships them:
+// the name as written under the scene's folder, then the file's own name in each folder and its motion/ and
+// geometry/ subfolders (fbar's Data/motion/ holds ClaymoreUW's wave-maker series).
+TEST(ClaymoreUWTolerances, AssetFilesAreFoundInOneOrder) {
+  namespace fs = std::filesystem;
+  const fs::path root = fs::path(::testing::TempDir()) / "fbar_asset_lookup";
+  fs::remove_all(root);
+  fs::create_directories(root / "scenes");
+  const fs::path shipped = fs::path(FBAR_SCENE_TEST_DIR) / ".." / ".." / "Data" / "motion" /
+                           "wmdisp_hydro2sec_1200hz_smooth_14032023.csv";
+  ASSERT_TRUE(fs::is_regular_file(shipped)) << shipped;
+  fs::copy_file(shipped, root / "mine.csv");
+  fs::copy_file(shipped, root / "scenes" / "near.csv");
+  auto scene_file = [&](const std::string& file) {
+    std::ofstream out(root / "scenes" / "scene.json");
+    out << scene_with(body(), R"("boundaries": [{"object": "OSU Paddle", "domain_start": [0, 0, 0],
+        "domain_end": [0.05, 1, 1], "time": [10, 20], "file": ")" + file + R"("}])");
+  };
+  std::vector<std::string> warnings;
+  ParseOptions o;
+  o.warnings = &warnings;
+  auto resolved = [&](const std::string& file) {
+    warnings.clear();
+    scene_file(file);
+    return fs::path(parse_scene_file((root / "scenes" / "scene.json").string(), o).boundaries.at(0).file);
+  };
+  // A bare name of a file fbar ships: Data/motion/, without a warning.
+  EXPECT_EQ(fs::canonical(resolved("wmdisp_hydro2sec_1200hz_smooth_14032023.csv")), fs::canonical(shipped));
+  EXPECT_TRUE(warnings.empty());
+  // ClaymoreUW's "..//name" relative to the scene's folder (the Create scene's form): found as written.
+  EXPECT_EQ(fs::canonical(resolved("..//mine.csv")), fs::canonical(root / "mine.csv"));
+  EXPECT_TRUE(warnings.empty());
+  // A name with folders that do not hold it: its file name in a search folder, with one warning.
+  EXPECT_EQ(fs::canonical(resolved("../elsewhere/near.csv")), fs::canonical(root / "scenes" / "near.csv"));
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("boundaries[0].file: \"../elsewhere/near.csv\" is not found as written; using "),
+            std::string::npos)
+      << warnings[0];
+  // Nowhere: the error names the file and every place looked at (ClaymoreUW's resume scene without its checkpoint).
+  scene_file("../checkpoint/model[0]_dev[0]_frame[20].bgeo");
+  try {
+    parse_scene_file((root / "scenes" / "scene.json").string(), o);
+    ADD_FAILURE() << "a missing file parsed";
+  } catch (const SceneError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("boundaries[0].file: got \"../checkpoint/model[0]_dev[0]_frame[20].bgeo\"; expected an existing "
+                        "file (looked for " + (root / "checkpoint" / "model[0]_dev[0]_frame[20].bgeo").string()),
+              std::string::npos)
+        << what;
+    EXPECT_NE(what.find("model[0]_dev[0]_frame[20].bgeo in each of those folders and their motion/ and geometry/ "
+                        "subfolders"),
+              std::string::npos)
+        << what;
+  }
+}
+
+// HydroUQ's ppc 27.000001 (ClaymoreUW's YIELD and DKT_2D scenes) samples ClaymoreUW's dx / 3 lattice: exactly 27
+// particles per full cell.
+TEST(ClaymoreUWTolerances, NearlyCubicPpcIsTheLattice) {
+  const Scene s = parse(scene_with(body(R"({"constitutive": "JFluid", "ppc": 27.000001})")));
+  EXPECT_EQ(sample_body(s.bodies[0], s.simulation, 0).size(), 4u * 4u * 4u * 27u);  // 0.2 m box, dx 0.05
 }
 
 }  // namespace

@@ -129,14 +129,6 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     // Counted, not stored: --check and the memory plan cost no host memory per particle.
     counts.push_back(BodySampler(body, sim, static_cast<int>(i)).count(dx));
     const SampleCount& count = counts.back();
-    // Tracked IDs count from 0 in sampling order: one past the body's particles is the scene's mistake, found now
-    // rather than at the first tracker row.
-    for (std::size_t k = 0; k < body.track_particle_id.size(); ++k)
-      if (body.track_particle_id[k] >= count.particles)
-        throw SceneError("bodies[" + std::to_string(i) + "].track_particle_id[" + std::to_string(k) + "]",
-                         std::to_string(body.track_particle_id[k]),
-                         "the ID of one of the body's " + std::to_string(count.particles) +
-                             " particles (0 .. " + std::to_string(count.particles - 1) + ", in sampling order)");
     const MaterialFacts facts = material_facts(m);
     BodySummary s;
     s.particles = count.particles;

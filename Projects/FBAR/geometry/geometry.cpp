@@ -101,8 +101,8 @@ bool in_closed_box(const Vec3d& p, const Vec3d& lo, const Vec3d& hi) {
 
 [[noreturn]] void throw_no_particles(const std::string& path) {
   throw SceneError(path, "0 particles",
-                   "at least one particle: the geometry after its operations and the partition_start/partition_end "
-                   "clip must contain a sampling point");
+                   "at least one particle: the geometry after its operations, the partition_start/partition_end "
+                   "clip and simulation.domain must contain a sampling point");
 }
 
 /// The seeds (particle_seed.h) of a point file's particles from its attributes (names g.input_attribs, point-major):
@@ -155,8 +155,11 @@ SamplingPattern sampling_pattern(double ppc) {
   if (!(ppc > 0.0) || !std::isfinite(ppc)) throw std::invalid_argument("ppc must be a positive finite number");
   SamplingPattern p;
   p.ppc = ppc;
+  // A cube within 1e-6 (relative) is a cube: HydroUQ writes ppc 27.000001, which ClaymoreUW samples on its
+  // lattice of spacing dx / cbrt(ppc), 4e-9 off dx / 3 (read_scene_input.h make_box, L452).
   const long long n = std::llround(std::cbrt(ppc));
-  if (n >= 1 && static_cast<double>(n * n * n) == ppc) {
+  const double cube = static_cast<double>(n * n * n);
+  if (n >= 1 && std::fabs(ppc - cube) <= 1e-6 * cube) {
     p.lattice = true;
     p.per_axis = static_cast<int>(n);
   } else {
@@ -448,8 +451,11 @@ struct BlockTally {
 
 }  // namespace
 
-BodySampler::BodySampler(const BodySpec& body, const SimulationSpec& sim, int body_index)
-    : body_index_(body_index), seed_(sim.seed), path_("bodies[" + std::to_string(body_index) + "].geometry") {
+BodySampler::BodySampler(const BodySpec& body, const SimulationSpec& sim, int body_index, SamplerClip clip)
+    : body_index_(body_index),
+      seed_(sim.seed),
+      path_("bodies[" + std::to_string(body_index) + "].geometry"),
+      clip_domain_(clip.domain) {
   const std::string body_path = "bodies[" + std::to_string(body_index) + "]";
   const std::string& path = path_;
   if (!(sim.dx > 0.0) || !std::isfinite(sim.dx))
@@ -462,8 +468,9 @@ BodySampler::BodySampler(const BodySpec& body, const SimulationSpec& sim, int bo
   if (body.geometry.empty()) throw SceneError(path, "[]", "at least one geometry entry");
 
   shape_ = std::make_shared<BodyShape>(body.geometry, body_index, sim.froude_scaling);
-  part_lo_ = to_vec(body.partition_start);
-  part_hi_ = to_vec(body.partition_end);
+  const double inf = std::numeric_limits<double>::infinity();
+  part_lo_ = clip.partition ? to_vec(body.partition_start) : Vec3d{{-inf, -inf, -inf}};
+  part_hi_ = clip.partition ? to_vec(body.partition_end) : Vec3d{{inf, inf, inf}};
   domain_ = Vec3d{{sim.domain[0], sim.domain[1], sim.domain[2]}};
   // Point-file particles: the partition clip (half-open, as the lattice) and the later entries' operations. A
   // particle frame (.bgeo, .h5) is not clipped: ClaymoreUW reads frames without the partition (its resume scenes
@@ -481,7 +488,7 @@ BodySampler::BodySampler(const BodySpec& body, const SimulationSpec& sim, int bo
       const Vec3d& p = pts[i];
       const bool inside_partition = p[0] >= part_lo_[0] && p[0] < part_hi_[0] && p[1] >= part_lo_[1] &&
                                     p[1] < part_hi_[1] && p[2] >= part_lo_[2] && p[2] < part_hi_[2];
-      if (!((inside_partition || !clipped) && shape_->survives(p, set.entry))) continue;
+      if (!((inside_partition || !clipped) && !outside_domain(p) && shape_->survives(p, set.entry))) continue;
       if (kept != i) {
         pts[kept] = p;
         if (seeded)
@@ -507,6 +514,10 @@ BodySampler::BodySampler(const BodySpec& body, const SimulationSpec& sim, int bo
   for (int d = 0; d < 3; ++d) {
     box.lo[d] = std::max(box.lo[d], part_lo_[d]);
     box.hi[d] = std::min(box.hi[d], part_hi_[d]);
+    if (clip_domain_) {
+      box.lo[d] = std::max(box.lo[d], 0.0);
+      box.hi[d] = std::min(box.hi[d], domain_[d]);
+    }
   }
   if (box.empty()) {  // no solid to sample: only point files (or nothing)
     if (points_.empty()) throw_no_particles(path);
@@ -539,7 +550,7 @@ void BodySampler::visit_plane(long long ix, F&& f) const {
   // (ClaymoreUW's inside_partition) gives each point to exactly one of them.
   auto keep = [&](const Vec3d& p) {
     return p[0] >= part_lo_[0] && p[0] < part_hi_[0] && p[1] >= part_lo_[1] && p[1] < part_hi_[1] &&
-           p[2] >= part_lo_[2] && p[2] < part_hi_[2] && shape_->contains(p);
+           p[2] >= part_lo_[2] && p[2] < part_hi_[2] && !outside_domain(p) && shape_->contains(p);
   };
   const double ppc_floor = std::floor(pattern_.ppc);
   const double ppc_frac = pattern_.ppc - ppc_floor;
@@ -593,20 +604,8 @@ void BodySampler::sample_planes(long long first, long long last, std::vector<Vec
   }
 }
 
-void BodySampler::check_inside_domain(std::size_t outside, std::size_t total, const Vec3d& first_outside) const {
-  if (outside == 0) return;
-  // The engine owns its boundary margins; here we only refuse particles outside the simulated box itself.
-  throw SceneError(path_,
-                   std::to_string(outside) + " of " + std::to_string(total) +
-                       " particles outside simulation.domain [0, " + fmt(domain_[0]) + "] x [0, " + fmt(domain_[1]) +
-                       "] x [0, " + fmt(domain_[2]) + "], first at " + fmt3(first_outside),
-                   "every particle inside simulation.domain (move or shrink the geometry, or clip it with "
-                   "partition_start/partition_end)",
-                   "m");
-}
-
 bool BodySampler::outside_domain(const Vec3d& p) const {
-  return p[0] < 0.0 || p[1] < 0.0 || p[2] < 0.0 || p[0] > domain_[0] || p[1] > domain_[1] || p[2] > domain_[2];
+  return clip_domain_ && (p[0] < 0.0 || p[1] < 0.0 || p[2] < 0.0 || p[0] > domain_[0] || p[1] > domain_[1] || p[2] > domain_[2]);
 }
 
 SampleCount BodySampler::count(double dx) const {
@@ -617,22 +616,13 @@ SampleCount BodySampler::count(double dx) const {
   for (const BlockCount& b : c.blocks) tally.blocks[{b.bx, b.by, b.bz}] += b.particles;
   c.blocks.clear();
   const double inv_dx = 1.0 / dx;
-  std::size_t outside = 0;
-  Vec3d first_outside{};
   for (long long chunk = 0; chunk < point_chunks_; ++chunk) {
     const std::size_t begin = static_cast<std::size_t>(chunk * kPointChunk);
     const std::size_t end = std::min(points_.size(), begin + static_cast<std::size_t>(kPointChunk));
     c.per_plane.push_back(static_cast<long long>(end - begin));
-    for (std::size_t i = begin; i < end; ++i) {
-      if (outside_domain(points_[i])) {
-        if (outside++ == 0) first_outside = points_[i];
-        continue;
-      }
-      tally.add(points_[i], inv_dx);
-    }
+    for (std::size_t i = begin; i < end; ++i) tally.add(points_[i], inv_dx);
   }
   c.particles += static_cast<long long>(points_.size());
-  check_inside_domain(outside, static_cast<std::size_t>(c.particles), first_outside);
   tally.emit(c);
   return c;
 }
@@ -656,39 +646,21 @@ SampleCount BodySampler::count_lattice(double dx, bool may_be_empty) const {
   SampleCount c;
   std::vector<std::uint32_t> counts(static_cast<std::size_t>(dense), 0u);
   c.per_plane.assign(static_cast<std::size_t>(count_[0]), 0);
-  std::size_t particles = 0, outside = 0;
-  long long first_outside_plane = count_[0];
-  Vec3d first_outside{};
-#pragma omp parallel for schedule(dynamic, 1) reduction(+ : particles, outside)
+  std::size_t particles = 0;
+#pragma omp parallel for schedule(dynamic, 1) reduction(+ : particles)
   for (long long ix = 0; ix < count_[0]; ++ix) {
-    bool plane_outside = false;
-    Vec3d plane_first{};
     long long in_plane = 0;
     visit_plane(ix, [&](const Vec3d& p) {
       ++particles;
       ++in_plane;
-      if (outside_domain(p)) {
-        if (!plane_outside) plane_first = p;
-        plane_outside = true;
-        ++outside;
-        return;
-      }
       const long long b0 = block_of(p[0]) - blo[0], b1 = block_of(p[1]) - blo[1], b2 = block_of(p[2]) - blo[2];
       std::uint32_t& slot = counts[static_cast<std::size_t>((b0 * bn[1] + b1) * bn[2] + b2)];
 #pragma omp atomic
       ++slot;
     });
     c.per_plane[static_cast<std::size_t>(ix)] = in_plane;
-    if (plane_outside) {
-#pragma omp critical(fbar_count_outside)
-      if (ix < first_outside_plane) {
-        first_outside_plane = ix;
-        first_outside = plane_first;
-      }
-    }
   }
   if (particles == 0 && !may_be_empty) throw_no_particles(path_);
-  check_inside_domain(outside, particles, first_outside);
   c.particles = static_cast<long long>(particles);
   for (long long i = 0; i < bn[0]; ++i)
     for (long long j = 0; j < bn[1]; ++j)
@@ -705,22 +677,15 @@ SampleCount BodySampler::count_sparse(double dx, bool may_be_empty) const {
   SampleCount c;
   BlockTally tally;
   const double inv_dx = 1.0 / dx;
-  std::size_t outside = 0;
-  Vec3d first_outside{};
   c.per_plane.assign(static_cast<std::size_t>(count_[0]), 0);
   for (long long ix = 0; ix < count_[0]; ++ix) {
     visit_plane(ix, [&](const Vec3d& p) {
       ++c.particles;
       ++c.per_plane[static_cast<std::size_t>(ix)];
-      if (outside_domain(p)) {
-        if (outside++ == 0) first_outside = p;
-        return;
-      }
       tally.add(p, inv_dx);
     });
   }
   if (c.particles == 0 && !may_be_empty) throw_no_particles(path_);
-  check_inside_domain(outside, static_cast<std::size_t>(c.particles), first_outside);
   tally.emit(c);
   return c;
 }
@@ -774,16 +739,34 @@ std::vector<Vec3d> sample_body(const BodySpec& body, const SimulationSpec& sim, 
   std::vector<Vec3d> points;
   sampler.sample_planes(0, sampler.planes(), points);
   if (points.empty()) throw_no_particles(sampler.path());
-  std::size_t outside = 0;
-  const Vec3d* first_outside = nullptr;
-  for (const Vec3d& p : points)
-    if (sampler.outside_domain(p)) {
-      if (!first_outside) first_outside = &p;
-      ++outside;
-    }
-  if (outside > 0) sampler.check_inside_domain(outside, points.size(), *first_outside);
   if (seeds) *seeds = sampler.take_seeds(static_cast<long long>(points.size()));
   return points;
+}
+
+BodyDrops body_drops(const BodySpec& body, const SimulationSpec& sim, int body_index) {
+  BodyDrops out;
+  const BodySampler clipped(body, sim, body_index);
+  out.particles = clipped.count(sim.dx).particles;
+  const BodySampler in_partition(body, sim, body_index, SamplerClip{true, false});
+  const long long partition_particles = in_partition.count(sim.dx).particles;
+  out.outside_domain = partition_particles - out.particles;
+  bool open = true;  // no partition given: nothing to drop
+  for (int d = 0; d < 3; ++d)
+    open = open && std::isinf(body.partition_start[d]) && body.partition_start[d] < 0 &&
+           std::isinf(body.partition_end[d]) && body.partition_end[d] > 0;
+  if (open) return out;
+  try {
+    const BodySampler whole(body, sim, body_index, SamplerClip{false, false});
+    if (whole.candidates() > 4.0 * in_partition.candidates() + 67108864.0) {
+      out.partition_counted = false;
+      return out;
+    }
+    const SampleCount all = whole.count(sim.dx);
+    out.outside_partition = all.particles - partition_particles;
+  } catch (const SceneError&) {  // an unbounded geometry, or too many points: the partition is what bounds it
+    out.partition_counted = false;
+  }
+  return out;
 }
 
 }  // namespace fbar

@@ -26,8 +26,9 @@
 //    so an Add after a Subtract is "impervious to the prior subtraction" (seed 0.4.2). Every test is closed
 //    (a point on the surface is inside).
 //  * partition_start / partition_end clip the sampled points to the half-open box [start, end) (as ClaymoreUW's
-//    inside_partition, so a body split across GPUs at a shared plane has every point exactly once), before the
-//    domain check.
+//    inside_partition, so a body split across GPUs at a shared plane has every point exactly once); then points
+//    outside [0, simulation.domain] are dropped (ClaymoreUW keeps them in its 8-cell grid margin; fbar's engines
+//    hold particles inside the domain only). body_drops() counts both; the scene parser warns with the counts.
 //
 // Sampling (per grid cell of edge dx = simulation.default_dx):
 //  * ppc = n^3 (1, 8, 27, 64, ...): regular lattice of spacing h = dx/n aligned to the grid, cell-centred
@@ -152,20 +153,29 @@ struct SampleCount {
 /// One body's sampling, split by x-plane of the candidate lattice so that it can be counted first and then produced
 /// in bounded batches (the GPU engine uploads each batch before sampling the next: host memory stays O(batch)).
 /// sample_planes(0, planes()) is exactly sample_body()'s output, in the same order.
+/// Which clips a BodySampler applies. A body's particles are its geometry's, less those outside
+/// [partition_start, partition_end) (half-open; not for .bgeo / .h5 frames) and those outside [0, simulation.domain]
+/// (closed). Both are on for every run; body_drops() turns them off to count what they drop.
+struct SamplerClip {
+  bool partition = true;
+  bool domain = true;
+};
+
 class BodySampler {
  public:
   /// Validates the body's sampling inputs; throws SceneError as sample_body does.
-  BodySampler(const BodySpec& body, const SimulationSpec& sim, int body_index);
+  BodySampler(const BodySpec& body, const SimulationSpec& sim, int body_index, SamplerClip clip = {});
+  /// Candidate lattice points (or cells) of the solid entries: the cost of count() and of sampling.
+  double candidates() const { return static_cast<double>(count_[0]) * count_[1] * count_[2]; }
   /// Batches: the x-planes of the candidate lattice, then the particles of point files in chunks of kPointChunk.
   long long planes() const { return count_[0] + point_chunks_; }
   static constexpr long long kPointChunk = 1 << 20;
   /// Appends the points of planes [first, last) in order (OpenMP over planes, deterministic).
   void sample_planes(long long first, long long last, std::vector<Vec3d>& out) const;
   /// Counts particles and particles per block (OpenMP over planes). Throws SceneError, as sample_body, when no
-  /// particle remains or any lies outside simulation.domain.
+  /// particle remains.
   SampleCount count(double dx) const;
   bool outside_domain(const Vec3d& p) const;
-  void check_inside_domain(std::size_t outside, std::size_t total, const Vec3d& first_outside) const;
   const std::string& path() const { return path_; }
   /// The seeds of the point-file particles (has_attributes; empty when no entry has attributes), which are the last
   /// point_particles() of the body's total_particles in ID order. Hands them over (call once).
@@ -187,6 +197,7 @@ class BodySampler {
   SamplingPattern pattern_;
   std::shared_ptr<BodyShape> shape_;
   Vec3d part_lo_{}, part_hi_{}, domain_{};
+  bool clip_domain_ = true;
   std::vector<Vec3d> points_;    ///< point-file particles kept (partition clip, later operations), in order
   std::vector<double> seeds_;    ///< their seeds (kSeedScalars each), or empty
   long long point_chunks_ = 0;
@@ -197,9 +208,21 @@ class BodySampler {
 /// The same counts for given points (tests, restarts).
 SampleCount count_points(const std::vector<Vec3d>& points, double dx);
 
-/// Samples body `body_index` of a scene (see the file comment for every convention).
-/// Throws SceneError at "bodies[i].geometry" when any particle lies outside [0, simulation.domain] (the message
-/// counts them and names the first), when no particle remains, or when the candidate lattice is unreasonably large
+/// What the clips of a body drop (ClaymoreUW drops geometry outside the partition without a word, and keeps particles
+/// outside its domain within its 8-cell grid margin; fbar's engines hold particles inside [0, domain] only).
+struct BodyDrops {
+  long long particles = 0;          ///< the body's particles (both clips)
+  long long outside_partition = 0;  ///< geometry particles outside [partition_start, partition_end)
+  long long outside_domain = 0;     ///< particles inside the partition but outside [0, simulation.domain]
+  bool partition_counted = true;    ///< false: the unclipped geometry is too large to count (outside_partition = 0)
+};
+/// Counts a body's particles with and without its clips (up to three counts; the unclipped one only when its
+/// candidate lattice is at most 4 x the clipped one's + 2^26 points). Throws SceneError as sample_body does.
+BodyDrops body_drops(const BodySpec& body, const SimulationSpec& sim, int body_index);
+
+/// Samples body `body_index` of a scene (see the file comment for every convention). Particles outside the
+/// partition or outside [0, simulation.domain] are dropped (body_drops counts them).
+/// Throws SceneError at "bodies[i].geometry" when no particle remains, or when the candidate lattice is unreasonably large
 /// (> 2^36 points); invalid entries throw at "bodies[i].geometry[j].<key>"; a bad ppc throws at
 /// "bodies[i].material.ppc".
 /// `seeds`, when given, receives the seeds of point files read with has_attributes (empty when none).

@@ -456,19 +456,20 @@ void TrackerRecorder::record(std::size_t k, double time, std::vector<double> val
     transport_->allreduce_sum(values.data(), static_cast<int>(values.size()));
     transport_->allreduce_sum(present.data(), static_cast<int>(present.size()));
   }
+  // An ID on no rank is not a particle of the body (the parser warned: the body has fewer particles, and engines
+  // never remove one): its columns read NaN. ClaymoreUW writes 0 for it.
   for (int i = 0; i < t.set.ids; ++i)
-    if (present[i] != 1.0)
+    if (present[i] > 1.0)
       throw std::runtime_error("bodies[" + std::to_string(t.body) + "].track_particle_id: particle ID " +
-                               std::to_string(t.set.id[i]) +
-                               (present[i] == 0.0 ? " does not exist (the body has fewer particles)"
-                                                  : " is held by several ranks (an engine error)"));
+                               std::to_string(t.set.id[i]) + " is held by several ranks (an engine error)");
   std::FILE* f = files_[k];
   if (!f) return;
   std::fprintf(f, "%.12g", time);
   for (int a = 0; a < t.set.attribs; ++a)
     for (long long id : t.ids) {
       const int i = tracker_index(t.set, static_cast<int>(id));
-      std::fprintf(f, ",%.9g", values[static_cast<std::size_t>(i) * t.set.attribs + a]);
+      if (present[i] == 1.0) std::fprintf(f, ",%.9g", values[static_cast<std::size_t>(i) * t.set.attribs + a]);
+      else std::fprintf(f, ",nan");
     }
   std::fprintf(f, "\n");
   if (std::fflush(f) != 0)

@@ -85,8 +85,8 @@ class TrackerRecorder {
   /// Whether a tracker reads velocities (the steps landing on frame times must keep v and C).
   bool reads_velocity() const { return reads_velocity_; }
   /// Reduces tracker k's sample over ranks (values: set.ids x set.attribs in sorted-ID order, 0 where absent;
-  /// present: per sorted ID, 1 on the rank holding it) and writes its row (rank 0). Every rank calls it. Throws
-  /// std::runtime_error when an ID is on no rank (no such particle) or on several.
+  /// present: per sorted ID, 1 on the rank holding it) and writes its row (rank 0). Every rank calls it. An ID on
+  /// no rank (not a particle of the body) is written as nan; throws std::runtime_error when one is on several.
   void record(std::size_t k, double time, std::vector<double> values, std::vector<double> present);
   /// Name and length [bytes] of every file this rank writes (for a checkpoint).
   void file_sizes(std::vector<std::pair<std::string, long long>>& out) const;

@@ -408,41 +408,52 @@ struct Context {
     warn(path + ": ignored (" + expected + ")");
   }
 
-  /// Resolves a file name against the search directories; throws naming the directories searched.
+  /// Resolves a file name (the one lookup of every asset: geometry files, motion files). Search order (user guide
+  /// §2.9 "Where files are found"): an absolute path as written; else the name as written under each search folder
+  /// (--data-dir, $AssetDirPath, the scene's folder, fbar's Data/); else the file's own name in each of those folders
+  /// and in their motion/ and geometry/ subfolders (where fbar ships ClaymoreUW's files). A name with folders found
+  /// only by its file name is used with a warning. Throws naming every place looked at.
   std::string resolve_file(const rj::Value& v, const std::string& path) const {
     const std::string name = read_string(v, path, "a file path");
     if (name.empty()) throw SceneError(path, json_text(v), "a file path");
     const fs::path p(name);
     std::vector<std::string> tried;
+    auto found = [](const fs::path& candidate) {
+      std::error_code ec;
+      return fs::is_regular_file(candidate, ec);
+    };
+    auto absolute = [](const fs::path& candidate) {
+      std::error_code ec;
+      return fs::absolute(candidate, ec).lexically_normal().string();
+    };
     if (p.is_absolute()) {
-      if (fs::is_regular_file(p)) return p.lexically_normal().string();
-      tried.push_back(p.string());
+      if (found(p)) return p.lexically_normal().string();
+      tried.push_back(p.lexically_normal().string());
     } else {
       for (const auto& dir : search_dirs) {
         const fs::path candidate = dir / p;
-        std::error_code ec;
-        if (fs::is_regular_file(candidate, ec)) return fs::absolute(candidate, ec).lexically_normal().string();
-        tried.push_back(candidate.string());
-      }
-      // ClaymoreUW opens "./" + name from its working folder, so its scenes carry paths like "../x.csv" that only
-      // hold there. Then the file's own name is looked up in each folder and its geometry/ and motion/ subfolders
-      // (Data/ keeps ClaymoreUW's files there), with a warning that says where it was found.
-      const fs::path base = p.filename();
-      if (!base.empty() && base != p) {
-        for (const auto& dir : search_dirs)
-          for (const fs::path& sub : {fs::path(), fs::path("motion"), fs::path("geometry")}) {
-            const fs::path candidate = dir / sub / base;
-            std::error_code ec;
-            if (fs::is_regular_file(candidate, ec)) {
-              const std::string found = fs::absolute(candidate, ec).lexically_normal().string();
-              warn(path + ": \"" + name + "\" is not found as written; using " + found +
-                   " (the same file name in a data folder)");
-              return found;
-            }
-          }
-        tried.push_back(base.string() + " in each of those folders and their motion/ and geometry/ subfolders");
+        if (found(candidate)) return absolute(candidate);
+        tried.push_back(absolute(candidate));
       }
     }
+    // ClaymoreUW opens "./" + name from its working folder, so its scenes carry names like "..//x.csv" that only
+    // hold there, or a bare name of a file fbar ships in Data/motion/ or Data/geometry/.
+    const fs::path base = p.filename();
+    if (base.empty()) throw SceneError(path, json_text(v), "an existing file (looked for " + join(tried, ", ") + ")");
+    const bool bare = base == p;
+    for (const auto& dir : search_dirs)
+      for (const fs::path& sub : {fs::path(), fs::path("motion"), fs::path("geometry")}) {
+        if (bare && sub.empty()) continue;  // looked at above
+        const fs::path candidate = dir / sub / base;
+        if (!found(candidate)) continue;
+        const std::string at = absolute(candidate);
+        if (!bare)
+          warn(path + ": \"" + name + "\" is not found as written; using " + at +
+               " (the same file name in a data folder)");
+        return at;
+      }
+    tried.push_back(base.string() + (bare ? " in the motion/ and geometry/ subfolders of each of those folders"
+                                          : " in each of those folders and their motion/ and geometry/ subfolders"));
     throw SceneError(path, json_text(v), "an existing file (looked for " + join(tried, ", ") + ")");
   }
 };
@@ -925,7 +936,23 @@ GeometrySpec parse_geometry(const rj::Value& v, const std::string& path, const C
     if (auto* x = o.get("span")) sphere_span = read_real3(*x, o.sub("span"), kAny, "m");
   }
   if (g.object == GeometryObject::Cylinder) {
-    if (auto f = o.get_any({"axis", "long_axis"})) g.axis = read_enum(*f.value, f.path, kAxes);
+    const rj::Value* axis = o.get("axis");
+    const rj::Value* long_axis = o.get("long_axis");
+    if (axis) g.axis = read_enum(*axis, o.sub("axis"), kAxes);
+    if (long_axis) {
+      // ClaymoreUW reads only `axis` (read_scene_input.h L2307); HydroUQ scenes may carry long_axis beside it.
+      const int la = read_enum(*long_axis, o.sub("long_axis"), kAxes);
+      if (!axis) {
+        g.axis = la;
+      } else if (la != g.axis) {
+        throw SceneError(o.sub("long_axis"), json_text(*long_axis),
+                         std::string("the same axis as axis (") + json_text(*axis) +
+                             "), or only one of them: ClaymoreUW would use axis and ignore long_axis");
+      } else {
+        ctx.warn(o.sub("long_axis") + ": " + json_text(*long_axis) + " is redundant: ClaymoreUW ignores long_axis and "
+                 "reads axis; fbar checks that the two agree and uses axis (" + json_text(*axis) + ")");
+      }
+    }
     if (auto* x = o.get("span")) {
       // Only span[axis] (the length) is used; the cross-section comes from radius.
       g.span = read_real3(*x, o.sub("span"), kNonNegative, "m");
@@ -1136,21 +1163,37 @@ BodyRead parse_body(const rj::Value& v, const std::string& path, const Context& 
 // boundaries[], grid-sensors[], particle-sensors[]
 // ---------------------------------------------------------------------------------------------------------------
 
-/// domain_start / domain_end (both required); `strict`: end > start per axis, else end >= start.
-std::pair<Real3, Real3> read_region(ObjectReader& o, bool strict) {
+/// domain_start / domain_end (both required); `strict` (boundaries): end > start per axis, an error otherwise.
+/// A sensor's box (`ctx` given) may be inverted (end < start on some axis): ClaymoreUW runs such a scene with a
+/// sensor that holds nothing, so fbar keeps the box (it contains nothing), and warns once naming the first axis.
+std::pair<Real3, Real3> read_region(ObjectReader& o, bool strict, const Context* ctx = nullptr) {
   const rj::Value* s = o.get("domain_start");
   const rj::Value* e = o.get("domain_end");
   if (!s) o.missing("domain_start", "an array of 3 numbers", "m");
   if (!e) o.missing("domain_end", "an array of 3 numbers", "m");
   const Real3 start = read_real3(*s, o.sub("domain_start"), kAny, "m");
   const Real3 end = read_real3(*e, o.sub("domain_end"), kAny, "m");
+  std::vector<int> inverted;
   for (int d = 0; d < 3; ++d)
-    if (strict ? !(end[d] > start[d]) : !(end[d] >= start[d]))
-      throw SceneError(index_path(o.sub("domain_end"), d), num_text(end[d]),
-                       std::string("a number ") + (strict ? ">" : ">=") + " domain_start[" + std::to_string(d) + "] (" +
-                           num_text(start[d]) + "): the box is empty (ClaymoreUW's would hold nothing); swap the two "
-                           "values or correct them",
-                       "m");
+    if (strict ? !(end[d] > start[d]) : !(end[d] >= start[d])) {
+      if (strict || !ctx)
+        throw SceneError(index_path(o.sub("domain_end"), d), num_text(end[d]),
+                         std::string("a number ") + (strict ? ">" : ">=") + " domain_start[" + std::to_string(d) +
+                             "] (" + num_text(start[d]) + "): the box is empty; swap the two values or correct them",
+                         "m");
+      inverted.push_back(d);
+    }
+  if (!inverted.empty()) {
+    const int d = inverted.front();
+    std::string also;
+    for (std::size_t k = 1; k < inverted.size(); ++k) also += (also.empty() ? "" : ", ") + std::to_string(inverted[k]);
+    ctx->warn(index_path(o.sub("domain_end"), d) + ": " + num_text(end[d]) + " m is below domain_start[" +
+              std::to_string(d) + "] (" + num_text(start[d]) + " m)" +
+              (also.empty() ? std::string() : " (and on axis " + also + ")") +
+              ": the sensor's box holds nothing. ClaymoreUW runs the scene with this empty sensor; fbar runs it too "
+              "and writes the sensor's file with 0 for Sum and Count and NaN for Max, Min, Average, Variance and "
+              "STDEV (undefined on no values)");
+  }
   return {start, end};
 }
 
@@ -1284,7 +1327,7 @@ GridSensorSpec parse_grid_sensor(const rj::Value& v, const std::string& path, co
   }
   if (auto f = o.get_any({"output_frequency", "output_freq"}))
     s.output_frequency = read_number(*f.value, f.path, kPositive, "Hz");
-  std::tie(s.domain_start, s.domain_end) = read_region(o, false);
+  std::tie(s.domain_start, s.domain_end) = read_region(o, false, &ctx);
   s.name = read_type_label(o, "grid");
   if (auto* x = o.get("toggle")) s.toggle = read_bool(*x, o.sub("toggle"));
   o.finish();
@@ -1306,7 +1349,7 @@ ParticleSensorSpec parse_particle_sensor(const rj::Value& v, const std::string& 
   }
   if (auto f = o.get_any({"output_frequency", "output_freq"}))
     s.output_frequency = read_number(*f.value, f.path, kPositive, "Hz");
-  std::tie(s.domain_start, s.domain_end) = read_region(o, false);
+  std::tie(s.domain_start, s.domain_end) = read_region(o, false, &ctx);
   s.name = read_type_label(o, "particles");
   if (auto* x = o.get("toggle")) s.toggle = read_bool(*x, o.sub("toggle"));
   if (auto* x = o.get("direction"))  // HydroUQ writes it; a particle sensor aggregates a scalar
@@ -1475,6 +1518,59 @@ void resolve_copy_track_ids(Scene& scene, const Context& ctx) {
   }
 }
 
+/// Counts every body's particles and what its clips drop, and warns (once per body and kind) where a ClaymoreUW
+/// scene relies on a silent tolerance: geometry outside the partition (ClaymoreUW drops it without a word,
+/// read_scene_input.h L324-330), particles outside simulation.domain (ClaymoreUW keeps them in its 8-cell grid
+/// margin, settings.cuh g_offset; fbar's engines hold the domain only, so they are dropped), and tracked IDs that
+/// name no particle (ClaymoreUW writes 0.0 for them every frame; fbar writes NaN).
+void audit_bodies(const Scene& scene, const Context& ctx) {
+  const SimulationSpec& sim = scene.simulation;
+  for (std::size_t bi = 0; bi < scene.bodies.size(); ++bi) {
+    const BodySpec& b = scene.bodies[bi];
+    const std::string bp = "bodies[" + std::to_string(bi) + "]";
+    BodyDrops drops;
+    try {
+      drops = body_drops(b, sim, static_cast<int>(bi));
+    } catch (const std::exception&) {
+      continue;  // a body that cannot be sampled (a file's content, no particle) fails where it is sampled
+    }
+    if (!drops.partition_counted)
+      ctx.warn(bp + ".partition_start/partition_end: the geometry outside [" + num_text(b.partition_start[0]) + ", " +
+               num_text(b.partition_start[1]) + ", " + num_text(b.partition_start[2]) + "] .. [" +
+               num_text(b.partition_end[0]) + ", " + num_text(b.partition_end[1]) + ", " +
+               num_text(b.partition_end[2]) + "] m is dropped (not counted: the unclipped geometry is too large); "
+               "ClaymoreUW drops it too, without a word");
+    else if (drops.outside_partition > 0)
+      ctx.warn(bp + ".partition_start/partition_end: " + std::to_string(drops.outside_partition) + " of the " +
+               std::to_string(drops.outside_partition + drops.particles + drops.outside_domain) +
+               " particles of the body's geometry lie outside [" + num_text(b.partition_start[0]) + ", " +
+               num_text(b.partition_start[1]) + ", " + num_text(b.partition_start[2]) + "] .. [" +
+               num_text(b.partition_end[0]) + ", " + num_text(b.partition_end[1]) + ", " +
+               num_text(b.partition_end[2]) + "] m and are dropped; ClaymoreUW drops them too, without a word");
+    if (drops.outside_domain > 0)
+      ctx.warn(bp + ".geometry: " + std::to_string(drops.outside_domain) + " of the body's " +
+               std::to_string(drops.outside_domain + drops.particles) + " particles lie outside simulation.domain [0, " +
+               num_text(sim.domain[0]) + "] x [0, " + num_text(sim.domain[1]) + "] x [0, " + num_text(sim.domain[2]) +
+               "] m and are dropped (" + std::to_string(drops.particles) +
+               " remain); ClaymoreUW keeps them in its grid's 8-cell margin outside the domain, fbar's engines hold "
+               "particles inside the domain only");
+    std::vector<std::size_t> bad;
+    for (std::size_t k = 0; k < b.track_particle_id.size(); ++k)
+      if (b.track_particle_id[k] >= drops.particles) bad.push_back(k);
+    if (!bad.empty()) {
+      std::string more;
+      for (std::size_t k = 1; k < bad.size(); ++k)
+        more += (more.empty() ? "" : ", ") + std::to_string(b.track_particle_id[bad[k]]);
+      ctx.warn(bp + ".track_particle_id[" + std::to_string(bad.front()) + "]: " +
+               std::to_string(b.track_particle_id[bad.front()]) +
+               (more.empty() ? std::string() : " (and " + more + ")") + " is not the ID of one of the body's " +
+               std::to_string(drops.particles) + " particles (0 .. " + std::to_string(drops.particles - 1) +
+               ", in sampling order); ClaymoreUW matches no particle and writes 0.0 for it every frame; fbar writes "
+               "NaN in its columns of particleTrack_model[" + std::to_string(b.model) + "]_dev[0].csv");
+    }
+  }
+}
+
 Scene parse_document(const rj::Document& doc, Context& ctx) {
   Scene scene;
   ObjectReader root(doc, "", kTopKeys, ctx, "the scene (simulation, bodies, boundaries, grid-sensors, particle-sensors)");
@@ -1534,6 +1630,7 @@ Scene parse_document(const rj::Document& doc, Context& ctx) {
   // ClaymoreUW's default step is dx / 100 (of the scaled dx: the default is a property of the grid).
   if (!sim.default_dt_given) scene.simulation.default_dt = scene.simulation.dx / 100.0;
   resolve_copy_track_ids(scene, ctx);  // samples the bodies that list IDs per array copy (at scale)
+  audit_bodies(scene, ctx);
   return scene;
 }
 
