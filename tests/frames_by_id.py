@@ -4,14 +4,14 @@ tests/comm/mpi_placement_test.py, tests/gpu_engine/gpu_cli_ranks_test.py).
 read_run(out, ranks, label) checks run.json (status completed, `ranks` ranks), finds the last frame's CSV files
 (model[0]_dev[rank]_frame[f].csv, one per rank) and returns (run.json as a dict, {ID: [x, y, z, vx, vy, vz]}); a
 particle written twice is an error. read_frame() reads one such file; read_sensors() and max_sensor_difference()
-compare the sensor and tracker CSVs; visible_gpus_or_skip() ends a GPU test with exit 77 without a device.
+compare the sensor and tracker CSVs; visible_gpus_or_skip() ends a GPU test with exit 77 without a CUDA device;
+scene_declares_sensors() says whether a run must write sensor files.
 """
 import csv
 import glob
 import json
 import math
 import os
-import subprocess
 import sys
 
 
@@ -42,16 +42,49 @@ def read_frame(name, particles, label):
                               ("Position_X", "Position_Y", "Position_Z", "Velocity_X", "Velocity_Y", "Velocity_Z")]
 
 
-def visible_gpus_or_skip():
-    """The CUDA devices nvidia-smi lists; without one, prints why and exits 77 (ctest's SKIP_RETURN_CODE)."""
+def cuda_device_count():
+    """(count, reason): the CUDA devices the CUDA driver reports (cuInit + cuDeviceGetCount through ctypes, the
+    library the fbar binary's runtime loads; CUDA_VISIBLE_DEVICES applies), or (0, why not)."""
+    import ctypes
     try:
-        gpus = subprocess.run(["nvidia-smi", "-L"], capture_output=True, text=True, timeout=60).stdout.count("GPU ")
-    except (OSError, subprocess.SubprocessError):
-        gpus = 0
+        cuda = ctypes.CDLL("libcuda.so.1")
+    except OSError as e:
+        return 0, f"no CUDA driver library (libcuda.so.1: {e})"
+    rc = cuda.cuInit(0)
+    if rc != 0:
+        return 0, f"cuInit failed with CUresult {rc} (100 = CUDA_ERROR_NO_DEVICE)"
+    n = ctypes.c_int(0)
+    rc = cuda.cuDeviceGetCount(ctypes.byref(n))
+    if rc != 0:
+        return 0, f"cuDeviceGetCount failed with CUresult {rc}"
+    return n.value, "" if n.value else "the driver reports 0 devices"
+
+
+def visible_gpus_or_skip():
+    """The CUDA devices the driver reports; without one, prints why ("no CUDA device: ...", the reason .ci/run
+    accepts for a skip) and exits 77 (ctest's SKIP_RETURN_CODE)."""
+    gpus, reason = cuda_device_count()
     if gpus == 0:
-        print("no CUDA device: skipped")
+        print(f"no CUDA device: {reason}: skipped")
         sys.exit(77)
     return gpus
+
+
+def scene_declares_sensors(scene):
+    """Whether a scene file (JSON with // comments) has grid or particle sensors or tracked particles: then a run
+    must write sensor or tracker CSV files, and their absence is an error, not a comparison to leave out."""
+    def strip_comment(line):
+        quotes = 0
+        for i, ch in enumerate(line):
+            if ch == '"' and (i == 0 or line[i - 1] != "\\"):
+                quotes += 1
+            elif line.startswith("//", i) and quotes % 2 == 0:
+                return line[:i]
+        return line
+
+    with open(scene) as f:
+        text = "\n".join(strip_comment(line) for line in f)
+    return any(f'"{key}"' in text for key in ("grid-sensors", "particle-sensors", "track_particle_id"))
 
 
 def max_differences(many, one):

@@ -41,6 +41,9 @@ def run(label, ranks, prefix, extra):
 
 
 steps1, one, sensors1 = run("gpus1", 1, [], [])
+# A scene with sensors or trackers must write their CSVs; one without writes none (no comparison is left out).
+assert bool(sensors1) == frames_by_id.scene_declares_sensors(scene), \
+    f"one GPU wrote sensor files {sorted(sensors1)}; the scene declares sensors: {frames_by_id.scene_declares_sensors(scene)}"
 cases = [("gpus2", 2, [], ["--gpus=2"]), ("gpus2_overlap", 2, [], ["--gpus=2", "--halo-overlap=on"]),
          ("gpus3", 3, [], ["--gpus=3"])]
 if gpus >= 2 and mpiexec:
@@ -52,11 +55,10 @@ for label, n, prefix, extra in cases:
     dx, dv = frames_by_id.max_differences(many, one)
     print(f"{label}: {len(many)} particles, {steps} steps, max |dx| {dx:.3g} m, max |dv| {dv:.3g} m/s")
     assert dx < 1e-9 and dv < 1e-5, "states differ"
-    if sensors1:
-        # Node and particle sums in another order (atomics, ranks); the CSVs print 9 significant digits.
-        worst, where = frames_by_id.max_sensor_difference(sensors, sensors1, label)
-        print(f"{label}: {len(sensors)} sensor and tracker files, largest difference {worst:.3g} of the column ({where})")
-        assert worst < 1e-8, "sensor or tracker values differ"
+    # Node and particle sums in another order (atomics, ranks); the CSVs print 9 significant digits.
+    worst, where = frames_by_id.max_sensor_difference(sensors, sensors1, label)
+    print(f"{label}: {len(sensors)} sensor and tracker files, largest difference {worst:.3g} of the column ({where})")
+    assert worst < 1e-8, "sensor or tracker values differ"
     restart_from = os.path.join(work, label, "checkpoint_frame[1]_dev[0].h5")
     if label == "gpus2" and os.path.exists(restart_from):
         # Restart equality on 2 GPUs: a copy of the run's output continued from its frame-1 checkpoints (one per

@@ -151,10 +151,29 @@ void compare(Constitutive law, double dt, int steps, const GpuEngineOptions& opt
   EXPECT_LE(eL, (std::is_same_v<T, double> ? tol.J : 1e-4));
   EXPECT_LE(e_momentum, tol.momentum_rel);
   EXPECT_LE(e_grid_mass, tol.grid_mass_rel);
-  // The block did reach the floor (the walls acted): the lowest particle stopped falling at 2 m/s.
-  double min_vy = 0.0;
-  for (const auto& v : cpu.velocities(0)) min_vy = std::min(min_vy, static_cast<double>(v[1]));
-  EXPECT_GT(min_vy, -2.5);
+  // The block did reach the floor (the walls acted). Free fall alone gives every particle v_y = -2 - g t (-2.12 m/s
+  // for JFluid's 60 x 2e-4 s, -2.29 m/s for 60 x 5e-4 s), so a bound on the slowest particle proves nothing; the same
+  // scene without walls (CPU engine, same steps) is the reference: the walls' impulse on the block, (p_y - p_y,free) /
+  // M, must be upward and far beyond the engines' difference (100 tol.v), and so must the largest change of one
+  // particle's v_y. Measured on the CPU engine (double, walls of 6809431): impulse / M 0.368 / 1.367 / 1.188 / 1.348
+  // m/s and largest particle change 1.38 / 2.14 / 2.03 / 2.17 m/s (JFluid / FixedCorotated / DruckerPrager / NACC).
+  {
+    Scene free_scene = scene;
+    free_scene.boundaries.clear();
+    CpuEngine<T, TG> free_fall(free_scene, positions);
+    for (int s = 0; s < steps; ++s) ASSERT_TRUE(free_fall.step(dt).ok);
+    double m = 0, p_walls = 0, p_free = 0, largest = 0;
+    for (std::size_t p = 0; p < free_fall.particle_count(0); ++p) {
+      const double mp = static_cast<double>(cpu.masses(0)[p]);
+      const double vw = static_cast<double>(cpu.velocities(0)[p][1]), vf = static_cast<double>(free_fall.velocities(0)[p][1]);
+      m += mp, p_walls += mp * vw, p_free += mp * vf;
+      largest = std::max(largest, vw - vf);
+    }
+    std::cout << "[measured] " << to_string(law) << ": walls' impulse / M " << (p_walls - p_free) / m
+              << " m/s, largest particle v_y change " << largest << " m/s\n";
+    EXPECT_GT((p_walls - p_free) / m, 100 * tol.v) << "the walls did not act";
+    EXPECT_GT(largest, 100 * tol.v) << "the walls did not act";
+  }
 }
 
 // dt: JFluid c = sqrt(2e6/1000) = 44.7 m/s, CFL 0.5 dx / c = 5.6e-4 s -> 2e-4 s; 60 steps = 12 ms, 2.4 cm of fall

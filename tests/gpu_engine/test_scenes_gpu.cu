@@ -37,6 +37,16 @@ std::vector<fs::path> runnable_scenes() {
 // (incompressible_block.json: 4.4e-4 m/s). The GPU must then agree with the CPU as well as float agrees with double
 // (measured: granular |dv| 2.5e-3 against CPU float-vs-double 1.3e-3; incompressible block 4.6e-4 against 1.7e-4).
 // Mixed precision (float grid) is held to the single-precision tolerances.
+// The velocity tolerance is fixed per scene, not read off the run (a tolerance that widened with the scene's own
+// float-vs-double difference would widen for a scene that went wrong): 1e-4 m/s for every scene but the two named
+// above, whose mechanisms amplify float rounding; theirs is 4x the CPU float-vs-double difference measured for that
+// mechanism (the GPU's extra summation-order rounding is of the same size as float's: measured ratios 1.9 and 2.7),
+// and their own CPU float-vs-double difference must stay within that figure too, or the scene changed.
+double amplified_velocity_tolerance(const std::string& name) {
+  if (name == "granular_collapse.json") return 4 * 1.3e-3;
+  if (name == "incompressible_block.json") return 4 * 1.7e-4;
+  return 1e-4;
+}
 template <typename T, typename TG = T>
 void run_scene_on_both(const Scene& scene, const std::string& name) {
   const auto positions = test::sample_scene(scene);
@@ -73,9 +83,10 @@ void run_scene_on_both(const Scene& scene, const std::string& name) {
   std::cout << "\n";
   EXPECT_EQ(gpu.particle_count(), cpu.particle_count());
   // Positions integrate velocities: a velocity difference within tol_v moves particles apart by at most t tol_v.
-  const double tol_v = single ? std::max(1e-4, 4 * rv) : 1e-12;
-  EXPECT_LE(ex, single ? std::max({5e-6, 4 * rx, cpu.time() * tol_v}) : 1e-12) << name;
+  const double tol_v = single ? amplified_velocity_tolerance(name) : 1e-12;
+  EXPECT_LE(ex, single ? std::max(5e-6, cpu.time() * tol_v) : 1e-12) << name;
   EXPECT_LE(ev, tol_v) << name;
+  if (single) EXPECT_LE(rv, tol_v) << name << ": the CPU engine's own float-vs-double difference exceeds the budget";
 }
 
 TEST(GpuScenes, EveryRunnableSceneMatchesCpu) {

@@ -430,12 +430,41 @@ TEST_F(IoTest, AsyncWriterWritesAllFramesInOrder) {
   }
 }
 
+// The destructor drains the queue: every frame submitted before it runs is written whole (not truncated, not another
+// frame's data). Each frame carries its own index in every value, so a file written from the wrong frame, a partly
+// written file or a missing one fails; 20000 particles a frame keep the queue non-empty when the destructor starts.
 TEST_F(IoTest, AsyncWriterDestructorDrainsTheQueue) {
+  constexpr int kFrames = 5;
+  constexpr std::size_t kParticles = 20000;
   {
     AsyncWriter writer(8);
-    for (int k = 0; k < 5; ++k) writer.submit(frame_file_path(dir_, 1, 0, k, ".csv"), small_frame());
+    for (int k = 0; k < kFrames; ++k) {
+      ParticleFrame f;
+      std::vector<Vec3f> x(kParticles);
+      std::vector<std::int32_t> ids(kParticles);
+      for (std::size_t i = 0; i < kParticles; ++i) {
+        x[i] = Vec3f{{float(k), float(i), 0.5f}};
+        ids[i] = static_cast<std::int32_t>(i) + 1000000 * k;
+      }
+      f.positions = std::move(x);
+      f.add("ID", 1, std::move(ids));
+      writer.submit(frame_file_path(dir_, 1, 0, k, ".bgeo"), std::move(f));
+    }
   }
-  for (int k = 0; k < 5; ++k) EXPECT_TRUE(fs::exists(frame_file_path(dir_, 1, 0, k, ".csv"))) << k;
+  for (int k = 0; k < kFrames; ++k) {
+    const fs::path path = frame_file_path(dir_, 1, 0, k, ".bgeo");
+    ASSERT_TRUE(fs::exists(path)) << k;
+    const ParticleFrame r = read_bgeo(path);
+    ASSERT_EQ(r.size(), kParticles) << k;
+    ASSERT_NE(r.find("ID"), nullptr) << k;
+    const auto& ids = r.find("ID")->ints();
+    const auto& rx = std::get<0>(r.positions);
+    std::size_t wrong = 0;
+    for (std::size_t i = 0; i < kParticles; ++i)
+      wrong += rx[i][0] != float(k) || rx[i][1] != float(i) || rx[i][2] != 0.5f ||
+               ids[i] != static_cast<std::int32_t>(i) + 1000000 * k;
+    EXPECT_EQ(wrong, 0u) << "frame " << k << ": values that are not the submitted frame's";
+  }
 }
 
 TEST_F(IoTest, AsyncWriterReportsErrors) {

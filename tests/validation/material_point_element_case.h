@@ -44,14 +44,14 @@ struct ElementResult {
 };
 
 template <typename M, class Engine = CpuEngine<double>>
-ElementResult run_element(Constitutive law, double t_end) {
+ElementResult run_element(Constitutive law, double t_end, double logJp0 = 0.0) {
   const double dx = 0.025, half = 0.3;
   Scene scene = validation::make_scene(r3(1, 1, 1), dx, r3(0, 0, 0));
   BodySpec body = validation::make_body(law, 1000.0);
   body.material.youngs_modulus = 1e6;
   body.material.poisson_ratio = 0.3;
   body.material.friction_angle = 30.0;
-  body.material.logJp0 = 0.0;
+  body.material.logJp0 = logJp0;
   validation::add_box(body, r3(0.5 - half, 0.5 - half, 0.5 - half), r3(2 * half, 2 * half, 2 * half));
   scene.bodies.push_back(body);
   Engine engine(scene);

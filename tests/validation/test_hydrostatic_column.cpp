@@ -69,15 +69,20 @@ TEST(HydrostaticColumn, EquilibriumStartSinglePrecision) {
 //  * Asserted: the base pressure read from the bulk profile (least-squares line through the cell means of the middle
 //    half of the column, extrapolated to the bed) within cb-geo's first-order errors at the same dx (4.85 % at 0.01,
 //    2.33 % at 0.005: fbar must be at least as accurate as the benchmark's method) and decreasing with refinement.
-//  * Reported, guarded, not converging: the particles of the bottom cell. The grid displacement is a C1 quadratic
+//  * Not converging, asserted by its trend: the particles of the bottom cell. The grid displacement is a C1 quadratic
 //    spline whose wall nodes are zero, so it has zero normal slope at the wall, and the first free node lacks half a
 //    cell of its support: the bottom cell's mean pressure is off by about +10 % (+9.8 % at dx = 0.01, +9.5 % at
 //    0.005; its two rows +0.5 % and +19 %). The layer is ~2 cells thick at any dx: it thins with refinement, its
 //    error does not fall. This is the boundary-treatment limitation of node-layer walls with B-splines (Steffen,
 //    Wallstedt, Guilkey, Kirby & Berzins 2008, CMES 31(2):107-127: boundary treatment and basis decide spatial
 //    convergence; the remedy in the literature is boundary-modified splines). The bed on the zero-velocity plane is
-//    worse here (bottom row -82 %, bottom cell -42 %: its first row is frozen into the wall). Guard: |bottom cell
-//    error| <= 15 %, which fails if the wall treatment gets worse (update docs/validation.md if it gets better).
+//    worse here (bottom row -82 %, bottom cell -42 %: its first row is frozen into the wall). Since it does not
+//    converge, its trend under refinement is asserted (replacing a 15 % guard that had no budget). An error of fixed
+//    size in a layer of fixed cell count keeps its sign (the frozen row carries load the fluid above does not:
+//    overpressure, e > 0), and the bed force it adds, e dx per unit of rho0 g H, halves with dx (first order):
+//    e(0.005) x 0.005 / (e(0.01) x 0.01) in 0.5 +- 10 %. The 10 % is the change of the layer's own error with dx,
+//    bounded by its rows' (the frozen row moves by 1.5 % of rho0 g H, 8 % of its +19 %, between the two dx).
+//    Measured: +9.85 %, +9.53 %, ratio 0.484. A wall treatment that gets worse at fine dx, or a layer that thickens, fails.
 //  * Inside, the two particle rows of a cell alternate by about +-0.1 rho0 g dx around the exact value (a
 //    particle-level null-space mode of 2 particles per cell per axis excited by the drop); cell means remove it.
 // Kinetic energy: the oscillation may only decay (APIC dissipation, no viscosity): last fifth <= first fifth.
@@ -88,8 +93,13 @@ TEST(HydrostaticColumn, StressFreeStartConvergesToHydrostaticBasePressure) {
   EXPECT_LE(std::fabs(coarse.base_fit_error()), 0.0485);
   EXPECT_LE(std::fabs(fine.base_fit_error()), 0.0233);
   EXPECT_LT(std::fabs(fine.base_fit_error()), std::fabs(coarse.base_fit_error()));
-  EXPECT_LE(std::fabs(coarse.cell_error.front()), 0.15);
-  EXPECT_LE(std::fabs(fine.cell_error.front()), 0.15);
+  const double e_coarse = coarse.cell_error.front(), e_fine = fine.cell_error.front();
+  std::printf("[measured] bottom cell error %+.4f (dx 0.01), %+.4f (dx 0.005); bed-force ratio %.3f\n", e_coarse,
+              e_fine, e_fine * 0.005 / (e_coarse * 0.01));
+  EXPECT_GT(e_coarse, 0.0);
+  EXPECT_GT(e_fine, 0.0);
+  EXPECT_GE(e_fine * 0.005 / (e_coarse * 0.01), 0.45);
+  EXPECT_LE(e_fine * 0.005 / (e_coarse * 0.01), 0.55);
   EXPECT_LE(coarse.ke_last, coarse.ke_first);
   EXPECT_LE(fine.ke_last, fine.ke_first);
 }

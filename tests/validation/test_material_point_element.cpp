@@ -24,10 +24,16 @@ TEST(MaterialPointElement, NaccInteriorFollowsItsSingleParticleReference) {
   EXPECT_LE(r.stress_error, 5e-4);
 }
 
+// logJp0 = 0.01, a remembered dilation (volume correction on): started from 0, compression keeps DruckerPrager's
+// logJp at 0 (cases I and III reset it), so the logJp comparison moved by nothing and proved nothing. With the
+// memory the grain is first at the apex (case II: logJp += beta tr e, falling as it is compressed) and then folds
+// the memory into its strain and returns to the cone (logJp back to 0): the reference's logJp moves by 0.01 and the
+// engine must follow it through both branches.
 TEST(MaterialPointElement, DruckerPragerInteriorFollowsItsSingleParticleReference) {
-  const ElementResult r = run_element<DruckerPrager>(Constitutive::DruckerPrager, 4e-3);
+  const ElementResult r = run_element<DruckerPrager>(Constitutive::DruckerPrager, 4e-3, 0.01);
   ASSERT_GE(r.interior, 8);
-  // Measured 0.078: the cone caps the shear stress the elastic law would reach; 60x the stress tolerance.
+  EXPECT_GT(r.logJp_change, 1e-3) << "the logJp comparison must not be vacuous";
+  // Measured 3.28 (0.078 without the memory): the apex and the cone cap the stress the elastic law would reach.
   EXPECT_GT(r.plastic_effect, 0.03) << "the case must reach the cone (the return mapping acts)";
   EXPECT_LE(r.F_error, 1e-5);
   EXPECT_LE(r.logJp_error, 1e-5);
