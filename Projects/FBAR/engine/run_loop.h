@@ -38,6 +38,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <exception>
 #include <iostream>
 #include <filesystem>
 #include <limits>
@@ -195,8 +196,16 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
     result.steps = engine.steps();
     result.end_time = engine.time();
     flush_sensors();  // the samples taken so far, also when the run stops early
-    writer.close();   // the frames already queued are written (and a writer error is thrown) before we return
-    if (decomposed) transport->barrier();  // every rank's frames are on disk: frames.xdmf can list the last ones
+    // The frames already queued are written (and a writer error is thrown) before we return; every rank then meets
+    // the others (a writer error is thrown after that), so that rank 0 finds every rank's last frames for frames.xdmf.
+    std::exception_ptr write_error;
+    try {
+      writer.close();
+    } catch (...) {
+      write_error = std::current_exception();
+    }
+    if (decomposed) transport->barrier();
+    if (write_error) std::rethrow_exception(write_error);
     if (series) {
       series->update();
       for (const auto& [frame, file] : series->missing())
