@@ -73,7 +73,7 @@ def run(ranks, suffix):
     p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
     if p.returncode != 0:
         sys.exit(f"{ranks} ranks {suffix}: exit {p.returncode}\n{p.stdout}\n{p.stderr}")
-    assert "warning" not in p.stderr, p.stderr
+    assert "fbar: warning" not in p.stderr, p.stderr
     return out
 
 

@@ -75,21 +75,21 @@ std::string FrameSeries::frame_xml(int frame, double time, std::string& missing)
       long long particles = 0;
       std::error_code ec;
       if (!std::filesystem::exists(h5, ec) || !read_text(xdmf, text) ||
-          !grid_content(text, "      ", particles, content)) {
+          !grid_content(text, "   ", particles, content)) {
         missing = xdmf.filename().string();
         return {};
       }
       if (particles == 0) continue;  // an empty rank of the body
-      grids += "      <Grid Name=\"model[" + std::to_string(model) + "]_dev[" + std::to_string(device) +
-               "]\" GridType=\"Uniform\">\n" + content + "      </Grid>\n";
+      grids += "     <Grid Name=\"model[" + std::to_string(model) + "]_dev[" + std::to_string(device) +
+               "]\" GridType=\"Uniform\">\n" + content + "     </Grid>\n";
     }
     if (grids.empty()) continue;
-    bodies += "     <Grid Name=\"bodies[" + std::to_string(b) +
-              "]\" GridType=\"Collection\" CollectionType=\"Spatial\">\n" + grids + "     </Grid>\n";
+    bodies += "    <Grid Name=\"bodies[" + std::to_string(b) +
+              "]\" GridType=\"Collection\" CollectionType=\"Spatial\">\n" + grids + "    </Grid>\n";
   }
-  return "    <Grid Name=\"frame[" + std::to_string(frame) +
-         "]\" GridType=\"Collection\" CollectionType=\"Spatial\">\n     <Time Value=\"" + shortest(time) + "\"/>\n" +
-         bodies + "    </Grid>\n";
+  return "   <Grid Name=\"frame[" + std::to_string(frame) +
+         "]\" GridType=\"Collection\" CollectionType=\"Spatial\">\n    <Time Value=\"" + shortest(time) + "\"/>\n" +
+         bodies + "   </Grid>\n";
 }
 
 int FrameSeries::update() {
