@@ -3,14 +3,17 @@
 //
 //   .bgeo  exact: the header, the attribute dictionary, 4 x (4 + sum of widths) bytes per particle, the 2 end bytes.
 //   .h5    the datasets' bytes (positions in the run's precision, 4 bytes per attribute value) exactly, plus the HDF5
-//          file's own structures (superblock, root group, one object header per dataset and its unit attribute:
-//          kH5FileBytes + kH5DatasetBytes per dataset, measured with libhdf5 1.14; within 1 KiB for fbar's frames),
-//          plus the frame's .xdmf (exact).
+//          file's own structures (superblock, root group, one object header per dataset and its unit attribute),
+//          which libhdf5 (1.10 to 1.14, default settings) allocates in blocks of 2 KiB: measured with fbar's writer,
+//          1 to 3 datasets take one block, 4 to 8 two, 9 to 13 three, 14 to 16 four, which
+//          kH5MetaBytes + kH5DatasetMetaBytes per dataset, rounded up to blocks, reproduces (within one block for
+//          other names and units), plus the frame's .xdmf (exact but for the file name's length).
 //   .csv, .geo   text: the headers exactly, each number estimated at kTextFloatChars characters (a float32's shortest
 //          text, e.g. "-0.012345678"), kTextDoubleChars for a double position, an ID at its digits (IDs 0..n-1).
 //          Real values with fewer digits (round numbers, zeros) make the file smaller: an estimate, not a bound.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -40,8 +43,9 @@ struct FrameFileSize {
   bool exact = false;     ///< .bgeo
 };
 
-inline constexpr double kH5FileBytes = 1400.0;    ///< superblock, root group and its heap (libhdf5 1.14, defaults)
-inline constexpr double kH5DatasetBytes = 430.0;  ///< one dataset's object header, its name and its "unit" attribute
+inline constexpr double kH5MetaBytes = 600.0;         ///< superblock, root group and its heap
+inline constexpr double kH5DatasetMetaBytes = 400.0;  ///< one dataset's object header, name and "unit" attribute
+inline constexpr double kH5MetaBlock = 2048.0;        ///< libhdf5's metadata block (H5Pset_meta_block_size default)
 inline constexpr double kTextFloatChars = 11.0;   ///< estimated characters of one float32 value as text
 inline constexpr double kTextDoubleChars = 19.0;  ///< estimated characters of one double position as text
 
@@ -86,7 +90,8 @@ inline FrameFileSize frame_file_size(FrameFormat format, std::size_t n, const Fr
     }
     case FrameFormat::H5: {
       s.data = N * ((layout.double_positions ? 24.0 : 12.0) + 4.0 * widths);
-      s.headers = kH5FileBytes + kH5DatasetBytes * (1.0 + static_cast<double>(layout.attributes.size()));
+      const double meta = kH5MetaBytes + kH5DatasetMetaBytes * (1.0 + static_cast<double>(layout.attributes.size()));
+      s.headers = kH5MetaBlock * std::ceil(meta / kH5MetaBlock);
       // The .xdmf, as write_h5 writes it (its file name: the .h5's, "model[m]_dev[d]_frame[f].h5", about 26 chars).
       const double name = 26.0;
       std::string x = "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n <Domain>\n  <Grid Name=\"particles\" "
