@@ -5,8 +5,8 @@ usage: check_disk_test.py FBAR WORKDIR
 For each frame format (.bgeo, .geo, .csv, .h5 in single and double precision) a scene of two bodies with different
 attributes is checked, then run on the CPU engine for one frame. --check's "frame on disk" of each body must match
 the size of that body's frame file (the .h5 with its .xdmf): .bgeo exactly, .h5 within 2 KiB (the HDF5 library's
-own structures, allocated in 2 KiB blocks, are estimated), .csv and .geo within 20 % (text: each number's length is
-estimated); "disk per frame" is the sum of the bodies' figures and "disk for frames" covers frames 0..frames.
+own structures, allocated in 2 KiB blocks, are estimated), .csv and .geo from 10 % below to 50 % above (text: each
+number's length is estimated, high for round numbers); "disk per frame" is the sum of the bodies' figures and "disk for frames" covers frames 0..frames.
 """
 import json
 import os
@@ -32,7 +32,10 @@ scene = {
     "boundaries": [{"object": "Walls", "contact": "Separable", "domain_start": [0.02, 0.02, 0.02],
                     "domain_end": [0.38, 0.38, 0.38]}],
 }
-TOLERANCE = {".bgeo": (0, 0.0), ".h5": (2048, 0.0), ".csv": (0, 0.20), ".geo": (0, 0.20)}
+# (bytes, fraction of the file) the figure may be below the file's size, and above it: text estimates err high (a
+# solid's round numbers, Mass and DefGrad near 1, write shorter than 11 characters).
+TOLERANCE = {".bgeo": ((0, 0.0), (0, 0.0)), ".h5": ((2048, 0.0), (2048, 0.0)), ".csv": ((0, 0.10), (0, 0.50)),
+             ".geo": ((0, 0.10), (0, 0.50))}
 
 
 def figure(line):
@@ -61,9 +64,9 @@ for suffix, precision in ((".bgeo", "single"), (".geo", "single"), (".csv", "dou
         size = os.path.getsize(name)
         if suffix == ".h5":
             size += os.path.getsize(name[:-3] + ".xdmf")
-        absolute, relative = TOLERANCE[suffix]
-        allowed = absolute + relative * size
-        print(f"{label} body {b}: --check {estimate} B, written {size} B ({estimate - size:+d} B, allowed "
-              f"+-{allowed:.0f})")
-        assert abs(estimate - size) <= allowed, f"{label} body {b}: --check says {estimate} B, the file has {size} B"
+        (below_b, below_f), (above_b, above_f) = TOLERANCE[suffix]
+        low, high = size - below_b - below_f * size, size + above_b + above_f * size
+        print(f"{label} body {b}: --check {estimate} B, written {size} B ({estimate - size:+d} B, "
+              f"{100.0 * (estimate - size) / size:+.1f} %; allowed {low:.0f} .. {high:.0f})")
+        assert low <= estimate <= high, f"{label} body {b}: --check says {estimate} B, the file has {size} B"
 print("ok")

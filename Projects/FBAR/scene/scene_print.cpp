@@ -194,7 +194,7 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
       row(os, "frame on disk",
           std::string(at_most ? "at most " : f.exact ? "" : "about ") + disk(f.bytes) +
               " per frame as " + s.save_suffix + " (" + std::to_string(bs.particles) + " particles x " + per +
-              " B + " + bytes(static_cast<std::size_t>(f.headers)) + " of headers per file" +
+              " B + " + std::to_string(std::llround(f.headers)) + " B of headers per file" +
               (at_most ? "; exterior_only writes fewer" : "") + ")");
     }
   }
@@ -248,7 +248,7 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
     row(os, "disk per frame",
         how + disk(frame_bytes) + " in " + s.save_suffix + " (every body, one file each; " +
             "a run on several ranks adds each further file's headers, " +
-            bytes(static_cast<std::size_t>(frame_headers)) + " per rank and frame at most)");
+            std::to_string(std::llround(frame_headers)) + " B per rank and frame at most)");
     row(os, "disk for frames", how + bytes(static_cast<std::size_t>(frame_bytes * frames)) + " for the " +
                                    num(frames) + " frames 0.." + std::to_string(s.frames) + " in " + s.save_path +
                                    (s.save_suffix == ".h5" ? " (and frames.xdmf, the time series)" : ""));
