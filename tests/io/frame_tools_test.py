@@ -88,6 +88,9 @@ if h5py is not None:
         assert np.array_equal(h["Position"][:][ih].astype(np.float32), b["P"][ib])
         for name in ("Velocity_Y", "Pressure", "J"):
             assert np.array_equal(h[name][:][ih], b[name][ib]), name
+        # tools/plot's reader of .h5 frames gives what h5py gives
+        r = read_frame(h5_path)
+        assert set(r) == set(b) and np.array_equal(r["P"], h["Position"][:]) and np.array_equal(r["ID"], h["ID"][:])
         grid = ET.parse(os.path.join(runs[".h5"], last + ".xdmf")).getroot().find("Domain/Grid")
         assert grid.find("Topology").get("NumberOfElements") == str(n)
         items = [grid.find("Geometry/DataItem")] + [a.find("DataItem") for a in grid.findall("Attribute")]

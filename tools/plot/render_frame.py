@@ -1,11 +1,11 @@
 #!/usr/bin/env python3
-"""Renders one fbar particle frame (.bgeo or .csv) as a PNG: the particles projected on two axes, coloured by an
+"""Renders one fbar particle frame (.bgeo, .geo, .csv or .h5) as a PNG: the particles projected on two axes, coloured by an
 attribute.
 
     python3 tools/plot/render_frame.py FRAME [--color Pressure] [--axes x y] [--out frame.png]
 
 Without --color the particles are coloured by the third axis (depth). Several frames of several ranks
-(model[0]_dev[*]_frame[12].bgeo) may be given together: they are drawn as one.
+(model[0]_dev[*]_frame[12].bgeo) may be given together: they are drawn as one. .h5 frames need h5py.
 """
 import argparse
 import os
@@ -25,7 +25,7 @@ AXES = {"x": 0, "y": 1, "z": 2}
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("frames", nargs="+", help=".bgeo or .csv frame files (one per rank)")
+    parser.add_argument("frames", nargs="+", help=".bgeo, .geo, .csv or .h5 frame files (one per rank)")
     parser.add_argument("--color", help="attribute to colour by (e.g. Pressure, Velocity_Magnitude)")
     parser.add_argument("--axes", nargs=2, default=["x", "y"], choices=list(AXES), help="horizontal, vertical axis")
     parser.add_argument("--out", help="PNG file (default: the first frame's name with .png)")

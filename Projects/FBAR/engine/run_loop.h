@@ -38,6 +38,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <exception>
 #include <iostream>
 #include <filesystem>
 #include <limits>
@@ -45,6 +46,8 @@
 #include <ostream>
 #include <stdexcept>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "MnSystem/IO/async_writer.h"
 #include "MnSystem/IO/particle_io.h"
@@ -53,6 +56,7 @@
 #include "engine/run_constants.h"
 #include "engine/stop_request.h"
 #include "io/checkpoint.h"
+#include "io/frame_series.h"
 #include "io/sensor_recorder.h"
 #include "scene/scene.h"
 
@@ -84,7 +88,7 @@ inline std::string format_percent(double fraction) {
 /// simulation.info_rate > 0, every info_rate steps. `engine_line` is logged first (which engine, particles, set-up).
 /// With several ranks (options.transport) every rank runs this loop in step with the others: the engine agrees on
 /// dt and failures, the loop on a stop request; each rank writes its particles (model[m]_dev[rank]_frame[f]) and
-/// rank 0 logs.
+/// rank 0 logs. With .h5 frames rank 0 also keeps frames.xdmf, all of them as one time series (io/frame_series.h).
 /// Stops at the first failure the engine does not repair (exit code 2, the engine's report: body, step, time) and
 /// at a stop request (exit code 128 + signal, at the next step boundary). Throws what the engine or the writer
 /// throws (run_guarded turns it into an exit code).
@@ -123,6 +127,27 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
   };
   const double t0 = resume ? resume->start_time : engine.time();
   const double t_end = t0 + sim.frames / sim.fps;
+  // .h5 frames: rank 0 keeps frames.xdmf (io/frame_series.h), every frame of every rank as one time series. Its
+  // writer thread adds a frame once the frame's files of every rank are complete (after its own frame's files, which
+  // it writes first); finish() adds the last ones once every rank has closed its writer.
+  std::unique_ptr<io::FrameSeries> series;
+  if (rank == 0 && suffix == ".h5") {
+    const int ranks = transport ? transport->size() : 1;
+    std::vector<std::vector<std::pair<int, int>>> files(static_cast<std::size_t>(engine.body_count()));
+    for (int b = 0; b < engine.body_count(); ++b) {  // the (model, device) of each file write_frame() names
+      const BodySpec& spec = scene.bodies[b];
+      if (!decomposed) files[b].emplace_back(spec.model, std::max(spec.gpu, 0));
+      else if (homes[b] >= 0) files[b].emplace_back(spec.model, homes[b]);
+      else
+        for (int r = 0; r < ranks; ++r) files[b].emplace_back(spec.model, r);
+    }
+    series = std::make_unique<io::FrameSeries>(sim.save_path, std::move(files), suffix);
+  }
+  auto add_to_series = [&](int frame) {
+    if (!series) return;
+    series->expect(frame, t0 + frame / sim.fps);
+    writer.submit_job([s = series.get()] { s->update(); });
+  };
   SensorRecorder sensors(scene, transport, t0, t_end, resume);
   engine.set_grid_sensors(sensors.grid_sensors());
   engine.set_grid_sample(-1);
@@ -171,7 +196,23 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
     result.steps = engine.steps();
     result.end_time = engine.time();
     flush_sensors();  // the samples taken so far, also when the run stops early
-    writer.close();   // the frames already queued are written (and a writer error is thrown) before we return
+    // The frames already queued are written (and a writer error is thrown) before we return; every rank then meets
+    // the others (a writer error is thrown after that), so that rank 0 finds every rank's last frames for frames.xdmf.
+    std::exception_ptr write_error;
+    try {
+      writer.close();
+    } catch (...) {
+      write_error = std::current_exception();
+    }
+    if (decomposed) transport->barrier();
+    if (write_error) std::rethrow_exception(write_error);
+    if (series) {
+      series->update();
+      for (const auto& [frame, file] : series->missing())
+        std::cerr << "fbar: warning: " << series->path().string() << " leaves out frame " << frame << ": " << file
+                  << " is not in " << sim.save_path
+                  << (decomposed ? " (every rank must write to a folder rank 0 can read)" : "") << '\n';
+    }
     return result;
   };
 
@@ -185,6 +226,10 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
   if (resume) {  // the restart's own state was written and sampled by the run that made the checkpoint
     first_frame = resume->frame + 1;
     result.frames_written = resume->frame;
+    if (series) {  // the frames the first run wrote stay in the series
+      for (int f = 0; f <= resume->frame; ++f) series->expect(f, t0 + f / sim.fps);
+      series->update();
+    }
     result.restarted_from_frame = resume->frame;
     if (talk)
       log << "fbar: restarted from a checkpoint at t = " << engine.time() << " s, step " << engine.steps()
@@ -194,6 +239,7 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
                 << " and the scene asks for " << sim.frames << " frames: nothing to run (raise frames or --frames)\n";
   } else {
     write_frame(0);
+    add_to_series(0);
     sample_particles_at(t0);
     record_trackers();
   }
@@ -311,6 +357,7 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
     engine.set_grid_sample(-1);
     engine.keep_checkpoint_inputs(false);
     write_frame(frame);
+    add_to_series(frame);
     flush_sensors();
     record_trackers();
     if (frame_checkpoint_due(frame)) {

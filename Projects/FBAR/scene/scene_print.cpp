@@ -9,7 +9,9 @@
 #include <sstream>
 #include <string>
 
+#include "MnSystem/IO/frame_size.h"
 #include "engine/gpu/memory_plan.h"
+#include "io/particle_frame.h"
 #include "scene/scene_parse.h"
 
 #include "physics/constitutive_models.cuh"
@@ -100,6 +102,27 @@ std::string geometry_line(const GeometrySpec& g) {
   return s;
 }
 
+/// "1.2 MiB (1258291 B)": bytes on disk, the exact figure too (the text formats' figures are estimates all the same).
+std::string disk(double b) {
+  return format_bytes(b) + " (" + std::to_string(static_cast<long long>(std::llround(b))) + " B)";
+}
+
+/// One frame file of body `body` holding all its particles, in the scene's save_suffix: the attributes of
+/// output_attribs as the engines write them (ID int32, the rest float32 of width 1), positions in the run's precision.
+io::FrameFileSize body_frame_size(const Scene& scene, int body, long long particles) {
+  io::FrameLayout layout;
+  layout.double_positions = scene.simulation.precision != Precision::Single;
+  for (const FrameAttributeSpec& a : frame_attributes(scene.bodies[static_cast<std::size_t>(body)], body, "engines"))
+    layout.attributes.push_back({a.name, 1, a.column.quantity == FrameQuantity::Id, a.unit});
+  return io::frame_file_size(io::frame_format(scene.simulation.save_suffix),
+                             static_cast<std::size_t>(std::max<long long>(particles, 0)), layout);
+}
+
+bool exterior_only(const Scene& scene, int body) {
+  return scene.simulation.particles_output_exterior_only ||
+         scene.bodies[static_cast<std::size_t>(body)].output_exterior_only;
+}
+
 }  // namespace
 
 void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary& summary) {
@@ -125,6 +148,8 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
   row(os, "seed", std::to_string(s.seed));
 
   long long total = 0;
+  double frame_bytes = 0.0, frame_headers = 0.0;  // one frame of every body, one file each
+  bool frame_exact = true, frame_at_most = false;
   for (std::size_t i = 0; i < scene.bodies.size(); ++i) {
     const BodySpec& b = scene.bodies[i];
     os << "bodies[" << i << "]  gpu " << (b.gpu == kAllGpus ? std::string("all") : std::to_string(b.gpu)) << ", model "
@@ -157,6 +182,20 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
       std::snprintf(cost, sizeof(cost), "%.3g ms per step on an H100 (%.3g particle-steps/s: ", bs.gpu_ms_per_step,
                     bs.throughput);
       row(os, "GPU time", cost + bs.throughput_basis + ")");
+      const int body = static_cast<int>(i);
+      const io::FrameFileSize f = body_frame_size(scene, body, bs.particles);
+      frame_bytes += f.bytes;
+      frame_headers += f.headers;
+      frame_exact = frame_exact && f.exact;
+      const bool at_most = exterior_only(scene, body);
+      frame_at_most = frame_at_most || at_most;
+      char per[64];
+      std::snprintf(per, sizeof(per), "%.4g", bs.particles > 0 ? f.data / static_cast<double>(bs.particles) : 0.0);
+      row(os, "frame on disk",
+          std::string(at_most ? "at most " : f.exact ? "" : "about ") + disk(f.bytes) +
+              " per frame as " + s.save_suffix + " (" + std::to_string(bs.particles) + " particles x " + per +
+              " B + " + std::to_string(std::llround(f.headers)) + " B of headers per file" +
+              (at_most ? "; exterior_only writes fewer" : "") + ")");
     }
   }
 
@@ -201,6 +240,18 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
                   "per simulated second at this time step (docs/benchmarks/2026-11-25-h100-check-estimate.md)",
                   summary.gpu_ms_per_step, kGpuStepOverheadMs, kGpuBodyOverheadMs, per_simulated_s);
     row(os, "GPU time", cost);
+  }
+  {
+    // Frames 0..frames are written (frame 0: the initial state); several ranks write a file each per body and frame.
+    const double frames = static_cast<double>(s.frames) + 1.0;
+    const std::string how = frame_at_most ? "at most " : frame_exact ? "" : "about ";
+    row(os, "disk per frame",
+        how + disk(frame_bytes) + " in " + s.save_suffix + " (every body, one file each; " +
+            "a run on several ranks adds each further file's headers, " +
+            std::to_string(std::llround(frame_headers)) + " B per rank and frame at most)");
+    row(os, "disk for frames", how + bytes(static_cast<std::size_t>(frame_bytes * frames)) + " for the " +
+                                   num(frames) + " frames 0.." + std::to_string(s.frames) + " in " + s.save_path +
+                                   (s.save_suffix == ".h5" ? " (and frames.xdmf, the time series)" : ""));
   }
   row(os, "memory (CPU engine)", bytes(summary.cpu_bytes));
   for (std::size_t g = 0; g < summary.gpu_plans.size(); ++g) {
