@@ -916,20 +916,20 @@ TEST(Failure, ReduceDtRetriesWithHalfStep) {
 TEST(Failure, LeavingTheDomainIsReported) {
   Scene scene = empty_scene(r3(0.3, 1, 1), 0.025, r3(0, 0, 0));
   scene.bodies.push_back(box_body(Constitutive::JFluid, r3(0.2, 0.2, 0.2), r3(0.1, 0.1, 0.1), r3(1.0, 0, 0)));
-  scene.bodies[0].material.bulk_modulus = 1e4;  // c = 3.2 m/s: the fixed 1 ms steps stay stable for 57 steps
+  scene.bodies[0].material.bulk_modulus = 1e4;  // c = 3.2 m/s: the fixed 1 ms steps stay stable
   CpuEngine<double> engine(scene);
   double x_max = 0;
   for (const Vec3d& x : engine.positions(0)) x_max = std::max(x_max, x[0]);
   ASSERT_NEAR(x_max, 0.29375, 1e-12);
   StepReport r;
-  // A particle leaves the domain 2 cells (kDomainMarginCells) beyond its face: x > 0.35 after the step starting at
-  // t = 0.056 s (0.29375 + 0.057 > 0.35), the 57th.
-  while ((r = engine.step(1e-3)).ok) ASSERT_LT(engine.steps(), 100);
+  // A particle leaves the domain 8 cells (kDomainMarginCells) beyond its face: x > 0.5 after the step starting at
+  // t = 0.206 s (0.29375 + 0.207 > 0.5), the 207th.
+  while ((r = engine.step(1e-3)).ok) ASSERT_LT(engine.steps(), 300);
   ASSERT_EQ(r.failures.size(), 1u) << r.message();
   EXPECT_EQ(r.failures[0].kind, FailureKind::LeftDomain);
   EXPECT_EQ(r.failures[0].body, 0);
-  EXPECT_EQ(r.failures[0].step, 57);
-  EXPECT_NEAR(r.failures[0].time, 56e-3, 1e-12);
+  EXPECT_EQ(r.failures[0].step, 207);
+  EXPECT_NEAR(r.failures[0].time, 206e-3, 1e-12);
   EXPECT_EQ(r.failures[0].count, static_cast<long long>(engine.particle_count(0)) / 8);  // the last of 8 lattice layers
   EXPECT_NE(r.message().find("left the domain"), std::string::npos);
 }

@@ -209,12 +209,12 @@ TEST(Boundary, WallsUseTheirOwnBox) {
 }
 
 // Particles may stand up to kDomainMarginCells cells outside simulation.domain (material fills Walls to the faces).
-TEST(Boundary, DomainMarginOfTwoCells) {
+TEST(Boundary, DomainMarginOfEightCells) {
   const Vec3d domain{{1.0, 2.0, 1.0}};
-  EXPECT_TRUE(inside_domain(Vec3d{{-0.19, 1.0, 0.5}}, domain, 0.1));
-  EXPECT_TRUE(inside_domain(Vec3d{{0.5, 2.19, 0.5}}, domain, 0.1));
-  EXPECT_FALSE(inside_domain(Vec3d{{-0.21, 1.0, 0.5}}, domain, 0.1));
-  EXPECT_FALSE(inside_domain(Vec3d{{0.5, 1.0, 1.21}}, domain, 0.1));
+  EXPECT_TRUE(inside_domain(Vec3d{{-0.79, 1.0, 0.5}}, domain, 0.1));
+  EXPECT_TRUE(inside_domain(Vec3d{{0.5, 2.79, 0.5}}, domain, 0.1));
+  EXPECT_FALSE(inside_domain(Vec3d{{-0.81, 1.0, 0.5}}, domain, 0.1));
+  EXPECT_FALSE(inside_domain(Vec3d{{0.5, 1.0, 1.81}}, domain, 0.1));
 }
 
 TEST(Boundary, BoxObstacleNearestFaceNormal) {

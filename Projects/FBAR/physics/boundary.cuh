@@ -294,11 +294,12 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
 /// band also reaches one cell above the bed.
 constexpr double kBedLayerCells = 1.0;
 
-/// Particles may stand up to this many cells outside simulation.domain before they count as having left it: Walls on
-/// the domain's faces hold material with their face node plane and the planes outside it (ClaymoreUW's nodes), so
-/// the outermost particles can cross a face by up to half a cell before those nodes stop them, and the nodes 1.5 dx
-/// outside hold them. ClaymoreUW keeps 8 cells of grid below the domain (settings.cuh g_offset) for the same reason.
-constexpr double kDomainMarginCells = 2.0;
+/// Particles may stand up to this many cells outside simulation.domain before they count as having left it, as in
+/// ClaymoreUW, whose grid starts 8 cells before the domain's origin (settings.cuh g_offset): Walls on the domain's
+/// faces hold material with their face node plane and the planes outside it (ClaymoreUW's nodes), so the outermost
+/// particles can cross a face by up to half a cell, and scenes anchor bodies in boundaries below the domain (ClaymoreUW's
+/// YIELD scene clamps a plate's foot in a Sticky Box 1 to 3 cells below the floor).
+constexpr double kDomainMarginCells = 8.0;
 
 /// Is the particle position x [m] inside simulation.domain [0, domain] widened by kDomainMarginCells cells of dx?
 template <typename T>
