@@ -30,8 +30,9 @@ namespace fbar::test {
 
 inline int visible_gpus() { return cuda::device_count(); }
 
-/// A 1 m box, dx = 0.05, Walls on its faces; one body: a 0.3 x 0.25 x 0.3 m block (6 x 5 x 6 cells, 8 ppc = 1440
-/// particles) whose bottom sits 0.09 m above the floor, moving at `velocity`.
+/// A 1 m box, dx = 0.05, Walls a cell inside its faces ([0.05, 0.95] on each axis); one body: a 0.3 x 0.25 x 0.3 m
+/// block (6 x 5 x 6 cells, 8 ppc = 1440 particles) whose bottom sits 0.04 m above the floor's face, moving at
+/// `velocity`.
 inline Scene small_scene(Constitutive law, Precision precision, Real3 velocity = {0.0, -2.0, 0.0}, bool walls = true) {
   Scene s;
   SimulationSpec& sim = s.simulation;
@@ -65,6 +66,8 @@ inline Scene small_scene(Constitutive law, Precision precision, Real3 velocity =
     BoundarySpec w;
     w.object = BoundaryObject::Walls;
     w.contact = Contact::Slip;
+    w.domain_start = {0.05, 0.05, 0.05};
+    w.domain_end = {0.95, 0.95, 0.95};
     s.boundaries.push_back(w);
   }
   return s;

@@ -124,6 +124,7 @@ TEST(CheckpointFile, RoundTripsInTheRunsPrecision) {
   c.slab_axis = 2;
   c.slab_cuts = {INT_MIN, 5, INT_MAX};
   c.chosen_imbalance = 0.125;
+  c.particle_sample_due = true;
   c.csv = {{"gridTarget[0]_dev[0].csv", 345}, {"particleTrack_model[0]_dev[0].csv", 99}};
   io::CheckpointBody b;
   b.law = "FixedCorotated";
@@ -159,6 +160,7 @@ TEST(CheckpointFile, RoundTripsInTheRunsPrecision) {
   EXPECT_EQ(r.slab_axis, 2);
   EXPECT_EQ(r.slab_cuts, c.slab_cuts);
   EXPECT_EQ(r.chosen_imbalance, 0.125);
+  EXPECT_TRUE(r.particle_sample_due);
   EXPECT_EQ(r.csv, c.csv);
   ASSERT_EQ(r.bodies.size(), 2u);
   EXPECT_EQ(r.bodies[0].law, "FixedCorotated");
@@ -214,6 +216,26 @@ void expect_frame_restart(int ranks) {
 
 TEST(Restart, FromAFrameCheckpointContinuesBitForBit) { expect_frame_restart(1); }
 TEST(Restart, FromAFrameCheckpointContinuesBitForBitOnTwoRanks) { expect_frame_restart(2); }
+
+// "Run longer": a run of 3 frames continued from its last frame's checkpoint to 6 frames writes what one 6-frame run
+// writes. No run samples its own end time, so the particle sensors' sample at frame 3's time is still due when the
+// checkpoint is taken; the restarted run takes it first (the checkpoint records that it is due).
+TEST(Restart, FromTheLastFrameRunsLongerBitForBit) {
+  const fs::path a = scratch("longer_a"), b = scratch("longer_b");
+  Scene scene = restart_scene(a);
+  const RunResult full = run_ranks(scene, 1);
+  ASSERT_EQ(full.exit_code, 0) << full.message;
+  scene.simulation.save_path = b.string();
+  scene.simulation.frames = 3;
+  scene.simulation.checkpoint_every = 3;
+  ASSERT_EQ(run_ranks(scene, 1).exit_code, 0);
+  EXPECT_TRUE(io::read_checkpoint(io::checkpoint_frame_path(b, 3, 0).string()).particle_sample_due);
+  scene.simulation.frames = 6;
+  const RunResult longer = run_ranks(scene, 1, io::checkpoint_frame_path(b, 3, 0).string());
+  ASSERT_EQ(longer.exit_code, 0) << longer.message;
+  EXPECT_EQ(longer.steps, full.steps);
+  expect_same_output(a, b, 3, 1);
+}
 
 // A two-rank checkpoint continued on one rank (the set merged in ID order): the same physics to round-off (the
 // halo sums' order differs), every particle present once.
@@ -289,10 +311,12 @@ TEST(Restart, AfterAStopRequestContinuesBitForBit) {
 TEST(Restart, AFailureWritesTheStateBeforeTheFailedStep) {
   const fs::path dir = scratch("failure");
   Scene scene = test::empty_scene(r3(0.3, 1, 1), 0.025, r3(0, 0, 0));
+  // The block's front leaves the domain plus its 8-cell margin (x > 0.5 m) in the step starting at 0.206 s.
   scene.bodies.push_back(test::box_body(Constitutive::JFluid, r3(0.2, 0.2, 0.2), r3(0.1, 0.1, 0.1), r3(1.0, 0, 0)));
+  scene.bodies[0].material.bulk_modulus = 1e4;  // c = 3.2 m/s: stable 1 ms steps while it travels
   scene.simulation.default_dt = 1e-3;
-  scene.simulation.fps = 500.0;
-  scene.simulation.frames = 10;
+  scene.simulation.fps = 50.0;
+  scene.simulation.frames = 15;
   scene.simulation.save_path = dir.string();
   const RunResult r = run_ranks(scene, 1);
   ASSERT_EQ(r.exit_code, 2);

@@ -91,6 +91,17 @@ TEST(SensorReduction, NodeValuesAndDirections) {
   EXPECT_FALSE(sensor_box_contains(s.lo, s.hi, Vec3d{{1.0 + 1e-12, 0.0, 0.5}}));
 }
 
+// A grid sensor's box holds the nodes on its faces whatever their position's round-off (dx / 128): ClaymoreUW users
+// put a box's face on a wall's node plane (x = 0.2 m at dx = 0.01: node 20, whose float position is 20 x 0.01f).
+TEST(SensorReduction, BoxFacesHoldTheirNodesInFloat) {
+  const GridSensorParams<float> s = make_grid_sensor_params<float>(
+      grid_sensor_spec("Force", SensorOperation::Sum, {0.2, 0, 0}, {0.25, 1, 1}, {1, 0, 0}, 1), 0.01);
+  for (int i = 20; i <= 25; ++i)
+    EXPECT_TRUE(sensor_box_contains(s.lo, s.hi, Vec3<float>{{static_cast<float>(i) * 0.01f, 0.5f, 0.5f}})) << i;
+  EXPECT_FALSE(sensor_box_contains(s.lo, s.hi, Vec3<float>{{19 * 0.01f, 0.5f, 0.5f}}));
+  EXPECT_FALSE(sensor_box_contains(s.lo, s.hi, Vec3<float>{{26 * 0.01f, 0.5f, 0.5f}}));
+}
+
 TEST(SensorRecorder, SampleTimesAreExactAndEndBeforeTheRunsEnd) {
   Scene scene = test::empty_scene(test::r3(1, 1, 1), 0.1, test::r3(0, 0, 0));
   scene.simulation.save_path = (std::filesystem::path(::testing::TempDir()) / "fbar_sensor_schedule").string();

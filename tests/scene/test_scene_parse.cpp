@@ -1049,7 +1049,7 @@ TEST(ClaymoreUWTolerances, AssetFilesAreFoundInOneOrder) {
   auto scene_file = [&](const std::string& file) {
     std::ofstream out(root / "scenes" / "scene.json");
     out << scene_with(body(), R"("boundaries": [{"object": "OSU Paddle", "domain_start": [0, 0, 0],
-        "domain_end": [0.05, 1, 1], "time": [10, 20], "file": ")" + file + R"("}])");
+        "domain_end": [0.05, 1, 1], "time": [10, 20], "output_frequency": 1200, "file": ")" + file + R"("}])");
   };
   std::vector<std::string> warnings;
   ParseOptions o;

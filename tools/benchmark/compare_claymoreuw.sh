@@ -54,11 +54,15 @@ cuw, fb = d + "/cuw/run", d + "/fbar"
 print(f"\n### {name} (first {secs:g} s)\n")
 print(f"ClaymoreUW: {open(d + '/cuw/time.txt').read().strip()}; fbar: {open(fb + '/time.txt').read().strip()}\n")
 print("| body | particles ClaymoreUW | particles fbar |\n| --- | --- | --- |")
+import re
+cuw_counts = {}  # ClaymoreUW's log: "GPU[0] MODEL[m] Particle Count[N]" (its bgeo frames carry a header partio adds)
+for line in open(d + "/cuw/log.txt", errors="replace"):
+    for m, n in re.findall(r"MODEL\[(\d+)\] Particle Count\[(\d+)\]", line):
+        cuw_counts.setdefault(int(m), int(n))
 for m in range(8):
-    a, b = f"{cuw}/model[{m}]_dev[0]_frame[0].bgeo", f"{fb}/model[{m}]_dev[0]_frame[0].bgeo"
-    if not os.path.exists(a) and not os.path.exists(b): continue
-    n = lambda p: len(read_frame(p)["P"]) if os.path.exists(p) else "-"
-    print(f"| {m} | {n(a)} | {n(b)} |")
+    b = f"{fb}/model[{m}]_dev[0]_frame[0].bgeo"
+    if m not in cuw_counts and not os.path.exists(b): continue
+    print(f"| {m} | {cuw_counts.get(m, '-')} | {len(read_frame(b)['P']) if os.path.exists(b) else '-'} |")
 def series(p):
     t, v = [], []
     with open(p) as f:

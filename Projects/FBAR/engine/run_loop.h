@@ -180,6 +180,7 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
     c->reason = reason;
     c->start_time = t0;
     c->frame = result.frames_written;
+    c->particle_sample_due = sensors.particle_untaken_at(engine.time());
     if (rank == 0) {
       sensors.file_sizes(c->csv);
       trackers.file_sizes(c->csv);
@@ -223,7 +224,7 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
         << viscous.dt << " s (CFL x rho x dx^2 / (3 x viscosity); default_dt " << resolved_default_dt(sim)
         << " s)\n";
   int first_frame = 1;
-  if (resume) {  // the restart's own state was written and sampled by the run that made the checkpoint
+  if (resume) {  // the restart's own state was written (and sampled, unless still due) by the run that made it
     first_frame = resume->frame + 1;
     result.frames_written = resume->frame;
     if (series) {  // the frames the first run wrote stay in the series
@@ -231,6 +232,7 @@ RunResult run_frames(Engine& engine, const Scene& scene, const RunOptions& optio
       series->update();
     }
     result.restarted_from_frame = resume->frame;
+    sample_particles_at(engine.time());  // only when the checkpoint says that sample was still due (its run's end)
     if (talk)
       log << "fbar: restarted from a checkpoint at t = " << engine.time() << " s, step " << engine.steps()
           << " (frame " << resume->frame << " written; " << resume->reason << ")\n";

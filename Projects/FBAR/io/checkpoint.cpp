@@ -194,6 +194,7 @@ void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c) {
     put_int(root, "clean_steps", c.clean_steps, file);
     put_int(root, "slab_axis", c.slab_axis, file);
     put_double(root, "chosen_imbalance", c.chosen_imbalance, file);
+    put_int(root, "particle_sample_due", c.particle_sample_due ? 1 : 0, file);
     put_int(root, "bodies", static_cast<long long>(c.bodies.size()), file);
     put_array(root, "slab_cuts", c.slab_cuts, c.slab_cuts.size(), 1, H5T_STD_I32LE, H5T_NATIVE_INT, file);
     {
@@ -260,6 +261,7 @@ Checkpoint read_checkpoint(const std::filesystem::path& path, bool particles) {
   c.clean_steps = static_cast<int>(get_int(root, "clean_steps", file));
   c.slab_axis = static_cast<int>(get_int(root, "slab_axis", file));
   c.chosen_imbalance = get_double(root, "chosen_imbalance", file);
+  c.particle_sample_due = H5Aexists(root, "particle_sample_due") > 0 && get_int(root, "particle_sample_due", file) != 0;
   {
     Handle set(H5Dopen2(root, "slab_cuts", H5P_DEFAULT), H5Dclose, "open dataset slab_cuts of " + file);
     Handle space(H5Dget_space(set.get()), H5Sclose, "read the dataspace of slab_cuts");

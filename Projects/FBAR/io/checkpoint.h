@@ -77,6 +77,9 @@ struct Checkpoint {
   int slab_axis = 0;              ///< decomposition: slab axis and cuts (ranks + 1 entries; empty on one rank)
   std::vector<int> slab_cuts;
   double chosen_imbalance = 0.0;  ///< decomposition: the imbalance when the slabs were last chosen (rebalancing)
+  /// The particle sensors had not yet sampled the state at `time` (a run's last frame: no run samples its end), so
+  /// the restarted run samples it first. Absent from checkpoints written before this field existed: false.
+  bool particle_sample_due = false;
   std::vector<std::pair<std::string, long long>> csv;  ///< sensor / tracker file name and length [bytes] (rank 0)
   std::vector<CheckpointBody> bodies;
 };

@@ -60,19 +60,20 @@ std::string column_header(SensorOperation op, const std::string& name, const std
 }  // namespace
 
 template <typename T>
-GridSensorParams<T> make_grid_sensor_params(const GridSensorSpec& spec) {
+GridSensorParams<T> make_grid_sensor_params(const GridSensorSpec& spec, double dx) {
   GridSensorParams<T> p;
   p.quantity = quantity_of(spec.attribute);
   p.sign = spec.direction_sign;
+  const double snap = dx / 128.0;
   for (int a = 0; a < 3; ++a) {
     p.direction[a] = static_cast<T>(spec.direction[a]);
-    p.lo[a] = static_cast<T>(spec.domain_start[a]);
-    p.hi[a] = static_cast<T>(spec.domain_end[a]);
+    p.lo[a] = static_cast<T>(spec.domain_start[a] - snap);
+    p.hi[a] = static_cast<T>(spec.domain_end[a] + snap);
   }
   return p;
 }
-template GridSensorParams<float> make_grid_sensor_params<float>(const GridSensorSpec&);
-template GridSensorParams<double> make_grid_sensor_params<double>(const GridSensorSpec&);
+template GridSensorParams<float> make_grid_sensor_params<float>(const GridSensorSpec&, double);
+template GridSensorParams<double> make_grid_sensor_params<double>(const GridSensorSpec&, double);
 
 template <typename T>
 ParticleSensorParams<T> make_particle_sensor_params(const ParticleSensorSpec& spec) {
@@ -222,6 +223,12 @@ bool SensorRecorder::Schedule::due(std::size_t i, double t) const {
   return ts < t_end_ - tolerance_ && t >= ts - tolerance_;
 }
 
+bool SensorRecorder::Schedule::untaken_at(double t) const {
+  for (std::size_t i = 0; i < sensors(); ++i)
+    if (std::fabs(sample_time(i, next_[i]) - t) <= tolerance_) return true;
+  return false;
+}
+
 double SensorRecorder::Schedule::next_time_after(double t) const {
   double next = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < sensors(); ++i) {
@@ -353,7 +360,7 @@ SensorRecorder::SensorRecorder(const Scene& scene, comm::Transport* transport, d
   particle_.finish(t0, t_end, tolerance_, bodies * particle_specs_.size());
   if (resume) {
     grid_.resume(resume->time, false);
-    particle_.resume(resume->time, true);
+    particle_.resume(resume->time, !resume->particle_sample_due);
   }
 }
 

@@ -34,9 +34,11 @@
 
 namespace fbar {
 
-/// The kernel parameters of grid sensor `spec` (domain box and direction in the grid scalar type T).
+/// The kernel parameters of grid sensor `spec` (domain box and direction in the grid scalar type T). dx [m]: the box
+/// is widened by dx / 128 on every side, so a node on a face (a wall's node plane, placed by ClaymoreUW users as
+/// domain_start or domain_end) is inside whatever the round-off of its position in T.
 template <typename T>
-GridSensorParams<T> make_grid_sensor_params(const GridSensorSpec& spec);
+GridSensorParams<T> make_grid_sensor_params(const GridSensorSpec& spec, double dx = 0.0);
 /// The kernel parameters of particle sensor `spec` (its attribute as a frame column; box in T).
 template <typename T>
 ParticleSensorParams<T> make_particle_sensor_params(const ParticleSensorSpec& spec);
@@ -105,7 +107,8 @@ class SensorRecorder {
   /// one rank) creates the files and writes their headers. resume: a run restarted at resume->time (t0 is then
   /// the first run's start, so the sample times stay where they were): every file is truncated to the length the
   /// checkpoint recorded and continued; grid samples restart at resume->time (the step starting there takes it),
-  /// particle samples after it (the state at resume->time was sampled before the checkpoint). A file that is
+  /// particle samples after it (the state at resume->time was sampled before the checkpoint), or at it when the
+/// checkpoint says that sample was still due (a run's last frame: no run samples its end time). A file that is
   /// missing or shorter than recorded (a restart into another --output) starts again with its header, with a
   /// warning on stderr.
   SensorRecorder(const Scene& scene, comm::Transport* transport, double t0, double t_end,
@@ -133,6 +136,8 @@ class SensorRecorder {
   int particle_pending() const { return particle_.pending(); }
   /// Whether a particle sensor samples at t (the step landing there must keep what the sensors read).
   bool particle_due(double t) const { return particle_.slot_for(t) >= 0; }
+  /// A particle sample at t has not been taken, also at the run's end (a checkpoint there: the restart takes it).
+  bool particle_untaken_at(double t) const { return particle_.untaken_at(t); }
 
   /// Reduce this rank's values of the pending slots over ranks and write the rows (rank 0); every rank calls them at
   /// the same points. Grid: values[slot * sensors + i]; particle: values[(slot * bodies + body) * sensors + i].
@@ -164,6 +169,8 @@ class SensorRecorder {
     void finish(double t0, double t_end, double tolerance, std::size_t values_per_slot);
     std::size_t sensors() const { return intervals_.size(); }
     double next_time_after(double t) const;
+    /// Some sensor's next sample is at t (not taken yet), whether or not t is before the run's end.
+    bool untaken_at(double t) const;
     int slot_for(double t) const;
     void taken(double t);
     int pending() const { return static_cast<int>(slot_times_.size()); }

@@ -2010,7 +2010,8 @@ void MgspBenchmark<T, TG>::set_grid_sensors(const std::vector<GridSensorSpec>& s
     throw std::invalid_argument("grid-sensors: " + std::to_string(sensors.size()) + " enabled sensors; at most " +
                                 std::to_string(GridSensorSet<TG>::kMax) + " per run");
   grid_sensors_ = GridSensorSet<TG>{};
-  for (const GridSensorSpec& spec : sensors) grid_sensors_.s[grid_sensors_.count++] = make_grid_sensor_params<TG>(spec);
+  for (const GridSensorSpec& spec : sensors)
+    grid_sensors_.s[grid_sensors_.count++] = make_grid_sensor_params<TG>(spec, static_cast<double>(k_.dx));
   grid_sample_slot_ = -1;
   if (grid_sensors_.count > 0) ensure_sensor_partials();
 }
