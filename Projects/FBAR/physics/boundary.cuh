@@ -20,10 +20,11 @@
 //             (x_i <= lo - 1.5 dx, x_i >= hi + 1.5 dx) are held (v_rel = 0), so material that crossed the face stops.
 //             Material may therefore fill the box to its faces; the outermost particles can cross a face by up to
 //             half a cell (kDomainMarginCells lets them stand outside simulation.domain).
-//   Box       keeps out of [lo, hi] (ClaymoreUW's nodes: inside, faces included). A node less than 0.99 dx inside
-//             the nearest face is projected with that face's outward normal (on an edge the first axis of x, y, z
-//             wins a tie; ClaymoreUW favours x too but leaves y-z edge nodes free); a node 0.99 dx or more inside
-//             every face is held (v_rel = 0), as ClaymoreUW holds its core. Sticky holds every node inside.
+//   Box       keeps out of [lo, hi] (ClaymoreUW's nodes: inside, faces included); every node inside is projected with
+//             the outward normal of the nearest face (on an edge the first axis of x, y, z wins a tie; ClaymoreUW
+//             favours x too but leaves y-z edge nodes free). ClaymoreUW holds a Slip or Separable box's core (nodes
+//             0.99 dx or more inside every face): fbar does not, since held nodes a cell inside a face drag material
+//             sliding along it (a Slip box used as a symmetry plane stops being one).
 //   Sphere    keeps out of the ball of center (lo + hi) / 2 and radius (hi_x - lo_x) / 2; n radial.
 //   Cylinder  keeps out of the cylinder along y from lo_y to hi_y, axis at the box's center in x and z, radius
 //             (hi_x - lo_x) / 2; n radial, or +-y at the nearer cap (ClaymoreUW has no caps: material on top sank in).
@@ -80,7 +81,7 @@ struct BoundaryParams {
   Vec3<T> hi;          ///< [m] box max corner
   Vec3<T> velocity;    ///< [m/s] v_b: the boundary moves with it, and contact acts on v - v_b
   T layer;             ///< [m] Walls: nodes this far or farther outside a face are held (1.5 dx); sloped beds: band
-  T dx;                ///< [m] grid spacing (Walls: a node within dx / 128 of a face lies on it; Box: its held core)
+  T dx;                ///< [m] grid spacing (Walls: a node within dx / 128 of a face lies on it)
   T friction_static;   ///< [-] mu_s
   T friction_dynamic;  ///< [-] mu_d
   double t_begin;      ///< [s] active window (double: compared with the simulation clock)
@@ -182,7 +183,6 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
         if (to_lo < nearest) nearest = to_lo, axis = a, sign = T(-1);
         if (to_hi < nearest) nearest = to_hi, axis = a, sign = T(1);
       }
-      if (nearest >= b.dx * T(0.99)) return b.velocity;  // ClaymoreUW's held core: a cell or more inside every face
       Vec3<T> n = Vec3<T>::zero();
       n[axis] = sign;
       return project_moving(b, v, n);
