@@ -338,9 +338,9 @@ TEST(SampleBody, PartitionClipsTheBody) {
     ASSERT_LE(p[0], 0.5);
     ASSERT_GE(p[1], 0.25);
   }
-  // A body reaching outside the domain keeps the part inside it (the rest is dropped, body_drops counts it).
+  // A body reaching outside the domain by less than 8 cells (0.8 m here) is kept whole (x = 0.55 .. 1.45).
   BodySpec wide = make_body({make_box({0.5, 0.0, 0.0}, {1.0, 0.5, 0.5})}, 1);
-  EXPECT_EQ(sample_body(wide, sim, 0).size(), 5u * 5u * 5u);
+  EXPECT_EQ(sample_body(wide, sim, 0).size(), 10u * 5u * 5u);
   wide.partition_end = {0.8, 1.0, 1.0};  // x = 0.55, 0.65, 0.75
   EXPECT_EQ(sample_body(wide, sim, 0).size(), 3u * 5u * 5u);
 }
@@ -419,30 +419,44 @@ TEST(SampleBody, FractionalPpcJittersTheCount) {
   for (const auto& [cell, n] : cells) ASSERT_TRUE(n == 2 || n == 3) << n;
 }
 
-// Particles outside [0, domain] are dropped (ClaymoreUW keeps them in its grid margin; fbar's engines cannot), and
-// body_drops counts them apart from what the partition drops.
-TEST(SampleBody, OutsideDomainIsDroppedAndCounted) {
-  const SimulationSpec sim = make_sim(0.1, {1.0, 1.0, 1.0});
-  // x = 0.85, 0.95, 1.05, 1.15: two of the four points are beyond x = 1.
-  const BodySpec body = make_body({make_box({0.8, 0.1, 0.1}, {0.4, 0.1, 0.1})}, 1);
+// Particles within kDomainMarginCells (8) cells outside [0, domain] are kept, as ClaymoreUW keeps them in its grid's
+// 8-cell margin and as the engines hold them (inside_domain); those beyond it are dropped, and body_drops counts
+// them apart from what the partition drops.
+TEST(SampleBody, OutsideTheDomainMarginIsDroppedAndCounted) {
+  const SimulationSpec sim = make_sim(0.1, {1.0, 1.0, 1.0});  // margin 0.8 m: [-0.8, 1.8] per axis
+  // x = 0.85, 0.95, 1.05, 1.15: all within the margin, none dropped.
+  const BodySpec near = make_body({make_box({0.8, 0.1, 0.1}, {0.4, 0.1, 0.1})}, 1);
+  EXPECT_EQ(sample_body(near, sim, 3).size(), 4u);
+  BodyDrops d = body_drops(near, sim, 3);
+  EXPECT_EQ(d.particles, 4);
+  EXPECT_EQ(d.outside_domain, 0);
+  // x = 1.65, 1.75, 1.85, 1.95: two of the four points are beyond x = 1.8.
+  const BodySpec body = make_body({make_box({1.6, 0.1, 0.1}, {0.4, 0.1, 0.1})}, 1);
   const std::vector<Vec3d> pts = sample_body(body, sim, 3);
   ASSERT_EQ(pts.size(), 2u);
-  EXPECT_NEAR(pts[0][0], 0.85, 1e-12);
-  EXPECT_NEAR(pts[1][0], 0.95, 1e-12);
-  BodyDrops d = body_drops(body, sim, 3);
+  EXPECT_NEAR(pts[0][0], 1.65, 1e-12);
+  EXPECT_NEAR(pts[1][0], 1.75, 1e-12);
+  d = body_drops(body, sim, 3);
   EXPECT_EQ(d.particles, 2);
   EXPECT_EQ(d.outside_domain, 2);
   EXPECT_EQ(d.outside_partition, 0);
-  // Below zero too: a box from y = -0.2 to 0.3 keeps y = 0.05 .. 0.25 (3 of 5 planes).
-  const BodySpec below = make_body({make_box({0.1, -0.2, 0.1}, {0.1, 0.5, 0.1})}, 1);
-  EXPECT_EQ(sample_body(below, sim, 0).size(), 3u);
+  // Below zero too: a box from y = -1.0 to 0.3 keeps y = -0.75 .. 0.25 (11 of 13 planes).
+  const BodySpec below = make_body({make_box({0.1, -1.0, 0.1}, {0.1, 1.3, 0.1})}, 1);
+  const std::vector<Vec3d> kept = sample_body(below, sim, 0);
+  ASSERT_EQ(kept.size(), 11u);
+  EXPECT_NEAR(kept.front()[1], -0.75, 1e-12);
   d = body_drops(below, sim, 0);
   EXPECT_EQ(d.outside_domain, 2);
-  // Entirely outside: no particle remains, an error that names the body's geometry.
-  const BodySpec gone = make_body({make_box({-0.5, 0.1, 0.1}, {0.3, 0.1, 0.1})}, 1);
+  // The margin is 8 cells of default_dx: with dx = 0.05 (margin 0.4 m, lattice spacing 0.05) the same box keeps
+  // y = -0.375 .. 0.275, 14 planes of 2 x 2 points.
+  EXPECT_EQ(sample_body(below, make_sim(0.05, {1.0, 1.0, 1.0}), 0).size(), 14u * 2u * 2u);
+  // Entirely beyond the margin: no particle remains, an error that names the body's geometry.
+  const BodySpec gone = make_body({make_box({-1.2, 0.1, 0.1}, {0.3, 0.1, 0.1})}, 1);
   const auto [path, what] = scene_error_of([&] { sample_body(gone, sim, 2); });
   EXPECT_EQ(path, "bodies[2].geometry");
-  EXPECT_NE(what.find("simulation.domain must contain a sampling point"), std::string::npos) << what;
+  EXPECT_NE(what.find("simulation.domain widened by 8 cells of default_dx must contain a sampling point"),
+            std::string::npos)
+      << what;
 }
 
 // ClaymoreUW's inside_partition drops geometry outside [partition_start, partition_end) without a word; body_drops
@@ -459,14 +473,15 @@ TEST(SampleBody, BodyDropsCountsThePartitionClip) {
   EXPECT_EQ(d.particles, 500);
   EXPECT_EQ(d.outside_partition, 500);
   EXPECT_EQ(d.outside_domain, 0);
-  // Both clips: a box from x = 0.5 to 1.5 clipped at x < 1.3 by the partition; x = 1.05, 1.15, 1.25 lie in the
-  // partition but outside the domain, x = 1.35, 1.45 outside the partition.
-  BodySpec both = make_body({make_box({0.5, 0.1, 0.1}, {1.0, 0.1, 0.1})}, 1);
-  both.partition_end = {1.3, 1.0, 1.0};
+  // Both clips: a box from x = 1.5 to 2.5 clipped at x < 2.2 by the partition; x = 1.55 .. 1.75 lie within the
+  // 8-cell margin (x <= 1.8) and are kept, x = 1.85 .. 2.15 lie in the partition but beyond the margin, x = 2.25 ..
+  // 2.45 outside the partition.
+  BodySpec both = make_body({make_box({1.5, 0.1, 0.1}, {1.0, 0.1, 0.1})}, 1);
+  both.partition_end = {2.2, 1.0, 1.0};
   d = body_drops(both, sim, 0);
-  EXPECT_EQ(d.particles, 5);
-  EXPECT_EQ(d.outside_domain, 3);
-  EXPECT_EQ(d.outside_partition, 2);
+  EXPECT_EQ(d.particles, 3);
+  EXPECT_EQ(d.outside_domain, 4);
+  EXPECT_EQ(d.outside_partition, 3);
 }
 
 TEST(SampleBody, InvalidEntriesNameTheirKey) {
@@ -541,14 +556,15 @@ TEST(BodySampler, CountAndBatchesAgreeWithSampling) {
   }
 }
 
-// The count drops what sampling drops (particles outside the domain), and refuses what it refuses (no particle).
+// The count drops what sampling drops (particles beyond the domain's 8-cell margin), and refuses what it refuses
+// (no particle).
 TEST(BodySampler, CountAgreesWithSamplingOutsideTheDomain) {
-  const SimulationSpec sim = make_sim(0.05, {1.0, 1.0, 1.0});
-  const BodySpec body = make_body({make_box({0.8, 0.1, 0.1}, {0.4, 0.2, 0.2})}, 8);
+  const SimulationSpec sim = make_sim(0.05, {1.0, 1.0, 1.0});  // margin 0.4 m
+  const BodySpec body = make_body({make_box({1.2, 0.1, 0.1}, {0.4, 0.2, 0.2})}, 8);
   const std::vector<Vec3d> sampled = sample_body(body, sim, 0);
   EXPECT_EQ(static_cast<long long>(sampled.size()), BodySampler(body, sim, 0).count(sim.dx).particles);
-  EXPECT_EQ(sampled.size(), 8u * 8u * 8u);  // x 0.8 .. 1.0: 8 lattice planes of 8 x 8 (ppc 8, dx 0.05)
-  const BodySpec gone = make_body({make_box({1.2, 0.1, 0.1}, {0.4, 0.2, 0.2})}, 8);
+  EXPECT_EQ(sampled.size(), 8u * 8u * 8u);  // x 1.2 .. 1.4: 8 lattice planes of 8 x 8 (ppc 8, dx 0.05)
+  const BodySpec gone = make_body({make_box({1.5, 0.1, 0.1}, {0.4, 0.2, 0.2})}, 8);
   const auto sampled_error = scene_error_of([&] { sample_body(gone, sim, 0); });
   const auto counted_error = scene_error_of([&] { BodySampler(gone, sim, 0).count(sim.dx); });
   EXPECT_EQ(sampled_error.first, counted_error.first);

@@ -387,7 +387,8 @@ TEST(FileGeometry, BathymetryBodyIsTheWaterAboveTheBed) {
   const double h = 0.01, per_point = h * h * h;
   EXPECT_NEAR(pts.size() * per_point, volume, 2.0 * 0.2 * h + 1e-9);  // one lattice spacing over the bed's length
 
-  // The OSU LWF water sits on the flume's bed placed at its offset (neutral position, floor) and scaled by s.
+  // The OSU LWF water sits on the flume's bed (ClaymoreUW's table, 0.225 m x s above the floor at the wave maker)
+  // whose neutral position lies 0.1 m x s after the offset (ClaymoreUW's make_OSU_LWF), scaled by s.
   const double s = 1.0 / 20.0;
   SimulationSpec flume = make_sim(0.02, {5.0, 0.5, 0.2});
   flume.froude_scaling = s;
@@ -396,7 +397,8 @@ TEST(FileGeometry, BathymetryBodyIsTheWaterAboveTheBed) {
   lwf.offset = {0.1, 0.05, 0.0};
   lwf.span = {4.8, 0.15, 0.2};
   const std::vector<Vec3d> water = sample_body(make_body({lwf}), flume, 0);
-  const BedPoints bed = place_bed(osu_lwf_bathymetry(), s, 0.1, 0.05);
+  const BedPoints bed = place_bed(osu_lwf_bathymetry(), s, 0.1 + 0.1 * s, 0.05);
+  ASSERT_EQ(bed.front()[1], 0.05 + 0.225 * s);
   std::map<std::pair<long long, long long>, double> lowest;  // per lattice column: lowest particle above the bed
   for (const Vec3d& p : water) {
     ASSERT_GE(p[1], bed_height(bed, p[0])) << p[0];
@@ -406,14 +408,17 @@ TEST(FileGeometry, BathymetryBodyIsTheWaterAboveTheBed) {
     if (it == lowest.end() || gap < it->second) lowest[key] = gap;
   }
   for (const auto& [column, gap] : lowest) EXPECT_LE(gap, h) << column.first;  // no gap under the water
-  // Above 28.9 m x s the bed has risen by 0.9144 m x s: the water column there is that much shorter.
+  // 10 m x s after the neutral position the bed stands 0.225 m x s above the floor, on the plateau (60 m x s) 1.75 m
+  // x s: the water columns are that much shorter than the span. Before the neutral position (x < 0.1 + 0.1 s) the
+  // bed is flat at 0.225 m x s too: no water under it.
   std::size_t near_start = 0, past_ramp = 0;
   for (const Vec3d& p : water) {
+    ASSERT_GE(p[1], 0.05 + 0.225 * s - 1e-12) << p[0];
     if (std::fabs(p[0] - (0.1 + 10.0 * s)) < 0.006) ++near_start;
     if (std::fabs(p[0] - (0.1 + 60.0 * s)) < 0.006) ++past_ramp;
   }
   ASSERT_GT(near_start, 0u);
-  EXPECT_NEAR(static_cast<double>(past_ramp) / near_start, (0.15 - 1.524 * s) / 0.15, 0.08);
+  EXPECT_NEAR(static_cast<double>(past_ramp) / near_start, (0.15 - 1.75 * s) / (0.15 - 0.225 * s), 0.08);
 }
 
 }  // namespace

@@ -376,8 +376,9 @@ TEST(Boundary, BathymetryFollowsItsProfile) {
   EXPECT_FALSE(make_boundary_params(spec, unit_sim(0.1), b, error));
 }
 
-// The OSU Large Wave Flume bed (OSU_LWF_RAMP without custom points): VALIDATION.md's stations, placed with the
-// wave-maker's neutral position at domain_start (x, y) and Froude-scaled with the scene.
+// The OSU Large Wave Flume bed (OSU_LWF_RAMP without custom points): ClaymoreUW's bed table (its OSU_LWF_RAMP grid
+// kernel: 0.225 m up to 16.275 m, 1.15 m at 30.9 m, 1.75 m from 45.525 m to 82.1 m, 2.35 m from 89.45 m, with the
+// wave maker's neutral position at x = 2 m), placed 2 m (x s) after domain_start (x, y) and Froude-scaled.
 TEST(Boundary, OsuLwfRampIsTheFlumeBed) {
   for (const double s : {1.0, 0.1}) {
     Scene scene;
@@ -393,10 +394,18 @@ TEST(Boundary, OsuLwfRampIsTheFlumeBed) {
     const RunConstants<double> k(scene, "test");
     ASSERT_EQ(k.boundaries.size(), 1u);
     const BoundaryParams<double>& b = k.boundaries[0];
-    // (station x, bed height) from VALIDATION.md; a node 1 mm below the bed is projected, one that is more than a
-    // cell above it (the band over slopes, kBedLayerCells) is not.
-    for (const auto& [x, y] : std::vector<std::pair<double, double>>{
-             {10.0, 0.0}, {28.9, 0.9144}, {36.2125, 0.9144 + (1.524 - 0.9144) / 2}, {60.0, 1.524}, {95.0, 2.1336}}) {
+    // (x from domain_start at full scale, bed height) as ClaymoreUW's kernel has them for domain_start 0: flat
+    // 0.225 m before and after the wave maker (x = 2 m), 1:11.86 to 1.15 m at 30.9 m, 1:24.375 to 1.75 m at
+    // 45.525 m, 1:12.25 from 82.1 m to 2.35 m at 89.45 m. A node 1 mm below the bed is projected, one that is more
+    // than a cell above it (the band over slopes, kBedLayerCells) is not.
+    for (const auto& [x, y] : std::vector<std::pair<double, double>>{{0.5, 0.225},
+                                                                     {12.0, 0.225},
+                                                                     {18.0, 0.225},
+                                                                     {30.9, 1.15},
+                                                                     {38.2125, 1.15 + 0.6 / 2},
+                                                                     {60.0, 1.75},
+                                                                     {85.775, 1.75 + 0.6 / 2},
+                                                                     {97.0, 2.35}}) {
       const double xs = 1.0 + x * s, ys = 0.5 + y * s;
       EXPECT_EQ(apply_boundary(b, Vec3d{{xs, ys + scene.simulation.dx + 1e-3 * s, 0.5}}, kV, &k.profiles), kV)
           << s << " " << x;

@@ -995,8 +995,9 @@ TEST(ClaymoreUWTolerances, InvertedSensorBoxesRunEmpty) {
 }
 
 // ClaymoreUW's scene.json tracks IDs 100000.. of bodies with fewer particles; geometry outside the partition is
-// dropped silently by ClaymoreUW; particles outside the domain (YIELD: below y = 0) it keeps in its grid margin.
-// The test scene shipped in tests/scenes/good has one of each: one warning each, with the counts.
+// dropped silently by ClaymoreUW; particles outside the domain (YIELD: below y = 0) it keeps in its grid's 8-cell
+// margin, and so does fbar, without a word. The test scene shipped in tests/scenes/good has one of each, and
+// particles beyond the margin: one warning each, with the counts.
 TEST(ClaymoreUWTolerances, TrackedIdsPartitionAndDomainDropsWarnWithCounts) {
   std::vector<std::string> warnings;
   ParseOptions o;
@@ -1006,17 +1007,14 @@ TEST(ClaymoreUWTolerances, TrackedIdsPartitionAndDomainDropsWarnWithCounts) {
   ASSERT_EQ(warnings.size(), 6u);
   const auto ids = with(warnings, "track_particle_id");
   ASSERT_EQ(ids.size(), 1u);
-  EXPECT_EQ(ids[0], "bodies[0].track_particle_id[1]: 100000 is not the ID of one of the body's 64 particles (0 .. 63, "
+  EXPECT_EQ(ids[0], "bodies[0].track_particle_id[1]: 100000 is not the ID of one of the body's 320 particles (0 .. 319, "
                     "in sampling order); ClaymoreUW matches no particle and writes 0.0 for it every frame; fbar writes "
                     "NaN in its columns of particleTrack_model[0]_dev[0].csv");
   const auto domain = with(warnings, "outside simulation.domain");
   ASSERT_EQ(domain.size(), 1u);
-  EXPECT_EQ(domain[0].rfind("bodies[0].geometry: 64 of the body's 128 particles lie outside simulation.domain [0, 0.4] "
-                            "x [0, 0.4] x [0, 0.4] m and are dropped (64 remain); ClaymoreUW keeps them in its grid's "
-                            "8-cell margin",
-                            0),
-            0u)
-      << domain[0];
+  EXPECT_EQ(domain[0], "bodies[0].geometry: 64 of the body's 384 particles lie more than 8 cells (0.4 m) outside "
+                       "simulation.domain [0, 0.4] x [0, 0.4] x [0, 0.4] m and are dropped (320 remain); particles may "
+                       "stand within that margin (ClaymoreUW's grid margin, whose grid ends there)");
   const auto partition = with(warnings, "partition_start/partition_end");
   ASSERT_EQ(partition.size(), 1u);
   EXPECT_EQ(partition[0], "bodies[1].partition_start/partition_end: 24 of the 48 particles of the body's geometry lie "
@@ -1025,7 +1023,11 @@ TEST(ClaymoreUWTolerances, TrackedIdsPartitionAndDomainDropsWarnWithCounts) {
   EXPECT_EQ(with(warnings, "long_axis").size(), 1u);
   EXPECT_EQ(with(warnings, "the sensor's box holds nothing").size(), 2u);
   // The counts the engines sample.
-  EXPECT_EQ(sample_body(s.bodies[0], s.simulation, 0).size(), 64u);
+  // Body 0 keeps the 256 particles between y = -0.4 and 0 (the margin) and the 64 inside the domain.
+  const std::vector<Vec3d> kept = sample_body(s.bodies[0], s.simulation, 0);
+  EXPECT_EQ(kept.size(), 320u);
+  EXPECT_EQ(std::count_if(kept.begin(), kept.end(), [](const Vec3d& p) { return p[1] < 0.0; }), 256);
+  for (const Vec3d& p : kept) EXPECT_GE(p[1], -0.4) << p[1];
   EXPECT_EQ(sample_body(s.bodies[1], s.simulation, 1).size(), 24u);
   // IDs within the body: no warning.
   warnings.clear();

@@ -13,6 +13,7 @@
 #include <string>
 
 #include "geometry/particle_seed.h"
+#include "physics/boundary.cuh"
 #include "scene/attributes.h"
 #include "scene/facilities.h"
 #include "scene/scene_error.h"
@@ -102,7 +103,7 @@ bool in_closed_box(const Vec3d& p, const Vec3d& lo, const Vec3d& hi) {
 [[noreturn]] void throw_no_particles(const std::string& path) {
   throw SceneError(path, "0 particles",
                    "at least one particle: the geometry after its operations, the partition_start/partition_end "
-                   "clip and simulation.domain must contain a sampling point");
+                   "clip and simulation.domain widened by 8 cells of default_dx must contain a sampling point");
 }
 
 /// The seeds (particle_seed.h) of a point file's particles from its attributes (names g.input_attribs, point-major):
@@ -299,10 +300,12 @@ BodyShape::BodyShape(const std::vector<GeometrySpec>& geometry, int body_index, 
         BedPoints bed;
         if (g.object == GeometryObject::Bathymetry || g.use_custom_bathymetry) {
           bed = g.bathymetry;
-        } else {  // the facility's bed, its origin (the wave-maker's neutral position, the floor) at the offset
+        } else {  // the facility's bed, its origin (the wave-maker's neutral position, the floor) at the offset,
+                  // the LWF's 0.1 m (x s) further along x, as ClaymoreUW places it (facilities.h)
           const double s = g.use_froude_scaling ? froude_scaling : 1.0;
-          bed = place_bed(g.object == GeometryObject::OsuLwf ? osu_lwf_bathymetry() : osu_twb_bathymetry(), s,
-                          offset[0], offset[1]);
+          const bool lwf = g.object == GeometryObject::OsuLwf;
+          bed = place_bed(lwf ? osu_lwf_bathymetry() : osu_twb_bathymetry(), s,
+                          offset[0] + (lwf ? kOsuLwfNeutralFromWater * s : 0.0), offset[1]);
         }
         if (bed.size() < 2)
           throw SceneError(path + ".bathymetry", std::to_string(bed.size()) + " point(s)", "at least 2 [x, y] points", "m");
@@ -472,6 +475,7 @@ BodySampler::BodySampler(const BodySpec& body, const SimulationSpec& sim, int bo
   part_lo_ = clip.partition ? to_vec(body.partition_start) : Vec3d{{-inf, -inf, -inf}};
   part_hi_ = clip.partition ? to_vec(body.partition_end) : Vec3d{{inf, inf, inf}};
   domain_ = Vec3d{{sim.domain[0], sim.domain[1], sim.domain[2]}};
+  dx_ = sim.dx;
   // Point-file particles: the partition clip (half-open, as the lattice) and the later entries' operations. A
   // particle frame (.bgeo, .h5) is not clipped: ClaymoreUW reads frames without the partition (its resume scenes
   // keep their first run's partition_end, which a wave crest of the frame may have risen above), and a .csv / .pos
@@ -514,9 +518,10 @@ BodySampler::BodySampler(const BodySpec& body, const SimulationSpec& sim, int bo
   for (int d = 0; d < 3; ++d) {
     box.lo[d] = std::max(box.lo[d], part_lo_[d]);
     box.hi[d] = std::min(box.hi[d], part_hi_[d]);
-    if (clip_domain_) {
-      box.lo[d] = std::max(box.lo[d], 0.0);
-      box.hi[d] = std::min(box.hi[d], domain_[d]);
+    if (clip_domain_) {  // the domain widened by the margin in which particles may stand (boundary.cuh)
+      const double margin = kDomainMarginCells * dx_;
+      box.lo[d] = std::max(box.lo[d], -margin);
+      box.hi[d] = std::min(box.hi[d], domain_[d] + margin);
     }
   }
   if (box.empty()) {  // no solid to sample: only point files (or nothing)
@@ -605,7 +610,8 @@ void BodySampler::sample_planes(long long first, long long last, std::vector<Vec
 }
 
 bool BodySampler::outside_domain(const Vec3d& p) const {
-  return clip_domain_ && (p[0] < 0.0 || p[1] < 0.0 || p[2] < 0.0 || p[0] > domain_[0] || p[1] > domain_[1] || p[2] > domain_[2]);
+  // The engines' own test (inside_domain, boundary.cuh): the domain widened by kDomainMarginCells cells.
+  return clip_domain_ && !inside_domain(p, domain_, dx_);
 }
 
 SampleCount BodySampler::count(double dx) const {

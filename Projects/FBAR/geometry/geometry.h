@@ -27,8 +27,9 @@
 //    (a point on the surface is inside).
 //  * partition_start / partition_end clip the sampled points to the half-open box [start, end) (as ClaymoreUW's
 //    inside_partition, so a body split across GPUs at a shared plane has every point exactly once); then points
-//    outside [0, simulation.domain] are dropped (ClaymoreUW keeps them in its 8-cell grid margin; fbar's engines
-//    hold particles inside the domain only). body_drops() counts both; the scene parser warns with the counts.
+//    more than kDomainMarginCells (8) cells of dx outside [0, simulation.domain] are dropped: the engines hold
+//    particles within that margin (boundary.cuh inside_domain), as ClaymoreUW's grid, which starts 8 cells before
+//    the domain. body_drops() counts both; the scene parser warns with the counts.
 //
 // Sampling (per grid cell of edge dx = simulation.default_dx):
 //  * ppc = n^3 (1, 8, 27, 64, ...): regular lattice of spacing h = dx/n aligned to the grid, cell-centred
@@ -155,7 +156,8 @@ struct SampleCount {
 /// sample_planes(0, planes()) is exactly sample_body()'s output, in the same order.
 /// Which clips a BodySampler applies. A body's particles are its geometry's, less those outside
 /// [partition_start, partition_end) (half-open; not for .bgeo / .h5 frames) and those outside [0, simulation.domain]
-/// (closed). Both are on for every run; body_drops() turns them off to count what they drop.
+/// widened by kDomainMarginCells cells of dx (closed; inside_domain). Both are on for every run; body_drops() turns
+/// them off to count what they drop.
 struct SamplerClip {
   bool partition = true;
   bool domain = true;
@@ -175,6 +177,7 @@ class BodySampler {
   /// Counts particles and particles per block (OpenMP over planes). Throws SceneError, as sample_body, when no
   /// particle remains.
   SampleCount count(double dx) const;
+  /// Is p beyond simulation.domain widened by kDomainMarginCells cells (and the domain clip on)?
   bool outside_domain(const Vec3d& p) const;
   const std::string& path() const { return path_; }
   /// The seeds of the point-file particles (has_attributes; empty when no entry has attributes), which are the last
@@ -197,6 +200,7 @@ class BodySampler {
   SamplingPattern pattern_;
   std::shared_ptr<BodyShape> shape_;
   Vec3d part_lo_{}, part_hi_{}, domain_{};
+  double dx_ = 0.0;  ///< simulation.default_dx [m]: the margin around the domain is kDomainMarginCells of it
   bool clip_domain_ = true;
   std::vector<Vec3d> points_;    ///< point-file particles kept (partition clip, later operations), in order
   std::vector<double> seeds_;    ///< their seeds (kSeedScalars each), or empty
@@ -209,11 +213,11 @@ class BodySampler {
 SampleCount count_points(const std::vector<Vec3d>& points, double dx);
 
 /// What the clips of a body drop (ClaymoreUW drops geometry outside the partition without a word, and keeps particles
-/// outside its domain within its 8-cell grid margin; fbar's engines hold particles inside [0, domain] only).
+/// outside its domain within its 8-cell grid margin, as fbar's engines do: kDomainMarginCells).
 struct BodyDrops {
   long long particles = 0;          ///< the body's particles (both clips)
   long long outside_partition = 0;  ///< geometry particles outside [partition_start, partition_end)
-  long long outside_domain = 0;     ///< particles inside the partition but outside [0, simulation.domain]
+  long long outside_domain = 0;     ///< particles inside the partition but beyond the margin around the domain
   bool partition_counted = true;    ///< false: the unclipped geometry is too large to count (outside_partition = 0)
 };
 /// Counts a body's particles with and without its clips (up to three counts; the unclipped one only when its

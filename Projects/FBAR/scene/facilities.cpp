@@ -17,13 +17,15 @@ std::vector<BoundarySpec> expand_boundary(const BoundarySpec& spec, const Simula
     case BoundaryObject::OSU_LWF_RAMP:
     case BoundaryObject::OSU_TWB_RAMP:
     case BoundaryObject::USGS_RAMP: {
-      // The facility's bed with its origin at domain_start (x, y), unless custom points replace it.
+      // The facility's bed with its origin at domain_start (x, y), the LWF's 2 m (x s) further along x (its wave
+      // maker's neutral position), unless custom points replace it.
       g.object = BoundaryObject::Bathymetry;
       if (!custom) {
-        const BedPoints bed = spec.object == BoundaryObject::OSU_LWF_RAMP   ? osu_lwf_bathymetry()
+        const bool lwf = spec.object == BoundaryObject::OSU_LWF_RAMP;
+        const BedPoints bed = lwf                                           ? osu_lwf_bathymetry()
                               : spec.object == BoundaryObject::OSU_TWB_RAMP ? osu_twb_bathymetry()
                                                                             : usgs_ramp_bathymetry();
-        g.bathymetry = place_bed(bed, s, lo[0], lo[1]);
+        g.bathymetry = place_bed(bed, s, lo[0] + (lwf ? kOsuLwfNeutralFromBoundary * s : 0.0), lo[1]);
       }
       return {g};
     }

@@ -4,12 +4,14 @@
 // kernel: boundary.cuh and geometry.cpp turn these points into the generic Bathymetry profile and CSG solid.
 //
 // Sources and what is approximate (user guide §2.7, "Facility objects"):
-//  * OSU Large Wave Flume (LWF, Oregon State University, 104 m x 3.7 m x 4.6 m): the stations of the ClaymoreUW
-//    validation (VALIDATION.md): flat to 17.925 m (a break at 14.275 m kept as a point), 1:12 up to 3 ft (0.9144 m)
-//    at 28.9 m, 1:24 up to 5 ft (1.524 m) at 43.525 m, flat to 80.1 m, 1:12 up to 7 ft (2.1336 m) at 87.45 m, flat
-//    beyond. Straight segments between published stations: the as-built concrete bed differs by centimetres.
-//    ClaymoreUW's own tables raise this bed by 0.225 m and shift it by 0.1 m (geometry) or 2 m (boundary); fbar keeps
-//    one bed for both, placed by the scene.
+//  * OSU Large Wave Flume (LWF, Oregon State University, 104 m x 3.7 m x 4.6 m): ClaymoreUW's own bed table (the
+//    OSU_LWF_RAMP grid kernel, mgmpm_kernels.cuh L2413-2462, and make_OSU_LWF, read_scene_input.h L688-718), which
+//    scenes written for ClaymoreUW place their structures and gauges on: from the wave maker's neutral position,
+//    0.225 m (a raised slab) flat to 17.925 m (a break at 14.275 m kept as a point), 1:11.86 up to 1.15 m at 28.9 m,
+//    1:24.375 up to 1.75 m at 43.525 m, flat to 80.1 m, 1:12.25 up to 2.35 m at 87.45 m, flat beyond; flat at
+//    0.225 m before the neutral position. It lies 0.2 to 0.23 m above the published stations (1:12 up to 3 ft at
+//    28.9 m, 1:24 up to 5 ft, 1:12 up to 7 ft). The boundary puts the neutral position 2 m (x s) after domain_start
+//    (ClaymoreUW: x = 2 m, whatever domain_start says), the water body 0.1 m (x s) after its offset (as ClaymoreUW).
 //  * OSU Tsunami Wave Basin (TWB, 48.8 m x 26.5 m x 2.1 m): flat to 11.3 m, 1:20 up to 1.0 m at 31.3 m, flat to
 //    41.3 m (ClaymoreUW's tables); flat beyond (ClaymoreUW drops to 0 after 41.3 m, behind the basin's end wall).
 //  * USGS debris-flow flume (H.J. Andrews, 95 m long, 2 m wide): the flume bed is flat (y = 0) to 80 m in the flume's
@@ -29,9 +31,14 @@ namespace fbar {
 using BedPoints = std::vector<std::array<double, 2>>;
 
 inline BedPoints osu_lwf_bathymetry() {
-  return {{0.0, 0.0},      {14.275, 0.0}, {17.925, 0.0},  {28.9, 0.9144},
-          {43.525, 1.524}, {80.1, 1.524}, {87.45, 2.1336}};
+  return {{0.0, 0.225},   {14.275, 0.225}, {17.925, 0.225}, {28.9, 1.15},
+          {43.525, 1.75}, {80.1, 1.75},    {87.45, 2.35}};
 }
+
+/// Where the LWF bed's origin (the wave maker's neutral position) lies, at full scale [m]: 2 m after the boundary's
+/// domain_start (ClaymoreUW's OSU_LWF_RAMP kernel: x = 2 m), 0.1 m after the water body's offset (make_OSU_LWF).
+constexpr double kOsuLwfNeutralFromBoundary = 2.0;
+constexpr double kOsuLwfNeutralFromWater = 0.1;
 
 inline BedPoints osu_twb_bathymetry() { return {{0.0, 0.0}, {11.3, 0.0}, {31.3, 1.0}, {41.3, 1.0}}; }
 

@@ -34,6 +34,7 @@
 #include "geometry/geometry.h"
 #include "geometry/geometry_files.h"
 #include "scene/attributes.h"
+#include "physics/boundary.cuh"
 #include "physics/constitutive_models.cuh"
 
 namespace fbar {
@@ -1520,9 +1521,10 @@ void resolve_copy_track_ids(Scene& scene, const Context& ctx) {
 
 /// Counts every body's particles and what its clips drop, and warns (once per body and kind) where a ClaymoreUW
 /// scene relies on a silent tolerance: geometry outside the partition (ClaymoreUW drops it without a word,
-/// read_scene_input.h L324-330), particles outside simulation.domain (ClaymoreUW keeps them in its 8-cell grid
-/// margin, settings.cuh g_offset; fbar's engines hold the domain only, so they are dropped), and tracked IDs that
-/// name no particle (ClaymoreUW writes 0.0 for them every frame; fbar writes NaN).
+/// read_scene_input.h L324-330), particles more than kDomainMarginCells cells outside simulation.domain (those
+/// within the margin are kept without a word, as ClaymoreUW keeps them in its grid's 8-cell margin, settings.cuh
+/// g_offset; its grid ends there), and tracked IDs that name no particle (ClaymoreUW writes 0.0 for them every
+/// frame; fbar writes NaN).
 void audit_bodies(const Scene& scene, const Context& ctx) {
   const SimulationSpec& sim = scene.simulation;
   for (std::size_t bi = 0; bi < scene.bodies.size(); ++bi) {
@@ -1549,11 +1551,11 @@ void audit_bodies(const Scene& scene, const Context& ctx) {
                num_text(b.partition_end[2]) + "] m and are dropped; ClaymoreUW drops them too, without a word");
     if (drops.outside_domain > 0)
       ctx.warn(bp + ".geometry: " + std::to_string(drops.outside_domain) + " of the body's " +
-               std::to_string(drops.outside_domain + drops.particles) + " particles lie outside simulation.domain [0, " +
-               num_text(sim.domain[0]) + "] x [0, " + num_text(sim.domain[1]) + "] x [0, " + num_text(sim.domain[2]) +
-               "] m and are dropped (" + std::to_string(drops.particles) +
-               " remain); ClaymoreUW keeps them in its grid's 8-cell margin outside the domain, fbar's engines hold "
-               "particles inside the domain only");
+               std::to_string(drops.outside_domain + drops.particles) + " particles lie more than " +
+               num_text(kDomainMarginCells) + " cells (" + num_text(kDomainMarginCells * sim.dx) +
+               " m) outside simulation.domain [0, " + num_text(sim.domain[0]) + "] x [0, " + num_text(sim.domain[1]) +
+               "] x [0, " + num_text(sim.domain[2]) + "] m and are dropped (" + std::to_string(drops.particles) +
+               " remain); particles may stand within that margin (ClaymoreUW's grid margin, whose grid ends there)");
     std::vector<std::size_t> bad;
     for (std::size_t k = 0; k < b.track_particle_id.size(); ++k)
       if (b.track_particle_id[k] >= drops.particles) bad.push_back(k);
