@@ -81,7 +81,7 @@ struct BoundaryParams {
   Vec3<T> hi;          ///< [m] box max corner
   Vec3<T> velocity;    ///< [m/s] v_b: the boundary moves with it, and contact acts on v - v_b
   T layer;             ///< [m] Walls: nodes this far or farther outside a face are held (1.5 dx); sloped beds: band
-  T dx;                ///< [m] grid spacing (Walls: a node within dx / 128 of a face lies on it)
+  T dx;                ///< [m] grid spacing (a node within dx / 128 of a face, bed or line lies on it)
   T friction_static;   ///< [-] mu_s
   T friction_dynamic;  ///< [-] mu_d
   double t_begin;      ///< [s] active window (double: compared with the simulation clock)
@@ -143,14 +143,16 @@ template <typename T>
 FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const Vec3<T>& x_node, Vec3<T> v,
                                                const BoundaryProfiles<T>* profiles = nullptr) {
   using std::sqrt;
+  // A node within dx / 128 of a face, a bed or a line lies on it, whatever the round-off of its position and of the
+  // scene's numbers (6 x 0.02 against 0.02 + 0.1 decided a flat bed's node row differently in float and double).
+  const T snap = b.dx * T(1.0 / 128);
   const auto inside_box = [&] {
     for (int a = 0; a < 3; ++a)
-      if (x_node[a] < b.lo[a] || x_node[a] > b.hi[a]) return false;
+      if (x_node[a] < b.lo[a] - snap || x_node[a] > b.hi[a] + snap) return false;
     return true;
   };
   switch (b.shape) {
     case BoundaryShape::Walls: {
-      const T snap = b.dx * T(1.0 / 128);  // node positions' round-off
       bool on_face = false, held = false;
       for (int a = 0; a < 3; ++a) {
         const T below = b.lo[a] - x_node[a], above = x_node[a] - b.hi[a];  // >= 0: on or outside that face
@@ -200,7 +202,7 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
       return project_moving(b, v, n);
     }
     case BoundaryShape::Cylinder: {
-      if (x_node[1] < b.lo[1] || x_node[1] > b.hi[1]) return v;
+      if (x_node[1] < b.lo[1] - snap || x_node[1] > b.hi[1] + snap) return v;
       const T radius = (b.hi[0] - b.lo[0]) * T(0.5);
       const T dx = x_node[0] - (b.lo[0] + b.hi[0]) * T(0.5);
       const T dz = x_node[2] - (b.lo[2] + b.hi[2]) * T(0.5);
@@ -227,14 +229,14 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
       return project_moving(b, v, n);
     }
     case BoundaryShape::Plane: {
-      if (x_node[0] < b.lo[0] || x_node[0] >= b.hi[0]) return v;
+      if (x_node[0] < b.lo[0] - snap || x_node[0] >= b.hi[0] - snap) return v;
       const T ex = b.hi[0] - b.lo[0], ey = b.hi[1] - b.lo[1];
       const T length = sqrt(ex * ex + ey * ey);
       Vec3<T> n = Vec3<T>::zero();
       n[0] = -ey / length;
       n[1] = ex / length;
       const T side = (x_node[0] - b.lo[0]) * n[0] + (x_node[1] - b.lo[1]) * n[1];
-      if (side > (ey != T(0) ? b.layer : T(0))) return v;  // above the line (and its band, kBedLayerCells)
+      if (side > (ey != T(0) ? b.layer : T(0)) + snap) return v;  // above the line (and its band, kBedLayerCells)
       return project_moving(b, v, n);
     }
     case BoundaryShape::Velocity:
@@ -275,7 +277,7 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
       for (int j = i; j >= 0 && !sloped && px[j + 1] > x_node[0] - b.layer; --j)
         sloped = py[j + 1] != py[j] && px[j] < x_node[0] + b.layer;
       for (int j = i + 1; j < last && !sloped && px[j] < x_node[0] + b.layer; ++j) sloped = py[j + 1] != py[j];
-      if (x_node[1] > surface + (sloped ? b.layer : T(0))) return v;  // above the bed: the material's side
+      if (x_node[1] > surface + (sloped ? b.layer : T(0)) + snap) return v;  // above the bed: the material's side
       const T length = sqrt(ex * ex + ey * ey);
       Vec3<T> n = Vec3<T>::zero();
       n[0] = -ey / length;
