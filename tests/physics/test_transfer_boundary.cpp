@@ -161,7 +161,7 @@ BoundaryParams<double> make(BoundaryObject object, Contact contact, Real3 lo = {
 const Vec3d kV{{0.3, -0.7, 0.2}};
 
 // Walls act on ClaymoreUW's nodes (mgmpm_kernels.cuh, grid update, Walls): x <= lo or x >= hi along an axis.
-TEST(Boundary, WallsDefaultToDomainOnTheFaceNodesAndOutside) {
+TEST(Boundary, WallsAreTheDomainByDefaultOnTheFaceNodesAndOutside) {
   const auto b = make(BoundaryObject::Walls, Contact::Sticky);
   EXPECT_EQ(b.hi, (Vec3d{{1.0, 2.0, 1.0}}));
   // Sticky: the face's node plane (0) and everything outside it are held; one cell in (dx) is free.
