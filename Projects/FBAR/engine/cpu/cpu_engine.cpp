@@ -360,9 +360,10 @@ void CpuEngine<T, TG>::init(const std::vector<std::vector<Vec3d>>& positions) {
     body.id.resize(n);
     for (std::size_t p = 0; p < n; ++p) body.id[p] = static_cast<std::int64_t>(p);
     body.x.resize(n);
+    const Vec3d domain{{sim.domain[0], sim.domain[1], sim.domain[2]}};
     for (std::size_t p = 0; p < n; ++p) {
       const Vec3d& q = positions[b][p];
-      if (!inside_domain(q, Vec3d{{sim.domain[0], sim.domain[1], sim.domain[2]}}, sim.dx))
+      if (!inside_domain(q, domain, sim.dx))
         throw std::invalid_argument(where + ": particle " + std::to_string(p) + " lies outside the domain");
       body.x[p] = q.template cast<T>();
     }

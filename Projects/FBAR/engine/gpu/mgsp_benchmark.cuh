@@ -979,8 +979,9 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
     Aabb geometry_bounds;  // the free surface of a hydrostatic body is its top (physics/hydrostatic.h)
     if (positions) {
       const std::vector<Vec3d>& x = (*positions)[b];
+      const Vec3d domain{{sim.domain[0], sim.domain[1], sim.domain[2]}};
       for (std::size_t p = 0; p < x.size(); ++p)
-        if (!inside_domain(x[p], Vec3d{{sim.domain[0], sim.domain[1], sim.domain[2]}}, sim.dx))
+        if (!inside_domain(x[p], domain, sim.dx))
           throw std::invalid_argument(where + ": particle " + std::to_string(p) + " lies outside the domain");
       counts_.push_back(count_points(x, sim.dx));
       if (spec.initial_state == InitialState::Hydrostatic)
