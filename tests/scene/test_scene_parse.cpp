@@ -964,6 +964,29 @@ TEST(ClaymoreUWTolerances, CylinderAxisAndLongAxis) {
   EXPECT_NE(error_of(cylinder(R"("axis": "Z", "long_axes": "Z")")).find("long_axes"), std::string::npos);
 }
 
+// ClaymoreUW keeps one output frequency per kind of sensor (the last one read) and writes every sensor of that kind
+// at it: its AVE scene's load cells (120 Hz) are written at its velocity meters' 2048 Hz. fbar writes each sensor at
+// its own rate and says so once per kind; sensors that agree, or a single sensor, give no warning.
+TEST(ClaymoreUWTolerances, SensorFrequenciesThatDifferAreNamed) {
+  std::vector<std::string> warnings;
+  const Scene s = parse(scene_with(body(), R"("grid-sensors": [
+      {"attribute": "Force", "direction": "X+", "output_frequency": 120, "domain_start": [0, 0, 0], "domain_end": [0.1, 0.1, 0.1]},
+      {"attribute": "Force", "direction": "X-", "output_frequency": 120, "domain_start": [0, 0, 0], "domain_end": [0.1, 0.1, 0.1]},
+      {"attribute": "Velocity", "direction": "Y", "output_frequency": 2048, "domain_start": [0, 0, 0], "domain_end": [0.1, 0.1, 0.1]}],
+      "particle-sensors": [
+      {"attribute": "Position_Y", "operation": "Max", "output_frequency": 30, "domain_start": [0, 0, 0], "domain_end": [0.1, 0.1, 0.1]},
+      {"attribute": "Position_Y", "operation": "Max", "output_frequency": 30, "domain_start": [0, 0, 0], "domain_end": [0.1, 0.1, 0.1]}])"),
+                        true, &warnings);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_EQ(warnings[0], "grid-sensors[].output_frequency: 2 of the 3 sensors ask for another rate than the last one's "
+                         "(2048 Hz, grid-sensors[2]). ClaymoreUW writes every grid sensor at the last one's rate; fbar "
+                         "writes each at its own");
+  ASSERT_EQ(s.grid_sensors.size(), 3u);
+  EXPECT_EQ(s.grid_sensors[0].output_frequency, 120.0);  // kept: fbar samples each at its own rate
+  EXPECT_EQ(s.grid_sensors[2].output_frequency, 2048.0);
+  EXPECT_EQ(s.particle_sensors[1].output_frequency, 30.0);
+}
+
 // ClaymoreUW's DKT_2D scene has a particle sensor with domain_end[0] < domain_start[0]: it runs, the box holds
 // nothing. Grid sensors the same; a boundary box stays an error; a zero-length grid-sensor box grows by one cell.
 TEST(ClaymoreUWTolerances, InvertedSensorBoxesRunEmpty) {

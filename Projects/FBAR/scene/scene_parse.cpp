@@ -1164,6 +1164,22 @@ BodyRead parse_body(const rj::Value& v, const std::string& path, const Context& 
 // boundaries[], grid-sensors[], particle-sensors[]
 // ---------------------------------------------------------------------------------------------------------------
 
+// ClaymoreUW keeps one output frequency per kind of sensor, the last one read (mgsp_benchmark.cuh host_gt_freq,
+// host_pt_freq), and writes every sensor of that kind at it; fbar writes each sensor at its own. Said once per kind.
+template <typename Sensors>
+void warn_claymoreuw_sensor_frequencies(const Sensors& sensors, const char* kind, const Context& ctx) {
+  if (sensors.size() < 2) return;
+  const double last = sensors.back().output_frequency;
+  std::size_t differ = 0;
+  for (const auto& s : sensors) differ += s.output_frequency != last ? 1 : 0;
+  if (differ == 0) return;
+  ctx.warn(std::string(kind) + "[].output_frequency: " + std::to_string(differ) + " of the " +
+           std::to_string(sensors.size()) + " sensors ask for another rate than the last one's (" + num_text(last) +
+           " Hz, " + kind + "[" + std::to_string(sensors.size() - 1) + "]). ClaymoreUW writes every " +
+           (std::string(kind) == "grid-sensors" ? "grid" : "particle") + " sensor at the last one's rate; fbar " +
+           "writes each at its own");
+}
+
 /// domain_start / domain_end (both required); `strict` (boundaries): end > start per axis, an error otherwise.
 /// A sensor's box (`ctx` given) may be inverted (end < start on some axis): ClaymoreUW runs such a scene with a
 /// sensor that holds nothing, so fbar keeps the box (it contains nothing), and warns once naming the first axis.
@@ -1622,6 +1638,8 @@ Scene parse_document(const rj::Document& doc, Context& ctx) {
       scene.particle_sensors.push_back(std::move(sensor));
     }
   }
+  warn_claymoreuw_sensor_frequencies(scene.grid_sensors, "grid-sensors", ctx);
+  warn_claymoreuw_sensor_frequencies(scene.particle_sensors, "particle-sensors", ctx);
   // FEM meshes: their keys are defined by a later release; only their presence is recorded (check_supported).
   if (auto* a = optional_array(root, {"meshes"}, path, "an array of mesh objects")) scene.mesh_count = static_cast<int>(a->Size());
   for (const char* k : kWrapperKeys)
