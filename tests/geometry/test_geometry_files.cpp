@@ -315,22 +315,26 @@ TEST(FileGeometry, SeedsFollowRotationFroudeScalingAndClipping) {
   EXPECT_EQ(seeds.first, 64);
   EXPECT_EQ(seeds.size(), 4u);
   EXPECT_EQ(x.size(), 68u);
-  // A J <= 0 is refused with the file and the point.
+  // An inverted particle (J <= 0: ClaymoreUW writes such points into its own frames, and its breaking wave's frame
+  // 20 holds them) is dropped, and the shape says which and how many; the other particles keep their seeds.
   {
     std::ofstream csv(dir / "bad.csv");
-    csv << "Position_X,Position_Y,Position_Z,J\n0.1,0.1,0.1,1\n0.2,0.2,0.2,-0.5\n";
+    csv << "Position_X,Position_Y,Position_Z,J\n0.1,0.1,0.1,1\n0.2,0.2,0.2,-0.5\n0.3,0.3,0.3,0.9\n";
   }
   GeometrySpec bad = file_entry(dir / "bad.csv");
   bad.has_attributes = true;
   bad.input_attribs = {"J"};
-  try {
-    sample_body(make_body({bad}), make_sim(0.05), 0, &seeds);
-    ADD_FAILURE() << "J < 0 accepted";
-  } catch (const SceneError& e) {
-    const std::string m = e.what();
-    EXPECT_NE(m.find("bodies[0].geometry[0].file"), std::string::npos) << m;
-    EXPECT_NE(m.find("point 1"), std::string::npos) << m;
-  }
+  x = sample_body(make_body({bad}), make_sim(0.05), 0, &seeds);
+  ASSERT_EQ(x.size(), 2u);
+  ASSERT_EQ(seeds.size(), 2u);
+  EXPECT_EQ(seeds.at(0)[kSeedJ], 1.0);
+  EXPECT_EQ(seeds.at(1)[kSeedJ], 0.9);
+  EXPECT_DOUBLE_EQ(x[1][0], 0.3);
+  const BodyDrops drops = body_drops(make_body({bad}), make_sim(0.05), 0);
+  ASSERT_EQ(drops.file_notes.size(), 1u);
+  EXPECT_EQ(drops.file_notes[0].dropped, 1u);
+  EXPECT_EQ(drops.file_notes[0].read, 3u);
+  EXPECT_EQ(drops.file_notes[0].first, "point 1: J = -0.5");
 }
 
 // A point file can only be added: it holds no volume that could be subtracted or intersected.

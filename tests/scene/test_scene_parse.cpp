@@ -964,6 +964,42 @@ TEST(ClaymoreUWTolerances, CylinderAxisAndLongAxis) {
   EXPECT_NE(error_of(cylinder(R"("axis": "Z", "long_axes": "Z")")).find("long_axes"), std::string::npos);
 }
 
+// ClaymoreUW writes 1 - J under the name J (its ResumeCheckpoint scene reads its Create run's frame 20: a median of
+// about 1e-4) and reads the column back as 1 - J: fbar does the same for such a file and says so; its own frames
+// hold J. A particle that is inverted either way (J <= 0) is dropped, with the count and the first one.
+TEST(ClaymoreUWTolerances, ResumeFilesWithOneMinusJAndInvertedParticles) {
+  const std::filesystem::path file = std::filesystem::temp_directory_path() / "fbar_resume_j.csv";
+  const auto warnings_for = [&](const std::string& rows) {
+    {
+      std::ofstream csv(file);
+      csv << "Position_X,Position_Y,Position_Z,J,Velocity_X,Velocity_Y,Velocity_Z\n" << rows;
+    }
+    std::vector<std::string> warnings;
+    parse(scene_with(R"({"material": {}, "geometry": [{"object": "File", "file": ")" + file.string() +
+                     R"(", "has_attributes": true, "input_attribs": ["J", "Velocity_X", "Velocity_Y", "Velocity_Z"]}]})"),
+          true, &warnings);
+    return warnings;
+  };
+  const std::string at = "bodies[0].geometry[0].file: \"" + file.string() + "\": ";
+  // ClaymoreUW's column: 1 - J, one particle crushed (1 - J = 1.2, J = -0.2).
+  std::vector<std::string> w = warnings_for("0.1,0.1,0.1,0.0001,0,0,0\n0.2,0.2,0.2,-0.000008,0,0,0\n"
+                                            "0.3,0.3,0.3,0.0002,0,0,0\n0.4,0.4,0.4,1.2,0,0,0\n");
+  ASSERT_EQ(w.size(), 2u);
+  EXPECT_EQ(w[0], at + "its J column holds 1 - J, as ClaymoreUW writes it (median 0.0002); fbar reads J = 1 - value, "
+                       "as ClaymoreUW reads it back. fbar's own frames hold J");
+  EXPECT_EQ(w[1], at + "1 of its 4 particles are inverted (J or det DefGrad <= 0; first: point 3: J = -0.2) and are "
+                       "dropped. ClaymoreUW keeps such particles (its JFluid pressure pow(J, -gamma) is not a number "
+                       "there)");
+  // fbar's column: J, two inverted.
+  w = warnings_for("0.1,0.1,0.1,1,0,0,0\n0.2,0.2,0.2,0.98,0,0,0\n0.3,0.3,0.3,-0.000008,0,0,0\n0.4,0.4,0.4,0,0,0,0\n");
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_EQ(w[0].rfind(at + "2 of its 4 particles are inverted (J or det DefGrad <= 0; first: point 2: J = -8e-06)", 0), 0u)
+      << w[0];
+  // A healthy J column: nothing said.
+  EXPECT_TRUE(warnings_for("0.1,0.1,0.1,1,0,0,0\n0.2,0.2,0.2,0.999,0,0,0\n").empty());
+  std::filesystem::remove(file);
+}
+
 // ClaymoreUW keeps one output frequency per kind of sensor (the last one read) and writes every sensor of that kind
 // at it: its AVE scene's load cells (120 Hz) are written at its velocity meters' 2048 Hz. fbar writes each sensor at
 // its own rate and says so once per kind; sensors that agree, or a single sensor, give no warning.

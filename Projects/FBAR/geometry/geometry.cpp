@@ -108,25 +108,47 @@ bool in_closed_box(const Vec3d& p, const Vec3d& lo, const Vec3d& hi) {
 
 /// The seeds (particle_seed.h) of a point file's particles from its attributes (names g.input_attribs, point-major):
 /// velocities rotated with the entry and scaled by `velocity_scale` (Froude: s^0.5), F rotated as R F R^T (the
-/// particle's rest shape is placed rotated too). Throws std::runtime_error naming the file and the point for J <= 0,
-/// det F <= 0.
+/// particle's rest shape is placed rotated too). A point whose J or det F is not positive (an inverted particle:
+/// ClaymoreUW writes such points into its own frames) is marked in `invalid` and described in `first_invalid` (the
+/// first one); the caller drops them.
 std::vector<double> file_seeds(const GeometrySpec& g, const std::vector<double>& attributes, std::size_t n,
-                               const Mat3<double>& rot, double velocity_scale) {
+                               const Mat3<double>& rot, double velocity_scale, std::vector<char>& invalid,
+                               std::string& first_invalid, double& one_minus_j_median) {
+  invalid.assign(n, 0);
+  one_minus_j_median = std::numeric_limits<double>::quiet_NaN();
   const std::vector<std::string>& names = g.input_attribs;
   const std::size_t K = names.size();
   const bool j_listed = std::find(names.begin(), names.end(), "J") != names.end();
   std::vector<int> slot(K);
+  std::size_t j_column = K;
   for (std::size_t k = 0; k < K; ++k) {
     slot[k] = seed_slot(names[k]);
     if (names[k] == "JBar" && j_listed) slot[k] = kSeedIgnored;  // J wins; F-bar recomputes JBar every step
+    if (slot[k] == kSeedJ) j_column = k;
+  }
+  // ClaymoreUW writes 1 - J under the names J and JBar (mgmpm_kernels.cuh, "Currently outputs (1 - J), not J") and
+  // reads the column back into its 1 - J slot; fbar's frames hold J. A column whose median lies within 0.5 of 0 is
+  // ClaymoreUW's (a body whose median particle has lost half its volume is not a body one resumes): J = 1 - value.
+  bool one_minus_j = false;
+  if (j_column < K && n > 0) {
+    std::vector<double> column(n);
+    for (std::size_t p = 0; p < n; ++p) column[p] = attributes[p * K + j_column];
+    std::nth_element(column.begin(), column.begin() + static_cast<std::ptrdiff_t>(n / 2), column.end());
+    const double median = column[n / 2];
+    if (std::fabs(median) < 0.5) {
+      one_minus_j = true;
+      one_minus_j_median = median;
+    }
   }
   std::vector<double> out(n * kSeedScalars, seed_unset());
   for (std::size_t p = 0; p < n; ++p) {
     double* s = out.data() + p * kSeedScalars;
     for (std::size_t k = 0; k < K; ++k)
       if (slot[k] >= 0) s[slot[k]] = attributes[p * K + k];
-    const auto where = [&](const char* what) {
-      return g.file + ": point " + std::to_string(p) + ": " + what;
+    if (one_minus_j) s[kSeedJ] = 1.0 - s[kSeedJ];
+    const auto mark = [&](const std::string& what) {
+      if (first_invalid.empty()) first_invalid = "point " + std::to_string(p) + ": " + what;
+      invalid[p] = 1;
     };
     if (!std::isnan(s[kSeedVelocity])) {
       Vec3d v{{s[kSeedVelocity], s[kSeedVelocity + 1], s[kSeedVelocity + 2]}};
@@ -137,15 +159,15 @@ std::vector<double> file_seeds(const GeometrySpec& g, const std::vector<double>&
       Mat3<double> F;
       for (int i = 0; i < 3; ++i)
         for (int c = 0; c < 3; ++c) F(i, c) = s[kSeedDefGrad + 3 * i + c];
-      if (!(determinant(F) > 0.0))
-        throw std::runtime_error(where("det(DefGrad) = ") + std::to_string(determinant(F)) +
-                                 " (a deformation gradient has a positive determinant)");
+      if (!(determinant(F) > 0.0)) {
+        mark("det(DefGrad) = " + fmt(determinant(F)));
+        continue;
+      }
       F = rot * F * transpose(rot);
       for (int i = 0; i < 3; ++i)
         for (int c = 0; c < 3; ++c) s[kSeedDefGrad + 3 * i + c] = F(i, c);
     }
-    if (!std::isnan(s[kSeedJ]) && !(s[kSeedJ] > 0.0))
-      throw std::runtime_error(where("J = ") + std::to_string(s[kSeedJ]) + " (J is a volume ratio, > 0)");
+    if (!std::isnan(s[kSeedJ]) && !(s[kSeedJ] > 0.0)) mark("J = " + fmt(s[kSeedJ]));
   }
   return out;
 }
@@ -260,13 +282,37 @@ BodyShape::BodyShape(const std::vector<GeometrySpec>& geometry, int body_index, 
                 aliases.push_back(alias);
               }
             }
-            const std::vector<Vec3d> file_points = read_point_file(g.file, names, aliases, attributes);
+            std::vector<Vec3d> file_points = read_point_file(g.file, names, aliases, attributes);
             const Mat3<double> rot = euler_xyz(g.rotate);
             const bool rotated = g.rotate[0] != 0.0 || g.rotate[1] != 0.0 || g.rotate[2] != 0.0;
-            const std::vector<double> seeds =
+            std::vector<char> invalid;
+            std::string first_invalid;
+            double one_minus_j_median = std::numeric_limits<double>::quiet_NaN();
+            std::vector<double> seeds =
                 names.empty() ? std::vector<double>{}
                               : file_seeds(g, attributes, file_points.size(), rot,
-                                           std::sqrt(g.use_froude_scaling ? froude_scaling : 1.0));
+                                           std::sqrt(g.use_froude_scaling ? froude_scaling : 1.0), invalid,
+                                           first_invalid, one_minus_j_median);
+            const std::size_t copies_all = static_cast<std::size_t>(g.array[0]) * g.array[1] * g.array[2];
+            FileSeedNotes notes;
+            notes.entry = j;
+            notes.read = file_points.size() * copies_all;
+            notes.one_minus_j_median = one_minus_j_median;
+            if (!first_invalid.empty()) {  // inverted particles: dropped, and said (audit_bodies)
+              std::size_t kept = 0;
+              for (std::size_t p = 0; p < file_points.size(); ++p) {
+                if (invalid[p]) continue;
+                file_points[kept] = file_points[p];
+                std::copy_n(seeds.begin() + static_cast<std::ptrdiff_t>(p * kSeedScalars), kSeedScalars,
+                            seeds.begin() + static_cast<std::ptrdiff_t>(kept * kSeedScalars));
+                ++kept;
+              }
+              notes.dropped = (file_points.size() - kept) * copies_all;
+              notes.first = first_invalid;
+              file_points.resize(kept);
+              seeds.resize(kept * kSeedScalars);
+            }
+            if (notes.dropped > 0 || !std::isnan(notes.one_minus_j_median)) file_notes_.push_back(notes);
             PointSet set;
             set.entry = j;
             const std::size_t copies = static_cast<std::size_t>(g.array[0]) * g.array[1] * g.array[2];
@@ -753,6 +799,7 @@ BodyDrops body_drops(const BodySpec& body, const SimulationSpec& sim, int body_i
   BodyDrops out;
   const BodySampler clipped(body, sim, body_index);
   out.particles = clipped.count(sim.dx).particles;
+  out.file_notes = clipped.file_notes();
   const BodySampler in_partition(body, sim, body_index, SamplerClip{true, false});
   const long long partition_particles = in_partition.count(sim.dx).particles;
   out.outside_domain = partition_particles - out.particles;

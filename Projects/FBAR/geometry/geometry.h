@@ -43,6 +43,8 @@
 //  cells), deterministic.
 #pragma once
 
+#include <limits>
+
 #include <array>
 #include <cstdint>
 #include <memory>
@@ -108,6 +110,17 @@ class BodyShape {
   /// operations (Subtract, Intersection, ...)?
   bool survives(const Vec3d& p, std::size_t entry) const;
 
+  /// What reading a point file's attributes changed, per entry: a J column that holds ClaymoreUW's 1 - J (read as
+  /// J = 1 - value), and particles dropped as inverted (J <= 0 or det DefGrad <= 0).
+  struct FileSeedNotes {
+    std::size_t entry = 0;
+    std::size_t read = 0;             ///< the entry's particles as read, every copy
+    std::size_t dropped = 0;          ///< inverted particles dropped, every copy
+    std::string first;                ///< the first inverted one: "point 2: J = -8e-06"
+    double one_minus_j_median = std::numeric_limits<double>::quiet_NaN();  ///< the J column's median when it was 1 - J
+  };
+  const std::vector<FileSeedNotes>& file_notes() const { return file_notes_; }
+
  private:
   /// One geometry entry in its own frame: copy 0 unrotated, plus how to map a world point into that frame.
   struct Entry {
@@ -134,6 +147,7 @@ class BodyShape {
 
   std::vector<Entry> entries_;
   std::vector<PointSet> point_sets_;
+  std::vector<FileSeedNotes> file_notes_;
   Aabb bounds_;
 };
 
@@ -187,6 +201,8 @@ class BodySampler {
   /// Bounding box of the body's geometry [m]: its solid entries (BodyShape::bounds) and its point-file particles,
   /// before the partition clip (a hydrostatic body's free surface is the top of its whole geometry).
   Aabb geometry_bounds() const;
+  /// What reading point-file attributes changed (BodyShape::file_notes).
+  const std::vector<BodyShape::FileSeedNotes>& file_notes() const { return shape_->file_notes(); }
 
  private:
   template <typename F>
@@ -219,6 +235,7 @@ struct BodyDrops {
   long long outside_partition = 0;  ///< geometry particles outside [partition_start, partition_end)
   long long outside_domain = 0;     ///< particles inside the partition but beyond the margin around the domain
   bool partition_counted = true;    ///< false: the unclipped geometry is too large to count (outside_partition = 0)
+  std::vector<BodyShape::FileSeedNotes> file_notes;  ///< what reading point-file attributes changed
 };
 /// Counts a body's particles with and without its clips (up to three counts; the unclipped one only when its
 /// candidate lattice is at most 4 x the clipped one's + 2^26 points). Throws SceneError as sample_body does.

@@ -1552,6 +1552,17 @@ void audit_bodies(const Scene& scene, const Context& ctx) {
     } catch (const std::exception&) {
       continue;  // a body that cannot be sampled (a file's content, no particle) fails where it is sampled
     }
+    for (const BodyShape::FileSeedNotes& note : drops.file_notes) {
+      const std::string at = bp + ".geometry[" + std::to_string(note.entry) + "].file: \"" + b.geometry[note.entry].file + "\"";
+      if (!std::isnan(note.one_minus_j_median))
+        ctx.warn(at + ": its J column holds 1 - J, as ClaymoreUW writes it (median " + num_text(note.one_minus_j_median) +
+                 "); fbar reads J = 1 - value, as ClaymoreUW reads it back. fbar's own frames hold J");
+      if (note.dropped > 0)
+        ctx.warn(at + ": " + std::to_string(note.dropped) + " of its " + std::to_string(note.read) +
+                 " particles are inverted (J or det DefGrad <= 0; first: " + note.first +
+                 ") and are dropped. ClaymoreUW keeps such particles (its JFluid pressure pow(J, -gamma) is not a "
+                 "number there)");
+    }
     if (!drops.partition_counted)
       ctx.warn(bp + ".partition_start/partition_end: the geometry outside [" + num_text(b.partition_start[0]) + ", " +
                num_text(b.partition_start[1]) + ", " + num_text(b.partition_start[2]) + "] .. [" +
