@@ -228,6 +228,25 @@ TEST(SampleBody, CsgOperationsCountExactly) {
   for (const Vec3d& p : pts) ASSERT_GT(norm_squared(p - Vec3d::filled(0.35)), 0.15 * 0.15);
 }
 
+// A bed object subtracted cuts the body by the ground, as ClaymoreUW's subtract_bathymetry does: ClaymoreUW's own
+// scene.json carves a 2 x 1.5 x 3.5 m box (dx 0.1, ppc 8: 84,000 points) by a bed through (6, 0), (7, 0.25),
+// (8, 0.75); the ground under it holds (0.125 + 0.5) m^2 x 3.5 m = 2.1875 m^3 = 17,500 points of 1/8000 m^3, and
+// ClaymoreUW keeps 66,500. The bed object's span and offset (its water box when added) play no part.
+TEST(SampleBody, SubtractedBathymetryRemovesTheGroundUnderTheBed) {
+  const SimulationSpec sim = make_sim(0.1, {8.0, 8.0, 8.0});
+  GeometrySpec bed;
+  bed.object = GeometryObject::Bathymetry;
+  bed.operation = GeometryOperation::Subtract;
+  bed.bathymetry = {{0.0, 0.0}, {1.5, 0.5}, {2.5, 1.0}, {3.0, 0.5}, {4.0, 0.0}, {6.0, 0.0}, {7.0, 0.25}, {8.0, 0.75}};
+  const std::vector<Vec3d> pts =
+      sample_body(make_body({make_box({6.0, 0.0, 3.2}, {2.0, 1.5, 3.5}), bed}, 8), sim, 0);
+  EXPECT_EQ(pts.size(), 66500u);
+  for (const Vec3d& p : pts) {
+    const double ground = p[0] < 7.0 ? 0.25 * (p[0] - 6.0) : 0.25 + 0.5 * (p[0] - 7.0);
+    ASSERT_GT(p[1], ground);
+  }
+}
+
 // Rotations by multiples of 90 deg map the lattice onto itself when the fulcrum is a lattice symmetry point: the
 // count is unchanged and the points' bounding box is the rotated box shrunk by h/2, exactly.
 Vec3d rotate_x(Vec3d v, double c, double s) { return Vec3d{{v[0], c * v[1] - s * v[2], s * v[1] + c * v[2]}}; }

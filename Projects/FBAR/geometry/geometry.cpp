@@ -356,6 +356,10 @@ BodyShape::BodyShape(const std::vector<GeometrySpec>& geometry, int body_index, 
         if (bed.size() < 2)
           throw SceneError(path + ".bathymetry", std::to_string(bed.size()) + " point(s)", "at least 2 [x, y] points", "m");
         e.bed = std::make_shared<const BedPoints>(std::move(bed));
+        // Subtracted, a bed object cuts the body by the ground: what lies at or below the bed goes, whatever the
+        // entry's span, offset and copies (ClaymoreUW's subtract_bathymetry, read_scene_input.h; its facility
+        // beds do nothing when subtracted, "not implemented yet").
+        e.ground = g.operation == GeometryOperation::Subtract || g.operation == GeometryOperation::Difference;
         break;
       }
     }
@@ -390,6 +394,7 @@ BodyShape::BodyShape(const std::vector<GeometrySpec>& geometry, int body_index, 
 }
 
 bool BodyShape::entry_contains(const Entry& e, const Vec3d& p) {
+  if (e.ground) return p[1] <= bed_height(*e.bed, p[0]);
   const Vec3d q = e.rotated ? e.world_to_local * (p - e.fulcrum) + e.fulcrum : p;
   // Copies that can hold q: solve lo <= q - a*s <= hi for a per axis. The range is widened by one on each side
   // so that rounding in the division never drops a copy; the exact test below decides.

@@ -127,6 +127,7 @@ class BodyShape {
     GeometryObject object = GeometryObject::Box;
     GeometryOperation operation = GeometryOperation::Add;
     bool points = false;      ///< a point file: no volume, its particles are in point_sets_
+    bool ground = false;      ///< a bed object subtracted: the ground below its bed (y <= bed(x)), unbounded
     Vec3d lo{};               ///< [m] bounding box of copy 0, unrotated
     Vec3d hi{};
     Vec3d centre{};           ///< [m] sphere centre; cylinder: centre of the cross-section (axis component unused);
