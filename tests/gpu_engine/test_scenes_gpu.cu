@@ -10,6 +10,7 @@
 #include "engine/cpu/cpu_engine.h"
 #include "engine/gpu/gpu_engine.h"
 #include "gpu_test_support.h"
+#include "../physics/float_budget.h"
 #include "scene/scene_parse.h"
 
 namespace fbar {
@@ -38,15 +39,10 @@ std::vector<fs::path> runnable_scenes() {
 // (measured: granular |dv| 2.5e-3 against CPU float-vs-double 1.3e-3; incompressible block 4.6e-4 against 1.7e-4).
 // Mixed precision (float grid) is held to the single-precision tolerances.
 // The velocity tolerance is fixed per scene, not read off the run (a tolerance that widened with the scene's own
-// float-vs-double difference would widen for a scene that went wrong): 1e-4 m/s for every scene but the two named
-// above, whose mechanisms amplify float rounding; theirs is 4x the CPU float-vs-double difference measured for that
-// mechanism (the GPU's extra summation-order rounding is of the same size as float's: measured ratios 1.9 and 2.7),
-// and their own CPU float-vs-double difference must stay within that figure too, or the scene changed.
-double amplified_velocity_tolerance(const std::string& name) {
-  if (name == "granular_collapse.json") return 4 * 1.3e-3;
-  if (name == "incompressible_block.json") return 4 * 1.7e-4;
-  return 1e-4;
-}
+// float-vs-double difference would widen for a scene that went wrong): ../physics/float_budget.h, whose two amplified
+// scenes the GPU's extra summation-order rounding (of float's size: measured ratios 1.9 and 2.7) stays within. The CPU
+// engine's own float-vs-double difference is held to the same budget without a GPU (test_physics_scenes_cpu).
+double amplified_velocity_tolerance(const std::string& name) { return test::float_velocity_budget(name); }
 template <typename T, typename TG = T>
 void run_scene_on_both(const Scene& scene, const std::string& name) {
   const auto positions = test::sample_scene(scene);

@@ -61,6 +61,7 @@ PY
     sleep 1; kill $pid 2>/dev/null; wait $pid 2>/dev/null
     echo "wall $(python3 -c "import time; print(round(time.time() - $s0, 1))") s" > ../time.txt )
   ( cd "$dir/cuw/run" && s0=$(date +%s.%N)
+    "$FBAR" --check --file=fbar_scene.json > "$dir/fbar/check.txt" 2>&1
     "$FBAR" --backend=gpu --quiet --file=fbar_scene.json --output="$dir/fbar" > "$dir/fbar/log.txt" 2>&1
     echo "rc $? wall $(python3 -c "import time; print(round(time.time() - $s0, 1))") s" > "$dir/fbar/time.txt" )
   python3 - "$ROOT" "$dir" "$name" "$secs" >> "$WORK/compare.md" <<'PY'
@@ -83,10 +84,11 @@ for line in open(d + "/cuw/log.txt", errors="replace"):
         cuw_counts.setdefault(int(m), int(n))
     for m, n in re.findall(r"MODEL\[(\d+)\] Initialized device array with \[(\d+)\] particles", line):
         cuw_counts.setdefault(int(m), int(n))
-for m in range(8):
-    b = f"{fb}/model[{m}]_dev[0]_frame[0].bgeo"
-    if m not in cuw_counts and not os.path.exists(b): continue
-    print(f"| {m} | {cuw_counts.get(m, '-')} | {len(read_frame(b)['P']) if os.path.exists(b) else '-'} |")
+# fbar's bodies in order from --check ("particles  N (volume ..."): frames may hold the exterior particles only.
+fb_counts = [int(m) for m in re.findall(r"^\s*particles\s+(\d+) \(", open(fb + "/check.txt").read(), re.M)] \
+    if os.path.exists(fb + "/check.txt") else []
+for m in range(max(len(fb_counts), max(cuw_counts, default=-1) + 1)):
+    print(f"| {m} | {cuw_counts.get(m, '-')} | {fb_counts[m] if m < len(fb_counts) else '-'} |")
 def series(p):
     t, v = [], []
     with open(p) as f:

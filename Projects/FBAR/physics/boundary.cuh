@@ -142,6 +142,7 @@ FBAR_HOST_DEVICE inline Vec3<T> project_moving(const BoundaryParams<T>& b, const
 template <typename T>
 FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const Vec3<T>& x_node, Vec3<T> v,
                                                const BoundaryProfiles<T>* profiles = nullptr) {
+  using std::fabs;
   using std::sqrt;
   // A node within dx / 128 of a face, a bed or a line lies on it, whatever the round-off of its position and of the
   // scene's numbers (6 x 0.02 against 0.02 + 0.1 decided a flat bed's node row differently in float and double).
@@ -264,7 +265,14 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
       const int last = b.profile_count - 1;
       int i;
       bool on_segment;
-      const T surface = bed_surface(px, py, b.profile_count, x_node[0], i, on_segment);
+      // A node within dx / 128 of a breakpoint stands on it (the segment right of it, the same in both precisions).
+      T xn = x_node[0];
+      T surface = bed_surface(px, py, b.profile_count, xn, i, on_segment);
+      const int near = (i + 1 <= last && fabs(xn - px[i + 1]) <= snap) ? i + 1 : (fabs(xn - px[i]) <= snap ? i : -1);
+      if (near >= 0 && xn != px[near]) {
+        xn = px[near];
+        surface = bed_surface(px, py, b.profile_count, xn, i, on_segment);
+      }
       T ex = T(1), ey = T(0);
       if (on_segment) {
         ex = px[i + 1] - px[i];
@@ -272,11 +280,12 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
       }
       // Within b.layer (kBedLayerCells) of a sloped segment the bed holds a band of nodes up to b.layer above it; a
       // flat stretch, aligned with the grid, needs none. The segments reaching into [x - layer, x + layer] are the
-      // ones next to segment i: scanned outwards from it.
+      // ones next to segment i: scanned outwards from it. A segment that ends within dx / 128 of layer away does
+      // not reach the node (one answer in both precisions).
       bool sloped = false;
-      for (int j = i; j >= 0 && !sloped && px[j + 1] > x_node[0] - b.layer; --j)
-        sloped = py[j + 1] != py[j] && px[j] < x_node[0] + b.layer;
-      for (int j = i + 1; j < last && !sloped && px[j] < x_node[0] + b.layer; ++j) sloped = py[j + 1] != py[j];
+      for (int j = i; j >= 0 && !sloped && px[j + 1] > xn - b.layer + snap; --j)
+        sloped = py[j + 1] != py[j] && px[j] < xn + b.layer - snap;
+      for (int j = i + 1; j < last && !sloped && px[j] < xn + b.layer - snap; ++j) sloped = py[j + 1] != py[j];
       if (x_node[1] > surface + (sloped ? b.layer : T(0)) + snap) return v;  // above the bed: the material's side
       const T length = sqrt(ex * ex + ey * ey);
       Vec3<T> n = Vec3<T>::zero();
