@@ -622,8 +622,17 @@ TEST(Boundary, PistonDisplacesItsSweptVolumeOfWater) {
   EXPECT_LT(deepest, dx);
 }
 
-TEST(Boundary, MovingPistonPushesABlock) {
-  const double dx = 0.01, vp = 0.5;
+struct PistonBlockResult {
+  double v_ratio = 0;  ///< v_cm / v_p of the block at t = 0.4 s
+  double kept = 0;     ///< energy the block holds / work the piston did
+  double v_bound = 0;  ///< the energy bound on v_cm, / v_p
+  double deepest = 0;  ///< [m] how far a particle got behind the piston's face
+  double dx = 0;
+};
+
+/// A FixedCorotated block (0.08 m, E = 1e6 Pa) at rest, hit by a Separable Box piston moving at 0.5 m/s.
+PistonBlockResult piston_block(double dx) {
+  const double vp = 0.5;
   Scene scene = empty_scene(r3(0.6, 0.2, 0.2), dx, r3(0, 0, 0));
   BodySpec block = box_body(Constitutive::FixedCorotated, r3(0.15, 0.06, 0.06), r3(0.08, 0.08, 0.08));
   block.material.youngs_modulus = 1e6;
@@ -637,34 +646,48 @@ TEST(Boundary, MovingPistonPushesABlock) {
   scene.boundaries.push_back(piston);
   CpuEngine<double> engine(scene);
   engine.set_log(nullptr);
-  double deepest = 0.0;  // [m] how far a particle got behind the piston's face
+  PistonBlockResult r;
+  r.dx = dx;
   while (engine.time() < 0.4) {
-    ASSERT_TRUE(engine.step().ok);
+    EXPECT_TRUE(engine.step().ok);
     const double face = 0.10 + vp * engine.time();
-    for (const Vec3d& x : engine.positions(0)) deepest = std::max(deepest, face - x[0]);
+    for (const Vec3d& x : engine.positions(0)) r.deepest = std::max(r.deepest, face - x[0]);
   }
   double m = 0, p = 0;
   for (std::size_t i = 0; i < engine.particle_count(0); ++i) {
     m += engine.masses(0)[i];
     p += engine.masses(0)[i] * engine.velocities(0)[i][0];
   }
-  // Energy balance of the impact: the piston's only force on the block gave it the impulse m v_cm (it started at
-  // rest) while moving at v_p, so it did the work W = v_p m v_cm; the block holds E = kinetic + elastic energy (its
-  // translation and its ringing), the rest was dissipated (APIC, the wall's node projection): E <= W, budget 0 beyond
-  // time-integration round-off (1e-3 W). Equivalently v_cm <= v_p + sqrt(v_p^2 - 2 E_internal / m) < 2 v_p: the
-  // energy still ringing in the block tightens the old upper bound 2 v_p. Lower bound: once separated no force acts,
-  // and a block slower than the piston would be caught again: v_cm >= v_p (the old 0.98 v_p had no reason).
   const double v_cm = p / m, work = vp * m * v_cm;
   const double energy = engine.kinetic_energy() + engine.elastic_energy();
   const double internal = energy - 0.5 * m * v_cm * v_cm;
-  const double v_max = vp + std::sqrt(std::max(0.0, vp * vp - 2 * internal / m));
-  std::printf("[measured] piston at %.2f m/s: block mean velocity %.5f m/s (%.4f v_p) at t = 0.4 s, deepest %.4f m "
-              "behind the face; block energy %.5g J of the piston's work %.5g J (%.4f), ringing %.4g J: v_cm bound "
-              "%.4f v_p\n", vp, v_cm, v_cm / vp, deepest, energy, work, energy / work, internal, v_max / vp);
-  EXPECT_GE(v_cm, vp);
-  EXPECT_LE(energy, work * (1 + 1e-3));
-  EXPECT_LE(v_cm, v_max * (1 + 1e-3));
-  EXPECT_LT(deepest, dx);
+  r.v_ratio = v_cm / vp;
+  r.kept = energy / work;
+  r.v_bound = (vp + std::sqrt(std::max(0.0, vp * vp - 2 * internal / m))) / vp;
+  std::printf("[measured] piston at %.2f m/s, dx %.3g m: block mean velocity %.4f v_p at t = 0.4 s, deepest %.4f m "
+              "behind the face; block energy %.4f of the piston's work, v_cm bound %.4f v_p\n",
+              vp, dx, r.v_ratio, r.deepest, r.kept, r.v_bound);
+  return r;
+}
+
+// Energy balance of the impact: the piston's only force on the block gave it the impulse m v_cm (it started at rest)
+// while moving at v_p, so it did the work W = v_p m v_cm; the block holds E = kinetic + elastic energy (its
+// translation and its ringing), the rest was dissipated (APIC, the wall's node projection): E <= W, budget 0 beyond
+// time-integration round-off (1e-3 W). Equivalently v_cm <= v_p + sqrt(v_p^2 - 2 E_internal / m) < 2 v_p. Lower
+// bound: once separated no force acts, and a block slower than the piston would be caught again: v_cm >= v_p.
+// Between the bounds the answer is not converged, and not monotone under refinement either: the elastic limit (a
+// bar hit by a rigid wall leaves at 2 v_p, nothing ringing) is where a falling transfer dissipation would lead, but
+// measured the block keeps 0.949 of the work (1.899 v_p) at dx 0.02 m and 0.765 (1.516 v_p) at dx 0.01 m. The
+// piston's face crosses a node plane every dx / v_p and each crossing sets a node's velocity at once; that the
+// finer grid loses more is an open finding (issue notes), so both resolutions are held to the bounds only.
+TEST(Boundary, MovingPistonPushesABlock) {
+  for (const PistonBlockResult& r : {piston_block(0.02), piston_block(0.01)}) {
+    SCOPED_TRACE(testing::Message() << "dx " << r.dx);
+    EXPECT_GE(r.v_ratio, 1.0);
+    EXPECT_LE(r.kept, 1 + 1e-3);
+    EXPECT_LE(r.v_ratio, r.v_bound * (1 + 1e-3));
+    EXPECT_LT(r.deepest, r.dx);
+  }
 }
 
 // A piston driven by a motion file (displacement 0.5 t, velocity 0.5 m/s, 100 Hz rows) moves exactly as the

@@ -23,6 +23,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <type_traits>
 #include <vector>
 
 #include "physics/constitutive_models.cuh"
@@ -41,6 +42,12 @@ struct ElementResult {
   double plastic_effect = 0;  // |sigma_ref - sigma of the elastic Hencky law on the same path| / |sigma_ref|
   double t = 0;
   long long steps = 0;
+  // DruckerPrager without a remembered dilation (logJp0 = 0) only: the closed form of the cone. Plastic flow on the
+  // cone keeps the volume (the return scales dev ln s and keeps tr ln s), so the Kirchhoff pressure is the elastic
+  // one of the imposed volume, p = -K ln J with J = det(I + t L) = (1 - 2t)^3, and a stress on the cone has
+  // q = M p with M = 6 sin(phi) / (3 - sin(phi)) = 1.2 for phi = 30 deg (Mohr-Coulomb's compression meridian): max
+  // over interior particles of |p - p_cf| / p_cf and |q - M p_cf| / (M p_cf).
+  double closed_form_error = -1;
 };
 
 template <typename M, class Engine = CpuEngine<double>>
@@ -97,6 +104,31 @@ ElementResult run_element(Constitutive law, double t_end, double logJp0 = 0.0) {
     r.F_error = std::max(r.F_error, max_abs(F[p] - reference.F));
     r.logJp_error = std::max(r.logJp_error, std::fabs(logJp[p] - reference.logJp));
     r.stress_error = std::max(r.stress_error, max_abs(sigma[p] - ref_sigma) / scale);
+  }
+  if constexpr (std::is_same_v<M, DruckerPrager>) {
+    if (logJp0 == 0.0) {
+      const MaterialSpec& m = scene.bodies[0].material;
+      const double E = m.youngs_modulus, nu = m.poisson_ratio;
+      const double K = E / (3 * (1 - 2 * nu));
+      const double sphi = std::sin(m.friction_angle * M_PI / 180.0);
+      const double slope = 6 * sphi / (3 - sphi);
+      const double J_t = std::pow(1 - 2 * r.t, 3);
+      const double p_cf = -K * std::log(J_t);
+      r.closed_form_error = 0.0;
+      for (std::size_t p = 0; p < x0.size(); ++p) {
+        double depth = half;
+        for (int a = 0; a < 3; ++a) depth = std::min(depth, half - std::fabs(x0[p][a] - centre[a]));
+        if (depth <= reach) continue;
+        const Mat3d tau = sigma[p] * determinant(F[p]);
+        const double pt = -(tau(0, 0) + tau(1, 1) + tau(2, 2)) / 3;
+        const Mat3d dev = tau + Mat3d::identity() * pt;
+        const double q = std::sqrt(1.5 * ddot(dev, dev));
+        r.closed_form_error = std::max({r.closed_form_error, std::fabs(pt - p_cf) / p_cf,
+                                        std::fabs(q - slope * p_cf) / (slope * p_cf)});
+      }
+      std::printf("DruckerPrager element, closed form: p = -K ln J = %.6g Pa, q = M p = %.6g Pa (M = %.4g); max "
+                  "relative error %.3g over the interior\n", p_cf, slope * p_cf, slope, r.closed_form_error);
+    }
   }
   r.logJp_change = std::fabs(reference.logJp - scene.bodies[0].material.logJp0);
   const StressResult<double> el = Hencky::kirchhoff_stress(elastic_params, elastic, L);

@@ -40,5 +40,18 @@ TEST(MaterialPointElement, DruckerPragerInteriorFollowsItsSingleParticleReferenc
   EXPECT_LE(r.stress_error, 5e-4);
 }
 
+// An independent reference: the closed form of the cone on this path (ElementResult::closed_form_error). Without a
+// remembered dilation the trial state leaves the cone in the first step and the return keeps it there: the
+// Kirchhoff pressure is K ln(1/J) of the imposed volume and q = 1.2 p (phi = 30 deg). Budget: the kinematic tail's
+// 1e-5 in F is 3e-5 in ln J, 1.3e-3 of ln J = 3 ln(1 - 2t) at t = 4 ms; 2e-3. A return that moved the volume, a
+// cone of another slope or a stress left off the cone misses by 1e-2 and more.
+TEST(MaterialPointElement, DruckerPragerInteriorMatchesTheClosedFormCone) {
+  const ElementResult r = run_element<DruckerPrager>(Constitutive::DruckerPrager, 4e-3, 0.0);
+  ASSERT_GE(r.interior, 8);
+  EXPECT_GT(r.plastic_effect, 0.03) << "the path must reach the cone";
+  ASSERT_GE(r.closed_form_error, 0.0);
+  EXPECT_LE(r.closed_form_error, 2e-3);
+}
+
 }  // namespace
 }  // namespace fbar
