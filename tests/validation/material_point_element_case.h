@@ -48,10 +48,18 @@ struct ElementResult {
   // q = M p with M = 6 sin(phi) / (3 - sin(phi)) = 1.2 for phi = 30 deg (Mohr-Coulomb's compression meridian): max
   // over interior particles of |p - p_cf| / p_cf and |q - M p_cf| / (M p_cf).
   double closed_form_error = -1;
+  // NACC under isotropic compression (shear 0) only: every step returns to the cap, so the state stays at the cap of
+  // its hardening, p = p0(logJp), and the volume splits exactly, J_e exp(logJp - logJp0) = J = (1 - 2t)^3. Both give
+  // one equation for logJp, p(J exp(logJp0 - logJp)) = p0(logJp), solved here by bisection: the closed-form state.
+  // closed_form_error is max |p - p0(logJp*)| / p0(logJp*) and |logJp - logJp*| over interior particles;
+  // closed_form_lag the explicit hardening's allowance (the cap moves after the projection: one step's change of p0,
+  // relative).
+  double closed_form_lag = 0;
+  double dt_max = 0;
 };
 
 template <typename M, class Engine = CpuEngine<double>>
-ElementResult run_element(Constitutive law, double t_end, double logJp0 = 0.0) {
+ElementResult run_element(Constitutive law, double t_end, double logJp0 = 0.0, double shear = 10.0) {
   const double dx = 0.025, half = 0.3;
   Scene scene = validation::make_scene(r3(1, 1, 1), dx, r3(0, 0, 0));
   BodySpec body = validation::make_body(law, 1000.0);
@@ -64,7 +72,7 @@ ElementResult run_element(Constitutive law, double t_end, double logJp0 = 0.0) {
   Engine engine(scene);
   Mat3d L = Mat3d::zero();
   L(0, 0) = L(1, 1) = L(2, 2) = -2.0;
-  L(0, 1) = 10.0;
+  L(0, 1) = shear;
   const Vec3d centre{{0.5, 0.5, 0.5}};
   engine.set_velocities(0, [&](const Vec3d& x) { return L * (x - centre); });
   const std::vector<Vec3d> x0 = engine.positions(0);
@@ -84,6 +92,7 @@ ElementResult run_element(Constitutive law, double t_end, double logJp0 = 0.0) {
       ADD_FAILURE() << s.message();
       return r;
     }
+    r.dt_max = std::max(r.dt_max, engine.last_dt());
     reference = M::advance(params, reference, C, engine.last_dt());
     elastic = Hencky::advance(elastic_params, elastic, C, engine.last_dt());
     ++r.steps;
@@ -128,6 +137,31 @@ ElementResult run_element(Constitutive law, double t_end, double logJp0 = 0.0) {
       }
       std::printf("DruckerPrager element, closed form: p = -K ln J = %.6g Pa, q = M p = %.6g Pa (M = %.4g); max "
                   "relative error %.3g over the interior\n", p_cf, slope * p_cf, slope, r.closed_form_error);
+    }
+  }
+  if constexpr (std::is_same_v<M, NACC>) {
+    if (shear == 0.0) {
+      const double J_t = std::pow(1 - 2 * r.t, 3);
+      const auto g = [&](double lj) { return M::pressure_of_J(params, J_t * std::exp(logJp0 - lj)) - M::cap_pressure(params, lj); };
+      double lo = logJp0 + std::log(J_t), hi = logJp0;  // g(lo) < 0 (all of it plastic), g(hi) > 0 (all elastic)
+      for (int it = 0; it < 200; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        (g(mid) > 0 ? hi : lo) = mid;
+      }
+      const double lj_cf = 0.5 * (lo + hi), p_cf = M::cap_pressure(params, lj_cf);
+      // One step's volumetric strain, 6 /s x dt, moves logJp at most that much: the cap's change over it.
+      r.closed_form_lag = std::fabs(M::cap_pressure(params, lj_cf - 6 * r.dt_max) - p_cf) / p_cf;
+      r.closed_form_error = 0.0;
+      for (std::size_t p = 0; p < x0.size(); ++p) {
+        double depth = half;
+        for (int a = 0; a < 3; ++a) depth = std::min(depth, half - std::fabs(x0[p][a] - centre[a]));
+        if (depth <= reach) continue;
+        const NaccYield<double> y = M::yield(params, F[p], logJp[p]);
+        r.closed_form_error = std::max({r.closed_form_error, std::fabs(y.p - p_cf) / p_cf, std::fabs(logJp[p] - lj_cf)});
+      }
+      std::printf("NACC element, isotropic compression, closed form: logJp* = %.6g, p = p0(logJp*) = %.6g Pa; max "
+                  "error %.3g over the interior (explicit hardening's lag %.3g)\n",
+                  lj_cf, p_cf, r.closed_form_error, r.closed_form_lag);
     }
   }
   r.logJp_change = std::fabs(reference.logJp - scene.bodies[0].material.logJp0);

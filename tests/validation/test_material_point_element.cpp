@@ -53,5 +53,17 @@ TEST(MaterialPointElement, DruckerPragerInteriorMatchesTheClosedFormCone) {
   EXPECT_LE(r.closed_form_error, 2e-3);
 }
 
+// NACC's independent reference: under isotropic compression the closed-form state (ElementResult) solves
+// p(J exp(logJp0 - logJp)) = p0(logJp). Budget: the explicit hardening's one-step lag of the cap (computed from the
+// run's largest step), plus the kinematic tail's 3e-5 in ln J. A return that lost volume, or a cap that did not
+// harden, misses by O(1).
+TEST(MaterialPointElement, NaccIsotropicCompressionMatchesTheClosedFormCap) {
+  const ElementResult r = run_element<NACC>(Constitutive::NACC, 4e-3, 0.0, 0.0);
+  ASSERT_GE(r.interior, 8);
+  EXPECT_GT(r.logJp_change, 1e-3) << "the compression must harden the cap";
+  ASSERT_GE(r.closed_form_error, 0.0);
+  EXPECT_LE(r.closed_form_error, r.closed_form_lag + 3e-5);
+}
+
 }  // namespace
 }  // namespace fbar
