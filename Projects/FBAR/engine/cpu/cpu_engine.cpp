@@ -88,52 +88,6 @@ std::string format_g(double v) {
 
 }  // namespace
 
-const char* to_string(FailureKind kind) {
-  switch (kind) {
-    case FailureKind::NonFinite:
-      return "NaN/Inf in the particle state";
-    case FailureKind::CflViolation:
-      return "moved more than one cell in one step (CFL violation)";
-    case FailureKind::LeftDomain:
-      return "left the domain";
-    case FailureKind::Inverted:
-      return "volume ratio J <= 0 (collapsed or inverted: the step outran the material's stability)";
-  }
-  return "?";
-}
-
-std::string FailureReport::describe() const {
-  std::ostringstream s;
-  s << "body " << body << ": " << count << (count == 1 ? " particle " : " particles ") << to_string(kind) << " at step "
-    << step << ", t = " << format_g(time) << " s, dt = " << format_g(dt) << " s (first: particle " << first_particle
-    << ")";
-  return s.str();
-}
-
-bool StepReport::absorb(StepReport r) {
-  steps += r.steps;
-  retries += r.retries;
-  retried.insert(retried.end(), r.retried.begin(), r.retried.end());
-  dt = r.dt;
-  if (!r.ok) {
-    ok = false;
-    failures = std::move(r.failures);
-  }
-  return r.ok;
-}
-
-std::string StepReport::message() const {
-  std::string m;
-  for (const FailureReport& f : failures) m += (m.empty() ? "" : "\n") + f.describe();
-  return m;
-}
-
-bool cpu_engine_supports_attribute(Constitutive law, std::string_view name) {
-  FrameAttributeSpec a;
-  return material_index(law) >= 0 && resolve_frame_attribute(std::string(name), a) &&
-         material_has(law, a.column.quantity);
-}
-
 // ---------------------------------------------------------------------------------------------
 // Construction
 
@@ -344,7 +298,7 @@ void CpuEngine<T, TG>::init(const std::vector<std::vector<Vec3d>>& positions) {
     if (alg.use_fem) throw std::invalid_argument(where + ".algorithm.use_FEM: not implemented by the CPU engine");
     for (const std::string& name : spec.output_attribs) {
       const std::string canonical = canonical_attribute(name);
-      if (canonical.empty() || !cpu_engine_supports_attribute(mat.law, canonical))
+      if (canonical.empty() || !engine_supports_attribute(mat.law, canonical))
         throw std::invalid_argument(where + ".output_attribs: " + name + " is not available for a " +
                                     law_name(mat.law) + " body");
     }
@@ -992,20 +946,9 @@ StepReport CpuEngine<T, TG>::step(double dt) {
 
 template <typename T, typename TG>
 StepReport CpuEngine<T, TG>::step_toward(double t_end) {
-  const double remaining = t_end - time_;
-  double dt = next_dt();
-  const bool last = dt >= remaining;
-  if (last)
-    dt = remaining;
-  else if (2.0 * dt > remaining)
-    dt = 0.5 * remaining;  // two equal steps rather than a full one and a sliver
-  if (!(time_ + dt > time_))
-    throw std::runtime_error("CpuEngine::advance_to: the time step " + format_g(dt) +
-                             " s is below the resolution "
-                             "of the clock at t = " +
-                             format_g(time_) + " s");
-  StepReport r = step_impl(dt, true);
-  if (r.ok && last && r.retries == 0) time_ = t_end;  // land on the target exactly, not t_end +- round-off
+  const StepPlan plan = plan_step_toward(time_, t_end, next_dt());
+  StepReport r = step_impl(plan.dt, true);
+  if (r.ok && plan.last && r.retries == 0) time_ = t_end;  // land on the target exactly, not t_end +- round-off
   return r;
 }
 

@@ -63,54 +63,12 @@
 #include "physics/boundary.cuh"
 #include "physics/constitutive_models.cuh"
 #include "physics/sensors.cuh"
+#include "engine/engine_common.h"
 #include "engine/run_constants.h"
 #include "scene/scene.h"
 #include "physics/transfer.cuh"
 
 namespace fbar {
-
-/// What a failed check found.
-enum class FailureKind {
-  NonFinite,     ///< NaN or Inf in a particle's position, velocity, affine matrix or material state
-  CflViolation,  ///< a particle moved more than one cell along an axis in one step
-  LeftDomain,    ///< a particle's new position lies outside [0, simulation.domain]
-  Inverted,      ///< a particle's volume ratio J <= 0: collapsed or turned inside out (no state means anything there)
-};
-/// How many FailureKind values there are (the per-kind counters).
-inline constexpr int kFailureKinds = 4;
-const char* to_string(FailureKind kind);
-
-/// One failed check of one body in one step.
-struct FailureReport {
-  FailureKind kind = FailureKind::NonFinite;
-  int body = 0;                   ///< index in scene.bodies
-  long long step = 0;             ///< 1-based index of the step that failed (steps() + 1 when it was attempted)
-  double time = 0.0;              ///< [s] simulated time at the start of that step
-  double dt = 0.0;                ///< [s] the step size that failed
-  long long count = 0;            ///< particles of the body that failed this check
-  long long first_particle = -1;  ///< smallest failing particle index (ID) of the body
-  /// "body 0: 12 particles moved more than one cell in one step (CFL violation) at step 345, t = 0.1234 s,
-  ///  dt = 1e-4 s (first: particle 17)".
-  std::string describe() const;
-};
-
-/// Outcome of step() / advance_to().
-struct StepReport {
-  bool ok = true;
-  double dt = 0.0;                      ///< [s] size of the (last) committed step; of the failed try when !ok
-  int retries = 0;                      ///< dt halvings in this step (on_failure = reduce_dt)
-  long long steps = 0;                  ///< steps committed by this call
-  std::vector<FailureReport> failures;  ///< the checks that failed in the last try (empty when ok)
-  std::vector<FailureReport> retried;   ///< failures that were repaired by halving dt (reduce_dt)
-  /// All failures, one line each (empty when ok).
-  std::string message() const;
-  /// Adds the report of a later step of the same call (advance_to): steps, retries and repaired failures summed,
-  /// dt and failures the later one's. Returns r.ok.
-  bool absorb(StepReport r);
-};
-
-/// Output attributes (canonical names, attributes.h) the CPU engine can write for a body of material `law`.
-bool cpu_engine_supports_attribute(Constitutive law, std::string_view canonical_name);
 
 /// T: particle scalar type (positions, velocities, state, transfers); TG: grid scalar type (P2G sums, grid
 /// velocities, grid update). CpuEngine<float> runs "single", CpuEngine<double> "double" and CpuEngine<double, float>
@@ -121,10 +79,10 @@ class CpuEngine {
   using Vec3T = Vec3<T>;
   using Mat3T = Mat3<T>;
 
-  /// Dt halvings per step before on_failure = reduce_dt gives up (dt / 2^8 at most).
-  static constexpr int kMaxRetries = 8;
-  /// Clean steps after which a halved dt is doubled again (on_failure = reduce_dt).
-  static constexpr int kRecoverSteps = 100;
+  /// Dt halvings per step before on_failure = reduce_dt gives up, and the clean steps after which a halved dt is
+  /// doubled again (engine_common.h, the policy both engines follow).
+  static constexpr int kMaxRetries = kMaxStepRetries;
+  static constexpr int kRecoverSteps = fbar::kRecoverSteps;
 
   /// Samples every body with sample_body() (geometry.h). Throws SceneError (sampling) or std::invalid_argument
   /// naming the body / boundary for what this engine does not implement (material law, boundary object, output

@@ -19,10 +19,11 @@
 #include "MnBase/Math/vec.h"
 #include "MnSystem/IO/async_writer.h"
 #include "MnSystem/IO/particle_io.h"
-#include "engine/cpu/cpu_engine.h"
+#include "engine/engine_common.h"
 #include "engine/engine_api.h"
 #include "engine/gpu/memory_plan.h"
 #include "io/checkpoint.h"
+#include "physics/sensors.cuh"
 #include "scene/scene.h"
 
 namespace fbar {

@@ -69,7 +69,7 @@
 #include "physics/boundary.cuh"
 #include "physics/constitutive_models.cuh"
 #include "physics/hydrostatic.h"
-#include "engine/cpu/cpu_engine.h"
+#include "engine/engine_common.h"
 #include "geometry/geometry.h"
 #include "engine/gpu/gpu_engine.h"
 #include "engine/gpu/grid_buffer.cuh"
@@ -972,7 +972,7 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
     if (alg.use_fem) throw std::invalid_argument(where + ".algorithm.use_FEM: not implemented by the GPU engine");
     for (const std::string& name : spec.output_attribs) {
       const std::string canonical = canonical_attribute(name);
-      if (canonical.empty() || !cpu_engine_supports_attribute(mat.law, canonical))
+      if (canonical.empty() || !engine_supports_attribute(mat.law, canonical))
         throw std::invalid_argument(where + ".output_attribs: " + name + " is not available on the GPU engine");
     }
     if (!(mat.ppc > 0.0)) throw std::invalid_argument(where + ".material.ppc: must be positive");
@@ -1934,13 +1934,13 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
       commit(dt);
       report.dt = dt;
       report.steps = 1;
-      if (cfl_dt && dt_scale_ < 1.0 && ++clean_steps_ >= CpuEngine<T>::kRecoverSteps) {
+      if (cfl_dt && dt_scale_ < 1.0 && ++clean_steps_ >= kRecoverSteps) {
         dt_scale_ = std::min(1.0, 2.0 * dt_scale_);
         clean_steps_ = 0;
       }
       return report;
     }
-    if (scene_.simulation.on_failure == OnFailure::ReduceDt && report.retries < CpuEngine<T>::kMaxRetries) {
+    if (scene_.simulation.on_failure == OnFailure::ReduceDt && report.retries < kMaxStepRetries) {
       if (log_)
         for (const FailureReport& f : failures)
           *log_ << "fbar: " << f.describe() << "; retrying the step with dt = " << mgsp_detail::format_g(dt / 2)
@@ -2215,15 +2215,9 @@ std::vector<SensorAccum> MgspBenchmark<T, TG>::particle_samples(int slots) const
 
 template <typename T, typename TG>
 StepReport MgspBenchmark<T, TG>::step_toward(double t_end, double t_following) {
-  const double remaining = t_end - time_;
-  double dt = next_dt();
-  const bool last = dt >= remaining;
-  if (last)
-    dt = remaining;
-  else if (2.0 * dt > remaining)
-    dt = 0.5 * remaining;  // two equal steps rather than a full one and a sliver (as the CPU engine)
-  StepReport r = step_impl(dt, true, t_end, t_following);
-  if (r.ok && last && r.retries == 0) time_ = t_end;  // land on the target exactly, not t_end +- round-off
+  const StepPlan plan = plan_step_toward(time_, t_end, next_dt());  // the CPU engine's rule (engine_common.h)
+  StepReport r = step_impl(plan.dt, true, t_end, t_following);
+  if (r.ok && plan.last && r.retries == 0) time_ = t_end;  // land on the target exactly, not t_end +- round-off
   return r;
 }
 

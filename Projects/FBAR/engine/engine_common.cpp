@@ -1,0 +1,82 @@
+// What both engines share (engine_common.h): the step report's text and the attributes a material can give.
+#include "engine/engine_common.h"
+
+#include <cstdio>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+#include "io/particle_frame.h"
+#include "physics/constitutive_models.cuh"
+
+namespace fbar {
+namespace {
+
+std::string format_g(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.6g", v);
+  return buf;
+}
+
+}  // namespace
+
+const char* to_string(FailureKind kind) {
+  switch (kind) {
+    case FailureKind::NonFinite:
+      return "NaN/Inf in the particle state";
+    case FailureKind::CflViolation:
+      return "moved more than one cell in one step (CFL violation)";
+    case FailureKind::LeftDomain:
+      return "left the domain";
+    case FailureKind::Inverted:
+      return "volume ratio J <= 0 (collapsed or inverted: the step outran the material's stability)";
+  }
+  return "?";
+}
+
+std::string FailureReport::describe() const {
+  std::ostringstream s;
+  s << "body " << body << ": " << count << (count == 1 ? " particle " : " particles ") << to_string(kind) << " at step "
+    << step << ", t = " << format_g(time) << " s, dt = " << format_g(dt) << " s (first: particle " << first_particle
+    << ")";
+  return s.str();
+}
+
+bool StepReport::absorb(StepReport r) {
+  steps += r.steps;
+  retries += r.retries;
+  retried.insert(retried.end(), r.retried.begin(), r.retried.end());
+  dt = r.dt;
+  if (!r.ok) {
+    ok = false;
+    failures = std::move(r.failures);
+  }
+  return r.ok;
+}
+
+std::string StepReport::message() const {
+  std::string m;
+  for (const FailureReport& f : failures) m += (m.empty() ? "" : "\n") + f.describe();
+  return m;
+}
+
+bool engine_supports_attribute(Constitutive law, std::string_view name) {
+  FrameAttributeSpec a;
+  return material_index(law) >= 0 && resolve_frame_attribute(std::string(name), a) &&
+         material_has(law, a.column.quantity);
+}
+
+StepPlan plan_step_toward(double time, double t_end, double dt_cfl) {
+  const double remaining = t_end - time;
+  StepPlan plan{dt_cfl, dt_cfl >= remaining};
+  if (plan.last)
+    plan.dt = remaining;
+  else if (2.0 * dt_cfl > remaining)
+    plan.dt = 0.5 * remaining;  // two equal steps rather than a full one and a sliver
+  if (!(time + plan.dt > time))
+    throw std::runtime_error("advance_to: the time step " + format_g(plan.dt) +
+                             " s is below the resolution of the clock at t = " + format_g(time) + " s");
+  return plan;
+}
+
+}  // namespace fbar

@@ -1,0 +1,72 @@
+// What both engines share and neither owns: the step report and its failure kinds, the halve-and-recover retry
+// policy of on_failure = reduce_dt, and the output attributes a material can give. The CPU engine (engine/cpu), the
+// GPU engine (engine/gpu), the run loop (engine/run_loop.h) and the release policy (scene/scene_support.cpp) read
+// them here, so neither engine includes the other (docs/developer_guide.md "Layers").
+#pragma once
+
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "scene/scene.h"
+
+namespace fbar {
+
+/// What a failed check found.
+enum class FailureKind {
+  NonFinite,     ///< NaN or Inf in a particle's position, velocity, affine matrix or material state
+  CflViolation,  ///< a particle moved more than one cell along an axis in one step
+  LeftDomain,    ///< a particle's new position lies outside [0, simulation.domain]
+  Inverted,      ///< a particle's volume ratio J <= 0: collapsed or turned inside out (no state means anything there)
+};
+/// How many FailureKind values there are (the per-kind counters).
+inline constexpr int kFailureKinds = 4;
+const char* to_string(FailureKind kind);
+
+/// One failed check of one body in one step.
+struct FailureReport {
+  FailureKind kind = FailureKind::NonFinite;
+  int body = 0;                   ///< index in scene.bodies
+  long long step = 0;             ///< 1-based index of the step that failed (steps() + 1 when it was attempted)
+  double time = 0.0;              ///< [s] simulated time at the start of that step
+  double dt = 0.0;                ///< [s] the step size that failed
+  long long count = 0;            ///< particles of the body that failed this check
+  long long first_particle = -1;  ///< smallest failing particle index (ID) of the body
+  /// "body 0: 12 particles moved more than one cell in one step (CFL violation) at step 345, t = 0.1234 s,
+  ///  dt = 1e-4 s (first: particle 17)".
+  std::string describe() const;
+};
+
+/// Outcome of step() / advance_to().
+struct StepReport {
+  bool ok = true;
+  double dt = 0.0;                      ///< [s] size of the (last) committed step; of the failed try when !ok
+  int retries = 0;                      ///< dt halvings in this step (on_failure = reduce_dt)
+  long long steps = 0;                  ///< steps committed by this call
+  std::vector<FailureReport> failures;  ///< the checks that failed in the last try (empty when ok)
+  std::vector<FailureReport> retried;   ///< failures that were repaired by halving dt (reduce_dt)
+  /// All failures, one line each (empty when ok).
+  std::string message() const;
+  /// Adds the report of a later step of the same call (advance_to): steps, retries and repaired failures summed,
+  /// dt and failures the later one's. Returns r.ok.
+  bool absorb(StepReport r);
+};
+
+/// on_failure = reduce_dt: a failed step is retried from the unchanged state with dt / 2, up to kMaxStepRetries
+/// times (dt / 2^8 at most); the halving persists and is undone (x 2) after kRecoverSteps clean steps.
+inline constexpr int kMaxStepRetries = 8;
+inline constexpr int kRecoverSteps = 100;
+
+/// The next step toward a target time (both engines' step_toward): the CFL step `dt_cfl`, shortened to land on
+/// `t_end` when it reaches it (`last`), or half the remaining time when a full step would leave a sliver (two equal
+/// steps). Throws std::runtime_error when the step is below the resolution of the clock at `time`.
+struct StepPlan {
+  double dt = 0.0;    ///< [s]
+  bool last = false;  ///< the step lands on t_end: the engine sets its clock to t_end exactly when it commits
+};
+StepPlan plan_step_toward(double time, double t_end, double dt_cfl);
+
+/// Output attributes (canonical names, attributes.h) either engine can write for a body of material `law`.
+bool engine_supports_attribute(Constitutive law, std::string_view canonical_name);
+
+}  // namespace fbar

@@ -1,0 +1,79 @@
+// engine_common.h: the step-landing rule both engines use, the step report's bookkeeping, attribute support.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "engine/engine_common.h"
+
+namespace fbar {
+namespace {
+
+// A CFL step that reaches the target is shortened to land on it; one that would leave less than a step is halved
+// (two equal steps, not a full one and a sliver); any other is kept.
+TEST(PlanStepToward, LandsHalvesOrKeeps) {
+  StepPlan p = plan_step_toward(1.0, 1.25, 0.5);
+  EXPECT_TRUE(p.last);
+  EXPECT_EQ(p.dt, 0.25);
+  p = plan_step_toward(1.0, 1.3, 0.2);  // 0.2 then a 0.1 sliver: two steps of 0.15 instead
+  EXPECT_FALSE(p.last);
+  EXPECT_DOUBLE_EQ(p.dt, 0.15);
+  p = plan_step_toward(1.0, 2.0, 0.2);
+  EXPECT_FALSE(p.last);
+  EXPECT_EQ(p.dt, 0.2);
+  p = plan_step_toward(0.0, 0.2, 0.2);  // exactly one step: it lands
+  EXPECT_TRUE(p.last);
+  EXPECT_EQ(p.dt, 0.2);
+}
+
+// A step the clock cannot represent (t + dt == t) is an error that names the step and the time, in both engines
+// (the GPU engine's copy of the rule used to miss this check); landing on the next representable time is not.
+TEST(PlanStepToward, BelowTheClockResolutionIsAnError) {
+  const double t = 1e6;  // one ulp of t is 1.2e-10 s: a CFL step of 1e-12 s does not move the clock
+  try {
+    plan_step_toward(t, 2e6, 1e-12);
+    ADD_FAILURE() << "a step below the clock's resolution was planned";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("below the resolution of the clock at t = 1e+06 s"), std::string::npos)
+        << e.what();
+  }
+  const StepPlan ulp = plan_step_toward(t, std::nextafter(t, 2e6), 1e-3);
+  EXPECT_TRUE(ulp.last);
+  EXPECT_GT(t + ulp.dt, t);
+}
+
+// absorb(): steps, retries and repaired failures add up over the steps of one advance_to; dt and the failures are
+// the last step's.
+TEST(StepReportAbsorb, SumsStepsAndKeepsTheLastFailure) {
+  StepReport total;
+  StepReport a;
+  a.steps = 1;
+  a.dt = 0.1;
+  a.retries = 1;
+  a.retried.push_back(FailureReport{FailureKind::CflViolation, 0, 1, 0.0, 0.2, 3, 7});
+  EXPECT_TRUE(total.absorb(a));
+  StepReport b;
+  b.ok = false;
+  b.dt = 0.05;
+  b.failures.push_back(FailureReport{FailureKind::NonFinite, 1, 2, 0.1, 0.05, 1, 4});
+  EXPECT_FALSE(total.absorb(b));
+  EXPECT_FALSE(total.ok);
+  EXPECT_EQ(total.steps, 1);
+  EXPECT_EQ(total.retries, 1);
+  EXPECT_EQ(total.dt, 0.05);
+  ASSERT_EQ(total.retried.size(), 1u);
+  ASSERT_EQ(total.failures.size(), 1u);
+  EXPECT_EQ(total.message(),
+            "body 1: 1 particle NaN/Inf in the particle state at step 2, t = 0.1 s, dt = 0.05 s (first: particle 4)");
+}
+
+TEST(EngineSupportsAttribute, FollowsTheMaterialsState) {
+  EXPECT_TRUE(engine_supports_attribute(Constitutive::JFluid, "Pressure"));
+  EXPECT_TRUE(engine_supports_attribute(Constitutive::NACC, "logJp"));
+  EXPECT_FALSE(engine_supports_attribute(Constitutive::JFluid, "logJp"));  // a fluid keeps no plastic volume
+  EXPECT_FALSE(engine_supports_attribute(Constitutive::JFluid, "NoSuchAttribute"));
+}
+
+}  // namespace
+}  // namespace fbar
