@@ -55,12 +55,12 @@ TEST(MaterialGuide, EveryCodeBlockIsTheTreesCode) {
   const std::vector<std::string> blocks = fenced_blocks(guide, "## Adding a material", "cpp");
   ASSERT_GE(blocks.size(), 5u) << "the guide's worked example lost its code";
   const std::vector<std::string> sources = {read_text(kSource + "/Projects/FBAR/physics/materials/hencky.cuh"),
-                                            read_text(kSource + "/Projects/FBAR/scene/scene.h"),
+                                            read_text(kSource + "/Projects/FBAR/physics/material_spec.h"),
                                             read_text(kSource + "/Projects/FBAR/physics/constitutive_models.cuh")};
   for (const std::string& block : blocks) {
     const bool found = std::any_of(sources.begin(), sources.end(),
                                    [&](const std::string& s) { return s.find(block) != std::string::npos; });
-    EXPECT_TRUE(found) << "this block of the guide is not in materials/hencky.cuh, scene.h or "
+    EXPECT_TRUE(found) << "this block of the guide is not in materials/hencky.cuh, material_spec.h or "
                           "constitutive_models.cuh:\n"
                        << block;
   }

@@ -35,7 +35,7 @@
 #include "physics/materials/nacc.cuh"
 #include "physics/materials/neo_hookean.cuh"
 #include "physics/materials/von_mises.cuh"
-#include "scene/scene.h"
+#include "physics/material_spec.h"
 
 namespace fbar {
 

@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "physics/material_spec.h"
+
 namespace fbar {
 
 using Real3 = std::array<double, 3>;
@@ -50,34 +52,6 @@ struct SimulationSpec {
   Precision precision = Precision::Single;
   OnFailure on_failure = OnFailure::Stop;
   std::uint64_t seed = 0;               ///< seed for jittered particle sampling
-};
-
-enum class Constitutive { JFluid, FixedCorotated, NeoHookean, DruckerPrager, NACC, Hencky, VonMises };
-
-struct MaterialSpec {
-  Constitutive law = Constitutive::JFluid;
-  std::string type = "particles";       ///< "particles" | "mesh"
-  double ppc = 8.0;                     ///< particles per cell at start
-  double cfl = 0.5;                     ///< CFL number of this body, (0, 1]
-  double rho = 1000.0;                  ///< [kg/m^3] initial density
-  // JFluid (Tait-Murnaghan)
-  double bulk_modulus = 2e7;            ///< [Pa]
-  double gamma = 7.1;                   ///< [-]
-  double viscosity = 1e-3;              ///< [Pa s] dynamic viscosity
-  double tension_cutoff = std::numeric_limits<double>::infinity();  ///< [Pa] most tension carried (inf: no cutoff)
-  // Elastic solids
-  double youngs_modulus = 1e7;          ///< [Pa]
-  double poisson_ratio = 0.2;           ///< [-], in [0, 0.5) (negative allowed down to -1)
-  // Plasticity (DruckerPrager, NACC)
-  double friction_angle = 30.0;         ///< [deg]
-  double cohesion = 0.0;                ///< [-] (log-strain cohesion, ClaymoreUW's meaning)
-  double logJp0 = 0.0;                  ///< [-]
-  double beta = 0.5;                    ///< [-]
-  bool vol_correction = true;           ///< DruckerPrager SandVolCorrection
-  double xi = 0.8;                      ///< [-] NACC hardening
-  bool hardening = true;                ///< NACC hardeningOn
-  double tensile_yield_strength = 2e6;  ///< [Pa] VonMises initial yield stress sigma_y (ClaymoreUW default)
-  double hardening_modulus = 0.0;       ///< [Pa] VonMises linear isotropic hardening H (ClaymoreUW reads 1e6, then ignores it)
 };
 
 struct AlgorithmSpec {

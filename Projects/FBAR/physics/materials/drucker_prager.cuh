@@ -36,7 +36,7 @@
 #include "physics/materials/hencky.cuh"
 #include "physics/materials/material_common.cuh"
 #include "physics/materials/material_parameters.h"
-#include "scene/scene.h"
+#include "physics/material_spec.h"
 
 namespace fbar {
 

@@ -19,7 +19,7 @@
 #include "MnBase/Meta/config.h"
 #include "physics/materials/material_common.cuh"
 #include "physics/materials/material_parameters.h"
-#include "scene/scene.h"
+#include "physics/material_spec.h"
 
 namespace fbar {
 

@@ -8,7 +8,7 @@
 
 #include <limits>
 
-#include "scene/scene.h"
+#include "physics/material_spec.h"
 
 namespace fbar {
 

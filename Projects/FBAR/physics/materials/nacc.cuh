@@ -33,7 +33,7 @@
 #include "physics/materials/drucker_prager.cuh"
 #include "physics/materials/material_common.cuh"
 #include "physics/materials/material_parameters.h"
-#include "scene/scene.h"
+#include "physics/material_spec.h"
 
 namespace fbar {
 

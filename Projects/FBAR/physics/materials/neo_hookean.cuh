@@ -16,7 +16,7 @@
 #include "physics/materials/fixed_corotated.cuh"
 #include "physics/materials/material_common.cuh"
 #include "physics/materials/material_parameters.h"
-#include "scene/scene.h"
+#include "physics/material_spec.h"
 
 namespace fbar {
 
