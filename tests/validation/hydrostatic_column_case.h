@@ -13,7 +13,7 @@
 //    oscillates acoustically (period 4 H / c0 = 17 ms) with little damping (inviscid, APIC). The pressure field is
 //    averaged over whole oscillation periods (between the first and the last upward zero crossing of the
 //    centre-of-mass velocity), which removes the oscillation from the mean.
-//  * Hydrostatic: the scene's bodies[].initial_state "hydrostatic" (physics/hydrostatic.h), which both engines
+//  * Hydrostatic: the scene's bodies[].initial_state "hydrostatic" (engine/hydrostatic.h), which both engines
 //    apply: particles of mass rho0 V0 with the Kirchhoff pressure J p = rho0 g (surface - y). Its exact discrete
 //    field is that Kirchhoff profile (the node forces integrate tau over V0; Cauchy p = tau / J).
 // Wall placement (validation_support.h, WallFit): the equilibrium test puts the bed on the zero-velocity plane, where

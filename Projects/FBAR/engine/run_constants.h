@@ -19,6 +19,12 @@
 
 namespace fbar {
 
+/// The scene's default_dt, resolved: the given value, or dx / 100 (numerically, dx in metres -> seconds, ClaymoreUW's
+/// default and docs/user_guide.md's) when the scene left it out (<= 0).
+inline double resolved_default_dt(const SimulationSpec& sim) {
+  return sim.default_dt > 0.0 ? sim.default_dt : sim.dx / 100.0;
+}
+
 /// The smallest explicit viscous bound of a scene (time_step.cuh) and its body (-1: no viscous body). A law is
 /// viscous when it reads the "viscosity" key (JFluid) and the body's value is positive.
 struct ViscousBound {

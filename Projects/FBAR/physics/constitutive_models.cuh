@@ -9,7 +9,7 @@
 //        with its return mapping), wave_speed(params, state), energy_density(params, state);
 //      optional: kAliases (other JSON names), initial_state<T>(MaterialSpec) (a state set by parameters, e.g.
 //      logJp0), check(MaterialSpec) -> ParameterProblem (a rule across parameters), hydrostatic_state<T>(params,
-//      kirchhoff_pressure) (host: lets bodies[].initial_state be "hydrostatic", physics/hydrostatic.h);
+//      kirchhoff_pressure) (host: lets bodies[].initial_state be "hydrostatic", engine/hydrostatic.h);
 //   2. include it here and append M to MaterialTypes; add its enumerator to Constitutive (scene.h).
 // Parsing, validation, --check, the scene writer, Froude scaling, both engines' kernels and particle bins, and the
 // output attributes follow from the type. Engines never compare strings: visit_material(law, f) calls f(M{}) for

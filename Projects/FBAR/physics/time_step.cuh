@@ -16,7 +16,6 @@
 #include <limits>
 
 #include "MnBase/Meta/config.h"
-#include "scene/scene.h"
 
 namespace fbar {
 
@@ -50,12 +49,6 @@ inline double viscous_time_step(double cfl, double dx, double rho, double viscos
 template <typename T>
 FBAR_HOST_DEVICE constexpr T min_time_step(T a, T b) {
   return b < a ? b : a;
-}
-
-/// The scene's default_dt, resolved: the given value, or dx / 100 (numerically, dx in metres -> seconds, ClaymoreUW's
-/// default and docs/user_guide.md's) when the scene left it out (<= 0).
-inline double resolved_default_dt(const SimulationSpec& sim) {
-  return sim.default_dt > 0.0 ? sim.default_dt : sim.dx / 100.0;
 }
 
 }  // namespace fbar

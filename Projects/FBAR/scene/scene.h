@@ -21,7 +21,7 @@ using Int3 = std::array<int, 3>;
 enum class Precision { Single, Double, Mixed };
 enum class OnFailure { Stop, ReduceDt };
 /// A body's state at t = 0 (bodies[].initial_state): Rest, stress-free (ClaymoreUW's); Hydrostatic, a fluid's
-/// pressure in equilibrium with gravity below the top of its geometry (physics/hydrostatic.h).
+/// pressure in equilibrium with gravity below the top of its geometry (engine/hydrostatic.h).
 enum class InitialState { Rest, Hydrostatic };
 enum class Backend { Auto, Gpu, Cpu };
 /// How scaling treats the materials' stresses and moduli (HydroUQ's use_cauchy_scaling): Default (the key absent):

@@ -19,7 +19,7 @@
 #include "scene/attributes.h"
 #include "geometry/geometry.h"
 #include "physics/grid_update.cuh"
-#include "physics/hydrostatic.h"
+#include "engine/hydrostatic.h"
 #include "io/particle_frame.h"
 #include "settings.h"
 #include "physics/time_step.cuh"

@@ -314,7 +314,7 @@ class CpuEngine {
   /// Velocities and states of particles read with has_attributes (geometry/particle_seed.h), after init().
   void apply_seeds(const std::vector<ParticleSeeds>& seeds);
   /// bodies[].initial_state "hydrostatic": each particle's state from its depth below the top of `bounds[b]`, the
-  /// body's geometry (physics/hydrostatic.h). Before apply_seeds (a point file's J wins).
+  /// body's geometry (engine/hydrostatic.h). Before apply_seeds (a point file's J wins).
   void apply_hydrostatic(const std::vector<Aabb>& bounds);
   void build_partition();
   TryResult try_step(double dt);

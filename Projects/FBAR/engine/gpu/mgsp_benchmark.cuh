@@ -68,7 +68,7 @@
 #include "scene/attributes.h"
 #include "physics/boundary.cuh"
 #include "physics/constitutive_models.cuh"
-#include "physics/hydrostatic.h"
+#include "engine/hydrostatic.h"
 #include "engine/engine_common.h"
 #include "geometry/geometry.h"
 #include "engine/gpu/gpu_engine.h"
@@ -976,7 +976,7 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
         throw std::invalid_argument(where + ".output_attribs: " + name + " is not available on the GPU engine");
     }
     if (!(mat.ppc > 0.0)) throw std::invalid_argument(where + ".material.ppc: must be positive");
-    Aabb geometry_bounds;  // the free surface of a hydrostatic body is its top (physics/hydrostatic.h)
+    Aabb geometry_bounds;  // the free surface of a hydrostatic body is its top (engine/hydrostatic.h)
     if (positions) {
       const std::vector<Vec3d>& x = (*positions)[b];
       const Vec3d domain{{sim.domain[0], sim.domain[1], sim.domain[2]}};

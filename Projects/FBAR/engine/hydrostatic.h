@@ -1,4 +1,5 @@
-// The hydrostatic initial state of a fluid body (bodies[].initial_state "hydrostatic"; host, both engines).
+// The hydrostatic initial state of a fluid body (bodies[].initial_state "hydrostatic"; host, both engines: it reads
+// the body and the simulation of the scene, so it lives with what both engines share).
 //
 // ClaymoreUW starts every body stress-free (J = 1). A fluid column released stress-free under gravity first falls
 // into its own compression: a pressure wave runs down and rings between the bed and the free surface at the
