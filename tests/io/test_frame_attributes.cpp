@@ -1,4 +1,4 @@
-// Frame attributes derived from F and the Cauchy stress (io/frame_columns.h, io/particle_frame.h): PK1, PK2, small
+// Frame attributes derived from F and the Cauchy stress (physics/frame_columns.h, io/particle_frame.h): PK1, PK2, small
 // strain, invariants, principal values and the von Mises strain, against closed forms; names and units resolve.
 #include <gtest/gtest.h>
 

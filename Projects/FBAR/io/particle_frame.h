@@ -13,7 +13,7 @@
 #include "MnBase/Math/vec.h"
 #include "MnSystem/IO/particle_io.h"
 #include "scene/attributes.h"
-#include "io/frame_columns.h"
+#include "physics/frame_columns.h"
 #include "physics/constitutive_models.cuh"
 #include "physics/materials/material_common.cuh"
 #include "scene/scene.h"

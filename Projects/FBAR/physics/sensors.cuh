@@ -1,6 +1,6 @@
 // Grid sensors (load cells) and particle sensors (wave gauges), host and device: the value a node or a particle
 // contributes to a sensor and the running reduction of one sample. Both engines evaluate grid_sensor_value() in their
-// grid update, on the nodes they own, and particle sensors on their particles (frame_value() of io/frame_columns.h,
+// grid update, on the nodes they own, and particle sensors on their particles (frame_value() of physics/frame_columns.h,
 // the formula frames use); the run loop reduces the ranks' SensorAccum (io/sensor_recorder.h) into one value per
 // sensor and sample.
 //
@@ -29,7 +29,7 @@
 
 #include "MnBase/Math/vec.h"
 #include "MnBase/Meta/config.h"
-#include "io/frame_columns.h"
+#include "physics/frame_columns.h"
 
 namespace fbar {
 

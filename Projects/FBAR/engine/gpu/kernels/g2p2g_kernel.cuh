@@ -43,7 +43,7 @@
 #include "MnBase/Math/bspline.h"
 #include "MnBase/Math/vec.h"
 #include "physics/constitutive_models.cuh"
-#include "io/frame_columns.h"
+#include "physics/frame_columns.h"
 #include "engine/gpu/grid_buffer.cuh"
 #include "engine/gpu/hash_table.cuh"
 #include "engine/gpu/kernels/kernel_common.cuh"
