@@ -18,15 +18,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::vector<fs::path> runnable_scenes() {
-  std::vector<fs::path> files;
-  for (const auto& e : fs::directory_iterator(fs::path(FBAR_SOURCE_DIR) / "scenes"))
-    if (e.path().extension() == ".json") files.push_back(e.path());
-  std::sort(files.begin(), files.end());
-  files.push_back(fs::path(FBAR_SOURCE_DIR) / "Projects" / "FBAR" / "scene.json");
-  return files;
-}
-
 // 30 steps of each scene with the CPU engine's CFL time step, given to both engines. The engines run the same
 // physics functions; what differs is the summation order of P2G (and the GPU's fixed-point arena, whose rounding is
 // float-sized): after 60 steps of the small test scenes positions agree to ~2e-7 m and velocities to ~6e-6 m/s
@@ -87,7 +78,7 @@ void run_scene_on_both(const Scene& scene, const std::string& name) {
 
 TEST(GpuScenes, EveryRunnableSceneMatchesCpu) {
   FBAR_REQUIRE_DEVICE();
-  for (const fs::path& file : runnable_scenes()) {
+  for (const fs::path& file : test::shipped_scene_files()) {
     const Scene scene = parse_scene_file(file.string(), ParseOptions{});
     const std::string name = file.filename().string();
     switch (scene.simulation.precision) {

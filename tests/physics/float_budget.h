@@ -1,5 +1,5 @@
-// The single-precision velocity budget of a scene after 30 steps from rest, shared by the CPU engine's float-vs-double
-// test (test_scenes_cpu.cpp) and the GPU-vs-CPU scene test (tests/gpu_engine/test_scenes_gpu.cu).
+// The shipped scenes and the single-precision velocity budget of each after 30 steps from rest, shared by the CPU
+// engine's float-vs-double test (test_scenes_cpu.cpp) and the GPU-vs-CPU scene test (tests/gpu_engine/test_scenes_gpu.cu).
 //
 // Float rounding of positions and velocities over 30 steps of the shipped scenes leaves |dv| of 1e-7 to 1e-5 m/s;
 // 1e-4 m/s is the budget. Two scenes amplify rounding through their physics, and get 4x the float-vs-double
@@ -10,9 +10,23 @@
 // different branches somewhere (a node on a boundary in one precision and off it in the other): a defect, not noise.
 #pragma once
 
+#include <algorithm>
+#include <filesystem>
 #include <string>
+#include <vector>
 
 namespace fbar::test {
+
+/// Every scene in scenes/ (sorted) and the default scene Projects/FBAR/scene.json.
+inline std::vector<std::filesystem::path> shipped_scene_files() {
+  namespace fs = std::filesystem;
+  std::vector<fs::path> files;
+  for (const auto& e : fs::directory_iterator(fs::path(FBAR_SOURCE_DIR) / "scenes"))
+    if (e.path().extension() == ".json") files.push_back(e.path());
+  std::sort(files.begin(), files.end());
+  files.push_back(fs::path(FBAR_SOURCE_DIR) / "Projects" / "FBAR" / "scene.json");
+  return files;
+}
 
 inline double float_velocity_budget(const std::string& scene_file_name) {
   if (scene_file_name == "granular_collapse.json") return 4 * 1.3e-3;

@@ -19,21 +19,8 @@
 namespace fs = std::filesystem;
 using namespace fbar;
 
-namespace {
-
-std::vector<fs::path> shipped_scenes() {
-  std::vector<fs::path> files;
-  for (const auto& e : fs::directory_iterator(fs::path(FBAR_SOURCE_DIR) / "scenes"))
-    if (e.path().extension() == ".json") files.push_back(e.path());
-  std::sort(files.begin(), files.end());
-  files.push_back(fs::path(FBAR_SOURCE_DIR) / "Projects" / "FBAR" / "scene.json");
-  return files;
-}
-
-}  // namespace
-
 TEST(CpuScenes, FloatFollowsDoubleOnEveryScene) {
-  for (const fs::path& file : shipped_scenes()) {
+  for (const fs::path& file : test::shipped_scene_files()) {
     const std::string name = file.filename().string();
     Scene scene = parse_scene_file(file.string(), ParseOptions{});
     std::vector<std::vector<Vec3d>> positions;

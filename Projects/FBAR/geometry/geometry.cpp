@@ -109,13 +109,12 @@ bool in_closed_box(const Vec3d& p, const Vec3d& lo, const Vec3d& hi) {
 /// The seeds (particle_seed.h) of a point file's particles from its attributes (names g.input_attribs, point-major):
 /// velocities rotated with the entry and scaled by `velocity_scale` (Froude: s^0.5), F rotated as R F R^T (the
 /// particle's rest shape is placed rotated too). A point whose J or det F is not positive (an inverted particle:
-/// ClaymoreUW writes such points into its own frames) is marked in `invalid` and described in `first_invalid` (the
-/// first one); the caller drops them.
+/// ClaymoreUW writes such points into its own frames) is marked in `invalid` and the first one described in
+/// `notes.first`; the caller drops them. A J column in ClaymoreUW's 1 - J is read as such (`notes.one_minus_j_median`).
 std::vector<double> file_seeds(const GeometrySpec& g, const std::vector<double>& attributes, std::size_t n,
                                const Mat3<double>& rot, double velocity_scale, std::vector<char>& invalid,
-                               std::string& first_invalid, double& one_minus_j_median) {
+                               BodyShape::FileSeedNotes& notes) {
   invalid.assign(n, 0);
-  one_minus_j_median = std::numeric_limits<double>::quiet_NaN();
   const std::vector<std::string>& names = g.input_attribs;
   const std::size_t K = names.size();
   const bool j_listed = std::find(names.begin(), names.end(), "J") != names.end();
@@ -137,7 +136,7 @@ std::vector<double> file_seeds(const GeometrySpec& g, const std::vector<double>&
     const double median = column[n / 2];
     if (std::fabs(median) < 0.5) {
       one_minus_j = true;
-      one_minus_j_median = median;
+      notes.one_minus_j_median = median;
     }
   }
   std::vector<double> out(n * kSeedScalars, seed_unset());
@@ -147,7 +146,7 @@ std::vector<double> file_seeds(const GeometrySpec& g, const std::vector<double>&
       if (slot[k] >= 0) s[slot[k]] = attributes[p * K + k];
     if (one_minus_j) s[kSeedJ] = 1.0 - s[kSeedJ];
     const auto mark = [&](const std::string& what) {
-      if (first_invalid.empty()) first_invalid = "point " + std::to_string(p) + ": " + what;
+      if (notes.first.empty()) notes.first = "point " + std::to_string(p) + ": " + what;
       invalid[p] = 1;
     };
     if (!std::isnan(s[kSeedVelocity])) {
@@ -285,20 +284,16 @@ BodyShape::BodyShape(const std::vector<GeometrySpec>& geometry, int body_index, 
             std::vector<Vec3d> file_points = read_point_file(g.file, names, aliases, attributes);
             const Mat3<double> rot = euler_xyz(g.rotate);
             const bool rotated = g.rotate[0] != 0.0 || g.rotate[1] != 0.0 || g.rotate[2] != 0.0;
+            const std::size_t copies = static_cast<std::size_t>(g.array[0]) * g.array[1] * g.array[2];
+            FileSeedNotes notes;
+            notes.entry = j;
+            notes.read = file_points.size() * copies;
             std::vector<char> invalid;
-            std::string first_invalid;
-            double one_minus_j_median = std::numeric_limits<double>::quiet_NaN();
             std::vector<double> seeds =
                 names.empty() ? std::vector<double>{}
                               : file_seeds(g, attributes, file_points.size(), rot,
-                                           std::sqrt(g.use_froude_scaling ? froude_scaling : 1.0), invalid,
-                                           first_invalid, one_minus_j_median);
-            const std::size_t copies_all = static_cast<std::size_t>(g.array[0]) * g.array[1] * g.array[2];
-            FileSeedNotes notes;
-            notes.entry = j;
-            notes.read = file_points.size() * copies_all;
-            notes.one_minus_j_median = one_minus_j_median;
-            if (!first_invalid.empty()) {  // inverted particles: dropped, and said (audit_bodies)
+                                           std::sqrt(g.use_froude_scaling ? froude_scaling : 1.0), invalid, notes);
+            if (!notes.first.empty()) {  // inverted particles: dropped, and said (audit_bodies)
               std::size_t kept = 0;
               for (std::size_t p = 0; p < file_points.size(); ++p) {
                 if (invalid[p]) continue;
@@ -307,15 +302,13 @@ BodyShape::BodyShape(const std::vector<GeometrySpec>& geometry, int body_index, 
                             seeds.begin() + static_cast<std::ptrdiff_t>(kept * kSeedScalars));
                 ++kept;
               }
-              notes.dropped = (file_points.size() - kept) * copies_all;
-              notes.first = first_invalid;
+              notes.dropped = (file_points.size() - kept) * copies;
               file_points.resize(kept);
               seeds.resize(kept * kSeedScalars);
             }
             if (notes.dropped > 0 || !std::isnan(notes.one_minus_j_median)) file_notes_.push_back(notes);
             PointSet set;
             set.entry = j;
-            const std::size_t copies = static_cast<std::size_t>(g.array[0]) * g.array[1] * g.array[2];
             set.points.reserve(file_points.size() * copies);
             set.seeds.reserve(seeds.size() * copies);
             const Vec3d fulcrum = to_vec(g.fulcrum);
@@ -357,8 +350,8 @@ BodyShape::BodyShape(const std::vector<GeometrySpec>& geometry, int body_index, 
           throw SceneError(path + ".bathymetry", std::to_string(bed.size()) + " point(s)", "at least 2 [x, y] points", "m");
         e.bed = std::make_shared<const BedPoints>(std::move(bed));
         // Subtracted, a bed object cuts the body by the ground: what lies at or below the bed goes, whatever the
-        // entry's span, offset and copies (ClaymoreUW's subtract_bathymetry, read_scene_input.h; its facility
-        // beds do nothing when subtracted, "not implemented yet").
+        // entry's span, offset and copies (ClaymoreUW's subtract_bathymetry, read_scene_input.h; subtracting a
+        // facility's built-in bed removes nothing there: it prints that the operation is missing).
         e.ground = g.operation == GeometryOperation::Subtract || g.operation == GeometryOperation::Difference;
         break;
       }

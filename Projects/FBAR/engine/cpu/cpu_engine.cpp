@@ -914,7 +914,7 @@ StepReport CpuEngine<T, TG>::step_impl(double dt, bool cfl_dt) {
       }
       return report;
     }
-    if (scene_.simulation.on_failure == OnFailure::ReduceDt && report.retries < kMaxRetries) {
+    if (scene_.simulation.on_failure == OnFailure::ReduceDt && report.retries < kMaxStepRetries) {
       if (log_)
         for (const FailureReport& f : result.failures)
           *log_ << "fbar: " << f.describe() << "; retrying the step with dt = " << format_g(dt / 2) << " s\n";

@@ -20,8 +20,8 @@
 // Failure checks (every step, every particle): NaN/Inf in x, v, C or the material state; a move of more than one
 // cell along an axis in one step (CFL violation: the fused GPU G2P2G cannot represent it); a position outside the
 // domain [0, simulation.domain]. on_failure = stop: step() reports (body, step, time, count) and does not commit.
-// on_failure = reduce_dt: the step is retried from the unchanged state with dt/2, up to kMaxRetries times; the
-// halving persists for later steps and is undone (x2) after kRecoverSteps clean steps.
+// on_failure = reduce_dt: the step is retried from the unchanged state with dt/2, up to kMaxStepRetries times; the
+// halving persists for later steps and is undone (x2) after kRecoverSteps clean steps (engine_common.h).
 //
 // Time step: dt = min(default_dt, min_b CFL_b dx / (c_b + |v|max)) where c_b is the largest wave speed of body b's
 // particles (material wave_speed() of the current state, e.g. the compressed sound speed of JFluid; never below
@@ -79,10 +79,6 @@ class CpuEngine {
   using Vec3T = Vec3<T>;
   using Mat3T = Mat3<T>;
 
-  /// Dt halvings per step before on_failure = reduce_dt gives up, and the clean steps after which a halved dt is
-  /// doubled again (engine_common.h, the policy both engines follow).
-  static constexpr int kMaxRetries = kMaxStepRetries;
-  static constexpr int kRecoverSteps = fbar::kRecoverSteps;
 
   /// Samples every body with sample_body() (geometry.h). Throws SceneError (sampling) or std::invalid_argument
   /// naming the body / boundary for what this engine does not implement (material law, boundary object, output
