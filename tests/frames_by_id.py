@@ -1,5 +1,5 @@
 """The outputs of decomposed command-line runs, for the rank tests (tests/comm/mpi_cli_test.py,
-tests/comm/mpi_placement_test.py, tests/gpu_engine/gpu_cli_ranks_test.py).
+tests/comm/mpi_placement_test.py, tests/engine/gpu/gpu_cli_ranks_test.py).
 
 read_run(out, ranks, label) checks run.json (status completed, `ranks` ranks), finds the last frame's CSV files
 (model[0]_dev[rank]_frame[f].csv, one per rank) and returns (run.json as a dict, {ID: [x, y, z, vx, vy, vz]}); a

@@ -27,7 +27,7 @@
 #include "engine/stop_request.h"
 #include "engine/gpu/memory_plan.h"
 #include "scene/scene_parse.h"
-#include "scene/scene_print.h"
+#include "engine/check_report.h"
 
 #ifndef FBAR_VERSION
 #define FBAR_VERSION "unknown"
@@ -261,6 +261,64 @@ void write_run_json(const fs::path& path, const Scene& scene, const std::vector<
   if (!out) throw std::runtime_error("cannot write " + path.string());
 }
 
+/// fbar --check: the scene's report with, when a device is present, its free memory and whether the plan fits.
+int check_scene(const CliOptions& o, const Scene& scene) {
+  SceneSummary summary = summarize_scene(scene);
+  // With a device present: its free memory, and whether the plan fits (a run that does not fit is refused).
+  const int devices = cuda::device_count();
+  for (std::size_t g = 0; devices > 0 && g < summary.gpu_plans.size(); ++g) {
+    if (static_cast<int>(g) >= devices) {
+      summary.device_notes.push_back("GPU " + std::to_string(g) + ": not present on this machine (" +
+                                     std::to_string(devices) + " CUDA devices)");
+      continue;
+    }
+    std::size_t free_bytes = 0, total_bytes = 0;
+    if (cudaSetDevice(static_cast<int>(g)) == cudaSuccess) cuda::memory_info(free_bytes, total_bytes);
+    cudaDeviceProp prop{};
+    cudaGetDeviceProperties(&prop, static_cast<int>(g));
+    const std::string fit = memory_fit_message(summary.gpu_plans[g], free_bytes, total_bytes, scene,
+                                               "GPU " + std::to_string(g));
+    summary.device_notes.push_back("GPU " + std::to_string(g) + " (" + prop.name + "): " +
+                                   format_bytes(static_cast<double>(free_bytes)) + " free of " +
+                                   format_bytes(static_cast<double>(total_bytes)) + "; " +
+                                   (fit.empty() ? std::string("the scene fits") : "DOES NOT FIT: " + fit));
+  }
+  if (devices == 0) summary.device_notes.push_back("no CUDA device on this machine: free memory not checked");
+  std::cout << "fbar " << FBAR_VERSION << ": scene " << o.file << " is valid\n";
+  print_scene_report(std::cout, scene, summary);
+  return kExitOk;
+}
+
+/// --gpus=N: one thread per GPU rank (rank r on GPU r % devices); a rank that ends by an exception releases the
+/// others from their collectives. The result is rank 0's, or that of the first rank that failed on its own.
+RunResult run_thread_ranks(const Scene& scene, const RunOptions& options, const EngineSet& engines, int ranks,
+                           int devices, bool shared_gpus) {
+  // One thread per GPU rank; a rank that ends by an exception releases the others from their collectives.
+  std::vector<std::unique_ptr<comm::Transport>> hosts = comm::make_thread_transports(ranks);
+  std::vector<RunResult> results(static_cast<std::size_t>(ranks));
+  std::vector<std::thread> threads;
+  for (int r = 0; r < ranks; ++r)
+    threads.emplace_back([&, r] {
+      RunOptions mine = options;
+      mine.transport = hosts[static_cast<std::size_t>(r)].get();
+      mine.gpu = r % devices;
+      mine.shared_gpus = shared_gpus;
+      RunResult& out = results[static_cast<std::size_t>(r)];
+      out = engines.run_gpu(scene, mine);
+      if (out.from_exception) mine.transport->abort(out.exit_code);
+    });
+  for (std::thread& t : threads) t.join();
+  RunResult result = results[0];
+  for (int r = 0; r < ranks; ++r)  // the first rank that failed on its own explains the stop
+    if (results[static_cast<std::size_t>(r)].from_exception &&
+        results[static_cast<std::size_t>(r)].message.find("another rank") == std::string::npos) {
+      result = results[static_cast<std::size_t>(r)];
+      result.message = "rank " + std::to_string(r) + ": " + result.message;
+      break;
+    }
+  return result;
+}
+
 int run(const CliOptions& o, const std::vector<std::string>& command_line, const EngineSet& engines) {
   std::vector<std::string> warnings;
   ParseOptions parse;
@@ -272,32 +330,7 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
   if (o.frames) scene.simulation.frames = *o.frames;
   if (o.output) scene.simulation.save_path = *o.output;
 
-  if (o.check) {
-    SceneSummary summary = summarize_scene(scene);
-    // With a device present: its free memory, and whether the plan fits (a run that does not fit is refused).
-    const int devices = cuda::device_count();
-    for (std::size_t g = 0; devices > 0 && g < summary.gpu_plans.size(); ++g) {
-      if (static_cast<int>(g) >= devices) {
-        summary.device_notes.push_back("GPU " + std::to_string(g) + ": not present on this machine (" +
-                                       std::to_string(devices) + " CUDA devices)");
-        continue;
-      }
-      std::size_t free_bytes = 0, total_bytes = 0;
-      if (cudaSetDevice(static_cast<int>(g)) == cudaSuccess) cuda::memory_info(free_bytes, total_bytes);
-      cudaDeviceProp prop{};
-      cudaGetDeviceProperties(&prop, static_cast<int>(g));
-      const std::string fit = memory_fit_message(summary.gpu_plans[g], free_bytes, total_bytes, scene,
-                                                 "GPU " + std::to_string(g));
-      summary.device_notes.push_back("GPU " + std::to_string(g) + " (" + prop.name + "): " +
-                                     format_bytes(static_cast<double>(free_bytes)) + " free of " +
-                                     format_bytes(static_cast<double>(total_bytes)) + "; " +
-                                     (fit.empty() ? std::string("the scene fits") : "DOES NOT FIT: " + fit));
-    }
-    if (devices == 0) summary.device_notes.push_back("no CUDA device on this machine: free memory not checked");
-    std::cout << "fbar " << FBAR_VERSION << ": scene " << o.file << " is valid\n";
-    print_scene_report(std::cout, scene, summary);
-    return kExitOk;
-  }
+  if (o.check) return check_scene(o, scene);
 
   // The engine: --backend=gpu needs the GPU engine and a device; auto takes the GPU engine when both are there.
   bool gpu = false;
@@ -414,29 +447,7 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
     // SIGINT / SIGTERM stop the run at the next step boundary; run.json below then says so (stop_request.h).
     const StopSignals stop_signals;
     if (thread_ranks) {
-      // One thread per GPU rank; a rank that ends by an exception releases the others from their collectives.
-      std::vector<std::unique_ptr<comm::Transport>> hosts = comm::make_thread_transports(ranks);
-      std::vector<RunResult> results(static_cast<std::size_t>(ranks));
-      std::vector<std::thread> threads;
-      for (int r = 0; r < ranks; ++r)
-        threads.emplace_back([&, r] {
-          RunOptions mine = ro;
-          mine.transport = hosts[static_cast<std::size_t>(r)].get();
-          mine.gpu = r % devices;
-          mine.shared_gpus = shared_gpus;
-          RunResult& out = results[static_cast<std::size_t>(r)];
-          out = engines.run_gpu(scene, mine);
-          if (out.from_exception) mine.transport->abort(out.exit_code);
-        });
-      for (std::thread& t : threads) t.join();
-      result = results[0];
-      for (int r = 0; r < ranks; ++r)  // the first rank that failed on its own explains the stop
-        if (results[static_cast<std::size_t>(r)].from_exception &&
-            results[static_cast<std::size_t>(r)].message.find("another rank") == std::string::npos) {
-          result = results[static_cast<std::size_t>(r)];
-          result.message = "rank " + std::to_string(r) + ": " + result.message;
-          break;
-        }
+      result = run_thread_ranks(scene, ro, engines, ranks, devices, shared_gpus);
     } else {
       ro.gpu = local_gpu;
       result = gpu ? engines.run_gpu(scene, ro) : run_cpu(scene, ro);

@@ -6,7 +6,7 @@ usage: mpi_cli_test.py FBAR MPIEXEC SCENE WORKDIR
 Runs the scene on 1 rank (no launcher), 2, 3 and 4 MPI ranks; each rank writes model0_dev[rank]_frame[f].csv. Checks
 that every run completes (exit 0, run.json: status completed, ranks N, the same step count), that the merged last
 frame holds every particle ID exactly once, and that positions and velocities agree with one rank's to 1e-12
-(double precision; the unit test tests/physics/test_decomposition.cpp measures 2e-16 m and 5e-15 m/s). When the scene
+(double precision; the unit test tests/engine/cpu/test_decomposition.cpp measures 2e-16 m and 5e-15 m/s). When the scene
 has sensors or trackers, their CSV files (written once, reduced over the ranks) must have the same names, headers
 and sample times as one rank's, and values within 1e-8 of each column's largest value (the CSVs print 9 digits).
 """

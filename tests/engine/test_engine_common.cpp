@@ -1,7 +1,8 @@
-// engine_common.h: the step-landing rule both engines use, the step report's bookkeeping, attribute support.
+// engine_common.h: the step-landing rule and the retry policy both engines use, the step report's bookkeeping.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 
@@ -68,11 +69,43 @@ TEST(StepReportAbsorb, SumsStepsAndKeepsTheLastFailure) {
             "body 1: 1 particle NaN/Inf in the particle state at step 2, t = 0.1 s, dt = 0.05 s (first: particle 4)");
 }
 
-TEST(EngineSupportsAttribute, FollowsTheMaterialsState) {
-  EXPECT_TRUE(engine_supports_attribute(Constitutive::JFluid, "Pressure"));
-  EXPECT_TRUE(engine_supports_attribute(Constitutive::NACC, "logJp"));
-  EXPECT_FALSE(engine_supports_attribute(Constitutive::JFluid, "logJp"));  // a fluid keeps no plastic volume
-  EXPECT_FALSE(engine_supports_attribute(Constitutive::JFluid, "NoSuchAttribute"));
+// reduce_dt: a failed try is retried with dt / 2 up to kMaxStepRetries times, each failure logged and kept in the
+// report; a CFL step's halving persists in the scale, which doubles back after kRecoverSteps clean CFL steps. A fixed
+// dt (step(dt)) leaves the scale alone; on_failure = stop never retries.
+TEST(DtRetryPolicy, HalvesPersistsAndRecovers) {
+  const std::vector<FailureReport> failures{FailureReport{FailureKind::CflViolation, 0, 5, 1.0, 0.1, 2, 9}};
+  DtRetryPolicy policy;
+  StepReport report;
+  double dt = 0.1;
+  std::ostringstream log;
+  EXPECT_FALSE(policy.retry(OnFailure::Stop, failures, true, dt, report, &log));
+  EXPECT_EQ(dt, 0.1);
+  EXPECT_EQ(report.retries, 0);
+  ASSERT_TRUE(policy.retry(OnFailure::ReduceDt, failures, true, dt, report, &log));
+  EXPECT_EQ(dt, 0.05);
+  EXPECT_EQ(policy.scale, 0.5);
+  EXPECT_EQ(report.retries, 1);
+  ASSERT_EQ(report.retried.size(), 1u);
+  EXPECT_NE(log.str().find("retrying the step with dt = 0.05 s"), std::string::npos) << log.str();
+  for (int k = 1; k < kMaxStepRetries; ++k)
+    EXPECT_TRUE(policy.retry(OnFailure::ReduceDt, failures, true, dt, report, nullptr));
+  EXPECT_EQ(report.retries, kMaxStepRetries);
+  EXPECT_FALSE(policy.retry(OnFailure::ReduceDt, failures, true, dt, report, nullptr));  // dt / 2^8 at most
+  EXPECT_DOUBLE_EQ(dt, 0.1 / 256);
+  EXPECT_DOUBLE_EQ(policy.scale, 1.0 / 256);
+  for (int k = 0; k < kRecoverSteps - 1; ++k) policy.committed(true);
+  EXPECT_DOUBLE_EQ(policy.scale, 1.0 / 256);
+  policy.committed(false);  // a fixed-dt step does not count
+  EXPECT_DOUBLE_EQ(policy.scale, 1.0 / 256);
+  policy.committed(true);
+  EXPECT_DOUBLE_EQ(policy.scale, 1.0 / 128);
+  EXPECT_EQ(policy.clean_steps, 0);
+  DtRetryPolicy fixed;
+  StepReport r2;
+  double dt2 = 0.2;
+  ASSERT_TRUE(fixed.retry(OnFailure::ReduceDt, failures, false, dt2, r2, nullptr));
+  EXPECT_EQ(dt2, 0.1);
+  EXPECT_EQ(fixed.scale, 1.0);
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <random>
 
 #include "physics/constitutive_models.cuh"
+#include "physics/frame_attributes.h"
 #include "physics_test_support.h"
 
 namespace fbar {
@@ -407,6 +408,14 @@ TEST(JFluid, SinglePrecisionPressureNearRestViaOneMinusJ) {
   const float p_naive = static_cast<float>(K / gamma) * (std::pow(J_naive, -static_cast<float>(gamma)) - 1.0f);
   const double p_ref = JFluid::pressure(pd, JFluidState<double>{static_cast<double>(1e-6f)});
   EXPECT_GT(std::fabs(p_naive - p_ref), 1e-3 * p_ref);
+}
+
+// physics/frame_attributes.h: an output attribute is available where the material's state has its quantity.
+TEST(MaterialSupportsAttribute, FollowsTheMaterialsState) {
+  EXPECT_TRUE(material_supports_attribute(Constitutive::JFluid, "Pressure"));
+  EXPECT_TRUE(material_supports_attribute(Constitutive::NACC, "logJp"));
+  EXPECT_FALSE(material_supports_attribute(Constitutive::JFluid, "logJp"));  // a fluid keeps no plastic volume
+  EXPECT_FALSE(material_supports_attribute(Constitutive::JFluid, "NoSuchAttribute"));
 }
 
 }  // namespace

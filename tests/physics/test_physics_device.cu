@@ -76,7 +76,7 @@ TEST(PhysicsDevice, MatchesHost) {
   sim.dx = 0.1;
   BoundaryParams<float> wall{};
   std::string error;
-  ASSERT_TRUE(make_boundary_params(spec, sim, wall, error));
+  ASSERT_TRUE(make_boundary_params(spec, sim.dx, sim.domain, wall, error));
 
   std::mt19937_64 rng(5);
   std::vector<DeviceCase> cases;

@@ -154,7 +154,7 @@ BoundaryParams<double> make(BoundaryObject object, Contact contact, Real3 lo = {
   spec.domain_end = hi;
   BoundaryParams<double> b{};
   std::string error;
-  EXPECT_TRUE(make_boundary_params(spec, unit_sim(dx), b, error)) << error;
+  EXPECT_TRUE(make_boundary_params(spec, unit_sim(dx).dx, unit_sim(dx).domain, b, error)) << error;
   return b;
 }
 
@@ -245,7 +245,7 @@ TEST(Boundary, CoulombFriction) {
   spec.friction_dynamic = 0.2;
   BoundaryParams<double> b{};
   std::string error;
-  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1), b, error));
+  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1).dx, unit_sim(0.1).domain, b, error));
   const Vec3d floor_node{{0.5, 0.0, 0.5}};  // on the floor's face
   // v_n = -1 (into the floor), |v_t| = 0.4 <= 0.5: sticks.
   EXPECT_EQ(apply_boundary(b, floor_node, Vec3d{{0.4, -1.0, 0.0}}), Vec3d::zero());
@@ -263,16 +263,16 @@ TEST(Boundary, TimeWindowAndUnsupportedObjects) {
   spec.time = {0.5, 1.5};
   BoundaryParams<double> b{};
   std::string error;
-  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1), b, error));
+  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1).dx, unit_sim(0.1).domain, b, error));
   EXPECT_FALSE(boundary_active(b, 0.49));
   EXPECT_TRUE(boundary_active(b, 0.5));
   EXPECT_TRUE(boundary_active(b, 1.5));
   EXPECT_FALSE(boundary_active(b, 1.51));
   spec.object = BoundaryObject::USGS_GATE;
-  EXPECT_FALSE(make_boundary_params(spec, unit_sim(0.1), b, error));
+  EXPECT_FALSE(make_boundary_params(spec, unit_sim(0.1).dx, unit_sim(0.1).domain, b, error));
   EXPECT_NE(error.find("expand_boundary"), std::string::npos) << error;
   spec.object = BoundaryObject::Box;  // without extents
-  EXPECT_FALSE(make_boundary_params(spec, unit_sim(0.1), b, error));
+  EXPECT_FALSE(make_boundary_params(spec, unit_sim(0.1).dx, unit_sim(0.1).domain, b, error));
 }
 
 // Sphere (ClaymoreUW: center = box midpoint, radius = half the x extent): inside nodes get the radial normal.
@@ -332,7 +332,7 @@ TEST(Boundary, ArraysRepeatTheObject) {
   spec.spacing = {0.3, 0.0, 0.4};
   BoundaryParams<double> b{};
   std::string error;
-  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1), b, error)) << error;
+  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1).dx, unit_sim(0.1).domain, b, error)) << error;
   const std::vector<BoundaryParams<double>> copies = boundary_array(b, spec);
   ASSERT_EQ(copies.size(), 6u);
   EXPECT_NEAR(copies[5].lo[0], 0.1 + 2 * 0.3, 1e-15);  // (i, k) = (2, 1)
@@ -352,7 +352,7 @@ TEST(Boundary, BathymetryFollowsItsProfile) {
   spec.bathymetry = {{0.2, 0.1}, {0.6, 0.3}, {0.8, 0.3}};  // flat, a 1:2 slope up, flat
   BoundaryParams<double> b{};
   std::string error;
-  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1), b, error)) << error;
+  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1).dx, unit_sim(0.1).domain, b, error)) << error;
   BoundaryProfiles<double> profiles;
   b.profile_first = 0;
   b.profile_count = 3;
@@ -373,7 +373,7 @@ TEST(Boundary, BathymetryFollowsItsProfile) {
   EXPECT_EQ(v[2], 0.3);
   EXPECT_EQ(apply_boundary(b, Vec3d{{0.9, 0.35, 0.5}}, kV, &profiles), kV);   // above the flat end
   spec.bathymetry.resize(1);
-  EXPECT_FALSE(make_boundary_params(spec, unit_sim(0.1), b, error));
+  EXPECT_FALSE(make_boundary_params(spec, unit_sim(0.1).dx, unit_sim(0.1).domain, b, error));
 }
 
 // The OSU Large Wave Flume bed (OSU_LWF_RAMP without custom points): ClaymoreUW's bed table (its OSU_LWF_RAMP grid
@@ -426,7 +426,7 @@ TEST(Boundary, MovingBoundaryTranslatesAndActsOnRelativeVelocity) {
   spec.time = {1.0, 10.0};
   BoundaryParams<double> b{};
   std::string error;
-  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1), b, error)) << error;
+  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1).dx, unit_sim(0.1).domain, b, error)) << error;
   const BoundaryParams<double> at3 = boundary_at(b, 3.0);  // moved 1 m along x
   EXPECT_NEAR(at3.lo[0], 1.0, 1e-15);
   EXPECT_NEAR(at3.hi[0], 1.2, 1e-15);
@@ -437,13 +437,13 @@ TEST(Boundary, MovingBoundaryTranslatesAndActsOnRelativeVelocity) {
   // Faster than the piston, away from it: untouched.
   EXPECT_EQ(apply_boundary(at3, node, Vec3d{{0.8, 0.1, 0.0}}), (Vec3d{{0.8, 0.1, 0.0}}));
   spec.contact = Contact::Sticky;
-  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1), b, error));
+  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1).dx, unit_sim(0.1).domain, b, error));
   EXPECT_EQ(apply_boundary(boundary_at(b, 3.0), node, kV), (Vec3d{{0.5, 0.0, 0.0}}));
   // A Velocity region imposes its velocity.
   spec.object = BoundaryObject::Velocity;
   spec.velocity = {0.0, 0.0, -2.0};
   spec.time = {0.0, 10.0};
-  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1), b, error));
+  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.1).dx, unit_sim(0.1).domain, b, error));
   EXPECT_EQ(apply_boundary(boundary_at(b, 0.0), Vec3d{{0.1, 0.5, 0.5}}, kV), (Vec3d{{0.0, 0.0, -2.0}}));
 }
 

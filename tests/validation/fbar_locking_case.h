@@ -18,7 +18,7 @@
 // centre-of-mass velocity), which removes the oscillation from the mean.
 // Metrics: settlement ratio d_MPM / d; pressure error RMS over the particles of (p - p_exact) / (rho g H);
 // checkerboard index RMS over the particles of (p - mean p of the particle's cell) / (rho g H).
-// Shared by the CPU validation test and the GPU engine's (tests/gpu_engine/test_validation_gpu.cu): the run is
+// Shared by the CPU validation test and the GPU engine's (tests/engine/gpu/test_validation_gpu.cu): the run is
 // templated on the engine (CpuEngine, or test::GpuValidationEngine with the same queries).
 #pragma once
 

@@ -20,7 +20,7 @@
 // the pile leaves the 5 m domain (runout > 1.5).
 // Runout is the 99th-percentile particle distance from the back wall (VALIDATION.md), so a few saltating particles
 // do not set it.
-// Shared by the CPU validation test and the GPU engine's (tests/gpu_engine/test_validation_gpu.cu): the run is
+// Shared by the CPU validation test and the GPU engine's (tests/engine/gpu/test_validation_gpu.cu): the run is
 // templated on the engine (CpuEngine, or test::GpuValidationEngine with the same queries).
 #pragma once
 

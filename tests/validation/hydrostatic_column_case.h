@@ -19,7 +19,7 @@
 // Wall placement (validation_support.h, WallFit): the equilibrium test puts the bed on the zero-velocity plane, where
 // a resting fluid is an exact discrete equilibrium; the stress-free test uses the engine's convention (bed on the
 // last wall node plane, one cell inside the Walls face), the placement whose first particle layer takes its load.
-// Shared by the CPU validation test and the GPU engine's (tests/gpu_engine/test_validation_gpu.cu): the run is
+// Shared by the CPU validation test and the GPU engine's (tests/engine/gpu/test_validation_gpu.cu): the run is
 // templated on the engine (CpuEngine, or test::GpuValidationEngine with the same queries).
 #pragma once
 

@@ -14,7 +14,7 @@
 // tail); NACC by 1.2e-7 at + 2 dx and 1.1e-7 at + 5 dx. Tolerances at + 5 dx: 1e-5 for F and logJp, 5e-4 of |sigma|
 // for the Cauchy stress, 10x the tail; a wrong kinematic (the engine handing advance() another C, F-bar acting, a
 // missing return mapping) moves the state by O(1e-3) and more (with C = L instead of l(t): 1.5e-4 in F).
-// Shared by the CPU validation test and the GPU engine's (tests/gpu_engine/test_validation_gpu.cu): the run is
+// Shared by the CPU validation test and the GPU engine's (tests/engine/gpu/test_validation_gpu.cu): the run is
 // templated on the engine (CpuEngine, or test::GpuValidationEngine with the same queries).
 #pragma once
 

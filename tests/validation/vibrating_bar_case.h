@@ -9,7 +9,7 @@
 // sqrt(E/rho)), so a thin 3D bar between lateral slip walls (1 x 1 cell cross-section, 2 x 2 particles) is exactly
 // the 1D bar. FixedCorotated (its small-strain limit is linear elasticity; the peak strain v0/c = 1 % adds a
 // geometric nonlinearity of the same order on the stress and far less on the period).
-// Shared by the CPU validation test and the GPU engine's (tests/gpu_engine/test_validation_gpu.cu): the run is
+// Shared by the CPU validation test and the GPU engine's (tests/engine/gpu/test_validation_gpu.cu): the run is
 // templated on the engine (CpuEngine, or test::GpuValidationEngine with the same queries).
 #pragma once
 

@@ -6,7 +6,8 @@
 # does (it keeps one rate per kind); fbar on its own samples each sensor at its own rate (user guide §7 item 24).
 # usage: tools/benchmark/compare_claymoreuw.sh OSU_LWF FBAR WORK SCENE.json[:SECONDS] ...
 #   OSU_LWF  ClaymoreUW's binary (it runs in the scene's folder, writes there and never exits: it is stopped once its
-#            last frame file exists, or after 80 x the simulated time in seconds (+60 s) of wall time)
+#            last frame file exists, or after CUW_WALL_PER_SECOND (default 80) x the simulated time in seconds (+60 s) of
+#            wall time)
 #   SECONDS  simulated time to run (default 1); frames = ceil(SECONDS x fps) for both
 #   Motion files a scene names are looked up beside the scene file and copied next to it and one folder up; geometry
 #   files are copied to the same path relative to the run folder as to the scene (both programs resume from one file).
@@ -56,7 +57,7 @@ PY
   last="model[0]_dev[0]_frame[$frames].bgeo"
   ( cd "$dir/cuw/run" && s0=$(date +%s.%N)
     "$CUW" --file=scene.json > ../log.txt 2>&1 & pid=$!
-    limit=$(python3 -c "print(int(80 * $secs + 60))"); t=0
+    limit=$(python3 -c "print(int(${CUW_WALL_PER_SECOND:-80} * $secs + 60))"); t=0
     while [ ! -f "$last" ] && kill -0 $pid 2>/dev/null && [ $t -lt $((limit * 10)) ]; do sleep 0.1; t=$((t + 1)); done
     sleep 1; kill $pid 2>/dev/null; wait $pid 2>/dev/null
     echo "wall $(python3 -c "import time; print(round(time.time() - $s0, 1))") s" > ../time.txt )

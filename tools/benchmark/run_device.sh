@@ -15,7 +15,7 @@ ninja -C "$BUILD" -j16 gpu_engine_tests fbar_benchmark fbar > "$OUT/build.log" 2
 echo "build ok"
 (cd "$BUILD" && ctest -R "Gpu" --output-on-failure --timeout 120 > "$OUT/ctest.log" 2>&1); rc=$?
 grep -E "\[measured\]|tests passed|Failed|FAILED|Passed|\*\*\*" "$OUT/ctest.log" | head -80
-"$BUILD/tests/gpu_engine/gpu_engine_tests" --gtest_filter='GpuVsCpu.*:GpuFailures.*:GpuScenes.*' 2>&1 | grep "\[measured\]" | head -40
+"$BUILD/tests/engine/gpu/gpu_engine_tests" --gtest_filter='GpuVsCpu.*:GpuFailures.*:GpuScenes.*' 2>&1 | grep "\[measured\]" | head -40
 if [ "${FBAR_SKIP_BENCH:-0}" != "1" ]; then
   "$BUILD/fbar_benchmark" --csv="$OUT/benchmark.csv" "$@" 2>&1 | tee "$OUT/benchmark.log" | tail -40
 fi

@@ -27,7 +27,7 @@ MPI=(mpirun --allow-run-as-root --oversubscribe -x NCCL_NVLS_ENABLE -x CUDA_VISI
 NET=(-x NCCL_P2P_DISABLE=1 -x NCCL_SHM_DISABLE=1)
 nvidia-smi -L | tee "$OUT/gpus.txt"
 GPUS=$(grep -c "^GPU " "$OUT/gpus.txt")
-find_bin() { for d in "$BIN" "$BIN/tests/gpu_engine" "$BIN/tools/benchmark"; do [ -x "$d/$1" ] && { echo "$d/$1"; return; }; done; echo "$1"; }
+find_bin() { for d in "$BIN" "$BIN/tests/engine/gpu" "$BIN/tools/benchmark"; do [ -x "$d/$1" ] && { echo "$d/$1"; return; }; done; echo "$1"; }
 TESTS=$(find_bin gpu_engine_tests); CHECK=$(find_bin gpu_mpi_decomposition_check); SCALING=$(find_bin fbar_scaling)
 FBAR=$(find_bin fbar)
 STEPS=${STEPS:-50}
@@ -58,7 +58,7 @@ if has two && [ "$GPUS" -ge 2 ]; then
   summary "2 GPUs: MPI check, NCCL default transports rc=$?"
   timeout 200 "${MPI[@]}" -np 2 "${NET[@]}" "$CHECK" >> "$OUT/two_mpi.log" 2>&1
   summary "2 GPUs: MPI check, P2P and SHM off (network path) rc=$?"
-  timeout 400 python3 "$ROOT/tests/gpu_engine/gpu_cli_ranks_test.py" "$FBAR" mpirun \
+  timeout 400 python3 "$ROOT/tests/engine/gpu/gpu_cli_ranks_test.py" "$FBAR" mpirun \
     "$ROOT/tests/scenes/good/decomposed_dam_break.json" /tmp/fbar_gpu_cli_ranks >> "$OUT/two_tests.log" 2>&1
   summary "2 GPUs: command line --gpus=1|2|3 and mpirun -np 2 against one rank rc=$?"
   unset CUDA_VISIBLE_DEVICES

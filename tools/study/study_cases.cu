@@ -19,7 +19,7 @@
 #include <cstring>
 #include <string>
 
-#include "../../tests/gpu_engine/gpu_validation_engine.h"
+#include "../../tests/engine/gpu/gpu_validation_engine.h"
 #include "../../tests/validation/granular_collapse_case.h"
 #include "../../tests/validation/hydrostatic_column_case.h"
 #include "../../tests/validation/stability_case.h"

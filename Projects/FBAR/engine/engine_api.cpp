@@ -46,9 +46,8 @@ MaterialFacts material_facts(const MaterialSpec& m) {
   if (!known) {
     // The plastic laws not in MaterialTypes yet: p-wave speed sqrt((lambda + 2 mu) / rho); bins
     // store position + F + log Jp.
-    const double E = m.youngs_modulus, nu = m.poisson_ratio;
-    const double mu = E / (2.0 * (1.0 + nu));
-    const double lambda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
+    const LameParameters l = lame_parameters(m.youngs_modulus, m.poisson_ratio);
+    const double mu = l.mu, lambda = l.lambda;
     facts.wave_speed = std::sqrt((lambda + 2.0 * mu) / m.rho);
     facts.stored_scalars = 13;
   }

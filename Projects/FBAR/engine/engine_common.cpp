@@ -1,7 +1,9 @@
 // What both engines share (engine_common.h): the step report's text and the attributes a material can give.
 #include "engine/engine_common.h"
 
+#include <algorithm>
 #include <cstdio>
+#include <ostream>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -60,10 +62,27 @@ std::string StepReport::message() const {
   return m;
 }
 
-bool engine_supports_attribute(Constitutive law, std::string_view name) {
-  FrameAttributeSpec a;
-  return material_index(law) >= 0 && resolve_frame_attribute(std::string(name), a) &&
-         material_has(law, a.column.quantity);
+void DtRetryPolicy::committed(bool cfl_step) {
+  if (cfl_step && scale < 1.0 && ++clean_steps >= kRecoverSteps) {
+    scale = std::min(1.0, 2.0 * scale);
+    clean_steps = 0;
+  }
+}
+
+bool DtRetryPolicy::retry(OnFailure mode, const std::vector<FailureReport>& failures, bool cfl_step, double& dt,
+                          StepReport& report, std::ostream* log) {
+  if (mode != OnFailure::ReduceDt || report.retries >= kMaxStepRetries) return false;
+  if (log)
+    for (const FailureReport& f : failures)
+      *log << "fbar: " << f.describe() << "; retrying the step with dt = " << format_g(dt / 2) << " s\n";
+  report.retried.insert(report.retried.end(), failures.begin(), failures.end());
+  ++report.retries;
+  dt *= 0.5;
+  if (cfl_step) {
+    scale *= 0.5;
+    clean_steps = 0;
+  }
+  return true;
 }
 
 StepPlan plan_step_toward(double time, double t_end, double dt_cfl) {

@@ -1,11 +1,11 @@
 // What both engines share and neither owns: the step report and its failure kinds, the halve-and-recover retry
-// policy of on_failure = reduce_dt, and the output attributes a material can give. The CPU engine (engine/cpu), the
-// GPU engine (engine/gpu), the run loop (engine/run_loop.h) and the release policy (scene/scene_support.cpp) read
-// them here, so neither engine includes the other (docs/developer_guide.md "Layers").
+// policy of on_failure = reduce_dt (DtRetryPolicy) and the landing of a step on a target time (plan_step_toward).
+// The CPU engine (engine/cpu), the GPU engine (engine/gpu) and the run loop (engine/run_loop.h) read them here, so
+// neither engine includes the other (docs/developer_guide.md "Layers").
 #pragma once
 
+#include <iosfwd>
 #include <string>
-#include <string_view>
 #include <vector>
 
 #include "scene/scene.h"
@@ -57,6 +57,20 @@ struct StepReport {
 inline constexpr int kMaxStepRetries = 8;
 inline constexpr int kRecoverSteps = 100;
 
+/// The state of that policy, one per engine (checkpoints keep both fields): what both engines do after a try.
+struct DtRetryPolicy {
+  double scale = 1.0;   ///< the persisting halving factor of CFL steps (1, 1/2, 1/4, ...)
+  int clean_steps = 0;  ///< clean CFL steps since the last halving or recovery
+
+  /// After a committed step: a CFL step counts towards undoing one halving.
+  void committed(bool cfl_step);
+  /// After a failed try with these failures: when `mode` is reduce_dt and report.retries < kMaxStepRetries, logs
+  /// each failure (when `log`), adds them to report.retried, halves dt (and the scale, for a CFL step) and returns
+  /// true: retry from the unchanged state. Otherwise returns false with report and dt untouched.
+  bool retry(OnFailure mode, const std::vector<FailureReport>& failures, bool cfl_step, double& dt,
+             StepReport& report, std::ostream* log);
+};
+
 /// The next step toward a target time (both engines' step_toward): the CFL step `dt_cfl`, shortened to land on
 /// `t_end` when it reaches it (`last`), or half the remaining time when a full step would leave a sliver (two equal
 /// steps). Throws std::runtime_error when the step is below the resolution of the clock at `time`.
@@ -66,7 +80,5 @@ struct StepPlan {
 };
 StepPlan plan_step_toward(double time, double t_end, double dt_cfl);
 
-/// Output attributes (canonical names, attributes.h) either engine can write for a body of material `law`.
-bool engine_supports_attribute(Constitutive law, std::string_view canonical_name);
 
 }  // namespace fbar

@@ -98,7 +98,7 @@ struct RunConstants {
       for (const BoundarySpec& spec : expand_boundary(scene.boundaries[i], sim)) {
         BoundaryParams<T> p{};
         std::string error;
-        if (!make_boundary_params(spec, sim, p, error))
+        if (!make_boundary_params(spec, sim.dx, sim.domain, p, error))
           throw std::invalid_argument("boundaries[" + std::to_string(i) + "]: " + error + " in the " + engine);
         if (p.shape == BoundaryShape::Bathymetry) {
           const std::vector<std::array<double, 2>>& bed = spec.bathymetry;

@@ -191,6 +191,69 @@ SamplingPattern sampling_pattern(double ppc) {
   return p;
 }
 
+/// A point-file entry (.csv, .pos, .bgeo, .h5 points): its particles read (with their seeds when has_attributes),
+/// inverted ones dropped and noted, then copied by array and rotated into one PointSet.
+void BodyShape::add_point_file(const GeometrySpec& g, std::size_t j, const std::string& path, const Vec3d& offset,
+                               double froude_scaling) {
+  if (g.operation != GeometryOperation::Add && g.operation != GeometryOperation::Union)
+    throw SceneError(path + ".operation", std::string("\"") + to_string(g.operation) + "\"",
+                     "Add or Union for a point file (particles hold no volume to subtract or intersect; "
+                     "use an .sdf file for that)");
+  std::vector<double> attributes;
+  std::vector<std::string> names, aliases;
+  if (g.has_attributes) {
+    names = g.input_attribs;
+    for (const std::string& n : names) {  // a file may hold an alias's name (DefGrad_Determinant for J)
+      std::string alias;
+      for (const auto& a : kParticleAttributeAliases)
+        if (a.second == n) alias = std::string(a.first);
+      aliases.push_back(alias);
+    }
+  }
+  std::vector<Vec3d> file_points = read_point_file(g.file, names, aliases, attributes);
+  const Mat3<double> rot = euler_xyz(g.rotate);
+  const bool rotated = g.rotate[0] != 0.0 || g.rotate[1] != 0.0 || g.rotate[2] != 0.0;
+  const std::size_t copies = static_cast<std::size_t>(g.array[0]) * g.array[1] * g.array[2];
+  FileSeedNotes notes;
+  notes.entry = j;
+  notes.read = file_points.size() * copies;
+  std::vector<char> invalid;
+  std::vector<double> seeds =
+      names.empty() ? std::vector<double>{}
+                    : file_seeds(g, attributes, file_points.size(), rot,
+                                 std::sqrt(g.use_froude_scaling ? froude_scaling : 1.0), invalid, notes);
+  if (!notes.first.empty()) {  // inverted particles: dropped, and said (audit_bodies)
+    std::size_t kept = 0;
+    for (std::size_t p = 0; p < file_points.size(); ++p) {
+      if (invalid[p]) continue;
+      file_points[kept] = file_points[p];
+      std::copy_n(seeds.begin() + static_cast<std::ptrdiff_t>(p * kSeedScalars), kSeedScalars,
+                  seeds.begin() + static_cast<std::ptrdiff_t>(kept * kSeedScalars));
+      ++kept;
+    }
+    notes.dropped = (file_points.size() - kept) * copies;
+    file_points.resize(kept);
+    seeds.resize(kept * kSeedScalars);
+  }
+  if (notes.dropped > 0 || !std::isnan(notes.one_minus_j_median)) file_notes_.push_back(notes);
+  PointSet set;
+  set.entry = j;
+  set.points.reserve(file_points.size() * copies);
+  set.seeds.reserve(seeds.size() * copies);
+  const Vec3d fulcrum = to_vec(g.fulcrum);
+  for (int a = 0; a < g.array[0]; ++a)
+    for (int b = 0; b < g.array[1]; ++b)
+      for (int c = 0; c < g.array[2]; ++c) {
+        const Vec3d shift{{a * g.spacing[0], b * g.spacing[1], c * g.spacing[2]}};
+        for (const Vec3d& q : file_points) {
+          const Vec3d local = offset + q * g.scaling_factor + shift;
+          set.points.push_back(rotated ? rot * (local - fulcrum) + fulcrum : local);
+        }
+        set.seeds.insert(set.seeds.end(), seeds.begin(), seeds.end());
+      }
+  point_sets_.push_back(std::move(set));
+}
+
 BodyShape::BodyShape(const std::vector<GeometrySpec>& geometry, int body_index, double froude_scaling) {
   const double inf = std::numeric_limits<double>::infinity();
   bounds_ = Aabb{Vec3d{{inf, inf, inf}}, Vec3d{{-inf, -inf, -inf}}};
@@ -265,64 +328,8 @@ BodyShape::BodyShape(const std::vector<GeometrySpec>& geometry, int body_index, 
               e.hi[d] = offset[d] + (e.sdf->n[d] - 1 - e.sdf_padding) * e.sdf_h;
             }
           } else {
-            if (g.operation != GeometryOperation::Add && g.operation != GeometryOperation::Union)
-              throw SceneError(path + ".operation", std::string("\"") + to_string(g.operation) + "\"",
-                               "Add or Union for a point file (particles hold no volume to subtract or intersect; "
-                               "use an .sdf file for that)");
+            add_point_file(g, j, path, offset, froude_scaling);
             e.points = true;
-            std::vector<double> attributes;
-            std::vector<std::string> names, aliases;
-            if (g.has_attributes) {
-              names = g.input_attribs;
-              for (const std::string& n : names) {  // a file may hold an alias's name (DefGrad_Determinant for J)
-                std::string alias;
-                for (const auto& a : kParticleAttributeAliases)
-                  if (a.second == n) alias = std::string(a.first);
-                aliases.push_back(alias);
-              }
-            }
-            std::vector<Vec3d> file_points = read_point_file(g.file, names, aliases, attributes);
-            const Mat3<double> rot = euler_xyz(g.rotate);
-            const bool rotated = g.rotate[0] != 0.0 || g.rotate[1] != 0.0 || g.rotate[2] != 0.0;
-            const std::size_t copies = static_cast<std::size_t>(g.array[0]) * g.array[1] * g.array[2];
-            FileSeedNotes notes;
-            notes.entry = j;
-            notes.read = file_points.size() * copies;
-            std::vector<char> invalid;
-            std::vector<double> seeds =
-                names.empty() ? std::vector<double>{}
-                              : file_seeds(g, attributes, file_points.size(), rot,
-                                           std::sqrt(g.use_froude_scaling ? froude_scaling : 1.0), invalid, notes);
-            if (!notes.first.empty()) {  // inverted particles: dropped, and said (audit_bodies)
-              std::size_t kept = 0;
-              for (std::size_t p = 0; p < file_points.size(); ++p) {
-                if (invalid[p]) continue;
-                file_points[kept] = file_points[p];
-                std::copy_n(seeds.begin() + static_cast<std::ptrdiff_t>(p * kSeedScalars), kSeedScalars,
-                            seeds.begin() + static_cast<std::ptrdiff_t>(kept * kSeedScalars));
-                ++kept;
-              }
-              notes.dropped = (file_points.size() - kept) * copies;
-              file_points.resize(kept);
-              seeds.resize(kept * kSeedScalars);
-            }
-            if (notes.dropped > 0 || !std::isnan(notes.one_minus_j_median)) file_notes_.push_back(notes);
-            PointSet set;
-            set.entry = j;
-            set.points.reserve(file_points.size() * copies);
-            set.seeds.reserve(seeds.size() * copies);
-            const Vec3d fulcrum = to_vec(g.fulcrum);
-            for (int a = 0; a < g.array[0]; ++a)
-              for (int b = 0; b < g.array[1]; ++b)
-                for (int c = 0; c < g.array[2]; ++c) {
-                  const Vec3d shift{{a * g.spacing[0], b * g.spacing[1], c * g.spacing[2]}};
-                  for (const Vec3d& q : file_points) {
-                    const Vec3d local = offset + q * g.scaling_factor + shift;
-                    set.points.push_back(rotated ? rot * (local - fulcrum) + fulcrum : local);
-                  }
-                  set.seeds.insert(set.seeds.end(), seeds.begin(), seeds.end());
-                }
-            point_sets_.push_back(std::move(set));
           }
         } catch (const std::runtime_error& err) {
           if (dynamic_cast<const SceneError*>(&err)) throw;

@@ -145,6 +145,8 @@ class BodyShape {
     Vec3d fulcrum{};          ///< [m]
   };
   static bool entry_contains(const Entry& e, const Vec3d& p);
+  void add_point_file(const GeometrySpec& g, std::size_t j, const std::string& path, const Vec3d& offset,
+                      double froude_scaling);
 
   std::vector<Entry> entries_;
   std::vector<PointSet> point_sets_;

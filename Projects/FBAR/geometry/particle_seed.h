@@ -17,13 +17,10 @@
 #include <string_view>
 #include <vector>
 
+#include "physics/seed_layout.h"
+
 namespace fbar {
 
-inline constexpr int kSeedScalars = 14;
-inline constexpr int kSeedVelocity = 0;
-inline constexpr int kSeedDefGrad = 3;
-inline constexpr int kSeedJ = 12;
-inline constexpr int kSeedLogJp = 13;
 /// seed_slot() of an attribute that is read and not stored (ID, Mass, Volume).
 inline constexpr int kSeedIgnored = -1;
 /// seed_slot() of an attribute that cannot seed a particle.

@@ -30,48 +30,10 @@
 #include "comm/transport.h"
 #include "io/checkpoint.h"
 #include "physics/sensors.cuh"
+#include "scene/output_specs.h"
 #include "scene/scene.h"
 
 namespace fbar {
-
-/// The kernel parameters of grid sensor `spec` (domain box and direction in the grid scalar type T). dx [m]: the box
-/// is widened by dx / 128 on every side, so a node on a face (a wall's node plane, placed by ClaymoreUW users as
-/// domain_start or domain_end) is inside whatever the round-off of its position in T.
-template <typename T>
-GridSensorParams<T> make_grid_sensor_params(const GridSensorSpec& spec, double dx = 0.0);
-/// The kernel parameters of particle sensor `spec` (its attribute as a frame column; box in T).
-template <typename T>
-ParticleSensorParams<T> make_particle_sensor_params(const ParticleSensorSpec& spec);
-
-/// Whether an enabled particle sensor or a tracker of the scene reads velocities (particle_sensor_reads_velocity):
-/// the GPU engine then keeps v and C per particle on the steps that land on their times (its memory plan counts
-/// them).
-bool sensors_read_velocity(const Scene& scene);
-
-/// Device memory the GPU engine's sensors take [bytes]: the per-CUDA-block partials of one sample and the sample
-/// slots of one frame interval (their doubling included).
-std::size_t sensor_device_bytes(const Scene& scene);
-
-/// The value a sensor reports from its sample's reduction (SensorOperation of scene.h).
-double sensor_result(SensorOperation op, const SensorAccum& a);
-
-/// "Force [N]", "Count [-]", ...: the value column's header of a grid sensor.
-std::string grid_sensor_column(const GridSensorSpec& spec);
-/// "Position_Y [m]", "Count [-]", ...: the value column's header of a particle sensor.
-std::string particle_sensor_column(const ParticleSensorSpec& spec);
-
-/// One body's tracker (bodies[].track_particle_id with track_attribs, or bodies[].trackers {ids, attribs}).
-struct BodyTracker {
-  int body = 0;
-  TrackerSet set;                  ///< what the engines evaluate (IDs sorted, without repeats)
-  std::vector<long long> ids;      ///< the scene's IDs, in its order (the file's column order)
-  std::vector<std::string> names;  ///< the attributes' canonical names
-  std::vector<std::string> units;
-};
-
-/// The trackers of `scene`: one per body with track_particle_id (attributes: track_attribs, Position_Y when none).
-/// Throws SceneError naming the key for too many IDs or attributes, and for an attribute the body does not have.
-std::vector<BodyTracker> make_trackers(const Scene& scene);
 
 /// Tracker files, one per tracked body, in simulation.save_path: particleTrack_model[m]_dev[0].csv (ClaymoreUW's
 /// name; dev 0: every rank's particles are in it). Header "Time [s],<attr>[<id>] [unit],..." with the attributes as

@@ -56,8 +56,8 @@
 
 #include "MnBase/Math/vec.h"
 #include "MnBase/Meta/config.h"
-#include "scene/facilities.h"
-#include "scene/scene.h"
+#include "physics/bed_profile.h"
+#include "physics/boundary_spec.h"
 
 namespace fbar {
 
@@ -138,6 +138,103 @@ FBAR_HOST_DEVICE inline Vec3<T> project_moving(const BoundaryParams<T>& b, const
   return project_contact(b, v - b.velocity, n) + b.velocity;
 }
 
+/// Walls: the domain's faces (or the box's): nodes on a face keep out of it; nodes within the layer behind it are
+/// held at the wall's velocity (as Sticky ones). Part of apply_boundary (snap: its dx / 128).
+template <typename T>
+FBAR_HOST_DEVICE inline Vec3<T> apply_walls(const BoundaryParams<T>& b, const Vec3<T>& x_node, Vec3<T> v, T snap) {
+  using std::fabs;
+  using std::sqrt;
+  bool on_face = false, held = false;
+  for (int a = 0; a < 3; ++a) {
+    const T below = b.lo[a] - x_node[a], above = x_node[a] - b.hi[a];  // >= 0: on or outside that face
+    on_face = on_face || below >= -snap || above >= -snap;
+    held = held || below >= b.layer - snap || above >= b.layer - snap;
+  }
+  if (!on_face) return v;
+  if (held || b.contact == Contact::Sticky) return b.velocity;
+  for (int a = 0; a < 3; ++a) {
+    Vec3<T> n = Vec3<T>::zero();
+    if (b.lo[a] - x_node[a] >= -snap) {
+      n[a] = T(1);
+      v = project_moving(b, v, n);
+    }
+    if (x_node[a] - b.hi[a] >= -snap) {
+      n[a] = T(-1);
+      v = project_moving(b, v, n);
+    }
+  }
+  return v;
+}
+
+/// Cylinder along y: nodes inside keep out through the nearest of its side, top and bottom. Part of apply_boundary (snap: its dx / 128).
+template <typename T>
+FBAR_HOST_DEVICE inline Vec3<T> apply_cylinder(const BoundaryParams<T>& b, const Vec3<T>& x_node, Vec3<T> v, T snap) {
+  using std::fabs;
+  using std::sqrt;
+  if (x_node[1] < b.lo[1] - snap || x_node[1] > b.hi[1] + snap) return v;
+  const T radius = (b.hi[0] - b.lo[0]) * T(0.5);
+  const T dx = x_node[0] - (b.lo[0] + b.hi[0]) * T(0.5);
+  const T dz = x_node[2] - (b.lo[2] + b.hi[2]) * T(0.5);
+  const T r = sqrt(dx * dx + dz * dz);
+  if (r > radius) return v;
+  Vec3<T> n = Vec3<T>::zero();
+  const T to_side = radius - r, to_bottom = x_node[1] - b.lo[1], to_top = b.hi[1] - x_node[1];
+  if (to_top <= to_side && to_top <= to_bottom) {
+    n[1] = T(1);
+  } else if (to_bottom <= to_side) {
+    n[1] = T(-1);
+  } else if (r > T(0)) {
+    n[0] = dx / r;
+    n[2] = dz / r;
+  } else {
+    n[0] = T(1);
+  }
+  return project_moving(b, v, n);
+}
+
+/// Bathymetry: nodes at or below the bed profile (within the band above a sloped stretch) keep out along the normal of
+/// their segment. Part of apply_boundary (snap: its dx / 128).
+template <typename T>
+FBAR_HOST_DEVICE inline Vec3<T> apply_bathymetry(const BoundaryParams<T>& b, const Vec3<T>& x_node, Vec3<T> v, T snap,
+                                                 const BoundaryProfiles<T>* profiles) {
+  using std::fabs;
+  using std::sqrt;
+  if (!profiles || b.profile_count < 2) return v;
+  // The segment over x (the first / last one extended flat beyond the ends), its height and normal.
+  const T* px = profiles->x + b.profile_first;
+  const T* py = profiles->y + b.profile_first;
+  const int last = b.profile_count - 1;
+  int i;
+  bool on_segment;
+  // A node within dx / 128 of a breakpoint stands on it (the segment right of it, the same in both precisions).
+  T xn = x_node[0];
+  T surface = bed_surface(px, py, b.profile_count, xn, i, on_segment);
+  const int near = (i + 1 <= last && fabs(xn - px[i + 1]) <= snap) ? i + 1 : (fabs(xn - px[i]) <= snap ? i : -1);
+  if (near >= 0 && xn != px[near]) {
+    xn = px[near];
+    surface = bed_surface(px, py, b.profile_count, xn, i, on_segment);
+  }
+  T ex = T(1), ey = T(0);
+  if (on_segment) {
+    ex = px[i + 1] - px[i];
+    ey = py[i + 1] - py[i];
+  }
+  // Within b.layer (kBedLayerCells) of a sloped segment the bed holds a band of nodes up to b.layer above it; a
+  // flat stretch, aligned with the grid, needs none. The segments reaching into [x - layer, x + layer] are the
+  // ones next to segment i: scanned outwards from it. A segment that ends within dx / 128 of layer away does
+  // not reach the node (one answer in both precisions).
+  bool sloped = false;
+  for (int j = i; j >= 0 && !sloped && px[j + 1] > xn - b.layer + snap; --j)
+    sloped = py[j + 1] != py[j] && px[j] < xn + b.layer - snap;
+  for (int j = i + 1; j < last && !sloped && px[j] < xn + b.layer - snap; ++j) sloped = py[j + 1] != py[j];
+  if (x_node[1] > surface + (sloped ? b.layer : T(0)) + snap) return v;  // above the bed: the material's side
+  const T length = sqrt(ex * ex + ey * ey);
+  Vec3<T> n = Vec3<T>::zero();
+  n[0] = -ey / length;
+  n[1] = ex / length;
+  return project_moving(b, v, n);
+}
+
 /// The velocity of the grid node at x_node [m] after this boundary (assumed active; give boundary_at(b, t)).
 template <typename T>
 FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const Vec3<T>& x_node, Vec3<T> v,
@@ -153,28 +250,8 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
     return true;
   };
   switch (b.shape) {
-    case BoundaryShape::Walls: {
-      bool on_face = false, held = false;
-      for (int a = 0; a < 3; ++a) {
-        const T below = b.lo[a] - x_node[a], above = x_node[a] - b.hi[a];  // >= 0: on or outside that face
-        on_face = on_face || below >= -snap || above >= -snap;
-        held = held || below >= b.layer - snap || above >= b.layer - snap;
-      }
-      if (!on_face) return v;
-      if (held || b.contact == Contact::Sticky) return b.velocity;
-      for (int a = 0; a < 3; ++a) {
-        Vec3<T> n = Vec3<T>::zero();
-        if (b.lo[a] - x_node[a] >= -snap) {
-          n[a] = T(1);
-          v = project_moving(b, v, n);
-        }
-        if (x_node[a] - b.hi[a] >= -snap) {
-          n[a] = T(-1);
-          v = project_moving(b, v, n);
-        }
-      }
-      return v;
-    }
+    case BoundaryShape::Walls:
+      return apply_walls(b, x_node, v, snap);
     case BoundaryShape::Box: {
       if (!inside_box()) return v;
       int axis = 0;
@@ -202,27 +279,8 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
         n[1] = T(1);  // the center: straight up
       return project_moving(b, v, n);
     }
-    case BoundaryShape::Cylinder: {
-      if (x_node[1] < b.lo[1] - snap || x_node[1] > b.hi[1] + snap) return v;
-      const T radius = (b.hi[0] - b.lo[0]) * T(0.5);
-      const T dx = x_node[0] - (b.lo[0] + b.hi[0]) * T(0.5);
-      const T dz = x_node[2] - (b.lo[2] + b.hi[2]) * T(0.5);
-      const T r = sqrt(dx * dx + dz * dz);
-      if (r > radius) return v;
-      Vec3<T> n = Vec3<T>::zero();
-      const T to_side = radius - r, to_bottom = x_node[1] - b.lo[1], to_top = b.hi[1] - x_node[1];
-      if (to_top <= to_side && to_top <= to_bottom) {
-        n[1] = T(1);
-      } else if (to_bottom <= to_side) {
-        n[1] = T(-1);
-      } else if (r > T(0)) {
-        n[0] = dx / r;
-        n[2] = dz / r;
-      } else {
-        n[0] = T(1);
-      }
-      return project_moving(b, v, n);
-    }
+    case BoundaryShape::Cylinder:
+      return apply_cylinder(b, x_node, v, snap);
     case BoundaryShape::Floor: {
       if (!inside_box()) return v;
       Vec3<T> n = Vec3<T>::zero();
@@ -257,42 +315,8 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
       }
       return v;
     }
-    case BoundaryShape::Bathymetry: {
-      if (!profiles || b.profile_count < 2) return v;
-      // The segment over x (the first / last one extended flat beyond the ends), its height and normal.
-      const T* px = profiles->x + b.profile_first;
-      const T* py = profiles->y + b.profile_first;
-      const int last = b.profile_count - 1;
-      int i;
-      bool on_segment;
-      // A node within dx / 128 of a breakpoint stands on it (the segment right of it, the same in both precisions).
-      T xn = x_node[0];
-      T surface = bed_surface(px, py, b.profile_count, xn, i, on_segment);
-      const int near = (i + 1 <= last && fabs(xn - px[i + 1]) <= snap) ? i + 1 : (fabs(xn - px[i]) <= snap ? i : -1);
-      if (near >= 0 && xn != px[near]) {
-        xn = px[near];
-        surface = bed_surface(px, py, b.profile_count, xn, i, on_segment);
-      }
-      T ex = T(1), ey = T(0);
-      if (on_segment) {
-        ex = px[i + 1] - px[i];
-        ey = py[i + 1] - py[i];
-      }
-      // Within b.layer (kBedLayerCells) of a sloped segment the bed holds a band of nodes up to b.layer above it; a
-      // flat stretch, aligned with the grid, needs none. The segments reaching into [x - layer, x + layer] are the
-      // ones next to segment i: scanned outwards from it. A segment that ends within dx / 128 of layer away does
-      // not reach the node (one answer in both precisions).
-      bool sloped = false;
-      for (int j = i; j >= 0 && !sloped && px[j + 1] > xn - b.layer + snap; --j)
-        sloped = py[j + 1] != py[j] && px[j] < xn + b.layer - snap;
-      for (int j = i + 1; j < last && !sloped && px[j] < xn + b.layer - snap; ++j) sloped = py[j + 1] != py[j];
-      if (x_node[1] > surface + (sloped ? b.layer : T(0)) + snap) return v;  // above the bed: the material's side
-      const T length = sqrt(ex * ex + ey * ey);
-      Vec3<T> n = Vec3<T>::zero();
-      n[0] = -ey / length;
-      n[1] = ex / length;
-      return project_moving(b, v, n);
-    }
+    case BoundaryShape::Bathymetry:
+      return apply_bathymetry(b, x_node, v, snap, profiles);
   }
   return v;
 }
@@ -301,7 +325,7 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
 /// horizontal) belong to it; material resting on a slope therefore sits up to a cell higher. Without the band, nodes
 /// just above a slope that the water's pressure pushes into the bed's staircase are free, and still water on a Slip
 /// 1:5 slope grows an up-slope current at the bed (0.4 m/s in 2 s at dx = 0.1 m); with it the water stays at rest
-/// (below 0.01 m/s; tests/physics/test_cpu_engine.cpp Boundary.StillWaterOnASlopeStaysStill). ClaymoreUW's bed
+/// (below 0.01 m/s; tests/engine/cpu/test_cpu_engine.cpp Boundary.StillWaterOnASlopeStaysStill). ClaymoreUW's bed
 /// band also reaches one cell above the bed.
 constexpr double kBedLayerCells = 1.0;
 
@@ -342,12 +366,12 @@ inline std::vector<BoundaryParams<T>> boundary_array(const BoundaryParams<T>& b,
 }
 
 /// Builds the kernel parameters of a generic boundary (expand_boundary() turns facility objects into generic ones)
-/// on the host; a Bathymetry's points go to BoundaryProfiles (RunConstants). Returns false and an explanation in
+/// on the host (dx [m] the grid spacing, domain [m] its extent); a Bathymetry's points go to BoundaryProfiles (RunConstants). Returns false and an explanation in
 /// `error` for a facility object or a boundary without the extents it needs, never ignoring a key. Arrays: boundary_array();
 /// motion files: MotionPath (RunConstants::boundary_at_time).
 template <typename T>
-inline bool make_boundary_params(const BoundarySpec& spec, const SimulationSpec& sim, BoundaryParams<T>& out,
-                                 std::string& error) {
+inline bool make_boundary_params(const BoundarySpec& spec, double dx, const std::array<double, 3>& domain,
+                                 BoundaryParams<T>& out, std::string& error) {
   switch (spec.object) {
     case BoundaryObject::Walls: out.shape = BoundaryShape::Walls; break;
     case BoundaryObject::Box: out.shape = BoundaryShape::Box; break;
@@ -387,13 +411,13 @@ inline bool make_boundary_params(const BoundarySpec& spec, const SimulationSpec&
   out.contact = spec.contact;
   for (int a = 0; a < 3; ++a) {
     out.lo[a] = static_cast<T>(has_box ? spec.domain_start[a] : 0.0);
-    out.hi[a] = static_cast<T>(has_box ? spec.domain_end[a] : sim.domain[a]);
+    out.hi[a] = static_cast<T>(has_box ? spec.domain_end[a] : domain[a]);
     out.velocity[a] = static_cast<T>(spec.velocity[a]);
   }
-  out.layer = static_cast<T>(1.5 * sim.dx);
-  out.dx = static_cast<T>(sim.dx);
+  out.layer = static_cast<T>(1.5 * dx);
+  out.dx = static_cast<T>(dx);
   if (spec.object == BoundaryObject::Bathymetry || spec.object == BoundaryObject::Plane)
-    out.layer = static_cast<T>(kBedLayerCells * sim.dx);
+    out.layer = static_cast<T>(kBedLayerCells * dx);
   out.friction_static = static_cast<T>(spec.friction_static);
   out.friction_dynamic = static_cast<T>(spec.friction_dynamic);
   out.t_begin = spec.time[0];

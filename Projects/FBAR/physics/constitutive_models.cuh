@@ -25,7 +25,7 @@
 #include <utility>
 
 #include "MnBase/Meta/type_seq.h"
-#include "geometry/particle_seed.h"
+#include "physics/seed_layout.h"
 #include "physics/materials/drucker_prager.cuh"
 #include "physics/materials/fixed_corotated.cuh"
 #include "physics/materials/hencky.cuh"
@@ -203,7 +203,7 @@ material_state_t<M, T> material_initial_state(const MaterialSpec& spec) {
     return M::template reference_state<T>();
 }
 
-/// The state of a particle of material M seeded from a file's attributes (geometry/particle_seed.h; NaN: not given),
+/// The state of a particle of material M seeded from a file's attributes (physics/seed_layout.h; NaN: not given),
 /// starting from `s` (material_initial_state): a material that stores F takes DefGrad_* (or, given only J, the
 /// isotropic F = J^(1/3) I); a material whose state is J (state_with_J, JFluid) takes J (or det F); one that stores
 /// logJp takes logJp. Host only (both engines seed on the host).

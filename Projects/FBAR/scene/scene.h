@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "physics/boundary_spec.h"
 #include "physics/material_spec.h"
 
 namespace fbar {
@@ -130,29 +131,6 @@ struct BodySpec {
   MaterialSpec material;
   AlgorithmSpec algorithm;
   std::vector<GeometrySpec> geometry;
-};
-
-enum class BoundaryObject {
-  Walls, Box, Sphere, Cylinder, Plane, Floor, Bathymetry, Velocity, Piston, Pump,
-  OSU_LWF_RAMP, OSU_LWF_PADDLE, OSU_TWB_RAMP, OSU_TWB_PADDLE, USGS_RAMP, USGS_GATE, WASIRF_PUMP, TOKYO_HARBOR
-};
-enum class Contact { Sticky, Slip, Separable };
-
-struct BoundarySpec {
-  BoundaryObject object = BoundaryObject::Walls;
-  Contact contact = Contact::Sticky;
-  Real3 domain_start{0.0, 0.0, 0.0};    ///< [m]
-  Real3 domain_end{0.0, 0.0, 0.0};      ///< [m]
-  std::array<double, 2> time{0.0, std::numeric_limits<double>::infinity()};  ///< [s] active window
-  double friction_static = 0.0;
-  double friction_dynamic = 0.0;
-  Real3 velocity{0.0, 0.0, 0.0};        ///< [m/s]
-  std::string file;
-  double output_frequency = 0.0;        ///< [Hz]
-  Int3 array{1, 1, 1};
-  Real3 spacing{0.0, 0.0, 0.0};
-  std::vector<std::array<double, 2>> bathymetry;
-  bool use_custom_bathymetry = false;
 };
 
 enum class SensorOperation { Sum, Max, Min, Count, Average, STDEV, Variance };

@@ -4,7 +4,7 @@
 // and F-bar; Box / Sphere / Cylinder / Bathymetry / OSU LWF / OSU TWB geometry and File geometry (.sdf solids; .csv,
 // .pos, .bgeo, .h5 positions) with every operation, rotation and arrays; every boundary object (Sticky / Slip /
 // Separable, Coulomb friction, constant velocity or motion files, any time window);
-// .bgeo / .geo / .csv frames with the attributes engine_supports_attribute() accepts; grid sensors of Force,
+// .bgeo / .geo / .csv frames with the attributes material_supports_attribute() (physics/frame_attributes.h) accepts; grid sensors of Force,
 // BoundaryForce, Acceleration, Momentum, Velocity and Mass; particle sensors of every particle quantity frames write.
 // Everything else the scene schema names is parsed and range-checked by scene_parse.cpp, then refused here. A later
 // release enables a feature by deleting its line.
@@ -16,12 +16,11 @@
 #include <string>
 #include <string_view>
 
-#include "engine/engine_common.h"
+#include "physics/frame_attributes.h"
 #include "physics/motion_path.h"
 #include "physics/sensors.cuh"
-#include "io/particle_frame.h"
-#include "io/sensor_recorder.h"
 #include "scene/attributes.h"
+#include "scene/output_specs.h"
 #include "scene/scene_parse.h"
 
 namespace fbar {
@@ -75,7 +74,7 @@ void check_supported(const Scene& scene) {
     for (std::size_t k = 0; k < b.output_attribs.size(); ++k) {
       const std::string& name = b.output_attribs[k];
       // The engine's own list decides (DefGrad_* only for a material that stores F), so --check and a run agree.
-      if (!engine_supports_attribute(m.law, name)) {
+      if (!material_supports_attribute(m.law, name)) {
         MaterialOutputs outputs{false, false};
         visit_material(m.law, [&](auto law) { outputs = decltype(law)::kOutputs; });
         refuse(p + "." + idx("output_attribs", k), q(name),

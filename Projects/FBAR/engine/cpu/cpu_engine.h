@@ -365,8 +365,7 @@ class CpuEngine {
   double output_wait_s_ = 0.0;  // [s] in submit_frame
   double max_grid_speed_ = 0.0;
   double grid_mass_ = 0.0;
-  double dt_scale_ = 1.0;  // reduce_dt: current halving factor
-  int clean_steps_ = 0;    // reduce_dt: clean steps since the last halving
+  DtRetryPolicy retry_;  // on_failure = reduce_dt (engine_common.h)
   bool partition_valid_ = false;
   bool asflip_ = false;  // some body uses ASFLIP: the grid update keeps v^n
   bool fbar_ = false;    // some body uses F-bar: the grid has cell sums

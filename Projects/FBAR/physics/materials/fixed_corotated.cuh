@@ -48,14 +48,11 @@ struct FixedCorotated {
   static constexpr int kStoredScalars = 12;
   static constexpr MaterialOutputs kOutputs{true, false};
 
-  /// Lame parameters from Young's modulus and Poisson's ratio, host only.
+  /// Lame parameters from Young's modulus and Poisson's ratio (material_common.cuh), host only.
   template <typename T>
   static Params<T> make_params(const MaterialSpec& m) {
-    const double E = m.youngs_modulus;
-    const double nu = m.poisson_ratio;
-    const double mu = E / (2.0 * (1.0 + nu));
-    const double lambda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
-    return Params<T>{static_cast<T>(m.rho), static_cast<T>(mu), static_cast<T>(lambda)};
+    const LameParameters l = lame_parameters(m.youngs_modulus, m.poisson_ratio);
+    return Params<T>{static_cast<T>(m.rho), static_cast<T>(l.mu), static_cast<T>(l.lambda)};
   }
 
   template <typename T>

@@ -98,6 +98,16 @@ FBAR_HOST_DEVICE constexpr auto one_minus_volume_ratio(const S& s) {
   }
 }
 
+/// Lame parameters [Pa] of an isotropic elastic solid from Young's modulus E [Pa] and Poisson's ratio nu [-] (host; the
+/// elastic laws' make_params and the plastic laws' elasticity).
+struct LameParameters {
+  double mu;      ///< shear modulus E / (2 (1 + nu))
+  double lambda;  ///< Lame's first parameter E nu / ((1 + nu)(1 - 2 nu))
+};
+inline LameParameters lame_parameters(double E, double nu) {
+  return LameParameters{E / (2.0 * (1.0 + nu)), E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu))};
+}
+
 /// True when every entry is finite (no NaN, no infinity).
 template <typename T>
 FBAR_HOST_DEVICE inline bool all_finite(T x) {

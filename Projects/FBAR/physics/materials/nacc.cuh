@@ -88,10 +88,11 @@ struct NACC {
 
   template <typename T>
   static Params<T> make_params(const MaterialSpec& m) {
-    const double E = m.youngs_modulus, nu = m.poisson_ratio;
+    const LameParameters l = lame_parameters(m.youngs_modulus, m.poisson_ratio);
     const double M = critical_state_slope(m.friction_angle);
-    return Params<T>{static_cast<T>(m.rho),       static_cast<T>(E / (2.0 * (1.0 + nu))),
-                     static_cast<T>(E / (3.0 * (1.0 - 2.0 * nu))), static_cast<T>(M * M),
+    const double kappa = m.youngs_modulus / (3.0 * (1.0 - 2.0 * m.poisson_ratio));  // bulk modulus
+    return Params<T>{static_cast<T>(m.rho),       static_cast<T>(l.mu),
+                     static_cast<T>(kappa),       static_cast<T>(M * M),
                      static_cast<T>(m.beta),      static_cast<T>(m.xi),
                      m.hardening ? 1 : 0};
   }

@@ -328,6 +328,300 @@ FBAR_DEVICE ParticleDest claim_block_rank(bool has_key, std::uint64_t key, const
   return d;
 }
 
+/// What the threads of one g2p2g CUDA block share: the arena in shared memory (grid velocities, P2G sums and their
+/// integer view, the hash-table indices of its 2x2x2 grid blocks), the particle block's origin, and the fixed-point
+/// quanta of this block's P2G [kg], [kg m/s] with their inverses and the bound every particle must meet.
+template <typename T, typename TG>
+struct BlockArena {
+  const ArenaVelocity<TG>* velocity;
+  TG* sums;
+  FixedArena<TG> fixed;
+  const int* blocks;
+  Vec3i origin;
+  int channels;  ///< 4, or 7 with the transported momentum (ASFLIP)
+  T dt_next;
+  T q_mass, inv_q_mass, q_momentum, inv_q_momentum, limit;
+};
+
+/// One lane's particle between its G2P and its P2G: the new state, velocity and affine matrix, the check that
+/// failed (-1: none), and where the particle goes next (its block key on this rank, or the neighbour that owns it).
+template <typename M, typename T>
+struct LaneParticle {
+  Vec3<T> v, x_new;
+  Mat3<T> C;
+  material_state_t<M, T> state;
+  int failed = -1;
+  int emigrant = -1;  ///< 0 / 1: the lower / upper neighbour owns the particle's next block
+  bool has_key = false;
+  std::uint64_t key = 0;
+};
+
+/// G2P of one particle from the arena's velocities: v, C, advection, the material update (with F-bar's cell mean
+/// and ASFLIP's increment when the body uses them) and the checks, in the CPU engine's order: non-finite, inverted,
+/// left the domain, moved more than a cell. The initial P2G instead starts from the initial (or a restart's) v, C.
+template <typename M, typename T, typename TG, bool kInitial, bool kMayAsflip>
+FBAR_DEVICE FBAR_FORCE_INLINE void g2p_particle(const G2P2GParams<M, T, TG>& p, const BlockArena<T, TG>& arena,
+                                                const ParticleRecord<M, T>& in, int src, LaneParticle<M, T>& out) {
+  constexpr int kStateScalars = ParticleLayout<M, T>::kStateScalars;
+  if constexpr (kInitial) {
+    const std::size_t i = 3 * static_cast<std::size_t>(in.id);  // by ID: a rank uploads a subset of the IDs
+    out.v = p.initial_v ? Vec3<T>{{p.initial_v[i], p.initial_v[i + 1], p.initial_v[i + 2]}} : p.initial_velocity;
+    out.C = Mat3<T>::zero();
+    if (p.initial_C) {
+      const T* c = p.initial_C + 9 * static_cast<std::size_t>(in.id);
+      for (int r = 0; r < 3; ++r)
+        for (int cc = 0; cc < 3; ++cc) out.C(r, cc) = c[3 * r + cc];
+    }
+    out.x_new = in.x;
+    out.state = in.state;
+    return;
+  }
+  const QuadraticBspline<T> s = quadratic_bspline_inv(in.x, p.inv_dx);
+  const Vec3i& origin = arena.origin;
+  const int l0 = s.base[0] - 4 * origin[0], l1 = s.base[1] - 4 * origin[1], l2 = s.base[2] - 4 * origin[2];
+  if (l0 < 0 || l0 > 5 || l1 < 0 || l1 > 5 || l2 < 0 || l2 > 5) {
+    atomicAdd(&p.stats->internal_error, 1);  // a particle outside its block's arena: never expected
+  }
+  const int c0 = min(max(l0, 0), 5), c1 = min(max(l1, 0), 5), c2 = min(max(l2, 0), 5);
+  G2PSum<T> sum;
+  for_each_stencil_node_unrolled(s, p.dx, [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
+    const ArenaVelocity<TG> node_v = arena.velocity[arena_index(c0 + i, c1 + j, c2 + k)];
+    sum.add(w, Vec3<T>{{static_cast<T>(node_v.x), static_cast<T>(node_v.y), static_cast<T>(node_v.z)}}, xixp);
+  });
+  out.v = sum.velocity();
+  out.C = sum.affine(p.d_inv);
+  if (!(kMayAsflip && p.asflip)) out.x_new = advect(in.x, out.v, p.dt);
+  if (p.fbar_psi != T(0)) {  // F-bar: J is pulled toward its cell's mean, then advanced (transfer.cuh)
+    const Vec3i cell = fbar_cell_offset(in.x, p.inv_dx, s.base);
+    const int a = c0 + cell[0], b = c1 + cell[1], c = c2 + cell[2];
+    const int nb = arena.blocks[arena_neighbour(a, b, c)];
+    const int node = arena_node_in_block(a, b, c);
+    const T one_minus_J = one_minus_volume_ratio<M>(in.state);
+    const T cell_mean = nb < 0 ? one_minus_J
+                               : fbar_cell_compression(
+                                     static_cast<T>(block_val(p.fbar_sums, grid_fbar_compression, nb, node)),
+                                     static_cast<T>(block_val(p.fbar_sums, grid_fbar_volume, nb, node)));
+    out.state = M::advance(p.material, in.state,
+                           fbar_velocity_gradient(out.C, one_minus_J, cell_mean, p.fbar_psi, p.dt), p.dt);
+  } else {
+    out.state = M::advance(p.material, in.state, out.C, p.dt);
+  }
+  if (kMayAsflip && p.asflip) {  // FLIP increment from v^n at the stencil, the particle's own velocity
+    G2POldSum<T> old;
+    for_each_stencil_node_unrolled(s, p.dx, [&](int i, int j, int k, T w, const Vec3<T>&) {
+      const int a = c0 + i, b = c1 + j, c = c2 + k;
+      const int nb = arena.blocks[arena_neighbour(a, b, c)];
+      if (nb < 0) return;
+      const int node = arena_node_in_block(a, b, c);
+      old.add(w, Vec3<T>{{static_cast<T>(block_val(p.old_velocity, grid_velocity_x, nb, node)),
+                          static_cast<T>(block_val(p.old_velocity, grid_velocity_y, nb, node)),
+                          static_cast<T>(block_val(p.old_velocity, grid_velocity_z, nb, node))}});
+    });
+    const T* vp = p.particle_v_in + static_cast<std::size_t>(src) * 3;
+    const AsflipUpdate<T> u = asflip_update(p.asflip_params, Vec3<T>{{vp[0], vp[1], vp[2]}}, out.v, old.v,
+                                            M::volume_ratio(out.state), p.dt);
+    out.v = u.v;
+    out.x_new = in.x + u.move;
+  }
+  if (!(all_finite(out.x_new) && all_finite(out.v) && all_finite(out.C) &&
+        state_finite<T, kStateScalars>(out.state))) {
+    out.failed = kFailNonFinite;
+  } else if (!(M::volume_ratio(out.state) > T(0))) {
+    out.failed = kFailInverted;
+  } else {
+    if (!inside_domain(out.x_new, p.domain, p.dx))
+      out.failed = kFailLeftDomain;
+    else if (max_abs(out.x_new - in.x) > p.dx)
+      out.failed = kFailCfl;
+  }
+}
+
+/// What one particle writes besides the next P2G: its record in layout order, ASFLIP's velocity, the recorded v and
+/// C (aux) and, in a capture launch, its frame columns.
+template <typename M, typename T, typename TG, bool kMayAsflip, bool kCapture>
+FBAR_DEVICE FBAR_FORCE_INLINE void store_particle_outputs(const G2P2GParams<M, T, TG>& p, int slot, int id,
+                                                          const LaneParticle<M, T>& s) {
+  ParticleRecord<M, T> out{s.x_new, s.state, id};
+  store_particle<M, T>(p.out, slot, out);
+  if (kMayAsflip && p.asflip) {
+    T* vp = p.particle_v_out + static_cast<std::size_t>(slot) * 3;
+    vp[0] = s.v[0];
+    vp[1] = s.v[1];
+    vp[2] = s.v[2];
+  }
+  if (p.aux != nullptr) {
+    T* a = p.aux + static_cast<std::size_t>(slot) * kAuxScalars;
+    a[0] = s.v[0];
+    a[1] = s.v[1];
+    a[2] = s.v[2];
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) a[3 + 3 * r + c] = s.C(r, c);
+  }
+  if constexpr (kCapture)
+    capture_particle<M, T>(p.capture, id, s.x_new, s.v, s.C, s.state, p.material, p.mass, p.volume);
+}
+
+/// P2G of one particle that passed its checks: wave speed, stress, the MLS payload with the next step's impulse
+/// into the arena (integers in the block's quanta, or float atomics in the initial P2G), the momentum bound it
+/// needs, and its next block (key) or the neighbour that owns it.
+template <typename M, typename T, typename TG, bool kFixed>
+FBAR_DEVICE FBAR_FORCE_INLINE void p2g_particle(const G2P2GParams<M, T, TG>& p, const BlockArena<T, TG>& arena,
+                                                LaneParticle<M, T>& s, double& wave_max, double& bound_max,
+                                                bool& out_of_range) {
+  const QuadraticBspline<T> w = quadratic_bspline_inv(s.x_new, p.inv_dx);
+  const Vec3i& origin = arena.origin;
+  const int l0 = w.base[0] - 4 * origin[0], l1 = w.base[1] - 4 * origin[1], l2 = w.base[2] - 4 * origin[2];
+  if (l0 < 0 || l0 > 5 || l1 < 0 || l1 > 5 || l2 < 0 || l2 > 5) {
+    s.failed = kFailCfl;  // left the arena (rounding at exactly one cell): same meaning, never written
+    return;
+  }
+  wave_max = fmax(wave_max, static_cast<double>(M::wave_speed(p.material, s.state)));
+  const StressResult<T> stress = M::kirchhoff_stress(p.material, s.state, s.C);
+  const T dt_next = arena.dt_next;
+  const P2GParticle<T> payload = mls_p2g_particle(p.mass, p.volume, s.v, s.C, stress.kirchhoff, dt_next, p.d_inv);
+  // ASFLIP: the momentum the particle carries, without the stress impulse (v^n of the next step).
+  const bool transport = arena.channels == 7;
+  const P2GParticle<T> carried =
+      transport ? mls_p2g_particle(p.mass, p.volume, s.v, s.C, Mat3<T>::zero(), dt_next, p.d_inv) : P2GParticle<T>{};
+  T b = p2g_momentum_bound(payload, p.dx);
+  if (transport) b = fmax(b, p2g_momentum_bound(carried, p.dx));
+  if (!isfinite(b)) {
+    s.failed = kFailNonFinite;  // a finite state whose stress overflowed
+  } else {
+    bound_max = fmax(bound_max, static_cast<double>(b));
+    if constexpr (kFixed) {
+      if (b > arena.limit) {
+        out_of_range = true;  // this try is repeated with the measured bound
+      } else {
+        // The payload in quanta: the per-node products then need no scaling (4 multiplies fewer per node).
+        const P2GParticle<T> units{payload.mass * arena.inv_q_mass, payload.momentum * arena.inv_q_momentum,
+                                   payload.affine * arena.inv_q_momentum};
+        for_each_stencil_node_unrolled(w, p.dx, [&](int i, int j, int k, T wt, const Vec3<T>& xixp) {
+          const int a = arena_index(l0 + i, l1 + j, l2 + k);
+          const Vec3<T> mv = p2g_node_momentum(units, wt, xixp);
+          arena.fixed.add(0, a, wt * units.mass);
+          arena.fixed.add(1, a, mv[0]);
+          arena.fixed.add(2, a, mv[1]);
+          arena.fixed.add(3, a, mv[2]);
+        });
+        if (transport) {
+          const P2GParticle<T> carried_units{T(0), carried.momentum * arena.inv_q_momentum,
+                                             carried.affine * arena.inv_q_momentum};
+          for_each_stencil_node_unrolled(w, p.dx, [&](int i, int j, int k, T wt, const Vec3<T>& xixp) {
+            const int a = arena_index(l0 + i, l1 + j, l2 + k);
+            const Vec3<T> mv = p2g_node_momentum(carried_units, wt, xixp);
+            arena.fixed.add(4, a, mv[0]);
+            arena.fixed.add(5, a, mv[1]);
+            arena.fixed.add(6, a, mv[2]);
+          });
+        }
+      }
+    } else {
+      TG* const sums = arena.sums;
+      for_each_stencil_node_unrolled(w, p.dx, [&](int i, int j, int k, T wt, const Vec3<T>& xixp) {
+        const int a = arena_index(l0 + i, l1 + j, l2 + k);
+        const Vec3<T> mv = p2g_node_momentum(payload, wt, xixp);
+        atomicAdd(&sums[0 * kArenaStorage + a], static_cast<TG>(wt * payload.mass));
+        atomicAdd(&sums[1 * kArenaStorage + a], static_cast<TG>(mv[0]));
+        atomicAdd(&sums[2 * kArenaStorage + a], static_cast<TG>(mv[1]));
+        atomicAdd(&sums[3 * kArenaStorage + a], static_cast<TG>(mv[2]));
+        if (transport) {
+          const Vec3<T> cv = p2g_node_momentum(carried, wt, xixp);
+          atomicAdd(&sums[4 * kArenaStorage + a], static_cast<TG>(cv[0]));
+          atomicAdd(&sums[5 * kArenaStorage + a], static_cast<TG>(cv[1]));
+          atomicAdd(&sums[6 * kArenaStorage + a], static_cast<TG>(cv[2]));
+        }
+      });
+    }
+  }
+  const int b0 = floor_div4(w.base[0] - 1), b1 = floor_div4(w.base[1] - 1), b2 = floor_div4(w.base[2] - 1);
+  if (!BlockKey::representable(b0, b1, b2)) {
+    s.failed = kFailLeftDomain;
+  } else if (p.slab.owns(b0, b1, b2)) {
+    s.has_key = true;
+    s.key = BlockKey::pack(b0, b1, b2);
+  } else {
+    s.emigrant = p.slab.side(b0, b1, b2);
+  }
+}
+
+/// Failure counts of one warp: one atomic per warp and kind; the smallest failing ID for the report. All 32 lanes.
+template <typename M, typename T, typename TG>
+FBAR_DEVICE FBAR_FORCE_INLINE void count_failures(const G2P2GParams<M, T, TG>& p, int lane, int failed, int id) {
+  for (int kind = 0; kind < kFailKinds; ++kind) {
+    const unsigned mask = __ballot_sync(0xffffffffu, failed == kind);
+    if (mask != 0) {
+      if (lane == __ffs(mask) - 1) atomicAdd(&p.body_stats->failures[kind], __popc(mask));
+      if (failed == kind) atomicMin(&p.body_stats->first_id[kind], id);
+    }
+  }
+}
+
+/// Per-body maxima of the wave speed and the P2G bound, and whether a particle exceeded the bound: warp, then CUDA
+/// block (block_max, block_over: shared), then one global atomic per block (per-warp atomics on one address
+/// serialise in L2). Every thread of the block.
+template <typename M, typename T, typename TG>
+FBAR_DEVICE FBAR_FORCE_INLINE void reduce_block_maxima(const G2P2GParams<M, T, TG>& p, double wave_max,
+                                                       double bound_max, bool out_of_range,
+                                                       double (*block_max)[kG2P2GThreads / 32], int& block_over) {
+  const int lane = threadIdx.x % 32;
+  const int warp = threadIdx.x / 32;
+  wave_max = warp_max(wave_max);
+  bound_max = warp_max(bound_max);
+  const bool over = __any_sync(0xffffffffu, out_of_range);
+  if (lane == 0) {
+    block_max[0][warp] = wave_max;
+    block_max[1][warp] = bound_max;
+    if (over) block_over = 1;
+  }
+  __syncthreads();
+  if (threadIdx.x == 0) {
+    double wave = 0.0, bound = 0.0;
+    for (int w = 0; w < kG2P2GThreads / 32; ++w) {
+      wave = fmax(wave, block_max[0][w]);
+      bound = fmax(bound, block_max[1][w]);
+    }
+    if (wave > 0.0) atomic_max_nonneg(p.wave_speed, wave);
+    if (bound > 0.0) atomic_max_nonneg(p.p2g_bound_out, bound);
+    if (block_over) atomicAdd(&p.stats->p2g_range, 1);
+  }
+}
+
+/// The arena's sums into the next grid: one thread per arena node, atomics into the (up to 8) grid blocks (nodes no
+/// particle's stencil covers are skipped). Every thread of the block, after the P2G.
+template <typename M, typename T, typename TG, bool kFixed>
+FBAR_DEVICE FBAR_FORCE_INLINE void flush_arena(const G2P2GParams<M, T, TG>& p, const BlockArena<T, TG>& arena) {
+  for (int i = threadIdx.x; i < kArenaNodes; i += blockDim.x) {
+    const int a = i >> 6, b = (i >> 3) & 7, c = i & 7;
+    const int ai = arena_index(a, b, c);
+    TG mass_units;
+    if constexpr (kFixed) mass_units = arena.fixed.units(0, ai);
+    else mass_units = arena.sums[ai];
+    if (mass_units == TG(0)) continue;  // no particle's stencil covers this node
+    const int nb = arena.blocks[arena_neighbour(a, b, c)];
+    if (nb < 0) continue;  // counted as an internal error when the arena was set up
+    const int node = arena_node_in_block(a, b, c);
+    TG sum[7];
+    if constexpr (kFixed) {
+      sum[0] = static_cast<TG>(mass_units * arena.q_mass);
+      for (int ch = 1; ch < arena.channels; ++ch)
+        sum[ch] = static_cast<TG>(arena.fixed.units(ch, ai) * arena.q_momentum);
+    } else {
+      sum[0] = mass_units;
+      for (int ch = 1; ch < arena.channels; ++ch) sum[ch] = arena.sums[ch * kArenaStorage + ai];
+    }
+    atomicAdd(&block_val(p.grid_next, grid_mass, nb, node), sum[0]);
+    atomicAdd(&block_val(p.grid_next, grid_momentum_x, nb, node), sum[1]);
+    atomicAdd(&block_val(p.grid_next, grid_momentum_y, nb, node), sum[2]);
+    atomicAdd(&block_val(p.grid_next, grid_momentum_z, nb, node), sum[3]);
+    if (arena.channels == 7) {
+      atomicAdd(&block_val(p.transported_next, grid_velocity_x, nb, node), sum[4]);
+      atomicAdd(&block_val(p.transported_next, grid_velocity_y, nb, node), sum[5]);
+      atomicAdd(&block_val(p.transported_next, grid_velocity_z, nb, node), sum[6]);
+    }
+  }
+}
+
 }  // namespace g2p2g_detail
 
 /// kTransport: the arena also sums the transported momentum (some body uses ASFLIP). A separate instantiation, so
@@ -336,10 +630,10 @@ FBAR_DEVICE ParticleDest claim_block_rank(bool has_key, std::uint64_t key, const
 /// without (two runs, docs/benchmarks/2026-11-23-h100-asflip-arena.md). The initial P2G decides at run time.
 /// kCapture: this launch also writes the body's output frame (a separate instantiation: a run-time branch to the
 /// capture call, even out of line, doubled the APIC kernel's time on an H100).
+/// The phases (g2p2g_detail): arena set-up, then per bin g2p_particle, store_particle_outputs, p2g_particle and the
+/// next block's claim, then reduce_block_maxima and flush_arena.
 template <typename M, typename T, typename TG, bool kInitial, bool kTransport, bool kCapture = false>
 __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) {
-  using State = material_state_t<M, T>;
-  constexpr int kStateScalars = ParticleLayout<M, T>::kStateScalars;
   constexpr bool kFixed = !kInitial;  // the initial P2G has no bound yet: it adds T with CAS atomics
   // (x, y, z) grid velocities of the 8x8x8-node arena (vx, vy, vz, pad per node), index arena_index(x, y, z) =
   // 68 x + 8 y + z.
@@ -354,7 +648,6 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
   const int channels = (kTransport || (kInitial && static_cast<bool>(p.transported_next))) ? 7 : 4;
   // A body that uses ASFLIP runs in a kTransport launch (or the initial one): only those carry its code.
   constexpr bool kMayAsflip = kTransport || kInitial;
-  const g2p2g_detail::FixedArena<TG> fixed{reinterpret_cast<unsigned*>(arena_p), channels};
   // (neighbour) hash-table index of the arena's 2x2x2 grid blocks, neighbour = (di * 2 + dj) * 2 + dk.
   __shared__ int arena_blocks[8];
   // (quantity, warp) per-warp maxima of the wave speed and the P2G bound; whether a particle exceeded the bound.
@@ -375,271 +668,48 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
     __syncthreads();
   }
 
-  const T dt_next = static_cast<T>(*p.dt_next);
   // Fixed-point quanta of this block [kg], [kg m/s] and their inverses; limit: the bound every particle must meet.
   const double span = kMaxNodeWeight * count / g2p2g_detail::FixedArena<TG>::kRange;
   const double bound = kP2GHeadroom * __longlong_as_double(static_cast<long long>(*p.p2g_bound_in));
-  const T q_mass = static_cast<T>(static_cast<double>(p.mass) * span), inv_q_mass = T(1) / q_mass;
-  const T q_momentum = static_cast<T>(bound * span);
-  const T inv_q_momentum = bound > 0.0 ? static_cast<T>(1.0 / (bound * span)) : T(0);
-  const T limit = static_cast<T>(bound);
-  double bound_max = 0.0;
+  const g2p2g_detail::FixedArena<TG> fixed{reinterpret_cast<unsigned*>(arena_p), channels};
+  g2p2g_detail::BlockArena<T, TG> arena{arena_v, arena_p, fixed, arena_blocks, origin, channels,
+                                        static_cast<T>(*p.dt_next)};
+  arena.q_mass = static_cast<T>(static_cast<double>(p.mass) * span);
+  arena.inv_q_mass = T(1) / arena.q_mass;
+  arena.q_momentum = static_cast<T>(bound * span);
+  arena.inv_q_momentum = bound > 0.0 ? static_cast<T>(1.0 / (bound * span)) : T(0);
+  arena.limit = static_cast<T>(bound);
+  double bound_max = 0.0, wave_max = 0.0;
   bool out_of_range = false;
   const int lane = threadIdx.x % 32;
   const int warp = threadIdx.x / 32;
   const int bins = (count + 31) / 32;
   const int first_bin = p.layout.bin_offset[block];
-  double wave_max = 0.0;
   for (int bin = warp; bin < bins; bin += kG2P2GThreads / 32) {
     const int slot = (first_bin + bin) * 32 + lane;
     const int src = p.layout.src[slot];
     const bool active = src >= 0;
-    int failed = -1;
-    int emigrant = -1;  // 0 / 1: the lower / upper neighbour owns the particle's next block
-    bool has_key = false;
-    std::uint64_t key = 0;
+    g2p2g_detail::LaneParticle<M, T> s;
     int id = INT_MAX;
     if (active) {
       const ParticleRecord<M, T> in = load_particle<M, T>(p.in, src);
       id = in.id;
-      Vec3<T> v, x_new;
-      Mat3<T> C;
-      State state_new;
-      if constexpr (kInitial) {
-        const std::size_t i = 3 * static_cast<std::size_t>(in.id);  // by ID: a rank uploads a subset of the IDs
-        v = p.initial_v ? Vec3<T>{{p.initial_v[i], p.initial_v[i + 1], p.initial_v[i + 2]}} : p.initial_velocity;
-        C = Mat3<T>::zero();
-        if (p.initial_C) {
-          const T* c = p.initial_C + 9 * static_cast<std::size_t>(in.id);
-          for (int r = 0; r < 3; ++r)
-            for (int cc = 0; cc < 3; ++cc) C(r, cc) = c[3 * r + cc];
-        }
-        x_new = in.x;
-        state_new = in.state;
-      } else {
-        const QuadraticBspline<T> s = quadratic_bspline_inv(in.x, p.inv_dx);
-        const int l0 = s.base[0] - 4 * origin[0], l1 = s.base[1] - 4 * origin[1], l2 = s.base[2] - 4 * origin[2];
-        if (l0 < 0 || l0 > 5 || l1 < 0 || l1 > 5 || l2 < 0 || l2 > 5) {
-          atomicAdd(&p.stats->internal_error, 1);  // a particle outside its block's arena: never expected
-        }
-        const int c0 = min(max(l0, 0), 5), c1 = min(max(l1, 0), 5), c2 = min(max(l2, 0), 5);
-        G2PSum<T> sum;
-        g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
-          const int a = g2p2g_detail::arena_index(c0 + i, c1 + j, c2 + k);
-          const g2p2g_detail::ArenaVelocity<TG> node_v = arena_v[a];
-          sum.add(w, Vec3<T>{{static_cast<T>(node_v.x), static_cast<T>(node_v.y), static_cast<T>(node_v.z)}}, xixp);
-        });
-        v = sum.velocity();
-        C = sum.affine(p.d_inv);
-        if (!(kMayAsflip && p.asflip)) x_new = advect(in.x, v, p.dt);
-        if (p.fbar_psi != T(0)) {  // F-bar: J is pulled toward its cell's mean, then advanced (transfer.cuh)
-          const Vec3i cell = fbar_cell_offset(in.x, p.inv_dx, s.base);
-          const int a = c0 + cell[0], b = c1 + cell[1], c = c2 + cell[2];
-          const int nb = arena_blocks[g2p2g_detail::arena_neighbour(a, b, c)];
-          const int node = g2p2g_detail::arena_node_in_block(a, b, c);
-          const T one_minus_J = one_minus_volume_ratio<M>(in.state);
-          const T cell_mean = nb < 0 ? one_minus_J
-                                     : fbar_cell_compression(
-                                           static_cast<T>(block_val(p.fbar_sums, grid_fbar_compression, nb, node)),
-                                           static_cast<T>(block_val(p.fbar_sums, grid_fbar_volume, nb, node)));
-          state_new =
-              M::advance(p.material, in.state, fbar_velocity_gradient(C, one_minus_J, cell_mean, p.fbar_psi, p.dt), p.dt);
-        } else {
-          state_new = M::advance(p.material, in.state, C, p.dt);
-        }
-        if (kMayAsflip && p.asflip) {  // FLIP increment from v^n at the stencil, the particle's own velocity
-          G2POldSum<T> old;
-          g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, [&](int i, int j, int k, T w, const Vec3<T>&) {
-            const int a = c0 + i, b = c1 + j, c = c2 + k;
-            const int nb = arena_blocks[g2p2g_detail::arena_neighbour(a, b, c)];
-            if (nb < 0) return;
-            const int node = g2p2g_detail::arena_node_in_block(a, b, c);
-            old.add(w, Vec3<T>{{static_cast<T>(block_val(p.old_velocity, grid_velocity_x, nb, node)),
-                                static_cast<T>(block_val(p.old_velocity, grid_velocity_y, nb, node)),
-                                static_cast<T>(block_val(p.old_velocity, grid_velocity_z, nb, node))}});
-          });
-          const T* vp = p.particle_v_in + static_cast<std::size_t>(src) * 3;
-          const AsflipUpdate<T> u = asflip_update(p.asflip_params, Vec3<T>{{vp[0], vp[1], vp[2]}}, v, old.v,
-                                                  M::volume_ratio(state_new), p.dt);
-          v = u.v;
-          x_new = in.x + u.move;
-        }
-        // Checks, in the CPU engine's order: non-finite, left the domain, moved more than a cell.
-        if (!(all_finite(x_new) && all_finite(v) && all_finite(C) &&
-              g2p2g_detail::state_finite<T, kStateScalars>(state_new))) {
-          failed = kFailNonFinite;
-        } else if (!(M::volume_ratio(state_new) > T(0))) {
-          failed = kFailInverted;
-        } else {
-          if (!inside_domain(x_new, p.domain, p.dx))
-            failed = kFailLeftDomain;
-          else if (max_abs(x_new - in.x) > p.dx)
-            failed = kFailCfl;
-        }
-      }
-      ParticleRecord<M, T> out{x_new, state_new, in.id};
-      store_particle<M, T>(p.out, slot, out);
-      if (kMayAsflip && p.asflip) {
-        T* vp = p.particle_v_out + static_cast<std::size_t>(slot) * 3;
-        vp[0] = v[0];
-        vp[1] = v[1];
-        vp[2] = v[2];
-      }
-      if (p.aux != nullptr) {
-        T* a = p.aux + static_cast<std::size_t>(slot) * kAuxScalars;
-        a[0] = v[0];
-        a[1] = v[1];
-        a[2] = v[2];
-        for (int r = 0; r < 3; ++r)
-          for (int c = 0; c < 3; ++c) a[3 + 3 * r + c] = C(r, c);
-      }
-      if constexpr (kCapture)
-        capture_particle<M, T>(p.capture, in.id, x_new, v, C, state_new, p.material, p.mass, p.volume);
-      if (failed < 0) {
-        const QuadraticBspline<T> s = quadratic_bspline_inv(x_new, p.inv_dx);
-        const int l0 = s.base[0] - 4 * origin[0], l1 = s.base[1] - 4 * origin[1], l2 = s.base[2] - 4 * origin[2];
-        if (l0 < 0 || l0 > 5 || l1 < 0 || l1 > 5 || l2 < 0 || l2 > 5) {
-          failed = kFailCfl;  // left the arena (rounding at exactly one cell): same meaning, never written
-        } else {
-          wave_max = fmax(wave_max, static_cast<double>(M::wave_speed(p.material, state_new)));
-          const StressResult<T> stress = M::kirchhoff_stress(p.material, state_new, C);
-          const P2GParticle<T> payload =
-              mls_p2g_particle(p.mass, p.volume, v, C, stress.kirchhoff, dt_next, p.d_inv);
-          // ASFLIP: the momentum the particle carries, without the stress impulse (v^n of the next step).
-          const bool transport = channels == 7;
-          const P2GParticle<T> carried =
-              transport ? mls_p2g_particle(p.mass, p.volume, v, C, Mat3<T>::zero(), dt_next, p.d_inv) : P2GParticle<T>{};
-          T b = p2g_momentum_bound(payload, p.dx);
-          if (transport) b = fmax(b, p2g_momentum_bound(carried, p.dx));
-          if (!isfinite(b)) {
-            failed = kFailNonFinite;  // a finite state whose stress overflowed
-          } else {
-            bound_max = fmax(bound_max, static_cast<double>(b));
-            if constexpr (kFixed) {
-              if (b > limit) out_of_range = true;  // this try is repeated with the measured bound
-              else {
-                // The payload in quanta: the per-node products then need no scaling (4 multiplies fewer per node).
-                const P2GParticle<T> units{payload.mass * inv_q_mass, payload.momentum * inv_q_momentum,
-                                           payload.affine * inv_q_momentum};
-                auto scatter = [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
-                  const int a = g2p2g_detail::arena_index(l0 + i, l1 + j, l2 + k);
-                  const Vec3<T> mv = p2g_node_momentum(units, w, xixp);
-                  fixed.add(0, a, w * units.mass);
-                  fixed.add(1, a, mv[0]);
-                  fixed.add(2, a, mv[1]);
-                  fixed.add(3, a, mv[2]);
-                };
-                g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, scatter);
-                if (transport) {
-                  const P2GParticle<T> carried_units{T(0), carried.momentum * inv_q_momentum,
-                                                     carried.affine * inv_q_momentum};
-                  auto scatter_carried = [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
-                    const int a = g2p2g_detail::arena_index(l0 + i, l1 + j, l2 + k);
-                    const Vec3<T> mv = p2g_node_momentum(carried_units, w, xixp);
-                    fixed.add(4, a, mv[0]);
-                    fixed.add(5, a, mv[1]);
-                    fixed.add(6, a, mv[2]);
-                  };
-                  g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, scatter_carried);
-                }
-              }
-            } else {
-              auto scatter = [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
-                const int a = g2p2g_detail::arena_index(l0 + i, l1 + j, l2 + k);
-                const Vec3<T> mv = p2g_node_momentum(payload, w, xixp);
-                atomicAdd(&arena_p[0 * kArenaStorage + a], static_cast<TG>(w * payload.mass));
-                atomicAdd(&arena_p[1 * kArenaStorage + a], static_cast<TG>(mv[0]));
-                atomicAdd(&arena_p[2 * kArenaStorage + a], static_cast<TG>(mv[1]));
-                atomicAdd(&arena_p[3 * kArenaStorage + a], static_cast<TG>(mv[2]));
-                if (transport) {
-                  const Vec3<T> cv = p2g_node_momentum(carried, w, xixp);
-                  atomicAdd(&arena_p[4 * kArenaStorage + a], static_cast<TG>(cv[0]));
-                  atomicAdd(&arena_p[5 * kArenaStorage + a], static_cast<TG>(cv[1]));
-                  atomicAdd(&arena_p[6 * kArenaStorage + a], static_cast<TG>(cv[2]));
-                }
-              };
-              g2p2g_detail::for_each_stencil_node_unrolled(s, p.dx, scatter);
-            }
-          }
-          const int b0 = floor_div4(s.base[0] - 1), b1 = floor_div4(s.base[1] - 1), b2 = floor_div4(s.base[2] - 1);
-          if (!BlockKey::representable(b0, b1, b2)) {
-            failed = kFailLeftDomain;
-          } else if (p.slab.owns(b0, b1, b2)) {
-            has_key = true;
-            key = BlockKey::pack(b0, b1, b2);
-          } else {
-            emigrant = p.slab.side(b0, b1, b2);
-          }
-        }
-      }
+      g2p2g_detail::g2p_particle<M, T, TG, kInitial, kMayAsflip>(p, arena, in, src, s);
+      g2p2g_detail::store_particle_outputs<M, T, TG, kMayAsflip, kCapture>(p, slot, in.id, s);
+      if (s.failed < 0) g2p2g_detail::p2g_particle<M, T, TG, kFixed>(p, arena, s, wave_max, bound_max, out_of_range);
     }
-    // Failure counts: one atomic per warp and kind; the smallest failing ID for the report.
-    for (int kind = 0; kind < kFailKinds; ++kind) {
-      const unsigned mask = __ballot_sync(0xffffffffu, failed == kind);
-      if (mask != 0) {
-        if (lane == __ffs(mask) - 1) atomicAdd(&p.body_stats->failures[kind], __popc(mask));
-        if (failed == kind) atomicMin(&p.body_stats->first_id[kind], id);
-      }
-    }
+    g2p2g_detail::count_failures(p, lane, s.failed, id);
     const ParticleDest d =
-        g2p2g_detail::claim_block_rank<TG>(has_key, key, p.table, p.next_count, p.grid_next, p.grid_this);
-    if (active) p.dest[slot] = emigrant >= 0 ? ParticleDest{kEmigrant, emigrant} : d;
+        g2p2g_detail::claim_block_rank<TG>(s.has_key, s.key, p.table, p.next_count, p.grid_next, p.grid_this);
+    if (active) p.dest[slot] = s.emigrant >= 0 ? ParticleDest{kEmigrant, s.emigrant} : d;
     // The emigrants' slots, listed so that the migration reads those few instead of every slot's destination.
-    if (active && emigrant >= 0 && p.emigrant_slots) {
+    if (active && s.emigrant >= 0 && p.emigrant_slots) {
       const int k = atomicAdd(&p.body_stats->emigrant_list, 1);
       if (k < p.emigrant_capacity) p.emigrant_slots[k] = slot;
     }
   }
-  // Per-body maxima: warp, then CUDA block, then one global atomic per block (per-warp atomics on one address
-  // serialise in L2).
-  wave_max = warp_max(wave_max);
-  bound_max = warp_max(bound_max);
-  const bool over = __any_sync(0xffffffffu, out_of_range);
-  if (lane == 0) {
-    block_max[0][warp] = wave_max;
-    block_max[1][warp] = bound_max;
-    if (over) block_over = 1;
-  }
-  __syncthreads();
-  if (threadIdx.x == 0) {
-    double wave = 0.0, bound = 0.0;
-    for (int w = 0; w < kG2P2GThreads / 32; ++w) {
-      wave = fmax(wave, block_max[0][w]);
-      bound = fmax(bound, block_max[1][w]);
-    }
-    if (wave > 0.0) atomic_max_nonneg(p.wave_speed, wave);
-    if (bound > 0.0) atomic_max_nonneg(p.p2g_bound_out, bound);
-    if (block_over) atomicAdd(&p.stats->p2g_range, 1);
-  }
-  // Flush: one thread per arena node; atomics into the (up to 8) grid blocks of the next grid.
-  for (int i = threadIdx.x; i < kArenaNodes; i += blockDim.x) {
-    const int a = i >> 6, b = (i >> 3) & 7, c = i & 7;
-    const int ai = g2p2g_detail::arena_index(a, b, c);
-    TG mass_units;
-    if constexpr (kFixed) mass_units = fixed.units(0, ai);
-    else mass_units = arena_p[ai];
-    if (mass_units == TG(0)) continue;  // no particle's stencil covers this node
-    const int nb = arena_blocks[g2p2g_detail::arena_neighbour(a, b, c)];
-    if (nb < 0) continue;  // counted above as an internal error
-    const int node = g2p2g_detail::arena_node_in_block(a, b, c);
-    TG sum[7];
-    if constexpr (kFixed) {
-      sum[0] = static_cast<TG>(mass_units * q_mass);
-      for (int ch = 1; ch < channels; ++ch) sum[ch] = static_cast<TG>(fixed.units(ch, ai) * q_momentum);
-    } else {
-      sum[0] = mass_units;
-      for (int ch = 1; ch < channels; ++ch) sum[ch] = arena_p[ch * kArenaStorage + ai];
-    }
-    atomicAdd(&block_val(p.grid_next, grid_mass, nb, node), sum[0]);
-    atomicAdd(&block_val(p.grid_next, grid_momentum_x, nb, node), sum[1]);
-    atomicAdd(&block_val(p.grid_next, grid_momentum_y, nb, node), sum[2]);
-    atomicAdd(&block_val(p.grid_next, grid_momentum_z, nb, node), sum[3]);
-    if (channels == 7) {
-      atomicAdd(&block_val(p.transported_next, grid_velocity_x, nb, node), sum[4]);
-      atomicAdd(&block_val(p.transported_next, grid_velocity_y, nb, node), sum[5]);
-      atomicAdd(&block_val(p.transported_next, grid_velocity_z, nb, node), sum[6]);
-    }
-  }
+  g2p2g_detail::reduce_block_maxima(p, wave_max, bound_max, out_of_range, block_max, block_over);
+  g2p2g_detail::flush_arena<M, T, TG, kFixed>(p, arena);
 }
 
 /// F-bar's cell sums of one body (transfer.cuh): per particle, V0 (1 - J) and V0 of the state at the start of the

@@ -20,6 +20,7 @@
 #include <cstdint>
 #include <cstring>
 
+#include "MnSystem/Cuda/device_array.cuh"
 #include "engine/gpu/grid_buffer.cuh"
 #include "engine/gpu/hash_table.cuh"
 #include "engine/gpu/kernels/g2p2g_kernel.cuh"
@@ -51,6 +52,25 @@ __global__ void __launch_bounds__(kHaloThreads)
   TG& v = buffer[static_cast<std::size_t>(index[k]) * scalars + i];
   const TG sum = v + in[t];
   v = saved ? sum - saved[t] : sum;
+}
+
+/// Host side: pack_halo of n listed blocks on `stream` (nothing for n = 0); every halo, shared-block and saved-sum copy
+/// of the decomposition goes through here.
+template <typename TG>
+inline void launch_pack_halo(const TG* buffer, int scalars, const int* index, int n, TG* out, cudaStream_t stream) {
+  if (n <= 0) return;
+  pack_halo<TG><<<cuda::grid_for(static_cast<long long>(n) * scalars, kHaloThreads), kHaloThreads, 0, stream>>>(
+      buffer, scalars, index, n, out);
+  cuda::check_launch("pack_halo");
+}
+/// Host side: add_halo of n listed blocks on `stream` (nothing for n = 0).
+template <typename TG>
+inline void launch_add_halo(TG* buffer, int scalars, const int* index, int n, const TG* in, const TG* saved,
+                            cudaStream_t stream) {
+  if (n <= 0) return;
+  add_halo<TG><<<cuda::grid_for(static_cast<long long>(n) * scalars, kHaloThreads), kHaloThreads, 0, stream>>>(
+      buffer, scalars, index, n, in, saved);
+  cuda::check_launch("add_halo");
 }
 
 /// Keys of the table blocks [first, block count) that lie in the halo planes (plane[0]: shared with rank - 1,

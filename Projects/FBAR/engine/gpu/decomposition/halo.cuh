@@ -1,0 +1,222 @@
+// Decomposition: the halo between neighbouring slabs (the blocks of a shared plane summed on both ranks), its
+// exchange overlapping the interior G2P2G, and its rebuild when a rank has new blocks. Part of MgspBenchmark.
+#pragma once
+
+#include "engine/gpu/mgsp_benchmark.cuh"
+
+namespace fbar {
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::g2p2g_and_halo(T dt) {
+  auto sums = [&](cudaStream_t s) {
+    if (asflip_)
+      halo_exchange({{grid_[1 - gc_].instance().data(), GridBuffer<TG>::kBlockBytes},
+                     {transported_[1 - gc_].instance().data(), GridVelocityBuffer<TG>::kBlockBytes}},
+                    1 - gc_, false, s);
+    else
+      halo_exchange({{grid_[1 - gc_].instance().data(), GridBuffer<TG>::kBlockBytes}}, 1 - gc_, false, s);
+  };
+  if (!options_.overlap_halo) {
+    for (auto& b : bodies_) b->g2p2g(*this, false, dt);
+    event_record(2);
+    sums(stream_);
+    return;
+  }
+  // The halo particle blocks of every body first: after them no launch of this step writes a block of a shared
+  // plane (a particle block B scatters into blocks B .. B + 1 only). fbar_sums_ holds one body's cell sums at a
+  // time, so an F-bar body with another F-bar body after it runs its other blocks at once.
+  int fbar_left = 0;
+  for (const auto& b : bodies_) fbar_left += b->fbar_psi != T(0);
+  std::vector<BodyBase*> rest;
+  for (auto& b : bodies_) {
+    b->g2p2g(*this, false, dt, G2P2GPass::Halo);
+    if (b->fbar_psi != T(0) && --fbar_left > 0)
+      b->g2p2g(*this, false, dt, G2P2GPass::Interior);
+    else
+      rest.push_back(b.get());
+  }
+  FBAR_CUDA_CHECK(cudaEventRecord(halo_ready_, stream_));
+  // The other blocks on the compute stream, queued before the exchange (a host-ordered transport may block in it).
+  for (BodyBase* b : rest) b->g2p2g(*this, false, dt, G2P2GPass::Interior);
+  event_record(2);
+  FBAR_CUDA_CHECK(cudaStreamWaitEvent(halo_stream_, halo_ready_, 0));
+  if (timing_) FBAR_CUDA_CHECK(cudaEventRecord(halo_events_[0], halo_stream_));
+  sums(halo_stream_);
+  if (timing_) FBAR_CUDA_CHECK(cudaEventRecord(halo_events_[1], halo_stream_));
+  FBAR_CUDA_CHECK(cudaEventRecord(halo_done_, halo_stream_));
+  FBAR_CUDA_CHECK(cudaStreamWaitEvent(stream_, halo_done_, 0));
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::halo_exchange(std::initializer_list<std::pair<std::byte*, std::size_t>> buffers, int grid,
+                                         bool delta, cudaStream_t stream) {
+  if (!stream) stream = stream_;
+  if (placed_) {
+    shared_exchange(buffers, grid, delta, stream);
+    return;
+  }
+  const BlockBuffers list(buffers);
+  device_->exchange(pack_halo_messages(list, stream), stream);
+  add_halo_messages(list, grid, delta, stream);
+}
+
+template <typename T, typename TG>
+std::vector<comm::DeviceTransport::Message> MgspBenchmark<T, TG>::pack_halo_messages(const BlockBuffers& buffers,
+                                                                                     cudaStream_t stream) {
+  std::size_t per_block = 0;  // scalars of every listed buffer's block
+  for (const auto& [data, bytes] : buffers) per_block += bytes / sizeof(TG);
+  std::vector<comm::DeviceTransport::Message> messages;
+  for (HaloSide& h : halo_) {
+    if (h.peer < 0) continue;
+    const int n = static_cast<int>(h.keys.size());
+    const std::size_t scalars = static_cast<std::size_t>(n) * per_block;
+    if (h.send.size() < scalars) {
+      h.send.allocate(scalars);
+      h.recv.allocate(scalars);
+    }
+    std::size_t offset = 0;
+    for (const auto& [data, bytes] : buffers) {
+      const int block_scalars = static_cast<int>(bytes / sizeof(TG));
+      launch_pack_halo(reinterpret_cast<const TG*>(data), block_scalars, h.index.get(), n, h.send.get() + offset, stream);
+      offset += static_cast<std::size_t>(n) * block_scalars;
+    }
+    comm::DeviceTransport::Message m;
+    m.peer = h.peer;
+    m.send = h.send.get();
+    m.recv = h.recv.get();
+    m.send_bytes = m.recv_bytes = scalars * sizeof(TG);
+    messages.push_back(m);
+  }
+  return messages;
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::add_halo_messages(const BlockBuffers& buffers, int grid, bool delta, cudaStream_t stream) {
+  const bool save = grid >= 0;
+  for (HaloSide& h : halo_) {
+    if (h.peer < 0 || h.keys.empty()) continue;
+    const int n = static_cast<int>(h.keys.size());
+    std::size_t offset = 0;
+    bool first = true;
+    for (const auto& [data, bytes] : buffers) {
+      const int block_scalars = static_cast<int>(bytes / sizeof(TG));
+      TG* target = reinterpret_cast<TG*>(data);
+      const std::size_t count = static_cast<std::size_t>(n) * block_scalars;
+      const bool saved = first && delta;
+      if (saved && h.saved[grid].size() < count) throw std::logic_error("GpuEngine: a delta exchange before any sum");
+      launch_add_halo(target, block_scalars, h.index.get(), n, h.recv.get() + offset,
+                      saved ? h.saved[grid].get() : nullptr, stream);
+      if (first && save) {  // the sums both ranks now hold, for a later delta exchange
+        if (h.saved[grid].size() < count) h.saved[grid].allocate(count);
+        launch_pack_halo(target, block_scalars, h.index.get(), n, h.saved[grid].get(), stream);
+      }
+      offset += count;
+      first = false;
+    }
+  }
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::collect_halo() {
+  if (halo_fresh_capacity_ == 0) {
+    halo_fresh_capacity_ = 1024;
+    for (HaloSide& h : halo_) h.fresh.allocate(static_cast<std::size_t>(halo_fresh_capacity_));
+  }
+  const int limit = block_capacity_ - halo_scanned_;
+  if (limit <= 0) return;
+  if (placed_) {  // every new block may be shared with any rank
+    collect_new_blocks<<<cuda::grid_for(limit, kHaloThreads), kHaloThreads, 0, stream_>>>(
+        table_.view(), halo_scanned_, halo_[0].fresh.get(), halo_fresh_capacity_, stats_d_->halo_new);
+    cuda::check_launch("collect_new_blocks");
+    return;
+  }
+  collect_halo_blocks<<<cuda::grid_for(limit, kHaloThreads), kHaloThreads, 0, stream_>>>(
+      table_.view(), halo_scanned_, slab_.axis, halo_[0].peer >= 0 ? halo_[0].plane : INT_MIN,
+      halo_[1].peer >= 0 ? halo_[1].plane : INT_MIN, halo_[0].fresh.get(), halo_[1].fresh.get(), halo_fresh_capacity_,
+      stats_d_->halo_new);
+  cuda::check_launch("collect_halo_blocks");
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::rebuild_halo(int summed_grid) {
+  // 1. This rank's new keys per side (collected after the last partition; collected again when they overflowed).
+  std::array<std::vector<unsigned long long>, 2> fresh;
+  const int fresh_count[2] = {stats_->halo_new[0], stats_->halo_new[1]};
+  if (std::max(fresh_count[0], fresh_count[1]) > halo_fresh_capacity_) {
+    while (halo_fresh_capacity_ < std::max(fresh_count[0], fresh_count[1])) halo_fresh_capacity_ *= 2;
+    for (HaloSide& h : halo_) h.fresh.allocate(static_cast<std::size_t>(halo_fresh_capacity_));
+    FBAR_CUDA_CHECK(cudaMemsetAsync(stats_d_->halo_new, 0, sizeof(stats_d_->halo_new), stream_));
+    collect_halo();
+  }
+  for (int side = 0; side < 2; ++side) {
+    fresh[side].resize(static_cast<std::size_t>(fresh_count[side]));
+    if (fresh_count[side] > 0)
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(fresh[side].data(), halo_[side].fresh.get(),
+                                      sizeof(unsigned long long) * fresh[side].size(), cudaMemcpyDeviceToHost, stream_));
+  }
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+  halo_scanned_ = std::max(halo_scanned_, std::min(stats_->block_count, block_capacity_));
+  if (placed_) {
+    rebuild_shared(summed_grid, fresh[0]);
+    return;
+  }
+  // 2. To the neighbours, and theirs back.
+  std::vector<int> peers;
+  std::vector<comm::Bytes> send;
+  for (int side = 0; side < 2; ++side) {
+    if (halo_[side].peer < 0) continue;
+    peers.push_back(halo_[side].peer);
+    const auto* b = reinterpret_cast<const std::uint8_t*>(fresh[side].data());
+    send.emplace_back(b, b + sizeof(unsigned long long) * fresh[side].size());
+  }
+  const std::vector<comm::Bytes> received = host_->exchange(peers, send);
+  // 3. The union, sorted (the same list on both sides), inserted here where absent, and its table indices.
+  std::size_t i = 0;
+  for (int side = 0; side < 2; ++side) {
+    HaloSide& h = halo_[side];
+    if (h.peer < 0) continue;
+    const comm::Bytes& theirs = received[i++];
+    std::vector<unsigned long long> all = h.keys;
+    all.insert(all.end(), fresh[side].begin(), fresh[side].end());
+    const std::size_t k = theirs.size() / sizeof(unsigned long long);
+    const std::size_t at = all.size();
+    all.resize(at + k);
+    if (k) std::memcpy(all.data() + at, theirs.data(), theirs.size());
+    std::sort(all.begin(), all.end());
+    all.erase(std::unique(all.begin(), all.end()), all.end());
+    if (all.size() == h.keys.size()) continue;
+    h.keys = std::move(all);
+    const int n = static_cast<int>(h.keys.size());
+    cuda::DeviceArray<unsigned long long> keys;
+    keys.allocate(h.keys.size());
+    h.index.allocate(h.keys.size());
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(keys.get(), h.keys.data(), sizeof(unsigned long long) * h.keys.size(),
+                                    cudaMemcpyHostToDevice, stream_));
+    for (;;) {
+      insert_halo_blocks<TG><<<cuda::grid_for(n, kHaloThreads), kHaloThreads, 0, stream_>>>(
+          table_.view(), keys.get(), n, h.index.get(), grid_[0].instance(), grid_[1].instance());
+      cuda::check_launch("insert_halo_blocks");
+      TableCounters c{};
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(&c, table_.counters(), sizeof(c), cudaMemcpyDeviceToHost, stream_));
+      FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+      if (c.overflow == 0 && c.block_count <= block_capacity_) {
+        block_count_ = std::max(block_count_, c.block_count);
+        break;
+      }
+      grow_blocks(2 * block_capacity_);  // keeps every block; the inserts are repeated (existing ones are found)
+    }
+    // The summed values both ranks hold, in the new list's order (a block new to the list is zero on both sides:
+    // it was created after the P2G that filled the grid), for a delta exchange before the next sum.
+    constexpr int kScalars = static_cast<int>(GridBuffer<TG>::kBlockBytes / sizeof(TG));
+    const std::size_t count = static_cast<std::size_t>(n) * kScalars;
+    for (int g = 0; g < 2; ++g) h.saved[g].allocate(count);  // the other grid is summed (and saved) before its use
+    if (summed_grid >= 0) {
+      launch_pack_halo(reinterpret_cast<const TG*>(grid_[summed_grid].instance().data()), kScalars, h.index.get(), n,
+                       h.saved[summed_grid].get(), stream_);
+    }
+  }
+  // Blocks inserted here are halo blocks already listed: not new for the next collect.
+  halo_scanned_ = std::max(halo_scanned_, block_count_);
+}
+
+}  // namespace fbar

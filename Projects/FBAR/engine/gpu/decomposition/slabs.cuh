@@ -1,0 +1,148 @@
+// Decomposition by space (comm/slab_partition.h): the slabs chosen from every body's counts, which rank owns a
+// particle, and the agreement of the ranks after each try. Part of MgspBenchmark.
+#pragma once
+
+#include "engine/gpu/mgsp_benchmark.cuh"
+
+namespace fbar {
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::choose_slabs(const std::vector<std::vector<Vec3d>>* positions) {
+  const int n = ranks(), r = rank();
+  homes_ = comm::body_ranks(scene_, n);
+  placed_ = std::any_of(homes_.begin(), homes_.end(), [](int h) { return h >= 0; });
+  std::vector<const SampleCount*> spread;  // placed bodies have no say in the slabs
+  for (std::size_t b = 0; b < counts_.size(); ++b)
+    if (homes_[b] < 0) spread.push_back(&counts_[b]);
+  if (placed_) {
+    options_.overlap_halo = false;  // the halo-first G2P2G lists the particle blocks next to the cuts only
+    shared_ = std::vector<SharedPeer>(static_cast<std::size_t>(n));  // built in place: SharedPeer does not move
+    rank_keys_.assign(static_cast<std::size_t>(n), {});
+  }
+  const comm::PlaneCounts planes = comm::plane_counts(spread);
+  if (planes.total() > 0) {
+    slabs_ = comm::choose_slabs(planes, n);
+  } else {  // only placed bodies: rank 0 "owns" all of space, which nothing asks about
+    slabs_.axis = 0;
+    slabs_.cuts.assign(static_cast<std::size_t>(n) + 1, INT_MAX);
+    slabs_.cuts.front() = INT_MIN;
+  }
+  slab_.axis = slabs_.axis;
+  slab_.lo = slabs_.cuts[static_cast<std::size_t>(r)];
+  slab_.hi = slabs_.cuts[static_cast<std::size_t>(r) + 1];
+  for (int side = 0; side < 2; ++side) {
+    HaloSide& h = halo_[static_cast<std::size_t>(side)];
+    h.peer = side == 0 ? (r > 0 ? r - 1 : -1) : (r + 1 < n ? r + 1 : -1);
+    h.plane = side == 0 ? slab_.lo : slab_.hi;  // rank r's particles scatter into grid planes [lo, hi]
+  }
+  // This rank's share of every count: the plan, the upload and the particle checks use it.
+  for (std::size_t b = 0; b < counts_.size(); ++b) {
+    SampleCount mine;
+    mine.per_plane = counts_[b].per_plane;  // the sampler's batching (whole planes, every rank samples them all)
+    const SlabBounds kept = slab_of(static_cast<int>(b));
+    const bool here = homes_[b] < 0 || homes_[b] == r;
+    for (const BlockCount& c : counts_[b].blocks)
+      if (here && kept.owns(c.bx, c.by, c.bz)) {
+        mine.blocks.push_back(c);
+        mine.particles += c.particles;
+      }
+    counts_[b] = std::move(mine);
+  }
+  // The counts above used the host's block of each point; the upload uses the device arithmetic (owns()), which
+  // can differ for a point on a block face: count again exactly when positions are sampled.
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    BodyBase& body = *bodies_[b];
+    long long mine = 0;
+    if (positions) {
+      for (const Vec3d& p : (*positions)[b]) mine += owns(static_cast<int>(b), p) ? 1 : 0;
+      body.particles = static_cast<int>(mine);
+      continue;
+    }
+    const BodySampler sampler(body.spec, scene_.simulation, body.index);
+    std::vector<Vec3d> x;
+    for (long long plane = 0; plane < sampler.planes();) {
+      const long long end = std::min(sampler.planes(), plane + 64);
+      x.clear();
+      sampler.sample_planes(plane, end, x);
+      for (const Vec3d& p : x) mine += owns(static_cast<int>(b), p) ? 1 : 0;
+      plane = end;
+    }
+    body.particles = static_cast<int>(mine);
+  }
+  if (log_ && r == 0) {
+    *log_ << "fbar: GPU ranks " << n << ": " << (planes.total() > 0 ? slabs_.describe() : std::string("no slabs"))
+          << " (" << device_->describe() << ")";
+    if (placed_) {
+      const char* sep = "; placed (bodies[].gpu): ";
+      for (std::size_t b = 0; b < homes_.size(); ++b)
+        if (homes_[b] >= 0) {
+          *log_ << sep << "bodies[" << b << "] on rank " << homes_[b];
+          sep = ", ";
+        }
+    }
+    *log_ << "\n";
+  }
+}
+
+template <typename T, typename TG>
+bool MgspBenchmark<T, TG>::owns(int body, const Vec3d& x) const {
+  if (!homes_.empty() && homes_[static_cast<std::size_t>(body)] >= 0) return homes_[static_cast<std::size_t>(body)] == rank();
+  const QuadraticBspline<T> s = quadratic_bspline_inv(x.template cast<T>(), k_.inv_dx);
+  return slab_.owns(floor_div4(s.base[0] - 1), floor_div4(s.base[1] - 1), floor_div4(s.base[2] - 1));
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::agree_on_try() {
+  // One allgather of every rank's numbers, reduced here in rank order (the same result on every rank): the host
+  // round trips of a decomposed step cost GPU idle time, so the step has this one.
+  const int nb = body_count();
+  enum : int { kInternal, kRange, kHaloNew, kSpeed, kParticles, kMigrants, kFixed };
+  std::vector<long long> mine(static_cast<std::size_t>(kFixed + 2 * kFailKinds * nb));
+  mine[kInternal] = stats_->internal_error;
+  mine[kRange] = stats_->p2g_range;
+  mine[kHaloNew] = static_cast<long long>(stats_->halo_new[0]) + stats_->halo_new[1];
+  mine[kSpeed] = static_cast<long long>(stats_->max_speed_sq);  // bits of a non-negative double: integer order
+  long long held = 0;
+  for (const auto& b : bodies_) held += b->pending_particles;
+  mine[kParticles] = held;
+  mine[kMigrants] = migrant_most_;
+  for (int b = 0; b < nb; ++b)
+    for (int k = 0; k < kFailKinds; ++k) {
+      mine[static_cast<std::size_t>(kFixed + kFailKinds * b + k)] = body_stats_[b].failures[k];
+      mine[static_cast<std::size_t>(kFixed + kFailKinds * (nb + b) + k)] = body_stats_[b].first_id[k];
+    }
+  comm::Bytes packed(mine.size() * sizeof(long long));
+  std::memcpy(packed.data(), mine.data(), packed.size());
+  const std::vector<comm::Bytes> all = host_->allgather(packed);
+  std::vector<long long> v(mine.size()), agreed(mine.size());
+  for (std::size_t r = 0; r < all.size(); ++r) {
+    if (all[r].size() != packed.size()) throw std::logic_error("GpuEngine: ranks disagree on the step's counters");
+    std::memcpy(v.data(), all[r].data(), packed.size());
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      const bool first_ids = i >= static_cast<std::size_t>(kFixed + kFailKinds * nb);
+      const bool maximum = i == kSpeed || i == kParticles || i == kMigrants;
+      if (r == 0)
+        agreed[i] = v[i];
+      else if (first_ids)
+        agreed[i] = std::min(agreed[i], v[i]);
+      else if (maximum)
+        agreed[i] = std::max(agreed[i], v[i]);
+      else
+        agreed[i] += v[i];
+    }
+  }
+  stats_->internal_error = static_cast<int>(agreed[kInternal]);
+  stats_->p2g_range = static_cast<int>(agreed[kRange]);
+  halo_grew_ = agreed[kHaloNew] > 0;  // stats_->halo_new stays this rank's: rebuild_halo sends those
+  stats_->max_speed_sq = static_cast<unsigned long long>(agreed[kSpeed]);
+  most_rank_particles_ = static_cast<double>(agreed[kParticles]);
+  migrant_most_ = static_cast<int>(agreed[kMigrants]);
+  for (int b = 0; b < nb; ++b)
+    for (int k = 0; k < kFailKinds; ++k) {
+      body_stats_[b].failures[k] = static_cast<int>(agreed[static_cast<std::size_t>(kFixed + kFailKinds * b + k)]);
+      body_stats_[b].first_id[k] =
+          static_cast<int>(agreed[static_cast<std::size_t>(kFixed + kFailKinds * (nb + b) + k)]);
+    }
+}
+
+}  // namespace fbar

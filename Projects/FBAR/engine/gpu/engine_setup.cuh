@@ -1,0 +1,553 @@
+// Construction: bodies counted and described, the memory plan checked against the device, buffers allocated, the
+// particles sampled and uploaded, the initial P2G and partition (or a restart's state). Part of MgspBenchmark.
+#pragma once
+
+#include "engine/gpu/mgsp_benchmark.cuh"
+
+namespace fbar {
+
+template <typename T, typename TG>
+MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::vector<Vec3d>>* positions,
+                                const GpuEngineOptions& options)
+    : scene_(scene), options_(options) {
+  if (cuda::device_count() == 0) throw std::runtime_error(cuda::no_device_reason());
+  const SimulationSpec& sim = scene_.simulation;
+  k_ = RunConstants<T>(scene_, "GPU engine");
+  kg_ = RunConstants<TG>(scene_, "GPU engine");
+  if (static_cast<bool>(options.ranks) != static_cast<bool>(options.device_ranks))
+    throw std::invalid_argument("GpuEngine: a decomposed run needs both a host and a device transport");
+  if (options.ranks && options.ranks->size() != options.device_ranks->size())
+    throw std::invalid_argument("GpuEngine: the host and device transports have different rank counts");
+  if (options.ranks && options.ranks->size() > 1) {
+    host_ = options.ranks;
+    device_ = options.device_ranks;
+  }
+  if (options.migrant_capacity < 1)
+    throw std::invalid_argument("GpuEngine: migrant_capacity must be at least 1");
+  migrant_capacity_ = options.migrant_capacity;
+  slabs_ = comm::choose_slabs(comm::PlaneCounts{}, 1);  // all of space (a decomposed run chooses below)
+  if (positions && positions->size() != scene_.bodies.size())
+    throw std::invalid_argument("GpuEngine: one position list per body");
+  if (scene_.bodies.size() > static_cast<std::size_t>(DtParams::kMaxBodies))
+    throw std::invalid_argument("GpuEngine: at most " + std::to_string(DtParams::kMaxBodies) + " bodies per device");
+  time_ = sim.time;
+  if (k_.boundaries.size() > static_cast<std::size_t>(BoundarySet<TG>::kMax))
+    throw std::invalid_argument("boundaries: " + std::to_string(k_.boundaries.size()) +
+                                " boundary objects (arrays counted copy by copy); the GPU engine applies at most " +
+                                std::to_string(BoundarySet<TG>::kMax) + " per run");
+
+  double max_speed = 0.0;
+  std::vector<ParticleSeeds> seeds(scene_.bodies.size());  // has_attributes: per-particle velocities and states
+  for (std::size_t b = 0; b < scene_.bodies.size(); ++b)
+    max_speed = std::max(max_speed, add_body(b, positions, seeds[b]));
+  max_grid_speed_ = max_speed;
+  if (const io::Checkpoint* cp = options.restart) restore_bodies(*cp);
+  for (auto& b : bodies_)  // a restart's checkpoint holds the state instead
+    if (!options.restart && !seeds[static_cast<std::size_t>(b->index)].empty())
+      b->rest_wave_speed = std::max(b->rest_wave_speed, b->seed_states(seeds[static_cast<std::size_t>(b->index)]));
+  if (decomposed()) choose_slabs(positions);
+
+  plan_memory();
+
+  initialize(positions);
+  counts_.clear();
+  counts_.shrink_to_fit();
+  peak_bytes_ = device_bytes();
+}
+
+/// Body b described from the scene (its particles counted, or the given positions checked), its material's Body<M>
+/// made, its initial velocities uploaded; seeds receives what a has_attributes file gives per particle. Returns
+/// the largest initial speed of its particles [m/s].
+template <typename T, typename TG>
+double MgspBenchmark<T, TG>::add_body(int b, const std::vector<std::vector<Vec3d>>* positions, ParticleSeeds& seed) {
+  const SimulationSpec& sim = scene_.simulation;
+  const GpuEngineOptions& options = options_;
+  double max_speed = 0.0;
+  const BodySpec& spec = scene_.bodies[static_cast<std::size_t>(b)];
+  const std::string where = "bodies[" + std::to_string(b) + "]";
+  const MaterialSpec& mat = spec.material;
+  if (material_index(mat.law) < 0)
+    throw std::invalid_argument(where + ".material.constitutive: not implemented by the GPU engine (implemented: " +
+                                supported_material_names() + ")");
+  if (mat.type != "particles")
+    throw std::invalid_argument(where + ".material.type: \"" + mat.type + "\" bodies are not implemented");
+  const AlgorithmSpec& alg = spec.algorithm;
+  if (alg.use_fem) throw std::invalid_argument(where + ".algorithm.use_FEM: not implemented by the GPU engine");
+  for (const std::string& name : spec.output_attribs) {
+    const std::string canonical = canonical_attribute(name);
+    if (canonical.empty() || !material_supports_attribute(mat.law, canonical))
+      throw std::invalid_argument(where + ".output_attribs: " + name + " is not available on the GPU engine");
+  }
+  if (!(mat.ppc > 0.0)) throw std::invalid_argument(where + ".material.ppc: must be positive");
+  Aabb geometry_bounds;  // the free surface of a hydrostatic body is its top (engine/hydrostatic.h)
+  if (positions) {
+    const std::vector<Vec3d>& x = (*positions)[static_cast<std::size_t>(b)];
+    const Vec3d domain{{sim.domain[0], sim.domain[1], sim.domain[2]}};
+    for (std::size_t p = 0; p < x.size(); ++p)
+      if (!inside_domain(x[p], domain, sim.dx))
+        throw std::invalid_argument(where + ": particle " + std::to_string(p) + " lies outside the domain");
+    counts_.push_back(count_points(x, sim.dx));
+    if (spec.initial_state == InitialState::Hydrostatic)
+      geometry_bounds = body_geometry_bounds(spec, sim, b);
+  } else {
+    // Counted without storing a point (throws SceneError for particles outside the domain, or none at all).
+    BodySampler sampler(spec, sim, b);
+    counts_.push_back(sampler.count(sim.dx));
+    seed = sampler.take_seeds(counts_.back().particles);
+    geometry_bounds = sampler.geometry_bounds();
+  }
+  const HydrostaticProfile hydrostatic = hydrostatic_profile(spec, sim, geometry_bounds.lo, geometry_bounds.hi);
+  const long long slots_needed = 32 * bins_needed(counts_.back());
+  if (slots_needed > DeviceLimits::kMaxSlots)
+    throw std::invalid_argument(where + ": " + std::to_string(counts_.back().particles) + " particles need " +
+                                std::to_string(slots_needed) + " particle slots on one device; at most " +
+                                std::to_string(DeviceLimits::kMaxSlots) +
+                                " (2^31 - 1, docs/user_guide.md \"Limits\"): use a coarser default_dx, fewer ppc, "
+                                "or split the body with partition_start / partition_end");
+  visit_material(mat.law, [&](auto m) {
+    using M = decltype(m);
+    auto body = std::make_unique<Body<M>>();
+    body->params = M::template make_params<T>(mat);
+    body->rest_wave_speed = static_cast<double>(M::wave_speed(M::template make_params<double>(mat),
+                                                              M::template reference_state<double>()));
+    if (hydrostatic.active) {  // the deepest particle's sound speed
+      double deepest = 0.0;
+      for (int c = 0; c < 8; ++c) {
+        Vec3d corner;
+        for (int d = 0; d < 3; ++d) corner[d] = (c >> d) & 1 ? geometry_bounds.hi[d] : geometry_bounds.lo[d];
+        deepest = std::max(deepest, hydrostatic.kirchhoff_pressure(corner));
+      }
+      const auto params_d = M::template make_params<double>(mat);
+      body->rest_wave_speed = std::max(
+          body->rest_wave_speed,
+          static_cast<double>(M::wave_speed(params_d, material_hydrostatic_state<M, double>(params_d, deepest))));
+    }
+    bodies_.push_back(std::move(body));
+  });
+  BodyBase& body = *bodies_.back();
+  body.spec = spec;
+  body.hydrostatic = hydrostatic;
+  body.index = b;
+  body.particles = static_cast<int>(counts_.back().particles);
+  body.global_particles = counts_.back().particles;
+  const double volume = sim.dx * sim.dx * sim.dx / mat.ppc;
+  body.volume = static_cast<T>(volume);
+  body.mass = static_cast<T>(mat.rho * volume);
+  body.asflip = alg.asflip_active();
+  body.asflip_params = AsflipParams<T>{static_cast<T>(alg.asflip_alpha), static_cast<T>(alg.asflip_beta_min),
+                                       static_cast<T>(alg.asflip_beta_max)};
+  asflip_ = asflip_ || body.asflip;
+  body.fbar_psi = static_cast<T>(alg.fbar_blend());
+  fbar_ = fbar_ || body.fbar_psi != T(0);
+  max_speed = std::max(max_speed, std::sqrt(spec.velocity[0] * spec.velocity[0] +
+                                            spec.velocity[1] * spec.velocity[1] +
+                                            spec.velocity[2] * spec.velocity[2]));
+  std::vector<Vec3d> seeded_v;  // the body's velocity, or a seed's (has_attributes)
+  if (!seed.empty()) {
+    seeded_v.assign(static_cast<std::size_t>(body.global_particles),
+                    Vec3d{{spec.velocity[0], spec.velocity[1], spec.velocity[2]}});
+    for (std::size_t i = 0; i < seed.size(); ++i) {
+      const double* sv = seed.at(i) + kSeedVelocity;
+      if (!std::isnan(sv[0])) seeded_v[static_cast<std::size_t>(seed.first) + i] = Vec3d{{sv[0], sv[1], sv[2]}};
+    }
+  }
+  const bool given_v = static_cast<std::size_t>(b) < options.initial_velocities.size() &&
+                       !options.initial_velocities[static_cast<std::size_t>(b)].empty();
+  if (given_v || !seeded_v.empty()) {
+    const std::vector<Vec3d>& v = given_v ? options.initial_velocities[static_cast<std::size_t>(b)] : seeded_v;
+    if (v.size() != static_cast<std::size_t>(body.global_particles))
+      throw std::invalid_argument("GpuEngine: " + std::to_string(v.size()) + " initial velocities for the " +
+                                  std::to_string(body.global_particles) + " particles of body " + std::to_string(b));
+    std::vector<T> flat(3 * v.size());
+    body.initial_v_host.resize(v.size());
+    for (std::size_t p = 0; p < v.size(); ++p) {
+      body.initial_v_host[p] = v[p].template cast<T>();
+      for (int a = 0; a < 3; ++a) flat[3 * p + a] = static_cast<T>(v[p][a]);
+      max_speed = std::max(max_speed, std::sqrt(dot(v[p], v[p])));
+    }
+    body.initial_v.allocate(std::max<std::size_t>(flat.size(), 1));
+    if (!flat.empty())
+      FBAR_CUDA_CHECK(cudaMemcpy(body.initial_v.get(), flat.data(), sizeof(T) * flat.size(), cudaMemcpyHostToDevice));
+  }
+  return max_speed;
+}
+
+// The plan (memory_plan.h): capacities and every buffer's size, from the counts; refused before anything is
+// allocated or sampled when it does not fit the device.
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::plan_memory() {
+  const SimulationSpec& sim = scene_.simulation;
+  std::vector<const SampleCount*> all;
+  std::vector<BodyMemoryInput> inputs;
+  // v and C kept for particle sensors, trackers or checkpoints (on the steps landing on their times)
+  const bool record = sensors_read_velocity(scene_) || sim.checkpoint_every > 0;
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    BodyBase& body = *bodies_[b];
+    all.push_back(&counts_[b]);
+    BodyMemoryInput in;
+    in.particles = counts_[b].particles;
+    in.bins_needed = bins_needed(counts_[b]);
+    in.stored_scalars = body.stored_scalars();
+    in.asflip = body.asflip;
+    in.fbar = body.fbar_psi != T(0);
+    in.record = record;
+    if (options_.frames) {
+      body.frame_attrs = frame_attributes(body.spec, body.index, "GPU engine");
+      in.frame_columns = frame_float_columns(body.frame_attrs);
+    }
+    inputs.push_back(in);
+  }
+  plan_ = plan_device_memory(kPrecision, footprint_blocks(all), inputs);
+  plan_.small += sensor_device_bytes(scene_);
+  if (plan_.block_capacity > DeviceLimits::kMaxBlocks)
+    throw std::invalid_argument("GpuEngine: " + std::to_string(plan_.block_capacity) + " grid blocks of capacity; at most " +
+                                std::to_string(DeviceLimits::kMaxBlocks) + " per device (docs/user_guide.md \"Limits\")");
+  std::size_t free_bytes = 0, total_bytes = 0;
+  cuda::memory_info(free_bytes, total_bytes);
+  if (options_.memory_limit > 0) free_bytes = std::min(free_bytes, options_.memory_limit);
+  const std::string fit = memory_fit_message(plan_, free_bytes, total_bytes, scene_, "GPU 0");
+  if (!fit.empty()) throw cuda::OutOfMemory("the scene does not fit: " + fit + " (fbar --check prints the plan)");
+}
+
+template <typename T, typename TG>
+MgspBenchmark<T, TG>::~MgspBenchmark() {
+  // Buffers free themselves; streams and events last (no throw from a destructor).
+  if (stream_) cudaStreamSynchronize(stream_);
+  if (copy_stream_) cudaStreamSynchronize(copy_stream_);
+  if (halo_stream_) cudaStreamSynchronize(halo_stream_);
+  for (cudaEvent_t& e : events_)
+    if (e) cudaEventDestroy(e);
+  for (cudaEvent_t& e : halo_events_)
+    if (e) cudaEventDestroy(e);
+  if (halo_ready_) cudaEventDestroy(halo_ready_);
+  if (halo_done_) cudaEventDestroy(halo_done_);
+  if (halo_stream_) cudaStreamDestroy(halo_stream_);
+  if (stream_) cudaStreamDestroy(stream_);
+  if (copy_stream_) cudaStreamDestroy(copy_stream_);
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::initialize(const std::vector<std::vector<Vec3d>>* positions) {
+  allocate_device_state(positions);  // streams, grid, bins holding the uploaded particles, statistics
+  partition_upload();                // layout 0 from the flat upload
+  initial_p2g();                     // the P2G of the initial state (or a restart's), ready for step 1
+}
+
+/// Streams and events, the grid and table at the plan's capacity, every body's bins with its particles uploaded
+/// flat (slot = ID), frame buffers, the step statistics and the wave speeds of the rest states.
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::allocate_device_state(const std::vector<std::vector<Vec3d>>* positions) {
+  FBAR_CUDA_CHECK(cudaStreamCreateWithFlags(&stream_, cudaStreamNonBlocking));
+  FBAR_CUDA_CHECK(cudaStreamCreateWithFlags(&copy_stream_, cudaStreamNonBlocking));
+  for (cudaEvent_t& e : events_) FBAR_CUDA_CHECK(cudaEventCreate(&e));
+  if (decomposed()) {
+    // The highest priority: its pack / exchange / add kernels take SMs as the interior G2P2G's blocks retire.
+    int least = 0, greatest = 0;
+    FBAR_CUDA_CHECK(cudaDeviceGetStreamPriorityRange(&least, &greatest));
+    FBAR_CUDA_CHECK(cudaStreamCreateWithPriority(&halo_stream_, cudaStreamNonBlocking, greatest));
+    FBAR_CUDA_CHECK(cudaEventCreateWithFlags(&halo_ready_, cudaEventDisableTiming));
+    FBAR_CUDA_CHECK(cudaEventCreateWithFlags(&halo_done_, cudaEventDisableTiming));
+    for (cudaEvent_t& e : halo_events_) FBAR_CUDA_CHECK(cudaEventCreate(&e));
+  }
+
+  // Capacities from the plan (options may start them smaller: tests exercise growth).
+  block_capacity_ = options_.block_capacity > 0 ? options_.block_capacity : static_cast<int>(plan_.block_capacity);
+  table_.allocate(block_capacity_, stream_);
+  grid_[0].allocate(block_capacity_);
+  grid_[1].allocate(block_capacity_);
+  velocity_.allocate(block_capacity_);
+  if (fbar_) fbar_sums_.allocate(block_capacity_);
+  if (asflip_) {
+    transported_[0].allocate(block_capacity_);
+    transported_[1].allocate(block_capacity_);
+    old_velocity_.allocate(block_capacity_);
+  }
+  FBAR_CUDA_CHECK(cudaMemsetAsync(grid_[0].instance().data(), 0, grid_[0].bytes(), stream_));
+  FBAR_CUDA_CHECK(cudaMemsetAsync(grid_[1].instance().data(), 0, grid_[1].bytes(), stream_));
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    BodyBase& body = *bodies_[b];
+    // The flat upload needs ceil(N/32) bins; the grouped layouts need the plan's.
+    const long long flat = (body.particles + 31) / 32;
+    const int bins = options_.bin_capacity > 0 ? static_cast<int>(std::max<long long>(flat, options_.bin_capacity))
+                                               : static_cast<int>(plan_.bin_capacity[b]);
+    body.partition.allocate(block_capacity_, bins, decomposed() && options_.overlap_halo);  // the lists' only use
+    body.allocate_bins(bins);
+    if (positions && decomposed()) {
+      std::vector<Vec3d> mine;
+      std::vector<int> ids;
+      const std::vector<Vec3d>& x = (*positions)[static_cast<std::size_t>(b)];
+      for (std::size_t p = 0; p < x.size(); ++p)
+        if (owns(b, x[p])) {
+          mine.push_back(x[p]);
+          ids.push_back(static_cast<int>(p));
+        }
+      body.upload(mine.data(), ids.data(), mine.size(), 0, stream_);
+    } else if (positions) {
+      body.upload((*positions)[b].data(), nullptr, (*positions)[b].size(), 0, stream_);
+    } else {
+      upload_sampled(body);
+    }
+  }
+  allocate_frames();
+  std::size_t temp = 0;
+  FBAR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, temp, static_cast<int*>(nullptr), static_cast<int*>(nullptr),
+                                                block_capacity_ + 1, stream_));
+  scan_temp_.allocate(temp);
+  scan_temp_bytes_ = temp;
+  const std::size_t stats_bytes = sizeof(StepStats) + sizeof(BodyStepStats) * bodies_.size();
+  stats_bytes_.allocate(stats_bytes);  // zeroed: the per-step readback also copies the structs' padding
+  stats_d_ = reinterpret_cast<StepStats*>(stats_bytes_.get());
+  body_stats_d_ = reinterpret_cast<BodyStepStats*>(stats_bytes_.get() + sizeof(StepStats));
+  stats_h_ = cuda::pinned(stats_bytes);
+  stats_ = static_cast<StepStats*>(stats_h_.get());
+  body_stats_ = reinterpret_cast<BodyStepStats*>(static_cast<std::byte*>(stats_h_.get()) + sizeof(StepStats));
+  wave_d_.allocate(2 * bodies_.size());
+  p2g_bound_d_.allocate(2 * bodies_.size());  // zeroed
+  bound_cur_ = 0;  // the initial P2G (float atomics) measures the bound of the first step into slot 1
+  missing_d_.allocate(1);
+  {
+    std::vector<unsigned long long> bits(2 * bodies_.size());
+    for (std::size_t b = 0; b < bodies_.size(); ++b) {
+      double c = bodies_[b]->rest_wave_speed;
+      std::memcpy(&bits[b], &c, sizeof(double));
+      bits[bodies_.size() + b] = 0;
+    }
+    FBAR_CUDA_CHECK(cudaMemcpy(wave_d_.get(), bits.data(), sizeof(unsigned long long) * bits.size(),
+                               cudaMemcpyHostToDevice));
+  }
+
+}
+
+/// Layout 0 of every body from the flat upload (storage bins[0], slot = ID), and the halo lists of its blocks.
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::partition_upload() {
+  cur_ = 1;  // dest_from_positions and the partition write layout(1 - cur_) = layout(0)
+  gc_ = 0;
+  flat_source_ = true;
+  reset_stats(false);
+  for (auto& b : bodies_) {
+    FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(0).count, 0, sizeof(int) * block_capacity_, stream_));
+    b->dest_from_positions(*this, 0, nullptr, 0, b->particles);
+  }
+  partition_after_g2p2g();
+  read_stats();
+  while (handle_overflow()) {
+  }
+  for (auto& b : bodies_) {
+    take_layout_stats(*b, 0);
+    if (body_stats_[b->index].particles != b->particles)
+      throw std::runtime_error("GpuEngine: initial partition placed " + std::to_string(body_stats_[b->index].particles) +
+                               " of " + std::to_string(b->particles) + " particles of body " + std::to_string(b->index));
+  }
+  block_count_ = stats_->block_count;
+  if (decomposed()) {  // the initial P2G writes the footprints of layout 0: halo lists first
+    rebuild_halo(-1);
+  }
+  flat_source_ = false;
+  for (auto& b : bodies_)  // the initial G2P2G writes bins[1] in layout(0) order
+    if (b->bins_capacity(1) < b->partition.bin_capacity()) b->reallocate_bins(1, b->partition.bin_capacity());
+}
+
+/// The P2G of the initial state with dt_0 (a restart's next dt), its partition and the state a first step reads.
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::initial_p2g() {
+  // dt_0: the CPU engine's first next_dt(); a restart's next dt.
+  double dt0 = k_.default_dt;
+  for (const auto& b : bodies_)
+    dt0 = min_time_step(dt0, cfl_time_step(b->spec.material.cfl, scene_.simulation.dx, b->rest_wave_speed, max_grid_speed_));
+  const io::Checkpoint* restart = options_.restart;
+  if (restart) {
+    dt0 = restart->next_dt;
+    checkpoint_keep_ = true;  // the initial P2G records v and C: a checkpoint or snapshot may follow at once
+    update_record();
+  }
+  cur_ = 0;
+  gc_ = 1;  // the initial P2G goes into grid[1 - gc_] = grid[0]
+  reset_stats(false);
+  {
+    // dt_next of the initial P2G is dt0: written by compute_next_dt with a fixed dt.
+    DtParams dp{};
+    dp.body_count = 0;
+    dp.wave_speed = wave_d_.get();
+    dp.fixed_dt = dt0;
+    dp.t_next = time_;
+    dp.t_target = std::numeric_limits<double>::infinity();
+    dp.stats = stats_d_;
+    dp.scale = 1.0;
+    compute_next_dt<<<1, 1, 0, stream_>>>(dp);
+    cuda::check_launch("compute_next_dt");
+  }
+  grid_[0].clear(0, block_capacity_, stream_);
+  if (asflip_) transported_[0].clear(0, block_capacity_, stream_);
+  for (auto& b : bodies_) {
+    FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(1).count, 0, sizeof(int) * block_capacity_, stream_));
+    b->source_slots = b->total_bins[0] * 32;
+    b->pending_particles = b->particles;
+  }
+  ensure_emigrant_lists();
+  for (auto& b : bodies_) b->g2p2g(*this, true, T(0));
+  if (decomposed()) {
+    if (asflip_)
+      halo_exchange({{grid_[0].instance().data(), GridBuffer<TG>::kBlockBytes},
+                     {transported_[0].instance().data(), GridVelocityBuffer<TG>::kBlockBytes}},
+                    0);
+    else
+      halo_exchange({{grid_[0].instance().data(), GridBuffer<TG>::kBlockBytes}}, 0);
+    migrate_particles();
+  }
+  partition_after_g2p2g();
+  read_stats();
+  while (handle_overflow()) {
+  }
+  if (decomposed()) {
+    settle_migration();
+    agree_on_try();
+    if (migrant_most_ > migrant_capacity_)  // the initial P2G moves nothing: no rank sends any
+      throw std::runtime_error("GpuEngine: internal error: the initial P2G sent more particles than one message holds");
+  }
+  if (stats_->internal_error) throw std::runtime_error("GpuEngine: internal error in the initial P2G");
+  for (auto& b : bodies_) {
+    take_layout_stats(*b, 1);
+    if (body_stats_[b->index].particles != b->pending_particles)
+      throw std::runtime_error("GpuEngine: the initial P2G's partition placed " +
+                               std::to_string(body_stats_[b->index].particles) + " of " +
+                               std::to_string(b->pending_particles) + " particles of body " + std::to_string(b->index));
+    b->particles = b->pending_particles;
+  }
+  migrated_ += pending_migrated_;
+  block_count_ = stats_->block_count;
+  if (decomposed() && halo_grew_) rebuild_halo(0);
+  cur_ = 1;
+  gc_ = 0;
+  // The initial G2P2G measured the wave speed of the state the run starts from into slot 1: the first step's dt
+  // reads it (with the rest wave speed as a floor), as every later step reads what the step before measured. A
+  // restart then takes the dt the uninterrupted run took (slot 0 held only the rest wave speed: 1e-7 m apart after
+  // 40 steps of a dam break).
+  wave_cur_ = 1;
+  bound_cur_ = 1;
+  dt_p2g_ = dt0;
+  next_dt_ = dt0;
+  aux_valid_ = record_;
+  for (auto& b : bodies_) std::vector<T>().swap(b->restart_state);  // uploaded (restart or has_attributes)
+  if (restart) {
+    checkpoint_keep_ = false;
+    update_record();
+    steps_ = restart->steps;
+    last_dt_ = restart->last_dt;
+    retry_.scale = restart->dt_scale;
+    dt_scale_at_compute_ = restart->dt_scale;
+    next_dt_ = restart->next_dt;
+    retry_.clean_steps = restart->clean_steps;
+    for (auto& b : bodies_) {  // uploaded and scattered: the host copies are not needed again
+      std::vector<Vec3<T>>().swap(b->initial_v_host);
+      cuda::DeviceArray<T> done;
+      b->initial_C.swap(done);
+    }
+  }
+  ensure_step_capacity();  // the first step writes bins[0], sized for the flat upload only
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::restore_bodies(const io::Checkpoint& cp) {
+  io::check_matches(cp, scene_);
+  for (auto& bp : bodies_) {
+    BodyBase& b = *bp;
+    const io::CheckpointBody& c = cp.bodies[static_cast<std::size_t>(b.index)];
+    const std::string where = "--restart: bodies[" + std::to_string(b.index) + "]";
+    const int S = b.stored_scalars() - 3;  // = c.state_scalars (check_matches)
+    const std::size_t n = c.particles();
+    if (static_cast<long long>(n) != b.global_particles)
+      throw std::invalid_argument(where + ": " + std::to_string(n) + " particles in the checkpoint, " +
+                                  std::to_string(b.global_particles) + " given");
+    for (std::size_t p = 0; p < n; ++p)
+      if (c.id[p] != static_cast<std::int64_t>(p))
+        throw std::invalid_argument(where + ": the GPU engine restarts from particles in ID order "
+                                    "(io::read_checkpoint_set)");
+    if (n > 0) {
+      b.mass = static_cast<T>(c.mass[0]);
+      b.volume = static_cast<T>(c.volume[0]);
+      for (std::size_t p = 0; p < n; ++p)
+        if (static_cast<T>(c.mass[p]) != b.mass || static_cast<T>(c.volume[p]) != b.volume)
+          throw std::invalid_argument(where + ": particle " + std::to_string(p) +
+                                      " has its own mass or volume; the GPU engine keeps one per body (restart "
+                                      "this checkpoint on the CPU engine, --backend=cpu)");
+    }
+    b.restart_state.resize(static_cast<std::size_t>(S) * n);
+    for (std::size_t i = 0; i < b.restart_state.size(); ++i) b.restart_state[i] = static_cast<T>(c.state[i]);
+    std::vector<T> C(9 * n);
+    for (std::size_t i = 0; i < C.size(); ++i) C[i] = static_cast<T>(c.C[i]);
+    b.initial_C.allocate(std::max<std::size_t>(C.size(), 1));
+    if (!C.empty())
+      FBAR_CUDA_CHECK(cudaMemcpy(b.initial_C.get(), C.data(), sizeof(T) * C.size(), cudaMemcpyHostToDevice));
+  }
+  time_ = cp.time;
+  max_grid_speed_ = cp.max_grid_speed;
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::upload_sampled(BodyBase& body) {
+  // Batches of whole x-planes of about kSampleBatchParticles, uploaded in ID order; a batch ends on a multiple of
+  // 32 particles (the rest waits for the next), so every upload fills whole bins of the flat layout. A decomposed
+  // run keeps the particles of its slab (with their IDs: the sampling order over the whole body).
+  const BodySampler sampler(body.spec, scene_.simulation, body.index);
+  const std::vector<long long>& per_plane = counts_[body.index].per_plane;
+  std::vector<Vec3d> sampled, pending;  // sampled: a decomposed rank's batch before it keeps its slab's points
+  std::vector<int> pending_ids;         // a decomposed rank's IDs (one GPU: slot = ID, no list)
+  long long next_id = 0, next_slot = 0, plane = 0;
+  const long long planes = sampler.planes();
+  while (plane < planes) {
+    long long end = plane, n = static_cast<long long>(pending.size());
+    while (end < planes && (end == plane || n + per_plane[static_cast<std::size_t>(end)] <= options_.sample_batch))
+      n += per_plane[static_cast<std::size_t>(end++)];
+    if (decomposed()) {
+      sampled.clear();
+      sampler.sample_planes(plane, end, sampled);
+      for (const Vec3d& x : sampled) {
+        if (owns(body.index, x)) {
+          pending.push_back(x);
+          pending_ids.push_back(static_cast<int>(next_id));
+        }
+        ++next_id;
+      }
+    } else {
+      const std::size_t before = pending.size();
+      sampler.sample_planes(plane, end, pending);
+      next_id += static_cast<long long>(pending.size() - before);
+    }
+    plane = end;
+    const std::size_t send = plane == planes ? pending.size() : pending.size() / 32 * 32;
+    if (next_slot + static_cast<long long>(send) > body.particles)
+      throw std::runtime_error("GpuEngine: sampling body " + std::to_string(body.index) + " gave more particles than counted");
+    body.upload(pending.data(), decomposed() ? pending_ids.data() : nullptr, send, next_slot, stream_);
+    next_slot += static_cast<long long>(send);
+    pending.erase(pending.begin(), pending.begin() + static_cast<std::ptrdiff_t>(send));
+    if (decomposed()) pending_ids.erase(pending_ids.begin(), pending_ids.begin() + static_cast<std::ptrdiff_t>(send));
+  }
+  if (next_slot != body.particles || next_id != body.global_particles)
+    throw std::runtime_error("GpuEngine: sampling body " + std::to_string(body.index) + " gave " +
+                             std::to_string(next_slot) + " of " + std::to_string(next_id) + " particles here, " +
+                             std::to_string(body.particles) + " of " + std::to_string(body.global_particles) +
+                             " counted");
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::set_record_velocities(bool on) {
+  record_user_ = on;
+  update_record();
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::update_record() {
+  record_ = record_user_ || sensor_keep_ || checkpoint_keep_;
+  if (record_) ensure_aux();
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::ensure_aux() {
+  for (auto& b : bodies_) {
+    const std::size_t need = b->partition.slots() * kAuxScalars;
+    if (b->aux.size() < need) b->aux.allocate(need);
+  }
+}
+
+}  // namespace fbar

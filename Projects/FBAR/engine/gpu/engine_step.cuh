@@ -1,0 +1,596 @@
+// The step (mgsp_benchmark.cuh, steps 0-5): statistics, partition, growth of what overflowed, failures, the
+// commit of a step and the landing on a target time. Part of MgspBenchmark.
+#pragma once
+
+#include "engine/gpu/mgsp_benchmark.cuh"
+
+namespace fbar {
+
+namespace mgsp_detail {
+
+static __global__ void reset_step_stats(StepStats* stats, BodyStepStats* bodies, int body_count, bool partition_only) {
+  const int t = threadIdx.x;
+  if (t == 0) {
+    if (!partition_only) {
+      stats->max_speed_sq = 0;
+      stats->dt_next = 0.0;
+      stats->internal_error = 0;
+      stats->p2g_range = 0;
+    }
+    stats->halo_new[0] = 0;
+    stats->halo_new[1] = 0;
+    stats->bin_overflow = 0;
+    stats->block_count = 0;
+    stats->table_overflow = 0;
+  }
+  for (int b = t; b < body_count; b += blockDim.x) {
+    if (!partition_only) {
+      for (int k = 0; k < kFailKinds; ++k) {
+        bodies[b].failures[k] = 0;
+        bodies[b].first_id[k] = INT_MAX;
+      }
+      for (int side = 0; side < 2; ++side) bodies[b].emigrants[side] = bodies[b].immigrants[side] = 0;
+      bodies[b].emigrant_list = 0;
+    }
+    bodies[b].total_bins = 0;
+    bodies[b].particles = 0;
+    bodies[b].halo_blocks = 0;
+    bodies[b].interior_blocks = 0;
+  }
+}
+
+}  // namespace mgsp_detail
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::reset_stats(bool partition_only) {
+  mgsp_detail::reset_step_stats<<<1, 64, 0, stream_>>>(stats_d_, body_stats_d_, body_count(), partition_only);
+  cuda::check_launch("reset_step_stats");
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::partition_after_g2p2g() {
+  const int next = 1 - cur_;
+  for (auto& bp : bodies_) {
+    BodyBase& b = *bp;
+    const LayoutView nl = b.partition.layout(next);
+    activate_footprint<TG><<<cuda::grid_for(block_capacity_, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
+        nl.count, block_capacity_, table_.view(), grid_[0].instance(), grid_[1].instance());
+    cuda::check_launch("activate_footprint");
+  }
+  for (auto& bp : bodies_) {
+    BodyBase& b = *bp;
+    const LayoutView nl = b.partition.layout(next);
+    blocks_to_bins<<<cuda::grid_for(block_capacity_ + 1, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
+        nl.count, b.partition.bins_per_block(), block_capacity_);
+    cuda::check_launch("blocks_to_bins");
+    std::size_t temp = scan_temp_bytes_;
+    FBAR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(scan_temp_.get(), temp, b.partition.bins_per_block(), nl.bin_offset,
+                                                  block_capacity_ + 1, stream_));
+    finalize_layout<<<1, 1, 0, stream_>>>(nl.bin_offset, block_capacity_, b.partition.bin_capacity(),
+                                          body_stats_d_ + b.index, stats_d_, table_.counters());
+    cuda::check_launch("finalize_layout");
+    // The previous layout's slots: those of layout(cur) (a G2P2G wrote bins[next] in that order), or the flat
+    // upload before the first layout exists.
+    const bool flat = flat_source_;
+    const int* valid = flat ? nullptr : b.partition.layout(cur_).src;
+    const int slots = flat ? b.particles : b.source_slots;
+    if (slots > 0) {
+      scatter_src<<<cuda::grid_for(slots, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
+          b.partition.dest(), valid, b.particles, slots, nl.bin_offset, nl.src, b.partition.bin_capacity(),
+          body_stats_d_ + b.index);
+      cuda::check_launch("scatter_src");
+    }
+    pad_src<<<cuda::grid_for(block_capacity_, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
+        nl.count, nl.bin_offset, block_capacity_, nl.src, b.partition.bin_capacity());
+    cuda::check_launch("pad_src");
+    if (b.partition.ordered()) list_blocks(b, next, &body_stats_d_[b.index].halo_blocks);
+  }
+  if (decomposed()) collect_halo();
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::list_blocks(BodyBase& b, int l, int* counters) {
+  static_assert(offsetof(BodyStepStats, interior_blocks) == offsetof(BodyStepStats, halo_blocks) + sizeof(int),
+                "list_particle_blocks counts into two adjacent ints");
+  // Rank r's particle planes [lo, hi) scatter into grid planes [lo, hi]: plane lo is shared with rank r - 1 and
+  // plane hi with rank r + 1, so the particle planes lo and hi - 1 are the halo particle planes.
+  const int first_lo = halo_[0].peer >= 0 ? halo_[0].plane : INT_MIN;
+  const int first_hi = halo_[1].peer >= 0 ? halo_[1].plane - 1 : INT_MIN;
+  FBAR_CUDA_CHECK(cudaMemsetAsync(counters, 0, 2 * sizeof(int), stream_));
+  const int capacity = b.partition.block_capacity();
+  list_particle_blocks<<<cuda::grid_for(capacity, kHaloThreads), kHaloThreads, 0, stream_>>>(
+      b.partition.layout(l).count, capacity, table_.view(), slab_.axis, first_lo, first_hi, b.partition.layout(l).order,
+      counters);
+  cuda::check_launch("list_particle_blocks");
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::read_stats() {
+  FBAR_CUDA_CHECK(cudaMemcpyAsync(stats_h_.get(), stats_bytes_.get(), stats_bytes_.bytes(), cudaMemcpyDeviceToHost,
+                                  stream_));
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+}
+
+template <typename T, typename TG>
+cuda::OutOfMemory MgspBenchmark<T, TG>::growth_failure(const std::string& what, const cuda::OutOfMemory& e) const {
+  return cuda::OutOfMemory("GpuEngine: at step " + std::to_string(steps_ + 1) + " (t = " + mgsp_detail::format_g(time_) +
+                           " s) " + what + ", " + format_bytes(static_cast<double>(device_bytes())) + " held): " +
+                           e.what() +
+                           ". fbar --check plans the memory at start; a scene that spreads needs room to grow: "
+                           "coarser default_dx, fewer ppc, or more GPUs");
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::grow_blocks(int needed) {
+  long long wanted = block_capacity_;
+  while (wanted < needed) wanted *= 2;
+  if (wanted > DeviceLimits::kMaxBlocks)
+    throw std::runtime_error("GpuEngine: the active grid needs " + std::to_string(wanted) + " blocks at step " +
+                             std::to_string(steps_ + 1) + "; at most " + std::to_string(DeviceLimits::kMaxBlocks) +
+                             " per device (docs/user_guide.md \"Limits\")");
+  const int capacity = static_cast<int>(wanted);
+  try {
+    grow_blocks_to(capacity);
+  } catch (const cuda::OutOfMemory& e) {
+    throw growth_failure("the active grid outgrew its capacity (" + std::to_string(block_capacity_) + " -> " +
+                             std::to_string(capacity) + " blocks",
+                         e);
+  }
+  peak_bytes_ = std::max(peak_bytes_, device_bytes());
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::grow_blocks_to(int capacity) {
+  if (log_)
+    *log_ << "fbar: GPU engine: grid blocks " << block_capacity_ << " -> " << capacity << " (hash table, grids)\n";
+  const int keep = std::min(block_capacity_, std::max(block_count_, stats_->block_count));
+  table_.grow(capacity, stream_);
+  grid_[0].grow(capacity, keep, stream_);
+  grid_[1].grow(capacity, keep, stream_);
+  velocity_.grow(capacity, keep, stream_);
+  if (fbar_) fbar_sums_.grow(capacity, 0, stream_);  // refilled before every use
+  if (asflip_) {
+    transported_[0].grow(capacity, keep, stream_);
+    transported_[1].grow(capacity, keep, stream_);
+    old_velocity_.grow(capacity, keep, stream_);
+  }
+  grid_[0].clear(keep, capacity, stream_);
+  grid_[1].clear(keep, capacity, stream_);
+  for (auto& b : bodies_) {
+    b->partition.grow_blocks(capacity, cur_, stream_);
+    // The kept layout's list again, at the new capacity (same counts: the same H and I the host holds).
+    if (b->partition.ordered()) list_blocks(*b, cur_, b->partition.list_counters());
+  }
+  block_capacity_ = capacity;
+  std::size_t temp = 0;
+  FBAR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, temp, static_cast<int*>(nullptr), static_cast<int*>(nullptr),
+                                                block_capacity_ + 1, stream_));
+  scan_temp_.allocate(temp);
+  scan_temp_bytes_ = temp;
+  if (placed_) mark_not_counted();  // per table block: the flags at the new capacity
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::grow_bins(BodyBase& b, int keep, int needed) {
+  long long wanted = std::max(64, b.partition.bin_capacity());
+  while (wanted < needed) wanted = wanted + wanted / 2;
+  const long long max_bins = DeviceLimits::kMaxSlots / 32;
+  if (needed > max_bins)
+    throw std::runtime_error("GpuEngine: body " + std::to_string(b.index) + " needs " + std::to_string(32LL * needed) +
+                             " particle slots at step " + std::to_string(steps_ + 1) + "; at most " +
+                             std::to_string(DeviceLimits::kMaxSlots) + " per body and device (docs/user_guide.md \"Limits\")");
+  const int capacity = static_cast<int>(std::min(wanted, max_bins));
+  try {
+    grow_bins_to(b, keep, capacity);
+  } catch (const cuda::OutOfMemory& e) {
+    throw growth_failure("the particle bins of body " + std::to_string(b.index) + " outgrew their capacity (" +
+                             std::to_string(b.partition.bin_capacity()) + " -> " + std::to_string(capacity) + " bins",
+                         e);
+  }
+  peak_bytes_ = std::max(peak_bytes_, device_bytes());
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::grow_for_arrivals(BodyBase& b, int written, long long needed) {
+  if (needed > DeviceLimits::kMaxSlots / 32)
+    throw std::runtime_error("GpuEngine: rank " + std::to_string(rank()) + " needs " + std::to_string(32 * needed) +
+                             " particle slots for body " + std::to_string(b.index) + " at step " +
+                             std::to_string(steps_ + 1) + "; at most " + std::to_string(DeviceLimits::kMaxSlots) +
+                             " per body and device (docs/user_guide.md \"Limits\")");
+  // The destinations G2P2G recorded (the partition's growth does not keep them).
+  cuda::DeviceArray<ParticleDest> dest;
+  dest.allocate(static_cast<std::size_t>(std::max(written, 1)));
+  if (written > 0)
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(dest.get(), b.partition.dest(), sizeof(ParticleDest) * written,
+                                    cudaMemcpyDeviceToDevice, stream_));
+  if (needed > b.partition.bin_capacity()) grow_bins(b, cur_, static_cast<int>(needed));
+  if (written > 0)
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(b.partition.dest(), dest.get(), sizeof(ParticleDest) * written,
+                                    cudaMemcpyDeviceToDevice, stream_));
+  if (b.bins_capacity(1 - cur_) < b.partition.bin_capacity())
+    b.grow_bins_keeping(1 - cur_, b.partition.bin_capacity(), written, stream_);
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+  peak_bytes_ = std::max(peak_bytes_, device_bytes());
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::grow_bins_to(BodyBase& b, int keep, int capacity) {
+  if (log_)
+    *log_ << "fbar: GPU engine: body " << b.index << " particle bins " << b.partition.bin_capacity() << " -> "
+          << capacity << "\n";
+  b.partition.grow_bins(capacity, keep, stream_);
+  if (record_ || b.aux.size() != 0) {
+    // Keep what the last G2P2G recorded (a frame may still read it).
+    cuda::DeviceArray<T> bigger;
+    bigger.allocate(b.partition.slots() * kAuxScalars);
+    if (b.aux.size())
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(bigger.get(), b.aux.get(), b.aux.bytes(), cudaMemcpyDeviceToDevice, stream_));
+    FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+    b.aux.swap(bigger);
+  }
+}
+
+/// After read_stats: grows the table/grids or the bins if the partition overflowed, then redoes the partition from
+/// the particles' new positions. Returns true when it did (read_stats() was called again).
+template <typename T, typename TG>
+bool MgspBenchmark<T, TG>::handle_overflow() {
+  bool grew = false;
+  if (stats_->table_overflow > 0 || stats_->block_count > block_capacity_) {
+    grow_blocks(2 * block_capacity_);
+    grew = true;
+  }
+  for (auto& b : bodies_)
+    if (body_stats_[b->index].total_bins > b->partition.bin_capacity()) {
+      grow_bins(*b, cur_, body_stats_[b->index].total_bins * 3 / 2);
+      grew = true;
+    }
+  if (!grew) return false;
+  // Redo: dest and counts of the next layout from the positions G2P2G wrote (bins[1 - cur] in layout(cur) order).
+  reset_stats(true);
+  const int next = 1 - cur_;
+  for (auto& b : bodies_) {
+    FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(next).count, 0, sizeof(int) * block_capacity_, stream_));
+    if (flat_source_)
+      b->dest_from_positions(*this, 0, nullptr, 0, b->particles);
+    else
+      b->dest_from_positions(*this, next, b->partition.layout(cur_).src, 0, b->source_slots);
+  }
+  partition_after_g2p2g();
+  read_stats();
+  return true;
+}
+
+template <typename T, typename TG>
+std::vector<FailureReport> MgspBenchmark<T, TG>::failures_of_try(double dt) const {
+  std::vector<FailureReport> out;
+  static constexpr FailureKind kKinds[kFailKinds] = {FailureKind::NonFinite, FailureKind::CflViolation,
+                                                     FailureKind::LeftDomain, FailureKind::Inverted};
+  for (const auto& b : bodies_) {
+    const BodyStepStats& s = body_stats_[b->index];
+    for (int k = 0; k < kFailKinds; ++k) {
+      if (s.failures[k] == 0) continue;
+      FailureReport f;
+      f.kind = kKinds[k];
+      f.body = b->index;
+      f.step = steps_ + 1;
+      f.time = time_;
+      f.dt = static_cast<double>(static_cast<T>(dt));  // the step size the kernels used (as the CPU engine reports)
+      f.count = s.failures[k];
+      f.first_particle = s.first_id[k];
+      out.push_back(f);
+    }
+  }
+  return out;
+}
+
+/// The start of a try: statistics reset, the bodies' sources and migration lists, and step 0: the grid holds the
+/// impulse of this dt (rescaled from dt_p2g_ when it differs).
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::begin_try(double dt) {
+  reset_stats(false);
+  for (auto& b : bodies_) {
+    b->source_slots = b->total_bins[cur_] * 32;
+    b->pending_particles = b->particles;
+  }
+  ensure_emigrant_lists();
+  pending_migrated_ = 0;
+  // 0. the grid must hold the impulse of this dt
+  if (dt != dt_p2g_) {
+    for (auto& b : bodies_) b->rescale_impulse(*this, static_cast<T>(dt - dt_p2g_));
+    if (decomposed()) halo_exchange({{grid_[gc_].instance().data(), GridBuffer<TG>::kBlockBytes}}, gc_, true);
+    dt_p2g_ = dt;
+  }
+  event_record(0);
+}
+
+/// Step 1: grid velocities from grid[gc] with gravity and the boundaries active at time_, the largest speed, and
+/// on a sample step the grid sensors into their slot (each try overwrites it).
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::update_grid(double dt) {
+  GridUpdateParams<TG> gp{};
+  gp.grid = grid_[gc_].instance();
+  gp.velocity = velocity_.instance();
+  if (asflip_) {
+    gp.transported = transported_[gc_].instance();
+    gp.old_velocity = old_velocity_.instance();
+  }
+  gp.coords = table_.view().coords;
+  gp.block_count = block_count_;
+  gp.dt = static_cast<TG>(dt);
+  gp.dx = kg_.dx;
+  gp.gravity = kg_.gravity;
+  gp.boundaries.count = 0;
+  gp.boundaries.profiles = kg_.profiles;
+  for (std::size_t i = 0; i < kg_.boundaries.size(); ++i)
+    if (boundary_active(kg_.boundaries[i], time_)) gp.boundaries.b[gp.boundaries.count++] = kg_.boundary_at_time(i, time_);
+  gp.stats = stats_d_;
+  if (block_count_ > 0) {
+    update_grid_velocity_query_max<TG><<<cuda::grid_for(block_count_, kGridUpdateThreads / 64),
+                                        kGridUpdateThreads, 0, stream_>>>(gp);
+    cuda::check_launch("update_grid_velocity_query_max");
+  }
+  if (grid_sample_slot_ >= 0 && grid_sensors_.count > 0) {  // a sample step (each try overwrites the slot)
+    SensorAccum* out = grid_samples_d_.get() + static_cast<std::size_t>(grid_sample_slot_) * grid_sensors_.count;
+    GridSensorSampleParams<TG> sp{};
+    sp.grid = gp.grid;
+    sp.velocity = gp.velocity;
+    sp.coords = gp.coords;
+    sp.block_count = block_count_;
+    sp.dt = gp.dt;
+    sp.dx = gp.dx;
+    sp.gravity = gp.gravity;
+    sp.slab = slab_;
+    sp.not_counted = placed_ ? not_counted_.get() : nullptr;
+    sp.sensors = grid_sensors_;
+    sp.partials = sensor_partials_d_.get();
+    const long long nodes = static_cast<long long>(block_count_) * 64;
+    const int per_sensor = static_cast<int>(
+        std::clamp<long long>((nodes + kSensorThreads - 1) / kSensorThreads, 1, kSensorBlocks));
+    sample_grid_sensors<TG><<<dim3(per_sensor, grid_sensors_.count), kSensorThreads, 0, stream_>>>(sp);
+    cuda::check_launch("sample_grid_sensors");
+    merge_sensor_partials<<<1, GridSensorSet<TG>::kMax, 0, stream_>>>(sp.partials, per_sensor, grid_sensors_.count,
+                                                                      out);
+    cuda::check_launch("merge_sensor_partials");
+  }
+}
+
+/// Step 2: dt of the next step on the device (its P2G impulse), from the wave speeds this state measured and the
+/// grid speed (decomposed: reduced over the ranks first); clamped to land on `target`, then on `following`.
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::launch_next_dt(double dt, bool cfl_dt, double target, double following) {
+  DtParams dp{};
+  dp.body_count = body_count();
+  for (const auto& b : bodies_) dp.bodies[b->index] = DtBody{b->spec.material.cfl, b->rest_wave_speed};
+  dp.wave_speed = wave_d_.get() + wave_cur_ * bodies_.size();
+  dp.default_dt = k_.default_dt;
+  dp.dx = scene_.simulation.dx;
+  dp.scale = retry_.scale;
+  dp.fixed_dt = cfl_dt ? 0.0 : dt;
+  // A step that reaches the target ends exactly on it (step_toward sets the clock so): time_ + dt may miss it
+  // by an ulp, which would leave the next step a sliver of 1e-19 s.
+  const bool reaches = dt >= target - time_;
+  dp.t_next = reaches ? target : time_ + dt;
+  // Landing on the target, the next step heads for `following`: its dt is clamped for that one.
+  dp.t_target = reaches && !std::isnan(following) ? following : target;
+  dp.stats = stats_d_;
+  if (decomposed()) {  // the maxima are stored as the bits of non-negative doubles: reduce them as doubles,
+    // the grid speed and every body's wave speed in one message (one NCCL call a step)
+    if (dt_inputs_d_.size() < bodies_.size() + 1) dt_inputs_d_.allocate(bodies_.size() + 1);
+    gather_dt_inputs<<<1, DtParams::kMaxBodies, 0, stream_>>>(stats_d_, wave_d_.get() + wave_cur_ * bodies_.size(),
+                                                               body_count(), dt_inputs_d_.get());
+    cuda::check_launch("gather_dt_inputs");
+    device_->allreduce_max(reinterpret_cast<double*>(dt_inputs_d_.get()), body_count() + 1, stream_);
+    dp.reduced = dt_inputs_d_.get();
+  }
+  compute_next_dt<<<1, 1, 0, stream_>>>(dp);
+  cuda::check_launch("compute_next_dt");
+}
+
+/// Step 3: G2P2G of every body into grid[1 - gc] and bins[1 - cur]; decomposed, the halo sums and the migration
+/// (in one exchange, or overlapping the interior G2P2G: options_.overlap_halo).
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::g2p2g_step(double dt) {
+  grid_[1 - gc_].clear(0, block_count_, stream_);
+  // New blocks appear during G2P2G (its leader threads zero them in grid_); the transported sums are cleared whole.
+  if (asflip_) transported_[1 - gc_].clear(0, block_capacity_, stream_);
+  FBAR_CUDA_CHECK(cudaMemsetAsync(wave_d_.get() + (1 - wave_cur_) * bodies_.size(), 0,
+                                  sizeof(unsigned long long) * bodies_.size(), stream_));
+  FBAR_CUDA_CHECK(cudaMemsetAsync(p2g_bound_d_.get() + (1 - bound_cur_) * bodies_.size(), 0,
+                                  sizeof(unsigned long long) * bodies_.size(), stream_));
+  for (auto& b : bodies_)
+    FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(1 - cur_).count, 0, sizeof(int) * block_capacity_, stream_));
+  if (capture_next_)  // the device frames are overwritten: their last download must be done
+    for (auto& b : bodies_) {
+      if (b->frame_copied) FBAR_CUDA_CHECK(cudaStreamWaitEvent(stream_, b->frame_copied, 0));
+      if (decomposed() && b->capture.x) prepare_capture(*b);
+    }
+  if (decomposed() && !options_.overlap_halo && !placed_) {
+    // The halo sums and the migration in one exchange (one NCCL group a step): both follow the whole G2P2G.
+    for (auto& b : bodies_) b->g2p2g(*this, false, static_cast<T>(dt));
+    event_record(2);
+    const BlockBuffers halo = step_halo_buffers(1 - gc_);
+    std::vector<comm::DeviceTransport::Message> messages = pack_halo_messages(halo, stream_);
+    MigrantMessage msg;
+    const std::vector<comm::DeviceTransport::Message> migrants = pack_migrant_messages(msg);
+    messages.insert(messages.end(), migrants.begin(), migrants.end());
+    device_->exchange(messages, stream_);
+    add_halo_messages(halo, 1 - gc_, false, stream_);
+    event_record(4);
+    unpack_migrant_messages(msg);
+    event_record(5);
+  } else if (decomposed()) {
+    g2p2g_and_halo(static_cast<T>(dt));
+    event_record(4);
+    migrate_particles();
+    event_record(5);
+  } else {
+    for (auto& b : bodies_) b->g2p2g(*this, false, static_cast<T>(dt));
+    event_record(2);
+    event_record(4);
+    event_record(5);
+  }
+}
+
+/// Kernel timing (set_kernel_timing): the phases of the committed try, from the step's events.
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::add_kernel_times() {
+  float ms = 0.f;
+  FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[0], events_[1]));
+  times_.grid_update_ms += ms;
+  FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[1], events_[2]));
+  times_.g2p2g_ms += ms;
+  FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[2], events_[4]));
+  times_.halo_ms += ms;
+  if (decomposed() && options_.overlap_halo) {  // hidden: what the halo stream took beyond the exposed part
+    float total = 0.f;
+    FBAR_CUDA_CHECK(cudaEventElapsedTime(&total, halo_events_[0], halo_events_[1]));
+    times_.halo_hidden_ms += std::max(0.f, total - ms);
+  }
+  FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[4], events_[5]));
+  times_.migration_ms += ms;
+  FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[5], events_[3]));
+  times_.partition_ms += ms;
+  ++times_.steps;
+}
+
+template <typename T, typename TG>
+StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target, double following) {
+  if (!(dt > 0.0) || !std::isfinite(dt)) throw std::invalid_argument("GpuEngine::step: dt must be positive");
+  // Seeded or restarted velocities (by ID): read by the initial P2G and by frame 0's capture; not needed any more.
+  for (auto& b : bodies_)
+    if (b->initial_v.size()) {
+      cuda::DeviceArray<T> done;
+      b->initial_v.swap(done);
+    }
+  StepReport report;
+  int range_repeats = 0, migration_tries = 0;
+  for (;;) {
+    begin_try(dt);
+    update_grid(dt);  // 1. grid update (and the grid sensors of a sample step)
+    launch_next_dt(dt, cfl_dt, target, following);  // 2. dt of the next step (its P2G impulse)
+    event_record(1);
+    g2p2g_step(dt);  // 3. G2P2G (and, decomposed, the halo sums and the migration)
+    // 4. partition of the next step
+    partition_after_g2p2g();
+    event_record(3);
+    // 5. the step's one readback
+    read_stats();
+    if (decomposed()) {
+      settle_migration();
+      agree_on_try();
+    }
+    if (stats_->internal_error)
+      throw std::runtime_error("GpuEngine: internal error (" + std::to_string(stats_->internal_error) +
+                               " arena lookups or particles outside their block) at step " +
+                               std::to_string(steps_ + 1));
+    if (decomposed() && migrant_most_ > migrant_capacity_) {
+      // Some rank sent more particles one way than a message holds: every rank grows the messages alike and
+      // repeats the try (the try's state is still the step's start). Twice in a row is an engine bug.
+      if (++migration_tries > 2)
+        throw std::runtime_error("GpuEngine: the migration messages did not grow enough at step " +
+                                 std::to_string(steps_ + 1));
+      migrant_capacity_ = std::max(2 * migrant_capacity_, 2 * migrant_most_);
+      ++migration_repeats_;
+      continue;
+    }
+    // A step that used more than half of the messages' room grows them for the next one (every rank alike).
+    if (decomposed() && 2 * migrant_most_ > migrant_capacity_) migrant_capacity_ = 2 * migrant_most_;
+    std::vector<FailureReport> failures = failures_of_try(dt);
+    if (failures.empty() && stats_->p2g_range > 0) {
+      // Contributions grew past the fixed-point bound (kernels/g2p2g_kernel.cuh): repeat the try with the bound it
+      // measured, which covers every particle of the same state. Not a failure; twice in a row is an engine bug.
+      if (++range_repeats > 2)
+        throw std::runtime_error("GpuEngine: the fixed-point P2G bound did not converge at step " +
+                                 std::to_string(steps_ + 1));
+      bound_cur_ = 1 - bound_cur_;
+      ++p2g_range_repeats_;
+      block_count_ = std::max(block_count_, std::min(stats_->block_count, block_capacity_));
+      continue;
+    }
+    if (failures.empty()) {
+      while (handle_overflow()) {
+      }
+      for (const auto& b : bodies_)
+        if (body_stats_[b->index].particles != b->pending_particles)
+          throw std::runtime_error("GpuEngine: the partition of body " + std::to_string(b->index) + " placed " +
+                                   std::to_string(body_stats_[b->index].particles) + " of " +
+                                   std::to_string(b->pending_particles) + " particles at step " +
+                                   std::to_string(steps_ + 1));
+      if (timing_) add_kernel_times();
+      commit(dt);
+      report.dt = dt;
+      report.steps = 1;
+      retry_.committed(cfl_dt);
+      return report;
+    }
+    if (retry_.retry(scene_.simulation.on_failure, failures, cfl_dt, dt, report, log_)) {
+      // Blocks inserted by the failed try stay in the table (zeroed in both grids); count them from now on.
+      block_count_ = std::max(block_count_, std::min(stats_->block_count, block_capacity_));
+      continue;
+    }
+    report.ok = false;
+    report.dt = dt;
+    report.failures = std::move(failures);
+    if (record_) aux_valid_ = false;  // the failed try wrote over the recorded v and C
+    return report;
+  }
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::commit(double dt) {
+  for (auto& b : bodies_) {
+    take_layout_stats(*b, 1 - cur_);
+    b->particles = b->pending_particles;
+  }
+  migrated_ += pending_migrated_;
+  cur_ = 1 - cur_;
+  gc_ = 1 - gc_;
+  wave_cur_ = 1 - wave_cur_;
+  bound_cur_ = 1 - bound_cur_;
+  time_ += dt;
+  ++steps_;
+  if (capture_next_) captured_step_ = steps_;
+  last_dt_ = dt;
+  dt_p2g_ = stats_->dt_next;
+  next_dt_ = stats_->dt_next;
+  dt_scale_at_compute_ = retry_.scale;
+  double max_speed_sq = 0.0;
+  std::memcpy(&max_speed_sq, &stats_->max_speed_sq, sizeof(double));
+  max_grid_speed_ = std::sqrt(max_speed_sq);
+  block_count_ = stats_->block_count;
+  aux_valid_ = record_;
+  if (decomposed() && halo_grew_) rebuild_halo(gc_);  // agreed: all ranks or none
+  // Headroom for the next step (grow between steps, never inside one): blocks at 3/4, bins at 9/10 of capacity.
+  if (block_count_ > block_capacity_ * 3 / 4) grow_blocks(2 * block_capacity_);
+  ensure_step_capacity();
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::ensure_step_capacity() {
+  for (auto& b : bodies_) {
+    const int need = b->total_bins[cur_];
+    if (need > b->partition.bin_capacity() * 9 / 10) grow_bins(*b, cur_, need * 3 / 2);
+    // The next G2P2G writes bins[1 - cur] (the previous state, free now) in layout(cur) order: it must hold every
+    // bin of that layout (the partition's bin capacity bounds it).
+    if (b->bins_capacity(1 - cur_) < b->partition.bin_capacity()) b->reallocate_bins(1 - cur_, b->partition.bin_capacity());
+  }
+  peak_bytes_ = std::max(peak_bytes_, device_bytes());
+}
+
+template <typename T, typename TG>
+StepReport MgspBenchmark<T, TG>::step_toward(double t_end, double t_following) {
+  const StepPlan plan = plan_step_toward(time_, t_end, next_dt());  // the CPU engine's rule (engine_common.h)
+  StepReport r = step_impl(plan.dt, true, t_end, t_following);
+  if (r.ok && plan.last && r.retries == 0) time_ = t_end;  // land on the target exactly, not t_end +- round-off
+  return r;
+}
+
+template <typename T, typename TG>
+StepReport MgspBenchmark<T, TG>::advance_to(double t_end) {
+  StepReport total;
+  while (time_ < t_end && total.absorb(step_toward(t_end))) {
+  }
+  return total;
+}
+
+}  // namespace fbar

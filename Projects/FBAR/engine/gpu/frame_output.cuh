@@ -1,0 +1,400 @@
+// Output: frame buffers and their capture, particle snapshots and frames (by ID), frames handed to the writer
+// thread, and the totals tests read (mass, energy, grid mass, device bytes). Part of MgspBenchmark.
+#pragma once
+
+#include "engine/gpu/mgsp_benchmark.cuh"
+
+namespace fbar {
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::allocate_frames() {
+  if (!options_.frames) return;
+  for (auto& bp : bodies_) {
+    BodyBase& b = *bp;  // frame_attrs: resolved for the plan
+    const FrameNeeds needs = frame_needs(b.frame_attrs);
+    FrameCapture<T> cap;
+    if (frame_float_columns(b.frame_attrs) > kMaxFrameColumns)
+      throw std::invalid_argument("bodies[" + std::to_string(b.index) + "].output_attribs: more than " +
+                                  std::to_string(kMaxFrameColumns) + " attributes besides ID");
+    for (const FrameAttributeSpec& a : b.frame_attrs)
+      if (a.column.quantity != FrameQuantity::Id) cap.column[cap.column_count++] = a.column;
+    cap.sigma = needs.sigma;
+    // One GPU: one entry per ID. A decomposed rank: its particles now, with room for arrivals (prepare_capture
+    // grows it), in ID order through the directory.
+    const std::size_t n = decomposed() ? static_cast<std::size_t>(b.particles) * 5 / 4 + 1024
+                                       : static_cast<std::size_t>(b.particles);
+    cap.particles = static_cast<int>(n);
+    b.frame_capacity = n;
+    if (decomposed()) {
+      const std::size_t words = static_cast<std::size_t>((b.global_particles + 31) / 32);
+      b.id_bits.allocate(std::max<std::size_t>(words, 1));
+      b.id_offset.allocate(words + 1);
+      b.id_counts.allocate(words + 1);
+      std::size_t temp = 0;
+      FBAR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, temp, static_cast<int*>(nullptr), static_cast<int*>(nullptr),
+                                                    static_cast<int>(words) + 1, stream_));
+      b.id_scan_temp.allocate(std::max<std::size_t>(temp, 1));
+      cap.id_bits = b.id_bits.get();
+      cap.id_offset = b.id_offset.get();
+    }
+    b.frame_x.allocate(3 * n);
+    b.frame_columns.allocate(static_cast<std::size_t>(cap.column_count) * n);
+    cap.x = b.frame_x.get();
+    cap.columns = b.frame_columns.get();
+    b.capture = cap;
+    FBAR_CUDA_CHECK(cudaEventCreateWithFlags(&b.frame_copied, cudaEventDisableTiming));
+  }
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::prepare_capture(BodyBase& b) {
+  if (static_cast<std::size_t>(b.particles) > b.frame_capacity) {  // arrivals outgrew the frame: the download first
+    if (b.frame_copied) FBAR_CUDA_CHECK(cudaEventSynchronize(b.frame_copied));
+    const std::size_t n = static_cast<std::size_t>(b.particles) * 5 / 4 + 1024;
+    b.frame_x.allocate(3 * n);
+    b.frame_columns.allocate(static_cast<std::size_t>(b.capture.column_count) * n);
+    b.capture.x = b.frame_x.get();
+    b.capture.columns = b.frame_columns.get();
+    b.capture.particles = static_cast<int>(n);
+    b.frame_capacity = n;
+    peak_bytes_ = std::max(peak_bytes_, device_bytes());
+  }
+  const int words = static_cast<int>((b.global_particles + 31) / 32);
+  FBAR_CUDA_CHECK(cudaMemsetAsync(b.id_bits.get(), 0, sizeof(unsigned) * std::max(words, 1), stream_));
+  b.mark_ids(*this);
+  count_id_bits<<<cuda::grid_for(words + 1, kOutputThreads), kOutputThreads, 0, stream_>>>(
+      b.id_bits.get(), words, b.id_counts.get());
+  cuda::check_launch("count_id_bits");
+  std::size_t temp = b.id_scan_temp.size();
+  FBAR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(b.id_scan_temp.get(), temp, b.id_counts.get(), b.id_offset.get(),
+                                                words + 1, stream_));
+  b.captured_particles = b.particles;
+}
+
+template <typename T, typename TG>
+std::vector<T> MgspBenchmark<T, TG>::gather_host(int body, cudaStream_t s) const {
+  BodyBase& b = body_at(body);
+  const int W = b.stored_scalars() + kAuxScalars;
+  // By ID over the whole body; a decomposed rank holds some IDs only (the others stay NaN: all bits set).
+  const std::size_t n = static_cast<std::size_t>(b.global_particles) * W;
+  cuda::DeviceArray<T> out;
+  out.allocate(std::max<std::size_t>(n, 1));
+  if (decomposed() && n) FBAR_CUDA_CHECK(cudaMemsetAsync(out.get(), 0xff, sizeof(T) * n, s));
+  FBAR_CUDA_CHECK(cudaMemsetAsync(missing_d_.get(), 0, sizeof(int), s));
+  auto* self = const_cast<MgspBenchmark*>(this);
+  b.gather(*self, out.get(), missing_d_.get(), s);
+  std::vector<T> host(n);
+  int missing = 0;
+  if (n) FBAR_CUDA_CHECK(cudaMemcpyAsync(host.data(), out.get(), sizeof(T) * n, cudaMemcpyDeviceToHost, s));
+  FBAR_CUDA_CHECK(cudaMemcpyAsync(&missing, missing_d_.get(), sizeof(int), cudaMemcpyDeviceToHost, s));
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(s));
+  if (missing) throw std::runtime_error("GpuEngine: " + std::to_string(missing) + " particles with an invalid ID");
+  return host;
+}
+
+template <typename T, typename TG>
+ParticleSnapshot<T> MgspBenchmark<T, TG>::snapshot(int body) const {
+  BodyBase& b = body_at(body);
+  const std::vector<T> r = gather_host(body, stream_);
+  const int S = b.stored_scalars();
+  const int W = S + kAuxScalars;
+  ParticleSnapshot<T> snap;
+  const std::size_t n = static_cast<std::size_t>(b.global_particles);
+  if (decomposed()) snap.present.assign(n, 0);
+  snap.x.resize(n);
+  snap.v.resize(n);
+  snap.C.resize(n);
+  snap.J.resize(n);
+  snap.sigma.resize(n);
+  if (b.stores_F()) snap.F.resize(n);
+  if (b.stores_logJp()) snap.logJp.resize(n);
+  const bool initial = steps_ == 0 && !aux_valid_;  // before the first step: v = initial velocity, C = 0 exactly
+  const Vec3<T> v0{{static_cast<T>(b.spec.velocity[0]), static_cast<T>(b.spec.velocity[1]),
+                    static_cast<T>(b.spec.velocity[2])}};
+  for (std::size_t p = 0; p < n; ++p) {
+    const T* q = r.data() + p * W;
+    if (decomposed()) {
+      if (std::isnan(q[0])) continue;
+      snap.present[p] = 1;
+    }
+    snap.x[p] = Vec3<T>{{q[0], q[1], q[2]}};
+    snap.v[p] = !initial ? Vec3<T>{{q[S], q[S + 1], q[S + 2]}} : b.initial_v_host.empty() ? v0 : b.initial_v_host[p];
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) snap.C[p](i, j) = q[S + 3 + 3 * i + j];
+    Mat3<T> F = Mat3<T>::identity(), sigma;
+    T logJp = T(0);
+    b.state_of(q, snap.J[p], F, sigma, logJp, snap.C[p]);
+    snap.sigma[p] = sigma;
+    if (b.stores_F()) snap.F[p] = F;
+    if (b.stores_logJp()) snap.logJp[p] = logJp;
+  }
+  return snap;
+}
+
+template <typename T, typename TG>
+io::ParticleFrame MgspBenchmark<T, TG>::frame(int body) const {
+  const BodyBase& b = body_at(body);
+  ParticleSnapshot<T> s = snapshot(body);
+  // A decomposed rank's frame: its particles only, in ID order, with their IDs.
+  std::vector<std::int64_t> ids;
+  if (!s.present.empty()) {
+    std::size_t w = 0;
+    for (std::size_t p = 0; p < s.present.size(); ++p) {
+      if (!s.present[p]) continue;
+      ids.push_back(static_cast<std::int64_t>(p));
+      s.x[w] = s.x[p];
+      s.v[w] = s.v[p];
+      s.C[w] = s.C[p];
+      s.J[w] = s.J[p];
+      s.sigma[w] = s.sigma[p];
+      if (!s.F.empty()) s.F[w] = s.F[p];
+      if (!s.logJp.empty()) s.logJp[w] = s.logJp[p];
+      ++w;
+    }
+    for (auto* v : {&s.x, &s.v}) v->resize(w);
+    for (auto* v : {&s.C, &s.sigma}) v->resize(w);
+    s.J.resize(w);
+    if (!s.F.empty()) s.F.resize(w);
+    if (!s.logJp.empty()) s.logJp.resize(w);
+  }
+  FrameSource<T> src;
+  if (!s.present.empty()) src.id = &ids;
+  src.x = &s.x;
+  src.v = &s.v;
+  src.mass = [&](std::size_t) { return b.mass; };
+  src.volume0 = [&](std::size_t) { return b.volume; };
+  src.J = [&] { return s.J; };
+  src.F = [&] {
+    if (!b.stores_F()) throw std::invalid_argument("DefGrad: the body's material stores no deformation gradient");
+    return s.F;
+  };
+  src.logJp = [&] {
+    if (!b.stores_logJp()) throw std::invalid_argument("logJp: the body's material stores no plastic state");
+    return s.logJp;
+  };
+  src.sigma = [&] { return s.sigma; };  // from the state and the recorded C (snapshot)
+  return build_frame(b.spec, body, src, "GPU engine");
+}
+
+/// Waits until the writer thread has released body b's pinned frame buffer (rethrowing a writer error meanwhile),
+/// then holds it; the wait counts as output wait.
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::wait_for_frame_slot(BodyBase& b, io::AsyncWriter& writer) {
+  const auto t0 = std::chrono::steady_clock::now();
+  std::unique_lock<std::mutex> lock(b.frame_slot->mutex);
+  while (b.frame_slot->busy) {
+    b.frame_slot->released.wait_for(lock, std::chrono::milliseconds(50));
+    if (b.frame_slot->busy && writer.failed()) {
+      lock.unlock();
+      writer.flush();  // rethrows the writer's error
+      lock.lock();
+    }
+  }
+  b.frame_slot->busy = true;
+  output_wait_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// A .bgeo frame without the exterior filter: pack_bgeo_records writes the file's point records into the pinned
+/// buffer (mapped) on the copy stream, and the writer thread only writes them out. n entries; words: the ID
+/// directory's words of a decomposed rank (by_directory), 0 otherwise.
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::submit_bgeo_records(BodyBase& b, const std::filesystem::path& path, io::AsyncWriter& writer,
+                                               std::size_t n, std::size_t words, bool by_directory) {
+  auto* host = static_cast<std::byte*>(b.frame_host.get());
+  const std::size_t record_bytes = 4 * (4 + b.frame_attrs.size());
+  BgeoPack<T> pack;
+  pack.x = b.frame_x.get();
+  pack.columns = b.frame_columns.get();
+  pack.stride = static_cast<std::size_t>(b.capture.particles);
+  pack.entries = static_cast<int>(n);
+  if (by_directory) {
+    pack.id_bits = b.id_bits.get();
+    pack.id_offset = b.id_offset.get();
+    pack.words = static_cast<int>(words);
+  }
+  pack.attributes = static_cast<int>(b.frame_attrs.size());
+  std::vector<io::BgeoAttribute> dictionary;
+  int column = 0;
+  for (std::size_t a = 0; a < b.frame_attrs.size(); ++a) {
+    const bool id = b.frame_attrs[a].column.quantity == FrameQuantity::Id;
+    pack.source[a] = id ? -1 : column++;
+    dictionary.push_back({b.frame_attrs[a].name, 1, id ? io::detail::kHoudiniInt : io::detail::kHoudiniFloat});
+  }
+  unsigned* out = nullptr;
+  FBAR_CUDA_CHECK(cudaHostGetDevicePointer(reinterpret_cast<void**>(&out), host, 0));
+  if (n) {
+    pack_bgeo_records<T><<<64, kOutputThreads, 0, copy_stream_>>>(pack, out);
+    cuda::check_launch("pack_bgeo_records");
+  }
+  FBAR_CUDA_CHECK(cudaEventRecord(b.frame_copied, copy_stream_));
+  const cudaEvent_t copied = b.frame_copied;
+  const std::shared_ptr<typename BodyBase::HostSlot> slot = b.frame_slot;
+  writer.submit_job([=] {
+    const typename BodyBase::HostSlot::Hold hold{slot};  // released once written
+    const auto t0 = std::chrono::steady_clock::now();
+    FBAR_CUDA_CHECK(cudaEventSynchronize(copied));
+    const auto t1 = std::chrono::steady_clock::now();
+    io::write_bgeo_records(path, n, dictionary, reinterpret_cast<const char*>(host));
+    if (std::getenv("FBAR_OUTPUT_TIMING")) {  // the writer's phases, for the output benchmark
+      const auto t2 = std::chrono::steady_clock::now();
+      const double wait = std::chrono::duration<double>(t1 - t0).count();
+      const double write = std::chrono::duration<double>(t2 - t1).count();
+      std::fprintf(stderr, "fbar: output timing: %s: records on the host after %.3f s, written in %.3f s (%.2f GB/s)\n",
+                   path.filename().string().c_str(), wait, write, 1e-9 * static_cast<double>(n * record_bytes) / write);
+    }
+  });
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer) {
+  // The frame is on the device already (the capture step, or capture_state before the first step). Its download
+  // runs on the copy stream into the body's pinned buffer, which the writer thread turns into the file; the step
+  // loop waits only when that buffer is still being read from the previous frame (output slower than simulation).
+  BodyBase& b = body_at(body);
+  if (!b.capture.x)
+    throw std::logic_error("GpuEngine::submit_frame: frames were not planned (GpuEngineOptions::frames)");
+  if (captured_step_ != steps_) {
+    if (steps_ != 0 || captured_step_ >= 0)
+      throw std::logic_error("GpuEngine::submit_frame: step " + std::to_string(steps_) +
+                             " did not capture a frame (set_frame_capture(true) before the step that lands on it)");
+    if (decomposed()) prepare_capture(b);
+    b.capture_state(*this);
+  }
+  wait_for_frame_slot(b, writer);
+  const bool by_directory = decomposed();
+  const std::size_t n = static_cast<std::size_t>(by_directory ? b.captured_particles : b.particles);
+  const int columns = b.capture.column_count;
+  const std::size_t words = by_directory ? static_cast<std::size_t>((b.global_particles + 31) / 32) : 0;
+  const io::ExteriorFilter exterior = exterior_filter(scene_, body);
+  // A .bgeo frame without the exterior filter: the GPU writes the file's point records into the pinned buffer
+  // (pack_bgeo_records) and the writer thread only writes them out. Other formats: positions and columns come down
+  // and the writer builds the frame.
+  const bool records = path.extension() == ".bgeo" && !exterior.on() &&
+                       b.frame_attrs.size() <= static_cast<std::size_t>(kMaxFrameColumns) + 1;
+  const std::size_t record_bytes = 4 * (4 + b.frame_attrs.size());
+  const std::size_t host_bytes =
+      records ? n * record_bytes : n * (3 * sizeof(T) + sizeof(float) * columns) + words * sizeof(unsigned);
+  if (!b.frame_host || b.frame_host_size < host_bytes) {  // the writer has released it (busy was false)
+    b.frame_host = cuda::pinned(std::max<std::size_t>(host_bytes, 1));
+    b.frame_host_size = std::max<std::size_t>(host_bytes, 1);
+  }
+  cudaEvent_t ready;
+  FBAR_CUDA_CHECK(cudaEventCreateWithFlags(&ready, cudaEventDisableTiming));
+  FBAR_CUDA_CHECK(cudaEventRecord(ready, stream_));
+  FBAR_CUDA_CHECK(cudaStreamWaitEvent(copy_stream_, ready, 0));
+  FBAR_CUDA_CHECK(cudaEventDestroy(ready));
+  auto* host = static_cast<std::byte*>(b.frame_host.get());
+  if (records) {
+    submit_bgeo_records(b, path, writer, n, words, by_directory);
+    return;
+  }
+  if (n) {
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(host, b.frame_x.get(), 3 * n * sizeof(T), cudaMemcpyDeviceToHost, copy_stream_));
+    // Column c of the device frame starts at c x capture.particles (a decomposed rank's frame has room for
+    // arrivals); the host copy packs them at c x n.
+    if (columns)
+      FBAR_CUDA_CHECK(cudaMemcpy2DAsync(host + 3 * n * sizeof(T), n * sizeof(float), b.frame_columns.get(),
+                                        static_cast<std::size_t>(b.capture.particles) * sizeof(float),
+                                        n * sizeof(float), static_cast<std::size_t>(columns), cudaMemcpyDeviceToHost,
+                                        copy_stream_));
+  }
+  if (words)  // the IDs of the rank's entries: the directory's set bits, in order
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(host + n * (3 * sizeof(T) + sizeof(float) * columns), b.id_bits.get(),
+                                    words * sizeof(unsigned), cudaMemcpyDeviceToHost, copy_stream_));
+  FBAR_CUDA_CHECK(cudaEventRecord(b.frame_copied, copy_stream_));
+  const cudaEvent_t copied = b.frame_copied;
+  const std::vector<FrameAttributeSpec> attrs = b.frame_attrs;
+  const std::shared_ptr<typename BodyBase::HostSlot> slot = b.frame_slot;
+  writer.submit_job([=] {
+    io::ParticleFrame f;
+    f.exterior = exterior;
+    {
+      const typename BodyBase::HostSlot::Hold hold{slot};  // released once the frame is built
+      FBAR_CUDA_CHECK(cudaEventSynchronize(copied));
+      // The copies out of the pinned buffer run on several threads (a 16M-particle frame is 0.4 GB of them).
+      const unsigned threads = std::max(1u, std::min(8u, std::thread::hardware_concurrency() / 2));
+      const T* x = reinterpret_cast<const T*>(host);
+      std::vector<Vec3<T>> positions(n);
+      io::detail::parallel_ranges(n, threads, [&](std::size_t lo, std::size_t hi) {
+        for (std::size_t p = lo; p < hi; ++p) positions[p] = Vec3<T>{{x[3 * p], x[3 * p + 1], x[3 * p + 2]}};
+      });
+      f.positions = std::move(positions);
+      const float* col = reinterpret_cast<const float*>(host + 3 * n * sizeof(T));
+      for (const FrameAttributeSpec& a : attrs) {
+        if (a.column.quantity == FrameQuantity::Id) {
+          std::vector<std::int32_t> ids(n);
+          if (words) {  // a decomposed rank's IDs, ascending
+            const auto* bits = reinterpret_cast<const unsigned*>(host + n * (3 * sizeof(T) + sizeof(float) * columns));
+            std::size_t k = 0;
+            for (std::size_t w = 0; w < words && k < n; ++w)
+              for (unsigned m = bits[w]; m != 0 && k < n; m &= m - 1)
+                ids[k++] = static_cast<std::int32_t>(32 * w + static_cast<std::size_t>(__builtin_ctz(m)));
+          } else {
+            io::detail::parallel_ranges(n, threads, [&](std::size_t lo, std::size_t hi) {  // frames are in ID order
+              std::iota(ids.begin() + lo, ids.begin() + hi, static_cast<std::int32_t>(lo));
+            });
+          }
+          f.add(a.name, 1, std::move(ids));
+        } else {
+          std::vector<float> values(n);
+          io::detail::parallel_ranges(n, threads, [&](std::size_t lo, std::size_t hi) {
+            std::copy(col + lo, col + hi, values.begin() + lo);
+          });
+          f.add(a.name, 1, std::move(values), a.unit);
+          col += n;
+        }
+      }
+    }
+    io::write_frame(path, f);
+  });
+}
+
+template <typename T, typename TG>
+double MgspBenchmark<T, TG>::total_mass() const {
+  double m = 0.0;
+  for (const auto& b : bodies_) m += static_cast<double>(b->particles) * static_cast<double>(b->mass);
+  return m;
+}
+
+template <typename T, typename TG>
+double MgspBenchmark<T, TG>::elastic_energy() const {
+  double e = 0.0;
+  for (int body = 0; body < body_count(); ++body) {
+    const BodyBase& b = body_at(body);
+    const std::vector<T> r = gather_host(body, stream_);
+    const int W = b.stored_scalars() + kAuxScalars;
+    for (std::size_t p = 0; p < static_cast<std::size_t>(b.global_particles); ++p)
+      if (!decomposed() || !std::isnan(r[p * W]))
+        e += static_cast<double>(b.volume) * b.energy_density_of(r.data() + p * W);
+  }
+  return e;
+}
+
+template <typename T, typename TG>
+double MgspBenchmark<T, TG>::grid_mass() const {
+  using L = GridLayout<TG>;
+  const std::size_t bytes = GridBuffer<TG>::kBlockBytes * static_cast<std::size_t>(block_count_);
+  std::vector<std::byte> host(bytes);
+  if (bytes) FBAR_CUDA_CHECK(cudaMemcpy(host.data(), grid_[gc_].instance().data(), bytes, cudaMemcpyDeviceToHost));
+  typename L::Buffer view(host.data(), static_cast<std::size_t>(block_count_));
+  double m = 0.0;
+  for (int b = 0; b < block_count_; ++b) {
+    const auto g = view.ch(placeholder::_0, b);
+    for (int n = 0; n < 64; ++n) m += static_cast<double>(g.val_1d(fbar::grid_mass, n));
+  }
+  return m;
+}
+
+template <typename T, typename TG>
+std::size_t MgspBenchmark<T, TG>::device_bytes() const {
+  std::size_t bytes = table_.bytes() + grid_[0].bytes() + grid_[1].bytes() + velocity_.bytes() + fbar_sums_.bytes() +
+                      transported_[0].bytes() + transported_[1].bytes() + old_velocity_.bytes() +
+                      stats_bytes_.bytes() + wave_d_.bytes() + p2g_bound_d_.bytes() + scan_temp_.bytes() +
+                      grid_samples_d_.bytes() + particle_samples_d_.bytes() + sensor_partials_d_.bytes() +
+                      track_d_.bytes();
+  for (const auto& b : bodies_)
+    bytes += b->bins_bytes() + b->partition.bytes() + b->aux.bytes() + b->frame_x.bytes() + b->frame_columns.bytes();
+  return bytes;
+}
+
+}  // namespace fbar

@@ -1,0 +1,217 @@
+// Sensors, trackers and checkpoints: grid and particle sensor samples into device slots, tracked particles by ID,
+// and the state a checkpoint holds (io/checkpoint.h). Part of MgspBenchmark.
+#pragma once
+
+#include "engine/gpu/mgsp_benchmark.cuh"
+
+namespace fbar {
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::set_grid_sensors(const std::vector<GridSensorSpec>& sensors) {
+  if (sensors.size() > static_cast<std::size_t>(GridSensorSet<TG>::kMax))
+    throw std::invalid_argument("grid-sensors: " + std::to_string(sensors.size()) + " enabled sensors; at most " +
+                                std::to_string(GridSensorSet<TG>::kMax) + " per run");
+  grid_sensors_ = GridSensorSet<TG>{};
+  for (const GridSensorSpec& spec : sensors)
+    grid_sensors_.s[grid_sensors_.count++] = make_grid_sensor_params<TG>(spec, static_cast<double>(k_.dx));
+  grid_sample_slot_ = -1;
+  if (grid_sensors_.count > 0) ensure_sensor_partials();
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::set_grid_sample(int slot) {
+  grid_sample_slot_ = slot;
+  if (slot < 0 || grid_sensors_.count == 0) return;
+  grow_samples(grid_samples_d_, static_cast<std::size_t>(slot + 1) * grid_sensors_.count);
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::grow_samples(cuda::DeviceArray<SensorAccum>& samples, std::size_t need) {
+  if (samples.size() >= need) return;
+  // Grow (rare: the slots of one frame interval), keeping the slots already sampled.
+  cuda::DeviceArray<SensorAccum> bigger;
+  bigger.allocate(std::max(need, 2 * samples.size()));
+  if (samples.size())
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(bigger.get(), samples.get(), samples.bytes(), cudaMemcpyDeviceToDevice, stream_));
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+  samples.swap(bigger);
+}
+
+template <typename T, typename TG>
+std::vector<SensorAccum> MgspBenchmark<T, TG>::grid_samples(int slots) const {
+  return download_samples(grid_samples_d_, static_cast<std::size_t>(slots) * grid_sensors_.count);
+}
+
+template <typename T, typename TG>
+std::vector<SensorAccum> MgspBenchmark<T, TG>::download_samples(const cuda::DeviceArray<SensorAccum>& samples,
+                                                                std::size_t n) const {
+  std::vector<SensorAccum> host(n);
+  if (n == 0) return host;
+  if (samples.size() < n) throw std::logic_error("GpuEngine: fewer sensor slots were sampled than asked for");
+  FBAR_CUDA_CHECK(cudaMemcpyAsync(host.data(), samples.get(), sizeof(SensorAccum) * n, cudaMemcpyDeviceToHost, stream_));
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+  return host;
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::set_particle_sensors(const std::vector<ParticleSensorSpec>& sensors) {
+  if (sensors.size() > static_cast<std::size_t>(ParticleSensorSet<T>::kMax))
+    throw std::invalid_argument("particle-sensors: " + std::to_string(sensors.size()) + " enabled sensors; at most " +
+                                std::to_string(ParticleSensorSet<T>::kMax) + " per run");
+  particle_sensors_ = ParticleSensorSet<T>{};
+  particle_sensors_read_v_ = false;
+  for (const ParticleSensorSpec& spec : sensors) {
+    const ParticleSensorParams<T> p = make_particle_sensor_params<T>(spec);
+    particle_sensors_read_v_ = particle_sensors_read_v_ || particle_sensor_reads_velocity(p.column);
+    particle_sensors_.s[particle_sensors_.count++] = p;
+  }
+  if (particle_sensors_.count > 0) ensure_sensor_partials();
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::ensure_sensor_partials() {
+  // One sample's per-CUDA-block partials, shared by the grid and the particle sensors (at most kMax of each).
+  static_assert(GridSensorSet<TG>::kMax == ParticleSensorSet<T>::kMax, "one partials buffer for both kinds");
+  if (sensor_partials_d_.size() == 0)
+    sensor_partials_d_.allocate(static_cast<std::size_t>(GridSensorSet<TG>::kMax) * kSensorBlocks);
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::keep_particle_inputs(bool on) {
+  // Only a sensor reading v or C pays for recording them, and only on the steps that may land on a sample time.
+  sensor_keep_ = on && (particle_sensors_read_v_ || trackers_read_v_);
+  update_record();
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::keep_checkpoint_inputs(bool on) {
+  checkpoint_keep_ = on;
+  update_record();
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::sample_particles(int slot) {
+  const int n = particle_sensors_.count;
+  if (n == 0) return;
+  const std::size_t per_slot = bodies_.size() * static_cast<std::size_t>(n);
+  grow_samples(particle_samples_d_, static_cast<std::size_t>(slot + 1) * per_slot);
+  const bool initial = steps_ == 0 && !aux_valid_;
+  if (particle_sensors_read_v_ && !initial && !aux_valid_)
+    throw std::logic_error("GpuEngine::sample_particles: the step that ended here did not record v and C "
+                           "(keep_particle_inputs was not set for it)");
+  for (auto& b : bodies_) {
+    const int slots = b->total_bins[cur_] * 32;
+    const int per_sensor = static_cast<int>(std::clamp<long long>((slots + kSensorThreads - 1) / kSensorThreads, 1,
+                                                                  kSensorBlocks));
+    SensorAccum* out = particle_samples_d_.get() + static_cast<std::size_t>(slot) * per_slot +
+                       static_cast<std::size_t>(b->index) * n;
+    b->sample_sensors(*this, aux_valid_ && particle_sensors_read_v_ ? b->aux.get() : nullptr, sensor_partials_d_.get(),
+                      per_sensor);
+    merge_sensor_partials<<<1, ParticleSensorSet<T>::kMax, 0, stream_>>>(sensor_partials_d_.get(), per_sensor, n, out);
+    cuda::check_launch("merge_sensor_partials");
+  }
+}
+
+template <typename T, typename TG>
+std::vector<SensorAccum> MgspBenchmark<T, TG>::particle_samples(int slots) const {
+  return download_samples(particle_samples_d_,
+                          static_cast<std::size_t>(slots) * bodies_.size() * particle_sensors_.count);
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::set_tracker(int body, const TrackerSet& set) {
+  body_at(body);
+  trackers_.resize(bodies_.size());
+  trackers_[body] = set;
+  for (int a = 0; a < set.attribs; ++a) trackers_read_v_ = trackers_read_v_ || particle_sensor_reads_velocity(set.column[a]);
+  if (track_d_.size() == 0) track_d_.allocate(static_cast<std::size_t>(TrackerSet::kMaxIds) * (TrackerSet::kMaxAttribs + 1));
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::track(int body, std::vector<double>& values, std::vector<double>& present) {
+  BodyBase& b = body_at(body);
+  const TrackerSet empty{};
+  const TrackerSet& t = static_cast<std::size_t>(body) < trackers_.size() ? trackers_[body] : empty;
+  values.assign(static_cast<std::size_t>(t.ids) * t.attribs, 0.0);
+  present.assign(t.ids, 0.0);
+  if (t.ids == 0) return;
+  const bool initial = steps_ == 0 && !aux_valid_;
+  if (trackers_read_v_ && !initial && !aux_valid_)
+    throw std::logic_error("GpuEngine::track: the step that ended here did not record v and C");
+  double* v_d = track_d_.get();
+  double* present_d = v_d + static_cast<std::size_t>(TrackerSet::kMaxIds) * TrackerSet::kMaxAttribs;
+  FBAR_CUDA_CHECK(cudaMemsetAsync(v_d, 0, track_d_.bytes(), stream_));
+  b.track(*this, aux_valid_ ? b.aux.get() : nullptr, t, v_d, present_d);
+  FBAR_CUDA_CHECK(cudaMemcpyAsync(values.data(), v_d, sizeof(double) * values.size(), cudaMemcpyDeviceToHost, stream_));
+  FBAR_CUDA_CHECK(cudaMemcpyAsync(present.data(), present_d, sizeof(double) * present.size(), cudaMemcpyDeviceToHost,
+                                  stream_));
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+}
+
+template <typename T, typename TG>
+io::Checkpoint MgspBenchmark<T, TG>::checkpoint() const {
+  if (!checkpoint_ready())
+    throw std::logic_error("GpuEngine::checkpoint: the last step did not record the particles' v and C "
+                           "(keep_checkpoint_inputs(true) before it)");
+  io::Checkpoint c;
+  c.engine = "gpu";
+  c.precision = to_string(scene_.simulation.precision);
+  c.rank = rank();
+  c.ranks = ranks();
+  c.time = time_;
+  c.steps = steps_;
+  c.last_dt = last_dt_;
+  c.next_dt = next_dt();
+  c.max_grid_speed = max_grid_speed_;
+  c.dt_scale = retry_.scale;
+  c.clean_steps = retry_.clean_steps;
+  if (decomposed()) {
+    c.slab_axis = slabs_.axis;
+    c.slab_cuts = slabs_.cuts;
+  }
+  const bool initial = steps_ == 0 && !aux_valid_;  // before the first step: v = initial velocity, C = 0 exactly
+  for (const auto& bp : bodies_) {
+    const BodyBase& b = *bp;
+    const std::vector<T> r = gather_host(b.index, stream_);
+    const int S = b.stored_scalars();
+    const int W = S + kAuxScalars;
+    io::CheckpointBody out;
+    out.law = to_string(b.spec.material.law);
+    out.state_scalars = S - 3;
+    out.global_particles = b.global_particles;
+    out.max_wave_speed = b.rest_wave_speed;
+    const Vec3d v0{{b.spec.velocity[0], b.spec.velocity[1], b.spec.velocity[2]}};
+    const std::size_t n = static_cast<std::size_t>(b.particles);  // this rank's
+    out.id.resize(n);
+    out.x.resize(3 * n);
+    out.v.resize(3 * n);
+    out.C.resize(9 * n);
+    out.mass.assign(n, static_cast<double>(b.mass));
+    out.volume.assign(n, static_cast<double>(b.volume));
+    out.state.resize(static_cast<std::size_t>(S - 3) * n);
+    std::size_t k = 0;
+    for (long long p = 0; p < b.global_particles; ++p) {
+      const T* q = r.data() + static_cast<std::size_t>(p) * W;
+      if (decomposed() && std::isnan(q[0])) continue;  // another rank's particle
+      if (k == n) throw std::runtime_error("GpuEngine::checkpoint: more particles by ID than the rank holds");
+      out.id[k] = p;
+      for (int a = 0; a < 3; ++a) {
+        out.x[3 * k + a] = static_cast<double>(q[a]);
+        out.v[3 * k + a] = !initial                    ? static_cast<double>(q[S + a])
+                           : b.initial_v_host.empty() ? v0[a]
+                                                       : static_cast<double>(b.initial_v_host[static_cast<std::size_t>(p)][a]);
+      }
+      for (int i = 0; i < 9; ++i) out.C[9 * k + i] = initial ? 0.0 : static_cast<double>(q[S + 3 + i]);
+      for (int i = 3; i < S; ++i) out.state[static_cast<std::size_t>(S - 3) * k + (i - 3)] = static_cast<double>(q[i]);
+      out.max_wave_speed = std::max(out.max_wave_speed, b.wave_speed_of(q));
+      ++k;
+    }
+    if (k != n)
+      throw std::runtime_error("GpuEngine::checkpoint: " + std::to_string(k) + " particles found by ID, " +
+                               std::to_string(n) + " held");
+    c.bodies.push_back(std::move(out));
+  }
+  return c;
+}
+
+}  // namespace fbar

@@ -1,0 +1,94 @@
+// The scenes of the decomposition tests (CPU ranks: tests/engine/cpu/test_decomposition.cpp; GPU ranks:
+// tests/engine/gpu/test_decomposition_gpu.cu and its MPI check), one definition for both engines.
+#pragma once
+
+#include "../../physics/physics_test_support.h"
+
+namespace fbar::test {
+
+/// A water column (0.3 m wide along x, 0.2 m tall) collapsing in a 0.6 m tank: slabs along x, the water of the left
+/// slabs flows across the cuts. `schemes`: also ASFLIP (alpha 0.9, beta 0 / 0.2) and F-bar (psi 1), whose grid
+/// channels (v^n, the cell sums) cross the halo too.
+inline Scene dam_break(bool schemes) {
+  Scene scene = empty_scene(r3(0.64, 0.4, 0.2), 0.02, r3(0, -9.81, 0));
+  BodySpec water = box_body(Constitutive::JFluid, r3(0.04, 0.04, 0.04), r3(0.3, 0.2, 0.12));
+  water.material.bulk_modulus = 2e5;
+  water.material.viscosity = 1e-3;
+  if (schemes) {
+    water.algorithm.use_asflip = true;
+    water.algorithm.asflip_alpha = 0.9;
+    water.algorithm.asflip_beta_min = 0.0;
+    water.algorithm.asflip_beta_max = 0.2;
+    water.algorithm.use_fbar = true;
+    water.algorithm.fbar_psi = 1.0;
+  }
+  scene.bodies.push_back(water);
+  BoundarySpec walls;
+  walls.object = BoundaryObject::Walls;
+  walls.contact = Contact::Slip;
+  walls.domain_start = r3(0.04, 0.04, 0.04);  // the water's faces: it fills the tank's corner
+  walls.domain_end = r3(0.60, 0.36, 0.16);
+  scene.boundaries.push_back(walls);
+  return scene;
+}
+
+/// ClaymoreUW users' load-cell check (issue 31): water H = 0.2 m deep filling a Walls box [0, 0.2] x [0, 0.3] x
+/// [0, D = 0.04] m to its faces (dx 0.01, JFluid rho 1000, K 5e5 Pa, started hydrostatic), with a Force load cell
+/// against each x wall from outside, as scenes written for ClaymoreUW place them: [-0.05, 0] read X-, [0.2, 0.25]
+/// read X+ (both boxes over every y and z). Each reads the wall's load rho g H^2 D / 2 = 7.848 N (kClaymoreTankLoad).
+inline Scene claymore_tank(Contact contact = Contact::Separable) {
+  Scene scene = empty_scene(r3(0.2, 0.3, 0.04), 0.01, r3(0, -9.81, 0));
+  BodySpec water = box_body(Constitutive::JFluid, r3(0, 0, 0), r3(0.2, 0.2, 0.04));
+  water.material.bulk_modulus = 5e5;  // c = 22 m/s: the GPU tests' fixed 2e-4 s steps are at CFL 0.45
+  water.initial_state = InitialState::Hydrostatic;
+  scene.bodies.push_back(water);
+  BoundarySpec walls;
+  walls.object = BoundaryObject::Walls;
+  walls.contact = contact;
+  walls.domain_start = r3(0, 0, 0);
+  walls.domain_end = r3(0.2, 0.3, 0.04);
+  scene.boundaries.push_back(walls);
+  scene.grid_sensors = {grid_sensor_spec("Force", SensorOperation::Sum, r3(-0.05, -0.05, -0.05), r3(0, 0.35, 0.09),
+                                         r3(1, 0, 0), -1),
+                        grid_sensor_spec("Force", SensorOperation::Sum, r3(0.2, -0.05, -0.05), r3(0.25, 0.35, 0.09),
+                                         r3(1, 0, 0), 1)};
+  return scene;
+}
+constexpr double kClaymoreTankLoad = 1000.0 * 9.81 * 0.2 * 0.2 * 0.04 / 2;  ///< [N] rho g H^2 D / 2
+
+/// A soft block (E 1e4 Pa) travelling at 2 m/s along x without gravity: every particle crosses one or more cuts.
+/// `ranks` > 3 lengthens it (0.08 m, two GPU particle-block planes, per rank) so that every rank's slab is at least
+/// two planes wide: on 4 ranks its particles cross three cuts.
+inline Scene travelling_block(int ranks = 1) {
+  Scene scene = empty_scene(r3(0.8, 0.2, 0.2), 0.01, r3(0, 0, 0));
+  const double length = ranks > 3 ? 0.08 * ranks : 0.16;
+  BodySpec block = box_body(Constitutive::FixedCorotated, r3(0.06, 0.06, 0.06), r3(length, 0.08, 0.08), r3(2, 0, 0));
+  block.material.youngs_modulus = 1e4;
+  scene.bodies.push_back(block);
+  return scene;
+}
+
+/// ClaymoreUW's placement (bodies[].gpu): the dam break's water column whole on GPU 0 and a soft block (E 1e5 Pa,
+/// rho 500) falling into it at 1 m/s whole on GPU 1, so that their grid blocks are shared by ranks that are not
+/// slab neighbours. `mixed`: also a second, taller water column on the right spread over every rank by space
+/// ("gpu": "all"); its slabs (along y, its tallest extent) cut through the other two bodies' blocks.
+inline Scene placed_bodies(bool mixed) {
+  Scene scene = dam_break(false);
+  scene.bodies[0].gpu = 0;
+  BodySpec block = box_body(Constitutive::FixedCorotated, r3(0.2, 0.26, 0.06), r3(0.08, 0.06, 0.08), r3(0, -1, 0));
+  block.material.youngs_modulus = 1e5;
+  block.material.rho = 500.0;
+  block.gpu = 1;
+  scene.bodies.push_back(block);
+  if (mixed) {
+    BodySpec right = box_body(Constitutive::JFluid, r3(0.44, 0.04, 0.04), r3(0.14, 0.28, 0.12));
+    right.material.bulk_modulus = 2e5;
+    right.material.viscosity = 1e-3;
+    right.gpu = kAllGpus;
+    right.model = 1;
+    scene.bodies.push_back(right);
+  }
+  return scene;
+}
+
+}  // namespace fbar::test

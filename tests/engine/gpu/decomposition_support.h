@@ -1,0 +1,159 @@
+// Scenes and per-rank runs shared by the GPU decomposition test (threads) and its MPI check (one process per rank).
+#pragma once
+
+#include <cuda_runtime.h>
+
+#include <cmath>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "comm/device_transport.h"
+#include "comm/placement.h"
+#include "comm/slab_partition.h"
+#include "comm/transport.h"
+#include "engine/gpu/gpu_engine.h"
+#include "../cpu/decomposition_scenes.h"
+#include "gpu_test_support.h"
+
+namespace fbar::test {
+
+struct ParticleState {
+  Vec3d x, v;
+};
+using StateById = std::map<std::pair<int, int>, ParticleState>;
+
+struct RunResult {
+  StateById states;
+  std::vector<double> mass;  ///< per body, per particle [kg]
+  std::string error;
+  double time = 0.0;
+  long long steps = 0;
+  long long migrated = 0;
+  std::size_t halo_blocks = 0;
+  std::size_t halo_particle_blocks = 0;  ///< most particle blocks a step ran before the halo exchange
+  bool always_owned = true;
+  int rebalances = 0;        ///< times the slabs were chosen again
+  long long migration_repeats = 0;  ///< steps repeated because migrants overflowed the messages (summed over ranks)
+  double imbalance = 0.0;    ///< particles per rank at the end, max / mean - 1
+};
+
+/// One rank: `steps` CFL steps on CUDA device `gpu`, then every particle it holds. host: null for a run without
+/// decomposition; nccl: NCCL between the ranks (each on its own GPU), else peer copies between threads; overlap:
+/// GpuEngineOptions::overlap_halo; rebalance_every > 0: every that many steps the step keeps the checkpoint inputs
+/// and rebalance_if_drifted() follows it (as the run loop does at frames); migrant_capacity > 0: the migration
+/// messages' first capacity (GpuEngineOptions::migrant_capacity).
+inline RunResult run_rank(const Scene& scene, comm::Transport* host, int steps, int gpu = 0, bool nccl = false,
+                          bool overlap = true, int rebalance_every = 0, int migrant_capacity = 0) {
+  RunResult out;
+  try {
+    FBAR_CUDA_CHECK(cudaSetDevice(gpu));
+    std::unique_ptr<comm::DeviceTransport> device;
+    GpuEngineOptions options;
+    if (host) {
+      device = nccl ? comm::make_nccl_transport(*host) : comm::make_thread_device_transport(*host);
+      options.ranks = host;
+      options.device_ranks = device.get();
+      options.overlap_halo = overlap;
+      if (migrant_capacity > 0) options.migrant_capacity = migrant_capacity;
+    }
+    GpuEngine<double> engine(scene, options);
+    engine.set_log(nullptr);
+    engine.set_record_velocities(true);
+    for (int s = 0; s < steps; ++s) {
+      const bool point = rebalance_every > 0 && (s + 1) % rebalance_every == 0;
+      engine.keep_checkpoint_inputs(point && engine.rebalance_due());
+      const StepReport r = engine.step();
+      if (!r.ok) {
+        out.error = r.message();
+        return out;
+      }
+      if (point) engine.rebalance_if_drifted();
+      out.halo_blocks = std::max(out.halo_blocks, engine.halo_blocks());
+      out.halo_particle_blocks = std::max(out.halo_particle_blocks, engine.halo_particle_blocks());
+    }
+    out.time = engine.time();
+    out.steps = engine.steps();
+    out.migrated = engine.migrated();
+    out.migration_repeats = engine.migration_repeats();
+    out.rebalances = engine.rebalances();
+    out.imbalance = engine.imbalance();
+    const comm::SlabPartition& slabs = engine.slabs();
+    const double inv_dx = 1.0 / scene.simulation.dx;
+    const std::vector<int> homes = comm::body_ranks(scene, host ? host->size() : 1);  // bodies[].gpu
+    for (int b = 0; b < engine.body_count(); ++b) {
+      out.mass.push_back(engine.particle_mass(b));
+      const ParticleSnapshot<double> s = engine.snapshot(b);
+      // The rank's frame: its particles in ID order, the same positions as its snapshot.
+      const io::ParticleFrame frame = engine.frame(b);
+      std::size_t k = 0;
+      for (std::size_t p = 0; p < s.x.size(); ++p) {
+        if (!s.present.empty() && !s.present[p]) continue;
+        if (k >= frame.size() || max_abs(frame.position(k) - s.x[p]) != 0.0)
+          out.error = "the frame of body " + std::to_string(b) + " differs from its snapshot at particle " +
+                      std::to_string(p);
+        ++k;
+      }
+      if (k != frame.size()) out.error = "the frame of body " + std::to_string(b) + " has extra rows";
+      for (std::size_t p = 0; p < s.x.size(); ++p) {
+        if (!s.present.empty() && !s.present[p]) continue;
+        out.states[{b, static_cast<int>(p)}] = {s.x[p], s.v[p]};
+        // The GPU engine's particle block: floor((base - 1) / 4), base = floor(x / dx - 0.5).
+        const double x = s.x[p][slabs.axis];
+        const int block = static_cast<int>(std::floor((std::floor(x * inv_dx - 0.5) - 1.0) / 4.0));
+        const int home = homes[static_cast<std::size_t>(b)];  // a placed body: its rank, wherever it goes
+        if ((home >= 0 ? home : slabs.owner(block)) != engine.rank()) out.always_owned = false;
+      }
+    }
+  } catch (const std::exception& e) {
+    out.error = e.what();
+    if (host) host->abort(1);  // the other ranks' collectives throw instead of waiting for this one
+  }
+  return out;
+}
+
+
+/// How far a decomposed run's particles are from one rank's (by ID; IDs missing from `many` are skipped: the
+/// callers check the ID sets first).
+struct Comparison {
+  double max_dx = 0, max_dv = 0;  ///< [m], [m/s]
+  double momentum = 0;            ///< |sum m v - sum m v'| / sum m |v| [-]
+};
+inline Comparison compare(const RunResult& one, const StateById& many) {
+  Comparison c;
+  double scale = 0;
+  Vec3d pa = Vec3d::zero(), pb = Vec3d::zero();
+  for (const auto& [key, a] : one.states) {
+    const auto it = many.find(key);
+    if (it == many.end()) continue;
+    const double m = one.mass[static_cast<std::size_t>(key.first)];
+    c.max_dx = std::max(c.max_dx, max_abs(a.x - it->second.x));
+    c.max_dv = std::max(c.max_dv, max_abs(a.v - it->second.v));
+    pa = pa + a.v * m;
+    pb = pb + it->second.v * m;
+    scale += m * norm(a.v);
+  }
+  c.momentum = scale > 0 ? max_abs(pa - pb) / scale : 0.0;
+  return c;
+}
+
+// Tolerances. The GPU sums P2G contributions with atomics in arrival order, and its fixed-point P2G arena rounds
+// each contribution to a quantum proportional to the largest particle momentum of the rank (kernels/
+// g2p2g_kernel.cuh): so two runs on ONE rank already differ in the last bits of a node's sums, and a decomposed
+// run rounds with each rank's own quantum and adds the neighbour's halo sums as one more term. What is compared is
+// "the same run up to summation order and rounding". Measured on an H100 (double, 2 and 3 ranks, 120 steps):
+// dam breaks max |dx| 3.3e-16 m, |dv| 4.9e-15 m/s, momentum 5.8e-16; the travelling block (a body edge with
+// light nodes sets the grid speed, so dt) |dx| 6.0e-13 m, |dv| 8.7e-15 m/s, time 2.3e-12 relative, over five
+// runs. The bounds leave a factor of 15 or more.
+constexpr double kPositionTolerance = 1e-11;  // [m]
+constexpr double kVelocityTolerance = 1e-12;  // [m/s]
+constexpr double kMomentumTolerance = 1e-14;  // [-] of sum m |v|
+constexpr double kTimeTolerance = 1e-10;      // [-] relative
+// A rebalance builds the device state again from the particles (the restart path): the grid of its first step comes
+// from a fresh P2G rather than the fused one, so the rebalanced run is the one-rank run to the restart's tolerance
+// (GpuCheckpoint: 1e-9 m after 150 steps in double).
+constexpr double kRebalancedPositionTolerance = 1e-9;  // [m]
+constexpr double kRebalancedVelocityTolerance = 1e-8;  // [m/s]
+
+}  // namespace fbar::test

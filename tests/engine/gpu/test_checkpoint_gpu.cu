@@ -1,0 +1,254 @@
+// Checkpoints and restart on the GPU engine: a GpuEngine continued from its own checkpoint (through the HDF5 file)
+// follows the run that was never stopped to the order of the atomic sums, in double and single precision with
+// ASFLIP, F-bar and a plastic body; run_gpu writes frame checkpoints and a SIGTERM checkpoint (one recording step
+// after the request), and a restart from either writes the remaining frames of the uninterrupted run.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <csignal>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "engine/cpu/cpu_engine.h"
+#include "engine/engine_api.h"
+#include "engine/gpu/gpu_engine.h"
+#include "MnSystem/IO/async_writer.h"
+#include "MnSystem/IO/particle_io.h"
+#include "engine/stop_request.h"
+#include "io/checkpoint.h"
+#include "scene/scene_parse.h"
+#include "../cpu/decomposition_scenes.h"
+#include "../resume_support.h"
+#include "../run_support.h"
+#include "gpu_test_support.h"
+
+namespace fbar {
+namespace {
+
+namespace fs = std::filesystem;
+using test::r3;
+
+fs::path scratch(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("fbar_gpu_checkpoint_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+/// The dam break with ASFLIP and F-bar and a Drucker-Prager block beside it.
+Scene two_body_scene(Precision precision) {
+  Scene scene = test::dam_break(true);
+  scene.simulation.precision = precision;
+  BodySpec sand = test::box_body(Constitutive::DruckerPrager, r3(0.44, 0.04, 0.04), r3(0.1, 0.1, 0.12));
+  sand.model = 1;
+  scene.bodies.push_back(sand);
+  return scene;
+}
+
+template <typename T, typename TG>
+void expect_engine_restart(Precision precision, double tolerance) {
+  const fs::path dir = scratch(std::string("engine_") + to_string(precision));
+  const Scene scene = two_body_scene(precision);
+  GpuEngine<T, TG> a(scene);
+  a.set_log(nullptr);
+  for (int s = 0; s < 150; ++s) {
+    a.keep_checkpoint_inputs(s == 149);
+    ASSERT_TRUE(a.step().ok);
+  }
+  ASSERT_TRUE(a.checkpoint_ready());
+  const fs::path file = io::checkpoint_step_path(dir, a.steps(), 0);
+  io::write_checkpoint(file, a.checkpoint());
+  const io::Checkpoint c = io::read_checkpoint_set(file);
+  EXPECT_EQ(c.engine, "gpu");
+  EXPECT_EQ(c.steps, 150);
+  GpuEngineOptions options;
+  options.restart = &c;
+  GpuEngine<T, TG> b(scene, options);
+  b.set_log(nullptr);
+  EXPECT_EQ(b.steps(), a.steps());
+  EXPECT_EQ(b.time(), a.time());
+  EXPECT_EQ(b.next_dt(), a.next_dt());
+  EXPECT_TRUE(b.checkpoint_ready());  // the restart's P2G recorded v and C
+  for (int s = 0; s < 150; ++s) {
+    ASSERT_TRUE(a.step().ok);
+    ASSERT_TRUE(b.step().ok);
+  }
+  EXPECT_EQ(b.steps(), a.steps());
+  // The CFL dt follows the grid speed, whose atomic maxima are exact but whose velocities carry the sums' round-off.
+  EXPECT_NEAR(b.time(), a.time(), (precision == Precision::Single ? 1e-6 : 1e-12) * a.time());
+  for (int body = 0; body < 2; ++body) {
+    const ParticleSnapshot<T> sa = a.snapshot(body), sb = b.snapshot(body);
+    ASSERT_EQ(sa.x.size(), sb.x.size());
+    double worst = 0.0, worst_J = 0.0;
+    for (std::size_t p = 0; p < sa.x.size(); ++p) {
+      for (int d = 0; d < 3; ++d) worst = std::max(worst, std::fabs(static_cast<double>(sa.x[p][d] - sb.x[p][d])));
+      worst_J = std::max(worst_J, std::fabs(static_cast<double>(sa.J[p] - sb.J[p])));
+    }
+    EXPECT_LT(worst, tolerance) << "body " << body;
+    EXPECT_LT(worst_J, tolerance * 100) << "body " << body;
+    EXPECT_EQ(sb.logJp.empty(), sa.logJp.empty());
+  }
+}
+
+// ClaymoreUW's resume on the GPU engine: bodies seeded from .bgeo frames (has_attributes) start in the frame's state
+// (velocity, J of the water; velocity, F and logJp of the sand: equal to the CPU engine's seeding, as floats), and
+// then follow the CPU engine's run of the same seeded scene to round-off (double, 20 steps of the GPU's dt).
+TEST(GpuResume, ABgeoFrameSeedsBodiesAsOnTheCpuEngine) {
+  FBAR_REQUIRE_DEVICE();
+  const fs::path dir = scratch("resume_bgeo");
+  Scene a = two_body_scene(Precision::Double);
+  a.bodies[1].velocity = r3(0.5, 0.0, -0.25);
+  test::output_state_attributes(a);
+  CpuEngine<double> run(a);
+  run.set_log(nullptr);
+  for (int i = 0; i < 40; ++i) ASSERT_TRUE(run.step().ok);
+  const Scene b = test::seeded_from_frames(a, run, dir);
+  CpuEngine<double> cpu(b);
+  cpu.set_log(nullptr);
+  GpuEngineOptions with_frames;
+  with_frames.frames = true;
+  GpuEngine<double, double> gpu(b, with_frames);
+  gpu.set_log(nullptr);
+  {
+    // Frame 0 of the seeded state (ClaymoreUW's resume writes it first): the seeds' velocities, as the CPU's frame.
+    io::AsyncWriter writer(1);
+    gpu.submit_frame(1, dir / "gpu_frame0.bgeo", writer);
+    writer.close();
+    const io::ParticleFrame written = io::read_bgeo(dir / "gpu_frame0.bgeo");
+    const io::ParticleFrame seeded = cpu.frame(1);
+    ASSERT_EQ(written.size(), seeded.size());
+    EXPECT_EQ(written.find("Velocity_X")->floats(), seeded.find("Velocity_X")->floats());
+    EXPECT_EQ(written.find("Velocity_Z")->floats(), seeded.find("Velocity_Z")->floats());
+  }
+  for (int k = 0; k < 2; ++k) {
+    const io::ParticleFrame seeded = cpu.frame(k);
+    const ParticleSnapshot<double> s = gpu.snapshot(k);
+    ASSERT_EQ(s.x.size(), seeded.size()) << "body " << k;
+    const std::vector<float>& vx = seeded.find("Velocity_X")->floats();
+    const std::vector<float>& vz = seeded.find("Velocity_Z")->floats();
+    for (std::size_t p = 0; p < s.x.size(); ++p) {
+      ASSERT_EQ(static_cast<float>(s.v[p][0]), vx[p]) << "body " << k << " particle " << p;
+      ASSERT_EQ(static_cast<float>(s.v[p][2]), vz[p]) << "body " << k << " particle " << p;
+      if (k == 0) {
+        ASSERT_EQ(static_cast<float>(s.J[p]), seeded.find("J")->floats()[p]) << "particle " << p;
+      } else {
+        ASSERT_EQ(static_cast<float>(s.logJp[p]), seeded.find("logJp")->floats()[p]) << "particle " << p;
+        ASSERT_EQ(static_cast<float>(s.F[p](0, 1)), seeded.find("DefGrad_XY")->floats()[p]) << "particle " << p;
+        ASSERT_EQ(static_cast<float>(s.F[p](2, 2)), seeded.find("DefGrad_ZZ")->floats()[p]) << "particle " << p;
+      }
+    }
+  }
+  for (int i = 0; i < 20; ++i) {
+    const StepReport r = gpu.step();
+    ASSERT_TRUE(r.ok);
+    ASSERT_TRUE(cpu.step(r.dt).ok);
+  }
+  for (int k = 0; k < 2; ++k) {
+    const io::ParticleFrame f = cpu.frame(k);
+    const ParticleSnapshot<double> s = gpu.snapshot(k);
+    double worst = 0.0;
+    for (std::size_t p = 0; p < s.x.size(); ++p)
+      for (int d = 0; d < 3; ++d) worst = std::max(worst, std::fabs(s.x[p][d] - f.position(p)[d]));
+    EXPECT_LT(worst, 1e-9) << "body " << k;
+  }
+}
+
+// Double: the continued run's positions within 1e-9 m of the uninterrupted run's after 150 more steps (the grid
+// rebuilt by the restart's P2G differs from the fused G2P2G's only in the order of its atomic sums).
+TEST(GpuCheckpoint, EngineContinuesFromItsCheckpointDouble) {
+  FBAR_REQUIRE_DEVICE();
+  expect_engine_restart<double, double>(Precision::Double, 1e-9);
+}
+// Single precision (fixed-point P2G arena): float round-off, 150 steps of a splashing column.
+TEST(GpuCheckpoint, EngineContinuesFromItsCheckpointSingle) {
+  FBAR_REQUIRE_DEVICE();
+  expect_engine_restart<float, float>(Precision::Single, 2e-4);
+}
+
+/// The numbers of a CSV frame (header skipped), row by row.
+std::vector<std::vector<double>> read_frame(const fs::path& p) {
+  std::ifstream in(p);
+  std::string line;
+  std::getline(in, line);
+  std::vector<std::vector<double>> rows;
+  while (std::getline(in, line)) {
+    std::vector<double> row;
+    std::stringstream ss(line);
+    for (std::string cell; std::getline(ss, cell, ',');) row.push_back(std::stod(cell));
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+void expect_same_frames(const fs::path& a, const fs::path& b, int from, int to) {
+  for (int f = from; f <= to; ++f)
+    for (int m = 0; m < 2; ++m) {
+      const std::string name = io::frame_file_name(m, 0, f, ".csv");
+      ASSERT_TRUE(fs::exists(b / name)) << name;
+      const auto ra = read_frame(a / name), rb = read_frame(b / name);
+      ASSERT_EQ(ra.size(), rb.size()) << name;
+      for (std::size_t r = 0; r < ra.size(); ++r) {
+        ASSERT_EQ(ra[r].size(), rb[r].size());
+        for (std::size_t k = 0; k < ra[r].size(); ++k)
+          ASSERT_NEAR(ra[r][k], rb[r][k], 1e-6 * (1.0 + std::fabs(ra[r][k]))) << name << " row " << r << " col " << k;
+      }
+    }
+}
+
+// run_gpu: checkpoint_every = 2 writes frames 2 and 4; a restart from frame 2 writes frames 3..5 as the full run did;
+// SIGTERM mid-run writes a checkpoint after one more (recording) step, and a restart from it completes the run.
+TEST(GpuCheckpoint, RunGpuRestartsFromFrameAndSignalCheckpoints) {
+  FBAR_REQUIRE_DEVICE();
+  const fs::path a = scratch("run_a"), b = scratch("run_b"), c = scratch("run_c");
+  Scene scene = two_body_scene(Precision::Double);
+  scene.simulation.fps = 50.0;
+  scene.simulation.frames = 5;
+  scene.simulation.save_suffix = ".csv";
+  scene.simulation.checkpoint_every = 2;
+  scene.bodies[0].output_attribs = {"ID", "Velocity_X", "Velocity_Y", "J"};
+  scene.bodies[1].output_attribs = {"ID", "logJp", "Pressure"};
+  RunOptions options;
+  options.quiet = true;
+  scene.simulation.save_path = a.string();
+  const RunResult full = run_gpu(scene, options);
+  ASSERT_EQ(full.exit_code, 0) << full.message;
+  EXPECT_TRUE(fs::exists(io::checkpoint_frame_path(a, 2, 0)));
+  EXPECT_TRUE(fs::exists(io::checkpoint_frame_path(a, 4, 0)));
+  scene.simulation.save_path = b.string();
+  options.restart = io::checkpoint_frame_path(a, 2, 0).string();
+  const RunResult resumed = run_gpu(scene, options);
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.message;
+  EXPECT_EQ(resumed.restarted_from_frame, 2);
+  EXPECT_FALSE(fs::exists(b / io::frame_file_name(0, 0, 2, ".csv")));
+  expect_same_frames(a, b, 3, 5);
+
+  // A stop request when frame 1's progress line is written (as a signal arriving then): the next step records v and
+  // C, then the checkpoint.
+  scene.simulation.save_path = c.string();
+  scene.simulation.checkpoint_every = 0;
+  options.restart.clear();
+  clear_stop_request();
+  test::StopWhenLogged stop("frame 1/", SIGTERM);
+  std::ostream log(&stop);
+  RunOptions logged = options;
+  logged.quiet = false;
+  logged.log = &log;
+  const RunResult stopped = run_gpu(scene, logged);
+  clear_stop_request();
+  ASSERT_EQ(stopped.exit_code, 128 + SIGTERM) << stopped.message << stop.text();
+  EXPECT_EQ(stopped.frames_written, 1);
+  ASSERT_FALSE(stopped.checkpoint.empty()) << stopped.message;
+  const io::Checkpoint cp = io::read_checkpoint(stopped.checkpoint);
+  EXPECT_EQ(cp.reason, "SIGTERM");
+  EXPECT_EQ(cp.steps, stopped.steps);  // one recording step after the request
+  options.restart = stopped.checkpoint;
+  const RunResult rest = run_gpu(scene, options);
+  ASSERT_EQ(rest.exit_code, 0) << rest.message;
+  expect_same_frames(a, c, stopped.frames_written + 1, 5);
+}
+
+}  // namespace
+}  // namespace fbar
