@@ -15,7 +15,7 @@ struct MgspBenchmark<T, TG>::BodyBase {
   /// Slots of bins[1 - cur] the partition reads: the G2P2G's layout slots, then the particles received this try.
   int source_slots = 0;
   int pending_particles = 0;     ///< particles on this rank after this try's migration
-  /// Decomposed runs: the slots of a try's emigrants, as G2P2G lists them (2 x migrant_capacity_ entries).
+  /// Decomposed runs: the slots of a try's emigrants, as G2P2G lists them (2 x dec_.migrant_capacity entries).
   cuda::DeviceArray<int> emigrant_slots;
   T mass = T(0), volume = T(0);
   double rest_wave_speed = 0.0;
@@ -349,9 +349,9 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     const int slots = this->total_bins[e.cur_] * 32;
     const Vec3<T> v0{{static_cast<T>(this->spec.velocity[0]), static_cast<T>(this->spec.velocity[1]),
                       static_cast<T>(this->spec.velocity[2])}};
-    ::fbar::sample_particle_sensors<M, T><<<dim3(per_sensor, e.particle_sensors_.count), kSensorThreads, 0, e.stream_>>>(
+    ::fbar::sample_particle_sensors<M, T><<<dim3(per_sensor, e.sensors_.particle.count), kSensorThreads, 0, e.stream_>>>(
         bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, aux, v0, params, this->mass, this->volume,
-        e.particle_sensors_, partials);
+        e.sensors_.particle, partials);
     cuda::check_launch("sample_particle_sensors");
   }
 

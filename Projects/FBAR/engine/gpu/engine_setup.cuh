@@ -19,13 +19,13 @@ MgspBenchmark<T, TG>::MgspBenchmark(const Scene& scene, const std::vector<std::v
   if (options.ranks && options.ranks->size() != options.device_ranks->size())
     throw std::invalid_argument("GpuEngine: the host and device transports have different rank counts");
   if (options.ranks && options.ranks->size() > 1) {
-    host_ = options.ranks;
-    device_ = options.device_ranks;
+    dec_.host = options.ranks;
+    dec_.device = options.device_ranks;
   }
   if (options.migrant_capacity < 1)
     throw std::invalid_argument("GpuEngine: migrant_capacity must be at least 1");
-  migrant_capacity_ = options.migrant_capacity;
-  slabs_ = comm::choose_slabs(comm::PlaneCounts{}, 1);  // all of space (a decomposed run chooses below)
+  dec_.migrant_capacity = options.migrant_capacity;
+  dec_.slabs = comm::choose_slabs(comm::PlaneCounts{}, 1);  // all of space (a decomposed run chooses below)
   if (positions && positions->size() != scene_.bodies.size())
     throw std::invalid_argument("GpuEngine: one position list per body");
   if (scene_.bodies.size() > static_cast<std::size_t>(DtParams::kMaxBodies))
@@ -214,14 +214,14 @@ MgspBenchmark<T, TG>::~MgspBenchmark() {
   // Buffers free themselves; streams and events last (no throw from a destructor).
   if (stream_) cudaStreamSynchronize(stream_);
   if (copy_stream_) cudaStreamSynchronize(copy_stream_);
-  if (halo_stream_) cudaStreamSynchronize(halo_stream_);
+  if (dec_.halo_stream) cudaStreamSynchronize(dec_.halo_stream);
   for (cudaEvent_t& e : events_)
     if (e) cudaEventDestroy(e);
-  for (cudaEvent_t& e : halo_events_)
+  for (cudaEvent_t& e : dec_.halo_events)
     if (e) cudaEventDestroy(e);
-  if (halo_ready_) cudaEventDestroy(halo_ready_);
-  if (halo_done_) cudaEventDestroy(halo_done_);
-  if (halo_stream_) cudaStreamDestroy(halo_stream_);
+  if (dec_.halo_ready) cudaEventDestroy(dec_.halo_ready);
+  if (dec_.halo_done) cudaEventDestroy(dec_.halo_done);
+  if (dec_.halo_stream) cudaStreamDestroy(dec_.halo_stream);
   if (stream_) cudaStreamDestroy(stream_);
   if (copy_stream_) cudaStreamDestroy(copy_stream_);
 }
@@ -244,10 +244,10 @@ void MgspBenchmark<T, TG>::allocate_device_state(const std::vector<std::vector<V
     // The highest priority: its pack / exchange / add kernels take SMs as the interior G2P2G's blocks retire.
     int least = 0, greatest = 0;
     FBAR_CUDA_CHECK(cudaDeviceGetStreamPriorityRange(&least, &greatest));
-    FBAR_CUDA_CHECK(cudaStreamCreateWithPriority(&halo_stream_, cudaStreamNonBlocking, greatest));
-    FBAR_CUDA_CHECK(cudaEventCreateWithFlags(&halo_ready_, cudaEventDisableTiming));
-    FBAR_CUDA_CHECK(cudaEventCreateWithFlags(&halo_done_, cudaEventDisableTiming));
-    for (cudaEvent_t& e : halo_events_) FBAR_CUDA_CHECK(cudaEventCreate(&e));
+    FBAR_CUDA_CHECK(cudaStreamCreateWithPriority(&dec_.halo_stream, cudaStreamNonBlocking, greatest));
+    FBAR_CUDA_CHECK(cudaEventCreateWithFlags(&dec_.halo_ready, cudaEventDisableTiming));
+    FBAR_CUDA_CHECK(cudaEventCreateWithFlags(&dec_.halo_done, cudaEventDisableTiming));
+    for (cudaEvent_t& e : dec_.halo_events) FBAR_CUDA_CHECK(cudaEventCreate(&e));
   }
 
   // Capacities from the plan (options may start them smaller: tests exercise growth).
@@ -402,7 +402,7 @@ void MgspBenchmark<T, TG>::initial_p2g() {
   if (decomposed()) {
     settle_migration();
     agree_on_try();
-    if (migrant_most_ > migrant_capacity_)  // the initial P2G moves nothing: no rank sends any
+    if (dec_.migrant_most > dec_.migrant_capacity)  // the initial P2G moves nothing: no rank sends any
       throw std::runtime_error("GpuEngine: internal error: the initial P2G sent more particles than one message holds");
   }
   if (stats_->internal_error) throw std::runtime_error("GpuEngine: internal error in the initial P2G");
@@ -414,9 +414,9 @@ void MgspBenchmark<T, TG>::initial_p2g() {
                                std::to_string(b->pending_particles) + " particles of body " + std::to_string(b->index));
     b->particles = b->pending_particles;
   }
-  migrated_ += pending_migrated_;
+  dec_.migrated += dec_.pending_migrated;
   block_count_ = stats_->block_count;
-  if (decomposed() && halo_grew_) rebuild_halo(0);
+  if (decomposed() && dec_.halo_grew) rebuild_halo(0);
   cur_ = 1;
   gc_ = 0;
   // The initial G2P2G measured the wave speed of the state the run starts from into slot 1: the first step's dt

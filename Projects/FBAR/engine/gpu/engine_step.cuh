@@ -94,12 +94,12 @@ void MgspBenchmark<T, TG>::list_blocks(BodyBase& b, int l, int* counters) {
                 "list_particle_blocks counts into two adjacent ints");
   // Rank r's particle planes [lo, hi) scatter into grid planes [lo, hi]: plane lo is shared with rank r - 1 and
   // plane hi with rank r + 1, so the particle planes lo and hi - 1 are the halo particle planes.
-  const int first_lo = halo_[0].peer >= 0 ? halo_[0].plane : INT_MIN;
-  const int first_hi = halo_[1].peer >= 0 ? halo_[1].plane - 1 : INT_MIN;
+  const int first_lo = dec_.halo[0].peer >= 0 ? dec_.halo[0].plane : INT_MIN;
+  const int first_hi = dec_.halo[1].peer >= 0 ? dec_.halo[1].plane - 1 : INT_MIN;
   FBAR_CUDA_CHECK(cudaMemsetAsync(counters, 0, 2 * sizeof(int), stream_));
   const int capacity = b.partition.block_capacity();
   list_particle_blocks<<<cuda::grid_for(capacity, kHaloThreads), kHaloThreads, 0, stream_>>>(
-      b.partition.layout(l).count, capacity, table_.view(), slab_.axis, first_lo, first_hi, b.partition.layout(l).order,
+      b.partition.layout(l).count, capacity, table_.view(), dec_.slab.axis, first_lo, first_hi, b.partition.layout(l).order,
       counters);
   cuda::check_launch("list_particle_blocks");
 }
@@ -167,7 +167,7 @@ void MgspBenchmark<T, TG>::grow_blocks_to(int capacity) {
                                                 block_capacity_ + 1, stream_));
   scan_temp_.allocate(temp);
   scan_temp_bytes_ = temp;
-  if (placed_) mark_not_counted();  // per table block: the flags at the new capacity
+  if (dec_.placed) mark_not_counted();  // per table block: the flags at the new capacity
 }
 
 template <typename T, typename TG>
@@ -293,7 +293,7 @@ void MgspBenchmark<T, TG>::begin_try(double dt) {
     b->pending_particles = b->particles;
   }
   ensure_emigrant_lists();
-  pending_migrated_ = 0;
+  dec_.pending_migrated = 0;
   // 0. the grid must hold the impulse of this dt
   if (dt != dt_p2g_) {
     for (auto& b : bodies_) b->rescale_impulse(*this, static_cast<T>(dt - dt_p2g_));
@@ -329,8 +329,8 @@ void MgspBenchmark<T, TG>::update_grid(double dt) {
                                         kGridUpdateThreads, 0, stream_>>>(gp);
     cuda::check_launch("update_grid_velocity_query_max");
   }
-  if (grid_sample_slot_ >= 0 && grid_sensors_.count > 0) {  // a sample step (each try overwrites the slot)
-    SensorAccum* out = grid_samples_d_.get() + static_cast<std::size_t>(grid_sample_slot_) * grid_sensors_.count;
+  if (sensors_.grid_sample_slot >= 0 && sensors_.grid.count > 0) {  // a sample step (each try overwrites the slot)
+    SensorAccum* out = sensors_.grid_samples_d.get() + static_cast<std::size_t>(sensors_.grid_sample_slot) * sensors_.grid.count;
     GridSensorSampleParams<TG> sp{};
     sp.grid = gp.grid;
     sp.velocity = gp.velocity;
@@ -339,16 +339,16 @@ void MgspBenchmark<T, TG>::update_grid(double dt) {
     sp.dt = gp.dt;
     sp.dx = gp.dx;
     sp.gravity = gp.gravity;
-    sp.slab = slab_;
-    sp.not_counted = placed_ ? not_counted_.get() : nullptr;
-    sp.sensors = grid_sensors_;
-    sp.partials = sensor_partials_d_.get();
+    sp.slab = dec_.slab;
+    sp.not_counted = dec_.placed ? dec_.not_counted.get() : nullptr;
+    sp.sensors = sensors_.grid;
+    sp.partials = sensors_.partials_d.get();
     const long long nodes = static_cast<long long>(block_count_) * 64;
     const int per_sensor = static_cast<int>(
         std::clamp<long long>((nodes + kSensorThreads - 1) / kSensorThreads, 1, kSensorBlocks));
-    sample_grid_sensors<TG><<<dim3(per_sensor, grid_sensors_.count), kSensorThreads, 0, stream_>>>(sp);
+    sample_grid_sensors<TG><<<dim3(per_sensor, sensors_.grid.count), kSensorThreads, 0, stream_>>>(sp);
     cuda::check_launch("sample_grid_sensors");
-    merge_sensor_partials<<<1, GridSensorSet<TG>::kMax, 0, stream_>>>(sp.partials, per_sensor, grid_sensors_.count,
+    merge_sensor_partials<<<1, GridSensorSet<TG>::kMax, 0, stream_>>>(sp.partials, per_sensor, sensors_.grid.count,
                                                                       out);
     cuda::check_launch("merge_sensor_partials");
   }
@@ -375,12 +375,12 @@ void MgspBenchmark<T, TG>::launch_next_dt(double dt, bool cfl_dt, double target,
   dp.stats = stats_d_;
   if (decomposed()) {  // the maxima are stored as the bits of non-negative doubles: reduce them as doubles,
     // the grid speed and every body's wave speed in one message (one NCCL call a step)
-    if (dt_inputs_d_.size() < bodies_.size() + 1) dt_inputs_d_.allocate(bodies_.size() + 1);
+    if (dec_.dt_inputs_d.size() < bodies_.size() + 1) dec_.dt_inputs_d.allocate(bodies_.size() + 1);
     gather_dt_inputs<<<1, DtParams::kMaxBodies, 0, stream_>>>(stats_d_, wave_d_.get() + wave_cur_ * bodies_.size(),
-                                                               body_count(), dt_inputs_d_.get());
+                                                               body_count(), dec_.dt_inputs_d.get());
     cuda::check_launch("gather_dt_inputs");
-    device_->allreduce_max(reinterpret_cast<double*>(dt_inputs_d_.get()), body_count() + 1, stream_);
-    dp.reduced = dt_inputs_d_.get();
+    dec_.device->allreduce_max(reinterpret_cast<double*>(dec_.dt_inputs_d.get()), body_count() + 1, stream_);
+    dp.reduced = dec_.dt_inputs_d.get();
   }
   compute_next_dt<<<1, 1, 0, stream_>>>(dp);
   cuda::check_launch("compute_next_dt");
@@ -404,7 +404,7 @@ void MgspBenchmark<T, TG>::g2p2g_step(double dt) {
       if (b->frame_copied) FBAR_CUDA_CHECK(cudaStreamWaitEvent(stream_, b->frame_copied, 0));
       if (decomposed() && b->capture.x) prepare_capture(*b);
     }
-  if (decomposed() && !options_.overlap_halo && !placed_) {
+  if (decomposed() && !options_.overlap_halo && !dec_.placed) {
     // The halo sums and the migration in one exchange (one NCCL group a step): both follow the whole G2P2G.
     for (auto& b : bodies_) b->g2p2g(*this, false, static_cast<T>(dt));
     event_record(2);
@@ -413,7 +413,7 @@ void MgspBenchmark<T, TG>::g2p2g_step(double dt) {
     MigrantMessage msg;
     const std::vector<comm::DeviceTransport::Message> migrants = pack_migrant_messages(msg);
     messages.insert(messages.end(), migrants.begin(), migrants.end());
-    device_->exchange(messages, stream_);
+    dec_.device->exchange(messages, stream_);
     add_halo_messages(halo, 1 - gc_, false, stream_);
     event_record(4);
     unpack_migrant_messages(msg);
@@ -443,7 +443,7 @@ void MgspBenchmark<T, TG>::add_kernel_times() {
   times_.halo_ms += ms;
   if (decomposed() && options_.overlap_halo) {  // hidden: what the halo stream took beyond the exposed part
     float total = 0.f;
-    FBAR_CUDA_CHECK(cudaEventElapsedTime(&total, halo_events_[0], halo_events_[1]));
+    FBAR_CUDA_CHECK(cudaEventElapsedTime(&total, dec_.halo_events[0], dec_.halo_events[1]));
     times_.halo_hidden_ms += std::max(0.f, total - ms);
   }
   FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[4], events_[5]));
@@ -483,18 +483,18 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
       throw std::runtime_error("GpuEngine: internal error (" + std::to_string(stats_->internal_error) +
                                " arena lookups or particles outside their block) at step " +
                                std::to_string(steps_ + 1));
-    if (decomposed() && migrant_most_ > migrant_capacity_) {
+    if (decomposed() && dec_.migrant_most > dec_.migrant_capacity) {
       // Some rank sent more particles one way than a message holds: every rank grows the messages alike and
       // repeats the try (the try's state is still the step's start). Twice in a row is an engine bug.
       if (++migration_tries > 2)
         throw std::runtime_error("GpuEngine: the migration messages did not grow enough at step " +
                                  std::to_string(steps_ + 1));
-      migrant_capacity_ = std::max(2 * migrant_capacity_, 2 * migrant_most_);
-      ++migration_repeats_;
+      dec_.migrant_capacity = std::max(2 * dec_.migrant_capacity, 2 * dec_.migrant_most);
+      ++dec_.migration_repeats;
       continue;
     }
     // A step that used more than half of the messages' room grows them for the next one (every rank alike).
-    if (decomposed() && 2 * migrant_most_ > migrant_capacity_) migrant_capacity_ = 2 * migrant_most_;
+    if (decomposed() && 2 * dec_.migrant_most > dec_.migrant_capacity) dec_.migrant_capacity = 2 * dec_.migrant_most;
     std::vector<FailureReport> failures = failures_of_try(dt);
     if (failures.empty() && stats_->p2g_range > 0) {
       // Contributions grew past the fixed-point bound (kernels/g2p2g_kernel.cuh): repeat the try with the bound it
@@ -542,7 +542,7 @@ void MgspBenchmark<T, TG>::commit(double dt) {
     take_layout_stats(*b, 1 - cur_);
     b->particles = b->pending_particles;
   }
-  migrated_ += pending_migrated_;
+  dec_.migrated += dec_.pending_migrated;
   cur_ = 1 - cur_;
   gc_ = 1 - gc_;
   wave_cur_ = 1 - wave_cur_;
@@ -559,7 +559,7 @@ void MgspBenchmark<T, TG>::commit(double dt) {
   max_grid_speed_ = std::sqrt(max_speed_sq);
   block_count_ = stats_->block_count;
   aux_valid_ = record_;
-  if (decomposed() && halo_grew_) rebuild_halo(gc_);  // agreed: all ranks or none
+  if (decomposed() && dec_.halo_grew) rebuild_halo(gc_);  // agreed: all ranks or none
   // Headroom for the next step (grow between steps, never inside one): blocks at 3/4, bins at 9/10 of capacity.
   if (block_count_ > block_capacity_ * 3 / 4) grow_blocks(2 * block_capacity_);
   ensure_step_capacity();

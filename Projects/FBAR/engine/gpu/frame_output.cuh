@@ -390,8 +390,8 @@ std::size_t MgspBenchmark<T, TG>::device_bytes() const {
   std::size_t bytes = table_.bytes() + grid_[0].bytes() + grid_[1].bytes() + velocity_.bytes() + fbar_sums_.bytes() +
                       transported_[0].bytes() + transported_[1].bytes() + old_velocity_.bytes() +
                       stats_bytes_.bytes() + wave_d_.bytes() + p2g_bound_d_.bytes() + scan_temp_.bytes() +
-                      grid_samples_d_.bytes() + particle_samples_d_.bytes() + sensor_partials_d_.bytes() +
-                      track_d_.bytes();
+                      sensors_.grid_samples_d.bytes() + sensors_.particle_samples_d.bytes() + sensors_.partials_d.bytes() +
+                      sensors_.track_d.bytes();
   for (const auto& b : bodies_)
     bytes += b->bins_bytes() + b->partition.bytes() + b->aux.bytes() + b->frame_x.bytes() + b->frame_columns.bytes();
   return bytes;

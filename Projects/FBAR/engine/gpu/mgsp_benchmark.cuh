@@ -78,7 +78,9 @@
 #include "geometry/geometry.h"
 #include "engine/gpu/gpu_engine.h"
 #include "engine/gpu/grid_buffer.cuh"
+#include "engine/gpu/decomposition/decomposition_state.cuh"
 #include "engine/gpu/hash_table.cuh"
+#include "engine/gpu/sensor_state.cuh"
 #include "engine/gpu/memory_plan.h"
 #include "engine/gpu/mgmpm_kernels.cuh"
 #include "engine/gpu/particle_buffer.cuh"
@@ -179,16 +181,16 @@ class MgspBenchmark {
   double grid_mass() const;
   std::size_t active_grid_blocks() const { return static_cast<std::size_t>(block_count_); }
   std::size_t device_bytes() const;
-  int rank() const { return host_ ? host_->rank() : 0; }
-  int ranks() const { return host_ ? host_->size() : 1; }
-  const comm::SlabPartition& slabs() const { return slabs_; }
+  int rank() const { return dec_.host ? dec_.host->rank() : 0; }
+  int ranks() const { return dec_.host ? dec_.host->size() : 1; }
+  const comm::SlabPartition& slabs() const { return dec_.slabs; }
   /// Particles per rank after the last step (or the start), max / mean - 1; the same on every rank (0: one rank).
   double imbalance() const {
     if (!decomposed()) return 0.0;
     double total = 0.0;
     for (const auto& b : bodies_) total += static_cast<double>(b->global_particles);
     const double mean = total / ranks();
-    return mean > 0.0 ? most_rank_particles_ / mean - 1.0 : 0.0;
+    return mean > 0.0 ? dec_.most_rank_particles / mean - 1.0 : 0.0;
   }
   /// Waits until the writer thread has built every frame submitted so far (their host buffers are free).
   void wait_for_frames() const {
@@ -198,10 +200,10 @@ class MgspBenchmark {
       b->frame_slot->released.wait(lock, [&] { return !b->frame_slot->busy; });
     }
   }
-  long long migrated() const { return migrated_; }
-  long long migration_repeats() const { return migration_repeats_; }
+  long long migrated() const { return dec_.migrated; }
+  long long migration_repeats() const { return dec_.migration_repeats; }
   std::size_t halo_blocks() const {
-    return placed_ ? union_blocks_.size() : halo_[0].keys.size() + halo_[1].keys.size();
+    return dec_.placed ? dec_.union_blocks.size() : dec_.halo[0].keys.size() + dec_.halo[1].keys.size();
   }
   std::size_t halo_particle_blocks() const {
     std::size_t n = 0;
@@ -278,7 +280,7 @@ class MgspBenchmark {
   std::vector<T> gather_host(int body, cudaStream_t s) const;
 
   // ---------------------------------------------------------------- decomposition (GpuEngineOptions::ranks)
-  bool decomposed() const { return device_ != nullptr; }
+  bool decomposed() const { return dec_.device != nullptr; }
   /// Chooses the slabs from every body's counts (the same on every rank: each counted the whole scene) and keeps
   /// this rank's part of each count.
   void choose_slabs(const std::vector<std::vector<Vec3d>>* positions);
@@ -287,7 +289,7 @@ class MgspBenchmark {
   bool owns(int body, const Vec3d& x) const;
   /// The particle blocks body b keeps on this rank: a placed body all of them (it never migrates), else the slab.
   SlabBounds slab_of(int body) const {
-    return homes_.empty() || homes_[static_cast<std::size_t>(body)] < 0 ? slab_ : SlabBounds{};
+    return dec_.homes.empty() || dec_.homes[static_cast<std::size_t>(body)] < 0 ? dec_.slab : SlabBounds{};
   }
   /// Placed bodies: the lists of blocks shared with each rank, from every rank's new table keys (collective; the
   /// counterpart of rebuild_halo). A block that a rank has just created takes the sums of grid[summed_grid] from
@@ -299,7 +301,7 @@ class MgspBenchmark {
   /// Placed bodies: halo_exchange over the shared lists, every holder's contribution added in rank order.
   void shared_exchange(std::initializer_list<std::pair<std::byte*, std::size_t>> buffers, int grid, bool delta,
                        cudaStream_t stream);
-  /// Placed bodies: not_counted_ from the lists (a block shared with a lower rank counts there).
+  /// Placed bodies: dec_.not_counted from the lists (a block shared with a lower rank counts there).
   void mark_not_counted();
   /// Sums the listed block buffers' halo blocks with the neighbours (data, bytes per block). grid >= 0: the first
   /// buffer is grid_[grid], whose summed halo is kept for a later delta exchange; delta: add (mine + theirs) - saved.
@@ -330,7 +332,7 @@ class MgspBenchmark {
     b.halo_blocks[l] = s.halo_blocks;
     b.interior_blocks[l] = s.interior_blocks;
   }
-  /// After the partition: the table blocks [halo_scanned_, count) in a halo plane (keys and counts into stats).
+  /// After the partition: the table blocks [dec_.halo_scanned, count) in a halo plane (keys and counts into stats).
   void collect_halo();
   /// Collective: every rank's new halo blocks go to its neighbours; both sides then hold (and list, sorted) the
   /// union of the plane's blocks. summed_grid: the grid holding summed P2G values (saved for delta exchanges), or
@@ -343,10 +345,10 @@ class MgspBenchmark {
   std::vector<comm::DeviceTransport::Message> pack_migrant_messages(MigrantMessage& msg);
   void unpack_migrant_messages(const MigrantMessage& msg);
   /// After read_stats: each body's particles after the migration, from the counts the step's readback brought, and
-  /// migrant_most_, this rank's largest count (agree_on_try makes it every rank's; above migrant_capacity_ a message
+  /// dec_.migrant_most, this rank's largest count (agree_on_try makes it every rank's; above dec_.migrant_capacity a message
   /// overflowed).
   void settle_migration();
-  /// Decomposed runs, before a G2P2G: each body's emigrant list holds 2 x migrant_capacity_ slots.
+  /// Decomposed runs, before a G2P2G: each body's emigrant list holds 2 x dec_.migrant_capacity slots.
   void ensure_emigrant_lists();
   /// Collective, after read_stats and settle_migration: failure counts, first IDs, repeats, grid speed, the most
   /// particles and migrants of a rank and new halo blocks over ranks, in one collective.
@@ -367,9 +369,6 @@ class MgspBenchmark {
   cudaStream_t stream_ = nullptr;       ///< compute stream
   cudaStream_t copy_stream_ = nullptr;  ///< frame downloads
   cudaEvent_t events_[6] = {};  ///< step phases (kernel timing): grid | dt + G2P2G | halo | migration | partition
-  cudaStream_t halo_stream_ = nullptr;  ///< decomposed runs: the halo sums overlapping the interior G2P2G
-  cudaEvent_t halo_ready_ = nullptr, halo_done_ = nullptr;  ///< halo blocks scattered / summed
-  cudaEvent_t halo_events_[2] = {};  ///< kernel timing: the halo stream's sums start / end
   BlockHashTable table_;
   GridBuffer<TG> grid_[2];
   GridVelocityBuffer<TG> velocity_;
@@ -396,19 +395,10 @@ class MgspBenchmark {
   cuda::DeviceArray<std::byte> scan_temp_;
   std::size_t scan_temp_bytes_ = 0;
   cuda::DeviceArray<int> missing_d_;
-  GridSensorSet<TG> grid_sensors_;
-  int grid_sample_slot_ = -1;
-  cuda::DeviceArray<SensorAccum> grid_samples_d_;     ///< (slot, sensor)
-  cuda::DeviceArray<SensorAccum> sensor_partials_d_;  ///< (sensor, CUDA block) of one sample
-  ParticleSensorSet<T> particle_sensors_;
-  bool particle_sensors_read_v_ = false;  ///< some particle sensor reads v or C (the landing step records them)
+  SensorState<T, TG> sensors_;             ///< sensors and trackers on the device (sensors_checkpoints.cuh)
   bool record_user_ = false;              ///< set_record_velocities
   bool sensor_keep_ = false;              ///< keep_particle_inputs: this step records v and C for sensors
   bool checkpoint_keep_ = false;          ///< keep_checkpoint_inputs: this step records v and C for a checkpoint
-  cuda::DeviceArray<SensorAccum> particle_samples_d_;  ///< (slot, body, sensor)
-  std::vector<TrackerSet> trackers_;     ///< (body)
-  bool trackers_read_v_ = false;          ///< a tracker reads v or C (the frame-landing steps record them)
-  cuda::DeviceArray<double> track_d_;  ///< values (kMaxIds x kMaxAttribs), then present (kMaxIds)
 
   int cur_ = 0;   ///< current particle buffer and layout
   int gc_ = 0;    ///< current grid
@@ -431,55 +421,10 @@ class MgspBenchmark {
   double max_grid_speed_ = 0.0;
   std::ostream* log_ = &std::cerr;
 
-  // Decomposition (null transports: one GPU, the slab is all of space).
-  comm::Transport* host_ = nullptr;
-  comm::DeviceTransport* device_ = nullptr;
-  comm::SlabPartition slabs_;
-  SlabBounds slab_;
-  /// The halo with the lower (0) and upper (1) neighbour: the union of both ranks' blocks of the shared plane.
-  struct HaloSide {
-    int peer = -1;                              ///< -1: no neighbour on this side
-    int plane = 0;                              ///< grid-block coordinate of the shared plane along the axis
-    std::vector<unsigned long long> keys;       ///< sorted union (the same list on both ranks)
-    cuda::DeviceArray<int> index;        ///< table index of each key here
-    cuda::DeviceArray<TG> send, recv;    ///< message buffers (every exchanged buffer's blocks, in turn)
-    cuda::DeviceArray<TG> saved[2];      ///< grid[g]'s summed halo blocks (delta exchanges)
-    cuda::DeviceArray<unsigned long long> fresh;  ///< new local halo keys of the last collect_halo
-    cuda::DeviceArray<std::byte> migrants_out, migrants_in;
-  };
-  std::array<HaloSide, 2> halo_;
-  int halo_scanned_ = 0;                        ///< table blocks already looked at for the halo planes
-  int halo_fresh_capacity_ = 0;
-  /// Records per body and side in a migration message (MigrantMessage): the same on every rank, grown (by all
-  /// ranks at once, after agree_on_try) when a step sent more than half of it; a step that sent more is repeated.
-  int migrant_capacity_ = 512;     ///< options_.migrant_capacity at start
-  long long migration_repeats_ = 0;  ///< tries repeated because migrants overflowed the messages
-  /// agree_on_try: the most particles one rank sent one side for one body (or half its emigrant list); a message
-  /// overflowed when it is above migrant_capacity_
-  int migrant_most_ = 0;
-  long long migrated_ = 0;
-  long long pending_migrated_ = 0;
-  bool halo_grew_ = false;  ///< agree_on_try: some rank has new halo blocks (every rank then calls rebuild_halo)
-  double most_rank_particles_ = 0.0;  ///< agree_on_try: the most particles any rank holds after the last step
-
-  cuda::DeviceArray<unsigned long long> dt_inputs_d_;  ///< gather_dt_inputs: one reduction over the ranks
-
-  // Placed bodies (bodies[].gpu, comm/placement.h): any set of ranks may hold a block; the sums go over these lists
-  // (shared_exchange) instead of the neighbour planes, and halo_[0].fresh collects every new table block.
-  std::vector<int> homes_;  ///< per body: the rank holding it whole, or kAllGpus (spread by space); empty: one GPU
-  bool placed_ = false;     ///< some body is placed
-  struct SharedPeer {
-    std::vector<unsigned long long> keys;       ///< blocks both ranks hold, sorted (the same list on both)
-    std::vector<int> blocks;                    ///< their table indices here
-    cuda::DeviceArray<int> index, upos;  ///< the same on the device; upos: each entry's union position
-    cuda::DeviceArray<TG> send, recv;
-  };
-  std::vector<SharedPeer> shared_;                                   ///< per rank (this rank's entry unused)
-  std::vector<std::unordered_set<unsigned long long>> rank_keys_;    ///< every rank's table keys so far
-  std::vector<int> union_blocks_;                                    ///< every shared block once, ascending
-  cuda::DeviceArray<int> union_index_;
-  cuda::DeviceArray<TG> union_own_, union_saved_[2];          ///< this rank's part; grid[g]'s summed values
-  cuda::DeviceArray<unsigned char> not_counted_;              ///< per table block (sensors count it once)
+  // Decomposition (decomposition/decomposition_state.cuh; null transports: one GPU, the slab all of space).
+  using HaloSide = fbar::HaloSide<TG>;
+  using SharedPeer = fbar::SharedPeer<TG>;
+  DecompositionState<TG> dec_;
 };
 
 }  // namespace fbar

@@ -11,18 +11,18 @@ void MgspBenchmark<T, TG>::set_grid_sensors(const std::vector<GridSensorSpec>& s
   if (sensors.size() > static_cast<std::size_t>(GridSensorSet<TG>::kMax))
     throw std::invalid_argument("grid-sensors: " + std::to_string(sensors.size()) + " enabled sensors; at most " +
                                 std::to_string(GridSensorSet<TG>::kMax) + " per run");
-  grid_sensors_ = GridSensorSet<TG>{};
+  sensors_.grid = GridSensorSet<TG>{};
   for (const GridSensorSpec& spec : sensors)
-    grid_sensors_.s[grid_sensors_.count++] = make_grid_sensor_params<TG>(spec, static_cast<double>(k_.dx));
-  grid_sample_slot_ = -1;
-  if (grid_sensors_.count > 0) ensure_sensor_partials();
+    sensors_.grid.s[sensors_.grid.count++] = make_grid_sensor_params<TG>(spec, static_cast<double>(k_.dx));
+  sensors_.grid_sample_slot = -1;
+  if (sensors_.grid.count > 0) ensure_sensor_partials();
 }
 
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::set_grid_sample(int slot) {
-  grid_sample_slot_ = slot;
-  if (slot < 0 || grid_sensors_.count == 0) return;
-  grow_samples(grid_samples_d_, static_cast<std::size_t>(slot + 1) * grid_sensors_.count);
+  sensors_.grid_sample_slot = slot;
+  if (slot < 0 || sensors_.grid.count == 0) return;
+  grow_samples(sensors_.grid_samples_d, static_cast<std::size_t>(slot + 1) * sensors_.grid.count);
 }
 
 template <typename T, typename TG>
@@ -39,7 +39,7 @@ void MgspBenchmark<T, TG>::grow_samples(cuda::DeviceArray<SensorAccum>& samples,
 
 template <typename T, typename TG>
 std::vector<SensorAccum> MgspBenchmark<T, TG>::grid_samples(int slots) const {
-  return download_samples(grid_samples_d_, static_cast<std::size_t>(slots) * grid_sensors_.count);
+  return download_samples(sensors_.grid_samples_d, static_cast<std::size_t>(slots) * sensors_.grid.count);
 }
 
 template <typename T, typename TG>
@@ -58,28 +58,28 @@ void MgspBenchmark<T, TG>::set_particle_sensors(const std::vector<ParticleSensor
   if (sensors.size() > static_cast<std::size_t>(ParticleSensorSet<T>::kMax))
     throw std::invalid_argument("particle-sensors: " + std::to_string(sensors.size()) + " enabled sensors; at most " +
                                 std::to_string(ParticleSensorSet<T>::kMax) + " per run");
-  particle_sensors_ = ParticleSensorSet<T>{};
-  particle_sensors_read_v_ = false;
+  sensors_.particle = ParticleSensorSet<T>{};
+  sensors_.particle_read_v = false;
   for (const ParticleSensorSpec& spec : sensors) {
     const ParticleSensorParams<T> p = make_particle_sensor_params<T>(spec);
-    particle_sensors_read_v_ = particle_sensors_read_v_ || particle_sensor_reads_velocity(p.column);
-    particle_sensors_.s[particle_sensors_.count++] = p;
+    sensors_.particle_read_v = sensors_.particle_read_v || particle_sensor_reads_velocity(p.column);
+    sensors_.particle.s[sensors_.particle.count++] = p;
   }
-  if (particle_sensors_.count > 0) ensure_sensor_partials();
+  if (sensors_.particle.count > 0) ensure_sensor_partials();
 }
 
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::ensure_sensor_partials() {
   // One sample's per-CUDA-block partials, shared by the grid and the particle sensors (at most kMax of each).
   static_assert(GridSensorSet<TG>::kMax == ParticleSensorSet<T>::kMax, "one partials buffer for both kinds");
-  if (sensor_partials_d_.size() == 0)
-    sensor_partials_d_.allocate(static_cast<std::size_t>(GridSensorSet<TG>::kMax) * kSensorBlocks);
+  if (sensors_.partials_d.size() == 0)
+    sensors_.partials_d.allocate(static_cast<std::size_t>(GridSensorSet<TG>::kMax) * kSensorBlocks);
 }
 
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::keep_particle_inputs(bool on) {
   // Only a sensor reading v or C pays for recording them, and only on the steps that may land on a sample time.
-  sensor_keep_ = on && (particle_sensors_read_v_ || trackers_read_v_);
+  sensor_keep_ = on && (sensors_.particle_read_v || sensors_.trackers_read_v);
   update_record();
 }
 
@@ -91,56 +91,56 @@ void MgspBenchmark<T, TG>::keep_checkpoint_inputs(bool on) {
 
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::sample_particles(int slot) {
-  const int n = particle_sensors_.count;
+  const int n = sensors_.particle.count;
   if (n == 0) return;
   const std::size_t per_slot = bodies_.size() * static_cast<std::size_t>(n);
-  grow_samples(particle_samples_d_, static_cast<std::size_t>(slot + 1) * per_slot);
+  grow_samples(sensors_.particle_samples_d, static_cast<std::size_t>(slot + 1) * per_slot);
   const bool initial = steps_ == 0 && !aux_valid_;
-  if (particle_sensors_read_v_ && !initial && !aux_valid_)
+  if (sensors_.particle_read_v && !initial && !aux_valid_)
     throw std::logic_error("GpuEngine::sample_particles: the step that ended here did not record v and C "
                            "(keep_particle_inputs was not set for it)");
   for (auto& b : bodies_) {
     const int slots = b->total_bins[cur_] * 32;
     const int per_sensor = static_cast<int>(std::clamp<long long>((slots + kSensorThreads - 1) / kSensorThreads, 1,
                                                                   kSensorBlocks));
-    SensorAccum* out = particle_samples_d_.get() + static_cast<std::size_t>(slot) * per_slot +
+    SensorAccum* out = sensors_.particle_samples_d.get() + static_cast<std::size_t>(slot) * per_slot +
                        static_cast<std::size_t>(b->index) * n;
-    b->sample_sensors(*this, aux_valid_ && particle_sensors_read_v_ ? b->aux.get() : nullptr, sensor_partials_d_.get(),
+    b->sample_sensors(*this, aux_valid_ && sensors_.particle_read_v ? b->aux.get() : nullptr, sensors_.partials_d.get(),
                       per_sensor);
-    merge_sensor_partials<<<1, ParticleSensorSet<T>::kMax, 0, stream_>>>(sensor_partials_d_.get(), per_sensor, n, out);
+    merge_sensor_partials<<<1, ParticleSensorSet<T>::kMax, 0, stream_>>>(sensors_.partials_d.get(), per_sensor, n, out);
     cuda::check_launch("merge_sensor_partials");
   }
 }
 
 template <typename T, typename TG>
 std::vector<SensorAccum> MgspBenchmark<T, TG>::particle_samples(int slots) const {
-  return download_samples(particle_samples_d_,
-                          static_cast<std::size_t>(slots) * bodies_.size() * particle_sensors_.count);
+  return download_samples(sensors_.particle_samples_d,
+                          static_cast<std::size_t>(slots) * bodies_.size() * sensors_.particle.count);
 }
 
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::set_tracker(int body, const TrackerSet& set) {
   body_at(body);
-  trackers_.resize(bodies_.size());
-  trackers_[body] = set;
-  for (int a = 0; a < set.attribs; ++a) trackers_read_v_ = trackers_read_v_ || particle_sensor_reads_velocity(set.column[a]);
-  if (track_d_.size() == 0) track_d_.allocate(static_cast<std::size_t>(TrackerSet::kMaxIds) * (TrackerSet::kMaxAttribs + 1));
+  sensors_.trackers.resize(bodies_.size());
+  sensors_.trackers[body] = set;
+  for (int a = 0; a < set.attribs; ++a) sensors_.trackers_read_v = sensors_.trackers_read_v || particle_sensor_reads_velocity(set.column[a]);
+  if (sensors_.track_d.size() == 0) sensors_.track_d.allocate(static_cast<std::size_t>(TrackerSet::kMaxIds) * (TrackerSet::kMaxAttribs + 1));
 }
 
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::track(int body, std::vector<double>& values, std::vector<double>& present) {
   BodyBase& b = body_at(body);
   const TrackerSet empty{};
-  const TrackerSet& t = static_cast<std::size_t>(body) < trackers_.size() ? trackers_[body] : empty;
+  const TrackerSet& t = static_cast<std::size_t>(body) < sensors_.trackers.size() ? sensors_.trackers[body] : empty;
   values.assign(static_cast<std::size_t>(t.ids) * t.attribs, 0.0);
   present.assign(t.ids, 0.0);
   if (t.ids == 0) return;
   const bool initial = steps_ == 0 && !aux_valid_;
-  if (trackers_read_v_ && !initial && !aux_valid_)
+  if (sensors_.trackers_read_v && !initial && !aux_valid_)
     throw std::logic_error("GpuEngine::track: the step that ended here did not record v and C");
-  double* v_d = track_d_.get();
+  double* v_d = sensors_.track_d.get();
   double* present_d = v_d + static_cast<std::size_t>(TrackerSet::kMaxIds) * TrackerSet::kMaxAttribs;
-  FBAR_CUDA_CHECK(cudaMemsetAsync(v_d, 0, track_d_.bytes(), stream_));
+  FBAR_CUDA_CHECK(cudaMemsetAsync(v_d, 0, sensors_.track_d.bytes(), stream_));
   b.track(*this, aux_valid_ ? b.aux.get() : nullptr, t, v_d, present_d);
   FBAR_CUDA_CHECK(cudaMemcpyAsync(values.data(), v_d, sizeof(double) * values.size(), cudaMemcpyDeviceToHost, stream_));
   FBAR_CUDA_CHECK(cudaMemcpyAsync(present.data(), present_d, sizeof(double) * present.size(), cudaMemcpyDeviceToHost,
@@ -166,8 +166,8 @@ io::Checkpoint MgspBenchmark<T, TG>::checkpoint() const {
   c.dt_scale = retry_.scale;
   c.clean_steps = retry_.clean_steps;
   if (decomposed()) {
-    c.slab_axis = slabs_.axis;
-    c.slab_cuts = slabs_.cuts;
+    c.slab_axis = dec_.slabs.axis;
+    c.slab_cuts = dec_.slabs.cuts;
   }
   const bool initial = steps_ == 0 && !aux_valid_;  // before the first step: v = initial velocity, C = 0 exactly
   for (const auto& bp : bodies_) {

@@ -35,28 +35,28 @@ void MgspBenchmark<T, TG>::g2p2g_and_halo(T dt) {
     else
       rest.push_back(b.get());
   }
-  FBAR_CUDA_CHECK(cudaEventRecord(halo_ready_, stream_));
+  FBAR_CUDA_CHECK(cudaEventRecord(dec_.halo_ready, stream_));
   // The other blocks on the compute stream, queued before the exchange (a host-ordered transport may block in it).
   for (BodyBase* b : rest) b->g2p2g(*this, false, dt, G2P2GPass::Interior);
   event_record(2);
-  FBAR_CUDA_CHECK(cudaStreamWaitEvent(halo_stream_, halo_ready_, 0));
-  if (timing_) FBAR_CUDA_CHECK(cudaEventRecord(halo_events_[0], halo_stream_));
-  sums(halo_stream_);
-  if (timing_) FBAR_CUDA_CHECK(cudaEventRecord(halo_events_[1], halo_stream_));
-  FBAR_CUDA_CHECK(cudaEventRecord(halo_done_, halo_stream_));
-  FBAR_CUDA_CHECK(cudaStreamWaitEvent(stream_, halo_done_, 0));
+  FBAR_CUDA_CHECK(cudaStreamWaitEvent(dec_.halo_stream, dec_.halo_ready, 0));
+  if (timing_) FBAR_CUDA_CHECK(cudaEventRecord(dec_.halo_events[0], dec_.halo_stream));
+  sums(dec_.halo_stream);
+  if (timing_) FBAR_CUDA_CHECK(cudaEventRecord(dec_.halo_events[1], dec_.halo_stream));
+  FBAR_CUDA_CHECK(cudaEventRecord(dec_.halo_done, dec_.halo_stream));
+  FBAR_CUDA_CHECK(cudaStreamWaitEvent(stream_, dec_.halo_done, 0));
 }
 
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::halo_exchange(std::initializer_list<std::pair<std::byte*, std::size_t>> buffers, int grid,
                                          bool delta, cudaStream_t stream) {
   if (!stream) stream = stream_;
-  if (placed_) {
+  if (dec_.placed) {
     shared_exchange(buffers, grid, delta, stream);
     return;
   }
   const BlockBuffers list(buffers);
-  device_->exchange(pack_halo_messages(list, stream), stream);
+  dec_.device->exchange(pack_halo_messages(list, stream), stream);
   add_halo_messages(list, grid, delta, stream);
 }
 
@@ -66,7 +66,7 @@ std::vector<comm::DeviceTransport::Message> MgspBenchmark<T, TG>::pack_halo_mess
   std::size_t per_block = 0;  // scalars of every listed buffer's block
   for (const auto& [data, bytes] : buffers) per_block += bytes / sizeof(TG);
   std::vector<comm::DeviceTransport::Message> messages;
-  for (HaloSide& h : halo_) {
+  for (HaloSide& h : dec_.halo) {
     if (h.peer < 0) continue;
     const int n = static_cast<int>(h.keys.size());
     const std::size_t scalars = static_cast<std::size_t>(n) * per_block;
@@ -93,7 +93,7 @@ std::vector<comm::DeviceTransport::Message> MgspBenchmark<T, TG>::pack_halo_mess
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::add_halo_messages(const BlockBuffers& buffers, int grid, bool delta, cudaStream_t stream) {
   const bool save = grid >= 0;
-  for (HaloSide& h : halo_) {
+  for (HaloSide& h : dec_.halo) {
     if (h.peer < 0 || h.keys.empty()) continue;
     const int n = static_cast<int>(h.keys.size());
     std::size_t offset = 0;
@@ -118,21 +118,21 @@ void MgspBenchmark<T, TG>::add_halo_messages(const BlockBuffers& buffers, int gr
 
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::collect_halo() {
-  if (halo_fresh_capacity_ == 0) {
-    halo_fresh_capacity_ = 1024;
-    for (HaloSide& h : halo_) h.fresh.allocate(static_cast<std::size_t>(halo_fresh_capacity_));
+  if (dec_.halo_fresh_capacity == 0) {
+    dec_.halo_fresh_capacity = 1024;
+    for (HaloSide& h : dec_.halo) h.fresh.allocate(static_cast<std::size_t>(dec_.halo_fresh_capacity));
   }
-  const int limit = block_capacity_ - halo_scanned_;
+  const int limit = block_capacity_ - dec_.halo_scanned;
   if (limit <= 0) return;
-  if (placed_) {  // every new block may be shared with any rank
+  if (dec_.placed) {  // every new block may be shared with any rank
     collect_new_blocks<<<cuda::grid_for(limit, kHaloThreads), kHaloThreads, 0, stream_>>>(
-        table_.view(), halo_scanned_, halo_[0].fresh.get(), halo_fresh_capacity_, stats_d_->halo_new);
+        table_.view(), dec_.halo_scanned, dec_.halo[0].fresh.get(), dec_.halo_fresh_capacity, stats_d_->halo_new);
     cuda::check_launch("collect_new_blocks");
     return;
   }
   collect_halo_blocks<<<cuda::grid_for(limit, kHaloThreads), kHaloThreads, 0, stream_>>>(
-      table_.view(), halo_scanned_, slab_.axis, halo_[0].peer >= 0 ? halo_[0].plane : INT_MIN,
-      halo_[1].peer >= 0 ? halo_[1].plane : INT_MIN, halo_[0].fresh.get(), halo_[1].fresh.get(), halo_fresh_capacity_,
+      table_.view(), dec_.halo_scanned, dec_.slab.axis, dec_.halo[0].peer >= 0 ? dec_.halo[0].plane : INT_MIN,
+      dec_.halo[1].peer >= 0 ? dec_.halo[1].plane : INT_MIN, dec_.halo[0].fresh.get(), dec_.halo[1].fresh.get(), dec_.halo_fresh_capacity,
       stats_d_->halo_new);
   cuda::check_launch("collect_halo_blocks");
 }
@@ -142,21 +142,21 @@ void MgspBenchmark<T, TG>::rebuild_halo(int summed_grid) {
   // 1. This rank's new keys per side (collected after the last partition; collected again when they overflowed).
   std::array<std::vector<unsigned long long>, 2> fresh;
   const int fresh_count[2] = {stats_->halo_new[0], stats_->halo_new[1]};
-  if (std::max(fresh_count[0], fresh_count[1]) > halo_fresh_capacity_) {
-    while (halo_fresh_capacity_ < std::max(fresh_count[0], fresh_count[1])) halo_fresh_capacity_ *= 2;
-    for (HaloSide& h : halo_) h.fresh.allocate(static_cast<std::size_t>(halo_fresh_capacity_));
+  if (std::max(fresh_count[0], fresh_count[1]) > dec_.halo_fresh_capacity) {
+    while (dec_.halo_fresh_capacity < std::max(fresh_count[0], fresh_count[1])) dec_.halo_fresh_capacity *= 2;
+    for (HaloSide& h : dec_.halo) h.fresh.allocate(static_cast<std::size_t>(dec_.halo_fresh_capacity));
     FBAR_CUDA_CHECK(cudaMemsetAsync(stats_d_->halo_new, 0, sizeof(stats_d_->halo_new), stream_));
     collect_halo();
   }
   for (int side = 0; side < 2; ++side) {
     fresh[side].resize(static_cast<std::size_t>(fresh_count[side]));
     if (fresh_count[side] > 0)
-      FBAR_CUDA_CHECK(cudaMemcpyAsync(fresh[side].data(), halo_[side].fresh.get(),
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(fresh[side].data(), dec_.halo[side].fresh.get(),
                                       sizeof(unsigned long long) * fresh[side].size(), cudaMemcpyDeviceToHost, stream_));
   }
   FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
-  halo_scanned_ = std::max(halo_scanned_, std::min(stats_->block_count, block_capacity_));
-  if (placed_) {
+  dec_.halo_scanned = std::max(dec_.halo_scanned, std::min(stats_->block_count, block_capacity_));
+  if (dec_.placed) {
     rebuild_shared(summed_grid, fresh[0]);
     return;
   }
@@ -164,16 +164,16 @@ void MgspBenchmark<T, TG>::rebuild_halo(int summed_grid) {
   std::vector<int> peers;
   std::vector<comm::Bytes> send;
   for (int side = 0; side < 2; ++side) {
-    if (halo_[side].peer < 0) continue;
-    peers.push_back(halo_[side].peer);
+    if (dec_.halo[side].peer < 0) continue;
+    peers.push_back(dec_.halo[side].peer);
     const auto* b = reinterpret_cast<const std::uint8_t*>(fresh[side].data());
     send.emplace_back(b, b + sizeof(unsigned long long) * fresh[side].size());
   }
-  const std::vector<comm::Bytes> received = host_->exchange(peers, send);
+  const std::vector<comm::Bytes> received = dec_.host->exchange(peers, send);
   // 3. The union, sorted (the same list on both sides), inserted here where absent, and its table indices.
   std::size_t i = 0;
   for (int side = 0; side < 2; ++side) {
-    HaloSide& h = halo_[side];
+    HaloSide& h = dec_.halo[side];
     if (h.peer < 0) continue;
     const comm::Bytes& theirs = received[i++];
     std::vector<unsigned long long> all = h.keys;
@@ -216,7 +216,7 @@ void MgspBenchmark<T, TG>::rebuild_halo(int summed_grid) {
     }
   }
   // Blocks inserted here are halo blocks already listed: not new for the next collect.
-  halo_scanned_ = std::max(halo_scanned_, block_count_);
+  dec_.halo_scanned = std::max(dec_.halo_scanned, block_count_);
 }
 
 }  // namespace fbar

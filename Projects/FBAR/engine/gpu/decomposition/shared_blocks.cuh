@@ -18,7 +18,7 @@ bool MgspBenchmark<T, TG>::index_shared_lists(const std::vector<bool>& changed) 
   for (int q = 0; q < n; ++q) {
     if (!changed[q]) continue;
     any = true;
-    SharedPeer& peer = shared_[q];
+    SharedPeer& peer = dec_.shared[q];
     const int count = static_cast<int>(peer.keys.size());
     keys[q].allocate(peer.keys.size());
     peer.index.allocate(peer.keys.size());
@@ -34,29 +34,29 @@ bool MgspBenchmark<T, TG>::index_shared_lists(const std::vector<bool>& changed) 
   FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
   for (int q = 0; q < n; ++q)
     if (changed[q])
-      for (int b : shared_[q].blocks)
+      for (int b : dec_.shared[q].blocks)
         if (b < 0)
           throw std::logic_error("GpuEngine: a shared block is missing from this rank's table (rank " +
                                  std::to_string(r) + ", peer " + std::to_string(q) + ")");
   if (any) {
     std::vector<int> all;
-    for (int q = 0; q < n; ++q) all.insert(all.end(), shared_[q].blocks.begin(), shared_[q].blocks.end());
+    for (int q = 0; q < n; ++q) all.insert(all.end(), dec_.shared[q].blocks.begin(), dec_.shared[q].blocks.end());
     std::sort(all.begin(), all.end());
     all.erase(std::unique(all.begin(), all.end()), all.end());
-    union_blocks_ = std::move(all);
-    union_index_.allocate(std::max<std::size_t>(union_blocks_.size(), 1));
-    if (!union_blocks_.empty())
-      FBAR_CUDA_CHECK(cudaMemcpyAsync(union_index_.get(), union_blocks_.data(), sizeof(int) * union_blocks_.size(),
+    dec_.union_blocks = std::move(all);
+    dec_.union_index.allocate(std::max<std::size_t>(dec_.union_blocks.size(), 1));
+    if (!dec_.union_blocks.empty())
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(dec_.union_index.get(), dec_.union_blocks.data(), sizeof(int) * dec_.union_blocks.size(),
                                       cudaMemcpyHostToDevice, stream_));
     std::vector<std::vector<int>> positions(static_cast<std::size_t>(n));  // host sources of the copies below
     for (int q = 0; q < n; ++q) {
-      SharedPeer& peer = shared_[q];
+      SharedPeer& peer = dec_.shared[q];
       if (q == r || peer.blocks.empty()) continue;
       std::vector<int>& upos = positions[q];
       upos.resize(peer.blocks.size());
       for (std::size_t k = 0; k < upos.size(); ++k)
-        upos[k] = static_cast<int>(std::lower_bound(union_blocks_.begin(), union_blocks_.end(), peer.blocks[k]) -
-                                   union_blocks_.begin());
+        upos[k] = static_cast<int>(std::lower_bound(dec_.union_blocks.begin(), dec_.union_blocks.end(), peer.blocks[k]) -
+                                   dec_.union_blocks.begin());
       peer.upos.allocate(upos.size());
       FBAR_CUDA_CHECK(cudaMemcpyAsync(peer.upos.get(), upos.data(), sizeof(int) * upos.size(), cudaMemcpyHostToDevice,
                                       stream_));
@@ -79,7 +79,7 @@ void MgspBenchmark<T, TG>::sync_new_shared_blocks(int summed_grid,
   TG* grid = reinterpret_cast<TG*>(grid_[summed_grid].instance().data());
   std::unordered_map<Key, int> where;
   for (int q = 0; q < n; ++q)
-    for (std::size_t k = 0; k < shared_[q].keys.size(); ++k) where[shared_[q].keys[k]] = shared_[q].blocks[k];
+    for (std::size_t k = 0; k < dec_.shared[q].keys.size(); ++k) where[dec_.shared[q].keys[k]] = dec_.shared[q].blocks[k];
   auto indices = [&](const std::vector<Key>& keys) {
     std::vector<int> out;
     for (Key k : keys) {
@@ -120,19 +120,19 @@ void MgspBenchmark<T, TG>::sync_new_shared_blocks(int summed_grid,
     }
     messages.push_back(m);
   }
-  device_->exchange(messages, stream_);
+  dec_.device->exchange(messages, stream_);
   for (int q = 0; q < n; ++q) {
     if (sync_in[q].empty()) continue;
     const int count = static_cast<int>(sync_in[q].size());  // a new block is zero here: adding sets it
     launch_add_halo(grid, kScalars, in_index[q].get(), count, in_values[q].get(), static_cast<const TG*>(nullptr),
                     stream_);
   }
-  const std::size_t count = union_blocks_.size() * kScalars;
+  const std::size_t count = dec_.union_blocks.size() * kScalars;
   for (int g = 0; g < 2; ++g)
-    if (union_saved_[g].size() < count) union_saved_[g].allocate(count);  // the other grid: saved at its sum
-  if (!union_blocks_.empty()) {
-    launch_pack_halo(grid, kScalars, union_index_.get(), static_cast<int>(union_blocks_.size()),
-                     union_saved_[summed_grid].get(), stream_);
+    if (dec_.union_saved[g].size() < count) dec_.union_saved[g].allocate(count);  // the other grid: saved at its sum
+  if (!dec_.union_blocks.empty()) {
+    launch_pack_halo(grid, kScalars, dec_.union_index.get(), static_cast<int>(dec_.union_blocks.size()),
+                     dec_.union_saved[summed_grid].get(), stream_);
   }
   FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));  // the message buffers and index lists are freed on return
 }
@@ -146,7 +146,7 @@ void MgspBenchmark<T, TG>::rebuild_shared(int summed_grid, const std::vector<uns
   {
     comm::Bytes packed(sizeof(Key) * fresh_here.size());
     if (!packed.empty()) std::memcpy(packed.data(), fresh_here.data(), packed.size());
-    const std::vector<comm::Bytes> all = host_->allgather(packed);
+    const std::vector<comm::Bytes> all = dec_.host->allgather(packed);
     for (int q = 0; q < n; ++q) {
       fresh[q].resize(all[q].size() / sizeof(Key));
       if (!fresh[q].empty()) std::memcpy(fresh[q].data(), all[q].data(), all[q].size());
@@ -157,7 +157,7 @@ void MgspBenchmark<T, TG>::rebuild_shared(int summed_grid, const std::vector<uns
   // everywhere). It sends grid[summed_grid]'s values of the block to the ranks that have just created it.
   auto earliest = [&](Key k) {
     for (int q = 0; q < n; ++q)
-      if (rank_keys_[q].count(k)) return q;
+      if (dec_.rank_keys[q].count(k)) return q;
     return -1;
   };
   std::vector<std::vector<Key>> sync_out(static_cast<std::size_t>(n)), sync_in(static_cast<std::size_t>(n));
@@ -176,20 +176,20 @@ void MgspBenchmark<T, TG>::rebuild_shared(int summed_grid, const std::vector<uns
     if (q == r) continue;
     std::vector<Key> added;
     for (Key k : fresh[r])
-      if (rank_keys_[q].count(k) || std::binary_search(fresh[q].begin(), fresh[q].end(), k)) added.push_back(k);
+      if (dec_.rank_keys[q].count(k) || std::binary_search(fresh[q].begin(), fresh[q].end(), k)) added.push_back(k);
     for (Key k : fresh[q])
-      if (rank_keys_[r].count(k)) added.push_back(k);
+      if (dec_.rank_keys[r].count(k)) added.push_back(k);
     if (added.empty()) continue;
-    SharedPeer& peer = shared_[q];
+    SharedPeer& peer = dec_.shared[q];
     peer.keys.insert(peer.keys.end(), added.begin(), added.end());
     std::sort(peer.keys.begin(), peer.keys.end());
     peer.keys.erase(std::unique(peer.keys.begin(), peer.keys.end()), peer.keys.end());
     changed[q] = true;
   }
-  for (int q = 0; q < n; ++q) rank_keys_[q].insert(fresh[q].begin(), fresh[q].end());
+  for (int q = 0; q < n; ++q) dec_.rank_keys[q].insert(fresh[q].begin(), fresh[q].end());
   // 4. Table indices of the changed lists, the union and each entry's place in it.
   const bool any = index_shared_lists(changed);
-  if (any || not_counted_.size() < static_cast<std::size_t>(block_capacity_)) mark_not_counted();
+  if (any || dec_.not_counted.size() < static_cast<std::size_t>(block_capacity_)) mark_not_counted();
   // 5. The just-created blocks take their summed values from their lowest earlier holder.
   if (summed_grid >= 0) sync_new_shared_blocks(summed_grid, sync_out, sync_in);
 }
@@ -198,9 +198,9 @@ template <typename T, typename TG>
 void MgspBenchmark<T, TG>::shared_exchange(std::initializer_list<std::pair<std::byte*, std::size_t>> buffers, int grid,
                                            bool delta, cudaStream_t stream) {
   const int r = rank(), n = ranks();
-  const int held = static_cast<int>(union_blocks_.size());
+  const int held = static_cast<int>(dec_.union_blocks.size());
   if (held == 0) {  // nothing shared here (no rank has a message for this one): still a collective for the others
-    device_->exchange({}, stream);
+    dec_.device->exchange({}, stream);
     return;
   }
   std::size_t per_block = 0;
@@ -208,7 +208,7 @@ void MgspBenchmark<T, TG>::shared_exchange(std::initializer_list<std::pair<std::
   // 1. Each peer's blocks out, theirs in.
   std::vector<comm::DeviceTransport::Message> messages;
   for (int q = 0; q < n; ++q) {
-    SharedPeer& peer = shared_[q];
+    SharedPeer& peer = dec_.shared[q];
     if (q == r || peer.blocks.empty()) continue;
     const int count = static_cast<int>(peer.blocks.size());
     const std::size_t scalars = static_cast<std::size_t>(count) * per_block;
@@ -232,17 +232,17 @@ void MgspBenchmark<T, TG>::shared_exchange(std::initializer_list<std::pair<std::
   }
   // 2. This rank's own part of every shared block (before the exchange returns: the sums below overwrite it).
   const std::size_t own = static_cast<std::size_t>(held) * per_block;
-  if (union_own_.size() < own) union_own_.allocate(own);
+  if (dec_.union_own.size() < own) dec_.union_own.allocate(own);
   {
     std::size_t offset = 0;
     for (const auto& [data, bytes] : buffers) {
       const int block_scalars = static_cast<int>(bytes / sizeof(TG));
-      launch_pack_halo(reinterpret_cast<const TG*>(data), block_scalars, union_index_.get(), held,
-                       union_own_.get() + offset, stream);
+      launch_pack_halo(reinterpret_cast<const TG*>(data), block_scalars, dec_.union_index.get(), held,
+                       dec_.union_own.get() + offset, stream);
       offset += static_cast<std::size_t>(held) * block_scalars;
     }
   }
-  device_->exchange(messages, stream);
+  dec_.device->exchange(messages, stream);
   // 3. Every holder: from zero (a delta exchange: from the saved sums, adding each part minus them), each rank's part
   // in rank order.
   std::size_t offset = 0, own_offset = 0;
@@ -251,21 +251,21 @@ void MgspBenchmark<T, TG>::shared_exchange(std::initializer_list<std::pair<std::
     const int block_scalars = static_cast<int>(bytes / sizeof(TG));
     TG* target = reinterpret_cast<TG*>(data);
     const bool use_saved = first && delta;
-    if (use_saved && union_saved_[grid].size() < static_cast<std::size_t>(held) * block_scalars)
+    if (use_saved && dec_.union_saved[grid].size() < static_cast<std::size_t>(held) * block_scalars)
       throw std::logic_error("GpuEngine: a delta exchange before any sum");
-    const TG* saved = use_saved ? union_saved_[grid].get() : nullptr;
+    const TG* saved = use_saved ? dec_.union_saved[grid].get() : nullptr;
     const long long all = static_cast<long long>(held) * block_scalars;
     start_shared<TG><<<cuda::grid_for(all, kHaloThreads), kHaloThreads, 0, stream>>>(
-        target, block_scalars, union_index_.get(), held, saved);
+        target, block_scalars, dec_.union_index.get(), held, saved);
     cuda::check_launch("start_shared");
     for (int q = 0; q < n; ++q) {
       if (q == r) {
         add_shared<TG><<<cuda::grid_for(all, kHaloThreads), kHaloThreads, 0, stream>>>(
-            target, block_scalars, union_index_.get(), held, union_own_.get() + own_offset, saved, nullptr);
+            target, block_scalars, dec_.union_index.get(), held, dec_.union_own.get() + own_offset, saved, nullptr);
         cuda::check_launch("add_shared");
         continue;
       }
-      SharedPeer& peer = shared_[q];
+      SharedPeer& peer = dec_.shared[q];
       if (peer.blocks.empty()) continue;
       const int count = static_cast<int>(peer.blocks.size());
       add_shared<TG><<<cuda::grid_for(static_cast<long long>(count) * block_scalars, kHaloThreads), kHaloThreads,
@@ -274,8 +274,8 @@ void MgspBenchmark<T, TG>::shared_exchange(std::initializer_list<std::pair<std::
       cuda::check_launch("add_shared");
     }
     if (first && grid >= 0) {  // the sums every holder now has, for a later delta exchange
-      if (union_saved_[grid].size() < static_cast<std::size_t>(all)) union_saved_[grid].allocate(all);
-      launch_pack_halo(target, block_scalars, union_index_.get(), held, union_saved_[grid].get(), stream);
+      if (dec_.union_saved[grid].size() < static_cast<std::size_t>(all)) dec_.union_saved[grid].allocate(all);
+      launch_pack_halo(target, block_scalars, dec_.union_index.get(), held, dec_.union_saved[grid].get(), stream);
     }
     offset += static_cast<std::size_t>(block_scalars);
     own_offset += static_cast<std::size_t>(held) * block_scalars;
@@ -285,14 +285,14 @@ void MgspBenchmark<T, TG>::shared_exchange(std::initializer_list<std::pair<std::
 
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::mark_not_counted() {
-  not_counted_.allocate(static_cast<std::size_t>(block_capacity_));
-  FBAR_CUDA_CHECK(cudaMemsetAsync(not_counted_.get(), 0, static_cast<std::size_t>(block_capacity_), stream_));
+  dec_.not_counted.allocate(static_cast<std::size_t>(block_capacity_));
+  FBAR_CUDA_CHECK(cudaMemsetAsync(dec_.not_counted.get(), 0, static_cast<std::size_t>(block_capacity_), stream_));
   for (int q = 0; q < rank(); ++q) {
-    const SharedPeer& peer = shared_[q];
+    const SharedPeer& peer = dec_.shared[q];
     if (peer.blocks.empty()) continue;
     const int count = static_cast<int>(peer.blocks.size());
     mark_blocks<<<cuda::grid_for(count, kHaloThreads), kHaloThreads, 0, stream_>>>(peer.index.get(), count,
-                                                                                       not_counted_.get());
+                                                                                       dec_.not_counted.get());
     cuda::check_launch("mark_blocks");
   }
 }

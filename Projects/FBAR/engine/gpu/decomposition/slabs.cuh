@@ -9,38 +9,38 @@ namespace fbar {
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::choose_slabs(const std::vector<std::vector<Vec3d>>* positions) {
   const int n = ranks(), r = rank();
-  homes_ = comm::body_ranks(scene_, n);
-  placed_ = std::any_of(homes_.begin(), homes_.end(), [](int h) { return h >= 0; });
+  dec_.homes = comm::body_ranks(scene_, n);
+  dec_.placed = std::any_of(dec_.homes.begin(), dec_.homes.end(), [](int h) { return h >= 0; });
   std::vector<const SampleCount*> spread;  // placed bodies have no say in the slabs
   for (std::size_t b = 0; b < counts_.size(); ++b)
-    if (homes_[b] < 0) spread.push_back(&counts_[b]);
-  if (placed_) {
+    if (dec_.homes[b] < 0) spread.push_back(&counts_[b]);
+  if (dec_.placed) {
     options_.overlap_halo = false;  // the halo-first G2P2G lists the particle blocks next to the cuts only
-    shared_ = std::vector<SharedPeer>(static_cast<std::size_t>(n));  // built in place: SharedPeer does not move
-    rank_keys_.assign(static_cast<std::size_t>(n), {});
+    dec_.shared = std::vector<SharedPeer>(static_cast<std::size_t>(n));  // built in place: SharedPeer does not move
+    dec_.rank_keys.assign(static_cast<std::size_t>(n), {});
   }
   const comm::PlaneCounts planes = comm::plane_counts(spread);
   if (planes.total() > 0) {
-    slabs_ = comm::choose_slabs(planes, n);
+    dec_.slabs = comm::choose_slabs(planes, n);
   } else {  // only placed bodies: rank 0 "owns" all of space, which nothing asks about
-    slabs_.axis = 0;
-    slabs_.cuts.assign(static_cast<std::size_t>(n) + 1, INT_MAX);
-    slabs_.cuts.front() = INT_MIN;
+    dec_.slabs.axis = 0;
+    dec_.slabs.cuts.assign(static_cast<std::size_t>(n) + 1, INT_MAX);
+    dec_.slabs.cuts.front() = INT_MIN;
   }
-  slab_.axis = slabs_.axis;
-  slab_.lo = slabs_.cuts[static_cast<std::size_t>(r)];
-  slab_.hi = slabs_.cuts[static_cast<std::size_t>(r) + 1];
+  dec_.slab.axis = dec_.slabs.axis;
+  dec_.slab.lo = dec_.slabs.cuts[static_cast<std::size_t>(r)];
+  dec_.slab.hi = dec_.slabs.cuts[static_cast<std::size_t>(r) + 1];
   for (int side = 0; side < 2; ++side) {
-    HaloSide& h = halo_[static_cast<std::size_t>(side)];
+    HaloSide& h = dec_.halo[static_cast<std::size_t>(side)];
     h.peer = side == 0 ? (r > 0 ? r - 1 : -1) : (r + 1 < n ? r + 1 : -1);
-    h.plane = side == 0 ? slab_.lo : slab_.hi;  // rank r's particles scatter into grid planes [lo, hi]
+    h.plane = side == 0 ? dec_.slab.lo : dec_.slab.hi;  // rank r's particles scatter into grid planes [lo, hi]
   }
   // This rank's share of every count: the plan, the upload and the particle checks use it.
   for (std::size_t b = 0; b < counts_.size(); ++b) {
     SampleCount mine;
     mine.per_plane = counts_[b].per_plane;  // the sampler's batching (whole planes, every rank samples them all)
     const SlabBounds kept = slab_of(static_cast<int>(b));
-    const bool here = homes_[b] < 0 || homes_[b] == r;
+    const bool here = dec_.homes[b] < 0 || dec_.homes[b] == r;
     for (const BlockCount& c : counts_[b].blocks)
       if (here && kept.owns(c.bx, c.by, c.bz)) {
         mine.blocks.push_back(c);
@@ -70,13 +70,13 @@ void MgspBenchmark<T, TG>::choose_slabs(const std::vector<std::vector<Vec3d>>* p
     body.particles = static_cast<int>(mine);
   }
   if (log_ && r == 0) {
-    *log_ << "fbar: GPU ranks " << n << ": " << (planes.total() > 0 ? slabs_.describe() : std::string("no slabs"))
-          << " (" << device_->describe() << ")";
-    if (placed_) {
+    *log_ << "fbar: GPU ranks " << n << ": " << (planes.total() > 0 ? dec_.slabs.describe() : std::string("no slabs"))
+          << " (" << dec_.device->describe() << ")";
+    if (dec_.placed) {
       const char* sep = "; placed (bodies[].gpu): ";
-      for (std::size_t b = 0; b < homes_.size(); ++b)
-        if (homes_[b] >= 0) {
-          *log_ << sep << "bodies[" << b << "] on rank " << homes_[b];
+      for (std::size_t b = 0; b < dec_.homes.size(); ++b)
+        if (dec_.homes[b] >= 0) {
+          *log_ << sep << "bodies[" << b << "] on rank " << dec_.homes[b];
           sep = ", ";
         }
     }
@@ -86,9 +86,9 @@ void MgspBenchmark<T, TG>::choose_slabs(const std::vector<std::vector<Vec3d>>* p
 
 template <typename T, typename TG>
 bool MgspBenchmark<T, TG>::owns(int body, const Vec3d& x) const {
-  if (!homes_.empty() && homes_[static_cast<std::size_t>(body)] >= 0) return homes_[static_cast<std::size_t>(body)] == rank();
+  if (!dec_.homes.empty() && dec_.homes[static_cast<std::size_t>(body)] >= 0) return dec_.homes[static_cast<std::size_t>(body)] == rank();
   const QuadraticBspline<T> s = quadratic_bspline_inv(x.template cast<T>(), k_.inv_dx);
-  return slab_.owns(floor_div4(s.base[0] - 1), floor_div4(s.base[1] - 1), floor_div4(s.base[2] - 1));
+  return dec_.slab.owns(floor_div4(s.base[0] - 1), floor_div4(s.base[1] - 1), floor_div4(s.base[2] - 1));
 }
 
 template <typename T, typename TG>
@@ -105,7 +105,7 @@ void MgspBenchmark<T, TG>::agree_on_try() {
   long long held = 0;
   for (const auto& b : bodies_) held += b->pending_particles;
   mine[kParticles] = held;
-  mine[kMigrants] = migrant_most_;
+  mine[kMigrants] = dec_.migrant_most;
   for (int b = 0; b < nb; ++b)
     for (int k = 0; k < kFailKinds; ++k) {
       mine[static_cast<std::size_t>(kFixed + kFailKinds * b + k)] = body_stats_[b].failures[k];
@@ -113,7 +113,7 @@ void MgspBenchmark<T, TG>::agree_on_try() {
     }
   comm::Bytes packed(mine.size() * sizeof(long long));
   std::memcpy(packed.data(), mine.data(), packed.size());
-  const std::vector<comm::Bytes> all = host_->allgather(packed);
+  const std::vector<comm::Bytes> all = dec_.host->allgather(packed);
   std::vector<long long> v(mine.size()), agreed(mine.size());
   for (std::size_t r = 0; r < all.size(); ++r) {
     if (all[r].size() != packed.size()) throw std::logic_error("GpuEngine: ranks disagree on the step's counters");
@@ -133,10 +133,10 @@ void MgspBenchmark<T, TG>::agree_on_try() {
   }
   stats_->internal_error = static_cast<int>(agreed[kInternal]);
   stats_->p2g_range = static_cast<int>(agreed[kRange]);
-  halo_grew_ = agreed[kHaloNew] > 0;  // stats_->halo_new stays this rank's: rebuild_halo sends those
+  dec_.halo_grew = agreed[kHaloNew] > 0;  // stats_->halo_new stays this rank's: rebuild_halo sends those
   stats_->max_speed_sq = static_cast<unsigned long long>(agreed[kSpeed]);
-  most_rank_particles_ = static_cast<double>(agreed[kParticles]);
-  migrant_most_ = static_cast<int>(agreed[kMigrants]);
+  dec_.most_rank_particles = static_cast<double>(agreed[kParticles]);
+  dec_.migrant_most = static_cast<int>(agreed[kMigrants]);
   for (int b = 0; b < nb; ++b)
     for (int k = 0; k < kFailKinds; ++k) {
       body_stats_[b].failures[k] = static_cast<int>(agreed[static_cast<std::size_t>(kFixed + kFailKinds * b + k)]);
