@@ -266,40 +266,12 @@ bool GpuEngine<T, TG>::rebalance_due() const {
 template <typename T, typename TG>
 bool GpuEngine<T, TG>::rebalance_if_drifted() {
   if (!rebalance_due() || !impl_->checkpoint_ready()) return false;  // the same on every rank
-  comm::Transport& host = *options_.ranks;
   const double drifted = impl_->imbalance();
-  const comm::SlabPartition before = impl_->slabs();
   const auto start = std::chrono::steady_clock::now();
-  // Every rank's particles, merged in ID order on every rank (the restart path's input).
-  io::Checkpoint merged = impl_->checkpoint();  // collective
-  {
-    std::vector<comm::Bytes> parts = host.allgather(io::checkpoint_particle_bytes(merged));
-    for (io::CheckpointBody& b : merged.bodies) b = b.description();  // the header and body descriptions stay
-    std::vector<io::Checkpoint> all(parts.size(), merged);
-    for (std::size_t r = 0; r < parts.size(); ++r) {
-      io::read_checkpoint_particle_bytes(parts[r], all[r]);
-      comm::Bytes().swap(parts[r]);
-    }
-    merged = io::merge_checkpoints(std::move(all), "rebalancing at step " + std::to_string(impl_->steps()));
-  }
-  // The slabs the particles ask for now, as the engine would choose them: nothing to do when they are the same.
-  {
-    std::vector<SampleCount> counts;
-    const std::vector<int> homes = comm::body_ranks(*scene_, ranks());  // placed bodies have no say in the slabs
-    for (std::size_t i = 0; i < merged.bodies.size(); ++i) {
-      if (homes[i] >= 0) continue;
-      const io::CheckpointBody& b = merged.bodies[i];
-      std::vector<Vec3d> x(b.particles());
-      for (std::size_t p = 0; p < x.size(); ++p) x[p] = Vec3d{{b.x[3 * p], b.x[3 * p + 1], b.x[3 * p + 2]}};
-      counts.push_back(count_points(x, scene_->simulation.dx));
-    }
-    std::vector<const SampleCount*> pointers;
-    for (const SampleCount& c : counts) pointers.push_back(&c);
-    const comm::PlaneCounts planes = comm::plane_counts(pointers);
-    if (planes.total() == 0 || comm::choose_slabs(planes, ranks()).cuts == before.cuts) {
-      chosen_imbalance_ = drifted;  // whole block planes allow no better split: wait for a larger drift
-      return false;
-    }
+  io::Checkpoint merged = impl_->merged_checkpoint();  // collective: every rank's particles, in ID order
+  if (!impl_->slabs_change_for(merged)) {  // whole block planes allow no better split: wait for a larger drift
+    chosen_imbalance_ = drifted;
+    return false;
   }
   impl_->wait_for_frames();
   earlier_times_ = kernel_times();

@@ -2,7 +2,7 @@
 // file holds the state and the members' declarations; the members are defined by concern in the parts included at
 // its end: device_bodies.cuh (the bodies and their kernels' launches), engine_setup.cuh (construction), engine_step.cuh
 // (the step below), sensors_checkpoints.cuh, frame_output.cuh, and decomposition/ (slabs, halo, shared blocks of
-// placed bodies, migration). docs/developer_guide.md "Architecture" walks through one step.
+// placed bodies, migration, rebalancing). docs/developer_guide.md "Architecture" walks through one step.
 //
 // State between steps n-1 and n (cur, gc: which of the double buffers is current):
 //   bins[cur]          particles of state n (storage order), per body
@@ -193,6 +193,10 @@ class MgspBenchmark {
     return mean > 0.0 ? dec_.most_rank_particles / mean - 1.0 : 0.0;
   }
   /// Waits until the writer thread has built every frame submitted so far (their host buffers are free).
+  /// Rebalancing (decomposition/rebalance.cuh): every rank's particles merged in ID order on every rank (collective;
+  /// the restart path's input), and whether the slabs those particles ask for differ from the current ones.
+  io::Checkpoint merged_checkpoint() const;
+  bool slabs_change_for(const io::Checkpoint& merged) const;
   void wait_for_frames() const {
     for (const auto& b : bodies_) {
       if (!b->frame_slot) continue;
@@ -439,3 +443,4 @@ class MgspBenchmark {
 #include "engine/gpu/decomposition/halo.cuh"
 #include "engine/gpu/decomposition/shared_blocks.cuh"
 #include "engine/gpu/decomposition/migration.cuh"
+#include "engine/gpu/decomposition/rebalance.cuh"
