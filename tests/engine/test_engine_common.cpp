@@ -44,6 +44,56 @@ TEST(PlanStepToward, BelowTheClockResolutionIsAnError) {
   EXPECT_GT(t + ulp.dt, t);
 }
 
+// StepPlan::land: only a whole landing step (ok, planned as the last, no retry shortened it) sets the clock to t_end.
+TEST(PlanStepToward, OnlyAWholeLandingSetsTheClock) {
+  const StepPlan last = plan_step_toward(1.0, 1.25, 0.5);
+  StepReport ok;
+  double clock = 1.0 + 0.25 + 1e-17;
+  last.land(clock, 1.25, ok);
+  EXPECT_EQ(clock, 1.25);
+  StepReport retried;
+  retried.retries = 1;  // the step was halved: it ends short of t_end
+  clock = 1.125;
+  last.land(clock, 1.25, retried);
+  EXPECT_EQ(clock, 1.125);
+  StepReport failed;
+  failed.ok = false;
+  clock = 1.0;
+  last.land(clock, 1.25, failed);
+  EXPECT_EQ(clock, 1.0);
+  const StepPlan middle = plan_step_toward(1.0, 2.0, 0.2);
+  clock = 1.2;
+  middle.land(clock, 2.0, ok);
+  EXPECT_EQ(clock, 1.2);
+}
+
+// check_engine_body: both engines refuse what they cannot run with the key, the value and the engine named.
+TEST(CheckEngineBody, NamesTheKeyAndTheEngine) {
+  BodySpec body;
+  body.material.law = Constitutive::JFluid;
+  EXPECT_NO_THROW(check_engine_body(body, 0, "GPU engine"));
+  auto message = [](const BodySpec& b) {
+    try {
+      check_engine_body(b, 2, "CPU engine");
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  BodySpec logjp = body;
+  logjp.output_attribs = {"logJp"};
+  EXPECT_EQ(message(logjp), "bodies[2].output_attribs: logJp is not available for a JFluid body");
+  BodySpec fem = body;
+  fem.algorithm.use_fem = true;
+  EXPECT_EQ(message(fem), "bodies[2].algorithm.use_FEM: not implemented by the CPU engine");
+  BodySpec mesh = body;
+  mesh.material.type = "mesh";
+  EXPECT_EQ(message(mesh), "bodies[2].material.type: \"mesh\" bodies are not implemented");
+  BodySpec empty = body;
+  empty.material.ppc = 0.0;
+  EXPECT_EQ(message(empty), "bodies[2].material.ppc: must be positive");
+}
+
 // absorb(): steps, retries and repaired failures add up over the steps of one advance_to; dt and the failures are
 // the last step's.
 TEST(StepReportAbsorb, SumsStepsAndKeepsTheLastFailure) {

@@ -8,7 +8,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "io/particle_frame.h"
+#include "physics/frame_attributes.h"
+#include "scene/attributes.h"
 #include "physics/constitutive_models.cuh"
 
 namespace fbar {
@@ -96,6 +97,26 @@ StepPlan plan_step_toward(double time, double t_end, double dt_cfl) {
     throw std::runtime_error("advance_to: the time step " + format_g(plan.dt) +
                              " s is below the resolution of the clock at t = " + format_g(time) + " s");
   return plan;
+}
+
+void check_engine_body(const BodySpec& spec, int index, const std::string& engine) {
+  const std::string where = "bodies[" + std::to_string(index) + "]";
+  const MaterialSpec& mat = spec.material;
+  const char* law = "?";
+  visit_material(mat.law, [&](auto m) { law = decltype(m)::kJsonName; });
+  if (material_index(mat.law) < 0)
+    throw std::invalid_argument(where + ".material.constitutive: " + law + " is not implemented by the " + engine +
+                                " (implemented: " + supported_material_names() + ")");
+  if (mat.type != "particles")
+    throw std::invalid_argument(where + ".material.type: \"" + mat.type + "\" bodies are not implemented");
+  if (spec.algorithm.use_fem)
+    throw std::invalid_argument(where + ".algorithm.use_FEM: not implemented by the " + engine);
+  for (const std::string& name : spec.output_attribs) {
+    const std::string canonical = canonical_attribute(name);
+    if (canonical.empty() || !material_supports_attribute(mat.law, canonical))
+      throw std::invalid_argument(where + ".output_attribs: " + name + " is not available for a " + law + " body");
+  }
+  if (!(mat.ppc > 0.0)) throw std::invalid_argument(where + ".material.ppc: must be positive");
 }
 
 }  // namespace fbar

@@ -77,8 +77,20 @@ struct DtRetryPolicy {
 struct StepPlan {
   double dt = 0.0;    ///< [s]
   bool last = false;  ///< the step lands on t_end: the engine sets its clock to t_end exactly when it commits
+
+  /// After the planned step (report r): a step that landed whole (ok, last, not shortened by a retry) sets `clock` to
+  /// t_end exactly, not t_end +- round-off.
+  void land(double& clock, double t_end, const StepReport& r) const {
+    if (r.ok && last && r.retries == 0) clock = t_end;
+  }
 };
 StepPlan plan_step_toward(double time, double t_end, double dt_cfl);
+
+/// What an engine checks of body `index` before it samples it (both engines; the release policy refuses these
+/// earlier for scenes read from files): a law the engines implement, "particles" bodies, no FEM, output attributes
+/// the law has, a positive ppc. Throws std::invalid_argument naming the key; `engine` ("CPU engine", "GPU engine")
+/// goes into the message.
+void check_engine_body(const BodySpec& spec, int index, const std::string& engine);
 
 
 }  // namespace fbar

@@ -231,23 +231,10 @@ void CpuEngine<T, TG>::init(const std::vector<std::vector<Vec3d>>& positions) {
   }
   for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {
     const BodySpec& spec = scene_.bodies[b];
+    check_engine_body(spec, static_cast<int>(b), "CPU engine");
     const std::string where = "bodies[" + std::to_string(b) + "]";
     const MaterialSpec& mat = spec.material;
-    if (material_index(mat.law) < 0)
-      throw std::invalid_argument(where + ".material.constitutive: " + law_name(mat.law) +
-                                  " is not implemented by the CPU engine (implemented: " + supported_material_names() +
-                                  ")");
-    if (mat.type != "particles")
-      throw std::invalid_argument(where + ".material.type: \"" + mat.type + "\" bodies are not implemented");
     const AlgorithmSpec& alg = spec.algorithm;
-    if (alg.use_fem) throw std::invalid_argument(where + ".algorithm.use_FEM: not implemented by the CPU engine");
-    for (const std::string& name : spec.output_attribs) {
-      const std::string canonical = canonical_attribute(name);
-      if (canonical.empty() || !material_supports_attribute(mat.law, canonical))
-        throw std::invalid_argument(where + ".output_attribs: " + name + " is not available for a " +
-                                    law_name(mat.law) + " body");
-    }
-    if (!(mat.ppc > 0.0)) throw std::invalid_argument(where + ".material.ppc: must be positive");
 
     Body& body = bodies_[b];
     body.spec = spec;
@@ -432,7 +419,7 @@ template <typename T, typename TG>
 StepReport CpuEngine<T, TG>::step_toward(double t_end) {
   const StepPlan plan = plan_step_toward(time_, t_end, next_dt());
   StepReport r = step_impl(plan.dt, true);
-  if (r.ok && plan.last && r.retries == 0) time_ = t_end;  // land on the target exactly, not t_end +- round-off
+  plan.land(time_, t_end, r);
   return r;
 }
 

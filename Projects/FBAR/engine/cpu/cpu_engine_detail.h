@@ -48,12 +48,6 @@ inline std::uint64_t pack_block(const Vec3i& b) {
 /// disjoint.
 inline int colour_of(const Vec3i& b) { return (b[0] & 1) | ((b[1] & 1) << 1) | ((b[2] & 1) << 2); }
 
-inline const char* law_name(Constitutive law) {
-  const char* name = "?";
-  visit_material(law, [&](auto m) { name = decltype(m)::kJsonName; });
-  return name;
-}
-
 /// Every scalar of a trivially copyable state made of T is finite.
 template <typename T, typename S>
 bool state_is_finite(const S& s) {

@@ -65,20 +65,9 @@ double MgspBenchmark<T, TG>::add_body(int b, const std::vector<std::vector<Vec3d
   double max_speed = 0.0;
   const BodySpec& spec = scene_.bodies[static_cast<std::size_t>(b)];
   const std::string where = "bodies[" + std::to_string(b) + "]";
+  check_engine_body(spec, b, "GPU engine");
   const MaterialSpec& mat = spec.material;
-  if (material_index(mat.law) < 0)
-    throw std::invalid_argument(where + ".material.constitutive: not implemented by the GPU engine (implemented: " +
-                                supported_material_names() + ")");
-  if (mat.type != "particles")
-    throw std::invalid_argument(where + ".material.type: \"" + mat.type + "\" bodies are not implemented");
   const AlgorithmSpec& alg = spec.algorithm;
-  if (alg.use_fem) throw std::invalid_argument(where + ".algorithm.use_FEM: not implemented by the GPU engine");
-  for (const std::string& name : spec.output_attribs) {
-    const std::string canonical = canonical_attribute(name);
-    if (canonical.empty() || !material_supports_attribute(mat.law, canonical))
-      throw std::invalid_argument(where + ".output_attribs: " + name + " is not available on the GPU engine");
-  }
-  if (!(mat.ppc > 0.0)) throw std::invalid_argument(where + ".material.ppc: must be positive");
   Aabb geometry_bounds;  // the free surface of a hydrostatic body is its top (engine/hydrostatic.h)
   if (positions) {
     const std::vector<Vec3d>& x = (*positions)[static_cast<std::size_t>(b)];

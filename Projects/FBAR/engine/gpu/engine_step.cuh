@@ -581,7 +581,7 @@ template <typename T, typename TG>
 StepReport MgspBenchmark<T, TG>::step_toward(double t_end, double t_following) {
   const StepPlan plan = plan_step_toward(time_, t_end, next_dt());  // the CPU engine's rule (engine_common.h)
   StepReport r = step_impl(plan.dt, true, t_end, t_following);
-  if (r.ok && plan.last && r.retries == 0) time_ = t_end;  // land on the target exactly, not t_end +- round-off
+  plan.land(time_, t_end, r);
   return r;
 }
 
