@@ -86,16 +86,18 @@ TEST(FrameAttributes, NamesUnitsAndWhatIsNotKept) {
   ASSERT_TRUE(resolve_frame_attribute("StrainSmall_2", a));
   EXPECT_EQ(a.unit, "");
   EXPECT_EQ(a.column.row, kTensorPrincipal);
-  // JBar is the J that F-bar integrates (the stored J); PorePressure is kept by no engine (the release policy
-  // refuses it).
+  // JBar is the J that F-bar integrates (the stored J); PorePressure is the saturated laws' pore pressure.
   ASSERT_TRUE(resolve_frame_attribute("JBar", a));
   EXPECT_EQ(a.column.quantity, FrameQuantity::J);
   EXPECT_EQ(a.name, "JBar");
-  EXPECT_FALSE(resolve_frame_attribute("PorePressure", a));
-  // Every canonical name of attributes.h either resolves or is PorePressure.
+  ASSERT_TRUE(resolve_frame_attribute("PorePressure", a));
+  EXPECT_EQ(a.column.quantity, FrameQuantity::PorePressure);
+  EXPECT_EQ(a.unit, "Pa");
+  EXPECT_TRUE(material_has(Constitutive::CoupledUP, FrameQuantity::PorePressure));
+  EXPECT_FALSE(material_has(Constitutive::DruckerPrager, FrameQuantity::PorePressure));
+  // Every canonical name of attributes.h resolves.
   for (std::string_view n : kParticleAttributeNames) {
     const std::string name(n);
-    if (name == "PorePressure") continue;
     EXPECT_TRUE(resolve_frame_attribute(canonical_attribute(name), a)) << name;
   }
 }

@@ -39,7 +39,9 @@ double max_abs_diff(const Mat3d& a, const Mat3d& b) { return max_abs(a - b); }
 // ------------------------------------------------------------------------------------------------ material list
 
 TEST(MaterialList, MapsLawsAndJsonNamesToTypes) {
-  EXPECT_EQ(supported_material_names(), "JFluid, FixedCorotated, NeoHookean, DruckerPrager, NACC, Hencky, VonMises");
+  EXPECT_EQ(supported_material_names(),
+            "JFluid, FixedCorotated, NeoHookean, DruckerPrager, NACC, Hencky, VonMises, CoupledUP");
+  EXPECT_EQ(material_index(Constitutive::CoupledUP), 7);
   EXPECT_EQ(material_index(Constitutive::Hencky), 5);
   EXPECT_EQ(material_index(Constitutive::NeoHookean), 2);
   EXPECT_EQ(material_index(Constitutive::JFluid), 0);

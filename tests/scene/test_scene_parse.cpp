@@ -389,7 +389,8 @@ TEST(SceneParse, HydroUQWrapperKeysAreMetadata) {
 // warning that names it (user guide 2.1, difference 30).
 // The values of ClaymoreUW's loader that fbar 0.1 refused (docs/claymore_compatibility.md): a boundary time in its
 // three-element form, the grid-sensor operations addition / averages, a flat grid-sensor box (grown by one cell as
-// ClaymoreUW grows it); refused with a reason: the CoupledUP grid channels and the particle-sensor Subtract.
+// ClaymoreUW grows it); refused with a reason: the CoupledUP grid channels in a scene without a CoupledUP body and the
+// particle-sensor Subtract.
 TEST(SceneParse, ClaymoreUWSensorAndBoundaryForms) {
   const std::string body = R"({"material": {"constitutive": "JFluid"}, "geometry": [{"object": "Box"}]})";
   std::vector<std::string> warnings;
@@ -416,8 +417,17 @@ TEST(SceneParse, ClaymoreUWSensorAndBoundaryForms) {
   EXPECT_EQ(s.grid_sensors[1].domain_end[1], 0.25);
   EXPECT_NE(error_of(scene_with(body, R"("grid-sensors": [{"attribute": "masw", "direction": "N/A",
                                                           "domain_start": [0, 0, 0], "domain_end": [1, 1, 1]}])"))
-                .find("MassWater is a channel of ClaymoreUW's CoupledUP law"),
+                .find("MassWater is the pore water of CoupledUP bodies, and the scene has none"),
             std::string::npos);
+  const std::string soil = R"({"material": {"constitutive": "CoupledUP", "rho": 2000, "poro": 0.4, "Kf": 2.2e9,
+                                            "Ks": 3.6e10, "Kperm": 1e-5}, "geometry": [{"object": "Box"}]})";
+  const Scene saturated = parse(scene_with(soil, R"("grid-sensors": [{"attribute": "pore_pressure", "direction": "N/A",
+                                                    "domain_start": [0, 0, 0], "domain_end": [1, 1, 1]}])"));
+  ASSERT_EQ(saturated.grid_sensors.size(), 1u);
+  EXPECT_EQ(saturated.grid_sensors[0].attribute, "PorePressure");
+  EXPECT_EQ(saturated.bodies[0].material.law, Constitutive::CoupledUP);
+  EXPECT_EQ(saturated.bodies[0].material.rhow, 1000.0);   // ClaymoreUW's default
+  EXPECT_EQ(saturated.bodies[0].material.alpha1, 1.0);    // ClaymoreUW's default
   EXPECT_NE(error_of(scene_with(body, R"("particle-sensors": [{"attribute": "Position_Y", "operation": "Subtract",
                                                               "domain_start": [0, 0, 0], "domain_end": [1, 1, 1]}])"))
                 .find("ClaymoreUW accepts Subtract and writes 0 for it"),

@@ -189,7 +189,12 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
     row(os, "algorithm", algorithm_line(b.algorithm));
     row(os, "velocity", vec(b.velocity) + " m/s");
     if (b.initial_state == InitialState::Hydrostatic)
-      row(os, "initial_state", "hydrostatic: J p = rho g (depth below the top of the geometry)");
+      row(os, "initial_state", b.material.law == Constitutive::CoupledUP
+                                   ? "hydrostatic: the pore water carries rho g (depth below the top of the geometry)"
+                                   : "hydrostatic: J p = rho g (depth below the top of the geometry)");
+    if (b.material.law == Constitutive::CoupledUP)
+      row(os, "engine", "CPU engine (--backend=cpu; several ranks too): the GPU engine refuses saturated bodies "
+                        "in this release");
     row(os, "partition", vec(b.partition_start) + " .. " + vec(b.partition_end) + " m");
     for (std::size_t j = 0; j < b.geometry.size(); ++j)
       row(os, "geometry[" + std::to_string(j) + "]", geometry_line(b.geometry[j]));
@@ -207,6 +212,10 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
           num(bs.dt_bound) + " s (min(CFL x dx / (wave speed + |velocity|), 0.5 x dx / wave speed))");
       if (std::isfinite(bs.viscous_dt))
         row(os, "viscous bound", num(bs.viscous_dt) + " s (CFL x rho x dx^2 / (3 x viscosity), explicit viscosity)");
+      if (std::isfinite(bs.seepage_dt))
+        row(os, "seepage bound",
+            num(bs.seepage_dt) + " s (CFL x dx^2 / (8 x kappa x M), explicit seepage; kappa = Kperm / (rhow g0), "
+                                 "1/M = poro/Kf + (alpha1 - poro)/Ks)");
       row(os, "GPU per particle", std::to_string(bs.gpu_bytes_per_particle) + " B: " + bs.gpu_bytes_detail);
       row(os, "grid channels", bs.grid_channels);
       char cost[160];

@@ -138,7 +138,8 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
                                 body.velocity[2] * body.velocity[2]);
     s.dt_bound = cfl_time_step(m.cfl, dx, facts.wave_speed, v0);
     s.viscous_dt = body_viscous_step_bound(body, dx);
-    summary.dt = min_time_step(min_time_step(summary.dt, s.dt_bound), s.viscous_dt);
+    s.seepage_dt = body_seepage_step_bound(body, dx);
+    summary.dt = min_time_step(min_time_step(min_time_step(summary.dt, s.dt_bound), s.viscous_dt), s.seepage_dt);
     // Float columns of the body's frame on the GPU (-1: no frames); a list the run refuses still counts its bytes.
     int frame_columns = -1;
     if (options.frames) {

@@ -21,6 +21,7 @@ struct BodySummary {
   double wave_speed = 0.0;        ///< [m/s] p-wave speed at rest (docs/user_guide.md §2.4)
   double dt_bound = 0.0;          ///< [s] CFL * dx / (wave_speed + |initial velocity|)
   double viscous_dt = 0.0;        ///< [s] CFL rho dx^2 / (3 mu) (time_step.cuh); +infinity when inviscid
+  double seepage_dt = 0.0;        ///< [s] CFL dx^2 / (8 kappa M) (time_step.cuh); +infinity unless saturated
   // What the body costs on the GPU engine (a scene pays only for what it uses):
   int stored_scalars = 0;             ///< position + material state scalars per particle in a bin
   std::size_t record_bytes = 0;       ///< [B] one bin record: those scalars in the run's precision and the ID
@@ -35,7 +36,7 @@ struct BodySummary {
 struct SceneSummary {
   std::vector<DeviceMemoryPlan> gpu_plans;  ///< the GPU engine's plan per GPU (index = gpu id)
   std::vector<BodySummary> bodies;
-  double dt = 0.0;                          ///< [s] min(default_dt, every body's dt_bound and viscous_dt)
+  double dt = 0.0;                          ///< [s] min(default_dt, every body's dt_bound, viscous_dt, seepage_dt)
   std::size_t cpu_bytes = 0;                ///< estimated host memory of the CPU engine
   std::vector<std::size_t> gpu_bytes;       ///< estimated device memory per GPU (index = gpu id): gpu_plans' totals
   std::size_t host_setup_bytes = 0;         ///< host memory of the GPU engine's set-up (one sampling batch)

@@ -39,10 +39,22 @@ inline double body_viscous_step_bound(const BodySpec& body, double dx) {
   });
   return bound;
 }
+/// A saturated body's explicit seepage bound (time_step.cuh seepage_time_step); +infinity for other laws.
+inline double body_seepage_step_bound(const BodySpec& body, double dx) {
+  double bound = std::numeric_limits<double>::infinity();
+  visit_material(body.material.law, [&](auto m) {
+    using M = decltype(m);
+    if constexpr (IsPoreFluid<M>::value)
+      bound = seepage_time_step(body.material.cfl, dx, M::seepage_diffusivity(body.material));
+  });
+  return bound;
+}
+/// The smallest diffusive bound of a scene: viscosity (JFluid) and seepage (CoupledUP); `body` the body setting it.
 inline ViscousBound viscous_step_bound(const Scene& scene) {
   ViscousBound v;
   for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
-    const double dt = body_viscous_step_bound(scene.bodies[b], scene.simulation.dx);
+    const double dt = std::min(body_viscous_step_bound(scene.bodies[b], scene.simulation.dx),
+                               body_seepage_step_bound(scene.bodies[b], scene.simulation.dx));
     if (dt < v.dt) v = {dt, static_cast<int>(b)};
   }
   return v;

@@ -37,11 +37,12 @@ struct FrameSource {
   std::function<std::vector<Mat3<T>>()> F;       ///< [-] (materials that store F)
   std::function<std::vector<Mat3<T>>()> sigma;   ///< [Pa] Cauchy stress
   std::function<std::vector<T>()> logJp;         ///< [-] plastic state (materials with kOutputs.log_jp)
+  std::function<std::vector<T>()> pore_pressure; ///< [Pa] (materials with kOutputs.pore_pressure)
 };
 
 /// Which inputs a list of attributes reads.
 struct FrameNeeds {
-  bool J = false, F = false, sigma = false, logJp = false, velocity = false;
+  bool J = false, F = false, sigma = false, logJp = false, velocity = false, pore_pressure = false;
 };
 
 
@@ -52,6 +53,7 @@ inline FrameNeeds frame_needs(const std::vector<FrameAttributeSpec>& attributes)
       case FrameQuantity::Volume:
       case FrameQuantity::J: n.J = true; break;
       case FrameQuantity::LogJp: n.logJp = true; break;
+      case FrameQuantity::PorePressure: n.pore_pressure = true; break;
       case FrameQuantity::DefGrad:
       case FrameQuantity::StrainSmall:
       case FrameQuantity::VonMisesStrain: n.F = true; break;
@@ -93,12 +95,13 @@ io::ParticleFrame build_frame(const BodySpec& spec, int body, const FrameSource<
   }
   const std::vector<FrameAttributeSpec> attributes = frame_attributes(spec, body, engine);
   const FrameNeeds needs = frame_needs(attributes);
-  std::vector<T> J, logJp;
+  std::vector<T> J, logJp, pore;
   std::vector<Mat3<T>> F, sigma;
   if (needs.J) J = src.J();
   if (needs.F) F = src.F();
   if (needs.sigma) sigma = src.sigma();
   if (needs.logJp) logJp = src.logJp();
+  if (needs.pore_pressure) pore = src.pore_pressure();
   for (const FrameAttributeSpec& a : attributes) {
     if (a.column.quantity == FrameQuantity::Id) {
       std::vector<std::int32_t> ids(n);
@@ -115,6 +118,7 @@ io::ParticleFrame build_frame(const BodySpec& spec, int body, const FrameSource<
       in.volume0 = src.volume0(p);
       if (needs.J) in.J = J[p];
       if (needs.logJp) in.logJp = logJp[p];
+      if (needs.pore_pressure) in.pore_pressure = pore[p];
       if (needs.F) in.F = F[p];
       if (needs.sigma) in.sigma = sigma[p];
       values[p] = static_cast<float>(frame_value(a.column, in));

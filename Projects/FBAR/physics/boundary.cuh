@@ -337,6 +337,20 @@ constexpr double kBedLayerCells = 1.0;
 constexpr double kDomainMarginCells = 8.0;
 
 /// Is the particle position x [m] inside simulation.domain [0, domain] widened by kDomainMarginCells cells of dx?
+/// Whether boundary b acts on the node at x_node at all (some velocity, or its opposite, comes out changed): the
+/// node's walls hold water as well as material (seepage.cuh: a held node is never drained).
+template <typename T>
+FBAR_HOST_DEVICE inline bool boundary_holds(const BoundaryParams<T>& b, const Vec3<T>& x_node,
+                                            const BoundaryProfiles<T>* profiles = nullptr) {
+  const Vec3<T> probe{{T(0.5), T(1), T(0.75)}};
+  for (int sign = -1; sign <= 1; sign += 2) {
+    const Vec3<T> v = probe * T(sign);
+    const Vec3<T> out = apply_boundary(b, x_node, v, profiles);
+    if (out[0] != v[0] || out[1] != v[1] || out[2] != v[2]) return true;
+  }
+  return false;
+}
+
 template <typename T>
 FBAR_HOST_DEVICE inline bool inside_domain(const Vec3<T>& x, const Vec3<T>& domain, T dx) {
   const T margin = static_cast<T>(kDomainMarginCells) * dx;

@@ -26,6 +26,7 @@
 
 #include "MnBase/Meta/type_seq.h"
 #include "physics/seed_layout.h"
+#include "physics/materials/coupled_up.cuh"
 #include "physics/materials/drucker_prager.cuh"
 #include "physics/materials/fixed_corotated.cuh"
 #include "physics/materials/hencky.cuh"
@@ -40,7 +41,7 @@
 namespace fbar {
 
 /// Every material an engine can run, in the order of their variant indices.
-using MaterialTypes = type_seq<JFluid, FixedCorotated, NeoHookean, DruckerPrager, NACC, Hencky, VonMises>;
+using MaterialTypes = type_seq<JFluid, FixedCorotated, NeoHookean, DruckerPrager, NACC, Hencky, VonMises, CoupledUP>;
 
 template <typename M, typename T>
 using material_params_t = typename M::template Params<T>;

@@ -63,6 +63,7 @@ inline bool resolve_frame_attribute(const std::string& name, FrameAttributeSpec&
   // they store is ClaymoreUW's JBar (without F-bar, J itself).
   if (name == "J" || name == "JBar") return set(FrameQuantity::J, "");
   if (name == "logJp") return set(FrameQuantity::LogJp, "");
+  if (name == "PorePressure") return set(FrameQuantity::PorePressure, "Pa");
   if (name == "Pressure") return set(FrameQuantity::Pressure, "Pa");
   if (name == "VonMisesStress") return set(FrameQuantity::VonMises, "Pa");
   if (name == "VonMisesStrain") return set(FrameQuantity::VonMisesStrain, "");
@@ -71,7 +72,7 @@ inline bool resolve_frame_attribute(const std::string& name, FrameAttributeSpec&
   if (tensor_attribute(name, "StressPK1_", row, col)) return set(FrameQuantity::StressPK1, "Pa", row, col);
   if (tensor_attribute(name, "StressPK2_", row, col)) return set(FrameQuantity::StressPK2, "Pa", row, col);
   if (tensor_attribute(name, "StrainSmall_", row, col)) return set(FrameQuantity::StrainSmall, "", row, col);
-  return false;  // PorePressure: no engine keeps it per particle
+  return false;
 }
 
 /// Whether a quantity reads the deformation gradient F (a material that stores F has it).
@@ -87,6 +88,7 @@ inline bool material_has(Constitutive law, FrameQuantity q) {
   visit_material(law, [&](auto m) { outputs = decltype(m)::kOutputs; });
   if (frame_quantity_reads_F(q)) return outputs.deformation_gradient;
   if (q == FrameQuantity::LogJp) return outputs.log_jp;
+  if (q == FrameQuantity::PorePressure) return outputs.pore_pressure;
   return true;
 }
 

@@ -12,7 +12,7 @@ namespace fbar {
 /// What one output attribute is, resolved once from its name (both engines; the GPU evaluates it in a kernel).
 enum class FrameQuantity : int {
   Id, Mass, Volume, Position, Velocity, VelocityMagnitude, J, LogJp, DefGrad, Pressure, VonMises, Stress,
-  StressPK1, StressPK2, StrainSmall, VonMisesStrain
+  StressPK1, StressPK2, StrainSmall, VonMisesStrain, PorePressure
 };
 
 /// A tensor column's `row` when it is not a component: an invariant or a principal value (`col` = 0, 1, 2).
@@ -69,6 +69,7 @@ struct FrameInputs {
   T logJp;         ///< [-]
   Mat3<T> F;       ///< [-]
   Mat3<T> sigma;   ///< [Pa] Cauchy stress
+  T pore_pressure;  ///< [Pa] (saturated materials, kOutputs.pore_pressure)
 };
 
 /// Whether a quantity reads the Cauchy stress (then also C, through a rate law's viscous stress).
@@ -95,6 +96,7 @@ FBAR_HOST_DEVICE inline FrameInputs<T> particle_frame_inputs(const Vec3<T>& x, c
   in.F = Mat3<T>::identity();
   if constexpr (M::kOutputs.deformation_gradient) in.F = s.F;
   if constexpr (M::kOutputs.log_jp) in.logJp = s.logJp;
+  if constexpr (M::kOutputs.pore_pressure) in.pore_pressure = s.pore_pressure;
   if (sigma) in.sigma = cauchy_stress(M::kirchhoff_stress(material, s, C));
   return in;
 }
@@ -110,6 +112,7 @@ FBAR_HOST_DEVICE inline T frame_value(const FrameColumn& c, const FrameInputs<T>
     case FrameQuantity::VelocityMagnitude: return norm(in.v);
     case FrameQuantity::J: return in.J;
     case FrameQuantity::LogJp: return in.logJp;
+    case FrameQuantity::PorePressure: return in.pore_pressure;
     case FrameQuantity::DefGrad:
     case FrameQuantity::Stress:
     case FrameQuantity::StressPK1:

@@ -8,7 +8,7 @@
 
 namespace fbar {
 
-enum class Constitutive { JFluid, FixedCorotated, NeoHookean, DruckerPrager, NACC, Hencky, VonMises };
+enum class Constitutive { JFluid, FixedCorotated, NeoHookean, DruckerPrager, NACC, Hencky, VonMises, CoupledUP };
 
 struct MaterialSpec {
   Constitutive law = Constitutive::JFluid;
@@ -34,6 +34,13 @@ struct MaterialSpec {
   bool hardening = true;                ///< NACC hardeningOn
   double tensile_yield_strength = 2e6;  ///< [Pa] VonMises initial yield stress sigma_y (ClaymoreUW default)
   double hardening_modulus = 0.0;       ///< [Pa] VonMises linear isotropic hardening H (ClaymoreUW reads 1e6, then ignores it)
+  // Saturated soil (CoupledUP: the DruckerPrager skeleton above and its pore water; ClaymoreUW's keys and defaults)
+  double rhow = 1e3;                    ///< [kg/m^3] pore water density
+  double alpha1 = 1.0;                  ///< [-] Biot coefficient, poro <= alpha1 <= 1
+  double poro = 0.9;                    ///< [-] porosity n, 0 < n < 1 (ClaymoreUW's loader default)
+  double Kf = 1e7;                      ///< [Pa] bulk modulus of the pore water
+  double Ks = 2.2e7;                    ///< [Pa] bulk modulus of the solid grains
+  double Kperm = 1e-5;                  ///< [m/s] hydraulic conductivity (Darcy: q = -Kperm / (rhow g0) (grad p - rhow g))
 };
 
 }  // namespace fbar

@@ -20,6 +20,9 @@
 //                          the momentum change the boundary projections cause divided by dt (zero at nodes no
 //                          boundary touches); gravity included. Along a wall's normal at its held nodes it equals Force.
 //   Acceleration   [m/s^2] (v* - v) / dt: that force per unit node mass.
+// The pore water of saturated (CoupledUP) bodies, at nodes that carry some (other nodes add nothing to these):
+//   MassWater      [kg]    sum_p w_ip n rhow V0_p (ClaymoreUW's masw)
+//   PorePressure   [Pa]    the node's pore pressure p_i (volume-weighted mean of its particles'; 0 at drained nodes)
 // A vector quantity is projected on the sensor's unit direction; a direction with a sign keeps only that side of the
 // projection, as a magnitude (ClaymoreUW's X+ / X-): X+ gives max(q.x, 0), X- gives max(-q.x, 0).
 #pragma once
@@ -33,7 +36,7 @@
 
 namespace fbar {
 
-enum class GridSensorQuantity : int { Force, Acceleration, Momentum, Velocity, Mass, BoundaryForce };
+enum class GridSensorQuantity : int { Force, Acceleration, Momentum, Velocity, Mass, BoundaryForce, MassWater, PorePressure };
 
 /// One grid sensor as the grid update sees it (trivially copyable; built by make_grid_sensor_params).
 template <typename T>
@@ -146,6 +149,8 @@ struct GridNodeSample {
   Vec3<T> v_free;  ///< [m/s] v* = p/m + dt g
   Vec3<T> v;       ///< [m/s] after the boundary projections
   T dt;            ///< [s]
+  T water_mass = T(0);     ///< [kg] pore water at the node (0: none, the pore sensors skip the node)
+  T pore_pressure = T(0);  ///< [Pa] the node's pore pressure
 };
 
 /// What a node (mass m > 0 inside the sensor's box) contributes.
@@ -158,6 +163,8 @@ FBAR_HOST_DEVICE inline T grid_sensor_value(const GridSensorParams<T>& s, const 
     case GridSensorQuantity::Momentum: return sensor_projection(s, n.p);
     case GridSensorQuantity::Velocity: return sensor_projection(s, n.p / n.m);
     case GridSensorQuantity::Mass: return n.m;
+    case GridSensorQuantity::MassWater: return n.water_mass;
+    case GridSensorQuantity::PorePressure: return n.pore_pressure;
   }
   return T(0);
 }
@@ -166,8 +173,12 @@ FBAR_HOST_DEVICE inline T grid_sensor_value(const GridSensorParams<T>& s, const 
 template <typename T>
 FBAR_HOST_DEVICE inline void accumulate_grid_sensors(const GridSensorSet<T>& set, const Vec3<T>& x,
                                                      const GridNodeSample<T>& n, SensorAccum* acc) {
-  for (int i = 0; i < set.count; ++i)
+  for (int i = 0; i < set.count; ++i) {
+    const bool pore = set.s[i].quantity == GridSensorQuantity::MassWater ||
+                      set.s[i].quantity == GridSensorQuantity::PorePressure;
+    if (pore && !(n.water_mass > T(0))) continue;
     if (sensor_box_contains(set.s[i].lo, set.s[i].hi, x)) acc[i].add(static_cast<double>(grid_sensor_value(set.s[i], n)));
+  }
 }
 
 }  // namespace fbar

@@ -45,6 +45,20 @@ inline double viscous_time_step(double cfl, double dx, double rho, double viscos
                          : std::numeric_limits<double>::infinity();
 }
 
+/// Divisor k of the explicit seepage bound dt <= CFL dx^2 / (k kappa M) (saturated bodies, seepage.cuh). The grid's
+/// seepage operator (the Galerkin Laplacian with MLS-MPM's gradient on the particles, lumped by the node volumes)
+/// has its largest eigenvalue at 2.4 / dx^2 per axis (computed for 2, 3 and 4 particles per cell in 1D: 2.40, 2.39,
+/// 2.37), 7.2 / dx^2 in 3D; its flux reaches the particles one step late, which is stable for dt kappa M lambda < 1
+/// (half forward Euler's 2). k = 8 keeps CFL 1 inside that and CFL 0.5 at half of it.
+inline constexpr double kSeepageBoundDivisor = 8.0;
+
+/// One saturated body's explicit seepage bound CFL dx^2 / (k kappa M) [s] (kappa M the seepage diffusivity,
+/// CoupledUP::seepage_diffusivity); +infinity for an undrained body (Kperm = 0).
+inline double seepage_time_step(double cfl, double dx, double diffusivity) {
+  return diffusivity > 0.0 ? cfl * dx * dx / (kSeepageBoundDivisor * diffusivity)
+                           : std::numeric_limits<double>::infinity();
+}
+
 /// min(a, b) for step bounds (a NaN bound never wins).
 template <typename T>
 FBAR_HOST_DEVICE constexpr T min_time_step(T a, T b) {

@@ -39,6 +39,8 @@ GridSensorQuantity quantity_of(const std::string& attribute) {
   if (attribute == "Momentum") return GridSensorQuantity::Momentum;
   if (attribute == "Velocity") return GridSensorQuantity::Velocity;
   if (attribute == "Mass") return GridSensorQuantity::Mass;
+  if (attribute == "MassWater") return GridSensorQuantity::MassWater;
+  if (attribute == "PorePressure") return GridSensorQuantity::PorePressure;
   // Volume and JBar are refused before a run (scene_support.cpp): the grid holds no volume channel.
   throw std::invalid_argument("grid sensor attribute \"" + attribute + "\" has no grid quantity in this release");
 }
@@ -51,6 +53,8 @@ const char* unit_of(GridSensorQuantity q) {
     case GridSensorQuantity::Momentum: return "kg m/s";
     case GridSensorQuantity::Velocity: return "m/s";
     case GridSensorQuantity::Mass: return "kg";
+    case GridSensorQuantity::MassWater: return "kg";
+    case GridSensorQuantity::PorePressure: return "Pa";
   }
   return "-";
 }

@@ -17,15 +17,6 @@ MaterialSpec parse_material(ObjectReader& body, ObjectReader* algorithm, const C
   ObjectReader o(*v, body.sub("material"), kMaterialKeys, ctx, "bodies[].material");
 
   const auto law = read_either<Constitutive>(o, &body, "constitutive", [](const rj::Value& x, const std::string& p) {
-    // ClaymoreUW's coupled u-p soil (its names; "undrained" it parses and then rejects): refused by name.
-    if (x.IsString()) {
-      const std::string f = fold(x.GetString());
-      if (f == "coupledup" || f == "coupled" || f == "up" || f == "undrained")
-        throw SceneError(p, json_text(x),
-                         "a law this release implements (" + supported_material_names() +
-                             "); ClaymoreUW's CoupledUP (saturated soil with pore pressure: rhow, alpha1, poro, Kf, "
-                             "Ks, Kperm) is not supported yet in this release");
-    }
     return read_enum(x, p, kLaws);
   });
   m.law = law.value_or(Constitutive::JFluid);  // ClaymoreUW's default

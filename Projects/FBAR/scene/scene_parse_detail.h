@@ -320,7 +320,7 @@ inline const std::vector<EnumName<std::string>> kGridSensorAttributes = {
     {"Momentum", {"Momentum"}},
     {"Velocity", {"Velocity"}}, {"Mass", {"Mass"}},                 {"Volume", {"Volume"}},
     {"JBar", {"JBar", "J Bar"}},
-    // ClaymoreUW's CoupledUP grid channels (refused: scene_support.cpp)
+    // the pore water of CoupledUP bodies (seepage channels)
     {"MassWater", {"MassWater", "masw"}},       {"PorePressure", {"PorePressure", "pore_pressure"}},
 };
 inline const std::vector<const char*> kSaveSuffixes = {".bgeo", ".geo", ".csv", ".h5"};
@@ -354,10 +354,7 @@ inline const Keys kOutputKeys = {"output_attribs", "attribs",         "track_att
 /// Keys of bodies[].material: the common ones, then every material's parameters (kParameters).
 inline Keys material_keys() {
   // material_preset: HydroUQ's label of the form it filled in; poissons_ratio: HydroUQ's spelling of poisson_ratio.
-  // rhow, alpha1, poro, Kf, Ks, Kperm: ClaymoreUW's CoupledUP parameters (that law is refused by name; on another
-  // law they are ignored with a warning, as any parameter the law does not read).
-  Keys keys = {"type", "constitutive", "ppc", "CFL", "rho", "material_preset", "poissons_ratio",
-               "rhow", "alpha1", "poro", "Kf", "Ks", "Kperm"};
+  Keys keys = {"type", "constitutive", "ppc", "CFL", "rho", "material_preset", "poissons_ratio"};
   for_each_material([&](auto m) {
     for (const MaterialParameter& p : decltype(m)::kParameters)
       if (std::find(keys.begin(), keys.end(), std::string_view(p.key)) == keys.end()) keys.push_back(p.key);

@@ -122,11 +122,14 @@ void check_supported(const Scene& scene) {
       refuse(idx("grid-sensors", i) + ".attribute", q(g.attribute),
              "one of Force, BoundaryForce, Acceleration, Momentum, Velocity, Mass (the grid stores no volume)",
              "grid-sensor attribute " + g.attribute);
-    if (g.attribute == "MassWater" || g.attribute == "PorePressure")
-      refuse(idx("grid-sensors", i) + ".attribute", q(g.attribute),
-             "one of Force, BoundaryForce, Acceleration, Momentum, Velocity, Mass (" + g.attribute +
-                 " is a channel of ClaymoreUW's CoupledUP law, which this release does not have)",
-             "grid-sensor attribute " + g.attribute);
+    if (g.attribute == "MassWater" || g.attribute == "PorePressure") {
+      bool saturated = false;  // only CoupledUP bodies carry pore water to the grid
+      for (const BodySpec& b : scene.bodies) saturated = saturated || b.material.law == Constitutive::CoupledUP;
+      if (!saturated)
+        throw SceneError(idx("grid-sensors", i) + ".attribute", q(g.attribute),
+                         "a grid attribute the scene has: " + g.attribute +
+                             " is the pore water of CoupledUP bodies, and the scene has none");
+    }
   }
   if (enabled > GridSensorSet<double>::kMax)
     throw SceneError("grid-sensors", std::to_string(enabled) + " enabled sensors",

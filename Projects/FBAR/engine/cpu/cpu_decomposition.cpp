@@ -111,6 +111,7 @@ void CpuEngine<T, TG>::exchange_shared_blocks(bool fbar_sums) {
       } else {
         put(send.back(), grid_.blocks[gb]);
         if (asflip_) put(send.back(), grid_.asflip[gb]);
+        if (pore_) put(send.back(), grid_.pore[gb]);
       }
     }
   }
@@ -127,6 +128,7 @@ void CpuEngine<T, TG>::exchange_shared_blocks(bool fbar_sums) {
   std::vector<GridBlock> own_grid;
   std::vector<AsflipBlock> own_asflip;
   std::vector<FbarBlock> own_fbar;
+  std::vector<PoreBlock> own_pore;
   for (int gb : blocks) {
     if (fbar_sums) {
       own_fbar.push_back(grid_.fbar[gb]);
@@ -138,12 +140,16 @@ void CpuEngine<T, TG>::exchange_shared_blocks(bool fbar_sums) {
         own_asflip.push_back(grid_.asflip[gb]);
         std::memset(&grid_.asflip[gb], 0, sizeof(AsflipBlock));
       }
+      if (pore_) {
+        own_pore.push_back(grid_.pore[gb]);
+        std::memset(&grid_.pore[gb], 0, sizeof(PoreBlock));
+      }
     }
   }
   auto add = [](TG* into, const TG* from, int count) {
     for (int k = 0; k < count; ++k) into[k] += from[k];
   };
-  auto add_block = [&](int gb, const GridBlock* g, const AsflipBlock* a, const FbarBlock* f) {
+  auto add_block = [&](int gb, const GridBlock* g, const AsflipBlock* a, const FbarBlock* f, const PoreBlock* w) {
     if (f) {
       add(&grid_.fbar[gb].sums[0][0], &f->sums[0][0], 2 * 64);
       return;
@@ -151,12 +157,13 @@ void CpuEngine<T, TG>::exchange_shared_blocks(bool fbar_sums) {
     add(grid_.blocks[gb].mass, g->mass, 64);
     add(&grid_.blocks[gb].momentum[0][0], &g->momentum[0][0], 3 * 64);
     if (asflip_) add(&grid_.asflip[gb].old_velocity[0][0], &a->old_velocity[0][0], 3 * 64);
+    if (pore_) add(grid_.pore[gb].volume, w->volume, 5 * 64);  // the five channels: one array
   };
   for (int q = 0; q < n; ++q) {
     if (q == r) {
       for (std::size_t i = 0; i < blocks.size(); ++i)
         add_block(blocks[i], fbar_sums ? nullptr : &own_grid[i], asflip_ && !fbar_sums ? &own_asflip[i] : nullptr,
-                  fbar_sums ? &own_fbar[i] : nullptr);
+                  fbar_sums ? &own_fbar[i] : nullptr, pore_ && !fbar_sums ? &own_pore[i] : nullptr);
       continue;
     }
     const std::size_t peer = static_cast<std::size_t>(q < r ? q : q - 1);
@@ -165,12 +172,14 @@ void CpuEngine<T, TG>::exchange_shared_blocks(bool fbar_sums) {
     for (int gb : shared_[static_cast<std::size_t>(q)]) {
       if (fbar_sums) {
         const FbarBlock f = take<FbarBlock>(in, at);
-        add_block(gb, nullptr, nullptr, &f);
+        add_block(gb, nullptr, nullptr, &f, nullptr);
       } else {
         const GridBlock g = take<GridBlock>(in, at);
         AsflipBlock a{};
         if (asflip_) a = take<AsflipBlock>(in, at);
-        add_block(gb, &g, &a, nullptr);
+        PoreBlock w{};
+        if (pore_) w = take<PoreBlock>(in, at);
+        add_block(gb, &g, &a, nullptr, &w);
       }
     }
     if (at != in.size()) throw std::runtime_error("CpuEngine: rank " + std::to_string(q) + " shares other blocks");
@@ -206,6 +215,7 @@ void CpuEngine<T, TG>::exchange_halo(bool fbar_sums) {
       } else {
         put(send[i], grid_.blocks[gb]);
         if (asflip_) put(send[i], grid_.asflip[gb]);
+        if (pore_) put(send[i], grid_.pore[gb]);
       }
     }
   const std::vector<comm::Bytes> received = transport_->exchange(peers, send);
@@ -226,11 +236,14 @@ void CpuEngine<T, TG>::exchange_halo(bool fbar_sums) {
         const GridBlock g = take<GridBlock>(in, at);
         AsflipBlock a{};
         if (asflip_) a = take<AsflipBlock>(in, at);
+        PoreBlock w{};
+        if (pore_) w = take<PoreBlock>(in, at);
         if (it == grid_.index.end()) continue;
         GridBlock& mine = grid_.blocks[it->second];
         add(mine.mass, g.mass, 64);
         add(&mine.momentum[0][0], &g.momentum[0][0], 3 * 64);
         if (asflip_) add(&grid_.asflip[it->second].old_velocity[0][0], &a.old_velocity[0][0], 3 * 64);
+        if (pore_) add(grid_.pore[it->second].volume, w.volume, 5 * 64);
       }
     }
   }

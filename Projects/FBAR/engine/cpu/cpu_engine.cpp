@@ -270,6 +270,7 @@ void CpuEngine<T, TG>::init(const std::vector<std::vector<Vec3d>>& positions) {
       using M = decltype(m);
       MaterialBody<M> mb{M::template make_params<T>(mat), {}, {}};
       mb.state.assign(n, material_initial_state<M, T>(spec.material));
+      pore_ = pore_ || IsPoreFluid<M>::value;
       mb.next_state.resize(n);
       body.max_wave_speed = static_cast<double>(M::wave_speed(mb.params, M::template reference_state<T>()));
       body.material = std::move(mb);
@@ -334,6 +335,7 @@ typename CpuEngine<T, TG>::TryResult CpuEngine<T, TG>::try_step(double dt_in) {
   for (int gb = 0; gb < nblocks; ++gb) {
     std::memset(&grid_.blocks[gb], 0, sizeof(GridBlock));
     if (asflip_) std::memset(&grid_.asflip[gb], 0, sizeof(AsflipBlock));
+    if (pore_) std::memset(&grid_.pore[gb], 0, sizeof(PoreBlock));
   }
   for (Body& body : bodies_) {
     if (body.force_of) {

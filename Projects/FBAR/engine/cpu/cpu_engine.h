@@ -193,6 +193,7 @@ class CpuEngine {
   std::vector<T> volume_ratios(int body) const;              ///< [-] J
   std::vector<Mat3T> deformation_gradients(int body) const;  ///< [-] F; throws for a law without F (JFluid)
   std::vector<T> plastic_log_volumes(int body) const;        ///< [-] logJp; throws for a law without it
+  std::vector<T> pore_pressures(int body) const;             ///< [Pa] CoupledUP p; throws for a law without it
   std::vector<Mat3T> cauchy_stresses(int body) const;        ///< [Pa] sigma = tau / J
   std::vector<T> pressures(int body) const;                  ///< [Pa] -tr(sigma)/3
   std::vector<T> wave_speeds(int body) const;                ///< [m/s] current material wave speed
@@ -290,12 +291,24 @@ class CpuEngine {
   struct FbarBlock {
     TG sums[2][64];
   };
+  // Seepage channels (only when a body is saturated, CoupledUP: physics/seepage.cuh). P2G sums volume = sum w V,
+  // head = sum w V h (h = p - rhow g . x), inflow = sum V q . grad w, water = sum w n rhow V0 and density =
+  // sum w V rhow over the saturated particles; the grid update turns head into h_i and inflow into r_i, which G2P
+  // interpolates (water and density feed the sensors and the drained nodes' h_i).
+  struct PoreBlock {
+    TG volume[64];
+    TG head[64];
+    TG inflow[64];
+    TG water[64];
+    TG density[64];
+  };
   struct Grid {
     std::unordered_map<std::uint64_t, int> index;  // packed block coordinates -> block
     std::vector<Vec3i> coords;                     // (block) block coordinates
     std::vector<GridBlock> blocks;
     std::vector<AsflipBlock> asflip;  // (block), empty unless a body uses ASFLIP
     std::vector<FbarBlock> fbar;      // (block), empty unless a body uses F-bar
+    std::vector<PoreBlock> pore;      // (block), empty unless a body is saturated
   };
 
   struct TryResult {
@@ -369,6 +382,7 @@ class CpuEngine {
   bool partition_valid_ = false;
   bool asflip_ = false;  // some body uses ASFLIP: the grid update keeps v^n
   bool fbar_ = false;    // some body uses F-bar: the grid has cell sums
+  bool pore_ = false;    // some body is saturated (CoupledUP): the grid has seepage channels
   GridSensorSet<TG> grid_sensors_;         // evaluated by update_grid when grid_sample_slot_ >= 0
   int grid_sample_slot_ = -1;
   std::vector<SensorAccum> grid_samples_;  // (slot, sensor)

@@ -262,6 +262,25 @@ std::vector<T> CpuEngine<T, TG>::plastic_log_volumes(int body) const {
 }
 
 template <typename T, typename TG>
+std::vector<T> CpuEngine<T, TG>::pore_pressures(int body) const {
+  const Body& b = body_at(body);
+  std::vector<T> l;
+  std::visit(
+      [&](const auto& mb) {
+        using M = typename std::decay_t<decltype(mb)>::material_type;
+        if constexpr (M::kOutputs.pore_pressure) {
+          l.reserve(mb.state.size());
+          for (const auto& s : mb.state) l.push_back(s.pore_pressure);
+        } else {
+          throw std::invalid_argument(std::string("CpuEngine: body ") + std::to_string(body) + " (" + M::kJsonName +
+                                      ") stores no pore pressure");
+        }
+      },
+      b.material);
+  return l;
+}
+
+template <typename T, typename TG>
 std::vector<Mat3<T>> CpuEngine<T, TG>::cauchy_stresses(int body) const {
   const Body& b = body_at(body);
   std::vector<Mat3T> sigma(b.x.size());
@@ -434,6 +453,7 @@ io::ParticleFrame CpuEngine<T, TG>::frame(int body) const {
   src.F = [&] { return deformation_gradients(body); };
   src.sigma = [&] { return cauchy_stresses(body); };
   src.logJp = [&] { return plastic_log_volumes(body); };
+  src.pore_pressure = [&] { return pore_pressures(body); };
   return build_frame(b.spec, body, src, "CPU engine");
 }
 

@@ -26,6 +26,7 @@
 #include "physics/time_step.cuh"
 #include "io/sensor_recorder.h"
 #include "scene/scene_parse.h"
+#include "physics/seepage.cuh"
 #include "physics/transfer.cuh"
 #include "engine/cpu/cpu_engine_detail.h"
 
@@ -101,6 +102,7 @@ void CpuEngine<T, TG>::build_partition() {
   grid_.blocks.resize(grid_.coords.size());
   if (asflip_) grid_.asflip.resize(grid_.coords.size());
   if (fbar_) grid_.fbar.resize(grid_.coords.size());
+  if (pore_) grid_.pore.resize(grid_.coords.size());
   partition_valid_ = true;
 }
 
@@ -123,6 +125,8 @@ void CpuEngine<T, TG>::p2g(Body& body, T dt) {
           TG arena_m[kArenaNodes];
           TG arena_p[3][kArenaNodes];
           TG arena_q[3][kArenaNodes];  // ASFLIP: the momentum without the stress impulse, m (v + C (x_i - x_p))
+          TG arena_w[5][kArenaNodes];  // saturated bodies: the seepage channels (PoreBlock, seepage.cuh)
+          constexpr bool pore = IsPoreFluid<M>::value;
           for (int colour = 0; colour < 8; ++colour) {
             const std::vector<int>& list = part.colour_blocks[colour];
             const int count = static_cast<int>(list.size());
@@ -135,6 +139,8 @@ void CpuEngine<T, TG>::p2g(Body& body, T dt) {
               for (auto& ch : arena_p) std::fill(ch, ch + kArenaNodes, TG(0));
               if (asflip_)
                 for (auto& ch : arena_q) std::fill(ch, ch + kArenaNodes, TG(0));
+              if constexpr (pore)
+                for (auto& ch : arena_w) std::fill(ch, ch + kArenaNodes, TG(0));
               for (int q = part.block_start[pb]; q < part.block_start[pb + 1]; ++q) {
                 const int p = part.order[q];
                 const QuadraticBspline<T> s = quadratic_bspline_inv(body.x[p], inv_dx);
@@ -153,6 +159,24 @@ void CpuEngine<T, TG>::p2g(Body& body, T dt) {
                   arena_p[1][a] += static_cast<TG>(mv[1]);
                   arena_p[2][a] += static_cast<TG>(mv[2]);
                 });
+                if constexpr (pore) {
+                  const T V = body.volume[p] * M::volume_ratio(state[p]);
+                  const T rhow = M::water_density(params);
+                  const T head = M::pore_pressure(state[p]) - rhow * dot(k_.gravity, body.x[p]);
+                  const Vec3T flux = M::seepage(state[p]);
+                  const Vec3T head_gradient = M::head_gradient(params, state[p]);
+                  const T water = M::water_mass(params, body.volume[p]);
+                  for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3T& xixp) {
+                    const int a = arena_index(l0 + i, l1 + j, l2 + k);
+                    const SeepageDeposit<T> d =
+                        seepage_deposit(w, xixp, d_inv, V, head + dot(head_gradient, xixp), flux, water, rhow);
+                    arena_w[0][a] += static_cast<TG>(d.volume);
+                    arena_w[1][a] += static_cast<TG>(d.head);
+                    arena_w[2][a] += static_cast<TG>(d.inflow);
+                    arena_w[3][a] += static_cast<TG>(d.water);
+                    arena_w[4][a] += static_cast<TG>(d.density);
+                  });
+                }
                 // Every body transports momentum into v^n when any body uses ASFLIP: v^n = sum / (all bodies' mass).
                 if (asflip_) {
                   const P2GParticle<T> transported =
@@ -180,6 +204,14 @@ void CpuEngine<T, TG>::p2g(Body& body, T dt) {
                     g.momentum[2][node] += arena_p[2][ai];
                     if (asflip_)
                       for (int d = 0; d < 3; ++d) grid_.asflip[gb].old_velocity[d][node] += arena_q[d][ai];
+                    if constexpr (pore) {
+                      PoreBlock& w = grid_.pore[gb];
+                      w.volume[node] += arena_w[0][ai];
+                      w.head[node] += arena_w[1][ai];
+                      w.inflow[node] += arena_w[2][ai];
+                      w.water[node] += arena_w[3][ai];
+                      w.density[node] += arena_w[4][ai];
+                    }
                   }
             }
           }
@@ -203,6 +235,12 @@ double CpuEngine<T, TG>::update_grid(TG dt) {
   const int sensors = grid_sample_slot_ >= 0 ? grid_sensors_.count : 0;
   std::vector<SensorAccum> block_sensors(static_cast<std::size_t>(nblocks) * sensors);
   TG max_speed_sq = TG(0);
+  const TG full_volume = kg_.dx * kg_.dx * kg_.dx;  // a node's volume when material surrounds it (seepage)
+  const auto holds = [&](const Vec3G& x) {  // some active boundary acts on the node (seepage: never drained)
+    for (const BoundaryParams<TG>& b : active)
+      if (boundary_holds(b, x, &kg_.profiles)) return true;
+    return false;
+  };
 #pragma omp parallel for schedule(static) reduction(max : max_speed_sq) if (nblocks >= kMinParallelBlocks)
   for (int gb = 0; gb < nblocks; ++gb) {
     GridBlock& g = grid_.blocks[gb];
@@ -232,9 +270,18 @@ double CpuEngine<T, TG>::update_grid(TG dt) {
                                 static_cast<TG>(c[2] * kBlockSide + k) * kg_.dx}};
             const Vec3G v_free = v;
             for (const BoundaryParams<TG>& b : active) v = apply_boundary(b, x_node, v, &kg_.profiles);
+            GridNodeSample<TG> sample{m, momentum, v_free, v, dt};
+            if (pore_) {
+              PoreBlock& w = grid_.pore[gb];
+              const SeepageNode<TG> n = seepage_node(w.volume[node], w.head[node], w.inflow[node], w.density[node],
+                                                     x_node, kg_.gravity, holds(x_node), full_volume);
+              sample.water_mass = w.water[node];
+              sample.pore_pressure = n.pressure;
+              w.head[node] = n.head;
+              w.inflow[node] = n.inflow;
+            }
             if (sensors > 0 && owned)
-              accumulate_grid_sensors(grid_sensors_, x_node, GridNodeSample<TG>{m, momentum, v_free, v, dt},
-                                      &block_sensors[static_cast<std::size_t>(gb) * sensors]);
+              accumulate_grid_sensors(grid_sensors_, x_node, sample, &block_sensors[static_cast<std::size_t>(gb) * sensors]);
           }
           g.momentum[0][node] = v[0];
           g.momentum[1][node] = v[1];
@@ -339,6 +386,8 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
           T arena_v[3][kArenaNodes];      // (component, node) grid velocities around one particle block
           T arena_v_old[3][kArenaNodes];  // (component, node) ASFLIP's v^n, when the body uses it
           T arena_fbar[2][kArenaNodes];   // (sum, node) F-bar's cell sums, when the body uses it
+          T arena_w[2][kArenaNodes];      // saturated bodies: h_i and r_i (seepage.cuh)
+          constexpr bool pore = IsPoreFluid<M>::value;
           long long my_count[kFailureKinds] = {};
           long long my_first[kFailureKinds];
           std::copy(first, first + kFailureKinds, my_first);
@@ -360,6 +409,11 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
                     for (int d = 0; d < 3; ++d) arena_v_old[d][ai] = grid_.asflip[gb].old_velocity[d][node];
                   if (fbar)
                     for (int d = 0; d < 2; ++d) arena_fbar[d][ai] = grid_.fbar[gb].sums[d][node];
+                  if constexpr (pore) {
+                    const PoreBlock& w = grid_.pore[gb];
+                    arena_w[0][ai] = w.head[node];
+                    arena_w[1][ai] = w.inflow[node];
+                  }
                 }
             const Vec3i& origin = part.block_coords[pb];
             for (int q = part.block_start[pb]; q < part.block_start[pb + 1]; ++q) {
@@ -371,11 +425,13 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
               const int l2 = s.base[2] - origin[2] * kBlockSide;
               G2PSum<T> sum;
               G2POldSum<T> old;
+              SeepageSum<T> seep;
               T cell_compression = T(0);  // F-bar's 1 - Jbar of the particle's cell
               for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3T& xixp) {
                 const int a = arena_index(l0 + i, l1 + j, l2 + k);
                 sum.add(w, Vec3T{{arena_v[0][a], arena_v[1][a], arena_v[2][a]}}, xixp);
                 if (body.asflip) old.add(w, Vec3T{{arena_v_old[0][a], arena_v_old[1][a], arena_v_old[2][a]}});
+                if constexpr (pore) seep.add(w, xixp, arena_w[0][a], arena_w[1][a]);
               });
               if (fbar) {
                 const Vec3i cell = fbar_cell_offset(x, inv_dx, s.base);
@@ -384,11 +440,15 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
               }
               Vec3T v = sum.velocity();
               const Mat3T C = sum.affine(d_inv);
-              const auto s_new = M::advance(
+              auto s_new = M::advance(
                   params, state[p],
                   fbar ? fbar_velocity_gradient(C, one_minus_volume_ratio<M>(state[p]), cell_compression, body.fbar_psi, dt)
                        : C,
                   dt);
+              if constexpr (pore)
+                s_new = M::seep(params, s_new, seep.inflow, seep.head_gradient(d_inv),
+                                seep.head + M::water_density(params) * dot(k_.gravity, x),
+                                M::pore_pressure(s_new) - M::pore_pressure(state[p]), dt);
               Vec3T x_new;
               if (body.asflip) {
                 const AsflipUpdate<T> u =

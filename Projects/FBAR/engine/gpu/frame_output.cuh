@@ -173,6 +173,9 @@ io::ParticleFrame MgspBenchmark<T, TG>::frame(int body) const {
     return s.logJp;
   };
   src.sigma = [&] { return s.sigma; };  // from the state and the recorded C (snapshot)
+  src.pore_pressure = [&]() -> std::vector<T> {  // check_engine_body refuses saturated bodies on the GPU engine
+    throw std::invalid_argument("PorePressure: the GPU engine runs no CoupledUP body");
+  };
   return build_frame(b.spec, body, src, "GPU engine");
 }
 

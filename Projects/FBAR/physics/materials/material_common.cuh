@@ -135,6 +135,7 @@ FBAR_HOST_DEVICE inline bool all_finite(const Mat<T, R, C>& a) {
 struct MaterialOutputs {
   bool deformation_gradient;  ///< DefGrad_XX..ZZ (a material that stores F in State::F)
   bool log_jp;                ///< logJp (a plastic material that stores State::logJp)
+  bool pore_pressure = false;  ///< PorePressure (a saturated material that stores State::pore_pressure)
 };
 
 }  // namespace fbar
