@@ -319,6 +319,43 @@ RunResult run_thread_ranks(const Scene& scene, const RunOptions& options, const 
   return result;
 }
 
+/// The engine of a run: --backend=gpu needs the GPU engine and a device; auto takes the GPU engine when both are
+/// there and the scene has nothing only the CPU engine runs (a CoupledUP body). False: --backend=gpu cannot be met
+/// (the error is printed).
+bool choose_gpu_engine(const CliOptions& o, const Scene& scene, const EngineSet& engines, bool& gpu) {
+  gpu = false;
+  if (o.backend != Backend::Cpu) {
+    if (engines.run_gpu == nullptr) {
+      if (o.backend == Backend::Gpu) {
+        std::cerr << "fbar: error: --backend=gpu: the GPU engine is not available in this build (fbar "
+                  << FBAR_VERSION << " has the CPU reference engine only; use --backend=cpu or auto)\n";
+        return false;
+      }
+      std::cerr << "fbar: warning: no GPU engine in this build; running on the CPU reference engine (--backend=cpu "
+                   "silences this)\n";
+    } else if (cuda::device_count() == 0) {
+      if (o.backend == Backend::Gpu) {
+        std::cerr << "fbar: error: --backend=gpu: " << cuda::no_device_reason() << " (use --backend=cpu or auto)\n";
+        return false;
+      }
+      std::cerr << "fbar: warning: " << cuda::no_device_reason()
+                << "; running on the CPU reference engine (--backend=cpu silences this)\n";
+    } else {
+      gpu = true;
+    }
+  }
+  // A saturated (CoupledUP) body runs on the CPU engine in this release: auto takes it there, saying so.
+  if (gpu && o.backend == Backend::Auto) {
+    for (std::size_t b = 0; b < scene.bodies.size() && gpu; ++b)
+      if (scene.bodies[b].material.law == Constitutive::CoupledUP) {
+        std::cerr << "fbar: warning: bodies[" << b << "] is CoupledUP (saturated soil), which the GPU engine does not "
+                     "run yet; running on the CPU reference engine (--backend=cpu silences this)\n";
+        gpu = false;
+      }
+  }
+  return true;
+}
+
 int run(const CliOptions& o, const std::vector<std::string>& command_line, const EngineSet& engines) {
   std::vector<std::string> warnings;
   ParseOptions parse;
@@ -332,28 +369,8 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
 
   if (o.check) return check_scene(o, scene);
 
-  // The engine: --backend=gpu needs the GPU engine and a device; auto takes the GPU engine when both are there.
   bool gpu = false;
-  if (o.backend != Backend::Cpu) {
-    if (engines.run_gpu == nullptr) {
-      if (o.backend == Backend::Gpu) {
-        std::cerr << "fbar: error: --backend=gpu: the GPU engine is not available in this build (fbar "
-                  << FBAR_VERSION << " has the CPU reference engine only; use --backend=cpu or auto)\n";
-        return kExitRuntime;
-      }
-      std::cerr << "fbar: warning: no GPU engine in this build; running on the CPU reference engine (--backend=cpu "
-                   "silences this)\n";
-    } else if (cuda::device_count() == 0) {
-      if (o.backend == Backend::Gpu) {
-        std::cerr << "fbar: error: --backend=gpu: " << cuda::no_device_reason() << " (use --backend=cpu or auto)\n";
-        return kExitRuntime;
-      }
-      std::cerr << "fbar: warning: " << cuda::no_device_reason()
-                << "; running on the CPU reference engine (--backend=cpu silences this)\n";
-    } else {
-      gpu = true;
-    }
-  }
+  if (!choose_gpu_engine(o, scene, engines, gpu)) return kExitRuntime;
 
   // Ranks: under mpirun / srun one per process (MPI); otherwise one, or --gpus=N GPU ranks as threads of this process.
   // Either engine decomposes the scene over them.
