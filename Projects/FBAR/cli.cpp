@@ -28,6 +28,7 @@
 #include "engine/gpu/memory_plan.h"
 #include "scene/scene_parse.h"
 #include "engine/check_report.h"
+#include "physics/constitutive_models.cuh"
 
 #ifndef FBAR_VERSION
 #define FBAR_VERSION "unknown"
@@ -347,8 +348,8 @@ bool choose_gpu_engine(const CliOptions& o, const Scene& scene, const EngineSet&
   // A saturated (CoupledUP) body runs on the CPU engine in this release: auto takes it there, saying so.
   if (gpu && o.backend == Backend::Auto) {
     for (std::size_t b = 0; b < scene.bodies.size() && gpu; ++b)
-      if (scene.bodies[b].material.law == Constitutive::CoupledUP) {
-        std::cerr << "fbar: warning: bodies[" << b << "] is CoupledUP (saturated soil), which the GPU engine does not "
+      if (material_has_pore_fluid(scene.bodies[b].material.law)) {
+        std::cerr << "fbar: warning: bodies[" << b << "] is saturated soil (CoupledUP), which the GPU engine does not "
                      "run yet; running on the CPU reference engine (--backend=cpu silences this)\n";
         gpu = false;
       }

@@ -221,19 +221,12 @@ void expect_frame_restart(int ranks, const std::function<void(Scene&)>& change =
 TEST(Restart, FromAFrameCheckpointContinuesBitForBit) { expect_frame_restart(1); }
 TEST(Restart, FromAFrameCheckpointContinuesBitForBitOnTwoRanks) { expect_frame_restart(2); }
 
-// A saturated body (CoupledUP) keeps its pore pressure and its Darcy flux in the checkpoint: the restarted run's
+// A saturated body (CoupledUP) keeps its pore pressure and its head gradient in the checkpoint: the restarted run's
 // frames (PorePressure among the columns) and its pore-pressure and water-mass sensors are the full run's bytes, on one
 // rank and on two.
 TEST(Restart, SaturatedSoilContinuesBitForBit) {
   const auto saturate = [](Scene& scene) {
-    MaterialSpec& m = scene.bodies[1].material;
-    m.law = Constitutive::CoupledUP;
-    m.rho = 2000.0;
-    m.poro = 0.4;
-    m.Kf = 1e6;
-    m.Ks = 1e12;
-    m.Kperm = 1e-4;
-    scene.bodies[1].initial_state = InitialState::Hydrostatic;
+    test::saturate(scene.bodies[1]);
     scene.bodies[1].output_attribs = {"ID", "Velocity_X", "PorePressure", "logJp", "Pressure"};
     GridSensorSpec pore = grid_sensor_spec("PorePressure", SensorOperation::Average, {0, 0, 0}, {0.64, 0.4, 0.2});
     pore.output_frequency = 230.0;

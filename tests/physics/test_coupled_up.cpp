@@ -97,12 +97,12 @@ TEST(CoupledUP, SeepTakesTheGridOnlyWhenWaterCanMove) {
   const Vec3d grad{{0.0, -2e4, 0.0}};
   const auto drained = CoupledUP::seep(p, s, 0.01, grad, 4e4, -100.0, 1e-4);
   EXPECT_NEAR(drained.pore_pressure, 4e4 + 1e-4 * (1.0 / CoupledUP::storage(m)) * 0.01 - 100.0, 1e-6);
-  EXPECT_NEAR(drained.seepage[1], 2e4 * m.Kperm / (m.rhow * kStandardGravity), 1e-15);
+  EXPECT_NEAR(CoupledUP::seepage(p, drained)[1], 2e4 * m.Kperm / (m.rhow * kStandardGravity), 1e-15);
   m.Kperm = 0.0;
   p = CoupledUP::make_params<double>(m);
   const auto undrained = CoupledUP::seep(p, s, 0.01, grad, 4e4, -100.0, 1e-4);
   EXPECT_EQ(undrained.pore_pressure, s.pore_pressure);
-  EXPECT_EQ(undrained.seepage[1], 0.0);
+  EXPECT_EQ(CoupledUP::seepage(p, undrained)[1], 0.0);
 }
 
 // The seepage node: a node in the soil solves the storage equation (h_i = H / V, r_i = R / V, p_i = h_i + rhow g . x);
@@ -115,19 +115,23 @@ TEST(Seepage, NodesAreSolvedDrainedOrHeld) {
   const double rhow = 1000.0;
   // Hydrostatic water under a surface at y = 1: p = rhow 9.81 (1 - y), h = p + rhow 9.81 y = rhow 9.81.
   const double V = 0.98 * full, h = rhow * 9.81;
-  const SeepageNode<double> solved = seepage_node(V, V * h, V * 0.5, V * rhow, x, g, false, full);
+  const auto free = [] { return false; };
+  const auto wall = [] { return true; };
+  int asked = 0;  // a node with its soil around it is solved without probing the boundaries
+  const SeepageNode<double> solved = seepage_node(V, V * h, V * 0.5, V * rhow, x, g, [&] { return ++asked > 0; }, full);
+  EXPECT_EQ(asked, 0);
   EXPECT_DOUBLE_EQ(solved.head, h);
   EXPECT_DOUBLE_EQ(solved.inflow, 0.5);
   EXPECT_NEAR(solved.pressure, rhow * 9.81 * (1.0 - x[1]), 1e-9);
   const double Vs = 0.5 * full;
-  const SeepageNode<double> drained = seepage_node(Vs, Vs * h, Vs * 0.5, Vs * rhow, x, g, false, full);
+  const SeepageNode<double> drained = seepage_node(Vs, Vs * h, Vs * 0.5, Vs * rhow, x, g, free, full);
   EXPECT_DOUBLE_EQ(drained.pressure, 0.0);
   EXPECT_DOUBLE_EQ(drained.inflow, 0.0);
   EXPECT_NEAR(drained.head, rhow * 9.81 * x[1], 1e-9);  // p = 0: h = -rhow g . x
-  const SeepageNode<double> held = seepage_node(Vs, Vs * h, Vs * 0.5, Vs * rhow, x, g, true, full);
+  const SeepageNode<double> held = seepage_node(Vs, Vs * h, Vs * 0.5, Vs * rhow, x, g, wall, full);
   EXPECT_DOUBLE_EQ(held.head, h);
   EXPECT_DOUBLE_EQ(held.inflow, 0.5);
-  const SeepageNode<double> empty = seepage_node(0.0, 0.0, 0.0, 0.0, x, g, false, full);
+  const SeepageNode<double> empty = seepage_node(0.0, 0.0, 0.0, 0.0, x, g, free, full);
   EXPECT_EQ(empty.head, 0.0);
 }
 

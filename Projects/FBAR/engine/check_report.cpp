@@ -189,10 +189,10 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
     row(os, "algorithm", algorithm_line(b.algorithm));
     row(os, "velocity", vec(b.velocity) + " m/s");
     if (b.initial_state == InitialState::Hydrostatic)
-      row(os, "initial_state", b.material.law == Constitutive::CoupledUP
+      row(os, "initial_state", material_has_pore_fluid(b.material.law)
                                    ? "hydrostatic: the pore water carries rho g (depth below the top of the geometry)"
                                    : "hydrostatic: J p = rho g (depth below the top of the geometry)");
-    if (b.material.law == Constitutive::CoupledUP)
+    if (material_has_pore_fluid(b.material.law))
       row(os, "engine", "CPU engine (--backend=cpu; several ranks too): the GPU engine refuses saturated bodies "
                         "in this release");
     row(os, "partition", vec(b.partition_start) + " .. " + vec(b.partition_end) + " m");

@@ -25,11 +25,16 @@ inline double resolved_default_dt(const SimulationSpec& sim) {
   return sim.default_dt > 0.0 ? sim.default_dt : sim.dx / 100.0;
 }
 
-/// The smallest explicit viscous bound of a scene (time_step.cuh) and its body (-1: no viscous body). A law is
-/// viscous when it reads the "viscosity" key (JFluid) and the body's value is positive.
-struct ViscousBound {
+/// The smallest explicit diffusive bound of a scene (time_step.cuh): viscosity (a law that reads the "viscosity" key,
+/// JFluid, with a positive value) or seepage (a saturated law, CoupledUP); its body (-1: none) and which it is.
+struct DiffusiveBound {
   double dt = std::numeric_limits<double>::infinity();  ///< [s]
   int body = -1;
+  bool seepage = false;  ///< the seepage bound (else the viscous one)
+  /// How it is computed, for the run's note.
+  const char* formula() const {
+    return seepage ? "CFL x dx^2 / (8 x kappa x M), explicit seepage" : "CFL x rho x dx^2 / (3 x viscosity)";
+  }
 };
 inline double body_viscous_step_bound(const BodySpec& body, double dx) {
   double bound = std::numeric_limits<double>::infinity();
@@ -49,13 +54,13 @@ inline double body_seepage_step_bound(const BodySpec& body, double dx) {
   });
   return bound;
 }
-/// The smallest diffusive bound of a scene: viscosity (JFluid) and seepage (CoupledUP); `body` the body setting it.
-inline ViscousBound viscous_step_bound(const Scene& scene) {
-  ViscousBound v;
+inline DiffusiveBound diffusive_step_bound(const Scene& scene) {
+  DiffusiveBound v;
   for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
-    const double dt = std::min(body_viscous_step_bound(scene.bodies[b], scene.simulation.dx),
-                               body_seepage_step_bound(scene.bodies[b], scene.simulation.dx));
-    if (dt < v.dt) v = {dt, static_cast<int>(b)};
+    const double viscous = body_viscous_step_bound(scene.bodies[b], scene.simulation.dx);
+    const double seepage = body_seepage_step_bound(scene.bodies[b], scene.simulation.dx);
+    if (viscous < v.dt) v = {viscous, static_cast<int>(b), false};
+    if (seepage < v.dt) v = {seepage, static_cast<int>(b), true};
   }
   return v;
 }
@@ -68,7 +73,7 @@ struct RunConstants {
   Vec3<T> gravity{};      ///< [m/s^2]
   Vec3<T> domain{};       ///< [m] extent from the origin
   double default_dt = 0;  ///< [s] largest step: simulation.default_dt, resolved (dx / 100 when absent), or the
-                          ///< smallest viscous bound (viscous_step_bound) when that is smaller
+                          ///< smallest diffusive bound (diffusive_step_bound) when that is smaller
   std::vector<BoundaryParams<T>> boundaries;  ///< every boundary of the scene, in scene order, arrays expanded
   std::vector<MotionPath> motions;            ///< (boundary) its motion file, or empty
   BoundaryProfiles<T> profiles;               ///< the points of every Bathymetry boundary
@@ -100,7 +105,7 @@ struct RunConstants {
       gravity[a] = static_cast<T>(sim.gravity[a]);
       domain[a] = static_cast<T>(sim.domain[a]);
     }
-    default_dt = std::min(resolved_default_dt(sim), viscous_step_bound(scene).dt);
+    default_dt = std::min(resolved_default_dt(sim), diffusive_step_bound(scene).dt);
     for (std::size_t i = 0; i < scene.boundaries.size(); ++i) {
       MotionPath motion;
       if (!scene.boundaries[i].file.empty())

@@ -221,15 +221,15 @@ class RunLoop {
     return std::make_unique<io::FrameSeries>(sim_.save_path, std::move(files), suffix_);
   }
 
-  /// The engine line, the viscous note, and frame 0 with its samples (or, restarted, what the first run wrote).
-  /// Returns the first frame to run.
+  /// The engine line, the diffusive bound's note, and frame 0 with its samples (or, restarted, what the first run
+  /// wrote). Returns the first frame to run.
   int start(const std::string& engine_line) {
     if (talk_) log_ << engine_line << '\n';
-    const ViscousBound viscous = viscous_step_bound(scene_);
-    if (viscous.dt < resolved_default_dt(sim_) && talk_)
-      log_ << "fbar: note: the explicit viscous bound of body " << viscous.body << " limits every step to "
-           << viscous.dt << " s (CFL x rho x dx^2 / (3 x viscosity); default_dt " << resolved_default_dt(sim_)
-           << " s)\n";
+    const DiffusiveBound bound = diffusive_step_bound(scene_);
+    if (bound.dt < resolved_default_dt(sim_) && talk_)
+      log_ << "fbar: note: the explicit " << (bound.seepage ? "seepage" : "viscous") << " bound of body "
+           << bound.body << " limits every step to " << bound.dt << " s (" << bound.formula() << "; default_dt "
+           << resolved_default_dt(sim_) << " s)\n";
     if (!resume_) {
       write_frame(0);
       sample_particles_at(t0_);

@@ -268,6 +268,14 @@ inline bool material_has_hydrostatic_state(Constitutive law) {
   return has;
 }
 
+/// Whether material `law` carries pore water (IsPoreFluid): its bodies need the seepage channels, which only the CPU
+/// engine has in this release (engine_common.cpp check_engine_body, cli.cpp's engine choice).
+inline bool material_has_pore_fluid(Constitutive law) {
+  bool pore = false;
+  visit_material(law, [&](auto m) { pore = IsPoreFluid<decltype(m)>::value; });
+  return pore;
+}
+
 /// The hydrostatic state of material M at Kirchhoff pressure `tau` [Pa] (host; M must have hydrostatic_state).
 template <typename M, typename T>
 material_state_t<M, T> material_hydrostatic_state(const material_params_t<M, T>& params, double tau) {

@@ -61,15 +61,15 @@ struct SeepageNode {
   T inflow;    ///< [1/s]
   T pressure;  ///< [Pa]
 };
-/// The sums of one node (V_i, H_i, R_i, D_i) at x_node, gravity g; `held`: some boundary acts on the node (its walls
-/// hold the water: never drained); `full_volume` = dx^3.
-template <typename T>
+/// The sums of one node (V_i, H_i, R_i, D_i) at x_node, gravity g; `held()`: whether some boundary acts on the node
+/// (its walls hold the water: never drained), asked only of a node short of soil; `full_volume` = dx^3.
+template <typename T, typename Held>
 FBAR_HOST_DEVICE inline SeepageNode<T> seepage_node(T volume, T head_volume, T inflow_volume, T density_volume,
-                                                    const Vec3<T>& x_node, const Vec3<T>& gravity, bool held,
+                                                    const Vec3<T>& x_node, const Vec3<T>& gravity, Held&& held,
                                                     T full_volume) {
   if (!(volume > T(0))) return SeepageNode<T>{T(0), T(0), T(0)};
   const T weight = density_volume / volume * dot(gravity, x_node);  // rhow_i g . x_i = h - p at the node
-  if (!held && volume < T(kDrainedFraction) * full_volume) return SeepageNode<T>{-weight, T(0), T(0)};
+  if (volume < T(kDrainedFraction) * full_volume && !held()) return SeepageNode<T>{-weight, T(0), T(0)};
   const T h = head_volume / volume;
   return SeepageNode<T>{h, inflow_volume / volume, h + weight};
 }

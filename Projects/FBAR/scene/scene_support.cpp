@@ -123,8 +123,8 @@ void check_supported(const Scene& scene) {
              "one of Force, BoundaryForce, Acceleration, Momentum, Velocity, Mass (the grid stores no volume)",
              "grid-sensor attribute " + g.attribute);
     if (g.attribute == "MassWater" || g.attribute == "PorePressure") {
-      bool saturated = false;  // only CoupledUP bodies carry pore water to the grid
-      for (const BodySpec& b : scene.bodies) saturated = saturated || b.material.law == Constitutive::CoupledUP;
+      bool saturated = false;  // only saturated (CoupledUP) bodies carry pore water to the grid
+      for (const BodySpec& b : scene.bodies) saturated = saturated || material_has_pore_fluid(b.material.law);
       if (!saturated)
         throw SceneError(idx("grid-sensors", i) + ".attribute", q(g.attribute),
                          "a grid attribute the scene has: " + g.attribute +

@@ -32,6 +32,25 @@ inline Scene dam_break(bool schemes) {
   return scene;
 }
 
+/// Makes `body` saturated soil (CoupledUP): a loose sand (E 2e6 Pa, nu 0.3, friction 30 deg, rho 2000 kg/m^3
+/// saturated), its pore water (n 0.4, Kf 1e6 Pa so that the seepage step stays near the acoustic one, Kperm 1e-4 m/s)
+/// carrying the overburden at the start. The decomposition and restart tests of saturated bodies use it.
+inline void saturate(BodySpec& body) {
+  MaterialSpec& m = body.material;
+  m.law = Constitutive::CoupledUP;
+  m.rho = 2000.0;
+  m.youngs_modulus = 2e6;
+  m.poisson_ratio = 0.3;
+  m.friction_angle = 30.0;
+  m.vol_correction = false;
+  m.poro = 0.4;
+  m.alpha1 = 1.0;
+  m.Kf = 1e6;
+  m.Ks = 1e12;
+  m.Kperm = 1e-4;
+  body.initial_state = InitialState::Hydrostatic;
+}
+
 /// ClaymoreUW users' load-cell check (issue 31): water H = 0.2 m deep filling a Walls box [0, 0.2] x [0, 0.3] x
 /// [0, D = 0.04] m to its faces (dx 0.01, JFluid rho 1000, K 5e5 Pa, started hydrostatic), with a Force load cell
 /// against each x wall from outside, as scenes written for ClaymoreUW place them: [-0.05, 0] read X-, [0.2, 0.25]

@@ -71,7 +71,7 @@ RankResult run_rank(const Scene& scene, comm::Transport& transport, int steps) {
     out.grid_mass = engine.grid_mass();
     for (int b = 0; b < engine.body_count(); ++b) {
       const auto& ids = engine.ids(b);
-      const std::vector<double> pore = engine.law(b) == Constitutive::CoupledUP ? engine.pore_pressures(b)
+      const std::vector<double> pore = material_has_pore_fluid(engine.law(b)) ? engine.pore_pressures(b)
                                                                                  : std::vector<double>(ids.size(), 0.0);
       for (std::size_t p = 0; p < ids.size(); ++p)
         out.states[{b, ids[p]}] = {engine.positions(b)[p], engine.velocities(b)[p], engine.masses(b)[p], pore[p]};
@@ -186,18 +186,7 @@ TEST(Decomposition, TravellingBlockMigratesAndRebalances) { expect_same_run(trav
 TEST(Decomposition, SaturatedSoilDrainsAcrossTheCuts) {
   Scene scene = dam_break(false);
   BodySpec& soil = scene.bodies[0];
-  soil.material.law = Constitutive::CoupledUP;
-  soil.material.rho = 2000.0;
-  soil.material.youngs_modulus = 2e6;
-  soil.material.poisson_ratio = 0.3;
-  soil.material.friction_angle = 30.0;
-  soil.material.vol_correction = false;
-  soil.material.poro = 0.4;
-  soil.material.alpha1 = 1.0;
-  soil.material.Kf = 1e6;
-  soil.material.Ks = 1e12;
-  soil.material.Kperm = 1e-4;
-  soil.initial_state = InitialState::Hydrostatic;
+  test::saturate(soil);
   soil.velocity = test::r3(2.0, 0.0, 0.0);  // thrown along the slabs' axis: particles cross the cuts within the run
   expect_same_run(scene, 150, true);
 }

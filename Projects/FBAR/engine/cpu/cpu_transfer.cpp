@@ -163,8 +163,8 @@ void CpuEngine<T, TG>::p2g(Body& body, T dt) {
                   const T V = body.volume[p] * M::volume_ratio(state[p]);
                   const T rhow = M::water_density(params);
                   const T head = M::pore_pressure(state[p]) - rhow * dot(k_.gravity, body.x[p]);
-                  const Vec3T flux = M::seepage(state[p]);
-                  const Vec3T head_gradient = M::head_gradient(params, state[p]);
+                  const Vec3T flux = M::seepage(params, state[p]);
+                  const Vec3T head_gradient = M::head_gradient(state[p]);
                   const T water = M::water_mass(params, body.volume[p]);
                   for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3T& xixp) {
                     const int a = arena_index(l0 + i, l1 + j, l2 + k);
@@ -274,7 +274,7 @@ double CpuEngine<T, TG>::update_grid(TG dt) {
             if (pore_) {
               PoreBlock& w = grid_.pore[gb];
               const SeepageNode<TG> n = seepage_node(w.volume[node], w.head[node], w.inflow[node], w.density[node],
-                                                     x_node, kg_.gravity, holds(x_node), full_volume);
+                                                     x_node, kg_.gravity, [&] { return holds(x_node); }, full_volume);
               sample.water_mass = w.water[node];
               sample.pore_pressure = n.pressure;
               w.head[node] = n.head;

@@ -1,5 +1,5 @@
 // CoupledUP: saturated soil, Biot's u-p mixture with a DruckerPrager skeleton. State = F, logJp, the pore pressure p
-// and the Darcy flux q the engines' seepage channels carry.
+// and the head gradient whose Darcy flux the engines' seepage channels carry.
 //
 // Mixture (Zienkiewicz's u-p form, the pore water's acceleration relative to the skeleton neglected):
 //   total stress        sigma = sigma'(F_e) - alpha p I          (sigma' the DruckerPrager law of drucker_prager.cuh,
@@ -21,6 +21,7 @@
 //     dt M sum_i w_ip r_i to the grid's pressure at its place (drained nodes, at the free surface, hold p = 0) and
 //     reads grad h = sum_i h_i grad w_ip for its next flux (physics/seepage.cuh, docs/user_guide.md §2.4 "Saturated
 //     soil").
+// The particle keeps grad h of its last step (the flux q = -kappa grad h follows from it: seepage()).
 // The time step is bounded by the seepage's explicit limit too (seepage_time_step, physics/time_step.cuh).
 #pragma once
 
@@ -55,7 +56,7 @@ struct PoroPlasticState {
   Mat3<T> F;          ///< [-] the skeleton's elastic deformation gradient
   T logJp;            ///< [-] DruckerPrager's remembered dilation
   T pore_pressure;    ///< [Pa] p, compression positive
-  Vec3<T> seepage;    ///< [m/s] Darcy flux q of the last step (the next step's inflow channel reads it)
+  Vec3<T> head_gradient;  ///< [Pa/m] grad h = grad (p - rhow g . x) of the last step (the next P2G deposits it)
 };
 
 struct CoupledUP {
@@ -86,7 +87,7 @@ struct CoupledUP {
   using State = PoroPlasticState<T>;
   static constexpr int kStoredScalars = 17;  ///< position (3) + F (9) + logJp + p + q (3)
   static constexpr MaterialOutputs kOutputs{true, true, true};
-  /// The engines run the seepage channels for this law (seep(), pore_pressure(), seepage(), water_mass()).
+  /// The engines run the seepage channels for this law (IsPoreFluid, material_common.cuh).
   static constexpr bool kPoreFluid = true;
 
   static ParameterProblem check(const MaterialSpec& m) {
@@ -148,26 +149,22 @@ struct CoupledUP {
   template <typename T>
   FBAR_HOST_DEVICE static inline State<T> advance(const Params<T>& p, const State<T>& s, const Mat3<T>& C, T dt) {
     const PlasticState<T> skeleton = DruckerPrager::advance(p.skeleton, PlasticState<T>{s.F, s.logJp}, C, dt);
-    return State<T>{skeleton.F, skeleton.logJp, s.pore_pressure - dt * p.biot * p.biot_modulus * trace(C), s.seepage};
+    return State<T>{skeleton.F, skeleton.logJp, s.pore_pressure - dt * p.biot * p.biot_modulus * trace(C),
+                    s.head_gradient};
   }
 
   /// The seepage part of a step (physics/seepage.cuh): the particle takes the grid's pore pressure at its place,
   /// `grid_pressure` = sum_i w_ip h_i + rhow g . x_p [Pa] (h_i = p_i - rhow g . x_i, drained nodes at p = 0), plus the
   /// seepage of the step, dt M sum_i w_ip r_i (`inflow` [1/s]), plus the undrained change advance() made
-  /// (`undrained_change` [Pa]); its flux for the next step is -kappa grad h (`grad_head` [Pa/m]). An undrained body
+  /// (`undrained_change` [Pa]); it keeps `grad_head` [Pa/m] for its next flux, -kappa grad h. An undrained body
   /// (Kperm = 0) keeps its own pressure: no water moves, so nothing is exchanged.
   template <typename T>
   FBAR_HOST_DEVICE static inline State<T> seep(const Params<T>& p, State<T> s, T inflow, const Vec3<T>& grad_head,
                                                T grid_pressure, T undrained_change, T dt) {
     if (!(p.conductivity > T(0))) return s;
     s.pore_pressure = grid_pressure + dt * p.biot_modulus * inflow + undrained_change;
-    s.seepage = grad_head * (-p.conductivity);
+    s.head_gradient = grad_head;
     return s;
-  }
-  /// grad h of the last step [Pa/m] (-q / kappa; zero when undrained)
-  template <typename T>
-  FBAR_HOST_DEVICE static constexpr Vec3<T> head_gradient(const Params<T>& p, const State<T>& s) {
-    return p.conductivity > T(0) ? s.seepage * (T(-1) / p.conductivity) : Vec3<T>::zero();
   }
   /// Pore water density [kg/m^3] (the piezometric pressure p - rhow g . x the grid carries).
   template <typename T>
@@ -178,9 +175,14 @@ struct CoupledUP {
   FBAR_HOST_DEVICE static constexpr T pore_pressure(const State<T>& s) {
     return s.pore_pressure;
   }
+  /// Darcy flux q = -kappa grad h [m/s] of the last step (zero when undrained).
   template <typename T>
-  FBAR_HOST_DEVICE static constexpr Vec3<T> seepage(const State<T>& s) {
-    return s.seepage;
+  FBAR_HOST_DEVICE static constexpr Vec3<T> seepage(const Params<T>& p, const State<T>& s) {
+    return s.head_gradient * (-p.conductivity);
+  }
+  template <typename T>
+  FBAR_HOST_DEVICE static constexpr Vec3<T> head_gradient(const State<T>& s) {
+    return s.head_gradient;
   }
   /// Pore water mass of a particle of reference volume V0 [kg]: n rhow V0.
   template <typename T>
@@ -202,11 +204,5 @@ struct CoupledUP {
            s.pore_pressure * s.pore_pressure / (T(2) * p.biot_modulus);
   }
 };
-
-/// True for a law whose particles carry pore water (M::kPoreFluid): the engines run the seepage channels for it.
-template <class M, class = void>
-struct IsPoreFluid : std::false_type {};
-template <class M>
-struct IsPoreFluid<M, std::void_t<decltype(M::kPoreFluid)>> : std::bool_constant<M::kPoreFluid> {};
 
 }  // namespace fbar

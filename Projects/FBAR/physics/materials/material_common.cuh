@@ -130,6 +130,13 @@ FBAR_HOST_DEVICE inline bool all_finite(const Mat<T, R, C>& a) {
   return ok;
 }
 
+/// True for a law whose particles carry pore water (M::kPoreFluid, materials/coupled_up.cuh): the engines run the
+/// seepage channels (physics/seepage.cuh) for its bodies.
+template <class M, class = void>
+struct IsPoreFluid : std::false_type {};
+template <class M>
+struct IsPoreFluid<M, std::void_t<decltype(M::kPoreFluid)>> : std::bool_constant<M::kPoreFluid> {};
+
 /// Which particle outputs a material can produce beyond the common ones (ID, Mass, Volume, Position, Velocity,
 /// J, Pressure, StressCauchy, VonMisesStress).
 struct MaterialOutputs {
