@@ -321,9 +321,8 @@ RunResult run_thread_ranks(const Scene& scene, const RunOptions& options, const 
 }
 
 /// The engine of a run: --backend=gpu needs the GPU engine and a device; auto takes the GPU engine when both are
-/// there and the scene has nothing only the CPU engine runs (a CoupledUP body). False: --backend=gpu cannot be met
-/// (the error is printed).
-bool choose_gpu_engine(const CliOptions& o, const Scene& scene, const EngineSet& engines, bool& gpu) {
+/// there. False: --backend=gpu cannot be met (the error is printed).
+bool choose_gpu_engine(const CliOptions& o, const EngineSet& engines, bool& gpu) {
   gpu = false;
   if (o.backend != Backend::Cpu) {
     if (engines.run_gpu == nullptr) {
@@ -345,15 +344,6 @@ bool choose_gpu_engine(const CliOptions& o, const Scene& scene, const EngineSet&
       gpu = true;
     }
   }
-  // A saturated (CoupledUP) body runs on the CPU engine in this release: auto takes it there, saying so.
-  if (gpu && o.backend == Backend::Auto) {
-    for (std::size_t b = 0; b < scene.bodies.size() && gpu; ++b)
-      if (material_has_pore_fluid(scene.bodies[b].material.law)) {
-        std::cerr << "fbar: warning: bodies[" << b << "] is saturated soil (CoupledUP), which the GPU engine does not "
-                     "run yet; running on the CPU reference engine (--backend=cpu silences this)\n";
-        gpu = false;
-      }
-  }
   return true;
 }
 
@@ -371,7 +361,7 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
   if (o.check) return check_scene(o, scene);
 
   bool gpu = false;
-  if (!choose_gpu_engine(o, scene, engines, gpu)) return kExitRuntime;
+  if (!choose_gpu_engine(o, engines, gpu)) return kExitRuntime;
 
   // Ranks: under mpirun / srun one per process (MPI); otherwise one, or --gpus=N GPU ranks as threads of this process.
   // Either engine decomposes the scene over them.

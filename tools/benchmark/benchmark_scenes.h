@@ -48,9 +48,12 @@ inline Scene make_scene(const std::string& name, double millions, Precision prec
     if (name == "fbar_dam_break") body.algorithm.fbar_psi = 1.0;
   } else {
     // falling_block: FixedCorotated; neo_block, sand_block, clay_block: the same block in NeoHookean,
-    // DruckerPrager (phi 30 deg, volume correction) and NACC (phi 30 deg, consolidated: logJp0 = -0.3).
+    // DruckerPrager (phi 30 deg, volume correction) and NACC (phi 30 deg, consolidated: logJp0 = -0.3);
+    // saturated_block: sand_block's skeleton saturated (CoupledUP: n 0.4, Kf 1e7, Ks 2.2e7, Kperm 1e-5 m/s,
+    // ClaymoreUW's defaults but the porosity, the pore water carrying the overburden at the start).
     body.material.law = name == "neo_block"    ? Constitutive::NeoHookean
                         : name == "sand_block" ? Constitutive::DruckerPrager
+                        : name == "saturated_block" ? Constitutive::CoupledUP
                         : name == "clay_block" ? Constitutive::NACC
                         : name == "hencky_block" ? Constitutive::Hencky
                                                : Constitutive::FixedCorotated;
@@ -59,6 +62,13 @@ inline Scene make_scene(const std::string& name, double millions, Precision prec
     body.material.poisson_ratio = 0.3;
     body.material.friction_angle = 30.0;
     if (body.material.law == Constitutive::NACC) body.material.logJp0 = -0.3;
+    if (body.material.law == Constitutive::CoupledUP) {
+      body.material.poro = 0.4;
+      body.material.Kf = 1e7;
+      body.material.Ks = 2.2e7;
+      body.material.Kperm = 1e-5;
+      body.initial_state = InitialState::Hydrostatic;
+    }
     box.offset = {(k + 4) * dx, (k / 2 + 4) * dx, (k / 4 + 4) * dx};
     body.velocity = {0.0, -1.0, 0.0};
   }

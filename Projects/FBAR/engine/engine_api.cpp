@@ -103,6 +103,9 @@ LawThroughput law_throughput(Constitutive law) {
   if (name == "DruckerPrager") return {4.43e9, 1.83e9, "DruckerPrager"};
   if (name == "NACC") return {5.75e9, 2.65e9, "NACC"};
   if (name == "FixedCorotated") return {6.45e9, 2.95e9, "FixedCorotated"};
+  // CoupledUP: DruckerPrager's rate over the ratio of the two laws' steps measured side by side on an H200 at 16M
+  // particles (docs/benchmarks/2026-11-28-h200-coupled-up.md: x 1.61 single, x 1.55 double).
+  if (name == "CoupledUP") return {4.43e9 / 1.61, 1.83e9 / 1.55, "DruckerPrager's / 1.61 (single) or 1.55 (double)"};
   return {6.45e9, 2.95e9, "FixedCorotated's (not measured for this law)"};
 }
 
@@ -199,6 +202,7 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     in.stored_scalars = facts.stored_scalars;
     in.asflip = body.algorithm.asflip_active();
     in.fbar = body.algorithm.fbar_blend() != 0.0;
+    in.pore = material_has_pore_fluid(body.material.law);
     in.record = record;
     if (frame_columns >= 0) in.frame_columns = frame_columns;
     asflip = asflip || in.asflip;
@@ -227,11 +231,14 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     s.grid_channels = "mass, momentum (4)";
     if (asflip) s.grid_channels += " + transported momentum (3: some body uses ASFLIP)";
     if (scene.bodies[i].algorithm.fbar_blend() != 0.0) s.grid_channels += " + F-bar cell sums (2)";
+    if (material_has_pore_fluid(scene.bodies[i].material.law)) s.grid_channels += " + seepage channels (5)";
   }
 
   // CPU grid: 4 channels x 64 nodes per block in the grid scalar type (+3 for ASFLIP's v^n, +2 for F-bar's cell
-  // sums, only when a body uses them), coordinates and a hash-map entry.
-  const std::size_t cpu_channels = 4 + (asflip ? 3 : 0) + (fbar ? 2 : 0);
+  // sums, +5 for the seepage channels, only when a body uses them), coordinates and a hash-map entry.
+  bool pore = false;
+  for (const BodySpec& b : scene.bodies) pore = pore || material_has_pore_fluid(b.material.law);
+  const std::size_t cpu_channels = 4 + (asflip ? 3 : 0) + (fbar ? 2 : 0) + (pore ? 5 : 0);
   std::vector<const SampleCount*> all;
   for (const SampleCount& c : counts) all.push_back(&c);
   summary.cpu_bytes = cpu_particle_bytes + static_cast<std::size_t>(footprint_blocks(all)) *

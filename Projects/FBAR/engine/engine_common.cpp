@@ -111,9 +111,6 @@ void check_engine_body(const BodySpec& spec, int index, const std::string& engin
     throw std::invalid_argument(where + ".material.type: \"" + mat.type + "\" bodies are not implemented");
   if (spec.algorithm.use_fem)
     throw std::invalid_argument(where + ".algorithm.use_FEM: not implemented by the " + engine);
-  if (material_has_pore_fluid(mat.law) && engine != "CPU engine")
-    throw std::invalid_argument(where + ".material.constitutive: " + law + " (saturated soil) runs on the CPU engine "
-                                "(--backend=cpu) in this release; the " + engine + " has no seepage channels yet");
   for (const std::string& name : spec.output_attribs) {
     const std::string canonical = canonical_attribute(name);
     if (canonical.empty() || !material_supports_attribute(mat.law, canonical))

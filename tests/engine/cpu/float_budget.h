@@ -37,4 +37,13 @@ inline double float_velocity_budget(const std::string& scene_file_name) {
   return 1e-4;
 }
 
+/// The single-precision pore-pressure budget of a scene with saturated bodies, relative to its largest |p|: float
+/// rounding of the pressure itself is 1e-7 of it; at the apex of saturated_collapse.json's skeleton (above) the
+/// particles that the rounding projects or not change J by a step's strain, and the pore water turns that into
+/// pressure through M (measured float vs double on the CPU engine after 30 steps: 84 Pa of 12.0 kPa, 7.0e-3 of |p|max; budget 4x).
+inline double float_pore_pressure_budget(const std::string& scene_file_name) {
+  if (scene_file_name == "saturated_collapse.json") return 4 * 7.0e-3;
+  return 1e-5;
+}
+
 }  // namespace fbar::test

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <iostream>
 #include <string>
@@ -14,6 +15,7 @@
 #include "engine/cpu/cpu_engine.h"
 #include "float_budget.h"
 #include "geometry/geometry.h"
+#include "physics/constitutive_models.cuh"
 #include "scene/scene_parse.h"
 
 namespace fs = std::filesystem;
@@ -43,8 +45,24 @@ TEST(CpuScenes, FloatFollowsDoubleOnEveryScene) {
         const double dv = max_abs(single.velocities(b)[p].template cast<double>() - reference.velocities(b)[p]);
         if (dv > worst) worst = dv, worst_body = b, worst_p = p;
       }
+    // Saturated bodies: the pore pressure by particle, relative to the largest.
+    double dp = 0.0, p_scale = 0.0;
+    for (int b = 0; b < static_cast<int>(scene.bodies.size()); ++b) {
+      if (!material_has_pore_fluid(scene.bodies[b].material.law)) continue;
+      const std::vector<float> ps = single.pore_pressures(b);
+      const std::vector<double> pd = reference.pore_pressures(b);
+      for (std::size_t p = 0; p < pd.size(); ++p) {
+        dp = std::max(dp, std::fabs(static_cast<double>(ps[p]) - pd[p]));
+        p_scale = std::max(p_scale, std::fabs(pd[p]));
+      }
+    }
     std::cout << "[measured] " << name << ": " << reference.particle_count() << " particles, 30 steps to t = "
-              << reference.time() << " s: float vs double |dv| " << worst << " m/s\n";
+              << reference.time() << " s: float vs double |dv| " << worst << " m/s";
+    if (p_scale > 0.0) {
+      std::cout << ", pore pressure |dp| " << dp << " Pa of " << p_scale << " Pa";
+      EXPECT_LE(dp, test::float_pore_pressure_budget(name) * p_scale) << name << ": pore pressure";
+    }
+    std::cout << "\n";
     if (worst_body >= 0) {
       const Vec3d x = reference.positions(worst_body)[worst_p];
       EXPECT_LE(worst, test::float_velocity_budget(name))

@@ -21,6 +21,7 @@ namespace fbar::test {
 
 struct ParticleState {
   Vec3d x, v;
+  double pore_pressure = 0.0;  ///< [Pa] saturated bodies (CoupledUP); 0 otherwise
 };
 using StateById = std::map<std::pair<int, int>, ParticleState>;
 
@@ -43,9 +44,9 @@ struct RunResult {
 /// decomposition; nccl: NCCL between the ranks (each on its own GPU), else peer copies between threads; overlap:
 /// GpuEngineOptions::overlap_halo; rebalance_every > 0: every that many steps the step keeps the checkpoint inputs
 /// and rebalance_if_drifted() follows it (as the run loop does at frames); migrant_capacity > 0: the migration
-/// messages' first capacity (GpuEngineOptions::migrant_capacity).
+/// messages' first capacity (GpuEngineOptions::migrant_capacity); dt > 0: steps of exactly dt instead of CFL steps.
 inline RunResult run_rank(const Scene& scene, comm::Transport* host, int steps, int gpu = 0, bool nccl = false,
-                          bool overlap = true, int rebalance_every = 0, int migrant_capacity = 0) {
+                          bool overlap = true, int rebalance_every = 0, int migrant_capacity = 0, double dt = 0.0) {
   RunResult out;
   try {
     FBAR_CUDA_CHECK(cudaSetDevice(gpu));
@@ -64,7 +65,7 @@ inline RunResult run_rank(const Scene& scene, comm::Transport* host, int steps, 
     for (int s = 0; s < steps; ++s) {
       const bool point = rebalance_every > 0 && (s + 1) % rebalance_every == 0;
       engine.keep_checkpoint_inputs(point && engine.rebalance_due());
-      const StepReport r = engine.step();
+      const StepReport r = dt > 0.0 ? engine.step(dt) : engine.step();
       if (!r.ok) {
         out.error = r.message();
         return out;
@@ -98,7 +99,7 @@ inline RunResult run_rank(const Scene& scene, comm::Transport* host, int steps, 
       if (k != frame.size()) out.error = "the frame of body " + std::to_string(b) + " has extra rows";
       for (std::size_t p = 0; p < s.x.size(); ++p) {
         if (!s.present.empty() && !s.present[p]) continue;
-        out.states[{b, static_cast<int>(p)}] = {s.x[p], s.v[p]};
+        out.states[{b, static_cast<int>(p)}] = {s.x[p], s.v[p], s.pore_pressure.empty() ? 0.0 : s.pore_pressure[p]};
         // The GPU engine's particle block: floor((base - 1) / 4), base = floor(x / dx - 0.5).
         const double x = s.x[p][slabs.axis];
         const int block = static_cast<int>(std::floor((std::floor(x * inv_dx - 0.5) - 1.0) / 4.0));
@@ -119,22 +120,30 @@ inline RunResult run_rank(const Scene& scene, comm::Transport* host, int steps, 
 struct Comparison {
   double max_dx = 0, max_dv = 0;  ///< [m], [m/s]
   double momentum = 0;            ///< |sum m v - sum m v'| / sum m |v| [-]
+  double pore_pressure = 0;       ///< max |p - p'| / max |p| over the particles [-] (0 without pore water)
+  Vec3d worst_dv_at = Vec3d::zero();  ///< [m] where the particle with the largest |dv| is (in `one`)
 };
 inline Comparison compare(const RunResult& one, const StateById& many) {
   Comparison c;
   double scale = 0;
   Vec3d pa = Vec3d::zero(), pb = Vec3d::zero();
+  double p_scale = 0;
   for (const auto& [key, a] : one.states) {
     const auto it = many.find(key);
     if (it == many.end()) continue;
     const double m = one.mass[static_cast<std::size_t>(key.first)];
+    c.pore_pressure = std::max(c.pore_pressure, std::fabs(a.pore_pressure - it->second.pore_pressure));
+    p_scale = std::max(p_scale, std::fabs(a.pore_pressure));
     c.max_dx = std::max(c.max_dx, max_abs(a.x - it->second.x));
-    c.max_dv = std::max(c.max_dv, max_abs(a.v - it->second.v));
+    const double dv = max_abs(a.v - it->second.v);
+    if (dv > c.max_dv) c.worst_dv_at = a.x;
+    c.max_dv = std::max(c.max_dv, dv);
     pa = pa + a.v * m;
     pb = pb + it->second.v * m;
     scale += m * norm(a.v);
   }
   c.momentum = scale > 0 ? max_abs(pa - pb) / scale : 0.0;
+  c.pore_pressure = p_scale > 0 ? c.pore_pressure / p_scale : 0.0;
   return c;
 }
 
@@ -150,6 +159,10 @@ constexpr double kPositionTolerance = 1e-11;  // [m]
 constexpr double kVelocityTolerance = 1e-12;  // [m/s]
 constexpr double kMomentumTolerance = 1e-14;  // [-] of sum m |v|
 constexpr double kTimeTolerance = 1e-10;      // [-] relative
+// Pore pressure (saturated bodies), relative to the largest: the seepage sums are float atomics in arrival order on
+// every rank, plus the halo's one more term; a pressure follows J through the storage modulus M (1e6 Pa in
+// test::saturate), so position-sized round-off (1e-16 relative) becomes about M / |p|max x 1e-15.
+constexpr double kPorePressureTolerance = 1e-10;  // [-] of max |p|
 // A rebalance builds the device state again from the particles (the restart path): the grid of its first step comes
 // from a fresh P2G rather than the fused one, so the rebalanced run is the one-rank run to the restart's tolerance
 // (GpuCheckpoint: 1e-9 m after 150 steps in double).

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <functional>
+#include <ostream>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -40,6 +41,13 @@ class GpuValidationEngine {
   StepReport step() { return changed(engine().step()); }
   StepReport step(double dt) { return changed(engine().step(dt)); }
   StepReport advance_to(double t_end) { return changed(engine().advance_to(t_end)); }
+  StepReport step_toward(double t_end) { return changed(engine().step_toward(t_end)); }
+  /// As CpuEngine::set_log (nullptr: silent), before or after the engine started.
+  void set_log(std::ostream* log) {
+    log_ = log;
+    log_set_ = true;
+    if (engine_) engine_->set_log(log);
+  }
   double next_dt() { return engine().next_dt(); }
   double time() { return engine().time(); }
   long long steps() { return engine().steps(); }
@@ -55,6 +63,7 @@ class GpuValidationEngine {
   std::vector<T> volume_ratios(int body) { return snapshot(body).J; }
   std::vector<Mat3<T>> deformation_gradients(int body) { return snapshot(body).F; }
   std::vector<T> plastic_log_volumes(int body) { return snapshot(body).logJp; }
+  std::vector<T> pore_pressures(int body) { return snapshot(body).pore_pressure; }
   std::vector<Mat3<T>> cauchy_stresses(int body) { return snapshot(body).sigma; }
   std::vector<T> pressures(int body) {
     const ParticleSnapshot<T>& s = snapshot(body);
@@ -83,6 +92,7 @@ class GpuValidationEngine {
     if (!engine_) {
       engine_ = std::make_unique<GpuEngine<T>>(scene_, positions_, options_);
       engine_->set_record_velocities(true);
+      if (log_set_) engine_->set_log(log_);
     }
     return *engine_;
   }
@@ -99,6 +109,8 @@ class GpuValidationEngine {
   Scene scene_;
   std::vector<std::vector<Vec3d>> positions_;
   GpuEngineOptions options_;
+  std::ostream* log_ = nullptr;
+  bool log_set_ = false;
   std::unique_ptr<GpuEngine<T>> engine_;
   std::vector<std::optional<ParticleSnapshot<T>>> cache_;
 };

@@ -50,9 +50,16 @@ struct Tolerance {
 // laws' extra amplification does not: it acts on trial states rounded to float, and mixed keeps them in double.
 // Measured on an H100 (60 steps): |dv| 1.5e-6 to 2.5e-6 m/s, |dJ| 9e-8 to 2.4e-7, |dF| 2.3e-7 to 3.6e-7, |dlogJp|
 // 3.3e-7 (NACC) for every law, against single's 2.3e-4 m/s / 2e-4 (DruckerPrager).
+// CoupledUP starts with the pore water carrying the overburden, so its skeleton sits at zero effective stress, the
+// DruckerPrager cone's apex, where rounding decides whether a particle is projected to the tip; its J then differs
+// by a step's strain, in mixed precision too (the float grid velocities feed the trial state). Measured on an H200
+// (60 steps): mixed |dJ| 5.9e-5, |dF| 6.6e-5, single |dJ| 9.6e-5, |dF| 1.1e-4: mixed gets 3e-4 for J and F. Pore
+// pressure, relative to the largest (7.4 kPa): single 1.09e-3, mixed 5.3e-5, double 2.4e-13 (tol_p in compare()).
 template <typename T, typename TG = T>
 Tolerance tolerance(Constitutive law) {
-  const bool plastic = law == Constitutive::DruckerPrager || law == Constitutive::NACC || law == Constitutive::VonMises;
+  if (law == Constitutive::CoupledUP && !std::is_same_v<T, TG>) return {5e-6, 1e-4, 3e-4, 3e-4, 5e-6, 1e-6};
+  const bool plastic = law == Constitutive::DruckerPrager || law == Constitutive::NACC || law == Constitutive::VonMises ||
+                       law == Constitutive::CoupledUP;
   if constexpr (std::is_same_v<TG, double>) return {1e-13, 1e-12, 1e-13, 1e-13, 1e-12, 1e-13};
   else if (!std::is_same_v<T, TG>) return {5e-6, 1e-4, 2e-5, 2e-5, 5e-6, 1e-6};
   else if (plastic) return {1e-5, 1e-3, 1e-3, 1e-3, 1e-4, 1e-6};
@@ -81,6 +88,18 @@ void compare(Constitutive law, double dt, int steps, const GpuEngineOptions& opt
   // the impact yields part of the block and hardens it; DruckerPrager (phi 30 deg, volume correction on) yields
   // where the walls shear it.
   if (law == Constitutive::NACC) scene.bodies[0].material.logJp0 = -0.3;
+  // CoupledUP: a DruckerPrager skeleton (the elastic constants above) saturated with water that carries its weight at
+  // the start (n 0.4, Kf 1e7, Ks 2.2e7: M = 1.5e7 Pa, undrained c = 122 m/s, CFL 0.49 at dt 2e-4 s) and drains
+  // through its faces: Kperm 2e-4 m/s gives c_v = kappa M = 0.3 m^2/s, a cell's diffusion length in the 12 ms run,
+  // the seepage bound dx^2 / (8 kappa M) = 1.0e-3 s.
+  if (law == Constitutive::CoupledUP) {
+    MaterialSpec& m = scene.bodies[0].material;
+    m.poro = 0.4;
+    m.Kf = 1e7;
+    m.Ks = 2.2e7;
+    m.Kperm = 2e-4;
+    scene.bodies[0].initial_state = InitialState::Hydrostatic;
+  }
   const auto positions = test::sample_scene(scene);
   CpuEngine<T, TG> cpu(scene, positions);
   GpuEngine<T, TG> gpu(scene, positions, options);
@@ -124,6 +143,7 @@ void compare(Constitutive law, double dt, int steps, const GpuEngineOptions& opt
   double eF = 0.0;
   if (law != Constitutive::JFluid) eF = test::max_diff(g.F, cpu.deformation_gradients(0));
   double eL = 0.0;  // plastic state: compared like J
+  if (law == Constitutive::CoupledUP) eL = test::max_diff_scalar(g.logJp, cpu.plastic_log_volumes(0));
   if (law == Constitutive::DruckerPrager || law == Constitutive::NACC) {
     eL = test::max_diff_scalar(g.logJp, cpu.plastic_log_volumes(0));
     const std::vector<T> l = cpu.plastic_log_volumes(0);
@@ -133,6 +153,24 @@ void compare(Constitutive law, double dt, int steps, const GpuEngineOptions& opt
     std::cout << "[measured] " << to_string(law) << ": logJp changed on " << changed << " of " << l.size()
               << " particles\n";
     EXPECT_GT(changed, 0) << "the scene must exercise the return mapping";
+  }
+  // Saturated: the pore pressure by particle, relative to the largest; the seepage must have changed it by far more
+  // (the same run undrained, Kperm = 0, on the CPU engine).
+  if (law == Constitutive::CoupledUP) {
+    const std::vector<T> p_cpu = cpu.pore_pressures(0);
+    double scale = 0.0;
+    for (T p : p_cpu) scale = std::max(scale, std::fabs(static_cast<double>(p)));
+    const double ep = test::max_diff_scalar(g.pore_pressure, p_cpu) / scale;
+    Scene undrained_scene = scene;
+    undrained_scene.bodies[0].material.Kperm = 0.0;
+    CpuEngine<T, TG> undrained(undrained_scene, positions);
+    for (int s = 0; s < steps; ++s) ASSERT_TRUE(undrained.step(dt).ok);
+    const double effect = test::max_diff_scalar(undrained.pore_pressures(0), p_cpu) / scale;
+    const double tol_p = std::is_same_v<TG, double> ? 1e-12 : std::is_same_v<T, TG> ? 5e-3 : 3e-4;
+    std::cout << "[measured] " << to_string(kPrecision) << " CoupledUP: pore pressure up to " << scale
+              << " Pa, GPU - CPU " << ep << " of it, seepage changes it by " << effect << " of it\n";
+    EXPECT_LE(ep, tol_p);
+    EXPECT_GT(effect, 100 * tol_p) << "the seepage did not act";
   }
   // Momentum: double sums in ID order on both sides.
   Vec3d pg = Vec3d::zero();
@@ -255,6 +293,19 @@ TEST(GpuVsCpu, DruckerPragerFloat) {
 TEST(GpuVsCpu, DruckerPragerDouble) {
   FBAR_REQUIRE_DEVICE();
   compare<double>(Constitutive::DruckerPrager, 5e-4, 60);
+}
+// CoupledUP (saturated DruckerPrager skeleton; the water's constants at compare()): 2e-4 s as for JFluid.
+TEST(GpuVsCpu, CoupledUPFloat) {
+  FBAR_REQUIRE_DEVICE();
+  compare<float>(Constitutive::CoupledUP, 2e-4, 60);
+}
+TEST(GpuVsCpu, CoupledUPDouble) {
+  FBAR_REQUIRE_DEVICE();
+  compare<double>(Constitutive::CoupledUP, 2e-4, 60);
+}
+TEST(GpuVsCpu, CoupledUPMixed) {
+  FBAR_REQUIRE_DEVICE();
+  compare<double, float>(Constitutive::CoupledUP, 2e-4, 60);
 }
 TEST(GpuVsCpu, NaccFloat) {
   FBAR_REQUIRE_DEVICE();

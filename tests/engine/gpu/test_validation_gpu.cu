@@ -4,7 +4,7 @@
 //  * The CPU validation cases of tests/validation (*_case.h), run unchanged on the GPU engine through
 //    test::GpuValidationEngine, with the same assertions as their CPU tests: vibrating bar per scheme, hydrostatic
 //    column with and without F-bar, the nearly incompressible block with and without F-bar, the NACC
-//    material-point element, granular collapse against Lube et al. Each engine takes its own CFL steps, so the
+//    material-point element, granular collapse against Lube et al., Terzaghi's consolidation of a saturated column. Each engine takes its own CFL steps, so the
 //    numbers differ from the CPU's at round-off level and through the JFluid wave-speed lag (gpu_engine.h).
 #include <gtest/gtest.h>
 
@@ -23,6 +23,7 @@
 #include "../../validation/granular_collapse_case.h"
 #include "../../validation/hydrostatic_column_case.h"
 #include "../../validation/material_point_element_case.h"
+#include "../../validation/terzaghi_case.h"
 #include "../../validation/vibrating_bar_case.h"
 
 namespace fbar {
@@ -193,6 +194,13 @@ TEST(GpuValidation, GranularCollapseWithinLube) {
   std::printf("[measured] GPU granular collapse: runout %.3f, H_inf/H0 %.3f, kinetic/released %.2g (%lld steps)\n",
               r.runout, r.height_ratio, r.kinetic / r.released, r.steps);
   expect_granular_within_lube(r);
+}
+
+// Terzaghi's consolidation at H/16 and H/32 with the CPU test's tolerances (validation/terzaghi_case.h): the seepage
+// channels, the drained surface and the impermeable floor and walls of the GPU engine.
+TEST(GpuValidation, TerzaghiConsolidationFollowsTheSeries) {
+  FBAR_REQUIRE_DEVICE();
+  terzaghi::expect_follows_the_series<test::GpuValidationEngine<double>>("GPU engine");
 }
 
 }  // namespace

@@ -96,6 +96,9 @@ struct MgspBenchmark<T, TG>::BodyBase {
   virtual double seed_states(const ParticleSeeds& seeds) = 0;
   /// pass: every block of layout(cur) (one GPU, the initial P2G), or one part of its list (the halo-first step).
   virtual void g2p2g(MgspBenchmark& e, bool initial, T dt, G2P2GPass pass = G2P2GPass::All) = 0;
+  /// Saturated bodies: the seepage channels of bins[cur] added into e.pore_sums_ (kernels/seepage_kernels.cuh);
+  /// nothing for other laws.
+  virtual void seepage_sums(MgspBenchmark& e) = 0;
   virtual void dest_from_positions(MgspBenchmark& e, int bins_which, const int* valid, int first, int slots) = 0;
   virtual std::size_t migrant_bytes(const MgspBenchmark& e) const = 0;
   /// The emigrants G2P2G listed (emigrant_slots) from bins[1 - cur] into the areas lo / hi of `capacity` records
@@ -116,6 +119,9 @@ struct MgspBenchmark<T, TG>::BodyBase {
   virtual bool stores_logJp() const = 0;
   /// J, F, Cauchy stress and logJp of one gathered record (F and logJp left as they are for a material without).
   virtual void state_of(const T* record, T& J, Mat3<T>& F, Mat3<T>& sigma, T& logJp, const Mat3<T>& C) const = 0;
+  /// The pore pressure [Pa] of one gathered record (materials with kOutputs.pore_pressure; NaN for others).
+  virtual double pore_pressure_of(const T* record) const = 0;
+  virtual bool stores_pore_pressure() const = 0;
   /// psi(state) [J/m^3] of one gathered record.
   virtual double energy_density_of(const T* record) const = 0;
   /// The material's wave speed [m/s] in the state of one gathered record.
@@ -131,6 +137,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
 
   bool stores_F() const override { return M::kOutputs.deformation_gradient; }
   bool stores_logJp() const override { return M::kOutputs.log_jp; }
+  bool stores_pore_pressure() const override { return M::kOutputs.pore_pressure; }
   int stored_scalars() const override { return Layout::kScalars; }
   void allocate_bins(int n) override {
     bins[0].allocate(n);
@@ -222,6 +229,8 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     }
     p.fbar_psi = initial ? T(0) : this->fbar_psi;
     if (p.fbar_psi != T(0)) p.fbar_sums = e.fbar_sums_.instance();
+    if constexpr (IsPoreFluid<M>::value) p.pore = e.pore_sums_.instance();
+    p.gravity = e.k_.gravity;
     p.material = params;
     p.mass = this->mass;
     p.volume = this->volume;
@@ -283,6 +292,27 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     else
       ::fbar::g2p2g<M, T, TG, false, false><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
     cuda::check_launch("g2p2g");
+  }
+
+  void seepage_sums(MgspBenchmark& e) override {
+    if constexpr (IsPoreFluid<M>::value) {
+      const int blocks = e.block_count_;
+      if (blocks == 0) return;
+      SeepageSumsParams<M, T, TG> f;
+      f.in = bins[e.cur_].instance();
+      f.layout = this->partition.layout(e.cur_);
+      f.table = e.table_.view();
+      f.sums = e.pore_sums_.instance();
+      f.material = params;
+      f.volume = this->volume;
+      f.dx = e.k_.dx;
+      f.inv_dx = e.k_.inv_dx;
+      f.d_inv = e.k_.d_inv;
+      f.gravity = e.k_.gravity;
+      f.stats = e.stats_d_;
+      ::fbar::seepage_sums<M, T, TG><<<blocks, kG2P2GThreads, 0, e.stream_>>>(f);
+      cuda::check_launch("seepage_sums");
+    }
   }
 
   void capture_state(MgspBenchmark& e) override {
@@ -383,6 +413,15 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     if constexpr (M::kOutputs.deformation_gradient) F = s.F;
     if constexpr (M::kOutputs.log_jp) logJp = s.logJp;
     sigma = cauchy_stress(M::kirchhoff_stress(params, s, C));
+  }
+  double pore_pressure_of(const T* r) const override {
+    if constexpr (M::kOutputs.pore_pressure) {
+      material_state_t<M, T> s;
+      std::memcpy(&s, r + 3, sizeof(s));
+      return static_cast<double>(M::pore_pressure(s));
+    } else {
+      return std::numeric_limits<double>::quiet_NaN();
+    }
   }
   double energy_density_of(const T* r) const override {
     material_state_t<M, T> s;

@@ -128,6 +128,7 @@ double MgspBenchmark<T, TG>::add_body(int b, const std::vector<std::vector<Vec3d
   asflip_ = asflip_ || body.asflip;
   body.fbar_psi = static_cast<T>(alg.fbar_blend());
   fbar_ = fbar_ || body.fbar_psi != T(0);
+  pore_ = pore_ || material_has_pore_fluid(mat.law);
   max_speed = std::max(max_speed, std::sqrt(spec.velocity[0] * spec.velocity[0] +
                                             spec.velocity[1] * spec.velocity[1] +
                                             spec.velocity[2] * spec.velocity[2]));
@@ -179,6 +180,7 @@ void MgspBenchmark<T, TG>::plan_memory() {
     in.stored_scalars = body.stored_scalars();
     in.asflip = body.asflip;
     in.fbar = body.fbar_psi != T(0);
+    in.pore = material_has_pore_fluid(body.spec.material.law);
     in.record = record;
     if (options_.frames) {
       body.frame_attrs = frame_attributes(body.spec, body.index, "GPU engine");
@@ -246,6 +248,7 @@ void MgspBenchmark<T, TG>::allocate_device_state(const std::vector<std::vector<V
   grid_[1].allocate(block_capacity_);
   velocity_.allocate(block_capacity_);
   if (fbar_) fbar_sums_.allocate(block_capacity_);
+  if (pore_) pore_sums_.allocate(block_capacity_);
   if (asflip_) {
     transported_[0].allocate(block_capacity_);
     transported_[1].allocate(block_capacity_);

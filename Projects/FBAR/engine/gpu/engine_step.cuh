@@ -149,6 +149,7 @@ void MgspBenchmark<T, TG>::grow_blocks_to(int capacity) {
   grid_[1].grow(capacity, keep, stream_);
   velocity_.grow(capacity, keep, stream_);
   if (fbar_) fbar_sums_.grow(capacity, 0, stream_);  // refilled before every use
+  if (pore_) pore_sums_.grow(capacity, 0, stream_);   // likewise
   if (asflip_) {
     transported_[0].grow(capacity, keep, stream_);
     transported_[1].grow(capacity, keep, stream_);
@@ -307,7 +308,13 @@ void MgspBenchmark<T, TG>::begin_try(double dt) {
 /// on a sample step the grid sensors into their slot (each try overwrites it).
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::update_grid(double dt) {
+  if (pore_ && block_count_ > 0) {  // the seepage sums of state n, every try (the update replaces them in place)
+    pore_sums_.clear(0, block_count_, stream_);
+    for (auto& b : bodies_) b->seepage_sums(*this);
+    if (decomposed()) halo_exchange({{pore_sums_.instance().data(), GridPoreBuffer<TG>::kBlockBytes}}, -1);
+  }
   GridUpdateParams<TG> gp{};
+  if (pore_) gp.pore = pore_sums_.instance();
   gp.grid = grid_[gc_].instance();
   gp.velocity = velocity_.instance();
   if (asflip_) {
@@ -334,6 +341,7 @@ void MgspBenchmark<T, TG>::update_grid(double dt) {
     GridSensorSampleParams<TG> sp{};
     sp.grid = gp.grid;
     sp.velocity = gp.velocity;
+    sp.pore = gp.pore;
     sp.coords = gp.coords;
     sp.block_count = block_count_;
     sp.dt = gp.dt;

@@ -108,6 +108,7 @@ ParticleSnapshot<T> MgspBenchmark<T, TG>::snapshot(int body) const {
   snap.sigma.resize(n);
   if (b.stores_F()) snap.F.resize(n);
   if (b.stores_logJp()) snap.logJp.resize(n);
+  if (b.stores_pore_pressure()) snap.pore_pressure.assign(n, std::numeric_limits<T>::quiet_NaN());
   const bool initial = steps_ == 0 && !aux_valid_;  // before the first step: v = initial velocity, C = 0 exactly
   const Vec3<T> v0{{static_cast<T>(b.spec.velocity[0]), static_cast<T>(b.spec.velocity[1]),
                     static_cast<T>(b.spec.velocity[2])}};
@@ -127,6 +128,7 @@ ParticleSnapshot<T> MgspBenchmark<T, TG>::snapshot(int body) const {
     snap.sigma[p] = sigma;
     if (b.stores_F()) snap.F[p] = F;
     if (b.stores_logJp()) snap.logJp[p] = logJp;
+    if (b.stores_pore_pressure()) snap.pore_pressure[p] = static_cast<T>(b.pore_pressure_of(q));
   }
   return snap;
 }
@@ -149,6 +151,7 @@ io::ParticleFrame MgspBenchmark<T, TG>::frame(int body) const {
       s.sigma[w] = s.sigma[p];
       if (!s.F.empty()) s.F[w] = s.F[p];
       if (!s.logJp.empty()) s.logJp[w] = s.logJp[p];
+      if (!s.pore_pressure.empty()) s.pore_pressure[w] = s.pore_pressure[p];
       ++w;
     }
     for (auto* v : {&s.x, &s.v}) v->resize(w);
@@ -156,6 +159,7 @@ io::ParticleFrame MgspBenchmark<T, TG>::frame(int body) const {
     s.J.resize(w);
     if (!s.F.empty()) s.F.resize(w);
     if (!s.logJp.empty()) s.logJp.resize(w);
+    if (!s.pore_pressure.empty()) s.pore_pressure.resize(w);
   }
   FrameSource<T> src;
   if (!s.present.empty()) src.id = &ids;
@@ -173,8 +177,9 @@ io::ParticleFrame MgspBenchmark<T, TG>::frame(int body) const {
     return s.logJp;
   };
   src.sigma = [&] { return s.sigma; };  // from the state and the recorded C (snapshot)
-  src.pore_pressure = [&]() -> std::vector<T> {  // check_engine_body refuses saturated bodies on the GPU engine
-    throw std::invalid_argument("PorePressure: the GPU engine runs no CoupledUP body");
+  src.pore_pressure = [&] {
+    if (!b.stores_pore_pressure()) throw std::invalid_argument("PorePressure: the body's material has no pore water");
+    return s.pore_pressure;
   };
   return build_frame(b.spec, body, src, "GPU engine");
 }
@@ -390,7 +395,7 @@ double MgspBenchmark<T, TG>::grid_mass() const {
 
 template <typename T, typename TG>
 std::size_t MgspBenchmark<T, TG>::device_bytes() const {
-  std::size_t bytes = table_.bytes() + grid_[0].bytes() + grid_[1].bytes() + velocity_.bytes() + fbar_sums_.bytes() +
+  std::size_t bytes = table_.bytes() + grid_[0].bytes() + grid_[1].bytes() + velocity_.bytes() + fbar_sums_.bytes() + pore_sums_.bytes() +
                       transported_[0].bytes() + transported_[1].bytes() + old_velocity_.bytes() +
                       stats_bytes_.bytes() + wave_d_.bytes() + p2g_bound_d_.bytes() + scan_temp_.bytes() +
                       sensors_.grid_samples_d.bytes() + sensors_.particle_samples_d.bytes() + sensors_.partials_d.bytes() +

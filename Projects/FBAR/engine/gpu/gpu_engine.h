@@ -42,6 +42,7 @@ struct ParticleSnapshot {
   std::vector<T> J;         ///< [-] volume ratio of the stored state
   std::vector<Mat3<T>> F;   ///< [-] deformation gradient (materials that store F; empty otherwise)
   std::vector<T> logJp;     ///< [-] plastic state (materials that store logJp; empty otherwise)
+  std::vector<T> pore_pressure;  ///< [Pa] saturated materials (CoupledUP; empty otherwise)
   std::vector<Mat3<T>> sigma;  ///< [Pa] Cauchy stress of the stored state (with the recorded C for rate terms)
   /// Decomposed runs: present[id] says whether this rank holds particle `id` (the arrays are indexed by ID over the
   /// whole body; absent entries are NaN). Empty: every particle is present.

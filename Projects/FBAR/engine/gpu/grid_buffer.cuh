@@ -4,6 +4,8 @@
 //   GridBuffer<T>          mass + momentum (4 channels): what P2G accumulates. Double-buffered by the driver:
 //                          G2P2G of step n reads the velocities of step n and scatters into the other buffer.
 //   GridFbarBuffer<T>      F-bar's cell sums (2 channels, transfer.cuh), only when a body uses F-bar.
+//   GridPoreBuffer<T>      the seepage channels of saturated bodies (5 channels, physics/seepage.cuh), only when a
+//                          body is saturated (CoupledUP): P2G sums, then the grid update's node values in place.
 //   GridVelocityBuffer<T>  velocity (3 channels): what the grid update writes and G2P reads. Keeping it apart from
 //                          the momentum leaves the P2G sums of step n intact until step n commits, which is what
 //                          a retried step (on_failure = reduce_dt) and a changed dt need (see mgsp_benchmark.cuh).
@@ -35,6 +37,12 @@ inline constexpr auto grid_velocity_y = placeholder::_1;
 inline constexpr auto grid_velocity_z = placeholder::_2;
 inline constexpr auto grid_fbar_compression = placeholder::_0;  ///< [m^3] F-bar cell sum of V0 (1 - J) (cell at node)
 inline constexpr auto grid_fbar_volume = placeholder::_1;       ///< [m^3] F-bar cell sum of V0
+// Seepage channels (physics/seepage.cuh): what the seepage P2G sums, and what the grid update leaves in their place.
+inline constexpr auto grid_pore_volume = placeholder::_0;   ///< [m^3] sum w V
+inline constexpr auto grid_pore_head = placeholder::_1;     ///< [Pa m^3] sum w V (h + grad h . (x_i - x_p)); then h_i [Pa]
+inline constexpr auto grid_pore_inflow = placeholder::_2;   ///< [m^3/s] sum V q . grad w; then r_i [1/s]
+inline constexpr auto grid_pore_water = placeholder::_3;    ///< [kg] sum w n rhow V0 (MassWater)
+inline constexpr auto grid_pore_density = placeholder::_4;  ///< [kg] sum w V rhow; then p_i [Pa] (PorePressure)
 
 template <typename T>
 struct GridLayout {
@@ -49,12 +57,16 @@ struct GridLayout {
   using velocity_block_ = structural<structural_type::dense, block_domain, soa, scalar_, scalar_, scalar_>;
   /// (channel, cell) F-bar's cell sums of one block (transfer.cuh), allocated only when a body uses F-bar.
   using fbar_block_ = structural<structural_type::dense, block_domain, soa, scalar_, scalar_>;
+  /// (channel, node) seepage channels of one block, allocated only when a body is saturated.
+  using pore_block_ = structural<structural_type::dense, block_domain, soa, scalar_, scalar_, scalar_, scalar_, scalar_>;
   using buffer_ = structural<structural_type::dynamic, dynamic_domain<int>, soa, block_>;
   using fbar_buffer_ = structural<structural_type::dynamic, dynamic_domain<int>, soa, fbar_block_>;
   using velocity_buffer_ = structural<structural_type::dynamic, dynamic_domain<int>, soa, velocity_block_>;
+  using pore_buffer_ = structural<structural_type::dynamic, dynamic_domain<int>, soa, pore_block_>;
   using Buffer = structural_instance<buffer_>;
   using VelocityBuffer = structural_instance<velocity_buffer_>;
   using FbarBuffer = structural_instance<fbar_buffer_>;
+  using PoreBuffer = structural_instance<pore_buffer_>;
 
   static constexpr std::size_t kBlockBytes = block_::element_storage_size * block_domain::extent;
   static_assert(block_::size == 4 * 64 * sizeof(T), "a grid block is 4 channels x 64 nodes, nothing else");
@@ -117,5 +129,7 @@ template <typename T>
 using GridVelocityBuffer = BlockBuffer<typename GridLayout<T>::velocity_block_>;
 template <typename T>
 using GridFbarBuffer = BlockBuffer<typename GridLayout<T>::fbar_block_>;
+template <typename T>
+using GridPoreBuffer = BlockBuffer<typename GridLayout<T>::pore_block_>;
 
 }  // namespace fbar

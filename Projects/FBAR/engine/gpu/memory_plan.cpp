@@ -22,7 +22,7 @@ std::size_t table_slots(long long capacity) {
 }
 
 /// Grid bytes at a block capacity (everything indexed by block, bodies' partition arrays excluded).
-std::size_t grid_bytes(long long capacity, Precision precision, bool asflip, bool fbar) {
+std::size_t grid_bytes(long long capacity, Precision precision, bool asflip, bool fbar, bool pore) {
   const std::size_t c = static_cast<std::size_t>(capacity);
   const std::size_t tg = grid_scalar_bytes(precision);
   std::size_t bytes = table_slots(capacity) * (8 + 4) + c * 3 * 4 + 8;  // keys, values, coordinates, counters
@@ -30,6 +30,7 @@ std::size_t grid_bytes(long long capacity, Precision precision, bool asflip, boo
   bytes += c * 3 * 64 * tg;                                             // grid velocity
   if (asflip) bytes += 3 * c * 3 * 64 * tg;                             // transported momentum x 2, v^n
   if (fbar) bytes += c * 2 * 64 * tg;                                   // cell sums
+  if (pore) bytes += c * 5 * 64 * tg;                                   // seepage channels
   return bytes;
 }
 
@@ -79,16 +80,17 @@ DeviceMemoryPlan plan_device_memory(Precision precision, long long footprint_blo
   plan.precision = precision;
   plan.footprint_blocks = footprint_blocks;
   plan.block_capacity = std::max<long long>(1024, 2 * footprint_blocks);
-  bool asflip = false, fbar = false;
+  bool asflip = false, fbar = false, pore = false;
   for (const BodyMemoryInput& b : bodies) {
     asflip = asflip || b.asflip;
     fbar = fbar || b.fbar;
+    pore = pore || b.pore;
   }
   const std::size_t t = particle_scalar_bytes(precision);
-  plan.grid = grid_bytes(plan.block_capacity, precision, asflip, fbar);
+  plan.grid = grid_bytes(plan.block_capacity, precision, asflip, fbar, pore);
   const std::size_t grid_largest = static_cast<std::size_t>(plan.block_capacity) * 4 * 64 * grid_scalar_bytes(precision);
   // Doubling: the bigger arrays, and one old grid array alive during its copy.
-  plan.grid_growth = grid_bytes(2 * plan.block_capacity, precision, asflip, fbar) - plan.grid + grid_largest;
+  plan.grid_growth = grid_bytes(2 * plan.block_capacity, precision, asflip, fbar, pore) - plan.grid + grid_largest;
   for (const BodyMemoryInput& b : bodies) {
     const long long flat = (b.particles + 31) / 32;
     long long bins = std::max<long long>(64, std::max(flat, b.bins_needed * 3 / 2 + 16));

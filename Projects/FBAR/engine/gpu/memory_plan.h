@@ -4,7 +4,8 @@
 // What one device holds (GpuEngine<T, TG>; mgsp_benchmark.cuh allocates exactly these):
 //   per grid block of capacity   hash table (2 slots of key u64 + value i32, power of two), block coordinates,
 //                                two P2G grids (4 channels x 64 nodes), the grid velocity (3 x 64), ASFLIP's
-//                                transported momentum (2 x 3 x 64) and v^n (3 x 64), F-bar's cell sums (2 x 64), and
+//                                transported momentum (2 x 3 x 64) and v^n (3 x 64), F-bar's cell sums (2 x 64), the
+//                                seepage channels of saturated bodies (5 x 64), and
 //                                per body the partition's per-block arrays (counts and bin offsets of two layouts,
 //                                bins per block, halo tag: 21 B)
 //   per particle slot of a body  two particle buffers (the fused G2P2G reads one and writes the other), ASFLIP's
@@ -45,6 +46,7 @@ struct BodyMemoryInput {
   int stored_scalars = 0;        ///< per particle in a bin: position (3) + the material's state
   bool asflip = false;           ///< PIC-FLIP / ASFLIP (particle velocities, transported grid momentum)
   bool fbar = false;             ///< F-bar (cell sums)
+  bool pore = false;             ///< saturated (CoupledUP): the grid's seepage channels
   int frame_columns = -1;        ///< float attributes of its output frame, -1: no frames on the device
   bool record = false;           ///< v and C per particle slot (12 scalars: a particle sensor reads velocities)
 };
@@ -56,7 +58,7 @@ struct DeviceMemoryPlan {
   long long block_capacity = 0;
   std::vector<long long> bin_capacity;   ///< per body
   std::vector<long long> particles;      ///< per body
-  std::size_t grid = 0;        ///< hash table, P2G grids, velocity, ASFLIP and F-bar channels
+  std::size_t grid = 0;        ///< hash table, P2G grids, velocity, ASFLIP, F-bar and seepage channels
   std::size_t partition = 0;   ///< per-block and per-slot partition arrays of every body
   std::size_t particles_bytes = 0;  ///< particle buffers (both), ASFLIP particle velocities, recorded v and C
   std::size_t frames = 0;      ///< output frames kept on the device for the asynchronous download

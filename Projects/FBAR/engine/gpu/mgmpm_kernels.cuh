@@ -7,3 +7,4 @@
 #include "engine/gpu/kernels/partition_kernels.cuh"
 #include "engine/gpu/kernels/output_kernels.cuh"
 #include "engine/gpu/kernels/halo_kernels.cuh"
+#include "engine/gpu/kernels/seepage_kernels.cuh"

@@ -12,7 +12,9 @@
 // Step n (dt):
 //   0. dt != dt_p2g_ (a repeated step, or step(dt) with a new dt): rescale_impulse adds (dt - dt_p2g_) x the
 //      stress impulse to grid[gc] (exact for rate-independent stress; see partition_kernels.cuh)
-//   1. grid update: velocity = grid[gc] / m + dt g, boundaries -> velocity buffer; max |v|
+//   1. grid update: velocity = grid[gc] / m + dt g, boundaries -> velocity buffer; max |v|. Saturated bodies
+//      first sum their seepage channels from bins[cur] (seepage_sums), which the update turns into each node's
+//      head, inflow and pore pressure for G2P (physics/seepage.cuh)
 //   2. compute_next_dt: dt_{n+1} on the device (so the P2G impulse uses it without a host round trip); the JFluid
 //      wave speed in it is the one of state n (the CPU engine uses state n+1's: a one-step lag, documented)
 //   3. per body g2p2g: bins[cur] -> bins[1-cur] in layout(cur) order, P2G into grid[1-gc], next blocks and ranks
@@ -28,6 +30,7 @@
 //       DeviceTransport::allreduce_max on the device, before compute_next_dt): every rank computes the same dt
 //       (min over ranks of each rank's dt would not do: the fastest node and the stiffest particle may sit on
 //       different ranks)
+//   1'. saturated bodies: the seepage sums' halo exchange before the grid update
 //   3'. F-bar: the cell sums' halo exchange between fbar_cell_sums and G2P2G; after G2P2G: the halo exchange of
 //       grid[1 - gc] (and the transported momentum), then migration: G2P2G marked the particles whose next block a
 //       neighbour owns (kEmigrant); their records go to the neighbour, which appends the ones it receives behind
@@ -377,12 +380,16 @@ class MgspBenchmark {
   GridBuffer<TG> grid_[2];
   GridVelocityBuffer<TG> velocity_;
   GridFbarBuffer<TG> fbar_sums_;         ///< F-bar cell sums, allocated only when a body uses F-bar
+  /// Seepage channels, allocated only when a body is saturated (CoupledUP): summed from the particles at the start of
+  /// every try (seepage_sums), then the grid update's h_i, r_i and p_i in place (kernels/seepage_kernels.cuh).
+  GridPoreBuffer<TG> pore_sums_;
   /// ASFLIP, allocated only when a body uses it: transported momentum of each P2G (double-buffered like grid_) and
   /// v^n from the grid update.
   GridVelocityBuffer<TG> transported_[2];
   GridVelocityBuffer<TG> old_velocity_;
   bool asflip_ = false;
   bool fbar_ = false;
+  bool pore_ = false;  ///< some body is saturated (CoupledUP): the grid carries the seepage channels
   int block_capacity_ = 0;
   int block_count_ = 0;                 ///< table blocks after the last committed partition
   cuda::DeviceArray<std::byte> stats_bytes_;

@@ -50,6 +50,7 @@
 #include "engine/gpu/particle_buffer.cuh"
 #include "engine/gpu/partition_domain.h"
 #include "settings.h"
+#include "physics/seepage.cuh"
 #include "physics/transfer.cuh"
 
 namespace fbar {
@@ -136,6 +137,10 @@ struct G2P2GParams {
   AsflipParams<T> asflip_params;
   typename GridLayout<TG>::FbarBuffer fbar_sums;  ///< F-bar cell sums of this body (fbar_cell_sums), when fbar_psi > 0
   T fbar_psi;                ///< [-] F-bar: the fraction of J pulled to its cell's mean per step, 0: off (transfer.cuh)
+  /// Saturated bodies (IsPoreFluid): the grid's h_i and r_i after the grid update (seepage_sums, then
+  /// update_grid_velocity_query_max), read by G2P's seepage (physics/seepage.cuh); gravity for the head's datum.
+  typename GridLayout<TG>::PoreBuffer pore;
+  Vec3<T> gravity;           ///< [m/s^2]
   material_params_t<M, T> material;
   T mass;                    ///< [kg] per particle
   T volume;                  ///< [m^3] reference volume per particle
@@ -405,6 +410,20 @@ FBAR_DEVICE FBAR_FORCE_INLINE void g2p_particle(const G2P2GParams<M, T, TG>& p, 
                            fbar_velocity_gradient(out.C, one_minus_J, cell_mean, p.fbar_psi, p.dt), p.dt);
   } else {
     out.state = M::advance(p.material, in.state, out.C, p.dt);
+  }
+  if constexpr (IsPoreFluid<M>::value) {  // the pore water's flow from the grid's heads (physics/seepage.cuh)
+    SeepageSum<T> seep;
+    for_each_stencil_node_unrolled(s, p.dx, [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
+      const int a = c0 + i, b = c1 + j, c = c2 + k;
+      const int nb = arena.blocks[arena_neighbour(a, b, c)];
+      if (nb < 0) return;  // counted as an internal error when the arena was set up
+      const int node = arena_node_in_block(a, b, c);
+      seep.add(w, xixp, static_cast<T>(block_val(p.pore, grid_pore_head, nb, node)),
+               static_cast<T>(block_val(p.pore, grid_pore_inflow, nb, node)));
+    });
+    out.state = M::seep(p.material, out.state, seep.inflow, seep.head_gradient(p.d_inv),
+                        seep.head + M::water_density(p.material) * dot(p.gravity, in.x),
+                        M::pore_pressure(out.state) - M::pore_pressure(in.state), p.dt);
   }
   if (kMayAsflip && p.asflip) {  // FLIP increment from v^n at the stencil, the particle's own velocity
     G2POldSum<T> old;

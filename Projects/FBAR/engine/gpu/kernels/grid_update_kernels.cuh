@@ -7,6 +7,7 @@
 #include "physics/boundary.cuh"
 #include "engine/gpu/grid_buffer.cuh"
 #include "physics/grid_update.cuh"
+#include "physics/seepage.cuh"
 #include "physics/sensors.cuh"
 #include "engine/gpu/hash_table.cuh"
 #include "engine/gpu/kernels/kernel_common.cuh"
@@ -31,6 +32,9 @@ struct GridUpdateParams {
   /// transported / m (written), what G2P's FLIP increment needs (transfer.cuh).
   typename GridLayout<T>::VelocityBuffer transported;
   typename GridLayout<T>::VelocityBuffer old_velocity;
+  /// Saturated bodies (else null): the seepage sums (seepage_sums), replaced at every node with mass by the node's
+  /// head h_i, inflow r_i and pore pressure p_i (seepage_node; grid_buffer.cuh names the channels).
+  typename GridLayout<T>::PoreBuffer pore;
   const int* coords;                                ///< (block, axis) block coordinates (hash table)
   int block_count;
   T dt;         ///< [s]
@@ -70,6 +74,20 @@ __global__ void __launch_bounds__(kGridUpdateThreads) update_grid_velocity_query
                             static_cast<T>(p.coords[3 * block + 2] * 4 + k) * p.dx}};
       for (int b = 0; b < p.boundaries.count; ++b)
         v = apply_boundary(p.boundaries.b[b], x_node, v, &p.boundaries.profiles);
+      if (p.pore) {
+        const auto held = [&] {  // some active boundary acts on the node: its water is held, never drained
+          for (int b = 0; b < p.boundaries.count; ++b)
+            if (boundary_holds(p.boundaries.b[b], x_node, &p.boundaries.profiles)) return true;
+          return false;
+        };
+        const SeepageNode<T> n = seepage_node(
+            block_val(p.pore, grid_pore_volume, block, node), block_val(p.pore, grid_pore_head, block, node),
+            block_val(p.pore, grid_pore_inflow, block, node), block_val(p.pore, grid_pore_density, block, node), x_node,
+            p.gravity, held, p.dx * p.dx * p.dx);
+        block_val(p.pore, grid_pore_head, block, node) = n.head;
+        block_val(p.pore, grid_pore_inflow, block, node) = n.inflow;
+        block_val(p.pore, grid_pore_density, block, node) = n.pressure;
+      }
     }
     block_val(p.velocity, grid_velocity_x, block, node) = v[0];
     block_val(p.velocity, grid_velocity_y, block, node) = v[1];
@@ -88,6 +106,7 @@ template <typename T>
 struct GridSensorSampleParams {
   typename GridLayout<T>::Buffer grid;              ///< P2G sums of the step
   typename GridLayout<T>::VelocityBuffer velocity;  ///< node velocities after the boundary projections
+  typename GridLayout<T>::PoreBuffer pore;  ///< saturated bodies: water mass and p_i after the grid update (or null)
   const int* coords;
   int block_count;
   T dt;
@@ -165,7 +184,15 @@ __global__ void __launch_bounds__(kSensorThreads) sample_grid_sensors(GridSensor
     const Vec3<T> v_free = grid_node_velocity(m, momentum, p.gravity, p.dt);
     const Vec3<T> v{{block_val(p.velocity, grid_velocity_x, block, node), block_val(p.velocity, grid_velocity_y, block, node),
                      block_val(p.velocity, grid_velocity_z, block, node)}};
-    a.add(static_cast<double>(grid_sensor_value(g, GridNodeSample<T>{m, momentum, v_free, v, p.dt})));
+    GridNodeSample<T> sample{m, momentum, v_free, v, p.dt};
+    if (p.pore) {
+      sample.water_mass = block_val(p.pore, grid_pore_water, block, node);
+      sample.pore_pressure = block_val(p.pore, grid_pore_density, block, node);
+    }
+    // The pore sensors read the nodes that carry pore water only (accumulate_grid_sensors, the CPU engine's rule).
+    const bool pore_sensor = g.quantity == GridSensorQuantity::MassWater || g.quantity == GridSensorQuantity::PorePressure;
+    if (pore_sensor && !(sample.water_mass > T(0))) continue;
+    a.add(static_cast<double>(grid_sensor_value(g, sample)));
   }
   a = block_reduce_sensor(a);
   if (threadIdx.x == 0) p.partials[static_cast<std::size_t>(blockIdx.y) * gridDim.x + blockIdx.x] = a;
