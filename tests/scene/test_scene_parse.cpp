@@ -627,7 +627,6 @@ TEST(SceneParse, ReleasePolicyRejectsWhatTheEngineCannotRun) {
   };
   const std::vector<Case> cases = {
       {scene_with(body(R"({})", R"("algorithm": {"use_FEM": true})")), "bodies[0].algorithm.use_FEM"},
-      {scene_with(body(R"({})", R"("output_attribs": ["logJp"])")), "bodies[0].output_attribs[0]"},
       {scene_with(body(), R"("grid-sensors": [{"attribute": "Volume", "domain_start": [0,0,0],
                                               "domain_end": [1,1,1]}])"),
        "grid-sensors[0].attribute"},
@@ -639,6 +638,13 @@ TEST(SceneParse, ReleasePolicyRejectsWhatTheEngineCannotRun) {
     // The same scene is valid input: it parses with the policy switched off.
     EXPECT_NO_THROW(parse(c.json, false)) << c.json;
   }
+  // An attribute fbar writes for other laws is an error that names the law (also the release's check: the scene
+  // parses with it off).
+  const std::string logjp = scene_with(body(R"({})", R"("output_attribs": ["logJp"])"));
+  const std::string e = error_of(logjp);
+  EXPECT_EQ(e.rfind("bodies[0].output_attribs[0]: got", 0), 0u) << e;
+  EXPECT_NE(e.find("for JFluid (a JFluid body has no such quantity in its state)"), std::string::npos) << e;
+  EXPECT_NO_THROW(parse(logjp, false)) << logjp;
   // ASFLIP and F-bar switched on with zero ratios are APIC, which this release runs.
   EXPECT_NO_THROW(parse(scene_with(body(R"({})", R"("algorithm": {"use_ASFLIP": true, "use_FBAR": true})"))));
   EXPECT_NO_THROW(parse(scene_with(body(R"({"constitutive": "FixedCorotated"})"),

@@ -77,15 +77,24 @@ void check_supported(const Scene& scene) {
       if (!material_supports_attribute(m.law, name)) {
         MaterialOutputs outputs{false, false};
         visit_material(m.law, [&](auto law) { outputs = decltype(law)::kOutputs; });
-        refuse(p + "." + idx("output_attribs", k), q(name),
-               std::string("one of ID, Mass, Volume, Position_*, Velocity_*, Velocity_Magnitude, J, Pressure, "
-                           "VonMisesStress, StressCauchy_* (components, Invariant1-3, 1-3)") +
-                   (outputs.deformation_gradient
-                        ? ", DefGrad_*, StressPK1_*, StressPK2_*, StrainSmall_* (each: components, Invariant1-3, "
-                          "1-3), Dilation, VonMisesStrain"
-                        : "") +
-                   (outputs.log_jp ? ", logJp" : "") + " for " + to_string(m.law),
-               "output attribute " + name);
+        const std::string law = to_string(m.law);
+        const std::string expected =
+            std::string("one of ID, Mass, Volume, Position_*, Velocity_*, Velocity_Magnitude, J, Pressure, "
+                        "VonMisesStress, StressCauchy_* (components, Invariant1-3, 1-3)") +
+            (outputs.deformation_gradient
+                 ? ", DefGrad_*, StressPK1_*, StressPK2_*, StrainSmall_* (each: components, Invariant1-3, 1-3), "
+                   "Dilation, VonMisesStrain"
+                 : "") +
+            (outputs.log_jp ? ", logJp" : "") + (outputs.pore_pressure ? ", PorePressure" : "") + " for " + law;
+        const std::string canonical = canonical_attribute(name);
+        if (canonical.empty())  // a name fbar does not write at all
+          refuse(p + "." + idx("output_attribs", k), q(name), expected, "output attribute " + name);
+        // An attribute fbar writes, but not for this law (its state has no such quantity).
+        throw SceneError(p + "." + idx("output_attribs", k), q(name),
+                         expected + " (a " + law + " body has no " +
+                             (canonical == "PorePressure" ? "pore water: PorePressure is a CoupledUP body's"
+                                                          : "such quantity in its state") +
+                             ")");
       }
     }
     std::set<std::string> columns;  // an alias and its name are one column
