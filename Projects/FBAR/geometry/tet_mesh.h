@@ -1,0 +1,68 @@
+// Tetrahedral meshes of FEM bodies (ClaymoreUW's meshes[]; issue 34), read and checked before anything runs on them.
+// The scene does not load them yet (meshes[] is refused: scene_support.cpp); this is the reader and the checks that
+// the mesh bodies will use.
+//
+// Files:
+//  * ClaymoreUW's pair (meshes[].file_vertices, meshes[].file_elements; its loader read_scene_input.h): vertices
+//    "x,y,z" per line [file units], row k (from 0) is vertex k; elements "a,b,c,d" per line, vertex numbers from 1
+//    (ClaymoreUW subtracts 1). Further columns are ignored, as ClaymoreUW does. fbar also skips empty lines and lines
+//    starting with '#' (ClaymoreUW pushes an uninitialised row for a blank line) and a header row (a first row whose
+//    first field is not a number; ClaymoreUW's stof would throw on it).
+//  * Gmsh's MSH 4.1 ASCII format ($MeshFormat 4.1 0 8, $Nodes, $Elements): the 4-node tetrahedra (element type 4);
+//    points, lines and triangles (types 15, 1, 2: the boundary entities Gmsh writes with the volume) are skipped; any
+//    other type (a 10-node tetrahedron, a hexahedron, ...) is an error naming it. Node tags may be sparse. A binary
+//    MSH file, or another version, is an error saying how to export (gmsh -3 -format msh41 file.geo).
+// Checks (check_tet_mesh): every element's four vertex indices exist and differ; its signed volume
+// V = (x1 - x0) . ((x2 - x0) x (x3 - x0)) / 6 is positive (ClaymoreUW keeps an inverted element and flips its
+// force); its quality q = 6 sqrt(2) V / l_rms^3 (l_rms the root mean square of its six edges: 1 for the regular
+// tetrahedron, 0 when flat) is at least kMinTetQuality (below it the element is degenerate: its stiffness, and so the
+// time step, are meaningless); every vertex lies in the given box. Errors name the element (from 0) or the vertex.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "MnBase/Math/vec.h"
+
+namespace fbar {
+
+/// Vertices [file units] and 4-vertex elements (indices from 0 into `vertices`).
+struct TetMesh {
+  std::vector<Vec3d> vertices;
+  std::vector<std::array<int, 4>> elements;
+};
+
+/// An element of smaller quality (6 sqrt(2) V / l_rms^3) is degenerate (an error).
+inline constexpr double kMinTetQuality = 1e-6;
+
+/// Reads ClaymoreUW's vertex and element CSV files. Throws std::runtime_error naming the file and line for a row
+/// with fewer than three numbers (vertices) or four integers (elements), a non-finite coordinate, or a vertex number
+/// below 1; a file without rows is an error too. Vertex numbers beyond the vertex count are left to check_tet_mesh.
+TetMesh read_tet_mesh_csv(const std::string& vertices_file, const std::string& elements_file);
+
+/// Reads the tetrahedra of a Gmsh MSH 4.1 ASCII file (above). Throws std::runtime_error naming the file and line.
+TetMesh read_gmsh_msh41(const std::string& file);
+
+/// What check_tet_mesh measured.
+struct TetMeshStats {
+  std::size_t vertices = 0, elements = 0;
+  std::size_t unused_vertices = 0;   ///< vertices no element uses (they carry no mass: a warning for the scene)
+  double volume = 0.0;               ///< [file units^3] sum of the elements' volumes
+  double min_quality = 0.0;          ///< smallest q over the elements
+  std::size_t worst_element = 0;     ///< the element of min_quality
+  double min_edge = 0.0, max_edge = 0.0;  ///< [file units] shortest and longest element edge
+};
+
+/// Signed volume of the tetrahedron (x0, x1, x2, x3): positive when (x1 - x0, x2 - x0, x3 - x0) is right-handed.
+double tet_volume(const Vec3d& x0, const Vec3d& x1, const Vec3d& x2, const Vec3d& x3);
+/// Quality 6 sqrt(2) V / l_rms^3 (negative for an inverted element).
+double tet_quality(const Vec3d& x0, const Vec3d& x1, const Vec3d& x2, const Vec3d& x3);
+
+/// Checks `mesh` (file comment) and measures it; `where` prefixes every message (a JSON path, e.g. "meshes[0]");
+/// lo / hi: the box every vertex must lie in (same units as the vertices; lo > hi on an axis: that axis unchecked).
+/// Throws std::runtime_error("<where>: element 12 (vertices 3, 8, 9, 14): ...") or ("<where>: vertex 7 ...").
+TetMeshStats check_tet_mesh(const TetMesh& mesh, const std::string& where, const Vec3d& lo, const Vec3d& hi);
+
+}  // namespace fbar
