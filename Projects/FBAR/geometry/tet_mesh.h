@@ -1,6 +1,6 @@
 // Tetrahedral meshes of FEM bodies (ClaymoreUW's meshes[]; issue 34), read and checked before anything runs on them.
-// The scene does not load them yet (meshes[] is refused: scene_support.cpp); this is the reader and the checks that
-// the mesh bodies will use.
+// The scene parser reads and checks every meshes[] entry with them (scene_parse.cpp read_mesh_entry), then refuses
+// the array (scene_support.cpp): no engine runs FEM bodies yet.
 //
 // Files:
 //  * ClaymoreUW's pair (meshes[].file_vertices, meshes[].file_elements; its loader read_scene_input.h): vertices

@@ -157,6 +157,17 @@ struct ParticleSensorSpec {
   Real3 domain_end{0.0, 0.0, 0.0};
 };
 
+/// One entry of the top-level "meshes" array (ClaymoreUW's FEM bodies) as far as this release reads it: its mesh
+/// files, resolved, where they are placed, and what they hold, read and checked at parse (geometry/tet_mesh.h). No
+/// engine runs FEM bodies yet (scene_support.cpp refuses them, naming what was read); ClaymoreUW's other mesh keys are
+/// not read.
+struct MeshEntrySpec {
+  std::string file_vertices, file_elements;  ///< ClaymoreUW's CSV pair (resolved paths), or both empty
+  std::string file;                          ///< a Gmsh MSH 4.1 file (resolved; fbar's), or empty
+  Real3 offset{0.0, 0.0, 0.0};               ///< [m] added to every vertex
+  std::string summary;                       ///< "8 vertices, 6 tetrahedra, volume ... m^3, ..."
+};
+
 struct Scene {
   std::string source_path;              ///< the scene file it came from ("" when built in code)
   std::string data_dir;                 ///< where geometry files are looked up
@@ -165,7 +176,7 @@ struct Scene {
   std::vector<BoundarySpec> boundaries;
   std::vector<GridSensorSpec> grid_sensors;
   std::vector<ParticleSensorSpec> particle_sensors;
-  int mesh_count = 0;                   ///< entries of the top-level "meshes" array (FEM bodies, a later release)
+  std::vector<MeshEntrySpec> meshes;    ///< the top-level "meshes" array (FEM bodies: read, checked, not run yet)
   /// HydroUQ's wrapper keys (Application, EventClassification, type, subtype, in that order; absent ones omitted):
   /// metadata that ClaymoreUW prints and fbar records (the scene writer, hence run.json); nothing reads them.
   std::vector<std::pair<std::string, std::string>> wrapper;

@@ -22,10 +22,12 @@
 // files that were produced at the target scale already). Motion-file contents are scaled by their loader
 // (positions x s, times and velocities x s^0.5) from simulation.froude_scaling.
 #include <cmath>
+#include <sstream>
 
 #include "scene/scene_parse.h"
 
 #include "physics/constitutive_models.cuh"
+#include "scene/scene_error.h"
 
 namespace fbar {
 
@@ -45,6 +47,15 @@ void apply_froude_scaling(Scene& scene) {
                    : sim.cauchy_scaling == CauchyScaling::On ? sim.cauchy_bulk_ratio
                                                              : s;
   if (sim.froude_scaling_applied || (s == 1.0 && (c == 1.0 || c == 0.0))) return;  // identity: nothing to record
+  // FEM meshes are read and checked as written (their release will scale them like bodies); scaling the domain under
+  // them would leave their check meaningless.
+  if (!scene.meshes.empty() && s != 1.0) {
+    std::ostringstream factor;
+    factor << s;
+    throw SceneError("meshes", std::to_string(scene.meshes.size()) + " mesh(es) with froude_scaling " + factor.str(),
+                     "no meshes in a Froude-scaled scene; Froude scaling of FEM meshes is not supported yet in this "
+                     "release");
+  }
   sim.froude_scaling_applied = true;
   const double length = s;
   const double time = std::sqrt(s);

@@ -16,6 +16,10 @@
 
 #include "scene/scene_parse_detail.h"
 
+#include <sstream>
+
+#include "geometry/tet_mesh.h"
+
 namespace fbar {
 
 using namespace scene_json;
@@ -222,6 +226,79 @@ void assign_models(std::vector<BodyRead>& bodies, const std::string& bodies_key)
                              " without gaps (omit model to number bodies in order; the body's gpu is " +
                              gpu_text(b.spec.gpu) + ")");
     }
+}
+
+/// One entry of "meshes" (ClaymoreUW's keys; its other keys are left to the release that runs FEM bodies): the mesh of
+/// file_vertices + file_elements (ClaymoreUW's CSV pair) or of a Gmsh .msh named by file (fbar's; ClaymoreUW reads
+/// and ignores file), placed at offset [m], checked (geometry/tet_mesh.h) against the domain.
+MeshEntrySpec read_mesh_entry(const rj::Value& v, const std::string& path, const Context& ctx, const Real3& domain) {
+  MeshEntrySpec spec;
+  if (!v.IsObject()) throw SceneError(path, json_text(v), "a mesh object (file_vertices and file_elements, or file)");
+  auto member = [&](const char* key) -> const rj::Value* {
+    const auto it = v.FindMember(key);
+    return it == v.MemberEnd() ? nullptr : &it->value;
+  };
+  const rj::Value* vertices = member("file_vertices");
+  const rj::Value* elements = member("file_elements");
+  const rj::Value* file = member("file");
+  TetMesh mesh;
+  std::string source_key;
+  std::string source;
+  try {
+    if (vertices || elements) {
+      if (!vertices) throw SceneError(path + ".file_vertices", "(missing)", "the vertex file of file_elements' mesh");
+      if (!elements) throw SceneError(path + ".file_elements", "(missing)", "the element file of file_vertices' mesh");
+      spec.file_vertices = ctx.resolve_file(*vertices, path + ".file_vertices");
+      spec.file_elements = ctx.resolve_file(*elements, path + ".file_elements");
+      source_key = path + ".file_elements";
+      source = json_text(*elements);
+      mesh = read_tet_mesh_csv(spec.file_vertices, spec.file_elements);
+    } else if (file && file->IsString() && fs::path(file->GetString()).extension() == ".msh") {
+      source_key = path + ".file";
+      source = json_text(*file);
+      spec.file = ctx.resolve_file(*file, path + ".file");
+      mesh = read_gmsh_msh41(spec.file);
+    } else {
+      throw SceneError(path + ".file_vertices", "(missing)",
+                       "file_vertices and file_elements (ClaymoreUW's CSV pair), or a Gmsh .msh file in file");
+    }
+  } catch (const SceneError&) {
+    throw;
+  } catch (const std::runtime_error& e) {
+    throw SceneError(source_key, source, std::string("a readable tetrahedral mesh (") + e.what() + ")");
+  }
+  TetMeshStats s;
+  try {  // the elements (no box here: the placement is checked below)
+    s = check_tet_mesh(mesh, "the mesh", Vec3d{{1.0, 1.0, 1.0}}, Vec3d::zero());
+  } catch (const std::runtime_error& e) {
+    throw SceneError(source_key, source, std::string("a valid tetrahedral mesh; ") + e.what());
+  }
+  Vec3d offset = Vec3d::zero();
+  const rj::Value* given_offset = member("offset");
+  if (given_offset) {
+    spec.offset = read_real3(*given_offset, path + ".offset", kAny, "m");
+    offset = Vec3d{{spec.offset[0], spec.offset[1], spec.offset[2]}};
+  }
+  for (std::size_t k = 0; k < mesh.vertices.size(); ++k) {
+    const Vec3d x = mesh.vertices[k] + offset;
+    for (int a = 0; a < 3; ++a)
+      if (x[a] < 0.0 || x[a] > domain[a]) {
+        std::ostringstream got;
+        got << "vertex " << k << " at (" << x[0] << ", " << x[1] << ", " << x[2] << ") m";
+        throw SceneError(given_offset ? path + ".offset" : source_key, got.str(),
+                         "every vertex, placed at offset, inside the domain [0, " + num_text(domain[a]) + "] along " +
+                             std::string(1, "xyz"[a]),
+                         "m");
+      }
+  }
+  std::ostringstream out;
+  out.precision(4);
+  out << s.vertices << " vertices, " << s.elements << " tetrahedra, volume " << s.volume << " m^3, edges "
+      << s.min_edge << " to " << s.max_edge << " m, smallest quality " << s.min_quality << " (element "
+      << s.worst_element << ")";
+  if (s.unused_vertices > 0) out << ", " << s.unused_vertices << " vertices in no element";
+  spec.summary = out.str();
+  return spec;
 }
 
 const rj::Value* optional_array(ObjectReader& root, std::initializer_list<std::string_view> keys, std::string& path,
@@ -442,8 +519,12 @@ Scene parse_document(const rj::Document& doc, Context& ctx) {
   }
   warn_claymoreuw_sensor_frequencies(scene.grid_sensors, "grid-sensors", ctx);
   warn_claymoreuw_sensor_frequencies(scene.particle_sensors, "particle-sensors", ctx);
-  // FEM meshes: their keys are defined by a later release; only their presence is recorded (check_supported).
-  if (auto* a = optional_array(root, {"meshes"}, path, "an array of mesh objects")) scene.mesh_count = static_cast<int>(a->Size());
+  // FEM meshes: no engine runs them yet (check_supported refuses them), but each entry's mesh files are read and
+  // checked now, so that a bad mesh is named by --check (read_mesh_entry).
+  if (auto* a = optional_array(root, {"meshes"}, path, "an array of mesh objects")) {
+    for (rj::SizeType i = 0; i < a->Size(); ++i)
+      scene.meshes.push_back(read_mesh_entry((*a)[i], index_path(path, i), ctx, scene.simulation.domain));
+  }
   for (const char* k : kWrapperKeys)
     if (auto* v = root.get(k)) scene.wrapper.emplace_back(k, read_string(*v, k, "a string (HydroUQ metadata)"));
   root.finish();

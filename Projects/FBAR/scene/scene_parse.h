@@ -78,6 +78,7 @@ const char* axis_name(int axis);
 
 // Field-by-field equality of the resolved model (source_path and data_dir are provenance and are not compared).
 bool operator==(const SimulationSpec& a, const SimulationSpec& b);
+bool operator==(const MeshEntrySpec& a, const MeshEntrySpec& b);
 bool operator==(const MaterialSpec& a, const MaterialSpec& b);
 bool operator==(const AlgorithmSpec& a, const AlgorithmSpec& b);
 bool operator==(const GeometrySpec& a, const GeometrySpec& b);

@@ -40,8 +40,13 @@ std::string idx(const char* array, std::size_t i) { return std::string(array) + 
 
 void check_supported(const Scene& scene) {
   const SimulationSpec& sim = scene.simulation;
-  if (scene.mesh_count > 0)
-    refuse("meshes", std::to_string(scene.mesh_count) + " mesh(es)", "no meshes", "meshes (FEM bodies)");
+  if (!scene.meshes.empty()) {
+    std::string got = std::to_string(scene.meshes.size()) + " mesh(es)";
+    for (std::size_t i = 0; i < scene.meshes.size(); ++i)
+      got += (i == 0 ? " (" : "; ") + std::string("meshes[") + std::to_string(i) + "]: " + scene.meshes[i].summary;
+    got += ", read and checked)";
+    refuse("meshes", got, "no meshes", "a mesh (FEM body)");
+  }
 
   for (std::size_t i = 0; i < scene.bodies.size(); ++i) {
     const BodySpec& b = scene.bodies[i];

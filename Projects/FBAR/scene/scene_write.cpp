@@ -202,11 +202,22 @@ class SceneWriter {
     w_.StartArray();
     for (const auto& p : s.particle_sensors) particle_sensor(p);
     w_.EndArray();
-    if (s.mesh_count > 0) {  // contents are not part of this release's model; the count survives a round trip
+    if (!s.meshes.empty()) {  // what this release reads of them: the files (resolved) and the offset
       key("meshes");
       w_.StartArray();
-      for (int i = 0; i < s.mesh_count; ++i) {
+      for (const MeshEntrySpec& m : s.meshes) {
         w_.StartObject();
+        if (!m.file_vertices.empty()) {
+          key("file_vertices");
+          w_.String(m.file_vertices.c_str());
+          key("file_elements");
+          w_.String(m.file_elements.c_str());
+        }
+        if (!m.file.empty()) {
+          key("file");
+          w_.String(m.file.c_str());
+        }
+        reals("offset", m.offset);
         w_.EndObject();
       }
       w_.EndArray();
@@ -562,9 +573,13 @@ bool operator==(const ParticleSensorSpec& a, const ParticleSensorSpec& b) {
   return a.name == b.name && a.toggle == b.toggle && a.attribute == b.attribute && a.operation == b.operation &&
          a.output_frequency == b.output_frequency && a.domain_start == b.domain_start && a.domain_end == b.domain_end;
 }
+bool operator==(const MeshEntrySpec& a, const MeshEntrySpec& b) {
+  return a.file_vertices == b.file_vertices && a.file_elements == b.file_elements && a.file == b.file &&
+         a.offset == b.offset && a.summary == b.summary;
+}
 bool operator==(const Scene& a, const Scene& b) {
   return a.simulation == b.simulation && a.bodies == b.bodies && a.boundaries == b.boundaries &&
-         a.grid_sensors == b.grid_sensors && a.particle_sensors == b.particle_sensors && a.mesh_count == b.mesh_count &&
+         a.grid_sensors == b.grid_sensors && a.particle_sensors == b.particle_sensors && a.meshes == b.meshes &&
          a.wrapper == b.wrapper;
 }
 
