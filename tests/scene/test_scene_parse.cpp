@@ -926,9 +926,13 @@ TEST(SceneWrite, RoundTripOfMeshEntries) {
     "simulation": {"domain": [1, 1, 1], "default_dx": 0.05},
     "bodies": [{"material": {"constitutive": "JFluid"},
                 "geometry": [{"object": "Box", "span": [0.2, 0.2, 0.2], "offset": [0.5, 0.5, 0.5]}]}],
-    "meshes": [{"file_vertices": "../scenes/bad/mesh_cube_vertices.csv", "file_elements": "../scenes/bad/mesh_cube_elements.csv",
-                "file": "ignored, as ClaymoreUW ignores it", "offset": [0.2, 0.1, 0.3]},
-               {"file": "../scenes/bad/mesh_two_tetrahedra.msh", "offset": [0.5, 0.5, 0.5]}]
+    "meshes": [{"gpu": 1, "constitutive": "Meshed", "file": "ignored, as ClaymoreUW ignores it",
+                "file_vertices": "../scenes/bad/mesh_cube_vertices.csv", "file_elements": "../scenes/bad/mesh_cube_elements.csv",
+                "offset": [0.2, 0.1, 0.3], "velocity": [0, -1, 0], "rho": 1100, "youngs_modulus": 2e6,
+                "poisson_ratio": 0.35, "ppc": 8, "use_FEM": true, "use_ASFLIP": true, "alpha": 0.9, "beta_min": 0,
+                "beta_max": 0.2, "use_FBAR": true, "FBAR_ratio": 0.5, "FBAR_fused_kernel": false,
+                "output_attribs": ["ID", "Position_X"], "track_attribs": ["Position_Y"], "track_particle_id": [3]},
+               {"constitutive": "NeoHookean", "file": "../scenes/bad/mesh_two_tetrahedra.msh", "offset": [0.5, 0.5, 0.5]}]
   })";
   ParseOptions o;
   o.check_supported = false;
@@ -940,7 +944,33 @@ TEST(SceneWrite, RoundTripOfMeshEntries) {
   EXPECT_EQ(s.meshes[1].summary.rfind("5 vertices, 2 tetrahedra", 0), 0u) << s.meshes[1].summary;
   EXPECT_TRUE(std::filesystem::path(s.meshes[1].file).is_absolute()) << s.meshes[1].file;
   EXPECT_EQ(s.meshes[1].offset, (Real3{0.5, 0.5, 0.5}));
+  EXPECT_EQ(s.meshes[0].gpu, 1);
+  EXPECT_EQ(s.meshes[0].law, Constitutive::FixedCorotated);  // "Meshed": ClaymoreUW's FixedCorotated tetrahedra
+  EXPECT_EQ(s.meshes[1].law, Constitutive::NeoHookean);
+  EXPECT_TRUE(s.meshes[0].fbar_elements);
+  EXPECT_DOUBLE_EQ(s.meshes[0].youngs_modulus, 2e6);
+  EXPECT_DOUBLE_EQ(s.meshes[0].beta_max, 0.2);
+  EXPECT_EQ(s.meshes[0].track_particle_id, (std::vector<long long>{3}));
+  EXPECT_EQ(s.meshes[1].output_attribs, (std::vector<std::string>{"ID"}));  // the default
   expect_round_trip(s);
+  // Keys in range, a law for tetrahedra, no unknown key; each error names its key.
+  auto mesh_error = [&](const std::string& from, const std::string& to) {
+    std::string bad = json;
+    bad.replace(bad.find(from), from.size(), to);
+    try {
+      parse_scene_string(bad, o);
+    } catch (const SceneError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(mesh_error("\"poisson_ratio\": 0.35", "\"poisson_ratio\": 0.5"),
+            "meshes[0].poisson_ratio: got 0.5; expected a number in (-1, 0.5) [-]");
+  EXPECT_EQ(mesh_error("\"constitutive\": \"NeoHookean\"", "\"constitutive\": \"JFluid\""),
+            "meshes[1].constitutive: got \"JFluid\"; expected \"Meshed\" (ClaymoreUW's FixedCorotated tetrahedra), "
+            "\"FixedCorotated\" or \"NeoHookean\"");
+  EXPECT_NE(mesh_error("\"FBAR_fused_kernel\"", "\"FBAR_fused_kernels\"").find("meshes[0].FBAR_fused_kernels"),
+            std::string::npos);
   std::string scaled = json;
   scaled.replace(scaled.find("\"default_dx\": 0.05"), 18, "\"default_dx\": 0.05, \"froude_scaling\": 2");
   try {

@@ -157,14 +157,30 @@ struct ParticleSensorSpec {
   Real3 domain_end{0.0, 0.0, 0.0};
 };
 
-/// One entry of the top-level "meshes" array (ClaymoreUW's FEM bodies) as far as this release reads it: its mesh
-/// files, resolved, where they are placed, and what they hold, read and checked at parse (geometry/tet_mesh.h). No
-/// engine runs FEM bodies yet (scene_support.cpp refuses them, naming what was read); ClaymoreUW's other mesh keys are
-/// not read.
+/// One entry of the top-level "meshes" array (ClaymoreUW's FEM bodies, its keys and meanings: read_scene_input.h),
+/// read and checked at parse, its mesh included (geometry/tet_mesh.h). No engine runs FEM bodies yet
+/// (scene_support.cpp refuses them, naming what was read).
 struct MeshEntrySpec {
   std::string file_vertices, file_elements;  ///< ClaymoreUW's CSV pair (resolved paths), or both empty
   std::string file;                          ///< a Gmsh MSH 4.1 file (resolved; fbar's), or empty
   Real3 offset{0.0, 0.0, 0.0};               ///< [m] added to every vertex
+  Real3 velocity{0.0, 0.0, 0.0};             ///< [m/s] initial velocity of every vertex
+  int gpu = 0;                               ///< the GPU (rank) that holds the whole mesh
+  /// The elements' law: "Meshed" is ClaymoreUW's name for its FixedCorotated tetrahedra; FixedCorotated and
+  /// NeoHookean may be named.
+  Constitutive law = Constitutive::FixedCorotated;
+  bool fbar_elements = false;                ///< use_FBAR: ClaymoreUW's Tetrahedron_FBar (J averaged per element)
+  double rho = 1000.0;                       ///< [kg/m^3]
+  double youngs_modulus = 1e7;               ///< [Pa]
+  double poisson_ratio = 0.3;                ///< [-]
+  double ppc = 8.0;                          ///< ClaymoreUW reads it for the vertex particles' volume (unused by its FEM)
+  bool use_fem = false, use_asflip = true;   ///< ClaymoreUW runs a mesh only with both true
+  double alpha = 0.0, beta_min = 0.0, beta_max = 0.0;  ///< ASFLIP (ClaymoreUW's legacy names; its FEM uses beta 0)
+  double fbar_ratio = 0.0;                   ///< read and unused by ClaymoreUW's FEM kernels
+  bool fbar_fused_kernel = false;            ///< read and unused by ClaymoreUW's FEM path
+  std::vector<std::string> output_attribs{"ID"};
+  std::vector<std::string> track_attribs;
+  std::vector<long long> track_particle_id;
   std::string summary;                       ///< "8 vertices, 6 tetrahedra, volume ... m^3, ..."
 };
 

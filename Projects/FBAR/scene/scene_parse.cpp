@@ -228,19 +228,45 @@ void assign_models(std::vector<BodyRead>& bodies, const std::string& bodies_key)
     }
 }
 
-/// One entry of "meshes" (ClaymoreUW's keys; its other keys are left to the release that runs FEM bodies): the mesh of
-/// file_vertices + file_elements (ClaymoreUW's CSV pair) or of a Gmsh .msh named by file (fbar's; ClaymoreUW reads
-/// and ignores file), placed at offset [m], checked (geometry/tet_mesh.h) against the domain.
+/// One entry of "meshes" (ClaymoreUW's keys with their meanings; MeshEntrySpec): the mesh of file_vertices +
+/// file_elements (ClaymoreUW's CSV pair) or of a Gmsh .msh named by file (fbar's; ClaymoreUW reads and ignores file),
+/// placed at offset [m], checked (geometry/tet_mesh.h) against the domain; the material and scheme keys in range.
 MeshEntrySpec read_mesh_entry(const rj::Value& v, const std::string& path, const Context& ctx, const Real3& domain) {
   MeshEntrySpec spec;
-  if (!v.IsObject()) throw SceneError(path, json_text(v), "a mesh object (file_vertices and file_elements, or file)");
-  auto member = [&](const char* key) -> const rj::Value* {
-    const auto it = v.FindMember(key);
-    return it == v.MemberEnd() ? nullptr : &it->value;
-  };
-  const rj::Value* vertices = member("file_vertices");
-  const rj::Value* elements = member("file_elements");
-  const rj::Value* file = member("file");
+  ObjectReader o(v, path, kMeshKeys, ctx, "meshes[]");
+  const rj::Value* vertices = o.get("file_vertices");
+  const rj::Value* elements = o.get("file_elements");
+  const rj::Value* file = o.get("file");
+  if (auto* x = o.get("gpu")) spec.gpu = read_int(*x, o.sub("gpu"), kNonNegative);
+  if (auto* x = o.get("constitutive")) {
+    const std::string law = read_string(*x, o.sub("constitutive"));
+    if (law == "Meshed" || law == "FixedCorotated") spec.law = Constitutive::FixedCorotated;
+    else if (law == "NeoHookean") spec.law = Constitutive::NeoHookean;
+    else
+      throw SceneError(o.sub("constitutive"), json_text(*x),
+                       "\"Meshed\" (ClaymoreUW's FixedCorotated tetrahedra), \"FixedCorotated\" or \"NeoHookean\"");
+  }
+  if (auto* x = o.get("rho")) spec.rho = read_number(*x, o.sub("rho"), kPositive, "kg/m^3");
+  if (auto* x = o.get("youngs_modulus")) spec.youngs_modulus = read_number(*x, o.sub("youngs_modulus"), kPositive, "Pa");
+  if (auto* x = o.get("poisson_ratio"))
+    spec.poisson_ratio = read_number(*x, o.sub("poisson_ratio"), Range{-1.0, 0.5, true, true}, "-");
+  if (auto* x = o.get("ppc")) spec.ppc = read_number(*x, o.sub("ppc"), kPositive, "particles per cell");
+  if (auto* x = o.get("velocity")) spec.velocity = read_real3(*x, o.sub("velocity"), kAny, "m/s");
+  if (auto* x = o.get("use_FEM")) spec.use_fem = read_bool(*x, o.sub("use_FEM"));
+  if (auto* x = o.get("use_ASFLIP")) spec.use_asflip = read_bool(*x, o.sub("use_ASFLIP"));
+  if (auto* x = o.get("alpha")) spec.alpha = read_number(*x, o.sub("alpha"), kUnit, "-");
+  if (auto* x = o.get("beta_min")) spec.beta_min = read_number(*x, o.sub("beta_min"), kUnit, "-");
+  if (auto* x = o.get("beta_max")) spec.beta_max = read_number(*x, o.sub("beta_max"), kUnit, "-");
+  if (spec.beta_max < spec.beta_min)
+    throw SceneError(o.sub("beta_max"), num_text(spec.beta_max), "a number >= beta_min (" + num_text(spec.beta_min) + ")",
+                     "-");
+  if (auto* x = o.get("use_FBAR")) spec.fbar_elements = read_bool(*x, o.sub("use_FBAR"));
+  if (auto* x = o.get("FBAR_ratio")) spec.fbar_ratio = read_number(*x, o.sub("FBAR_ratio"), kUnit, "-");
+  if (auto* x = o.get("FBAR_fused_kernel")) spec.fbar_fused_kernel = read_bool(*x, o.sub("FBAR_fused_kernel"));
+  if (auto* x = o.get("output_attribs")) spec.output_attribs = read_attribute_list(*x, o.sub("output_attribs"));
+  if (auto* x = o.get("track_attribs")) spec.track_attribs = read_attribute_list(*x, o.sub("track_attribs"));
+  if (auto* x = o.get("track_particle_id"))
+    spec.track_particle_id = read_integer_array(*x, o.sub("track_particle_id"), kNonNegative);
   TetMesh mesh;
   std::string source_key;
   std::string source;
@@ -274,7 +300,7 @@ MeshEntrySpec read_mesh_entry(const rj::Value& v, const std::string& path, const
     throw SceneError(source_key, source, std::string("a valid tetrahedral mesh; ") + e.what());
   }
   Vec3d offset = Vec3d::zero();
-  const rj::Value* given_offset = member("offset");
+  const rj::Value* given_offset = o.get("offset");
   if (given_offset) {
     spec.offset = read_real3(*given_offset, path + ".offset", kAny, "m");
     offset = Vec3d{{spec.offset[0], spec.offset[1], spec.offset[2]}};
@@ -298,6 +324,7 @@ MeshEntrySpec read_mesh_entry(const rj::Value& v, const std::string& path, const
       << s.worst_element << ")";
   if (s.unused_vertices > 0) out << ", " << s.unused_vertices << " vertices in no element";
   spec.summary = out.str();
+  o.finish();
   return spec;
 }
 

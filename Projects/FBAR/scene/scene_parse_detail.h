@@ -348,6 +348,11 @@ inline const Keys kBodyKeys = {"gpu",           "model",          "velocity",   
                         "target_attribs", "material",      "algorithm",    "geometry",        "constitutive",
                         "type",          "name",           "color",         "trackers",       "initial_state"};
 inline const Keys kTrackerKeys = {"ids", "attribs"};
+inline const Keys kMeshKeys = {"gpu",        "constitutive",  "file",     "file_vertices",     "file_elements",
+                               "offset",     "velocity",      "rho",      "youngs_modulus",    "poisson_ratio",
+                               "ppc",        "use_FEM",       "use_ASFLIP", "alpha",           "beta_min",
+                               "beta_max",   "use_FBAR",      "FBAR_ratio", "FBAR_fused_kernel", "output_attribs",
+                               "track_attribs", "track_particle_id"};
 inline const Keys kPartitionKeys = {"gpu", "model", "partition_start", "partition_end"};
 inline const Keys kOutputKeys = {"output_attribs", "attribs",         "track_attribs",     "target_attribs",
                            "track_particle_id", "exterior_only", "exterior_threshold"};

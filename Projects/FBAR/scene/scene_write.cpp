@@ -207,17 +207,30 @@ class SceneWriter {
       w_.StartArray();
       for (const MeshEntrySpec& m : s.meshes) {
         w_.StartObject();
+        integer("gpu", m.gpu);
+        str("constitutive", m.law == Constitutive::FixedCorotated ? "Meshed" : to_string(m.law));
         if (!m.file_vertices.empty()) {
-          key("file_vertices");
-          w_.String(m.file_vertices.c_str());
-          key("file_elements");
-          w_.String(m.file_elements.c_str());
+          str("file_vertices", m.file_vertices);
+          str("file_elements", m.file_elements);
         }
-        if (!m.file.empty()) {
-          key("file");
-          w_.String(m.file.c_str());
-        }
+        if (!m.file.empty()) str("file", m.file);
         reals("offset", m.offset);
+        reals("velocity", m.velocity);
+        num("rho", m.rho);
+        num("youngs_modulus", m.youngs_modulus);
+        num("poisson_ratio", m.poisson_ratio);
+        num("ppc", m.ppc);
+        boolean("use_FEM", m.use_fem);
+        boolean("use_ASFLIP", m.use_asflip);
+        num("alpha", m.alpha);
+        num("beta_min", m.beta_min);
+        num("beta_max", m.beta_max);
+        boolean("use_FBAR", m.fbar_elements);
+        num("FBAR_ratio", m.fbar_ratio);
+        boolean("FBAR_fused_kernel", m.fbar_fused_kernel);
+        names("output_attribs", m.output_attribs);
+        names("track_attribs", m.track_attribs);
+        ids("track_particle_id", m.track_particle_id);
         w_.EndObject();
       }
       w_.EndArray();
@@ -575,7 +588,13 @@ bool operator==(const ParticleSensorSpec& a, const ParticleSensorSpec& b) {
 }
 bool operator==(const MeshEntrySpec& a, const MeshEntrySpec& b) {
   return a.file_vertices == b.file_vertices && a.file_elements == b.file_elements && a.file == b.file &&
-         a.offset == b.offset && a.summary == b.summary;
+         a.offset == b.offset && a.velocity == b.velocity && a.gpu == b.gpu && a.law == b.law &&
+         a.fbar_elements == b.fbar_elements && a.rho == b.rho && a.youngs_modulus == b.youngs_modulus &&
+         a.poisson_ratio == b.poisson_ratio && a.ppc == b.ppc && a.use_fem == b.use_fem &&
+         a.use_asflip == b.use_asflip && a.alpha == b.alpha && a.beta_min == b.beta_min && a.beta_max == b.beta_max &&
+         a.fbar_ratio == b.fbar_ratio && a.fbar_fused_kernel == b.fbar_fused_kernel &&
+         a.output_attribs == b.output_attribs && a.track_attribs == b.track_attribs &&
+         a.track_particle_id == b.track_particle_id && a.summary == b.summary;
 }
 bool operator==(const Scene& a, const Scene& b) {
   return a.simulation == b.simulation && a.bodies == b.bodies && a.boundaries == b.boundaries &&
