@@ -48,8 +48,6 @@ TetMesh unit_cube() {
   return m;
 }
 
-const Vec3d kNoBox{{1.0, 1.0, 1.0}}, kNoBoxLo{{2.0, 2.0, 2.0}};  // lo > hi: no domain check
-
 TEST(TetMesh, RegularTetrahedronHasQualityOne) {
   const Vec3d a{{1, 1, 1}}, b{{1, -1, -1}}, c{{-1, 1, -1}}, d{{-1, -1, 1}};  // edge 2 sqrt(2)
   EXPECT_NEAR(tet_quality(a, c, b, d), 1.0, 1e-12);
@@ -70,7 +68,7 @@ TEST(TetMesh, ClaymoreUWCsvPairFillsTheCube) {
   const TetMesh m = read_tet_mesh_csv(vf, ef);
   ASSERT_EQ(m.vertices.size(), 8u);
   ASSERT_EQ(m.elements.size(), 6u);
-  const TetMeshStats s = check_tet_mesh(m, "meshes[0]", Vec3d{{0, 0, 0}}, Vec3d{{1, 1, 1}});
+  const TetMeshStats s = check_tet_mesh(m, "meshes[0]");
   EXPECT_NEAR(s.volume, 1.0, 1e-12);
   EXPECT_NEAR(s.min_quality, 6 * std::sqrt(2.0) / 6 / std::pow(10.0 / 6, 1.5), 1e-12);
   EXPECT_EQ(s.unused_vertices, 0u);
@@ -78,9 +76,9 @@ TEST(TetMesh, ClaymoreUWCsvPairFillsTheCube) {
   EXPECT_NEAR(s.max_edge, std::sqrt(3.0), 1e-12);
 }
 
-std::string error_of(const TetMesh& m, const Vec3d& lo = kNoBoxLo, const Vec3d& hi = kNoBox) {
+std::string error_of(const TetMesh& m) {
   try {
-    check_tet_mesh(m, "meshes[2]", lo, hi);
+    check_tet_mesh(m, "meshes[2]");
   } catch (const std::runtime_error& e) {
     return e.what();
   }
@@ -107,11 +105,22 @@ TEST(TetMesh, ChecksNameTheElementOrVertex) {
   TetMesh twice = m;
   twice.elements[0] = {0, 1, 1, 7};
   EXPECT_EQ(error_of(twice), "meshes[2]: element 0 (vertices 0, 1, 1, 7): vertex 1 twice");
-  EXPECT_EQ(error_of(m, Vec3d{{0, 0, 0}}, Vec3d{{1, 1, 0.5}}),
-            "meshes[2]: vertex 4 at (0, 0, 1); expected inside the domain [0, 0.5] along z");
   TetMesh spare = m;
   spare.vertices.push_back(Vec3d{{0.5, 0.5, 0.5}});
-  EXPECT_EQ(check_tet_mesh(spare, "meshes[2]", kNoBoxLo, kNoBox).unused_vertices, 5u);  // 4 cube corners + 1
+  EXPECT_EQ(check_tet_mesh(spare, "meshes[2]").unused_vertices, 5u);  // 4 cube corners + 1
+}
+
+// vertex_outside: the first vertex (moved by the offset) outside the box, and the axis it leaves along.
+TEST(TetMesh, VertexOutsideTheBox) {
+  const TetMesh cube = unit_cube();
+  const Vec3d lo{{0, 0, 0}}, hi{{1, 1, 1}};
+  EXPECT_EQ(vertex_outside(cube, Vec3d::zero(), lo, hi).vertex, -1);
+  const VertexOutside z = vertex_outside(cube, Vec3d::zero(), lo, Vec3d{{1, 1, 0.5}});
+  EXPECT_EQ(z.vertex, 4);  // (0, 0, 1), the first with z > 0.5
+  EXPECT_EQ(z.axis, 2);
+  const VertexOutside x = vertex_outside(cube, Vec3d{{-0.25, 0, 0}}, lo, hi);
+  EXPECT_EQ(x.vertex, 0);
+  EXPECT_EQ(x.axis, 0);
 }
 
 TEST(TetMesh, CsvErrorsNameFileAndLine) {
@@ -161,7 +170,7 @@ TEST(TetMesh, GmshMsh41TetrahedraWithSparseTags) {
   ASSERT_EQ(m.elements.size(), 2u);
   EXPECT_EQ(m.elements[0], (std::array<int, 4>{0, 1, 2, 3}));
   EXPECT_EQ(m.elements[1], (std::array<int, 4>{0, 2, 1, 4}));
-  const TetMeshStats s = check_tet_mesh(m, "meshes[0]", kNoBoxLo, kNoBox);
+  const TetMeshStats s = check_tet_mesh(m, "meshes[0]");
   EXPECT_NEAR(s.volume, 2.0 / 6.0, 1e-15);
   EXPECT_EQ(s.unused_vertices, 0u);
 }

@@ -121,7 +121,7 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
   std::vector<SampleCount> counts;
   std::vector<std::vector<BodyMemoryInput>> gpu_inputs(max_gpu + 1);
   std::size_t cpu_particle_bytes = 0;
-  bool asflip = false, fbar = false;  // some body uses ASFLIP / F-bar: the grids carry their channels
+  bool asflip = false, fbar = false, pore = false;  // some body uses ASFLIP / F-bar / pore water: grid channels
 
   // v and C kept for particle sensors, trackers or checkpoints (on the steps landing on their times)
   const bool record = sensors_read_velocity(scene) || sim.checkpoint_every > 0;
@@ -207,6 +207,7 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     if (frame_columns >= 0) in.frame_columns = frame_columns;
     asflip = asflip || in.asflip;
     fbar = fbar || in.fbar;
+    pore = pore || in.pore;
     gpu_inputs[std::max(body.gpu, 0)].push_back(in);
     // GPU set-up: one batch of sampled positions (double) in their per-plane vectors and concatenated, its bin
     // records, and the block counts.
@@ -236,8 +237,6 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
 
   // CPU grid: 4 channels x 64 nodes per block in the grid scalar type (+3 for ASFLIP's v^n, +2 for F-bar's cell
   // sums, +5 for the seepage channels, only when a body uses them), coordinates and a hash-map entry.
-  bool pore = false;
-  for (const BodySpec& b : scene.bodies) pore = pore || material_has_pore_fluid(b.material.law);
   const std::size_t cpu_channels = 4 + (asflip ? 3 : 0) + (fbar ? 2 : 0) + (pore ? 5 : 0);
   std::vector<const SampleCount*> all;
   for (const SampleCount& c : counts) all.push_back(&c);

@@ -66,6 +66,12 @@ bool parse_long(const std::string& s, long long& v) {
 
 bool skipped_line(const std::string& t) { return t.empty() || t[0] == '#'; }
 
+/// A header: the first row, when its first field is not a number.
+bool header_row(bool first, const std::vector<std::string>& fields) {
+  double v = 0.0;
+  return first && !fields.empty() && !parse_double(fields[0], v);
+}
+
 /// Whitespace-separated integers (Gmsh's lines); false when a field is not an integer.
 bool read_integers(const std::string& line, std::vector<long long>& out) {
   out.clear();
@@ -90,11 +96,10 @@ TetMesh read_tet_mesh_csv(const std::string& vertices_file, const std::string& e
       const std::string t = trim(lines[i]);
       if (skipped_line(t)) continue;
       const std::vector<std::string> f = csv_fields(t);
-      double x[3];
+      double x[3] = {0.0, 0.0, 0.0};
       const bool numbers = f.size() >= 3 && parse_double(f[0], x[0]) && parse_double(f[1], x[1]) &&
                            parse_double(f[2], x[2]);
-      double first_value = 0.0;
-      if (first && !numbers && !f.empty() && !parse_double(f[0], first_value)) {  // a header row
+      if (header_row(first, f)) {
         first = false;
         continue;
       }
@@ -117,10 +122,8 @@ TetMesh read_tet_mesh_csv(const std::string& vertices_file, const std::string& e
       long long v[4] = {0, 0, 0, 0};
       bool integers = f.size() >= 4;
       for (int k = 0; k < 4 && integers; ++k) integers = parse_long(f[k], v[k]);
-      long long first_value = 0;
-      double first_number = 0.0;
-      if (first && !integers && !f.empty() && !parse_long(f[0], first_value) && !parse_double(f[0], first_number)) {
-        first = false;  // a header row
+      if (header_row(first, f)) {
+        first = false;
         continue;
       }
       first = false;
@@ -182,8 +185,7 @@ TetMesh read_gmsh_msh41(const std::string& file) {
         need(at, "$Nodes");
         if (!read_integers(lines[at], ints) || ints.size() < 4)
           throw fail(at, "expected entityDim entityTag parametric numNodesInBlock");
-        const bool parametric = ints[2] != 0;
-        const long long n = ints[3];
+        const long long n = ints[3];  // parametric coordinates (ints[2]) follow x y z on the line: not needed
         const std::size_t tags = at + 1, coords = at + 1 + static_cast<std::size_t>(n);
         need(coords + static_cast<std::size_t>(n) - (n > 0 ? 1 : 0), "$Nodes");
         for (long long k = 0; k < n; ++k) {
@@ -193,7 +195,6 @@ TetMesh read_gmsh_msh41(const std::string& file) {
           double x = 0, y = 0, z = 0;
           if (!(ss >> x >> y >> z) || !std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z))
             throw fail(coords + k, "expected x y z (three finite numbers)");
-          (void)parametric;  // parametric coordinates follow x y z on the same line: not needed
           if (!node_index.emplace(tag, static_cast<int>(mesh.vertices.size())).second)
             throw fail(tags + k, "node tag " + std::to_string(tag) + " given twice");
           mesh.vertices.push_back(Vec3d{{x, y, z}});
@@ -276,7 +277,16 @@ double tet_quality(const Vec3d& x0, const Vec3d& x1, const Vec3d& x2, const Vec3
   return 6.0 * std::sqrt(2.0) * tet_volume(x0, x1, x2, x3) / (l_rms * l_rms * l_rms);
 }
 
-TetMeshStats check_tet_mesh(const TetMesh& mesh, const std::string& where, const Vec3d& lo, const Vec3d& hi) {
+VertexOutside vertex_outside(const TetMesh& mesh, const Vec3d& offset, const Vec3d& lo, const Vec3d& hi) {
+  for (std::size_t v = 0; v < mesh.vertices.size(); ++v) {
+    const Vec3d x = mesh.vertices[v] + offset;
+    for (int a = 0; a < 3; ++a)
+      if (x[a] < lo[a] || x[a] > hi[a]) return VertexOutside{static_cast<long long>(v), a};
+  }
+  return {};
+}
+
+TetMeshStats check_tet_mesh(const TetMesh& mesh, const std::string& where) {
   TetMeshStats s;
   s.vertices = mesh.vertices.size();
   s.elements = mesh.elements.size();
@@ -288,13 +298,6 @@ TetMeshStats check_tet_mesh(const TetMesh& mesh, const std::string& where, const
     o << v;
     return o.str();
   };
-  for (int v = 0; v < n; ++v)
-    for (int a = 0; a < 3; ++a)
-      if (lo[a] <= hi[a] && (mesh.vertices[v][a] < lo[a] || mesh.vertices[v][a] > hi[a]))
-        throw std::runtime_error(where + ": vertex " + std::to_string(v) + " at (" + fmt(mesh.vertices[v][0]) + ", " +
-                                 fmt(mesh.vertices[v][1]) + ", " + fmt(mesh.vertices[v][2]) +
-                                 "); expected inside the domain [" + fmt(lo[a]) + ", " + fmt(hi[a]) + "] along " +
-                                 "xyz"[a]);
   std::vector<char> used(mesh.vertices.size(), 0);
   s.min_quality = std::numeric_limits<double>::infinity();
   s.min_edge = std::numeric_limits<double>::infinity();

@@ -16,7 +16,7 @@
 // V = (x1 - x0) . ((x2 - x0) x (x3 - x0)) / 6 is positive (ClaymoreUW keeps an inverted element and flips its
 // force); its quality q = 6 sqrt(2) V / l_rms^3 (l_rms the root mean square of its six edges: 1 for the regular
 // tetrahedron, 0 when flat) is at least kMinTetQuality (below it the element is degenerate: its stiffness, and so the
-// time step, are meaningless); every vertex lies in the given box. Errors name the element (from 0) or the vertex.
+// time step, are meaningless). Errors name the element (from 0). vertex_outside finds a vertex outside a box.
 #pragma once
 
 #include <array>
@@ -60,9 +60,16 @@ double tet_volume(const Vec3d& x0, const Vec3d& x1, const Vec3d& x2, const Vec3d
 /// Quality 6 sqrt(2) V / l_rms^3 (negative for an inverted element).
 double tet_quality(const Vec3d& x0, const Vec3d& x1, const Vec3d& x2, const Vec3d& x3);
 
-/// Checks `mesh` (file comment) and measures it; `where` prefixes every message (a JSON path, e.g. "meshes[0]");
-/// lo / hi: the box every vertex must lie in (same units as the vertices; lo > hi on an axis: that axis unchecked).
-/// Throws std::runtime_error("<where>: element 12 (vertices 3, 8, 9, 14): ...") or ("<where>: vertex 7 ...").
-TetMeshStats check_tet_mesh(const TetMesh& mesh, const std::string& where, const Vec3d& lo, const Vec3d& hi);
+/// Checks the elements of `mesh` (file comment) and measures it; `where` prefixes every message.
+/// Throws std::runtime_error("<where>: element 12 (vertices 3, 8, 9, 14): ...").
+TetMeshStats check_tet_mesh(const TetMesh& mesh, const std::string& where);
+
+/// The first vertex that lies outside [lo, hi] once moved by `offset`, and the first axis it leaves along; -1 when
+/// every vertex lies inside.
+struct VertexOutside {
+  long long vertex = -1;
+  int axis = -1;
+};
+VertexOutside vertex_outside(const TetMesh& mesh, const Vec3d& offset, const Vec3d& lo, const Vec3d& hi);
 
 }  // namespace fbar

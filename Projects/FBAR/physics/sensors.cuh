@@ -169,16 +169,20 @@ FBAR_HOST_DEVICE inline T grid_sensor_value(const GridSensorParams<T>& s, const 
   return T(0);
 }
 
+/// Whether sensor s reads a node (mass > 0): every node, but the pore sensors only nodes that carry pore water.
+template <typename T>
+FBAR_HOST_DEVICE inline bool grid_sensor_reads(const GridSensorParams<T>& s, const GridNodeSample<T>& n) {
+  const bool pore = s.quantity == GridSensorQuantity::MassWater || s.quantity == GridSensorQuantity::PorePressure;
+  return !pore || n.water_mass > T(0);
+}
+
 /// Adds a node at x to every sensor of `set` whose box holds it.
 template <typename T>
 FBAR_HOST_DEVICE inline void accumulate_grid_sensors(const GridSensorSet<T>& set, const Vec3<T>& x,
                                                      const GridNodeSample<T>& n, SensorAccum* acc) {
-  for (int i = 0; i < set.count; ++i) {
-    const bool pore = set.s[i].quantity == GridSensorQuantity::MassWater ||
-                      set.s[i].quantity == GridSensorQuantity::PorePressure;
-    if (pore && !(n.water_mass > T(0))) continue;
-    if (sensor_box_contains(set.s[i].lo, set.s[i].hi, x)) acc[i].add(static_cast<double>(grid_sensor_value(set.s[i], n)));
-  }
+  for (int i = 0; i < set.count; ++i)
+    if (grid_sensor_reads(set.s[i], n) && sensor_box_contains(set.s[i].lo, set.s[i].hi, x))
+      acc[i].add(static_cast<double>(grid_sensor_value(set.s[i], n)));
 }
 
 }  // namespace fbar

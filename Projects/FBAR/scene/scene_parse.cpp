@@ -294,8 +294,8 @@ MeshEntrySpec read_mesh_entry(const rj::Value& v, const std::string& path, const
     throw SceneError(source_key, source, std::string("a readable tetrahedral mesh (") + e.what() + ")");
   }
   TetMeshStats s;
-  try {  // the elements (no box here: the placement is checked below)
-    s = check_tet_mesh(mesh, "the mesh", Vec3d{{1.0, 1.0, 1.0}}, Vec3d::zero());
+  try {
+    s = check_tet_mesh(mesh, "the mesh");
   } catch (const std::runtime_error& e) {
     throw SceneError(source_key, source, std::string("a valid tetrahedral mesh; ") + e.what());
   }
@@ -305,17 +305,17 @@ MeshEntrySpec read_mesh_entry(const rj::Value& v, const std::string& path, const
     spec.offset = read_real3(*given_offset, path + ".offset", kAny, "m");
     offset = Vec3d{{spec.offset[0], spec.offset[1], spec.offset[2]}};
   }
-  for (std::size_t k = 0; k < mesh.vertices.size(); ++k) {
-    const Vec3d x = mesh.vertices[k] + offset;
-    for (int a = 0; a < 3; ++a)
-      if (x[a] < 0.0 || x[a] > domain[a]) {
-        std::ostringstream got;
-        got << "vertex " << k << " at (" << x[0] << ", " << x[1] << ", " << x[2] << ") m";
-        throw SceneError(given_offset ? path + ".offset" : source_key, got.str(),
-                         "every vertex, placed at offset, inside the domain [0, " + num_text(domain[a]) + "] along " +
-                             std::string(1, "xyz"[a]),
-                         "m");
-      }
+  const VertexOutside out_of_domain =
+      vertex_outside(mesh, offset, Vec3d::zero(), Vec3d{{domain[0], domain[1], domain[2]}});
+  if (out_of_domain.vertex >= 0) {
+    const Vec3d x = mesh.vertices[static_cast<std::size_t>(out_of_domain.vertex)] + offset;
+    const int a = out_of_domain.axis;
+    std::ostringstream got;
+    got << "vertex " << out_of_domain.vertex << " at (" << x[0] << ", " << x[1] << ", " << x[2] << ") m";
+    throw SceneError(given_offset ? path + ".offset" : source_key, got.str(),
+                     "every vertex, placed at offset, inside the domain [0, " + num_text(domain[a]) + "] along " +
+                         std::string(1, "xyz"[a]),
+                     "m");
   }
   std::ostringstream out;
   out.precision(4);

@@ -189,9 +189,7 @@ __global__ void __launch_bounds__(kSensorThreads) sample_grid_sensors(GridSensor
       sample.water_mass = block_val(p.pore, grid_pore_water, block, node);
       sample.pore_pressure = block_val(p.pore, grid_pore_density, block, node);
     }
-    // The pore sensors read the nodes that carry pore water only (accumulate_grid_sensors, the CPU engine's rule).
-    const bool pore_sensor = g.quantity == GridSensorQuantity::MassWater || g.quantity == GridSensorQuantity::PorePressure;
-    if (pore_sensor && !(sample.water_mass > T(0))) continue;
+    if (!grid_sensor_reads(g, sample)) continue;  // the CPU engine's rule (accumulate_grid_sensors)
     a.add(static_cast<double>(grid_sensor_value(g, sample)));
   }
   a = block_reduce_sensor(a);
