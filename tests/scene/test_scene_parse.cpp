@@ -918,9 +918,8 @@ TEST(SceneWrite, RoundTripOfEveryFeature) {
   expect_round_trip(s);
 }
 
-// meshes[] (FEM bodies, not run yet): each entry's files are read and checked at parse, resolved, and survive a round
-// trip with the offset; a Froude-scaled scene with meshes is refused (their scaling comes with the release that runs
-// them).
+// meshes[] (FEM bodies): each entry's files are read and checked at parse, resolved, and survive a round trip with the
+// offset, Froude-scaled or not.
 TEST(SceneWrite, RoundTripOfMeshEntries) {
   const std::string json = R"({
     "simulation": {"domain": [1, 1, 1], "default_dx": 0.05},
@@ -971,14 +970,22 @@ TEST(SceneWrite, RoundTripOfMeshEntries) {
             "\"FixedCorotated\" or \"NeoHookean\"");
   EXPECT_NE(mesh_error("\"FBAR_fused_kernel\"", "\"FBAR_fused_kernels\"").find("meshes[0].FBAR_fused_kernels"),
             std::string::npos);
+  // Froude scaling (x 2): the vertices and the offset as lengths, the velocity by sqrt 2, the modulus by 2 (Cauchy
+  // similitude); the written scene reads back the same (its mesh files are unscaled, its offset scaled).
   std::string scaled = json;
   scaled.replace(scaled.find("\"default_dx\": 0.05"), 18, "\"default_dx\": 0.05, \"froude_scaling\": 2");
-  try {
-    parse_scene_string(scaled, o);
-    ADD_FAILURE() << "a Froude-scaled scene with meshes was accepted";
-  } catch (const SceneError& e) {
-    EXPECT_EQ(std::string(e.what()).rfind("meshes: got 2 mesh(es) with froude_scaling 2", 0), 0u) << e.what();
-  }
+  scaled.replace(scaled.find("\"domain\": [1, 1, 1]"), 19, "\"domain\": [0.5, 0.5, 0.5]");
+  scaled.replace(scaled.find("\"offset\": [0.5, 0.5, 0.5]}]}"), 28, "\"offset\": [0.2, 0.2, 0.2]}]}");
+  scaled.replace(scaled.find("\"offset\": [0.5, 0.5, 0.5]}]"), 27, "\"offset\": [0.3, 0.3, 0.3]}]");
+  const Scene f = parse_scene_string(scaled, o);
+  EXPECT_EQ(f.meshes[0].offset, (Real3{0.4, 0.2, 0.6}));
+  EXPECT_DOUBLE_EQ(f.meshes[0].velocity[1], -std::sqrt(2.0));
+  EXPECT_DOUBLE_EQ(f.meshes[0].youngs_modulus, 4e6);
+  EXPECT_DOUBLE_EQ(f.meshes[0].mesh->vertices[1][0], 2 * s.meshes[0].mesh->vertices[1][0] - 2 * 0.2 + 0.4);
+  EXPECT_EQ(f.meshes[0].summary.rfind("8 vertices, 6 tetrahedra, volume 0.008 m^3", 0), 0u) << f.meshes[0].summary;
+  ASSERT_EQ(f.bodies.size(), 3u);
+  EXPECT_EQ(f.bodies[1].tet_mesh, f.meshes[0].mesh);
+  expect_round_trip(f);
 }
 
 TEST(SceneWrite, RoundTripOfASceneBuiltInCode) {

@@ -38,6 +38,7 @@
 #include <cmath>
 #include <charconv>
 #include <exception>
+#include <memory>
 #include <mutex>
 #include <thread>
 #include <cstdint>
@@ -90,6 +91,9 @@ struct ParticleFrame {
   std::variant<std::vector<Vec3f>, std::vector<Vec3d>> positions;
   std::vector<FrameAttribute> attributes;
   ExteriorFilter exterior;  ///< applied by write_frame
+  /// A mesh body's elements (4 point indices each, points in ID order): write_frame also writes the frame as a VTK
+  /// unstructured grid of tetrahedra beside it (same name, .vtk), which ParaView opens with its attributes.
+  std::shared_ptr<const std::vector<std::array<int, 4>>> tetrahedra;
 
   std::size_t size() const {
     return std::visit([](const auto& v) { return v.size(); }, positions);
@@ -698,7 +702,73 @@ inline ParticleFrame exterior_points(const ParticleFrame& frame) {
   return out;
 }
 
+/// Legacy VTK (binary, big-endian) unstructured grid of the frame's points and `frame.tetrahedra` (cell type 10),
+/// the attributes as point data (width 1: SCALARS, 3: VECTORS, others FIELD arrays); positions in the frame's
+/// precision. Written atomically like the other formats.
+inline void write_vtk_tetrahedra(const std::filesystem::path& path, const ParticleFrame& frame) {
+  validate_frame(frame);
+  const std::size_t n = frame.size();
+  const auto& cells = *frame.tetrahedra;
+  std::string out = "# vtk DataFile Version 3.0\nfbar mesh frame\nBINARY\nDATASET UNSTRUCTURED_GRID\n";
+  out += "POINTS " + std::to_string(n) + (frame.double_precision() ? " double\n" : " float\n");
+  for (std::size_t p = 0; p < n; ++p) {
+    const Vec3d x = frame.position(p);
+    for (int a = 0; a < 3; ++a) {
+      if (frame.double_precision()) {
+        std::uint64_t u;
+        std::memcpy(&u, &x[a], 8);
+        detail::put_be32(out, static_cast<std::uint32_t>(u >> 32));
+        detail::put_be32(out, static_cast<std::uint32_t>(u));
+      } else {
+        detail::put_be_float(out, static_cast<float>(x[a]));
+      }
+    }
+  }
+  out += "\nCELLS " + std::to_string(cells.size()) + " " + std::to_string(5 * cells.size()) + "\n";
+  for (const auto& c : cells) {
+    detail::put_be32(out, 4);
+    for (int k = 0; k < 4; ++k) {
+      if (c[static_cast<std::size_t>(k)] < 0 || static_cast<std::size_t>(c[static_cast<std::size_t>(k)]) >= n)
+        throw std::runtime_error(path.string() + ": an element names point " + std::to_string(c[static_cast<std::size_t>(k)]) +
+                                 " of a frame of " + std::to_string(n) + " points");
+      detail::put_be32(out, static_cast<std::uint32_t>(c[static_cast<std::size_t>(k)]));
+    }
+  }
+  out += "\nCELL_TYPES " + std::to_string(cells.size()) + "\n";
+  for (std::size_t e = 0; e < cells.size(); ++e) detail::put_be32(out, 10);  // VTK_TETRA
+  out += "\nPOINT_DATA " + std::to_string(n) + "\n";
+  for (const FrameAttribute& a : frame.attributes) {
+    const bool is_int = a.type() == AttributeType::Int;
+    const char* type = is_int ? "int" : "float";
+    if (a.width == 1)
+      out += "SCALARS " + a.name + " " + type + " 1\nLOOKUP_TABLE default\n";
+    else if (a.width == 3)
+      out += "VECTORS " + a.name + " " + type + "\n";
+    else
+      out += "FIELD FieldData 1\n" + a.name + " " + std::to_string(a.width) + " " + std::to_string(n) + " " + type + "\n";
+    const std::size_t count = n * static_cast<std::size_t>(a.width);
+    for (std::size_t i = 0; i < count; ++i) {
+      if (is_int)
+        detail::put_be32(out, static_cast<std::uint32_t>(a.ints()[i]));
+      else
+        detail::put_be_float(out, a.floats()[i]);
+    }
+    out += "\n";
+  }
+  detail::AtomicFile file(path);
+  file.buffer() = std::move(out);
+  file.commit();
+}
+
 inline void write_frame(const std::filesystem::path& path, const ParticleFrame& frame) {
+  if (frame.tetrahedra) {  // the whole mesh (connectivity needs every vertex), then the points as asked
+    std::filesystem::path vtk = path;
+    write_vtk_tetrahedra(vtk.replace_extension(".vtk"), frame);
+    ParticleFrame points = frame;
+    points.tetrahedra.reset();
+    write_frame(path, points);
+    return;
+  }
   if (frame.exterior.on()) {
     write_frame(path, exterior_points(frame));
     return;

@@ -14,14 +14,16 @@
 
 namespace fbar::comm {
 
-/// Whether the scene places bodies on GPUs (its bodies name more than one GPU, "all" counting as one).
+/// Whether the scene places its particle bodies on GPUs (they name more than one GPU, "all" counting as one). A mesh
+/// (FEM body) is always placed whole on its meshes[].gpu: its elements join vertices of one rank.
 bool places_bodies(const Scene& scene);
 
-/// The ranks a placing scene asks for (its largest `gpu` + 1); 1 for a scene that places nothing.
+/// The ranks a placing scene asks for (the largest `gpu` of a placed body or mesh + 1); 1 for a scene that places
+/// nothing.
 int ranks_asked(const Scene& scene);
 
-/// Per body, the rank that holds it whole, or kAllGpus (-1) for a body spread by space. Every body is spread when
-/// the scene places nothing or runs on one rank. Throws std::invalid_argument naming bodies[i].gpu when a body names
+/// Per body, the rank that holds it whole, or kAllGpus (-1) for a body spread by space. Every body is spread on one
+/// rank; particle bodies are spread when the scene does not place them; meshes are always placed. Throws std::invalid_argument naming bodies[i].gpu when a body names
 /// a GPU the run does not have.
 std::vector<int> body_ranks(const Scene& scene, int ranks);
 

@@ -63,6 +63,16 @@ std::string material_line(const MaterialSpec& m) {
   return s;
 }
 
+/// A mesh's rows of its body's section (the rest is the body's).
+void print_mesh_rows(std::ostream& os, const BodySummary& bs) {
+  row(os, "mesh", std::to_string(bs.particles) + " vertices, " + std::to_string(bs.elements) +
+                      " tetrahedra, smallest quality " + num(bs.min_quality) + ", smallest height " +
+                      num(bs.min_height) + " m; " + bytes(bs.mesh_bytes) +
+                      " of elements on the CPU engine besides the vertices");
+  row(os, "engine", "CPU engine (--backend=cpu; several ranks too, the mesh whole on its gpu): the GPU engine "
+                    "does not run meshes in this release");
+}
+
 std::string algorithm_line(const AlgorithmSpec& a) {
   const bool asflip = a.asflip_active();
   const bool fbar = a.fbar_blend() != 0.0;
@@ -183,10 +193,21 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
   bool frame_exact = true, frame_at_most = false;
   for (std::size_t i = 0; i < scene.bodies.size(); ++i) {
     const BodySpec& b = scene.bodies[i];
-    os << "bodies[" << i << "]  gpu " << (b.gpu == kAllGpus ? std::string("all") : std::to_string(b.gpu)) << ", model "
-       << b.model << '\n';
+    if (b.mesh >= 0)
+      os << "meshes[" << b.mesh << "] (body " << i << ")  gpu " << b.gpu << ", model " << b.model << ": "
+         << scene.meshes[static_cast<std::size_t>(b.mesh)].summary << '\n';
+    else
+      os << "bodies[" << i << "]  gpu " << (b.gpu == kAllGpus ? std::string("all") : std::to_string(b.gpu))
+         << ", model " << b.model << '\n';
     row(os, "material", material_line(b.material));
-    row(os, "algorithm", algorithm_line(b.algorithm));
+    if (b.mesh >= 0) {
+      const MeshEntrySpec& m = scene.meshes[static_cast<std::size_t>(b.mesh)];
+      row(os, "algorithm", "vertices " + algorithm_line(b.algorithm) + "; elements: use_FBAR " +
+                               yes_no(m.fbar_elements) +
+                               (m.fbar_elements ? ", FBAR_ratio " + num(m.fbar_ratio) : std::string()));
+    } else {
+      row(os, "algorithm", algorithm_line(b.algorithm));
+    }
     row(os, "velocity", vec(b.velocity) + " m/s");
     if (b.initial_state == InitialState::Hydrostatic)
       row(os, "initial_state", material_has_pore_fluid(b.material.law)
@@ -205,23 +226,28 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
     if (i < summary.bodies.size()) {
       const BodySummary& bs = summary.bodies[i];
       total += bs.particles;
-      row(os, "particles", std::to_string(bs.particles) + " (volume " + num(bs.particle_volume) + " m^3, mass " +
-                               num(bs.particle_mass) + " kg each)");
+      if (bs.mesh) print_mesh_rows(os, bs);
+      row(os, "particles", std::to_string(bs.particles) + (bs.mesh ? " vertices" : "") + " (volume " +
+                               num(bs.particle_volume) + " m^3, mass " + num(bs.particle_mass) + " kg each" +
+                               (bs.mesh ? " on average: the lumped element volumes" : "") + ")");
       row(os, "p-wave speed", num(bs.wave_speed) + " m/s");
       row(os, "time step bound",
-          num(bs.dt_bound) + " s (min(CFL x dx / (wave speed + |velocity|), 0.5 x dx / wave speed))");
+          num(bs.dt_bound) + " s (min(CFL x dx / (wave speed + |velocity|), 0.5 x dx / wave speed" +
+              (bs.mesh ? ", CFL x smallest element height / wave speed" : "") + "))");
       if (std::isfinite(bs.viscous_dt))
         row(os, "viscous bound", num(bs.viscous_dt) + " s (CFL x rho x dx^2 / (3 x viscosity), explicit viscosity)");
       if (std::isfinite(bs.seepage_dt))
         row(os, "seepage bound",
             num(bs.seepage_dt) + " s (CFL x dx^2 / (8 x kappa x M), explicit seepage; kappa = Kperm / (rhow g0), "
                                  "1/M = poro/Kf + (alpha1 - poro)/Ks)");
-      row(os, "GPU per particle", std::to_string(bs.gpu_bytes_per_particle) + " B: " + bs.gpu_bytes_detail);
+      if (!bs.mesh) {  // the GPU engine does not run meshes in this release
+        row(os, "GPU per particle", std::to_string(bs.gpu_bytes_per_particle) + " B: " + bs.gpu_bytes_detail);
+        char cost[160];
+        std::snprintf(cost, sizeof(cost), "%.3g ms per step on an H100 (%.3g particle-steps/s: ", bs.gpu_ms_per_step,
+                      bs.throughput);
+        row(os, "GPU time", cost + bs.throughput_basis + ")");
+      }
       row(os, "grid channels", bs.grid_channels);
-      char cost[160];
-      std::snprintf(cost, sizeof(cost), "%.3g ms per step on an H100 (%.3g particle-steps/s: ", bs.gpu_ms_per_step,
-                    bs.throughput);
-      row(os, "GPU time", cost + bs.throughput_basis + ")");
       const int body = static_cast<int>(i);
       const io::FrameFileSize f = body_frame_size(scene, body, bs.particles);
       frame_bytes += f.bytes;

@@ -60,6 +60,23 @@ MaterialFacts material_facts(const MaterialSpec& m) {
 std::size_t particle_scalar_bytes(Precision p) { return p == Precision::Single ? 4 : 8; }
 std::size_t grid_scalar_bytes(Precision p) { return p == Precision::Double ? 8 : 4; }
 
+/// A mesh's part of its body's summary: elements, quality, the lumped vertex volume, the element step bound and the
+/// CPU engine's bytes for the elements (physics/fem.cuh).
+void summarize_mesh(BodySummary& s, const TetMesh& mesh, const BodySpec& body, const SimulationSpec& sim) {
+  const TetMeshStats f = check_tet_mesh(mesh, "meshes[" + std::to_string(body.mesh) + "]");
+  s.mesh = true;
+  s.elements = static_cast<long long>(mesh.elements.size());
+  s.min_quality = f.min_quality;
+  s.min_height = f.min_height;
+  s.particle_volume = f.volume / static_cast<double>(std::max<std::size_t>(1, mesh.vertices.size()));
+  s.particle_mass = body.material.rho * s.particle_volume;
+  // Per element: TetElement (4 ints, Dm^-1, V0), 4 CSR corners, the pass's F, J and forces H; per vertex: the CSR
+  // start, the lumped volume, the forces twice.
+  const std::size_t t = particle_scalar_bytes(sim.precision);
+  s.mesh_bytes = mesh.elements.size() * (16 + 10 * t + 16 + 19 * t) + mesh.vertices.size() * (4 + 7 * t);
+  s.dt_bound = min_time_step(s.dt_bound, body_element_step_bound(body));  // run_constants.h
+}
+
 template <typename T, typename TG>
 RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& log) {
   comm::Transport* transport = options.transport;
@@ -129,7 +146,8 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     const BodySpec& body = scene.bodies[i];
     const MaterialSpec& m = body.material;
     // Counted, not stored: --check and the memory plan cost no host memory per particle.
-    counts.push_back(BodySampler(body, sim, static_cast<int>(i)).count(dx));
+    const std::shared_ptr<const TetMesh> mesh = body.mesh >= 0 ? scene.meshes.at(static_cast<std::size_t>(body.mesh)).mesh : nullptr;
+    counts.push_back(mesh ? count_points(mesh->vertices, dx) : BodySampler(body, sim, static_cast<int>(i)).count(dx));
     const SampleCount& count = counts.back();
     const MaterialFacts facts = material_facts(m);
     BodySummary s;
@@ -140,6 +158,8 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     const double v0 = std::sqrt(body.velocity[0] * body.velocity[0] + body.velocity[1] * body.velocity[1] +
                                 body.velocity[2] * body.velocity[2]);
     s.dt_bound = cfl_time_step(m.cfl, dx, facts.wave_speed, v0);
+    if (mesh)
+      summarize_mesh(s, *mesh, body, sim);
     s.viscous_dt = body_viscous_step_bound(body, dx);
     s.seepage_dt = body_seepage_step_bound(body, dx);
     summary.dt = min_time_step(min_time_step(min_time_step(summary.dt, s.dt_bound), s.viscous_dt), s.seepage_dt);

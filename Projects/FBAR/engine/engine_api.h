@@ -31,6 +31,12 @@ struct BodySummary {
   double throughput = 0.0;            ///< [particle-steps/s] on an H100 at 16M particles (docs/benchmarks)
   std::string throughput_basis;       ///< which measurement the throughput comes from
   double gpu_ms_per_step = 0.0;       ///< [ms] particles / throughput
+  // A mesh (FEM body; its particles are the vertices):
+  bool mesh = false;
+  long long elements = 0;
+  double min_quality = 0.0;           ///< smallest element quality (geometry/tet_mesh.h)
+  double min_height = 0.0;            ///< [m] smallest element height: dt <= CFL h / wave speed (physics/fem.cuh)
+  std::size_t mesh_bytes = 0;         ///< [B] the CPU engine's elements and per-vertex arrays besides the particles'
 };
 
 struct SceneSummary {

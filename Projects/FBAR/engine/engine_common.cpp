@@ -39,9 +39,9 @@ const char* to_string(FailureKind kind) {
 
 std::string FailureReport::describe() const {
   std::ostringstream s;
-  s << "body " << body << ": " << count << (count == 1 ? " particle " : " particles ") << to_string(kind) << " at step "
-    << step << ", t = " << format_g(time) << " s, dt = " << format_g(dt) << " s (first: particle " << first_particle
-    << ")";
+  const char* what = elements ? " element" : " particle";
+  s << "body " << body << ": " << count << what << (count == 1 ? " " : "s ") << to_string(kind) << " at step " << step
+    << ", t = " << format_g(time) << " s, dt = " << format_g(dt) << " s (first:" << what << " " << first_particle << ")";
   return s.str();
 }
 
@@ -100,7 +100,11 @@ StepPlan plan_step_toward(double time, double t_end, double dt_cfl) {
 }
 
 void check_engine_body(const BodySpec& spec, int index, const std::string& engine) {
-  const std::string where = "bodies[" + std::to_string(index) + "]";
+  const std::string where =
+      spec.mesh >= 0 ? "meshes[" + std::to_string(spec.mesh) + "]" : "bodies[" + std::to_string(index) + "]";
+  if (spec.mesh >= 0 && engine != "CPU engine")
+    throw std::invalid_argument(where + ": a mesh (FEM body) is not run by the " + engine +
+                                " in this release (the CPU engine runs it: --backend=cpu)");
   const MaterialSpec& mat = spec.material;
   const char* law = "?";
   visit_material(mat.law, [&](auto m) { law = decltype(m)::kJsonName; });
@@ -109,7 +113,7 @@ void check_engine_body(const BodySpec& spec, int index, const std::string& engin
                                 " (implemented: " + supported_material_names() + ")");
   if (mat.type != "particles")
     throw std::invalid_argument(where + ".material.type: \"" + mat.type + "\" bodies are not implemented");
-  if (spec.algorithm.use_fem)
+  if (spec.algorithm.use_fem && spec.mesh < 0)
     throw std::invalid_argument(where + ".algorithm.use_FEM: not implemented by the " + engine);
   for (const std::string& name : spec.output_attribs) {
     const std::string canonical = canonical_attribute(name);

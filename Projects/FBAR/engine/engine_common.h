@@ -31,7 +31,8 @@ struct FailureReport {
   double time = 0.0;              ///< [s] simulated time at the start of that step
   double dt = 0.0;                ///< [s] the step size that failed
   long long count = 0;            ///< particles of the body that failed this check
-  long long first_particle = -1;  ///< smallest failing particle index (ID) of the body
+  long long first_particle = -1;  ///< smallest failing particle index (ID) of the body; element index when `elements`
+  bool elements = false;          ///< the count is of a mesh body's elements (Inverted: an element turned inside out)
   /// "body 0: 12 particles moved more than one cell in one step (CFL violation) at step 345, t = 0.1234 s,
   ///  dt = 1e-4 s (first: particle 17)".
   std::string describe() const;
@@ -87,7 +88,8 @@ struct StepPlan {
 StepPlan plan_step_toward(double time, double t_end, double dt_cfl);
 
 /// What an engine checks of body `index` before it samples it (both engines; the release policy refuses these
-/// earlier for scenes read from files): a law the engines implement, "particles" bodies, no FEM, output attributes
+/// earlier for scenes read from files): a law the engines implement, "particles" bodies, no FEM (meshes: the CPU
+/// engine only), output attributes
 /// the law has, a positive ppc. Throws std::invalid_argument naming the key; `engine` ("CPU engine", "GPU engine")
 /// goes into the message.
 void check_engine_body(const BodySpec& spec, int index, const std::string& engine);

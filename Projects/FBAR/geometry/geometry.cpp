@@ -791,6 +791,13 @@ Aabb BodySampler::geometry_bounds() const {
 
 std::vector<Vec3d> sample_body(const BodySpec& body, const SimulationSpec& sim, int body_index, ParticleSeeds* seeds,
                                Aabb* bounds) {
+  if (body.mesh >= 0) {  // a mesh's body: its vertices, vertex k particle k (scene.h)
+    if (!body.tet_mesh || body.tet_mesh->vertices.empty())
+      throw std::invalid_argument("meshes[" + std::to_string(body.mesh) + "]: the body has no mesh");
+    if (seeds) *seeds = ParticleSeeds{};
+    if (bounds) *bounds = points_bounds(body.tet_mesh->vertices);
+    return body.tet_mesh->vertices;
+  }
   BodySampler sampler(body, sim, body_index);
   if (bounds) *bounds = sampler.geometry_bounds();
   std::vector<Vec3d> points;

@@ -251,6 +251,7 @@ BodyDrops body_drops(const BodySpec& body, const SimulationSpec& sim, int body_i
 /// "bodies[i].material.ppc".
 /// `seeds`, when given, receives the seeds of point files read with has_attributes (empty when none).
 /// `bounds`, when given, receives BodySampler::geometry_bounds().
+/// A mesh's body (BodySpec::mesh >= 0) gives the mesh's vertices in order (bounds: theirs; no seeds).
 std::vector<Vec3d> sample_body(const BodySpec& body, const SimulationSpec& sim, int body_index,
                                ParticleSeeds* seeds = nullptr, Aabb* bounds = nullptr);
 

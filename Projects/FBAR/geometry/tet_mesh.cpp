@@ -1,6 +1,8 @@
 // Tetrahedral meshes: ClaymoreUW's CSV pair and Gmsh MSH 4.1 ASCII, and the checks (tet_mesh.h).
 #include "geometry/tet_mesh.h"
 
+#include "physics/fem.cuh"
+
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -301,6 +303,7 @@ TetMeshStats check_tet_mesh(const TetMesh& mesh, const std::string& where) {
   std::vector<char> used(mesh.vertices.size(), 0);
   s.min_quality = std::numeric_limits<double>::infinity();
   s.min_edge = std::numeric_limits<double>::infinity();
+  s.min_height = std::numeric_limits<double>::infinity();
   for (std::size_t e = 0; e < mesh.elements.size(); ++e) {
     const std::array<int, 4>& t = mesh.elements[e];
     const std::string name = where + ": element " + std::to_string(e) + " (vertices " + std::to_string(t[0]) + ", " +
@@ -324,11 +327,12 @@ TetMeshStats check_tet_mesh(const TetMesh& mesh, const std::string& where) {
     if (q < kMinTetQuality)
       throw std::runtime_error(name + ": degenerate (quality " + fmt(q) + ", volume " + fmt(v) +
                                "); expected a quality 6 sqrt(2) V / l_rms^3 of at least " + fmt(kMinTetQuality));
-    if (q < s.min_quality) {
-      s.min_quality = q;
+    if (q < s.min_quality * (1.0 - 1e-9)) {  // equal qualities up to rounding keep the first element (a scaled
+      s.min_quality = q;                     // copy of the mesh names the same one)
       s.worst_element = e;
     }
     s.volume += v;
+    s.min_height = std::min(s.min_height, tet_min_height(x0, x1, x2, x3));
     const Vec3d* x[4] = {&x0, &x1, &x2, &x3};
     for (int a = 0; a < 4; ++a)
       for (int b = a + 1; b < 4; ++b) {
@@ -340,6 +344,47 @@ TetMeshStats check_tet_mesh(const TetMesh& mesh, const std::string& where) {
   }
   s.unused_vertices = static_cast<std::size_t>(std::count(used.begin(), used.end(), 0));
   return s;
+}
+
+std::string describe(const TetMeshStats& s) {
+  std::ostringstream out;
+  out.precision(4);
+  out << s.vertices << " vertices, " << s.elements << " tetrahedra, volume " << s.volume << " m^3, edges "
+      << s.min_edge << " to " << s.max_edge << " m, smallest quality " << s.min_quality << " (element "
+      << s.worst_element << ")";
+  if (s.unused_vertices > 0) out << ", " << s.unused_vertices << " vertices in no element";
+  return out.str();
+}
+
+TetMesh box_tet_mesh(const Vec3d& lo, const Vec3d& hi, const Vec3i& cells) {
+  for (int a = 0; a < 3; ++a)
+    if (cells[a] < 1 || !(hi[a] > lo[a])) throw std::invalid_argument("box_tet_mesh: an empty box or no cells");
+  TetMesh m;
+  const int n1 = cells[1] + 1, n2 = cells[2] + 1;
+  for (int i = 0; i <= cells[0]; ++i)
+    for (int j = 0; j <= cells[1]; ++j)
+      for (int k = 0; k <= cells[2]; ++k)
+        m.vertices.push_back(Vec3d{{lo[0] + (hi[0] - lo[0]) * i / cells[0], lo[1] + (hi[1] - lo[1]) * j / cells[1],
+                                    lo[2] + (hi[2] - lo[2]) * k / cells[2]}});
+  const auto id = [&](int i, int j, int k) { return (i * n1 + j) * n2 + k; };
+  // The six paths from corner (0,0,0) to (1,1,1) along the axes in each order: one tetrahedron per path.
+  static constexpr int kOrder[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  for (int i = 0; i < cells[0]; ++i)
+    for (int j = 0; j < cells[1]; ++j)
+      for (int k = 0; k < cells[2]; ++k)
+        for (const auto& order : kOrder) {
+          int c[3] = {i, j, k};
+          std::array<int, 4> e;
+          e[0] = id(c[0], c[1], c[2]);
+          for (int s = 0; s < 3; ++s) {
+            ++c[order[s]];
+            e[static_cast<std::size_t>(s) + 1] = id(c[0], c[1], c[2]);
+          }
+          // An odd permutation of the axes gives a left-handed tetrahedron: swap two vertices.
+          if (tet_volume(m.vertices[e[0]], m.vertices[e[1]], m.vertices[e[2]], m.vertices[e[3]]) < 0) std::swap(e[2], e[3]);
+          m.elements.push_back(e);
+        }
+  return m;
 }
 
 }  // namespace fbar

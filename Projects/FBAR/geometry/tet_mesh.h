@@ -1,6 +1,6 @@
-// Tetrahedral meshes of FEM bodies (ClaymoreUW's meshes[]; issue 34), read and checked before anything runs on them.
-// The scene parser reads and checks every meshes[] entry with them (scene_parse.cpp read_mesh_entry), then refuses
-// the array (scene_support.cpp): no engine runs FEM bodies yet.
+// Tetrahedral meshes of FEM bodies (ClaymoreUW's meshes[]), read and checked before anything runs on them. The scene
+// parser reads and checks every meshes[] entry with them (scene_parse.cpp read_mesh_entry) and keeps the mesh, which
+// becomes a body (append_mesh_bodies); physics/fem.cuh says how its elements run.
 //
 // Files:
 //  * ClaymoreUW's pair (meshes[].file_vertices, meshes[].file_elements; its loader read_scene_input.h): vertices
@@ -53,7 +53,12 @@ struct TetMeshStats {
   double min_quality = 0.0;          ///< smallest q over the elements
   std::size_t worst_element = 0;     ///< the element of min_quality
   double min_edge = 0.0, max_edge = 0.0;  ///< [file units] shortest and longest element edge
+  double min_height = 0.0;           ///< [file units] smallest element height 3 V / largest face (the FEM step's length)
 };
+
+/// "8 vertices, 6 tetrahedra, volume 0.001 m^3, edges 0.1 to 0.1732 m, smallest quality 0.6573 (element 1)" (and the
+/// vertices in no element, when some are): what --check and the scene's summary say of a mesh.
+std::string describe(const TetMeshStats& s);
 
 /// Signed volume of the tetrahedron (x0, x1, x2, x3): positive when (x1 - x0, x2 - x0, x3 - x0) is right-handed.
 double tet_volume(const Vec3d& x0, const Vec3d& x1, const Vec3d& x2, const Vec3d& x3);
@@ -71,5 +76,11 @@ struct VertexOutside {
   int axis = -1;
 };
 VertexOutside vertex_outside(const TetMesh& mesh, const Vec3d& offset, const Vec3d& lo, const Vec3d& hi);
+
+/// The box [lo, hi] cut into cells[0] x cells[1] x cells[2] cubes of six tetrahedra each (Kuhn's subdivision along
+/// the cube's diagonal from its low to its high corner: conforming across cubes, every element of quality 0.6573
+/// when the cells are cubes). Vertices in x-major order: vertex (i, j, k) is (i (cells[1] + 1) + j) (cells[2] + 1) + k.
+/// For tests, benchmarks and programs that build a mesh in code (a box of a scene: a Gmsh or CSV file).
+TetMesh box_tet_mesh(const Vec3d& lo, const Vec3d& hi, const Vec3i& cells);
 
 }  // namespace fbar

@@ -7,12 +7,14 @@
 #include <array>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "physics/boundary_spec.h"
 #include "physics/material_spec.h"
+#include "geometry/tet_mesh.h"
 
 namespace fbar {
 
@@ -131,6 +133,12 @@ struct BodySpec {
   MaterialSpec material;
   AlgorithmSpec algorithm;
   std::vector<GeometrySpec> geometry;
+  /// >= 0: this body is the vertices of meshes[mesh] (an FEM body; physics/fem.cuh), appended after the particle
+  /// bodies by the parser (append_mesh_bodies, scene_parse.h); its particles are the mesh's vertices and its
+  /// material the elements' law. -1: a particle body.
+  int mesh = -1;
+  /// The mesh of meshes[mesh] (shared with it): sample_body() returns its vertices.
+  std::shared_ptr<const TetMesh> tet_mesh;
 };
 
 enum class SensorOperation { Sum, Max, Min, Count, Average, STDEV, Variance };
@@ -158,8 +166,8 @@ struct ParticleSensorSpec {
 };
 
 /// One entry of the top-level "meshes" array (ClaymoreUW's FEM bodies, its keys and meanings: read_scene_input.h),
-/// read and checked at parse, its mesh included (geometry/tet_mesh.h). No engine runs FEM bodies yet
-/// (scene_support.cpp refuses them, naming what was read).
+/// read and checked at parse, its mesh included (geometry/tet_mesh.h). The parser appends one body per entry to
+/// Scene::bodies (BodySpec::mesh), which the CPU engine runs (physics/fem.cuh).
 struct MeshEntrySpec {
   std::string file_vertices, file_elements;  ///< ClaymoreUW's CSV pair (resolved paths), or both empty
   std::string file;                          ///< a Gmsh MSH 4.1 file (resolved; fbar's), or empty
@@ -176,12 +184,15 @@ struct MeshEntrySpec {
   double ppc = 8.0;                          ///< ClaymoreUW reads it for the vertex particles' volume (unused by its FEM)
   bool use_fem = false, use_asflip = true;   ///< ClaymoreUW runs a mesh only with both true
   double alpha = 0.0, beta_min = 0.0, beta_max = 0.0;  ///< ASFLIP (ClaymoreUW's legacy names; its FEM uses beta 0)
-  double fbar_ratio = 0.0;                   ///< read and unused by ClaymoreUW's FEM kernels
+  /// use_FBAR's blend psi (physics/fem.cuh): ClaymoreUW reads FBAR_ratio and averages fully (psi = 1), fbar's default
+  double fbar_ratio = 1.0;
   bool fbar_fused_kernel = false;            ///< read and unused by ClaymoreUW's FEM path
   std::vector<std::string> output_attribs{"ID"};
   std::vector<std::string> track_attribs;
   std::vector<long long> track_particle_id;
   std::string summary;                       ///< "8 vertices, 6 tetrahedra, volume ... m^3, ..."
+  /// The mesh, its vertices placed at offset [m] (read once at parse; shared by the copies of the scene).
+  std::shared_ptr<const TetMesh> mesh;
 };
 
 struct Scene {
@@ -192,7 +203,7 @@ struct Scene {
   std::vector<BoundarySpec> boundaries;
   std::vector<GridSensorSpec> grid_sensors;
   std::vector<ParticleSensorSpec> particle_sensors;
-  std::vector<MeshEntrySpec> meshes;    ///< the top-level "meshes" array (FEM bodies: read, checked, not run yet)
+  std::vector<MeshEntrySpec> meshes;    ///< the top-level "meshes" array (FEM bodies; each also a body)
   /// HydroUQ's wrapper keys (Application, EventClassification, type, subtype, in that order; absent ones omitted):
   /// metadata that ClaymoreUW prints and fbar records (the scene writer, hence run.json); nothing reads them.
   std::vector<std::pair<std::string, std::string>> wrapper;

@@ -1,15 +1,16 @@
 // Froude similitude: scales a whole resolved scene by the length factor s = simulation.froude_scaling.
 //
 // Froude similitude keeps Fr = U / sqrt(g L) fixed with gravity and density unchanged, so with lengths x s:
-//   length            x s        domain, default_dx, geometry span / offset / radius / spacing / fulcrum,
+//   length            x s        domain, default_dx, geometry span / offset / radius / spacing / fulcrum, mesh
+//                                vertices and offset,
 //                                partition_start / partition_end, boundary domain / spacing / bathymetry points,
 //                                sensor domains; a File geometry's scaling_factor (its linear size)
 //   time              x s^0.5    simulation.time, default_dt (when given), boundary time windows
-//   velocity          x s^0.5    body initial velocity, boundary velocity
+//   velocity          x s^0.5    body and mesh initial velocity, boundary velocity
 //   frequency         x s^-0.5   fps, sensor output_frequency, motion-file output_frequency
 //                                (frames is unchanged, so the simulated duration frames / fps scales as s^0.5)
 //   mass              x s^3      (no scene key: particle mass follows from rho and the scaled particle volume)
-//   stress, modulus   x c        bulk_modulus, youngs_modulus, VonMises strengths (froude_power 1): c = s by
+//   stress, modulus   x c        bulk_modulus, youngs_modulus (meshes' too), VonMises strengths (froude_power 1): c = s by
 //                                default (Cauchy similitude at equal density, so the elastic wave speed
 //                                sqrt(E / rho) scales like a Froude velocity); c = cauchy_bulk_ratio when
 //                                use_cauchy_scaling is true (even at s = 1); use_cauchy_scaling false keeps every
@@ -22,6 +23,7 @@
 // files that were produced at the target scale already). Motion-file contents are scaled by their loader
 // (positions x s, times and velocities x s^0.5) from simulation.froude_scaling.
 #include <cmath>
+#include <memory>
 #include <sstream>
 
 #include "scene/scene_parse.h"
@@ -47,15 +49,6 @@ void apply_froude_scaling(Scene& scene) {
                    : sim.cauchy_scaling == CauchyScaling::On ? sim.cauchy_bulk_ratio
                                                              : s;
   if (sim.froude_scaling_applied || (s == 1.0 && (c == 1.0 || c == 0.0))) return;  // identity: nothing to record
-  // FEM meshes are read and checked as written (their release will scale them like bodies); scaling the domain under
-  // them would leave their check meaningless.
-  if (!scene.meshes.empty() && s != 1.0) {
-    std::ostringstream factor;
-    factor << s;
-    throw SceneError("meshes", std::to_string(scene.meshes.size()) + " mesh(es) with froude_scaling " + factor.str(),
-                     "no meshes in a Froude-scaled scene; Froude scaling of FEM meshes is not supported yet in this "
-                     "release");
-  }
   sim.froude_scaling_applied = true;
   const double length = s;
   const double time = std::sqrt(s);
@@ -103,6 +96,22 @@ void apply_froude_scaling(Scene& scene) {
       }
     }
   }
+  // FEM meshes like bodies: the vertices (placed at offset) and the offset as lengths, the velocity, the elements'
+  // Young's modulus as a stress (ClaymoreUW scales none of them).
+  for (MeshEntrySpec& m : scene.meshes) {
+    scale3(m.offset, length);
+    scale3(m.velocity, velocity);
+    if (c > 0.0) m.youngs_modulus *= c;
+    if (m.mesh) {
+      TetMesh scaled = *m.mesh;
+      for (Vec3d& x : scaled.vertices) x *= length;
+      m.summary = describe(check_tet_mesh(scaled, "meshes[]"));  // what a re-read of the written scene says
+      m.mesh = std::make_shared<const TetMesh>(std::move(scaled));
+    }
+  }
+  bool mesh_bodies = false;  // appended already (a scene built in code): their keys come from the entries again
+  for (const BodySpec& b : scene.bodies) mesh_bodies = mesh_bodies || b.mesh >= 0;
+  if (mesh_bodies) append_mesh_bodies(scene);
   for (BoundarySpec& b : scene.boundaries) {
     scale3(b.domain_start, length);
     scale3(b.domain_end, length);

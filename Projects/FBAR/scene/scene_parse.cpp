@@ -16,6 +16,9 @@
 
 #include "scene/scene_parse_detail.h"
 
+#include <algorithm>
+#include <memory>
+#include <set>
 #include <sstream>
 
 #include "geometry/tet_mesh.h"
@@ -231,7 +234,10 @@ void assign_models(std::vector<BodyRead>& bodies, const std::string& bodies_key)
 /// One entry of "meshes" (ClaymoreUW's keys with their meanings; MeshEntrySpec): the mesh of file_vertices +
 /// file_elements (ClaymoreUW's CSV pair) or of a Gmsh .msh named by file (fbar's; ClaymoreUW reads and ignores file),
 /// placed at offset [m], checked (geometry/tet_mesh.h) against the domain; the material and scheme keys in range.
-MeshEntrySpec read_mesh_entry(const rj::Value& v, const std::string& path, const Context& ctx, const Real3& domain) {
+/// `vertex_scale`: the file's coordinates are multiplied by it before the offset is added (a written, already
+/// Froude-scaled scene: its offset is scaled, its mesh files never are).
+MeshEntrySpec read_mesh_entry(const rj::Value& v, const std::string& path, const Context& ctx, const Real3& domain,
+                              double vertex_scale) {
   MeshEntrySpec spec;
   ObjectReader o(v, path, kMeshKeys, ctx, "meshes[]");
   const rj::Value* vertices = o.get("file_vertices");
@@ -293,6 +299,8 @@ MeshEntrySpec read_mesh_entry(const rj::Value& v, const std::string& path, const
   } catch (const std::runtime_error& e) {
     throw SceneError(source_key, source, std::string("a readable tetrahedral mesh (") + e.what() + ")");
   }
+  if (vertex_scale != 1.0)
+    for (Vec3d& x : mesh.vertices) x *= vertex_scale;
   TetMeshStats s;
   try {
     s = check_tet_mesh(mesh, "the mesh");
@@ -317,16 +325,48 @@ MeshEntrySpec read_mesh_entry(const rj::Value& v, const std::string& path, const
                          std::string(1, "xyz"[a]),
                      "m");
   }
-  std::ostringstream out;
-  out.precision(4);
-  out << s.vertices << " vertices, " << s.elements << " tetrahedra, volume " << s.volume << " m^3, edges "
-      << s.min_edge << " to " << s.max_edge << " m, smallest quality " << s.min_quality << " (element "
-      << s.worst_element << ")";
-  if (s.unused_vertices > 0) out << ", " << s.unused_vertices << " vertices in no element";
-  spec.summary = out.str();
+  spec.summary = describe(s);
+  for (Vec3d& x : mesh.vertices) x += offset;
+  spec.mesh = std::make_shared<const TetMesh>(std::move(mesh));
   o.finish();
   return spec;
 }
+
+}  // namespace
+
+void append_mesh_bodies(Scene& scene) {
+  scene.bodies.erase(std::remove_if(scene.bodies.begin(), scene.bodies.end(), [](const BodySpec& b) { return b.mesh >= 0; }),
+                     scene.bodies.end());
+  for (std::size_t m = 0; m < scene.meshes.size(); ++m) {
+    const MeshEntrySpec& e = scene.meshes[m];
+    BodySpec b;
+    b.mesh = static_cast<int>(m);
+    b.tet_mesh = e.mesh;
+    b.gpu = e.gpu;
+    std::set<int> used;
+    for (const BodySpec& o : scene.bodies)
+      if (o.gpu == e.gpu) used.insert(o.model);
+    while (used.count(b.model)) ++b.model;
+    b.velocity = e.velocity;
+    b.output_attribs = e.output_attribs;
+    b.track_attribs = e.track_attribs;
+    b.track_particle_id = e.track_particle_id;
+    b.material.law = e.law;
+    b.material.rho = e.rho;
+    b.material.youngs_modulus = e.youngs_modulus;
+    b.material.poisson_ratio = e.poisson_ratio;
+    b.material.ppc = e.ppc;
+    b.algorithm.use_asflip = e.use_asflip;
+    b.algorithm.asflip_alpha = e.alpha;
+    b.algorithm.asflip_beta_min = e.beta_min;
+    b.algorithm.asflip_beta_max = e.beta_max;
+    b.algorithm.use_fbar = false;  // use_FBAR is the elements' (physics/fem.cuh)
+    b.algorithm.use_fem = e.use_fem;  // the elements exert forces
+    scene.bodies.push_back(std::move(b));
+  }
+}
+
+namespace {
 
 const rj::Value* optional_array(ObjectReader& root, std::initializer_list<std::string_view> keys, std::string& path,
                                 const char* what) {
@@ -546,11 +586,12 @@ Scene parse_document(const rj::Document& doc, Context& ctx) {
   }
   warn_claymoreuw_sensor_frequencies(scene.grid_sensors, "grid-sensors", ctx);
   warn_claymoreuw_sensor_frequencies(scene.particle_sensors, "particle-sensors", ctx);
-  // FEM meshes: no engine runs them yet (check_supported refuses them), but each entry's mesh files are read and
-  // checked now, so that a bad mesh is named by --check (read_mesh_entry).
+  // FEM meshes: each entry's mesh files are read and checked now (a bad mesh is named by --check), and each becomes
+  // a body after the particle bodies (append_mesh_bodies, below).
   if (auto* a = optional_array(root, {"meshes"}, path, "an array of mesh objects")) {
     for (rj::SizeType i = 0; i < a->Size(); ++i)
-      scene.meshes.push_back(read_mesh_entry((*a)[i], index_path(path, i), ctx, scene.simulation.domain));
+      scene.meshes.push_back(read_mesh_entry((*a)[i], index_path(path, i), ctx, scene.simulation.domain,
+                                             scene.simulation.froude_scaling_applied ? scene.simulation.froude_scaling : 1.0));
   }
   for (const char* k : kWrapperKeys)
     if (auto* v = root.get(k)) scene.wrapper.emplace_back(k, read_string(*v, k, "a string (HydroUQ metadata)"));
@@ -561,6 +602,11 @@ Scene parse_document(const rj::Document& doc, Context& ctx) {
   if (!sim.default_dt_given) scene.simulation.default_dt = scene.simulation.dx / 100.0;
   resolve_copy_track_ids(scene, ctx);  // samples the bodies that list IDs per array copy (at scale)
   audit_bodies(scene, ctx);
+  for (std::size_t m = 0; m < scene.meshes.size(); ++m)
+    if (scene.meshes[m].mesh && !scene.meshes[m].use_fem)
+      ctx.warn("meshes[" + std::to_string(m) + "].use_FEM: false: the elements exert no force (the vertices move with the "
+               "grid, as in ClaymoreUW); set it true for an elastic body");
+  append_mesh_bodies(scene);
   return scene;
 }
 

@@ -41,6 +41,14 @@ Scene parse_scene_string(const std::string& json, const ParseOptions& options);
 /// Later releases delete lines here and nowhere else.
 void check_supported(const Scene& scene);
 
+/// One body per meshes[] entry, appended after the particle bodies (BodySpec::mesh = its index): gpu, velocity,
+/// output and tracking from the entry; material law, rho, E, nu and ppc from it, type "particles" (the vertices are
+/// particles to every part of fbar but the engines' stress, physics/fem.cuh); ASFLIP from use_ASFLIP, alpha and
+/// beta_min/max; use_FEM from use_FEM; no particle F-bar (use_FBAR is the elements'). Its model number is the first one no particle body
+/// on its GPU uses (ClaymoreUW puts a mesh in model 0 of its GPU, which a particle body there would overwrite).
+/// Bodies already appended are replaced. The parser calls it; so do programs that build a scene in code.
+void append_mesh_bodies(Scene& scene);
+
 /// Applies Froude similitude with factor s = scene.simulation.froude_scaling to every field, the materials' stresses
 /// by the Cauchy ratio of simulation.cauchy_scaling (see the definition for the exponent of each quantity), and
 /// sets simulation.froude_scaling_applied. No-op when already applied or when nothing would change.

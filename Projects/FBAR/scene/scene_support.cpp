@@ -40,17 +40,9 @@ std::string idx(const char* array, std::size_t i) { return std::string(array) + 
 
 void check_supported(const Scene& scene) {
   const SimulationSpec& sim = scene.simulation;
-  if (!scene.meshes.empty()) {
-    std::string got = std::to_string(scene.meshes.size()) + " mesh(es)";
-    for (std::size_t i = 0; i < scene.meshes.size(); ++i)
-      got += (i == 0 ? " (" : "; ") + std::string("meshes[") + std::to_string(i) + "]: " + scene.meshes[i].summary;
-    got += ", read and checked)";
-    refuse("meshes", got, "no meshes", "a mesh (FEM body)");
-  }
-
   for (std::size_t i = 0; i < scene.bodies.size(); ++i) {
     const BodySpec& b = scene.bodies[i];
-    const std::string p = idx("bodies", i);
+    const std::string p = b.mesh >= 0 ? idx("meshes", static_cast<std::size_t>(b.mesh)) : idx("bodies", i);
     const MaterialSpec& m = b.material;
     const AlgorithmSpec& a = b.algorithm;
     if (m.type != "particles") refuse(p + ".material.type", q(m.type), "\"particles\"", "material type mesh");
@@ -58,7 +50,7 @@ void check_supported(const Scene& scene) {
       refuse(p + ".material.constitutive", q(to_string(m.law)), "one of " + supported_material_names(),
              std::string("constitutive ") + to_string(m.law));
     if (a.type != "particles") refuse(p + ".algorithm.type", q(a.type), "\"particles\"", "algorithm type mesh");
-    if (a.use_fem) refuse(p + ".algorithm.use_FEM", "true", "false", "use_FEM");
+    if (a.use_fem && b.mesh < 0) refuse(p + ".algorithm.use_FEM", "true", "false", "use_FEM");
     // ASFLIP / PIC-FLIP (alpha, beta) and F-bar (FBAR_psi) run on both engines.
     for (std::size_t j = 0; j < b.geometry.size(); ++j) {
       const GeometrySpec& g = b.geometry[j];

@@ -188,7 +188,8 @@ class SceneWriter {
     simulation(s.simulation);
     key("bodies");
     w_.StartArray();
-    for (const auto& b : s.bodies) body(b);
+    for (const auto& b : s.bodies)
+      if (b.mesh < 0) body(b);  // a mesh's body is its meshes[] entry, written below
     w_.EndArray();
     key("boundaries");
     w_.StartArray();
@@ -567,7 +568,7 @@ bool operator==(const BodySpec& a, const BodySpec& b) {
          a.output_attribs == b.output_attribs && a.output_exterior_only == b.output_exterior_only &&
          a.exterior_threshold == b.exterior_threshold && a.track_attribs == b.track_attribs &&
          a.target_attribs == b.target_attribs && a.material == b.material && a.algorithm == b.algorithm &&
-         a.geometry == b.geometry;
+         a.geometry == b.geometry && a.mesh == b.mesh;
 }
 bool operator==(const BoundarySpec& a, const BoundarySpec& b) {
   return a.object == b.object && a.contact == b.contact && a.domain_start == b.domain_start &&

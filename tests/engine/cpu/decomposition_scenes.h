@@ -2,7 +2,11 @@
 // tests/engine/gpu/test_decomposition_gpu.cu and its MPI check), one definition for both engines.
 #pragma once
 
+#include <memory>
+
 #include "../../physics/physics_test_support.h"
+#include "geometry/tet_mesh.h"
+#include "scene/scene_parse.h"
 
 namespace fbar::test {
 
@@ -29,6 +33,33 @@ inline Scene dam_break(bool schemes) {
   walls.domain_start = r3(0.04, 0.04, 0.04);  // the water's faces: it fills the tank's corner
   walls.domain_end = r3(0.60, 0.36, 0.16);
   scene.boundaries.push_back(walls);
+  return scene;
+}
+
+/// An elastic FEM post (FixedCorotated tetrahedra, 0.06 x 0.12 x 0.06 m above the floor in cubes of 0.01 m, E 2e6
+/// Pa, rho 1200 kg/m^3) in the dam break's tank, 1 cm from the water's face (their grid stencils overlap from the
+/// start: the water pushes it at once), its foot clamped by a Sticky Box, on `gpu` (a mesh lives whole on its rank):
+/// partition by method when the water is spread over the ranks.
+inline Scene dam_break_with_post(int gpu) {
+  Scene scene = dam_break(false);
+  MeshEntrySpec post;
+  post.law = Constitutive::FixedCorotated;
+  post.rho = 1200.0;
+  post.youngs_modulus = 2e6;
+  post.poisson_ratio = 0.3;
+  post.use_fem = true;
+  post.use_asflip = false;
+  post.gpu = gpu;
+  post.output_attribs = {"ID"};
+  post.mesh = std::make_shared<const TetMesh>(box_tet_mesh(Vec3d{{0.35, 0.0, 0.07}}, Vec3d{{0.41, 0.16, 0.13}}, Vec3i{{6, 16, 6}}));
+  scene.meshes.push_back(post);
+  append_mesh_bodies(scene);
+  BoundarySpec clamp;
+  clamp.object = BoundaryObject::Box;
+  clamp.contact = Contact::Sticky;
+  clamp.domain_start = r3(0.33, 0.0, 0.05);
+  clamp.domain_end = r3(0.43, 0.04, 0.15);
+  scene.boundaries.push_back(clamp);
   return scene;
 }
 

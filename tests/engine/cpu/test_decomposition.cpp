@@ -204,5 +204,16 @@ TEST(Decomposition, PlacedBodiesStayOnTheirRanks) {
 // blocks are held by a rank and several others (summed in rank order on each: the same bits everywhere).
 TEST(Decomposition, PlacedAndSpreadBodiesTogether) { expect_same_run(test::placed_bodies(true), 100, true); }
 
+// Partition by method: the FEM post lives whole on rank 1 while the water is spread by space over every rank; the
+// post's vertices never leave rank 1, the water pushes the post through the general halo from the first step, and the
+// run matches one rank (the mesh on rank 0 of a one-rank run). The elements bound the step (4e-5 s), so 120 steps
+// move no water particle across a cut: migration is the other tests'.
+TEST(Decomposition, MeshOnItsRankWithWaterSpreadBySpace) {
+  const Scene scene = test::dam_break_with_post(1);
+  ASSERT_EQ(scene.bodies.size(), 2u);
+  ASSERT_EQ(scene.bodies[1].mesh, 0);
+  expect_same_run(scene, 120, false);
+}
+
 }  // namespace
 }  // namespace fbar

@@ -33,6 +33,7 @@ namespace fbar {
 
 using namespace cpu_detail;
 
+
 // ---------------------------------------------------------------------------------------------
 // Construction
 
@@ -275,6 +276,7 @@ void CpuEngine<T, TG>::init(const std::vector<std::vector<Vec3d>>& positions) {
       body.max_wave_speed = static_cast<double>(M::wave_speed(mb.params, M::template reference_state<T>()));
       body.material = std::move(mb);
     });
+    if (spec.mesh >= 0) init_mesh(body);
   }
   max_grid_speed_ = max_speed;
 }
@@ -353,6 +355,13 @@ typename CpuEngine<T, TG>::TryResult CpuEngine<T, TG>::try_step(double dt_in) {
       if (ranks() > 1) exchange_halo(true);
     }
     g2p(static_cast<int>(b), bodies_[b], dt, result);
+    if (bodies_[b].mesh.active) {  // the elements at the new positions: next step's forces, the vertex states
+      const MeshPassResult m = mesh_after_g2p(bodies_[b]);
+      constexpr int kInverted = static_cast<int>(FailureKind::Inverted);
+      result.count[b][kInverted] += m.inverted;
+      if (m.inverted > 0) result.first[b][kInverted] = std::min(result.first[b][kInverted], m.first_inverted);
+      result.max_wave_speed[b] = std::max(result.max_wave_speed[b], m.max_wave_speed);
+    }
   }
   reduce_try(result, static_cast<double>(dt));  // the dt the step ran with (float in single precision)
   return result;
@@ -366,6 +375,7 @@ void CpuEngine<T, TG>::commit(const TryResult& result, double dt) {
     body.v.swap(body.v_next);
     body.C.swap(body.C_next);
     std::visit([](auto& mb) { mb.state.swap(mb.next_state); }, body.material);
+    body.mesh.force.swap(body.mesh.force_next);
     body.max_wave_speed = result.max_wave_speed[b];
   }
   time_ += dt;
@@ -378,7 +388,7 @@ void CpuEngine<T, TG>::commit(const TryResult& result, double dt) {
 template <typename T, typename TG>
 double CpuEngine<T, TG>::next_dt() const {
   double bound = k_.default_dt;
-  for (const Body& body : bodies_)
+  for (const Body& body : bodies_)  // (a mesh's element bound is part of k_.default_dt: run_constants.h)
     bound = min_time_step(
         bound, cfl_time_step(body.spec.material.cfl, scene_.simulation.dx, body.max_wave_speed, max_grid_speed_));
   return bound * retry_.scale;

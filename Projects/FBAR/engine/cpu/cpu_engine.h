@@ -62,6 +62,7 @@
 #include "io/checkpoint.h"
 #include "physics/boundary.cuh"
 #include "physics/constitutive_models.cuh"
+#include "physics/fem.cuh"
 #include "physics/sensors.cuh"
 #include "engine/engine_common.h"
 #include "engine/run_constants.h"
@@ -260,8 +261,22 @@ class CpuEngine {
     std::vector<std::uint64_t> particle_key;        // (particle) packed block coordinates (scratch)
   };
 
+  // A mesh body's elements (physics/fem.cuh): the body's particles are the mesh's vertices (slot = vertex ID: a mesh
+  // lives whole on its rank and never migrates). `force` is the elements' force on each vertex at the committed
+  // positions, `force_next` at the positions a try computed; P2G adds force dt in place of the MLS stress.
+  struct MeshPart {
+    bool active = false;       // the body is a mesh
+    bool forces = true;        // meshes[].use_FEM: the elements exert forces
+    T fbar_psi = T(0);         // use_FBAR's blend (0: plain tetrahedra)
+    std::vector<TetElement<T>> elements;
+    std::vector<int> vertex_start, vertex_elements;  // CSR: the elements of each vertex (corner = 4 e + k), in order
+    std::vector<T> lumped_volume;                    // (vertex) [m^3] sum_e V0_e / 4
+    std::vector<Vec3T> force, force_next;            // (vertex) [N]
+  };
+
   struct Body {
     BodySpec spec;
+    MeshPart mesh;
     std::vector<std::int64_t> id;  // particle ID of each slot
     std::vector<Vec3T> x, v, x_next, v_next;
     std::vector<Mat3T> C, C_next;
@@ -331,6 +346,21 @@ class CpuEngine {
   double update_grid(TG dt);
   void fbar_cell_sums(Body& body);
   void g2p(int body_index, Body& body, T dt, TryResult& result);
+  /// A mesh body's elements at positions x: the vertex forces (into `force`), the vertex states (the V0-weighted
+  /// mean F of their elements, into `states`), the largest wave speed, and the elements turned inside out (count,
+  /// smallest index). physics/fem.cuh.
+  struct MeshPassResult {
+    double max_wave_speed = 0.0;
+    long long inverted = 0, first_inverted = -1;
+  };
+  template <typename M, typename States>
+  MeshPassResult mesh_pass(const Body& body, const material_params_t<M, T>& params, const std::vector<Vec3T>& x,
+                           std::vector<Vec3T>& force, States& states) const;
+  void init_mesh(Body& body);  // elements, lumped masses and the forces at the start (init)
+  /// After a try's G2P: mesh_pass at x_next into force_next and the next states.
+  MeshPassResult mesh_after_g2p(Body& body);
+  /// sum_e V0_e psi(F_e) over a mesh body's elements at the committed positions [J].
+  double mesh_elastic_energy(const Body& body) const;
   void commit(const TryResult& result, double dt);
   void exchange_halo(bool fbar_sums);  // sums the halo planes with the neighbours (P2G channels or F-bar sums)
   /// Placed bodies (comm/placement.h): the grid blocks this rank shares with each other rank, from every rank's

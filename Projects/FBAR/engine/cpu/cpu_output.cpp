@@ -37,6 +37,10 @@ template <typename T, typename TG>
 void CpuEngine<T, TG>::submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer) {
   io::ParticleFrame f = frame(body);
   f.exterior = exterior_filter(scene_, body);
+  if (const int m = body_at(body).spec.mesh; m >= 0) {  // with the elements: a .vtk beside the frame (particle_io.h)
+    const std::shared_ptr<const TetMesh>& mesh = scene_.meshes[static_cast<std::size_t>(m)].mesh;
+    f.tetrahedra = std::shared_ptr<const std::vector<std::array<int, 4>>>(mesh, &mesh->elements);
+  }
   const auto t0 = std::chrono::steady_clock::now();
   writer.submit(path, std::move(f));
   output_wait_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -427,7 +431,10 @@ template <typename T, typename TG>
 double CpuEngine<T, TG>::elastic_energy() const {
   double e = 0.0;
   for (const Body& b : bodies_)
-    std::visit(
+    if (b.mesh.active)
+      e += mesh_elastic_energy(b);  // the elements' energy (the vertex states are their means)
+    else
+      std::visit(
         [&](const auto& mb) {
           using M = typename std::decay_t<decltype(mb)>::material_type;
           for (std::size_t p = 0; p < b.x.size(); ++p)

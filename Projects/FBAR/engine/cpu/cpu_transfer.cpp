@@ -127,6 +127,7 @@ void CpuEngine<T, TG>::p2g(Body& body, T dt) {
           TG arena_q[3][kArenaNodes];  // ASFLIP: the momentum without the stress impulse, m (v + C (x_i - x_p))
           TG arena_w[5][kArenaNodes];  // saturated bodies: the seepage channels (PoreBlock, seepage.cuh)
           constexpr bool pore = IsPoreFluid<M>::value;
+          const bool mesh = body.mesh.active;
           for (int colour = 0; colour < 8; ++colour) {
             const std::vector<int>& list = part.colour_blocks[colour];
             const int count = static_cast<int>(list.size());
@@ -147,9 +148,10 @@ void CpuEngine<T, TG>::p2g(Body& body, T dt) {
                 const int l0 = s.base[0] - origin[0] * kBlockSide;
                 const int l1 = s.base[1] - origin[1] * kBlockSide;
                 const int l2 = s.base[2] - origin[2] * kBlockSide;
-                const StressResult<T> stress = M::kirchhoff_stress(params, state[p], body.C[p]);
-                P2GParticle<T> payload =
-                    mls_p2g_particle(body.mass[p], body.volume[p], body.v[p], body.C[p], stress.kirchhoff, dt, d_inv);
+                // A mesh vertex carries no MLS stress: its elements' force enters as an impulse (physics/fem.cuh).
+                const Mat3T tau = mesh ? Mat3T::zero() : M::kirchhoff_stress(params, state[p], body.C[p]).kirchhoff;
+                P2GParticle<T> payload = mls_p2g_particle(body.mass[p], body.volume[p], body.v[p], body.C[p], tau, dt, d_inv);
+                if (mesh) payload.momentum += body.mesh.force[p] * dt;
                 if (!body.force.empty()) payload.momentum += body.force[p] * dt;  // set_particle_forces
                 for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3T& xixp) {
                   const int a = arena_index(l0 + i, l1 + j, l2 + k);
@@ -381,6 +383,7 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
         const auto& state = mb.state;
         auto& next_state = mb.next_state;
         const bool fbar = body.fbar_psi != T(0);
+        const bool mesh = body.mesh.active;
 #pragma omp parallel if (nb >= kMinParallelBlocks)
         {
           T arena_v[3][kArenaNodes];      // (component, node) grid velocities around one particle block
@@ -440,11 +443,13 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
               }
               Vec3T v = sum.velocity();
               const Mat3T C = sum.affine(d_inv);
-              auto s_new = M::advance(
-                  params, state[p],
-                  fbar ? fbar_velocity_gradient(C, one_minus_volume_ratio<M>(state[p]), cell_compression, body.fbar_psi, dt)
-                       : C,
-                  dt);
+              // A mesh vertex's state is its elements' (mesh_after_g2p sets it from the new positions).
+              auto s_new = mesh ? state[p]
+                                : M::advance(params, state[p],
+                                             fbar ? fbar_velocity_gradient(C, one_minus_volume_ratio<M>(state[p]),
+                                                                           cell_compression, body.fbar_psi, dt)
+                                                  : C,
+                                             dt);
               if constexpr (pore)
                 s_new = M::seep(params, s_new, seep.inflow, seep.head_gradient(d_inv),
                                 seep.head + M::water_density(params) * dot(k_.gravity, x),
@@ -535,6 +540,7 @@ void CpuEngine<T, TG>::reduce_try(TryResult& result, double dt) {
       f.dt = dt;
       f.count = result.count[b][k];
       f.first_particle = result.first[b][k];
+      f.elements = bodies_[static_cast<std::size_t>(b)].mesh.active && f.kind == FailureKind::Inverted;
       result.failures.push_back(f);
     }
 }

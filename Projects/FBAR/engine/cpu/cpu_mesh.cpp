@@ -1,0 +1,204 @@
+// The CPU engine's FEM bodies (cpu_engine.h MeshPart; the coupling in physics/fem.cuh): the elements built from a
+// mesh at start, and the element pass after each try's G2P (vertex forces and states from the new positions).
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <type_traits>
+
+#include "engine/cpu/cpu_engine.h"
+#include "engine/cpu/cpu_engine_detail.h"
+
+namespace fbar {
+
+using namespace cpu_detail;
+
+namespace {
+/// The laws whose state is F alone (FixedCorotated, NeoHookean): the elements' laws (meshes[].constitutive).
+template <typename M, typename T>
+constexpr bool kMeshLaw = std::is_same_v<material_state_t<M, T>, FixedCorotatedState<T>>;
+}  // namespace
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::init_mesh(Body& body) {
+  const MeshEntrySpec& entry = scene_.meshes.at(static_cast<std::size_t>(body.spec.mesh));
+  const TetMesh& mesh = *entry.mesh;
+  MeshPart& part = body.mesh;
+  part.active = true;
+  part.forces = body.spec.algorithm.use_fem;  // meshes[].use_FEM
+  part.fbar_psi = entry.fbar_elements ? static_cast<T>(entry.fbar_ratio) : T(0);
+  const std::size_t nv = mesh.vertices.size();
+  if (body.x.size() != nv)
+    throw std::invalid_argument("meshes[" + std::to_string(body.spec.mesh) + "]: " + std::to_string(body.x.size()) +
+                                " vertex positions for a mesh of " + std::to_string(nv) + " vertices");
+  part.elements.clear();
+  part.lumped_volume.assign(nv, T(0));
+  std::vector<double> lumped(nv, 0.0);
+  std::vector<int> count(nv + 1, 0);
+  for (const std::array<int, 4>& e : mesh.elements) {
+    // Rest shape from the mesh file (double), not from the particle positions (which a restart may have moved).
+    const Vec3d& X0 = mesh.vertices[e[0]];
+    const Mat3d Dm = tet_edges(X0, mesh.vertices[e[1]], mesh.vertices[e[2]], mesh.vertices[e[3]]);
+    const double V0 = determinant(Dm) / 6.0;  // > 0: check_tet_mesh refused inverted elements
+    const Mat3d Dm_inv = inverse(Dm);
+    TetElement<T> el;
+    for (int k = 0; k < 4; ++k) {
+      el.v[k] = e[k];
+      lumped[static_cast<std::size_t>(e[k])] += V0 / 4.0;
+      ++count[static_cast<std::size_t>(e[k]) + 1];
+    }
+    el.Dm_inv = Dm_inv.template cast<T>();
+    el.volume = static_cast<T>(V0);
+    part.elements.push_back(el);
+  }
+  for (std::size_t v = 0; v < nv; ++v) count[v + 1] += count[v];
+  part.vertex_start = count;
+  part.vertex_elements.assign(static_cast<std::size_t>(count[nv]), 0);
+  std::vector<int> fill(count.begin(), count.end() - 1);
+  for (std::size_t e = 0; e < part.elements.size(); ++e)
+    for (int k = 0; k < 4; ++k)
+      part.vertex_elements[static_cast<std::size_t>(fill[static_cast<std::size_t>(part.elements[e].v[k])]++)] =
+          static_cast<int>(4 * e + k);
+  const double rho = body.spec.material.rho;
+  for (std::size_t v = 0; v < nv; ++v) {
+    part.lumped_volume[v] = static_cast<T>(lumped[v]);
+    body.volume[v] = static_cast<T>(lumped[v]);
+    body.mass[v] = static_cast<T>(rho * lumped[v]);  // a vertex in no element carries no mass (the parser warned)
+  }
+  part.force.assign(nv, Vec3T::zero());
+  part.force_next.assign(nv, Vec3T::zero());
+  std::visit(
+      [&](auto& mb) {
+        using M = typename std::decay_t<decltype(mb)>::material_type;
+        if constexpr (kMeshLaw<M, T>) {
+          const MeshPassResult r = mesh_pass<M>(body, mb.params, body.x, part.force, mb.state);
+          if (r.inverted > 0)
+            throw std::invalid_argument("meshes[" + std::to_string(body.spec.mesh) + "]: element " +
+                                        std::to_string(r.first_inverted) + " is inverted at the start");
+          body.max_wave_speed = std::max(body.max_wave_speed, r.max_wave_speed);
+        } else {
+          throw std::invalid_argument("meshes[" + std::to_string(body.spec.mesh) + "].constitutive: " +
+                                      std::string(M::kJsonName) + " is not an element law (FixedCorotated, NeoHookean)");
+        }
+      },
+      body.material);
+}
+
+template <typename T, typename TG>
+template <typename M, typename States>
+typename CpuEngine<T, TG>::MeshPassResult CpuEngine<T, TG>::mesh_pass(const Body& body,
+                                                                     const material_params_t<M, T>& params,
+                                                                     const std::vector<Vec3T>& x,
+                                                                     std::vector<Vec3T>& force, States& states) const {
+  static_assert(kMeshLaw<M, T>, "mesh elements need a law whose state is F");
+  const MeshPart& part = body.mesh;
+  const int ne = static_cast<int>(part.elements.size());
+  const int nv = static_cast<int>(x.size());
+  MeshPassResult result;
+  if (nv == 0) return result;  // the mesh lives on another rank
+  std::vector<Mat3T> F(static_cast<std::size_t>(ne));
+  std::vector<T> J(static_cast<std::size_t>(ne));
+  long long inverted = 0, first = std::numeric_limits<long long>::max();
+#pragma omp parallel for schedule(static) reduction(+ : inverted) reduction(min : first) if (ne >= kMinParallelParticles)
+  for (int e = 0; e < ne; ++e) {
+    const TetElement<T>& el = part.elements[static_cast<std::size_t>(e)];
+    F[static_cast<std::size_t>(e)] = tet_deformation_gradient(el, x[el.v[0]], x[el.v[1]], x[el.v[2]], x[el.v[3]]);
+    J[static_cast<std::size_t>(e)] = determinant(F[static_cast<std::size_t>(e)]);
+    if (!(J[static_cast<std::size_t>(e)] > T(0))) {
+      ++inverted;
+      first = std::min(first, static_cast<long long>(e));
+    }
+  }
+  result.inverted = inverted;
+  result.first_inverted = inverted > 0 ? first : -1;
+  if (inverted > 0) return result;  // the try fails; nothing below means anything
+
+  // Per vertex, the V0-weighted means of its elements' J (F-bar) and F (its state), in element order.
+  std::vector<T> vertex_J(part.fbar_psi != T(0) ? static_cast<std::size_t>(nv) : 0);
+  T max_wave = T(0);
+#pragma omp parallel for schedule(static) reduction(max : max_wave) if (nv >= kMinParallelParticles)
+  for (int v = 0; v < nv; ++v) {
+    Mat3T sum_F = Mat3T::zero();
+    T sum_J = T(0), sum_V = T(0);
+    for (int c = part.vertex_start[static_cast<std::size_t>(v)]; c < part.vertex_start[static_cast<std::size_t>(v) + 1]; ++c) {
+      const int e = part.vertex_elements[static_cast<std::size_t>(c)] / 4;
+      const T V = part.elements[static_cast<std::size_t>(e)].volume;
+      sum_F += F[static_cast<std::size_t>(e)] * V;
+      sum_J += J[static_cast<std::size_t>(e)] * V;
+      sum_V += V;
+    }
+    const material_state_t<M, T> s{sum_V > T(0) ? sum_F / sum_V : Mat3T::identity()};
+    states[static_cast<std::size_t>(v)] = s;
+    if (!vertex_J.empty()) vertex_J[static_cast<std::size_t>(v)] = sum_V > T(0) ? sum_J / sum_V : T(1);
+    max_wave = std::max(max_wave, M::wave_speed(params, s));
+  }
+  result.max_wave_speed = static_cast<double>(max_wave);
+
+  // Element forces H = [f1 f2 f3] (f0 = -(f1 + f2 + f3)), then gathered per vertex in element order (deterministic).
+  std::vector<Mat3T> H(static_cast<std::size_t>(ne));
+  if (part.forces) {
+#pragma omp parallel for schedule(static) if (ne >= kMinParallelParticles)
+    for (int e = 0; e < ne; ++e) {
+      const TetElement<T>& el = part.elements[static_cast<std::size_t>(e)];
+      Mat3T Fe = F[static_cast<std::size_t>(e)];
+      if (part.fbar_psi != T(0)) {
+        const T Jbar = T(0.25) * (vertex_J[el.v[0]] + vertex_J[el.v[1]] + vertex_J[el.v[2]] + vertex_J[el.v[3]]);
+        Fe = tet_fbar_gradient(Fe, J[static_cast<std::size_t>(e)], Jbar, part.fbar_psi);
+      }
+      const StressResult<T> stress = M::kirchhoff_stress(params, material_state_t<M, T>{Fe}, Mat3T::zero());
+      H[static_cast<std::size_t>(e)] = tet_nodal_forces(el, stress.kirchhoff, Fe);
+    }
+  }
+  force.resize(static_cast<std::size_t>(nv));
+#pragma omp parallel for schedule(static) if (nv >= kMinParallelParticles)
+  for (int v = 0; v < nv; ++v) {
+    Vec3T f = Vec3T::zero();
+    if (part.forces)
+      for (int c = part.vertex_start[static_cast<std::size_t>(v)]; c < part.vertex_start[static_cast<std::size_t>(v) + 1]; ++c) {
+        const int corner = part.vertex_elements[static_cast<std::size_t>(c)];
+        const Mat3T& h = H[static_cast<std::size_t>(corner / 4)];
+        const int k = corner % 4;
+        for (int a = 0; a < 3; ++a) f[a] += k == 0 ? -(h(a, 0) + h(a, 1) + h(a, 2)) : h(a, k - 1);
+      }
+    force[static_cast<std::size_t>(v)] = f;
+  }
+  return result;
+}
+
+template <typename T, typename TG>
+typename CpuEngine<T, TG>::MeshPassResult CpuEngine<T, TG>::mesh_after_g2p(Body& body) {
+  MeshPassResult r;
+  std::visit(
+      [&](auto& mb) {
+        using M = typename std::decay_t<decltype(mb)>::material_type;
+        if constexpr (kMeshLaw<M, T>) r = mesh_pass<M>(body, mb.params, body.x_next, body.mesh.force_next, mb.next_state);
+      },
+      body.material);
+  return r;
+}
+
+template <typename T, typename TG>
+double CpuEngine<T, TG>::mesh_elastic_energy(const Body& body) const {
+  double e = 0.0;
+  std::visit(
+      [&](const auto& mb) {
+        using M = typename std::decay_t<decltype(mb)>::material_type;
+        if constexpr (kMeshLaw<M, T>) {
+          for (const TetElement<T>& el : body.mesh.elements) {
+            const Mat3T F = tet_deformation_gradient(el, body.x[el.v[0]], body.x[el.v[1]], body.x[el.v[2]], body.x[el.v[3]]);
+            e += static_cast<double>(el.volume) *
+                 static_cast<double>(M::energy_density(mb.params, material_state_t<M, T>{F}));
+          }
+        }
+      },
+      body.material);
+  return e;
+}
+
+template class CpuEngine<double, double>;
+template class CpuEngine<float, float>;
+template class CpuEngine<double, float>;
+
+}  // namespace fbar
