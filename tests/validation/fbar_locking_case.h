@@ -30,7 +30,11 @@
 #include <tuple>
 #include <vector>
 
+#include <memory>
+
 #include "engine/cpu/cpu_engine.h"
+#include "geometry/tet_mesh.h"
+#include "scene/scene_parse.h"
 #include "validation_support.h"
 
 namespace fbar {
@@ -54,18 +58,37 @@ struct LockingResult {
   double seconds = 0;
 };
 
+/// mesh: the block as an FEM mesh (FixedCorotated tetrahedra on cubes of dx / 2, Kuhn's six each), psi its F-bar
+/// elements' ratio (use_FBAR, FBAR_ratio; physics/fem.cuh), instead of particles with F-bar's psi.
 template <class Engine = CpuEngine<double>>
-LockingResult run_block(double nu, double psi, double dx, int periods_wanted) {
+LockingResult run_block(double nu, double psi, double dx, int periods_wanted, bool mesh = false) {
   validation::Stopwatch clock;
   const double x0 = 0.1, y0 = dx + validation::wall_inset(validation::WallFit::LastWallNodePlane, dx);
   const double z0 = y0, thickness = 2 * dx;
   Scene scene = validation::make_scene(r3(x0 + kH + 0.1, y0 + kH + 2 * dx, z0 + thickness + 2 * dx), dx,
                                        r3(0, -kG, 0));
-  BodySpec block = validation::fixed_corotated_body(kRho, kE, nu);
-  block.algorithm.use_fbar = psi != 0.0;
-  block.algorithm.fbar_psi = psi;
-  validation::add_box(block, r3(x0, y0, z0), r3(kH, kH, thickness));
-  scene.bodies.push_back(block);
+  if (mesh) {
+    MeshEntrySpec m;
+    m.law = Constitutive::FixedCorotated;
+    m.rho = kRho;
+    m.youngs_modulus = kE;
+    m.poisson_ratio = nu;
+    m.use_fem = true;
+    m.use_asflip = false;
+    m.fbar_elements = psi != 0.0;
+    m.fbar_ratio = psi;
+    const int n = static_cast<int>(std::lround(2 * kH / dx)), nz = static_cast<int>(std::lround(2 * thickness / dx));
+    m.mesh = std::make_shared<const TetMesh>(
+        box_tet_mesh(Vec3d{{x0, y0, z0}}, Vec3d{{x0 + kH, y0 + kH, z0 + thickness}}, Vec3i{{n, n, nz}}));
+    scene.meshes.push_back(m);
+    append_mesh_bodies(scene);
+  } else {
+    BodySpec block = validation::fixed_corotated_body(kRho, kE, nu);
+    block.algorithm.use_fbar = psi != 0.0;
+    block.algorithm.fbar_psi = psi;
+    validation::add_box(block, r3(x0, y0, z0), r3(kH, kH, thickness));
+    scene.bodies.push_back(block);
+  }
   scene.boundaries.push_back(validation::wall_box(Contact::Slip, r3(-validation::kFar, y0, z0),
                                                   r3(validation::kFar, validation::kFar, z0 + thickness), dx,
                                                   validation::WallFit::LastWallNodePlane));
@@ -159,9 +182,9 @@ LockingResult run_block(double nu, double psi, double dx, int periods_wanted) {
   r.checkerboard = std::sqrt(cb2 / n) / scale;
   r.ok = true;
   r.seconds = clock.seconds();
-  std::printf("block nu %.4f psi %.2f dx %.4f: settlement / exact %.4f, pressure RMS error %.4f rho g H, "
+  std::printf("%s block nu %.4f psi %.2f dx %.4f: settlement / exact %.4f, pressure RMS error %.4f rho g H, "
               "checkerboard %.4f rho g H (%d periods, %lld steps, %zu particles, %.1f s)\n",
-              nu, psi, dx, r.settlement_ratio, r.pressure_rms, r.checkerboard, r.periods, r.steps, r.particles,
+              mesh ? "FEM" : "particle", nu, psi, dx, r.settlement_ratio, r.pressure_rms, r.checkerboard, r.periods, r.steps, r.particles,
               r.seconds);
   return r;
 }

@@ -16,7 +16,8 @@
 // its elements' J weighted by V0_e, each element takes the mean of its four vertices' averages, Jbar, and its stress
 // from Fbar = (Jbar_mix / J)^(1/3) F with Jbar_mix = (1 - psi) J + psi Jbar (psi = meshes[].FBAR_ratio; ClaymoreUW
 // reads FBAR_ratio and uses psi = 1: fbar's default is the same when use_FBAR is given without a ratio).
-// A vertex's state (its frames, sensors and wave speed) is the V0-weighted mean of its elements' F.
+// A vertex's state (its frames, sensors and wave speed) is the V0-weighted mean of the gradients its elements' stresses
+// use (F, or the F-bar elements' gradient): the stress a frame shows at a vertex is the mean of its elements'.
 // Time step: an element of smallest height h (3 V / largest face area) bounds dt by CFL h / c_p beside the grid's
 // CFL dx / (c_p + |v|) (explicit FEM; CpuEngine::next_dt).
 #pragma once

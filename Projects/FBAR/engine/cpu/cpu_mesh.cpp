@@ -115,55 +115,68 @@ typename CpuEngine<T, TG>::MeshPassResult CpuEngine<T, TG>::mesh_pass(const Body
   result.first_inverted = inverted > 0 ? first : -1;
   if (inverted > 0) return result;  // the try fails; nothing below means anything
 
-  // Per vertex, the V0-weighted means of its elements' J (F-bar) and F (its state), in element order.
-  std::vector<T> vertex_J(part.fbar_psi != T(0) ? static_cast<std::size_t>(nv) : 0);
+  // F-bar elements: each vertex's V0-weighted mean of its elements' J (in element order), then each element's
+  // gradient scaled to the blend of its J and the mean of its four vertices' (physics/fem.cuh).
+  const auto each_corner = [&](int v, auto&& fn) {
+    for (int c = part.vertex_start[static_cast<std::size_t>(v)]; c < part.vertex_start[static_cast<std::size_t>(v) + 1]; ++c)
+      fn(part.vertex_elements[static_cast<std::size_t>(c)]);
+  };
+  if (part.fbar_psi != T(0)) {
+    std::vector<T> vertex_J(static_cast<std::size_t>(nv));
+#pragma omp parallel for schedule(static) if (nv >= kMinParallelParticles)
+    for (int v = 0; v < nv; ++v) {
+      T sum_J = T(0), sum_V = T(0);
+      each_corner(v, [&](int corner) {
+        const T V = part.elements[static_cast<std::size_t>(corner / 4)].volume;
+        sum_J += J[static_cast<std::size_t>(corner / 4)] * V;
+        sum_V += V;
+      });
+      vertex_J[static_cast<std::size_t>(v)] = sum_V > T(0) ? sum_J / sum_V : T(1);
+    }
+#pragma omp parallel for schedule(static) if (ne >= kMinParallelParticles)
+    for (int e = 0; e < ne; ++e) {
+      const TetElement<T>& el = part.elements[static_cast<std::size_t>(e)];
+      const T Jbar = T(0.25) * (vertex_J[el.v[0]] + vertex_J[el.v[1]] + vertex_J[el.v[2]] + vertex_J[el.v[3]]);
+      F[static_cast<std::size_t>(e)] = tet_fbar_gradient(F[static_cast<std::size_t>(e)], J[static_cast<std::size_t>(e)],
+                                                         Jbar, part.fbar_psi);
+    }
+  }
+
+  // Element forces H = [f1 f2 f3] (f0 = -(f1 + f2 + f3)) from the gradient the element's stress uses.
+  std::vector<Mat3T> H(part.forces ? static_cast<std::size_t>(ne) : 0);
+  if (part.forces) {
+#pragma omp parallel for schedule(static) if (ne >= kMinParallelParticles)
+    for (int e = 0; e < ne; ++e) {
+      const Mat3T& Fe = F[static_cast<std::size_t>(e)];
+      const StressResult<T> stress = M::kirchhoff_stress(params, material_state_t<M, T>{Fe}, Mat3T::zero());
+      H[static_cast<std::size_t>(e)] = tet_nodal_forces(part.elements[static_cast<std::size_t>(e)], stress.kirchhoff, Fe);
+    }
+  }
+  // Per vertex, in element order (deterministic): its state, the V0-weighted mean of those gradients (so a vertex's
+  // stress is the mean of what its elements use), and the sum of its elements' forces.
+  force.resize(static_cast<std::size_t>(nv));
   T max_wave = T(0);
 #pragma omp parallel for schedule(static) reduction(max : max_wave) if (nv >= kMinParallelParticles)
   for (int v = 0; v < nv; ++v) {
     Mat3T sum_F = Mat3T::zero();
-    T sum_J = T(0), sum_V = T(0);
-    for (int c = part.vertex_start[static_cast<std::size_t>(v)]; c < part.vertex_start[static_cast<std::size_t>(v) + 1]; ++c) {
-      const int e = part.vertex_elements[static_cast<std::size_t>(c)] / 4;
+    T sum_V = T(0);
+    Vec3T f = Vec3T::zero();
+    each_corner(v, [&](int corner) {
+      const int e = corner / 4, k = corner % 4;
       const T V = part.elements[static_cast<std::size_t>(e)].volume;
       sum_F += F[static_cast<std::size_t>(e)] * V;
-      sum_J += J[static_cast<std::size_t>(e)] * V;
       sum_V += V;
-    }
+      if (part.forces) {
+        const Mat3T& h = H[static_cast<std::size_t>(e)];
+        for (int a = 0; a < 3; ++a) f[a] += k == 0 ? -(h(a, 0) + h(a, 1) + h(a, 2)) : h(a, k - 1);
+      }
+    });
     const material_state_t<M, T> s{sum_V > T(0) ? sum_F / sum_V : Mat3T::identity()};
     states[static_cast<std::size_t>(v)] = s;
-    if (!vertex_J.empty()) vertex_J[static_cast<std::size_t>(v)] = sum_V > T(0) ? sum_J / sum_V : T(1);
+    force[static_cast<std::size_t>(v)] = f;
     max_wave = std::max(max_wave, M::wave_speed(params, s));
   }
   result.max_wave_speed = static_cast<double>(max_wave);
-
-  // Element forces H = [f1 f2 f3] (f0 = -(f1 + f2 + f3)), then gathered per vertex in element order (deterministic).
-  std::vector<Mat3T> H(static_cast<std::size_t>(ne));
-  if (part.forces) {
-#pragma omp parallel for schedule(static) if (ne >= kMinParallelParticles)
-    for (int e = 0; e < ne; ++e) {
-      const TetElement<T>& el = part.elements[static_cast<std::size_t>(e)];
-      Mat3T Fe = F[static_cast<std::size_t>(e)];
-      if (part.fbar_psi != T(0)) {
-        const T Jbar = T(0.25) * (vertex_J[el.v[0]] + vertex_J[el.v[1]] + vertex_J[el.v[2]] + vertex_J[el.v[3]]);
-        Fe = tet_fbar_gradient(Fe, J[static_cast<std::size_t>(e)], Jbar, part.fbar_psi);
-      }
-      const StressResult<T> stress = M::kirchhoff_stress(params, material_state_t<M, T>{Fe}, Mat3T::zero());
-      H[static_cast<std::size_t>(e)] = tet_nodal_forces(el, stress.kirchhoff, Fe);
-    }
-  }
-  force.resize(static_cast<std::size_t>(nv));
-#pragma omp parallel for schedule(static) if (nv >= kMinParallelParticles)
-  for (int v = 0; v < nv; ++v) {
-    Vec3T f = Vec3T::zero();
-    if (part.forces)
-      for (int c = part.vertex_start[static_cast<std::size_t>(v)]; c < part.vertex_start[static_cast<std::size_t>(v) + 1]; ++c) {
-        const int corner = part.vertex_elements[static_cast<std::size_t>(c)];
-        const Mat3T& h = H[static_cast<std::size_t>(corner / 4)];
-        const int k = corner % 4;
-        for (int a = 0; a < 3; ++a) f[a] += k == 0 ? -(h(a, 0) + h(a, 1) + h(a, 2)) : h(a, k - 1);
-      }
-    force[static_cast<std::size_t>(v)] = f;
-  }
   return result;
 }
 
