@@ -343,9 +343,11 @@ void append_mesh_bodies(Scene& scene) {
     b.mesh = static_cast<int>(m);
     b.tet_mesh = e.mesh;
     b.gpu = e.gpu;
+    // Not a particle body's model (a body spread over N ranks writes model[m]_dev[r] for every rank r), nor an
+    // earlier mesh's on the same GPU.
     std::set<int> used;
     for (const BodySpec& o : scene.bodies)
-      if (o.gpu == e.gpu) used.insert(o.model);
+      if (o.mesh < 0 || o.gpu == e.gpu) used.insert(o.model);
     while (used.count(b.model)) ++b.model;
     b.velocity = e.velocity;
     b.output_attribs = e.output_attribs;

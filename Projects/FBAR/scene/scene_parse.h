@@ -44,8 +44,10 @@ void check_supported(const Scene& scene);
 /// One body per meshes[] entry, appended after the particle bodies (BodySpec::mesh = its index): gpu, velocity,
 /// output and tracking from the entry; material law, rho, E, nu and ppc from it, type "particles" (the vertices are
 /// particles to every part of fbar but the engines' stress, physics/fem.cuh); ASFLIP from use_ASFLIP, alpha and
-/// beta_min/max; use_FEM from use_FEM; no particle F-bar (use_FBAR is the elements'). Its model number is the first one no particle body
-/// on its GPU uses (ClaymoreUW puts a mesh in model 0 of its GPU, which a particle body there would overwrite).
+/// beta_min/max; use_FEM from use_FEM; no particle F-bar (use_FBAR is the elements'). Its model number is the first
+/// one that no particle body uses and no earlier mesh on its GPU (its frames model[m]_dev[gpu] then never share a name:
+/// a spread body writes model[m]_dev[r] on every rank r; ClaymoreUW puts a mesh in model 0 of its GPU, which a
+/// particle body there would overwrite).
 /// Bodies already appended are replaced. The parser calls it; so do programs that build a scene in code.
 void append_mesh_bodies(Scene& scene);
 
