@@ -96,12 +96,15 @@ TEST(FemElement, RigidRotationIsForceFreeAndForcesBalance) {
   for (int a = 0; a < 3; ++a) EXPECT_NEAR(moment[a], 0.0, 1e-12 * scale) << a;
 }
 
-// Patch test: a box mesh of Kuhn tetrahedra under a homogeneous deformation x = A X has no net force at its inner
-// vertices (the elements around each cancel), and the forces on its faces add up to the traction sigma n times the
-// face's area.
-TEST(FemElement, HomogeneousDeformationOfAMeshLeavesInnerVerticesFree) {
+// Patch test, for both element laws: a box mesh of Kuhn tetrahedra under a homogeneous deformation x = A X has no net
+// force at its inner vertices (the elements around each cancel), and the nodal forces do the virtual work of the
+// first Piola-Kirchhoff stress (below).
+template <typename M>
+void expect_patch_test() {
   const TetMesh mesh = box_tet_mesh(Vec3d::zero(), Vec3d{{1.0, 0.5, 0.5}}, Vec3i{{4, 2, 2}});
-  const auto params = FixedCorotated::make_params<double>(elastic(1e6, 0.25));
+  MaterialSpec spec = elastic(1e6, 0.25);
+  spec.law = M::kLaw;
+  const auto params = M::template make_params<double>(spec);
   Mat3d A = Mat3d::identity();
   A(0, 0) = 1.02;
   A(0, 1) = 0.01;
@@ -114,7 +117,7 @@ TEST(FemElement, HomogeneousDeformationOfAMeshLeavesInnerVerticesFree) {
   for (const auto& el : mesh.elements) {
     const TetElement<double> e = make_element(mesh.vertices[el[0]], mesh.vertices[el[1]], mesh.vertices[el[2]], mesh.vertices[el[3]]);
     const Mat3d F = tet_deformation_gradient(e, x[el[0]], x[el[1]], x[el[2]], x[el[3]]);
-    tau = FixedCorotated::kirchhoff_stress(params, FixedCorotatedState<double>{F}, Mat3d::zero()).kirchhoff;
+    tau = M::kirchhoff_stress(params, FixedCorotatedState<double>{F}, Mat3d::zero()).kirchhoff;
     const Mat3d H = tet_nodal_forces(e, tau, F);
     for (int a = 0; a < 3; ++a) {
       f[el[1]][a] += H(a, 0);
@@ -139,6 +142,11 @@ TEST(FemElement, HomogeneousDeformationOfAMeshLeavesInnerVerticesFree) {
   const Mat3d P = tau * transpose(inverse(A));
   for (int a = 0; a < 3; ++a)
     for (int b = 0; b < 3; ++b) EXPECT_NEAR(virtual_work(a, b), -0.25 * P(a, b), 1e-9 * scale) << a << b;
+}
+
+TEST(FemElement, HomogeneousDeformationOfAMeshLeavesInnerVerticesFree) {
+  expect_patch_test<FixedCorotated>();
+  expect_patch_test<NeoHookean>();
 }
 
 // The F-bar element's gradient keeps F's shape and takes the blended volume ratio.

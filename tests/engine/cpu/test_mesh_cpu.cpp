@@ -241,5 +241,40 @@ TEST(MeshCpu, ParsedMeshBecomesABody) {
   fs::remove_all(dir);
 }
 
+// A Gmsh mesh (MSH 4.1, fbar's `file`) of NeoHookean tetrahedra runs like a CSV one: the bad-scene corpus's two
+// tetrahedra dropped onto a Sticky floor come to rest on it with their mass.
+TEST(MeshCpu, GmshNeoHookeanMeshRuns) {
+  const std::string json = R"({"simulation": {"domain": [1, 1, 1], "default_dx": 0.05, "gravity": [0, -9.81, 0]},
+    "bodies": [{"material": {"constitutive": "JFluid"}, "geometry": [{"object": "Box", "span": [0.1, 0.1, 0.1],
+                "offset": [0.1, 0.1, 0.1]}]}],
+    "boundaries": [{"object": "Walls", "contact": "Sticky", "domain_start": [0.05, 0.05, 0.05],
+                    "domain_end": [0.95, 0.95, 0.95]}],
+    "meshes": [{"constitutive": "NeoHookean", "file": "mesh_two_tetrahedra.msh", "offset": [0.5, 0.3, 0.5],
+                "rho": 1000, "youngs_modulus": 1e6, "poisson_ratio": 0.3, "use_FEM": true}]})";
+  ParseOptions o;
+  o.data_dir = std::string(FBAR_SOURCE_DIR) + "/tests/scenes/bad";
+  const Scene scene = parse_scene_string(json, o);
+  ASSERT_EQ(scene.bodies.size(), 2u);
+  EXPECT_EQ(scene.bodies[1].material.law, Constitutive::NeoHookean);
+  CpuEngine<double> engine(scene);
+  engine.set_log(nullptr);
+  double mesh_mass = 0, volume = 0;
+  for (double m : engine.masses(1)) mesh_mass += m;
+  const TetMesh& mesh = *scene.meshes[0].mesh;
+  for (const auto& e : mesh.elements)
+    volume += tet_volume(mesh.vertices[e[0]], mesh.vertices[e[1]], mesh.vertices[e[2]], mesh.vertices[e[3]]);
+  EXPECT_NEAR(mesh_mass, 1000.0 * volume, 1e-12 * 1000.0 * volume);
+  const StepReport r = engine.advance_to(0.4);
+  ASSERT_TRUE(r.ok) << r.message();
+  double lowest = 1e9, speed = 0;
+  for (std::size_t i = 0; i < engine.positions(1).size(); ++i) {
+    lowest = std::min(lowest, engine.positions(1)[i][1]);
+    speed = std::max(speed, norm(engine.velocities(1)[i]));
+  }
+  EXPECT_LT(lowest, 0.05 + 0.05);  // fell from 0.3 m to the floor at 0.05 m (within a cell)
+  EXPECT_GT(lowest, 0.05 - 0.01);
+  EXPECT_LT(speed, 0.05);
+}
+
 }  // namespace
 }  // namespace fbar
