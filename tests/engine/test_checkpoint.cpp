@@ -215,7 +215,9 @@ void expect_frame_restart(int ranks, const std::function<void(Scene&)>& change =
   EXPECT_EQ(resumed.restarted_from_frame, 2);
   EXPECT_EQ(resumed.steps, full.steps);
   EXPECT_EQ(resumed.end_time, full.end_time);
-  expect_same_output(a, b, 2, ranks, 5 + static_cast<int>(scene.grid_sensors.size()));
+  // CSVs: the tracker's, each particle sensor's per body, each grid sensor's.
+  expect_same_output(a, b, 2, ranks,
+                     1 + static_cast<int>(scene.particle_sensors.size() * scene.bodies.size() + scene.grid_sensors.size()));
 }
 
 TEST(Restart, FromAFrameCheckpointContinuesBitForBit) { expect_frame_restart(1); }
@@ -237,6 +239,29 @@ TEST(Restart, SaturatedSoilContinuesBitForBit) {
   };
   expect_frame_restart(1, saturate, "_saturated");
   expect_frame_restart(2, saturate, "_saturated");
+}
+
+// A mesh (FEM body) placed on rank 1 continues bit for bit from its rank's checkpoint: the rank without it holds its
+// elements and no vertex (the run's sensor rows over the mesh's vertices, and every other body's frames, are the
+// full run's bytes), on one rank and on two.
+TEST(Restart, MeshContinuesBitForBit) {
+  const auto add_mesh = [](Scene& scene) {
+    MeshEntrySpec m;
+    m.law = Constitutive::FixedCorotated;
+    m.rho = 800.0;
+    m.youngs_modulus = 2e5;
+    m.poisson_ratio = 0.3;
+    m.use_fem = true;
+    m.use_asflip = false;
+    m.gpu = 1;
+    m.output_attribs = {"ID", "Velocity_Y", "J"};
+    m.mesh = std::make_shared<const TetMesh>(box_tet_mesh(Vec3d{{0.3, 0.26, 0.06}}, Vec3d{{0.36, 0.32, 0.12}},
+                                                          Vec3i{{3, 3, 3}}));
+    scene.meshes.push_back(m);
+    append_mesh_bodies(scene);
+  };
+  expect_frame_restart(1, add_mesh, "_mesh");
+  expect_frame_restart(2, add_mesh, "_mesh");
 }
 
 // "Run longer": a run of 3 frames continued from its last frame's checkpoint to 6 frames writes what one 6-frame run

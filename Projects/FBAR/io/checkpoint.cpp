@@ -458,7 +458,7 @@ void check_matches(const Checkpoint& c, const Scene& scene) {
   for (std::size_t b = 0; b < c.bodies.size(); ++b) {
     const CheckpointBody& body = c.bodies[b];
     const Constitutive law = scene.bodies[b].material.law;
-    const std::string where = "--restart: bodies[" + std::to_string(b) + "]";
+    const std::string where = "--restart: " + body_path(scene, b);
     if (body.law != to_string(law))
       throw std::invalid_argument(where + ".material.constitutive is " + to_string(law) + ", the checkpoint's body " +
                                   std::to_string(b) + " is " + body.law);

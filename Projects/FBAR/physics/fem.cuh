@@ -15,11 +15,14 @@
 // use_FBAR (ClaymoreUW's Tetrahedron_FBar, against volumetric locking of linear tetrahedra): each vertex averages
 // its elements' J weighted by V0_e, each element takes the mean of its four vertices' averages, Jbar, and its stress
 // from Fbar = (Jbar_mix / J)^(1/3) F with Jbar_mix = (1 - psi) J + psi Jbar (psi = meshes[].FBAR_ratio; ClaymoreUW
-// reads FBAR_ratio and uses psi = 1: fbar's default is the same when use_FBAR is given without a ratio).
+// reads FBAR_ratio and uses psi = 1: fbar's default is the same when use_FBAR is given without a ratio). The element's
+// force is then -V0 tau(Fbar) Fbar^-T Dm^-T, the plain element's formula at Fbar: not the energy-consistent F-bar
+// force (-V0 (J / Jbar) tau(Fbar) F^-T Dm^-T), from which it differs by a factor that is 1 where J = Jbar.
 // A vertex's state (its frames, sensors and wave speed) is the V0-weighted mean of the gradients its elements' stresses
 // use (F, or the F-bar elements' gradient): the stress a frame shows at a vertex is the mean of its elements'.
-// Time step: an element of smallest height h (3 V / largest face area) bounds dt by CFL h / c_p beside the grid's
-// CFL dx / (c_p + |v|) (explicit FEM; CpuEngine::next_dt).
+// Time step: an element of smallest height h (3 V / largest face area, at rest) bounds dt by CFL h / c_p beside the
+// grid's CFL dx / (c_p + |v|) (explicit FEM; run_constants.h body_element_step_bound): a mesh squeezed to a
+// fraction of its rest heights needs a smaller CFL number.
 #pragma once
 
 #include <cmath>

@@ -23,7 +23,8 @@ std::vector<FrameAttributeSpec> frame_attributes(const BodySpec& spec, int body,
     if (seen) continue;  // listed twice (e.g. an alias and its canonical name)
     FrameAttributeSpec a;
     if (!resolve_frame_attribute(name, a))
-      throw std::invalid_argument("bodies[" + std::to_string(body) + "].output_attribs: " + requested +
+      throw std::invalid_argument((spec.mesh >= 0 ? "meshes[" + std::to_string(spec.mesh) + "]" : "bodies[" + std::to_string(body) + "]") +
+                                  ".output_attribs: " + requested +
                                   " is not available on the " + engine);
     out.push_back(a);
   }
@@ -161,7 +162,7 @@ std::vector<BodyTracker> make_trackers(const Scene& scene) {
   for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
     const BodySpec& body = scene.bodies[b];
     if (body.track_particle_id.empty()) continue;
-    const std::string where = "bodies[" + std::to_string(b) + "]";
+    const std::string where = body_path(scene, b);
     BodyTracker t;
     t.body = static_cast<int>(b);
     t.ids = body.track_particle_id;

@@ -191,8 +191,11 @@ struct MeshEntrySpec {
   std::vector<std::string> track_attribs;
   std::vector<long long> track_particle_id;
   std::string summary;                       ///< "8 vertices, 6 tetrahedra, volume ... m^3, ..."
-  /// The mesh, its vertices placed at offset [m] (read once at parse; shared by the copies of the scene).
+  /// The mesh, its vertices placed at offset [m] (read once at parse; shared by the copies of the scene): the file's
+  /// vertex x s + offset, s the Froude length factor (one way for a scene and for its written copy: both give the
+  /// same bits).
   std::shared_ptr<const TetMesh> mesh;
+  std::shared_ptr<const TetMesh> file_mesh;  ///< as the files hold it (unscaled, not placed)
 };
 
 struct Scene {
@@ -208,5 +211,11 @@ struct Scene {
   /// metadata that ClaymoreUW prints and fbar records (the scene writer, hence run.json); nothing reads them.
   std::vector<std::pair<std::string, std::string>> wrapper;
 };
+
+/// The JSON path of body b in messages: "meshes[m]" for a mesh's body (BodySpec::mesh), else "bodies[b]".
+inline std::string body_path(const Scene& scene, std::size_t b) {
+  const int m = b < scene.bodies.size() ? scene.bodies[b].mesh : -1;
+  return m >= 0 ? "meshes[" + std::to_string(m) + "]" : "bodies[" + std::to_string(b) + "]";
+}
 
 }  // namespace fbar

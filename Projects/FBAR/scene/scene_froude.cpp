@@ -103,10 +103,16 @@ void apply_froude_scaling(Scene& scene) {
     scale3(m.velocity, velocity);
     if (c > 0.0) m.youngs_modulus *= c;
     if (m.mesh) {
-      TetMesh scaled = *m.mesh;
-      for (Vec3d& x : scaled.vertices) x *= length;
-      m.summary = describe(check_tet_mesh(scaled, "meshes[]"));  // what a re-read of the written scene says
-      m.mesh = std::make_shared<const TetMesh>(std::move(scaled));
+      // The file's vertices x s + the scaled offset: the operations a re-read of the written scene does, so both
+      // give the same bits (read_mesh_entry). A mesh built in code without its file's copy is scaled as placed.
+      const Vec3d offset{{m.offset[0], m.offset[1], m.offset[2]}};
+      TetMesh unplaced = m.file_mesh ? *m.file_mesh : *m.mesh;
+      for (Vec3d& x : unplaced.vertices) x *= length;
+      m.summary = describe(check_tet_mesh(unplaced, "meshes[]"));  // what the re-read says: the scaled file mesh
+      TetMesh placed = unplaced;
+      if (m.file_mesh)
+        for (Vec3d& x : placed.vertices) x += offset;
+      m.mesh = std::make_shared<const TetMesh>(std::move(placed));
     }
   }
   bool mesh_bodies = false;  // appended already (a scene built in code): their keys come from the entries again

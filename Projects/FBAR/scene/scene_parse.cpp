@@ -299,6 +299,11 @@ MeshEntrySpec read_mesh_entry(const rj::Value& v, const std::string& path, const
   } catch (const std::runtime_error& e) {
     throw SceneError(source_key, source, std::string("a readable tetrahedral mesh (") + e.what() + ")");
   }
+  for (std::size_t i = 0; i < spec.track_particle_id.size(); ++i)  // trackers follow vertices by number
+    if (spec.track_particle_id[i] >= static_cast<long long>(mesh.vertices.size()))
+      throw SceneError(path + ".track_particle_id[" + std::to_string(i) + "]", std::to_string(spec.track_particle_id[i]),
+                       "a vertex number of the mesh, 0 to " + std::to_string(mesh.vertices.size() - 1));
+  spec.file_mesh = std::make_shared<const TetMesh>(mesh);  // as the files hold it (Froude scaling places it again)
   if (vertex_scale != 1.0)
     for (Vec3d& x : mesh.vertices) x *= vertex_scale;
   TetMeshStats s;

@@ -233,7 +233,7 @@ void CpuEngine<T, TG>::init(const std::vector<std::vector<Vec3d>>& positions) {
   for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {
     const BodySpec& spec = scene_.bodies[b];
     check_engine_body(spec, static_cast<int>(b), "CPU engine");
-    const std::string where = "bodies[" + std::to_string(b) + "]";
+    const std::string where = body_path(scene_, b);
     const MaterialSpec& mat = spec.material;
     const AlgorithmSpec& alg = spec.algorithm;
 
@@ -361,6 +361,9 @@ typename CpuEngine<T, TG>::TryResult CpuEngine<T, TG>::try_step(double dt_in) {
       result.count[b][kInverted] += m.inverted;
       if (m.inverted > 0) result.first[b][kInverted] = std::min(result.first[b][kInverted], m.first_inverted);
       result.max_wave_speed[b] = std::max(result.max_wave_speed[b], m.max_wave_speed);
+      constexpr int kNonFinite = static_cast<int>(FailureKind::NonFinite);
+      result.count[b][kNonFinite] += m.nonfinite;
+      if (m.nonfinite > 0) result.first[b][kNonFinite] = std::min(result.first[b][kNonFinite], m.first_nonfinite);
     }
   }
   reduce_try(result, static_cast<double>(dt));  // the dt the step ran with (float in single precision)

@@ -351,8 +351,13 @@ class CpuEngine {
   /// smallest index). physics/fem.cuh.
   struct MeshPassResult {
     double max_wave_speed = 0.0;
-    long long inverted = 0, first_inverted = -1;
+    long long inverted = 0, first_inverted = -1;    // elements
+    long long nonfinite = 0, first_nonfinite = -1;  // vertices (ID): a NaN or Inf force or state
   };
+  /// Each element's gradient at positions x, the one its stress uses (F = Ds Dm^-1, scaled by F-bar's volume
+  /// ratio when use_FBAR); returns the elements with J <= 0 (then F is raw) and the first of them.
+  long long element_gradients(const Body& body, const std::vector<Vec3T>& x, std::vector<Mat3T>& F,
+                              long long& first_inverted) const;
   template <typename M, typename States>
   MeshPassResult mesh_pass(const Body& body, const material_params_t<M, T>& params, const std::vector<Vec3T>& x,
                            std::vector<Vec3T>& force, States& states) const;

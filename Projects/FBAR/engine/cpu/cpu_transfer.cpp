@@ -472,7 +472,7 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
               int failed = -1;
               if (!finite) {
                 failed = static_cast<int>(FailureKind::NonFinite);
-              } else if (!(M::volume_ratio(s_new) > T(0))) {
+              } else if (!mesh && !(M::volume_ratio(s_new) > T(0))) {  // a mesh's elements: mesh_after_g2p
                 failed = static_cast<int>(FailureKind::Inverted);
               } else {
                 if (!inside_domain(x_new, domain, dx))
