@@ -246,18 +246,9 @@ TEST(Restart, SaturatedSoilContinuesBitForBit) {
 // full run's bytes), on one rank and on two.
 TEST(Restart, MeshContinuesBitForBit) {
   const auto add_mesh = [](Scene& scene) {
-    MeshEntrySpec m;
-    m.law = Constitutive::FixedCorotated;
-    m.rho = 800.0;
-    m.youngs_modulus = 2e5;
-    m.poisson_ratio = 0.3;
-    m.use_fem = true;
-    m.use_asflip = false;
-    m.gpu = 1;
+    MeshEntrySpec& m = test::add_elastic_mesh(
+        scene, box_tet_mesh(Vec3d{{0.3, 0.26, 0.06}}, Vec3d{{0.36, 0.32, 0.12}}, Vec3i{{3, 3, 3}}), 800.0, 2e5, 0.3, 1);
     m.output_attribs = {"ID", "Velocity_Y", "J"};
-    m.mesh = std::make_shared<const TetMesh>(box_tet_mesh(Vec3d{{0.3, 0.26, 0.06}}, Vec3d{{0.36, 0.32, 0.12}},
-                                                          Vec3i{{3, 3, 3}}));
-    scene.meshes.push_back(m);
     append_mesh_bodies(scene);
   };
   expect_frame_restart(1, add_mesh, "_mesh");

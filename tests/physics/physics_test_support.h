@@ -3,12 +3,15 @@
 
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "MnBase/Math/vec.h"
+#include "geometry/tet_mesh.h"
 #include "scene/scene.h"
+#include "scene/scene_parse.h"
 
 namespace fbar::test {
 
@@ -98,5 +101,25 @@ inline ParticleSensorSpec particle_sensor_spec(const std::string& attribute, Sen
 
 constexpr double kEps = std::numeric_limits<double>::epsilon();
 constexpr float kEpsF = std::numeric_limits<float>::epsilon();
+
+/// Adds a mesh of FixedCorotated tetrahedra (rho [kg/m^3], E [Pa], nu) to `scene` as an FEM body (use_FEM, APIC
+/// vertices, on `gpu`, frames of "ID") and appends its body (append_mesh_bodies); returns the entry to adjust (call
+/// append_mesh_bodies again after changing what the body copies: gpu, velocity, law, rho, E, nu, outputs, scheme).
+inline MeshEntrySpec& add_elastic_mesh(Scene& scene, TetMesh mesh, double rho, double youngs_modulus,
+                                       double poisson_ratio, int gpu = 0) {
+  MeshEntrySpec m;
+  m.law = Constitutive::FixedCorotated;
+  m.rho = rho;
+  m.youngs_modulus = youngs_modulus;
+  m.poisson_ratio = poisson_ratio;
+  m.use_fem = true;
+  m.use_asflip = false;
+  m.gpu = gpu;
+  m.output_attribs = {"ID"};
+  m.mesh = std::make_shared<const TetMesh>(std::move(mesh));
+  scene.meshes.push_back(std::move(m));
+  append_mesh_bodies(scene);
+  return scene.meshes.back();
+}
 
 }  // namespace fbar::test

@@ -26,6 +26,7 @@
 #include "engine/cpu/cpu_engine.h"
 #include "geometry/tet_mesh.h"
 #include "scene/scene_parse.h"
+#include "../physics/physics_test_support.h"
 #include "validation_support.h"
 
 namespace fbar::cantilever_case {
@@ -74,20 +75,11 @@ Result run(int n, bool fbar = false) {
   const double x0 = 4 * dx, y0 = 4 * dx, z0 = 2 * dx;  // the clamp plane x0 and the beam's low faces (node planes)
   const double embed = 2 * dx;                        // of the beam inside the clamp
   Scene scene = validation::make_scene(r3(x0 + kL + 4 * dx, y0 + kH + 4 * dx, z0 + kB + 2 * dx), dx, r3(0, -kG, 0));
-  MeshEntrySpec m;
-  m.law = Constitutive::FixedCorotated;
-  m.rho = kRho;
-  m.youngs_modulus = kE;
-  m.poisson_ratio = kNu;
-  m.use_fem = true;
-  m.use_asflip = false;
-  m.fbar_elements = fbar;
-  m.gpu = 0;
   const int along = static_cast<int>(std::lround((kL + embed) / a));
-  m.mesh = std::make_shared<const TetMesh>(box_tet_mesh(Vec3d{{x0 - embed, y0, z0}}, Vec3d{{x0 + kL, y0 + kH, z0 + kB}},
-                                                        Vec3i{{along, n, n}}));
-  scene.meshes.push_back(m);
-  append_mesh_bodies(scene);
+  MeshEntrySpec& m = test::add_elastic_mesh(
+      scene, box_tet_mesh(Vec3d{{x0 - embed, y0, z0}}, Vec3d{{x0 + kL, y0 + kH, z0 + kB}}, Vec3i{{along, n, n}}), kRho,
+      kE, kNu);
+  m.fbar_elements = fbar;  // the elements' (not copied to the body)
   scene.boundaries.push_back(validation::wall_box(Contact::Sticky, r3(x0, -validation::kFar, -validation::kFar),
                                                   r3(validation::kFar, validation::kFar, validation::kFar), dx,
                                                   validation::WallFit::LastWallNodePlane));

@@ -35,6 +35,7 @@
 #include "engine/cpu/cpu_engine.h"
 #include "geometry/tet_mesh.h"
 #include "scene/scene_parse.h"
+#include "../physics/physics_test_support.h"
 #include "validation_support.h"
 
 namespace fbar {
@@ -68,20 +69,12 @@ LockingResult run_block(double nu, double psi, double dx, int periods_wanted, bo
   Scene scene = validation::make_scene(r3(x0 + kH + 0.1, y0 + kH + 2 * dx, z0 + thickness + 2 * dx), dx,
                                        r3(0, -kG, 0));
   if (mesh) {
-    MeshEntrySpec m;
-    m.law = Constitutive::FixedCorotated;
-    m.rho = kRho;
-    m.youngs_modulus = kE;
-    m.poisson_ratio = nu;
-    m.use_fem = true;
-    m.use_asflip = false;
-    m.fbar_elements = psi != 0.0;
-    m.fbar_ratio = psi;
     const int n = static_cast<int>(std::lround(2 * kH / dx)), nz = static_cast<int>(std::lround(2 * thickness / dx));
-    m.mesh = std::make_shared<const TetMesh>(
-        box_tet_mesh(Vec3d{{x0, y0, z0}}, Vec3d{{x0 + kH, y0 + kH, z0 + thickness}}, Vec3i{{n, n, nz}}));
-    scene.meshes.push_back(m);
-    append_mesh_bodies(scene);
+    MeshEntrySpec& m = test::add_elastic_mesh(
+        scene, box_tet_mesh(Vec3d{{x0, y0, z0}}, Vec3d{{x0 + kH, y0 + kH, z0 + thickness}}, Vec3i{{n, n, nz}}), kRho, kE,
+        nu);
+    m.fbar_elements = psi != 0.0;  // the elements' (not copied to the body)
+    m.fbar_ratio = psi;
   } else {
     BodySpec block = validation::fixed_corotated_body(kRho, kE, nu);
     block.algorithm.use_fbar = psi != 0.0;

@@ -20,6 +20,7 @@
 #include "engine/cpu/cpu_engine.h"
 #include "geometry/tet_mesh.h"
 #include "scene/scene_parse.h"
+#include "../physics/physics_test_support.h"
 #include "validation_support.h"
 
 namespace fbar::floating_case {
@@ -60,20 +61,13 @@ Result run(bool mesh) {
   water.geometry.push_back(hole);
   scene.bodies.push_back(water);
   if (mesh) {
-    MeshEntrySpec m;
-    m.law = Constitutive::FixedCorotated;
-    m.rho = kRhoS;
-    m.youngs_modulus = 2e5;
-    m.poisson_ratio = 0.3;
-    m.use_fem = true;
-    m.use_asflip = false;
     const double a = kDx;
-    m.mesh = std::make_shared<const TetMesh>(box_tet_mesh(
-        Vec3d{{xb, yb, z0}}, Vec3d{{xb + kBlockL, yb + kBlockH, z0 + t}},
-        Vec3i{{static_cast<int>(std::lround(kBlockL / a)), static_cast<int>(std::lround(kBlockH / a)),
-               static_cast<int>(std::lround(t / a))}}));
-    scene.meshes.push_back(m);
-    append_mesh_bodies(scene);
+    test::add_elastic_mesh(scene,
+                           box_tet_mesh(Vec3d{{xb, yb, z0}}, Vec3d{{xb + kBlockL, yb + kBlockH, z0 + t}},
+                                        Vec3i{{static_cast<int>(std::lround(kBlockL / a)),
+                                               static_cast<int>(std::lround(kBlockH / a)),
+                                               static_cast<int>(std::lround(t / a))}}),
+                           kRhoS, 2e5, 0.3);
   } else {
     BodySpec block = validation::fixed_corotated_body(kRhoS, 2e5, 0.3);
     validation::add_box(block, r3(xb, yb, z0), r3(kBlockL, kBlockH, t));

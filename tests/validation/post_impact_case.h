@@ -19,6 +19,7 @@
 #include "engine/cpu/cpu_engine.h"
 #include "geometry/tet_mesh.h"
 #include "scene/scene_parse.h"
+#include "../physics/physics_test_support.h"
 #include "validation_support.h"
 
 namespace fbar::post_impact_case {
@@ -61,18 +62,11 @@ Result run(bool mesh) {
   scene.bodies.push_back(water);
   const Vec3d lo{{xp, y0 - kEmbed, z0}}, hi{{xp + kPostW, y0 + kPostH, z0 + t}};
   if (mesh) {
-    MeshEntrySpec m;
-    m.law = Constitutive::FixedCorotated;
-    m.rho = 1000.0;
-    m.youngs_modulus = 1e7;
-    m.poisson_ratio = 0.3;
-    m.use_fem = true;
-    m.use_asflip = false;
-    m.mesh = std::make_shared<const TetMesh>(box_tet_mesh(
-        lo, hi, Vec3i{{static_cast<int>(std::lround(kPostW / kDx)), static_cast<int>(std::lround((kPostH + kEmbed) / kDx)),
-                       static_cast<int>(std::lround(t / kDx))}}));
-    scene.meshes.push_back(m);
-    append_mesh_bodies(scene);
+    test::add_elastic_mesh(scene,
+                           box_tet_mesh(lo, hi, Vec3i{{static_cast<int>(std::lround(kPostW / kDx)),
+                                                       static_cast<int>(std::lround((kPostH + kEmbed) / kDx)),
+                                                       static_cast<int>(std::lround(t / kDx))}}),
+                           1000.0, 1e7, 0.3);
   } else {
     BodySpec post = validation::fixed_corotated_body(1000.0, 1e7, 0.3);
     validation::add_box(post, r3(lo[0], lo[1], lo[2]), r3(kPostW, kPostH + kEmbed, t));

@@ -62,19 +62,20 @@ std::size_t grid_scalar_bytes(Precision p) { return p == Precision::Double ? 8 :
 
 /// A mesh's part of its body's summary: elements, quality, the lumped vertex volume, the element step bound and the
 /// CPU engine's bytes for the elements (physics/fem.cuh).
-void summarize_mesh(BodySummary& s, const TetMesh& mesh, const BodySpec& body, const SimulationSpec& sim) {
-  const TetMeshStats f = check_tet_mesh(mesh, "meshes[" + std::to_string(body.mesh) + "]");
+void summarize_mesh(BodySummary& s, const Scene& scene, const BodySpec& body) {
+  const MeshEntrySpec& entry = scene.meshes.at(static_cast<std::size_t>(body.mesh));
+  const TetMeshStats& f = entry.stats;
   s.mesh = true;
-  s.elements = static_cast<long long>(mesh.elements.size());
+  s.elements = static_cast<long long>(f.elements);
   s.min_quality = f.min_quality;
   s.min_height = f.min_height;
-  s.particle_volume = f.volume / static_cast<double>(std::max<std::size_t>(1, mesh.vertices.size()));
+  s.particle_volume = f.volume / static_cast<double>(std::max<std::size_t>(1, f.vertices));
   s.particle_mass = body.material.rho * s.particle_volume;
   // Per element: TetElement (4 ints, Dm^-1, V0), 4 CSR corners, the pass's F, J and forces H; per vertex: the CSR
-  // start, the lumped volume, the forces twice.
-  const std::size_t t = particle_scalar_bytes(sim.precision);
-  s.mesh_bytes = mesh.elements.size() * (16 + 10 * t + 16 + 19 * t) + mesh.vertices.size() * (4 + 7 * t);
-  s.dt_bound = min_time_step(s.dt_bound, body_element_step_bound(body));  // run_constants.h
+  // start and the forces twice.
+  const std::size_t t = particle_scalar_bytes(scene.simulation.precision);
+  s.mesh_bytes = f.elements * (16 + 10 * t + 16 + 19 * t) + f.vertices * (4 + 6 * t);
+  s.dt_bound = min_time_step(s.dt_bound, body_element_step_bound(scene, body));  // run_constants.h
 }
 
 template <typename T, typename TG>
@@ -159,7 +160,7 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
                                 body.velocity[2] * body.velocity[2]);
     s.dt_bound = cfl_time_step(m.cfl, dx, facts.wave_speed, v0);
     if (mesh)
-      summarize_mesh(s, *mesh, body, sim);
+      summarize_mesh(s, scene, body);
     s.viscous_dt = body_viscous_step_bound(body, dx);
     s.seepage_dt = body_seepage_step_bound(body, dx);
     summary.dt = min_time_step(min_time_step(min_time_step(summary.dt, s.dt_bound), s.viscous_dt), s.seepage_dt);

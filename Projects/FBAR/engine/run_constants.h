@@ -13,7 +13,6 @@
 #include "physics/boundary.cuh"
 #include "scene/facilities.h"
 #include "physics/constitutive_models.cuh"
-#include "physics/fem.cuh"
 #include "physics/motion_path.h"
 #include "scene/scene.h"
 #include "physics/time_step.cuh"
@@ -66,16 +65,13 @@ inline DiffusiveBound diffusive_step_bound(const Scene& scene) {
   return v;
 }
 
-/// A mesh body's explicit element bound (physics/fem.cuh): CFL x its smallest element height / the law's p-wave
-/// speed (cfl_time_step with no flow speed; constant for the element laws, whose wave speed does not depend on the
-/// state); +infinity for particle bodies and meshes without element forces (use_FEM false).
-inline double body_element_step_bound(const BodySpec& body) {
+/// A mesh body's explicit element bound (physics/fem.cuh): CFL x its smallest element height (at rest,
+/// MeshEntrySpec::stats) / the law's p-wave speed (cfl_time_step with no flow speed; constant for the element laws,
+/// whose wave speed does not depend on the state); +infinity for particle bodies and meshes without element forces.
+inline double body_element_step_bound(const Scene& scene, const BodySpec& body) {
   double bound = std::numeric_limits<double>::infinity();
-  if (body.mesh < 0 || !body.tet_mesh || !body.algorithm.use_fem) return bound;
-  double h = std::numeric_limits<double>::infinity();
-  const TetMesh& m = *body.tet_mesh;
-  for (const auto& e : m.elements)
-    h = std::min(h, tet_min_height(m.vertices[e[0]], m.vertices[e[1]], m.vertices[e[2]], m.vertices[e[3]]));
+  if (body.mesh < 0 || !body.algorithm.use_fem) return bound;
+  const double h = scene.meshes.at(static_cast<std::size_t>(body.mesh)).stats.min_height;
   visit_material(body.material.law, [&](auto mt) {
     using M = decltype(mt);
     const double c = M::wave_speed(M::template make_params<double>(body.material), M::template reference_state<double>());
@@ -126,7 +122,7 @@ struct RunConstants {
       domain[a] = static_cast<T>(sim.domain[a]);
     }
     default_dt = std::min(resolved_default_dt(sim), diffusive_step_bound(scene).dt);
-    for (const BodySpec& b : scene.bodies) default_dt = std::min(default_dt, body_element_step_bound(b));
+    for (const BodySpec& b : scene.bodies) default_dt = std::min(default_dt, body_element_step_bound(scene, b));
     for (std::size_t i = 0; i < scene.boundaries.size(); ++i) {
       MotionPath motion;
       if (!scene.boundaries[i].file.empty())

@@ -196,6 +196,9 @@ struct MeshEntrySpec {
   /// same bits).
   std::shared_ptr<const TetMesh> mesh;
   std::shared_ptr<const TetMesh> file_mesh;  ///< as the files hold it (unscaled, not placed)
+  /// check_tet_mesh's measures of `mesh` (volume, quality, smallest height: the element step bound), taken once: by
+  /// the parser, by Froude scaling, or by append_mesh_bodies for a mesh built in code.
+  TetMeshStats stats;
 };
 
 struct Scene {

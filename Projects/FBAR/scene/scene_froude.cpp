@@ -108,7 +108,8 @@ void apply_froude_scaling(Scene& scene) {
       const Vec3d offset{{m.offset[0], m.offset[1], m.offset[2]}};
       TetMesh unplaced = m.file_mesh ? *m.file_mesh : *m.mesh;
       for (Vec3d& x : unplaced.vertices) x *= length;
-      m.summary = describe(check_tet_mesh(unplaced, "meshes[]"));  // what the re-read says: the scaled file mesh
+      m.stats = check_tet_mesh(unplaced, "meshes[]");  // what the re-read measures: the scaled file mesh
+      m.summary = describe(m.stats);
       TetMesh placed = unplaced;
       if (m.file_mesh)
         for (Vec3d& x : placed.vertices) x += offset;

@@ -330,6 +330,7 @@ MeshEntrySpec read_mesh_entry(const rj::Value& v, const std::string& path, const
                          std::string(1, "xyz"[a]),
                      "m");
   }
+  spec.stats = s;
   spec.summary = describe(s);
   for (Vec3d& x : mesh.vertices) x += offset;
   spec.mesh = std::make_shared<const TetMesh>(std::move(mesh));
@@ -343,7 +344,8 @@ void append_mesh_bodies(Scene& scene) {
   scene.bodies.erase(std::remove_if(scene.bodies.begin(), scene.bodies.end(), [](const BodySpec& b) { return b.mesh >= 0; }),
                      scene.bodies.end());
   for (std::size_t m = 0; m < scene.meshes.size(); ++m) {
-    const MeshEntrySpec& e = scene.meshes[m];
+    MeshEntrySpec& e = scene.meshes[m];
+    if (e.mesh && e.stats.elements == 0) e.stats = check_tet_mesh(*e.mesh, "meshes[" + std::to_string(m) + "]");
     BodySpec b;
     b.mesh = static_cast<int>(m);
     b.tet_mesh = e.mesh;

@@ -48,7 +48,8 @@ void check_supported(const Scene& scene);
 /// one that no particle body uses and no earlier mesh on its GPU (its frames model[m]_dev[gpu] then never share a name:
 /// a spread body writes model[m]_dev[r] on every rank r; ClaymoreUW puts a mesh in model 0 of its GPU, which a
 /// particle body there would overwrite).
-/// Bodies already appended are replaced. The parser calls it; so do programs that build a scene in code.
+/// Bodies already appended are replaced; an entry's mesh is measured (MeshEntrySpec::stats) when nobody did. The parser
+/// calls it; so do programs that build a scene in code.
 void append_mesh_bodies(Scene& scene);
 
 /// Applies Froude similitude with factor s = scene.simulation.froude_scaling to every field, the materials' stresses

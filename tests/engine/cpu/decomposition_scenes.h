@@ -42,18 +42,8 @@ inline Scene dam_break(bool schemes) {
 /// partition by method when the water is spread over the ranks.
 inline Scene dam_break_with_post(int gpu) {
   Scene scene = dam_break(false);
-  MeshEntrySpec post;
-  post.law = Constitutive::FixedCorotated;
-  post.rho = 1200.0;
-  post.youngs_modulus = 2e6;
-  post.poisson_ratio = 0.3;
-  post.use_fem = true;
-  post.use_asflip = false;
-  post.gpu = gpu;
-  post.output_attribs = {"ID"};
-  post.mesh = std::make_shared<const TetMesh>(box_tet_mesh(Vec3d{{0.35, 0.0, 0.07}}, Vec3d{{0.41, 0.16, 0.13}}, Vec3i{{6, 16, 6}}));
-  scene.meshes.push_back(post);
-  append_mesh_bodies(scene);
+  test::add_elastic_mesh(scene, box_tet_mesh(Vec3d{{0.35, 0.0, 0.07}}, Vec3d{{0.41, 0.16, 0.13}}, Vec3i{{6, 16, 6}}),
+                         1200.0, 2e6, 0.3, gpu);
   BoundarySpec clamp;
   clamp.object = BoundaryObject::Box;
   clamp.contact = Contact::Sticky;

@@ -26,17 +26,9 @@ using test::r3;
 /// A scene of one mesh: the box [lo, hi] in cubes, FixedCorotated E 1e6 Pa, nu 0.3, rho 1000.
 Scene mesh_scene(Real3 domain, double dx, Real3 gravity, Vec3d lo, Vec3d hi, Vec3i cells, Real3 velocity = r3(0, 0, 0)) {
   Scene scene = test::empty_scene(domain, dx, gravity);
-  MeshEntrySpec m;
-  m.law = Constitutive::FixedCorotated;
-  m.rho = 1000.0;
-  m.youngs_modulus = 1e6;
-  m.poisson_ratio = 0.3;
-  m.use_fem = true;
-  m.use_asflip = false;
+  MeshEntrySpec& m = test::add_elastic_mesh(scene, box_tet_mesh(lo, hi, cells), 1000.0, 1e6, 0.3);
   m.velocity = velocity;
   m.output_attribs = {"ID", "J", "Velocity_X"};
-  m.mesh = std::make_shared<const TetMesh>(box_tet_mesh(lo, hi, cells));
-  scene.meshes.push_back(m);
   append_mesh_bodies(scene);
   return scene;
 }

@@ -355,7 +355,7 @@ typename CpuEngine<T, TG>::TryResult CpuEngine<T, TG>::try_step(double dt_in) {
       if (ranks() > 1) exchange_halo(true);
     }
     g2p(static_cast<int>(b), bodies_[b], dt, result);
-    if (bodies_[b].mesh.active) {  // the elements at the new positions: next step's forces, the vertex states
+    if (bodies_[b].is_mesh()) {  // the elements at the new positions: next step's forces, the vertex states
       const MeshPassResult m = mesh_after_g2p(bodies_[b]);
       constexpr int kInverted = static_cast<int>(FailureKind::Inverted);
       result.count[b][kInverted] += m.inverted;

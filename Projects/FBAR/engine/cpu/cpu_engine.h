@@ -265,18 +265,16 @@ class CpuEngine {
   // lives whole on its rank and never migrates). `force` is the elements' force on each vertex at the committed
   // positions, `force_next` at the positions a try computed; P2G adds force dt in place of the MLS stress.
   struct MeshPart {
-    bool active = false;       // the body is a mesh
-    bool forces = true;        // meshes[].use_FEM: the elements exert forces
     T fbar_psi = T(0);         // use_FBAR's blend (0: plain tetrahedra)
     std::vector<TetElement<T>> elements;
     std::vector<int> vertex_start, vertex_elements;  // CSR: the elements of each vertex (corner = 4 e + k), in order
-    std::vector<T> lumped_volume;                    // (vertex) [m^3] sum_e V0_e / 4
     std::vector<Vec3T> force, force_next;            // (vertex) [N]
   };
 
   struct Body {
     BodySpec spec;
-    MeshPart mesh;
+    MeshPart mesh;  // a mesh's elements (spec.mesh >= 0)
+    bool is_mesh() const { return spec.mesh >= 0; }
     std::vector<std::int64_t> id;  // particle ID of each slot
     std::vector<Vec3T> x, v, x_next, v_next;
     std::vector<Mat3T> C, C_next;

@@ -26,8 +26,6 @@ void CpuEngine<T, TG>::init_mesh(Body& body) {
   const MeshEntrySpec& entry = scene_.meshes.at(static_cast<std::size_t>(body.spec.mesh));
   const TetMesh& mesh = *entry.mesh;
   MeshPart& part = body.mesh;
-  part.active = true;
-  part.forces = body.spec.algorithm.use_fem;  // meshes[].use_FEM
   part.fbar_psi = entry.fbar_elements ? static_cast<T>(entry.fbar_ratio) : T(0);
   const std::size_t nv = mesh.vertices.size();
   // Every vertex, or none: a rank restarted from its own checkpoint holds no vertex of a mesh placed elsewhere.
@@ -36,7 +34,6 @@ void CpuEngine<T, TG>::init_mesh(Body& body) {
     throw std::invalid_argument("meshes[" + std::to_string(body.spec.mesh) + "]: " + std::to_string(body.x.size()) +
                                 " vertex positions for a mesh of " + std::to_string(nv) + " vertices");
   part.elements.clear();
-  part.lumped_volume.assign(nv, T(0));
   std::vector<double> lumped(nv, 0.0);
   std::vector<int> count(nv + 1, 0);
   for (const std::array<int, 4>& e : mesh.elements) {
@@ -64,7 +61,6 @@ void CpuEngine<T, TG>::init_mesh(Body& body) {
       part.vertex_elements[static_cast<std::size_t>(fill[static_cast<std::size_t>(part.elements[e].v[k])]++)] =
           static_cast<int>(4 * e + k);
   const double rho = body.spec.material.rho;
-  for (std::size_t v = 0; v < nv; ++v) part.lumped_volume[v] = static_cast<T>(lumped[v]);
   if (!held) return;  // its elements only (the rank holding the mesh steps it)
   for (std::size_t v = 0; v < nv; ++v) {
     body.volume[v] = static_cast<T>(lumped[v]);
@@ -158,8 +154,9 @@ typename CpuEngine<T, TG>::MeshPassResult CpuEngine<T, TG>::mesh_pass(const Body
   };
 
   // Element forces H = [f1 f2 f3] (f0 = -(f1 + f2 + f3)) from the gradient the element's stress uses.
-  std::vector<Mat3T> H(part.forces ? static_cast<std::size_t>(ne) : 0);
-  if (part.forces) {
+  const bool forces = body.spec.algorithm.use_fem;  // meshes[].use_FEM: the elements exert forces
+  std::vector<Mat3T> H(forces ? static_cast<std::size_t>(ne) : 0);
+  if (forces) {
 #pragma omp parallel for schedule(static) if (ne >= kMinParallelParticles)
     for (int e = 0; e < ne; ++e) {
       const Mat3T& Fe = F[static_cast<std::size_t>(e)];
@@ -183,7 +180,7 @@ typename CpuEngine<T, TG>::MeshPassResult CpuEngine<T, TG>::mesh_pass(const Body
       const T V = part.elements[static_cast<std::size_t>(e)].volume;
       sum_F += F[static_cast<std::size_t>(e)] * V;
       sum_V += V;
-      if (part.forces) {
+      if (forces) {
         const Mat3T& h = H[static_cast<std::size_t>(e)];
         for (int a = 0; a < 3; ++a) f[a] += k == 0 ? -(h(a, 0) + h(a, 1) + h(a, 2)) : h(a, k - 1);
       }

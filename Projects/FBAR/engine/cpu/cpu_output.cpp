@@ -431,7 +431,7 @@ template <typename T, typename TG>
 double CpuEngine<T, TG>::elastic_energy() const {
   double e = 0.0;
   for (const Body& b : bodies_)
-    if (b.mesh.active)
+    if (b.is_mesh())
       e += mesh_elastic_energy(b);  // the elements' energy (the vertex states are their means)
     else
       std::visit(

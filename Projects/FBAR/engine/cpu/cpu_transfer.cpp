@@ -127,7 +127,7 @@ void CpuEngine<T, TG>::p2g(Body& body, T dt) {
           TG arena_q[3][kArenaNodes];  // ASFLIP: the momentum without the stress impulse, m (v + C (x_i - x_p))
           TG arena_w[5][kArenaNodes];  // saturated bodies: the seepage channels (PoreBlock, seepage.cuh)
           constexpr bool pore = IsPoreFluid<M>::value;
-          const bool mesh = body.mesh.active;
+          const bool mesh = body.is_mesh();
           for (int colour = 0; colour < 8; ++colour) {
             const std::vector<int>& list = part.colour_blocks[colour];
             const int count = static_cast<int>(list.size());
@@ -383,7 +383,7 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
         const auto& state = mb.state;
         auto& next_state = mb.next_state;
         const bool fbar = body.fbar_psi != T(0);
-        const bool mesh = body.mesh.active;
+        const bool mesh = body.is_mesh();
 #pragma omp parallel if (nb >= kMinParallelBlocks)
         {
           T arena_v[3][kArenaNodes];      // (component, node) grid velocities around one particle block
@@ -540,7 +540,7 @@ void CpuEngine<T, TG>::reduce_try(TryResult& result, double dt) {
       f.dt = dt;
       f.count = result.count[b][k];
       f.first_particle = result.first[b][k];
-      f.elements = bodies_[static_cast<std::size_t>(b)].mesh.active && f.kind == FailureKind::Inverted;
+      f.elements = bodies_[static_cast<std::size_t>(b)].is_mesh() && f.kind == FailureKind::Inverted;
       result.failures.push_back(f);
     }
 }
