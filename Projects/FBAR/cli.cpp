@@ -362,18 +362,6 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
 
   bool gpu = false;
   if (!choose_gpu_engine(o, engines, gpu)) return kExitRuntime;
-  if (gpu && !scene.meshes.empty()) {  // FEM bodies run on the CPU engine in this release (physics/fem.cuh)
-    if (o.backend == Backend::Gpu) {
-      std::cerr << "fbar: error: --backend=gpu: the scene has " << scene.meshes.size()
-                << " mesh(es) (FEM bodies), which the GPU engine does not run yet in this release (use --backend=cpu "
-                   "or auto)\n";
-      return kExitRuntime;
-    }
-    std::cerr << "fbar: warning: meshes: FEM bodies run on the CPU reference engine in this release; running the "
-                 "scene there (--backend=cpu silences this)\n";
-    gpu = false;
-  }
-
   // Ranks: under mpirun / srun one per process (MPI); otherwise one, or --gpus=N GPU ranks as threads of this process.
   // Either engine decomposes the scene over them.
   std::unique_ptr<comm::Transport> transport;

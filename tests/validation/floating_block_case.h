@@ -12,7 +12,11 @@
 // body (8 particles per cell). Templated on the engine for the GPU validation to come.
 #pragma once
 
+#include <gtest/gtest.h>
+
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <memory>
 #include <string>
 #include <vector>
@@ -112,5 +116,25 @@ Result run(bool mesh) {
   r.seconds = clock.seconds();
   return r;
 }
+
+/// The test's assertions on `Engine` (the CPU test and the GPU engine's run the same).
+template <class Engine = CpuEngine<double>>
+void expect_floats_like_the_particle_block() {
+  const Result fem = run<Engine>(true);
+  ASSERT_TRUE(fem.ok) << fem.message;
+  const Result particles = run<Engine>(false);
+  ASSERT_TRUE(particles.ok) << particles.message;
+  std::printf("[ floating ] Archimedes draft %.4g m; FEM block %.4g m (%+.2f dx), heave range %.3g m, %lld steps, "
+              "%.1f s; particle block %.4g m (%+.2f dx), heave range %.3g m, %lld steps, %.1f s\n",
+              kDraft, fem.draft, (fem.draft - kDraft) / kDx, fem.heave_range, fem.steps, fem.seconds,
+              particles.draft, (particles.draft - kDraft) / kDx, particles.heave_range, particles.steps,
+              particles.seconds);
+  EXPECT_NEAR(fem.draft, kDraft, 0.04 * kDraft);
+  EXPECT_NEAR(particles.draft, kDraft, 0.04 * kDraft);
+  EXPECT_NEAR(fem.draft, particles.draft, 0.05 * kDx);
+  EXPECT_LT(fem.heave_range, 0.05 * kDx);
+  EXPECT_LT(particles.heave_range, 0.05 * kDx);
+}
+
 
 }  // namespace fbar::floating_case

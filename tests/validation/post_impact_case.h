@@ -11,7 +11,11 @@
 // Templated on the engine for the GPU validation to come.
 #pragma once
 
+#include <gtest/gtest.h>
+
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <memory>
 #include <string>
 #include <vector>
@@ -108,5 +112,31 @@ Result run(bool mesh) {
   r.seconds = clock.seconds();
   return r;
 }
+
+/// The test's assertions on `Engine` (the CPU test and the GPU engine's run the same).
+template <class Engine = CpuEngine<double>>
+void expect_carries_the_flow_like_the_particle_post() {
+  const Result fem = run<Engine>(true);
+  ASSERT_TRUE(fem.ok) << fem.message;
+  const Result particles = run<Engine>(false);
+  ASSERT_TRUE(particles.ok) << particles.message;
+  for (double t0 : {0.0, 0.1, 0.2, 0.3, 0.4, 0.5})
+    std::printf("[ post ] t %.1f-%.1f s: mean clamp force FEM %.4g N, particles %.4g N\n", t0, t0 + 0.1,
+                fem.mean(t0, t0 + 0.1), particles.mean(t0, t0 + 0.1));
+  std::printf("[ post ] impulse 0-0.6 s: FEM %.4g N s, particles %.4g N s; peak %.4g / %.4g N; steps %lld / %lld, "
+              "%.1f / %.1f s\n",
+              fem.impulse(0, kTEnd), particles.impulse(0, kTEnd), *std::max_element(fem.force.begin(), fem.force.end()),
+              *std::max_element(particles.force.begin(), particles.force.end()), fem.steps, particles.steps,
+              fem.seconds, particles.seconds);
+  EXPECT_NEAR(fem.impulse(0, kTEnd), particles.impulse(0, kTEnd), 0.10 * particles.impulse(0, kTEnd));
+  EXPECT_NEAR(fem.mean(0.2, kTEnd), particles.mean(0.2, kTEnd), 0.10 * particles.mean(0.2, kTEnd));
+  const double peak_fem = *std::max_element(fem.force.begin(), fem.force.end());
+  const double peak_particles = *std::max_element(particles.force.begin(), particles.force.end());
+  EXPECT_NEAR(peak_fem, peak_particles, 0.15 * peak_particles);
+  EXPECT_LT(std::fabs(fem.mean(0, 0.15)), 0.01);
+  EXPECT_LT(std::fabs(particles.mean(0, 0.15)), 0.01);
+  EXPECT_GT(particles.mean(0.2, kTEnd), 1.0);  // the water loads the post
+}
+
 
 }  // namespace fbar::post_impact_case

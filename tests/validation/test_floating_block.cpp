@@ -18,20 +18,7 @@ using namespace floating_case;
 // a mass 5 % off moves the draft 2.5 mm); the FEM block within 1 mm (0.05 dx) of the particle block; both within 1 mm
 // of rest.
 TEST(FloatingBlock, FemBlockFloatsAtItsArchimedesDraftLikeTheParticleBlock) {
-  const Result fem = run(true);
-  ASSERT_TRUE(fem.ok) << fem.message;
-  const Result particles = run(false);
-  ASSERT_TRUE(particles.ok) << particles.message;
-  std::printf("[ floating ] Archimedes draft %.4g m; FEM block %.4g m (%+.2f dx), heave range %.3g m, %lld steps, "
-              "%.1f s; particle block %.4g m (%+.2f dx), heave range %.3g m, %lld steps, %.1f s\n",
-              kDraft, fem.draft, (fem.draft - kDraft) / kDx, fem.heave_range, fem.steps, fem.seconds,
-              particles.draft, (particles.draft - kDraft) / kDx, particles.heave_range, particles.steps,
-              particles.seconds);
-  EXPECT_NEAR(fem.draft, kDraft, 0.04 * kDraft);
-  EXPECT_NEAR(particles.draft, kDraft, 0.04 * kDraft);
-  EXPECT_NEAR(fem.draft, particles.draft, 0.05 * kDx);
-  EXPECT_LT(fem.heave_range, 0.05 * kDx);
-  EXPECT_LT(particles.heave_range, 0.05 * kDx);
+  expect_floats_like_the_particle_block();
 }
 
 }  // namespace

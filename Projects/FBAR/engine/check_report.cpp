@@ -67,10 +67,8 @@ std::string material_line(const MaterialSpec& m) {
 void print_mesh_rows(std::ostream& os, const BodySummary& bs) {
   row(os, "mesh", std::to_string(bs.particles) + " vertices, " + std::to_string(bs.elements) +
                       " tetrahedra, smallest quality " + num(bs.min_quality) + ", smallest height " +
-                      num(bs.min_height) + " m; " + bytes(bs.mesh_bytes) +
-                      " of elements on the CPU engine besides the vertices");
-  row(os, "engine", "CPU engine (--backend=cpu; several ranks too, the mesh whole on its gpu): the GPU engine "
-                    "does not run meshes in this release");
+                      num(bs.min_height) + " m; elements " + bytes(bs.gpu_mesh_bytes) + " on its GPU, " +
+                      bytes(bs.mesh_bytes) + " on the CPU engine, besides the vertices");
 }
 
 std::string algorithm_line(const AlgorithmSpec& a) {
@@ -213,9 +211,6 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
       row(os, "initial_state", material_has_pore_fluid(b.material.law)
                                    ? "hydrostatic: the pore water carries rho g (depth below the top of the geometry)"
                                    : "hydrostatic: J p = rho g (depth below the top of the geometry)");
-    if (material_has_pore_fluid(b.material.law))
-      row(os, "engine", "CPU engine (--backend=cpu; several ranks too): the GPU engine refuses saturated bodies "
-                        "in this release");
     row(os, "partition", vec(b.partition_start) + " .. " + vec(b.partition_end) + " m");
     for (std::size_t j = 0; j < b.geometry.size(); ++j)
       row(os, "geometry[" + std::to_string(j) + "]", geometry_line(b.geometry[j]));
@@ -240,7 +235,7 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
         row(os, "seepage bound",
             num(bs.seepage_dt) + " s (CFL x dx^2 / (8 x kappa x M), explicit seepage; kappa = Kperm / (rhow g0), "
                                  "1/M = poro/Kf + (alpha1 - poro)/Ks)");
-      if (!bs.mesh) {  // the GPU engine does not run meshes in this release
+      {
         row(os, "GPU per particle", std::to_string(bs.gpu_bytes_per_particle) + " B: " + bs.gpu_bytes_detail);
         char cost[160];
         std::snprintf(cost, sizeof(cost), "%.3g ms per step on an H100 (%.3g particle-steps/s: ", bs.gpu_ms_per_step,
@@ -304,7 +299,8 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
         bytes(p.total()) + " for the whole run (" + per.str() + "; + about " + bytes(kCudaContextBytes) +
             " CUDA context): particles " + bytes(p.particles_bytes) + ", partition " + bytes(p.partition) + ", grid " +
             bytes(p.grid) + " (" + std::to_string(p.block_capacity) + " blocks of capacity for " +
-            std::to_string(p.footprint_blocks) + " at start), frames " + bytes(p.frames));
+            std::to_string(p.footprint_blocks) + " at start), frames " + bytes(p.frames) +
+            (p.meshes > 0 ? ", mesh elements " + bytes(p.meshes) : std::string()));
     row(os, "growth (" + gpu + ")",
         "+" + bytes(p.grid_growth) + " if the active grid outgrows its capacity (blocks x2), +" +
             bytes(p.bins_growth) + " if the particle bins do (x1.5); logged when it happens");

@@ -61,7 +61,7 @@ std::size_t particle_scalar_bytes(Precision p) { return p == Precision::Single ?
 std::size_t grid_scalar_bytes(Precision p) { return p == Precision::Double ? 8 : 4; }
 
 /// A mesh's part of its body's summary: elements, quality, the lumped vertex volume, the element step bound and the
-/// CPU engine's bytes for the elements (physics/fem.cuh).
+/// engines' bytes for the elements (physics/fem.cuh).
 void summarize_mesh(BodySummary& s, const Scene& scene, const BodySpec& body) {
   const MeshEntrySpec& entry = scene.meshes.at(static_cast<std::size_t>(body.mesh));
   const TetMeshStats& f = entry.stats;
@@ -75,6 +75,8 @@ void summarize_mesh(BodySummary& s, const Scene& scene, const BodySpec& body) {
   // start and the forces twice.
   const std::size_t t = particle_scalar_bytes(scene.simulation.precision);
   s.mesh_bytes = f.elements * (16 + 10 * t + 16 + 19 * t) + f.vertices * (4 + 6 * t);
+  s.gpu_mesh_bytes = mesh_device_bytes(scene.simulation.precision, f.elements, f.vertices, entry.fbar_elements,
+                                       body.algorithm.use_fem);
   s.dt_bound = min_time_step(s.dt_bound, body_element_step_bound(scene, body));  // run_constants.h
 }
 
@@ -187,9 +189,9 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
         bytes += 6 * t;
         s.gpu_bytes_detail += " + " + std::to_string(6 * t) + " B ASFLIP velocities";
       }
-      if (record) {
+      if (record || mesh) {  // a mesh's vertices always record them
         bytes += 12 * t;
-        s.gpu_bytes_detail += " + " + std::to_string(12 * t) + " B recorded v and C (sensors, trackers, checkpoints)";
+        s.gpu_bytes_detail += " + " + std::to_string(12 * t) + " B recorded v and C";
       }
       if (frame_columns >= 0) {
         const std::size_t frame = 3 * t + 4 * static_cast<std::size_t>(frame_columns);
@@ -224,7 +226,8 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     in.asflip = body.algorithm.asflip_active();
     in.fbar = body.algorithm.fbar_blend() != 0.0;
     in.pore = material_has_pore_fluid(body.material.law);
-    in.record = record;
+    in.record = record || mesh;
+    in.mesh_bytes = s.gpu_mesh_bytes;
     if (frame_columns >= 0) in.frame_columns = frame_columns;
     asflip = asflip || in.asflip;
     fbar = fbar || in.fbar;

@@ -37,6 +37,7 @@ struct BodySummary {
   double min_quality = 0.0;           ///< smallest element quality (geometry/tet_mesh.h)
   double min_height = 0.0;            ///< [m] smallest element height: dt <= CFL h / wave speed (physics/fem.cuh)
   std::size_t mesh_bytes = 0;         ///< [B] the CPU engine's elements and per-vertex arrays besides the particles'
+  std::size_t gpu_mesh_bytes = 0;     ///< [B] the GPU engine's (mesh_device_bytes), on the mesh's GPU
 };
 
 struct SceneSummary {

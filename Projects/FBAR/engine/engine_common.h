@@ -88,10 +88,9 @@ struct StepPlan {
 StepPlan plan_step_toward(double time, double t_end, double dt_cfl);
 
 /// What an engine checks of body `index` before it samples it (both engines; the release policy refuses these
-/// earlier for scenes read from files): a law the engines implement, "particles" bodies, no FEM (meshes: the CPU
-/// engine only), output attributes
-/// the law has, a positive ppc. Throws std::invalid_argument naming the key; `engine` ("CPU engine", "GPU engine")
-/// goes into the message.
+/// earlier for scenes read from files): a law the engines implement, "particles" bodies, use_FEM only on a mesh's
+/// body, output attributes the law has, a positive ppc. Throws std::invalid_argument naming the key; `engine`
+/// ("CPU engine", "GPU engine") goes into the message.
 void check_engine_body(const BodySpec& spec, int index, const std::string& engine);
 
 

@@ -1,8 +1,8 @@
 // CpuEngine's query interface over the GPU engine, so that the validation cases of tests/validation (*_case.h,
 // templated on the engine) run unchanged on the GPU: every query reads one snapshot of the body (cached until the
-// next step), velocities are recorded every step, masses and volumes are the engine's per-body constants, which the
-// CPU engine stores per particle. Per-particle initial velocities (set_velocities) are handed to the GPU engine's constructor,
-// which therefore runs at the first query after them.
+// next step), velocities are recorded every step, masses are the engine's per particle (a mesh's lumped vertex masses,
+// one value for every particle of another body) and volumes its per-body constant. Per-particle initial velocities
+// (set_velocities) are handed to the GPU engine's constructor, which therefore runs at the first query after them.
 #pragma once
 
 #include <functional>
@@ -56,7 +56,10 @@ class GpuValidationEngine {
   std::size_t particle_count(int body) { return engine().particle_count(body); }
   const std::vector<Vec3<T>>& positions(int body) { return snapshot(body).x; }
   const std::vector<Vec3<T>>& velocities(int body) { return snapshot(body).v; }
-  std::vector<T> masses(int body) { return std::vector<T>(particle_count(body), mass(body)); }
+  std::vector<T> masses(int body) {
+    const std::vector<double> m = engine().particle_masses(body);  // a mesh's lumped vertex masses
+    return std::vector<T>(m.begin(), m.end());
+  }
   std::vector<T> volumes(int body) {
     return std::vector<T>(particle_count(body), static_cast<T>(engine().particle_volume(body)));
   }
@@ -75,16 +78,25 @@ class GpuValidationEngine {
   double total_mass() { return engine().total_mass(); }
   Vec3d total_momentum() {
     Vec3d sum = Vec3d::zero();
-    for (int b = 0; b < engine().body_count(); ++b)
-      for (const Vec3<T>& v : velocities(b)) sum += v.template cast<double>() * static_cast<double>(mass(b));
+    for (int b = 0; b < engine().body_count(); ++b) {
+      const std::vector<double> m = engine().particle_masses(b);
+      for (std::size_t p = 0; p < velocities(b).size(); ++p) sum += velocities(b)[p].template cast<double>() * m[p];
+    }
     return sum;
   }
   double kinetic_energy() {
     double e = 0.0;
-    for (int b = 0; b < engine().body_count(); ++b)
-      for (const Vec3<T>& v : velocities(b)) e += 0.5 * static_cast<double>(mass(b)) * static_cast<double>(dot(v, v));
+    for (int b = 0; b < engine().body_count(); ++b) {
+      const std::vector<double> m = engine().particle_masses(b);
+      for (std::size_t p = 0; p < velocities(b).size(); ++p)
+        e += 0.5 * m[p] * static_cast<double>(dot(velocities(b)[p], velocities(b)[p]));
+    }
     return e;
   }
+  /// Grid sensors, as CpuEngine (the GPU engine's own interface).
+  void set_grid_sensors(const std::vector<GridSensorSpec>& sensors) { engine().set_grid_sensors(sensors); }
+  void set_grid_sample(int slot) { engine().set_grid_sample(slot); }
+  std::vector<SensorAccum> grid_samples(int slots) { return engine().grid_samples(slots); }
   double elastic_energy() { return engine().elastic_energy(); }
 
  private:
@@ -96,7 +108,6 @@ class GpuValidationEngine {
     }
     return *engine_;
   }
-  T mass(int body) { return static_cast<T>(engine().particle_mass(body)); }
   StepReport changed(StepReport r) {
     for (auto& c : cache_) c.reset();
     return r;

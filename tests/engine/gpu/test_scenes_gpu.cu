@@ -99,7 +99,6 @@ TEST(GpuScenes, EveryRunnableSceneMatchesCpu) {
   for (const fs::path& file : test::shipped_scene_files()) {
     const Scene scene = parse_scene_file(file.string(), ParseOptions{});
     const std::string name = file.filename().string();
-    if (!scene.meshes.empty()) continue;  // FEM bodies: the CPU engine only in this release (cli.cpp runs them there)
     switch (scene.simulation.precision) {
       case Precision::Double: run_scene_on_both<double>(scene, name); break;
       case Precision::Mixed: run_scene_on_both<double, float>(scene, name); break;

@@ -4,7 +4,9 @@
 //  * The CPU validation cases of tests/validation (*_case.h), run unchanged on the GPU engine through
 //    test::GpuValidationEngine, with the same assertions as their CPU tests: vibrating bar per scheme, hydrostatic
 //    column with and without F-bar, the nearly incompressible block with and without F-bar, the NACC
-//    material-point element, granular collapse against Lube et al., Terzaghi's consolidation of a saturated column. Each engine takes its own CFL steps, so the
+//    material-point element, granular collapse against Lube et al., Terzaghi's consolidation of a saturated column,
+//    and the FEM cases (issue 34): the cantilever's convergence, the floating block, the post hit by a flow, the
+//    locking block as tetrahedra. Each engine takes its own CFL steps, so the
 //    numbers differ from the CPU's at round-off level and through the JFluid wave-speed lag (gpu_engine.h).
 #include <gtest/gtest.h>
 
@@ -19,10 +21,13 @@
 #include "gpu_test_support.h"
 #include "gpu_validation_engine.h"
 #include "scene/scene_parse.h"
+#include "../../validation/cantilever_case.h"
 #include "../../validation/fbar_locking_case.h"
+#include "../../validation/floating_block_case.h"
 #include "../../validation/granular_collapse_case.h"
 #include "../../validation/hydrostatic_column_case.h"
 #include "../../validation/material_point_element_case.h"
+#include "../../validation/post_impact_case.h"
 #include "../../validation/terzaghi_case.h"
 #include "../../validation/vibrating_bar_case.h"
 
@@ -169,6 +174,40 @@ TEST(GpuValidation, IncompressibleBlockLocksWithoutFbarNotWith) {
   EXPECT_LE(fbar.checkerboard, 0.01);
   EXPECT_LE(fbar.pressure_rms, 0.1);
   EXPECT_NEAR(fbar.settlement_ratio, 1.0, 0.1);
+}
+
+// The FEM validation cases (tests/validation/test_cantilever.cpp, test_floating_block.cpp, test_post_impact.cpp,
+// test_fbar_locking.cpp) with their CPU tests' assertions and tolerances: the element pass of the GPU engine
+// (kernels/fem_kernels.cuh) gives the CPU engine's physics.
+TEST(GpuValidation, FemCantileverConvergesToTimoshenko) {
+  FBAR_REQUIRE_DEVICE();
+  cantilever_case::expect_converges_to_timoshenko<GpuDouble>();
+}
+
+TEST(GpuValidation, FemBlockFloatsAtItsArchimedesDraftLikeTheParticleBlock) {
+  FBAR_REQUIRE_DEVICE();
+  floating_case::expect_floats_like_the_particle_block<GpuDouble>();
+}
+
+TEST(GpuValidation, FemPostCarriesTheFlowLikeTheParticlePost) {
+  FBAR_REQUIRE_DEVICE();
+  post_impact_case::expect_carries_the_flow_like_the_particle_post<GpuDouble>();
+}
+
+TEST(GpuValidation, FemBlockLocksWithPlainTetrahedraNotWithFbarTetrahedra) {
+  FBAR_REQUIRE_DEVICE();
+  using namespace locking_case;
+  const LockingResult plain = run_block<GpuDouble>(0.499, 0.0, 0.025, 2, true);
+  const LockingResult fbar = run_block<GpuDouble>(0.499, 1.0, 0.025, 2, true);
+  ASSERT_TRUE(plain.ok && fbar.ok);
+  std::printf("[measured] GPU FEM nu 0.499 block: plain tetrahedra settlement %.3f, pressure RMS %.3f, checkerboard "
+              "%.3f; F-bar tetrahedra %.3f, %.3f, %.3f\n",
+              plain.settlement_ratio, plain.pressure_rms, plain.checkerboard, fbar.settlement_ratio, fbar.pressure_rms,
+              fbar.checkerboard);
+  EXPECT_LT(plain.settlement_ratio, 0.9);
+  EXPECT_NEAR(fbar.settlement_ratio, 1.0, 0.05);
+  EXPECT_LT(fbar.pressure_rms, 0.6 * plain.pressure_rms);
+  EXPECT_LT(fbar.checkerboard, 0.6 * plain.checkerboard);
 }
 
 // tests/validation/test_material_point_element.cpp, NaccInteriorFollowsItsSingleParticleReference.

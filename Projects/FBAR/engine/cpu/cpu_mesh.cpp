@@ -10,16 +10,11 @@
 
 #include "engine/cpu/cpu_engine.h"
 #include "engine/cpu/cpu_engine_detail.h"
+#include "engine/mesh_elements.h"
 
 namespace fbar {
 
 using namespace cpu_detail;
-
-namespace {
-/// The laws whose state is F alone (FixedCorotated, NeoHookean): the elements' laws (meshes[].constitutive).
-template <typename M, typename T>
-constexpr bool kMeshLaw = std::is_same_v<material_state_t<M, T>, FixedCorotatedState<T>>;
-}  // namespace
 
 template <typename T, typename TG>
 void CpuEngine<T, TG>::init_mesh(Body& body) {
@@ -33,33 +28,11 @@ void CpuEngine<T, TG>::init_mesh(Body& body) {
   if (held && body.x.size() != nv)
     throw std::invalid_argument("meshes[" + std::to_string(body.spec.mesh) + "]: " + std::to_string(body.x.size()) +
                                 " vertex positions for a mesh of " + std::to_string(nv) + " vertices");
-  part.elements.clear();
-  std::vector<double> lumped(nv, 0.0);
-  std::vector<int> count(nv + 1, 0);
-  for (const std::array<int, 4>& e : mesh.elements) {
-    // Rest shape from the mesh file (double), not from the particle positions (which a restart may have moved).
-    const Vec3d& X0 = mesh.vertices[e[0]];
-    const Mat3d Dm = tet_edges(X0, mesh.vertices[e[1]], mesh.vertices[e[2]], mesh.vertices[e[3]]);
-    const double V0 = determinant(Dm) / 6.0;  // > 0: check_tet_mesh refused inverted elements
-    const Mat3d Dm_inv = inverse(Dm);
-    TetElement<T> el;
-    for (int k = 0; k < 4; ++k) {
-      el.v[k] = e[k];
-      lumped[static_cast<std::size_t>(e[k])] += V0 / 4.0;
-      ++count[static_cast<std::size_t>(e[k]) + 1];
-    }
-    el.Dm_inv = Dm_inv.template cast<T>();
-    el.volume = static_cast<T>(V0);
-    part.elements.push_back(el);
-  }
-  for (std::size_t v = 0; v < nv; ++v) count[v + 1] += count[v];
-  part.vertex_start = count;
-  part.vertex_elements.assign(static_cast<std::size_t>(count[nv]), 0);
-  std::vector<int> fill(count.begin(), count.end() - 1);
-  for (std::size_t e = 0; e < part.elements.size(); ++e)
-    for (int k = 0; k < 4; ++k)
-      part.vertex_elements[static_cast<std::size_t>(fill[static_cast<std::size_t>(part.elements[e].v[k])]++)] =
-          static_cast<int>(4 * e + k);
+  MeshElements<T> built = mesh_elements<T>(mesh);  // rest shapes from the mesh file, not from the particle positions
+  part.elements = std::move(built.elements);
+  part.vertex_start = std::move(built.vertex_start);
+  part.vertex_elements = std::move(built.vertex_elements);
+  const std::vector<double>& lumped = built.lumped_volume;
   const double rho = body.spec.material.rho;
   if (!held) return;  // its elements only (the rank holding the mesh steps it)
   for (std::size_t v = 0; v < nv; ++v) {

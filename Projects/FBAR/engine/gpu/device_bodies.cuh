@@ -6,9 +6,101 @@
 
 namespace fbar {
 
+/// A mesh body's elements on the device (physics/fem.cuh, kernels/fem_kernels.cuh): built from the scene's mesh on
+/// every rank (the vertex masses), its device arrays only on the rank holding the vertices.
+template <typename T>
+struct MeshDevice {
+  MeshElements<T> host;              ///< elements, CSR and lumped volumes (host; the energy reads them)
+  std::vector<T> mass, volume;       ///< (vertex) lumped mass [kg] and volume [m^3]
+  T fbar_psi = T(0);                 ///< use_FBAR's blend
+  bool forces = false;               ///< use_FEM
+  cuda::DeviceArray<TetElement<T>> elements;
+  cuda::DeviceArray<int> vertex_start, vertex_elements, slot;
+  cuda::DeviceArray<T> vertex_mass, vertex_volume, J, vertex_J;
+  cuda::DeviceArray<Vec3<T>> x, force[2];
+  cuda::DeviceArray<Mat3<T>> F, H;
+  int force_cur = 0;                 ///< force[force_cur]: the elements' force at the committed positions
+  /// Kernel timing: the element pass of the try between the two events (created at the first timed pass).
+  cudaEvent_t pass_events[2] = {nullptr, nullptr};
+  bool timed = false;
+  MeshDevice() = default;
+  MeshDevice(const MeshDevice&) = delete;
+  MeshDevice& operator=(const MeshDevice&) = delete;
+  ~MeshDevice() {
+    for (cudaEvent_t e : pass_events)
+      if (e) cudaEventDestroy(e);
+  }
+  bool on_device() const { return vertex_mass.size() != 0; }
+  std::size_t device_bytes() const {
+    return elements.bytes() + vertex_start.bytes() + vertex_elements.bytes() + slot.bytes() + vertex_mass.bytes() +
+           vertex_volume.bytes() + J.bytes() + vertex_J.bytes() + x.bytes() + force[0].bytes() + force[1].bytes() +
+           F.bytes() + H.bytes();
+  }
+  static_assert(sizeof(TetElement<T>) == 16 + 10 * sizeof(T), "mesh_device_bytes (memory_plan.cpp) counts 16 + 10 t");
+  void upload(cudaStream_t s) {
+    const std::size_t ne = host.elements.size(), nv = mass.size();
+    elements.allocate(std::max<std::size_t>(ne, 1));
+    vertex_start.allocate(nv + 1);
+    vertex_elements.allocate(std::max<std::size_t>(host.vertex_elements.size(), 1));
+    slot.allocate(std::max<std::size_t>(nv, 1));
+    vertex_mass.allocate(std::max<std::size_t>(nv, 1));
+    vertex_volume.allocate(std::max<std::size_t>(nv, 1));
+    x.allocate(std::max<std::size_t>(nv, 1));
+    force[0].allocate(std::max<std::size_t>(nv, 1));
+    force[1].allocate(std::max<std::size_t>(nv, 1));
+    F.allocate(std::max<std::size_t>(ne, 1));
+    if (forces) H.allocate(std::max<std::size_t>(ne, 1));
+    if (fbar_psi != T(0)) {
+      J.allocate(std::max<std::size_t>(ne, 1));
+      vertex_J.allocate(std::max<std::size_t>(nv, 1));
+    }
+    const auto copy = [&](void* to, const void* from, std::size_t bytes) {
+      if (bytes) FBAR_CUDA_CHECK(cudaMemcpyAsync(to, from, bytes, cudaMemcpyHostToDevice, s));
+    };
+    copy(elements.get(), host.elements.data(), sizeof(TetElement<T>) * ne);
+    copy(vertex_start.get(), host.vertex_start.data(), sizeof(int) * (nv + 1));
+    copy(vertex_elements.get(), host.vertex_elements.data(), sizeof(int) * host.vertex_elements.size());
+    copy(vertex_mass.get(), mass.data(), sizeof(T) * nv);
+    copy(vertex_volume.get(), volume.data(), sizeof(T) * nv);
+    FBAR_CUDA_CHECK(cudaStreamSynchronize(s));
+  }
+  MeshView<T> view() {
+    MeshView<T> v;
+    v.elements = elements.get();
+    v.element_count = static_cast<int>(host.elements.size());
+    v.vertex_start = vertex_start.get();
+    v.vertex_elements = vertex_elements.get();
+    v.vertex_count = static_cast<int>(mass.size());
+    v.x = x.get();
+    v.slot = slot.get();
+    v.F = F.get();
+    v.J = J.get();
+    v.vertex_J = vertex_J.get();
+    v.H = H.get();
+    v.fbar_psi = fbar_psi;
+    v.forces = forces;
+    return v;
+  }
+};
+
 template <typename T, typename TG>
 struct MgspBenchmark<T, TG>::BodyBase {
   BodySpec spec;
+  /// A mesh body (spec.mesh >= 0): its elements and vertex masses; null for particle bodies.
+  std::unique_ptr<MeshDevice<T>> mesh;
+  bool is_mesh() const { return mesh != nullptr; }
+  /// The body's masses for the kernels that read them (a mesh's per vertex, on the rank holding it).
+  ParticleMeasures<T> measures() const {
+    ParticleMeasures<T> m{mass, volume, nullptr, nullptr};
+    if (mesh && mesh->on_device()) {
+      m.vertex_mass = mesh->vertex_mass.get();
+      m.vertex_volume = mesh->vertex_volume.get();
+    }
+    return m;
+  }
+  /// [kg], [m^3] of the particle with this ID.
+  T mass_of(std::size_t id) const { return mesh ? mesh->mass[id] : mass; }
+  T volume_of(std::size_t id) const { return mesh ? mesh->volume[id] : volume; }
   int index = 0;
   int particles = 0;             ///< on this rank (all of the body on one GPU)
   long long global_particles = 0;  ///< of the body over all ranks: IDs are 0 .. global_particles - 1
@@ -110,6 +202,9 @@ struct MgspBenchmark<T, TG>::BodyBase {
   virtual void unpack_immigrants(MgspBenchmark& e, int first, const std::byte* in, const int* count,
                                  int capacity) = 0;
   virtual void rescale_impulse(MgspBenchmark& e, T ddt) = 0;
+  /// A mesh body, after the G2P2G wrote bins[1 - cur] in layout(cur)'s order: the element pass
+  /// (kernels/fem_kernels.cuh) into those bins, mesh->force[1 - force_cur] and grid[1 - gc].
+  virtual void mesh_pass(MgspBenchmark& e) = 0;
   virtual void gather(MgspBenchmark& e, T* out, int* missing, cudaStream_t s) = 0;
   /// Particle sensors over this body's particles into partials (sensor, CUDA block); aux: v and C, or nullptr
   /// (before the first step: the initial velocity, C = 0).
@@ -124,6 +219,8 @@ struct MgspBenchmark<T, TG>::BodyBase {
   virtual bool stores_pore_pressure() const = 0;
   /// psi(state) [J/m^3] of one gathered record.
   virtual double energy_density_of(const T* record) const = 0;
+  /// psi(F) [J/m^3] of an element law at gradient F (a mesh's elements; NaN for other laws).
+  virtual double element_energy_density(const Mat3<T>& F) const = 0;
   /// The material's wave speed [m/s] in the state of one gathered record.
   virtual double wave_speed_of(const T* record) const = 0;
 };
@@ -217,8 +314,10 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     p.velocity = e.velocity_.instance();
     p.grid_next = e.grid_[1 - e.gc_].instance();
     p.grid_this = e.grid_[e.gc_].instance();
-    p.aux = e.record_ ? this->aux.get() : nullptr;
-    if (e.capture_next_ && this->capture.x) p.capture = this->capture;
+    const bool mesh = this->is_mesh();  // its vertices always record v and C: the element pass's frames read them
+    p.aux = e.record_ || mesh ? this->aux.get() : nullptr;
+    if (e.capture_next_ && this->capture.x && !mesh) p.capture = this->capture;  // a mesh's: the element pass
+    p.vertex_mass = mesh ? this->mesh->vertex_mass.get() : nullptr;
     if (e.asflip_) p.transported_next = e.transported_[1 - e.gc_].instance();
     p.asflip = this->asflip;
     p.asflip_params = this->asflip_params;
@@ -252,7 +351,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     p.wave_speed = e.wave_d_.get() + (1 - e.wave_cur_) * e.bodies_.size() + this->index;
     p.p2g_bound_in = e.p2g_bound_d_.get() + e.bound_cur_ * e.bodies_.size() + this->index;
     p.p2g_bound_out = e.p2g_bound_d_.get() + (1 - e.bound_cur_) * e.bodies_.size() + this->index;
-    if (e.block_count_ == 0) return;
+    if (e.block_count_ == 0 || this->particles == 0) return;
     if (p.fbar_psi != T(0) && pass != G2P2GPass::Interior) {  // F-bar: the cell sums first (fbar_cell_sums)
       const int blocks = e.block_count_;
       e.fbar_sums_.clear(0, blocks, e.stream_);
@@ -283,6 +382,8 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     const bool capture = p.capture.x != nullptr;
     if (initial)
       ::fbar::g2p2g<M, T, TG, true, false><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
+    else if (mesh)
+      launch_mesh_g2p2g(p, blocks, arena, transport, e.stream_);
     else if (transport && capture)
       ::fbar::g2p2g<M, T, TG, false, true, true><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
     else if (transport)
@@ -292,6 +393,67 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     else
       ::fbar::g2p2g<M, T, TG, false, false><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
     cuda::check_launch("g2p2g");
+    if (mesh && pass == G2P2GPass::All) mesh_pass(e);
+  }
+
+  /// The G2P2G of a mesh's vertices (kMesh; instantiated for the element laws only).
+  static void launch_mesh_g2p2g(const G2P2GParams<M, T, TG>& p, int blocks, std::size_t arena, bool transport,
+                                cudaStream_t s) {
+    if constexpr (kMeshLaw<M, T>) {
+      if (transport)
+        ::fbar::g2p2g<M, T, TG, false, true, false, true><<<blocks, kG2P2GThreads, arena, s>>>(p);
+      else
+        ::fbar::g2p2g<M, T, TG, false, false, false, true><<<blocks, kG2P2GThreads, arena, s>>>(p);
+    } else {
+      throw std::logic_error("GpuEngine: a mesh body with a law that is not an element law");
+    }
+  }
+
+  void mesh_pass(MgspBenchmark& e) override {
+    if constexpr (kMeshLaw<M, T>) {
+      MeshDevice<T>& m = *this->mesh;
+      const int slots = this->total_bins[e.cur_] * 32;
+      if (!m.on_device() || slots == 0) return;
+      MeshView<T> view = m.view();
+      const auto grid = [](long long n) { return cuda::grid_for(static_cast<int>(std::max(n, 1LL)), kFemThreads); };
+      BodyStepStats* stats = e.body_stats_d_ + this->index;
+      m.timed = e.timing_;
+      if (m.timed) {
+        for (cudaEvent_t& ev : m.pass_events)
+          if (!ev) FBAR_CUDA_CHECK(cudaEventCreate(&ev));
+        FBAR_CUDA_CHECK(cudaEventRecord(m.pass_events[0], e.stream_));
+      }
+      ::fbar::mesh_index_vertices<M, T><<<grid(slots), kFemThreads, 0, e.stream_>>>(
+          bins[1 - e.cur_].instance(), bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, e.k_.inv_dx,
+          view);
+      cuda::check_launch("mesh_index_vertices");
+      ::fbar::mesh_element_pass<M, T><<<grid(view.element_count), kFemThreads, 0, e.stream_>>>(view, params, stats);
+      cuda::check_launch("mesh_element_pass");
+      if (view.fbar_psi != T(0)) {
+        ::fbar::mesh_vertex_volume_ratio<T><<<grid(view.vertex_count), kFemThreads, 0, e.stream_>>>(view, stats);
+        cuda::check_launch("mesh_vertex_volume_ratio");
+        ::fbar::mesh_fbar_elements<M, T><<<grid(view.element_count), kFemThreads, 0, e.stream_>>>(view, params, stats);
+        cuda::check_launch("mesh_fbar_elements");
+      }
+      MeshVertexParams<M, T, TG> vp;
+      vp.mesh = view;
+      vp.bins = bins[1 - e.cur_].instance();
+      vp.params = params;
+      vp.force = m.force[1 - m.force_cur].get();
+      vp.table = e.table_.view();
+      vp.grid_next = e.grid_[1 - e.gc_].instance();
+      vp.dt_next = &e.stats_d_->dt_next;
+      vp.inv_dx = e.k_.inv_dx;
+      vp.aux = this->aux.get();
+      if (e.capture_next_ && this->capture.x) vp.capture = this->capture;
+      vp.measures = this->measures();
+      vp.stats = e.stats_d_;
+      vp.body_stats = stats;
+      vp.wave_speed = e.wave_d_.get() + (1 - e.wave_cur_) * e.bodies_.size() + this->index;
+      ::fbar::mesh_vertex_pass<M, T, TG><<<grid(view.vertex_count), kFemThreads, 0, e.stream_>>>(vp);
+      cuda::check_launch("mesh_vertex_pass");
+      if (m.timed) FBAR_CUDA_CHECK(cudaEventRecord(m.pass_events[1], e.stream_));
+    }
   }
 
   void seepage_sums(MgspBenchmark& e) override {
@@ -322,7 +484,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
                       static_cast<T>(this->spec.velocity[2])}};
     ::fbar::capture_frame_state<M, T><<<cuda::grid_for(slots, kOutputThreads), kOutputThreads, 0, e.stream_>>>(
         bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, this->capture, v0,
-        this->initial_v.size() ? this->initial_v.get() : nullptr, params, this->mass, this->volume);
+        this->initial_v.size() ? this->initial_v.get() : nullptr, params, this->measures());
     cuda::check_launch("capture_frame_state");
   }
 
@@ -369,6 +531,15 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
   void rescale_impulse(MgspBenchmark& e, T ddt) override {
     const int slots = this->total_bins[e.cur_] * 32;
     if (slots == 0) return;
+    if (this->is_mesh()) {  // no MLS stress: the elements' force f (ddt) at each vertex
+      MeshDevice<T>& m = *this->mesh;
+      if (!m.on_device() || !m.forces) return;
+      ::fbar::mesh_rescale_impulse<M, T, TG><<<cuda::grid_for(slots, kFemThreads), kFemThreads, 0, e.stream_>>>(
+          bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, m.force[m.force_cur].get(),
+          static_cast<int>(m.mass.size()), ddt, e.k_.inv_dx, e.table_.view(), e.grid_[e.gc_].instance(), e.stats_d_);
+      cuda::check_launch("mesh_rescale_impulse");
+      return;
+    }
     ::fbar::rescale_impulse<M, T, TG><<<cuda::grid_for(slots, kPartitionThreads), kPartitionThreads, 0, e.stream_>>>(
         bins[e.cur_].instance(), this->partition.layout(e.cur_), slots, params, this->volume, ddt, e.k_.dx, e.k_.inv_dx,
         e.k_.d_inv, e.table_.view(), e.grid_[e.gc_].instance(), e.stats_d_);
@@ -380,7 +551,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     const Vec3<T> v0{{static_cast<T>(this->spec.velocity[0]), static_cast<T>(this->spec.velocity[1]),
                       static_cast<T>(this->spec.velocity[2])}};
     ::fbar::sample_particle_sensors<M, T><<<dim3(per_sensor, e.sensors_.particle.count), kSensorThreads, 0, e.stream_>>>(
-        bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, aux, v0, params, this->mass, this->volume,
+        bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, aux, v0, params, this->measures(),
         e.sensors_.particle, partials);
     cuda::check_launch("sample_particle_sensors");
   }
@@ -391,7 +562,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     const Vec3<T> v0{{static_cast<T>(this->spec.velocity[0]), static_cast<T>(this->spec.velocity[1]),
                       static_cast<T>(this->spec.velocity[2])}};
     ::fbar::track_particles<M, T><<<cuda::grid_for(slots, kOutputThreads), kOutputThreads, 0, e.stream_>>>(
-        bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, aux, v0, params, this->mass, this->volume, t,
+        bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, aux, v0, params, this->measures(), t,
         values, present);
     cuda::check_launch("track_particles");
   }
@@ -427,6 +598,12 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     material_state_t<M, T> s;
     std::memcpy(&s, r + 3, sizeof(s));
     return static_cast<double>(M::energy_density(params, s));
+  }
+  double element_energy_density(const Mat3<T>& F) const override {
+    if constexpr (kMeshLaw<M, T>)
+      return static_cast<double>(M::energy_density(params, material_state_t<M, T>{F}));
+    else
+      return std::numeric_limits<double>::quiet_NaN();
   }
   double wave_speed_of(const T* r) const override {
     material_state_t<M, T> s;

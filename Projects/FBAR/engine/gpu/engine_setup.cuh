@@ -78,6 +78,8 @@ double MgspBenchmark<T, TG>::add_body(int b, const std::vector<std::vector<Vec3d
     counts_.push_back(count_points(x, sim.dx));
     if (spec.initial_state == InitialState::Hydrostatic)
       geometry_bounds = body_geometry_bounds(spec, sim, b);
+  } else if (spec.mesh >= 0) {  // a mesh's particles are its vertices (the parser checked them against the domain)
+    counts_.push_back(count_points(scene_.meshes.at(static_cast<std::size_t>(spec.mesh)).mesh->vertices, sim.dx));
   } else {
     // Counted without storing a point (throws SceneError for particles outside the domain, or none at all).
     BodySampler sampler(spec, sim, b);
@@ -122,6 +124,7 @@ double MgspBenchmark<T, TG>::add_body(int b, const std::vector<std::vector<Vec3d
   const double volume = sim.dx * sim.dx * sim.dx / mat.ppc;
   body.volume = static_cast<T>(volume);
   body.mass = static_cast<T>(mat.rho * volume);
+  if (spec.mesh >= 0) add_mesh(body);
   body.asflip = alg.asflip_active();
   body.asflip_params = AsflipParams<T>{static_cast<T>(alg.asflip_alpha), static_cast<T>(alg.asflip_beta_min),
                                        static_cast<T>(alg.asflip_beta_max)};
@@ -162,6 +165,35 @@ double MgspBenchmark<T, TG>::add_body(int b, const std::vector<std::vector<Vec3d
   return max_speed;
 }
 
+/// A mesh body (physics/fem.cuh): its elements and lumped vertex masses from the scene's mesh (every rank: the
+/// checkpoints and frames read the masses; the device arrays follow on the rank holding the vertices).
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::add_mesh(BodyBase& body) {
+  const MeshEntrySpec& entry = scene_.meshes.at(static_cast<std::size_t>(body.spec.mesh));
+  bool element_law = false;
+  visit_material(body.spec.material.law, [&](auto m) { element_law = kMeshLaw<decltype(m), T>; });
+  if (!element_law)
+    throw std::invalid_argument("meshes[" + std::to_string(body.spec.mesh) + "].constitutive: " +
+                                to_string(body.spec.material.law) +
+                                " is not an element law (FixedCorotated, NeoHookean)");
+  auto m = std::make_unique<MeshDevice<T>>();
+  m->host = mesh_elements<T>(*entry.mesh);
+  m->fbar_psi = entry.fbar_elements ? static_cast<T>(entry.fbar_ratio) : T(0);
+  m->forces = body.spec.algorithm.use_fem;
+  const double rho = body.spec.material.rho;
+  T most_mass = T(0), most_volume = T(0);
+  for (const double V : m->host.lumped_volume) {
+    m->volume.push_back(static_cast<T>(V));
+    m->mass.push_back(static_cast<T>(rho * V));
+    most_mass = std::max(most_mass, m->mass.back());
+    most_volume = std::max(most_volume, m->volume.back());
+  }
+  // The per-body values bound the vertices' (the fixed-point P2G quantum, kernels/g2p2g_kernel.cuh).
+  body.mass = most_mass;
+  body.volume = most_volume;
+  body.mesh = std::move(m);
+}
+
 // The plan (memory_plan.h): capacities and every buffer's size, from the counts; refused before anything is
 // allocated or sampled when it does not fit the device.
 template <typename T, typename TG>
@@ -181,7 +213,12 @@ void MgspBenchmark<T, TG>::plan_memory() {
     in.asflip = body.asflip;
     in.fbar = body.fbar_psi != T(0);
     in.pore = material_has_pore_fluid(body.spec.material.law);
-    in.record = record;
+    in.record = record || body.mesh;  // a mesh's vertices always record v and C
+    if (body.mesh && counts_[b].particles > 0) {  // the rank holding the mesh
+      const MeshEntrySpec& entry = scene_.meshes.at(static_cast<std::size_t>(body.spec.mesh));
+      in.mesh_bytes = mesh_device_bytes(kPrecision, entry.stats.elements, entry.stats.vertices, entry.fbar_elements,
+                                        body.mesh->forces);
+    }
     if (options_.frames) {
       body.frame_attrs = frame_attributes(body.spec, body.index, "GPU engine");
       in.frame_columns = frame_float_columns(body.frame_attrs);
@@ -276,8 +313,15 @@ void MgspBenchmark<T, TG>::allocate_device_state(const std::vector<std::vector<V
       body.upload(mine.data(), ids.data(), mine.size(), 0, stream_);
     } else if (positions) {
       body.upload((*positions)[b].data(), nullptr, (*positions)[b].size(), 0, stream_);
+    } else if (body.mesh) {  // the vertices, on the rank holding the mesh (a mesh is placed whole)
+      const std::vector<Vec3d>& x = scene_.meshes.at(static_cast<std::size_t>(body.spec.mesh)).mesh->vertices;
+      if (body.particles > 0) body.upload(x.data(), nullptr, x.size(), 0, stream_);
     } else {
       upload_sampled(body);
+    }
+    if (body.mesh && body.particles > 0) {  // the rank holding the vertices: the elements, and v and C recorded
+      body.mesh->upload(stream_);
+      body.aux.allocate(body.partition.slots() * kAuxScalars);
     }
   }
   allocate_frames();
@@ -407,6 +451,8 @@ void MgspBenchmark<T, TG>::initial_p2g() {
     b->particles = b->pending_particles;
   }
   dec_.migrated += dec_.pending_migrated;
+  for (auto& b : bodies_)  // the element pass wrote the forces at the start positions
+    if (b->mesh) b->mesh->force_cur = 1 - b->mesh->force_cur;
   block_count_ = stats_->block_count;
   if (decomposed() && dec_.halo_grew) rebuild_halo(0);
   cur_ = 1;
@@ -455,7 +501,13 @@ void MgspBenchmark<T, TG>::restore_bodies(const io::Checkpoint& cp) {
       if (c.id[p] != static_cast<std::int64_t>(p))
         throw std::invalid_argument(where + ": the GPU engine restarts from particles in ID order "
                                     "(io::read_checkpoint_set)");
-    if (n > 0) {
+    if (n > 0 && b.mesh) {  // a mesh's lumped masses are the mesh's (the checkpoint holds the same)
+      for (std::size_t p = 0; p < n; ++p)
+        if (static_cast<T>(c.mass[p]) != b.mesh->mass[p])
+          throw std::invalid_argument(where + ": vertex " + std::to_string(p) + " has mass " +
+                                      std::to_string(c.mass[p]) + " kg in the checkpoint, " +
+                                      std::to_string(static_cast<double>(b.mesh->mass[p])) + " kg from the mesh");
+    } else if (n > 0) {
       b.mass = static_cast<T>(c.mass[0]);
       b.volume = static_cast<T>(c.volume[0]);
       for (std::size_t p = 0; p < n; ++p)

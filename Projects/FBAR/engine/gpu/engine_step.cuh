@@ -278,6 +278,7 @@ std::vector<FailureReport> MgspBenchmark<T, TG>::failures_of_try(double dt) cons
       f.dt = static_cast<double>(static_cast<T>(dt));  // the step size the kernels used (as the CPU engine reports)
       f.count = s.failures[k];
       f.first_particle = s.first_id[k];
+      f.elements = b->is_mesh() && f.kind == FailureKind::Inverted;  // the element pass counts elements
       out.push_back(f);
     }
   }
@@ -447,6 +448,11 @@ void MgspBenchmark<T, TG>::add_kernel_times() {
   times_.grid_update_ms += ms;
   FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[1], events_[2]));
   times_.g2p2g_ms += ms;
+  for (const auto& b : bodies_)
+    if (b->mesh && b->mesh->timed) {
+      FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, b->mesh->pass_events[0], b->mesh->pass_events[1]));
+      times_.fem_ms += ms;
+    }
   FBAR_CUDA_CHECK(cudaEventElapsedTime(&ms, events_[2], events_[4]));
   times_.halo_ms += ms;
   if (decomposed() && options_.overlap_halo) {  // hidden: what the halo stream took beyond the exposed part
@@ -549,6 +555,7 @@ void MgspBenchmark<T, TG>::commit(double dt) {
   for (auto& b : bodies_) {
     take_layout_stats(*b, 1 - cur_);
     b->particles = b->pending_particles;
+    if (b->mesh) b->mesh->force_cur = 1 - b->mesh->force_cur;  // the forces at the committed positions
   }
   dec_.migrated += dec_.pending_migrated;
   cur_ = 1 - cur_;

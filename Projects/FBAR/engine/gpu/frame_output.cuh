@@ -165,8 +165,9 @@ io::ParticleFrame MgspBenchmark<T, TG>::frame(int body) const {
   if (!s.present.empty()) src.id = &ids;
   src.x = &s.x;
   src.v = &s.v;
-  src.mass = [&](std::size_t) { return b.mass; };
-  src.volume0 = [&](std::size_t) { return b.volume; };
+  // A mesh is whole on its rank: entry i is vertex i.
+  src.mass = [&](std::size_t i) { return b.mass_of(i); };
+  src.volume0 = [&](std::size_t i) { return b.volume_of(i); };
   src.J = [&] { return s.J; };
   src.F = [&] {
     if (!b.stores_F()) throw std::invalid_argument("DefGrad: the body's material stores no deformation gradient");
@@ -277,7 +278,8 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
   // A .bgeo frame without the exterior filter: the GPU writes the file's point records into the pinned buffer
   // (pack_bgeo_records) and the writer thread only writes them out. Other formats: positions and columns come down
   // and the writer builds the frame.
-  const bool records = path.extension() == ".bgeo" && !exterior.on() &&
+  // A mesh's frame goes the general way: the writer adds the .vtk of its tetrahedra (particle_io.h).
+  const bool records = !b.mesh && path.extension() == ".bgeo" && !exterior.on() &&
                        b.frame_attrs.size() <= static_cast<std::size_t>(kMaxFrameColumns) + 1;
   const std::size_t record_bytes = 4 * (4 + b.frame_attrs.size());
   const std::size_t host_bytes =
@@ -313,9 +315,15 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
   const cudaEvent_t copied = b.frame_copied;
   const std::vector<FrameAttributeSpec> attrs = b.frame_attrs;
   const std::shared_ptr<typename BodyBase::HostSlot> slot = b.frame_slot;
+  std::shared_ptr<const std::vector<std::array<int, 4>>> tetrahedra;
+  if (b.mesh) {
+    const std::shared_ptr<const TetMesh>& mesh = scene_.meshes[static_cast<std::size_t>(b.spec.mesh)].mesh;
+    tetrahedra = std::shared_ptr<const std::vector<std::array<int, 4>>>(mesh, &mesh->elements);
+  }
   writer.submit_job([=] {
     io::ParticleFrame f;
     f.exterior = exterior;
+    f.tetrahedra = tetrahedra;
     {
       const typename BodyBase::HostSlot::Hold hold{slot};  // released once the frame is built
       FBAR_CUDA_CHECK(cudaEventSynchronize(copied));
@@ -360,7 +368,13 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
 template <typename T, typename TG>
 double MgspBenchmark<T, TG>::total_mass() const {
   double m = 0.0;
-  for (const auto& b : bodies_) m += static_cast<double>(b->particles) * static_cast<double>(b->mass);
+  for (const auto& b : bodies_) {
+    if (!b->mesh) {
+      m += static_cast<double>(b->particles) * static_cast<double>(b->mass);
+    } else if (b->particles > 0) {  // the rank holding the mesh: its lumped vertex masses
+      for (const T mv : b->mesh->mass) m += static_cast<double>(mv);
+    }
+  }
   return m;
 }
 
@@ -371,10 +385,26 @@ double MgspBenchmark<T, TG>::elastic_energy() const {
     const BodyBase& b = body_at(body);
     const std::vector<T> r = gather_host(body, stream_);
     const int W = b.stored_scalars() + kAuxScalars;
+    if (b.mesh) {  // the elements' energy at the vertex positions (as the CPU engine), on the rank holding them
+      if (b.particles > 0) e += mesh_energy(b, r, W);
+      continue;
+    }
     for (std::size_t p = 0; p < static_cast<std::size_t>(b.global_particles); ++p)
       if (!decomposed() || !std::isnan(r[p * W]))
         e += static_cast<double>(b.volume) * b.energy_density_of(r.data() + p * W);
   }
+  return e;
+}
+
+template <typename T, typename TG>
+double MgspBenchmark<T, TG>::mesh_energy(const BodyBase& b, const std::vector<T>& records, int W) const {
+  std::vector<Vec3<T>> x(static_cast<std::size_t>(b.global_particles));
+  for (std::size_t p = 0; p < x.size(); ++p)
+    x[p] = Vec3<T>{{records[p * W], records[p * W + 1], records[p * W + 2]}};
+  const std::vector<Mat3<T>> F = mesh_element_gradients(b.mesh->host, x, b.mesh->fbar_psi);
+  double e = 0.0;
+  for (std::size_t k = 0; k < F.size(); ++k)
+    e += static_cast<double>(b.mesh->host.elements[k].volume) * b.element_energy_density(F[k]);
   return e;
 }
 
@@ -400,8 +430,10 @@ std::size_t MgspBenchmark<T, TG>::device_bytes() const {
                       stats_bytes_.bytes() + wave_d_.bytes() + p2g_bound_d_.bytes() + scan_temp_.bytes() +
                       sensors_.grid_samples_d.bytes() + sensors_.particle_samples_d.bytes() + sensors_.partials_d.bytes() +
                       sensors_.track_d.bytes();
-  for (const auto& b : bodies_)
+  for (const auto& b : bodies_) {
     bytes += b->bins_bytes() + b->partition.bytes() + b->aux.bytes() + b->frame_x.bytes() + b->frame_columns.bytes();
+    if (b->mesh) bytes += b->mesh->device_bytes();
+  }
   return bytes;
 }
 

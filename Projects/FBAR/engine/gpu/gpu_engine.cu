@@ -129,6 +129,7 @@ KernelTimes GpuEngine<T, TG>::kernel_times() const {
   const KernelTimes& e = earlier_times_;
   t.grid_update_ms += e.grid_update_ms;
   t.g2p2g_ms += e.g2p2g_ms;
+  t.fem_ms += e.fem_ms;
   t.partition_ms += e.partition_ms;
   t.halo_ms += e.halo_ms;
   t.halo_hidden_ms += e.halo_hidden_ms;
@@ -228,6 +229,8 @@ template <typename T, typename TG>
 double GpuEngine<T, TG>::particle_volume(int body) const { return impl_->particle_volume(body); }
 template <typename T, typename TG>
 double GpuEngine<T, TG>::total_mass() const { return impl_->total_mass(); }
+template <typename T, typename TG>
+std::vector<double> GpuEngine<T, TG>::particle_masses(int body) const { return impl_->particle_masses(body); }
 template <typename T, typename TG>
 double GpuEngine<T, TG>::elastic_energy() const { return impl_->elastic_energy(); }
 template <typename T, typename TG>

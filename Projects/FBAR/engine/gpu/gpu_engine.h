@@ -52,7 +52,8 @@ struct ParticleSnapshot {
 /// Accumulated device time per kernel family (CUDA events, when timing is on) [ms].
 struct KernelTimes {
   double grid_update_ms = 0.0;  ///< grid update + dt
-  double g2p2g_ms = 0.0;        ///< fused G2P2G, all bodies
+  double g2p2g_ms = 0.0;        ///< fused G2P2G, all bodies (mesh bodies' element passes included)
+  double fem_ms = 0.0;          ///< of g2p2g_ms: the element passes of mesh bodies (kernels/fem_kernels.cuh)
   double partition_ms = 0.0;    ///< footprint activation, scan, src scatter
   double halo_ms = 0.0;         ///< decomposed runs: the halo sums (pack, exchange, add) not hidden behind G2P2G
   double halo_hidden_ms = 0.0;  ///< decomposed runs: the part of the halo sums that overlapped the interior G2P2G
@@ -180,6 +181,9 @@ class GpuEngine {
 
   double particle_mass(int body) const;    ///< [kg] every particle of the body (rho dx^3 / ppc, as CpuEngine)
   double particle_volume(int body) const;  ///< [m^3] reference volume V0 of every particle of the body
+  /// [kg] each particle's mass by ID (a mesh body's lumped vertex masses; particle_mass() for every particle of
+  /// another body), as CpuEngine::masses gives them.
+  std::vector<double> particle_masses(int body) const;
   double total_mass() const;             ///< [kg] particles x per-body mass
   double elastic_energy() const;         ///< [J] sum V0 psi(state), in double on the host (as CpuEngine)
   double grid_mass() const;              ///< [kg] sum of node masses of the current grid (P2G of this state)

@@ -108,6 +108,7 @@ DeviceMemoryPlan plan_device_memory(Precision precision, long long footprint_blo
     plan.grid_growth += partition_block_bytes(plan.block_capacity);
     // Growth by half: the new buffers, and one src array of the old size alive during its copy.
     plan.bins_growth += (particle + per_slot) / 2 + slots * 4;
+    plan.meshes += b.mesh_bytes;
     if (b.frame_columns >= 0)
       plan.frames += static_cast<std::size_t>(b.particles) * (3 * t + 4 * static_cast<std::size_t>(b.frame_columns));
   }
@@ -115,6 +116,12 @@ DeviceMemoryPlan plan_device_memory(Precision precision, long long footprint_blo
   // capacity + 1 integers (a tile descriptor per 2^11 items and a little fixed space).
   plan.small = 4096 + bodies.size() * 256 + (static_cast<std::size_t>(plan.block_capacity) / 2048 + 2) * 16 + 1024;
   return plan;
+}
+
+std::size_t mesh_device_bytes(Precision precision, std::size_t elements, std::size_t vertices, bool fbar, bool forces) {
+  const std::size_t t = particle_scalar_bytes(precision);
+  return elements * ((16 + 10 * t) + 16 + 9 * t + (forces ? 9 * t : 0) + (fbar ? t : 0)) +
+         vertices * (4 + 4 + 2 * t + 3 * t + 6 * t + (fbar ? t : 0)) + 4;
 }
 
 std::string format_bytes(double bytes) {

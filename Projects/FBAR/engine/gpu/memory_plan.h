@@ -49,6 +49,7 @@ struct BodyMemoryInput {
   bool pore = false;             ///< saturated (CoupledUP): the grid's seepage channels
   int frame_columns = -1;        ///< float attributes of its output frame, -1: no frames on the device
   bool record = false;           ///< v and C per particle slot (12 scalars: a particle sensor reads velocities)
+  std::size_t mesh_bytes = 0;    ///< a mesh body on this device: its elements (mesh_device_bytes)
 };
 
 /// The plan for one device. Every figure in bytes unless named otherwise.
@@ -63,7 +64,8 @@ struct DeviceMemoryPlan {
   std::size_t particles_bytes = 0;  ///< particle buffers (both), ASFLIP particle velocities, recorded v and C
   std::size_t frames = 0;      ///< output frames kept on the device for the asynchronous download
   std::size_t small = 0;       ///< step statistics, scan scratch, per-body reductions
-  std::size_t total() const { return grid + partition + particles_bytes + frames + small; }
+  std::size_t meshes = 0;      ///< mesh bodies' elements and vertex arrays (kernels/fem_kernels.cuh)
+  std::size_t total() const { return grid + partition + particles_bytes + frames + small + meshes; }
   std::size_t grid_growth = 0;  ///< more device memory when the grid blocks double (transient copy included)
   std::size_t bins_growth = 0;  ///< more when every body's bins grow by half (transient copy included)
   long long total_particles() const;
@@ -80,6 +82,11 @@ std::size_t particle_record_bytes(int stored_scalars, std::size_t scalar_bytes);
 
 /// Bins of 32 the particle blocks of a count need: sum of ceil(count / 32).
 long long bins_needed(const SampleCount& count);
+
+/// Device bytes of a mesh body's elements and per-vertex arrays besides its bins (the GPU engine's MeshDevice): per
+/// element its rest shape (4 indices, Dm^-1, V0), 4 CSR corners, F and (use_FEM) the forces H, (F-bar) J; per vertex
+/// the CSR start, its slot, lumped mass and volume, position and two forces, (F-bar) its mean J.
+std::size_t mesh_device_bytes(Precision precision, std::size_t elements, std::size_t vertices, bool fbar, bool forces);
 
 /// Grid blocks covered by the 2x2x2 footprints (blocks B .. B + 1 per axis) of every particle block of `counts`.
 long long footprint_blocks(const std::vector<const SampleCount*>& counts);

@@ -8,3 +8,4 @@
 #include "engine/gpu/kernels/output_kernels.cuh"
 #include "engine/gpu/kernels/halo_kernels.cuh"
 #include "engine/gpu/kernels/seepage_kernels.cuh"
+#include "engine/gpu/kernels/fem_kernels.cuh"

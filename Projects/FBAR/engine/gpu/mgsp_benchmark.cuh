@@ -91,6 +91,7 @@
 #include "io/sensor_recorder.h"
 #include "engine/gpu/partition_domain.h"
 #include "engine/run_constants.h"
+#include "engine/mesh_elements.h"
 #include "physics/time_step.cuh"
 #include "scene/scene_parse.h"
 
@@ -179,6 +180,11 @@ class MgspBenchmark {
   void submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer);
   double particle_mass(int body) const { return static_cast<double>(body_at(body).mass); }
   double particle_volume(int body) const { return static_cast<double>(body_at(body).volume); }
+  std::vector<double> particle_masses(int body) const {
+    const BodyBase& b = body_at(body);
+    if (b.mesh) return std::vector<double>(b.mesh->mass.begin(), b.mesh->mass.end());
+    return std::vector<double>(static_cast<std::size_t>(b.global_particles), static_cast<double>(b.mass));
+  }
   double total_mass() const;
   double elastic_energy() const;
   double grid_mass() const;
@@ -226,6 +232,8 @@ class MgspBenchmark {
   template <typename M>
   struct Body;
 
+  /// sum_e V0_e psi(F_e) of a mesh body from its gathered records (W scalars each) [J].
+  double mesh_energy(const BodyBase& b, const std::vector<T>& records, int W) const;
   BodyBase& body_at(int b) const {
     if (b < 0 || b >= body_count()) throw std::out_of_range("GpuEngine: no body " + std::to_string(b));
     return *bodies_[b];
@@ -265,6 +273,7 @@ class MgspBenchmark {
   /// Construction (engine_setup.cuh): body b from the scene (returns its largest initial speed); the memory plan,
   /// refused before anything is allocated when it does not fit; buffers, upload, the initial P2G and partition.
   double add_body(int b, const std::vector<std::vector<Vec3d>>* positions, ParticleSeeds& seed);
+  void add_mesh(BodyBase& body);
   void plan_memory();
   void initialize(const std::vector<std::vector<Vec3d>>* positions);
   void allocate_device_state(const std::vector<std::vector<Vec3d>>* positions);

@@ -188,6 +188,11 @@ io::Checkpoint MgspBenchmark<T, TG>::checkpoint() const {
     out.C.resize(9 * n);
     out.mass.assign(n, static_cast<double>(b.mass));
     out.volume.assign(n, static_cast<double>(b.volume));
+    if (b.mesh && n > 0)  // the vertices' lumped masses (a mesh is whole on its rank: entry p is vertex p)
+      for (std::size_t p = 0; p < n; ++p) {
+        out.mass[p] = static_cast<double>(b.mesh->mass[p]);
+        out.volume[p] = static_cast<double>(b.mesh->volume[p]);
+      }
     out.state.resize(static_cast<std::size_t>(S - 3) * n);
     std::size_t k = 0;
     for (long long p = 0; p < b.global_particles; ++p) {

@@ -58,6 +58,10 @@ void MgspBenchmark<T, TG>::choose_slabs(const std::vector<std::vector<Vec3d>>* p
       body.particles = static_cast<int>(mine);
       continue;
     }
+    if (body.mesh) {  // placed whole: its rank holds every vertex
+      body.particles = dec_.homes[b] == r ? static_cast<int>(body.mesh->mass.size()) : 0;
+      continue;
+    }
     const BodySampler sampler(body.spec, scene_.simulation, body.index);
     std::vector<Vec3d> x;
     for (long long plane = 0; plane < sampler.planes();) {

@@ -90,6 +90,18 @@ struct FrameCapture {
   FrameColumn column[kMaxFrameColumns];
 };
 
+/// A body's particle mass and reference volume: one value for every particle, or (a mesh body: physics/fem.cuh) the
+/// lumped value of each vertex by ID.
+template <typename T>
+struct ParticleMeasures {
+  T mass = T(0);                      ///< [kg] every particle's (a mesh: the largest vertex mass, the P2G quantum's bound)
+  T volume = T(0);                    ///< [m^3]
+  const T* vertex_mass = nullptr;     ///< (ID) [kg], or nullptr
+  const T* vertex_volume = nullptr;   ///< (ID) [m^3], or nullptr
+  FBAR_HOST_DEVICE T mass_of(int id) const { return vertex_mass ? vertex_mass[id] : mass; }
+  FBAR_HOST_DEVICE T volume_of(int id) const { return vertex_volume ? vertex_volume[id] : volume; }
+};
+
 /// Writes particle `id`'s frame entry from its new state (out of line: only capture steps pay its registers).
 template <typename M, typename T>
 __device__ __noinline__ void capture_particle(const FrameCapture<T>& cap, int id, const Vec3<T>& x, const Vec3<T>& v,
@@ -142,8 +154,11 @@ struct G2P2GParams {
   typename GridLayout<TG>::PoreBuffer pore;
   Vec3<T> gravity;           ///< [m/s^2]
   material_params_t<M, T> material;
-  T mass;                    ///< [kg] per particle
+  T mass;                    ///< [kg] per particle (a mesh body: the largest vertex mass, bounding the P2G quantum)
   T volume;                  ///< [m^3] reference volume per particle
+  /// A mesh body (physics/fem.cuh; the kMesh launches and the initial one): each vertex's lumped mass by ID, and its
+  /// P2G carries no MLS stress (the elements' force impulse follows, kernels/fem_kernels.cuh); nullptr otherwise.
+  const T* vertex_mass;
   Vec3<T> initial_velocity;  ///< [m/s] (kInitial)
   const T* initial_v;        ///< (particle ID, 3) per-particle initial velocities [m/s] (kInitial), or nullptr
   const T* initial_C;        ///< (particle ID, 9) per-particle APIC C [1/s] (kInitial; a restart), or nullptr: 0
@@ -364,7 +379,7 @@ struct LaneParticle {
 /// G2P of one particle from the arena's velocities: v, C, advection, the material update (with F-bar's cell mean
 /// and ASFLIP's increment when the body uses them) and the checks, in the CPU engine's order: non-finite, inverted,
 /// left the domain, moved more than a cell. The initial P2G instead starts from the initial (or a restart's) v, C.
-template <typename M, typename T, typename TG, bool kInitial, bool kMayAsflip>
+template <typename M, typename T, typename TG, bool kInitial, bool kMayAsflip, bool kMesh>
 FBAR_DEVICE FBAR_FORCE_INLINE void g2p_particle(const G2P2GParams<M, T, TG>& p, const BlockArena<T, TG>& arena,
                                                 const ParticleRecord<M, T>& in, int src, LaneParticle<M, T>& out) {
   constexpr int kStateScalars = ParticleLayout<M, T>::kStateScalars;
@@ -396,7 +411,9 @@ FBAR_DEVICE FBAR_FORCE_INLINE void g2p_particle(const G2P2GParams<M, T, TG>& p, 
   out.v = sum.velocity();
   out.C = sum.affine(p.d_inv);
   if (!(kMayAsflip && p.asflip)) out.x_new = advect(in.x, out.v, p.dt);
-  if (p.fbar_psi != T(0)) {  // F-bar: J is pulled toward its cell's mean, then advanced (transfer.cuh)
+  if constexpr (kMesh) {
+    out.state = in.state;  // a vertex's state is its elements' (the element pass sets it from the new positions)
+  } else if (p.fbar_psi != T(0)) {  // F-bar: J is pulled toward its cell's mean, then advanced (transfer.cuh)
     const Vec3i cell = fbar_cell_offset(in.x, p.inv_dx, s.base);
     const int a = c0 + cell[0], b = c1 + cell[1], c = c2 + cell[2];
     const int nb = arena.blocks[arena_neighbour(a, b, c)];
@@ -445,7 +462,7 @@ FBAR_DEVICE FBAR_FORCE_INLINE void g2p_particle(const G2P2GParams<M, T, TG>& p, 
   if (!(all_finite(out.x_new) && all_finite(out.v) && all_finite(out.C) &&
         state_finite<T, kStateScalars>(out.state))) {
     out.failed = kFailNonFinite;
-  } else if (!(M::volume_ratio(out.state) > T(0))) {
+  } else if (!kMesh && !(M::volume_ratio(out.state) > T(0))) {  // a mesh's elements: the element pass
     out.failed = kFailInverted;
   } else {
     if (!inside_domain(out.x_new, p.domain, p.dx))
@@ -483,9 +500,9 @@ FBAR_DEVICE FBAR_FORCE_INLINE void store_particle_outputs(const G2P2GParams<M, T
 /// P2G of one particle that passed its checks: wave speed, stress, the MLS payload with the next step's impulse
 /// into the arena (integers in the block's quanta, or float atomics in the initial P2G), the momentum bound it
 /// needs, and its next block (key) or the neighbour that owns it.
-template <typename M, typename T, typename TG, bool kFixed>
+template <typename M, typename T, typename TG, bool kFixed, bool kMayMesh>
 FBAR_DEVICE FBAR_FORCE_INLINE void p2g_particle(const G2P2GParams<M, T, TG>& p, const BlockArena<T, TG>& arena,
-                                                LaneParticle<M, T>& s, double& wave_max, double& bound_max,
+                                                LaneParticle<M, T>& s, int id, double& wave_max, double& bound_max,
                                                 bool& out_of_range) {
   const QuadraticBspline<T> w = quadratic_bspline_inv(s.x_new, p.inv_dx);
   const Vec3i& origin = arena.origin;
@@ -495,13 +512,16 @@ FBAR_DEVICE FBAR_FORCE_INLINE void p2g_particle(const G2P2GParams<M, T, TG>& p, 
     return;
   }
   wave_max = fmax(wave_max, static_cast<double>(M::wave_speed(p.material, s.state)));
-  const StressResult<T> stress = M::kirchhoff_stress(p.material, s.state, s.C);
+  // A mesh vertex: its own mass and no MLS stress (physics/fem.cuh).
+  const bool mesh = kMayMesh && p.vertex_mass != nullptr;
+  const T mass = mesh ? p.vertex_mass[id] : p.mass;
+  const Mat3<T> tau = mesh ? Mat3<T>::zero() : M::kirchhoff_stress(p.material, s.state, s.C).kirchhoff;
   const T dt_next = arena.dt_next;
-  const P2GParticle<T> payload = mls_p2g_particle(p.mass, p.volume, s.v, s.C, stress.kirchhoff, dt_next, p.d_inv);
+  const P2GParticle<T> payload = mls_p2g_particle(mass, p.volume, s.v, s.C, tau, dt_next, p.d_inv);
   // ASFLIP: the momentum the particle carries, without the stress impulse (v^n of the next step).
   const bool transport = arena.channels == 7;
   const P2GParticle<T> carried =
-      transport ? mls_p2g_particle(p.mass, p.volume, s.v, s.C, Mat3<T>::zero(), dt_next, p.d_inv) : P2GParticle<T>{};
+      transport ? mls_p2g_particle(mass, p.volume, s.v, s.C, Mat3<T>::zero(), dt_next, p.d_inv) : P2GParticle<T>{};
   T b = p2g_momentum_bound(payload, p.dx);
   if (transport) b = fmax(b, p2g_momentum_bound(carried, p.dx));
   if (!isfinite(b)) {
@@ -651,7 +671,9 @@ FBAR_DEVICE FBAR_FORCE_INLINE void flush_arena(const G2P2GParams<M, T, TG>& p, c
 /// capture call, even out of line, doubled the APIC kernel's time on an H100).
 /// The phases (g2p2g_detail): arena set-up, then per bin g2p_particle, store_particle_outputs, p2g_particle and the
 /// next block's claim, then reduce_block_maxima and flush_arena.
-template <typename M, typename T, typename TG, bool kInitial, bool kTransport, bool kCapture = false>
+/// kMesh: a mesh body's vertices (physics/fem.cuh): the state kept, no inversion check, the vertex's mass and no
+/// stress in P2G (the initial launch decides at run time from p.vertex_mass).
+template <typename M, typename T, typename TG, bool kInitial, bool kTransport, bool kCapture = false, bool kMesh = false>
 __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) {
   constexpr bool kFixed = !kInitial;  // the initial P2G has no bound yet: it adds T with CAS atomics
   // (x, y, z) grid velocities of the 8x8x8-node arena (vx, vy, vz, pad per node), index arena_index(x, y, z) =
@@ -713,9 +735,11 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
     if (active) {
       const ParticleRecord<M, T> in = load_particle<M, T>(p.in, src);
       id = in.id;
-      g2p2g_detail::g2p_particle<M, T, TG, kInitial, kMayAsflip>(p, arena, in, src, s);
+      g2p2g_detail::g2p_particle<M, T, TG, kInitial, kMayAsflip, kMesh>(p, arena, in, src, s);
       g2p2g_detail::store_particle_outputs<M, T, TG, kMayAsflip, kCapture>(p, slot, in.id, s);
-      if (s.failed < 0) g2p2g_detail::p2g_particle<M, T, TG, kFixed>(p, arena, s, wave_max, bound_max, out_of_range);
+      if (s.failed < 0)
+        g2p2g_detail::p2g_particle<M, T, TG, kFixed, kMesh || kInitial>(p, arena, s, in.id, wave_max, bound_max,
+                                                                        out_of_range);
     }
     g2p2g_detail::count_failures(p, lane, s.failed, id);
     const ParticleDest d =

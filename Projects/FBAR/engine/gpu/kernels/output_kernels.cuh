@@ -42,7 +42,7 @@ __global__ void __launch_bounds__(kOutputThreads)
 template <typename M, typename T>
 __global__ void __launch_bounds__(kOutputThreads)
     capture_frame_state(typename ParticleLayout<M, T>::Buffer bins, const int* src, int slots, FrameCapture<T> capture,
-                        Vec3<T> velocity, const T* v_by_id, material_params_t<M, T> material, T mass, T volume) {
+                        Vec3<T> velocity, const T* v_by_id, material_params_t<M, T> material, ParticleMeasures<T> measures) {
   const int slot = blockIdx.x * blockDim.x + threadIdx.x;
   if (slot >= slots) return;
   const int s = src[slot];
@@ -53,7 +53,8 @@ __global__ void __launch_bounds__(kOutputThreads)
     const T* q = v_by_id + 3 * static_cast<std::size_t>(p.id);
     v = Vec3<T>{{q[0], q[1], q[2]}};
   }
-  capture_particle<M, T>(capture, p.id, p.x, v, Mat3<T>::zero(), p.state, material, mass, volume);
+  capture_particle<M, T>(capture, p.id, p.x, v, Mat3<T>::zero(), p.state, material, measures.mass_of(p.id),
+                         measures.volume_of(p.id));
 }
 
 /// Particle sensors (physics/sensors.cuh) of one body: blockIdx.y = sensor, a grid-stride loop over the slots of the
@@ -62,7 +63,7 @@ __global__ void __launch_bounds__(kOutputThreads)
 template <typename M, typename T>
 __global__ void __launch_bounds__(kSensorThreads)
     sample_particle_sensors(typename ParticleLayout<M, T>::Buffer bins, const int* src, int slots, const T* aux,
-                            Vec3<T> v0, material_params_t<M, T> material, T mass, T volume, ParticleSensorSet<T> sensors,
+                            Vec3<T> v0, material_params_t<M, T> material, ParticleMeasures<T> measures, ParticleSensorSet<T> sensors,
                             SensorAccum* partials) {
   const ParticleSensorParams<T>& g = sensors.s[blockIdx.y];
   const bool sigma = frame_quantity_reads_stress(g.column.quantity);
@@ -80,7 +81,8 @@ __global__ void __launch_bounds__(kSensorThreads)
       for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) C(i, j) = r[3 + 3 * i + j];
     }
-    const FrameInputs<T> in = particle_frame_inputs<M, T>(p.x, v, C, p.state, material, mass, volume, sigma);
+    const FrameInputs<T> in = particle_frame_inputs<M, T>(p.x, v, C, p.state, material, measures.mass_of(p.id),
+                                                              measures.volume_of(p.id), sigma);
     a.add(static_cast<double>(frame_value(g.column, in)));
   }
   a = block_reduce_sensor(a);
@@ -92,7 +94,7 @@ __global__ void __launch_bounds__(kSensorThreads)
 template <typename M, typename T>
 __global__ void __launch_bounds__(kOutputThreads)
     track_particles(typename ParticleLayout<M, T>::Buffer bins, const int* src, int slots, const T* aux, Vec3<T> v0,
-                    material_params_t<M, T> material, T mass, T volume, TrackerSet t, double* values, double* present) {
+                    material_params_t<M, T> material, ParticleMeasures<T> measures, TrackerSet t, double* values, double* present) {
   const int slot = blockIdx.x * blockDim.x + threadIdx.x;
   if (slot >= slots) return;
   const int s = src[slot];
@@ -108,7 +110,8 @@ __global__ void __launch_bounds__(kOutputThreads)
     for (int a = 0; a < 3; ++a)
       for (int b = 0; b < 3; ++b) C(a, b) = r[3 + 3 * a + b];
   }
-  const FrameInputs<T> in = particle_frame_inputs<M, T>(p.x, v, C, p.state, material, mass, volume, true);
+  const FrameInputs<T> in = particle_frame_inputs<M, T>(p.x, v, C, p.state, material, measures.mass_of(p.id),
+                                                              measures.volume_of(p.id), true);
   for (int a = 0; a < t.attribs; ++a) values[i * t.attribs + a] = static_cast<double>(frame_value(t.column[a], in));
   present[i] = 1.0;
 }
