@@ -59,6 +59,7 @@ struct CliOptions {
   bool quiet = false;
   int gpus = 1;  ///< GPU ranks of one process (threads); under mpirun each process is one rank
   bool halo_overlap = false;  ///< --halo-overlap=on: GPU ranks overlap the halo sums with G2P2G
+  bool keep_gpus = false;     ///< --keep-gpus: --gpus=N runs N ranks even for a scene too small to gain from them
   bool allow_unknown_keys = false;
   std::string data_dir;
   std::string restart;  ///< --restart=FILE: a checkpoint to continue from
@@ -83,7 +84,10 @@ const char* kHelp =
     "  --gpus=N                decompose the scene over N GPU ranks of this process, one thread per rank on\n"
     "                          GPU (rank mod visible GPUs), NCCL between them (default 1; more ranks than GPUs\n"
     "                          share them through host-ordered peer copies: for testing). Under mpirun / srun\n"
-    "                          each process is one rank on its node's GPU (local rank mod visible GPUs)\n"
+    "                          each process is one rank on its node's GPU (local rank mod visible GPUs). A scene\n"
+    "                          below 2000000 particles (a mesh element counting as 5) steps faster on one GPU:\n"
+    "                          --gpus=N runs it on one (with a note), unless it places bodies on GPUs\n"
+    "  --keep-gpus             --gpus=N runs N ranks whatever the scene's size (tests, measurements)\n"
     "  --halo-overlap=on|off   GPU ranks: run G2P2G on the particle blocks next to the cuts first and the rest\n"
     "                          while the halo sums travel (default off: between GPUs of one node the sums are\n"
     "                          faster than the overlap costs; on can pay between nodes on slow links)\n"
@@ -104,7 +108,8 @@ const char* kHelp =
 
 const std::vector<std::string_view> kLongOptions = {"--file",   "--check",  "--backend",           "--output",
                                                     "--frames", "--quiet",  "--allow-unknown-keys", "--data-dir",
-                                                    "--version", "--help",  "--gpus", "--restart", "--halo-overlap"};
+                                                    "--version", "--help",  "--gpus", "--restart", "--halo-overlap",
+                                                    "--keep-gpus"};
 
 CliOptions parse_arguments(int argc, char** argv) {
   CliOptions o;
@@ -183,6 +188,9 @@ CliOptions parse_arguments(int argc, char** argv) {
       if (used != v.size() || v.empty() || n < 1 || n > 1024)
         throw UsageError("--gpus: got '" + v + "'; expected an integer from 1 to 1024");
       o.gpus = static_cast<int>(n);
+    } else if (name == "--keep-gpus") {
+      no_value();
+      o.keep_gpus = true;
     } else if (name == "--halo-overlap") {
       const std::string v = take_value();
       if (v != "on" && v != "off") throw UsageError("--halo-overlap: got '" + v + "'; expected on or off");
@@ -376,7 +384,7 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
   }
   const int mpi_ranks = transport ? transport->size() : 1;
   const int rank = transport ? transport->rank() : 0;
-  const int gpus = o.gpus;
+  int gpus = o.gpus;
   if (gpus > 1 && (mpi_ranks > 1 || !gpu)) {
     if (rank == 0)
       std::cerr << "fbar: error: --gpus=" << gpus
@@ -407,6 +415,21 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
       return kExitInput;
     }
     local_gpu = local_rank % devices;
+  }
+  // A scene too small to gain from several GPUs runs on one (kMultiGpuMinParticles); under an MPI launcher the
+  // ranks are the launcher's: rank 0 says so.
+  if (gpu && (gpus > 1 || mpi_ranks > 1) && !o.keep_gpus && comm::ranks_asked(scene) <= 1 && rank == 0) {
+    const long long work = scene_work_particles(scene, kMultiGpuMinParticles);
+    if (work < kMultiGpuMinParticles) {
+      const std::string asked = mpi_ranks > 1 ? std::to_string(mpi_ranks) + " MPI ranks" : "--gpus=" + std::to_string(gpus);
+      std::cerr << "fbar: note: " << asked << ": the scene has " << work
+                << " particles (a mesh element counted as 5); below " << kMultiGpuMinParticles
+                << " one GPU steps faster than several (docs/user_guide.md \"Several ranks\"): "
+                << (mpi_ranks > 1 ? "start one rank (mpirun -np 1) for the fastest run"
+                                  : "running on one GPU (--keep-gpus runs " + std::to_string(gpus) + " ranks)")
+                << '\n';
+      if (mpi_ranks == 1) gpus = 1;
+    }
   }
   const bool thread_ranks = gpu && gpus > 1;
   const bool shared_gpus = thread_ranks && gpus > devices;

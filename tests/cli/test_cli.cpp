@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <memory>
 #include <set>
 #include <sstream>
 #include <string>
@@ -21,7 +22,9 @@
 
 #include "cli.h"
 #include "cli_test_support.h"
+#include "engine/engine_api.h"
 #include "engine/stop_request.h"
+#include "geometry/tet_mesh.h"
 #include "io/checkpoint.h"
 #include "scene/scene_parse.h"
 
@@ -125,6 +128,26 @@ TEST(Cli, CheckPrintsTheResolvedSceneWithUnits) {
     EXPECT_NE(r.out.find(s), std::string::npos) << "'" << s << "' missing from\n" << r.out;
   // froude_scaling 2 doubles the 0.02 m grid.
   EXPECT_NE(r.out.find("0.04 m"), std::string::npos) << r.out;
+}
+
+// --check says whether several GPUs pay for the scene (kMultiGpuMinParticles), counting as a run would
+// (scene_work_particles: a mesh element as 5 particles).
+TEST(Cli, CheckSaysWhetherSeveralGpusPay) {
+  const fs::path file = kScenes / "good" / "tiny_fluid.json";
+  const CliResult r = run_cli({"--check", "--file=" + file.string()});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("GPU ranks"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("one: below 2000000 particles"), std::string::npos) << r.out;
+  Scene scene = parse_scene_file(file.string(), ParseOptions{});
+  const long long particles = summarize_scene(scene).bodies.at(0).particles;
+  EXPECT_EQ(scene_work_particles(scene, kMultiGpuMinParticles), particles);
+  EXPECT_GE(scene_work_particles(scene, 10), 10);  // stops once the count reaches the cap
+  MeshEntrySpec m;
+  m.use_fem = true;
+  m.mesh = std::make_shared<const TetMesh>(box_tet_mesh(Vec3d{{0.1, 0.1, 0.1}}, Vec3d{{0.2, 0.2, 0.2}}, Vec3i{{2, 2, 2}}));
+  scene.meshes.push_back(m);
+  append_mesh_bodies(scene);
+  EXPECT_EQ(scene_work_particles(scene, kMultiGpuMinParticles), particles + 27 + 5 * 48);
 }
 
 TEST(Cli, HelpListsEveryOption) {

@@ -42,7 +42,7 @@ def run(label, ranks, mpi):
     out = os.path.join(work, label)
     cmd = [fbar, f"--backend={engine}", "--quiet", f"--output={out}", scene]
     if engine == "gpu" and not mpi:
-        cmd.append(f"--gpus={ranks}")
+        cmd += [f"--gpus={ranks}", "--keep-gpus"]  # placing scenes keep their ranks anyway
     if mpi:
         cmd = [mpiexec, "-np", str(ranks), "--oversubscribe", "--allow-run-as-root", "-x", "NCCL_NVLS_ENABLE"] + cmd
     p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)

@@ -71,6 +71,20 @@ void print_mesh_rows(std::ostream& os, const BodySummary& bs) {
                       bytes(bs.mesh_bytes) + " on the CPU engine, besides the vertices");
 }
 
+/// Whether several GPUs pay for the scene (kMultiGpuMinParticles; scene_work_particles' measure: a mesh element
+/// counts as 5 particles).
+void print_gpu_ranks_row(std::ostream& os, const SceneSummary& summary) {
+  long long work = 0;
+  for (const BodySummary& bs : summary.bodies) work += bs.particles + (bs.mesh ? 5 * bs.elements : 0);
+  const std::string limit = std::to_string(kMultiGpuMinParticles);
+  row(os, "GPU ranks",
+      work < kMultiGpuMinParticles
+          ? "one: below " + limit + " particles one GPU steps faster than several (" + std::to_string(work) +
+                " here); fbar --gpus=N runs it on one GPU unless bodies are placed (--keep-gpus keeps N), and "
+                "under mpirun one rank is fastest"
+          : "several pay from " + limit + " particles (" + std::to_string(work) + " here)");
+}
+
 std::string algorithm_line(const AlgorithmSpec& a) {
   const bool asflip = a.asflip_active();
   const bool fbar = a.fbar_blend() != 0.0;
@@ -264,6 +278,7 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
 
   os << "summary\n";
   row(os, "particles", std::to_string(total) + " in " + std::to_string(scene.bodies.size()) + " body(ies)");
+  print_gpu_ranks_row(os, summary);
   row(os, "time step", num(summary.dt) + " s (min of default_dt and every body's bounds)");
   const double steps_per_frame = summary.dt > 0.0 ? std::ceil(1.0 / (s.fps * summary.dt)) : 0.0;
   row(os, "steps", "about " + num(steps_per_frame) + " per frame, " + num(steps_per_frame * s.frames) + " in all");

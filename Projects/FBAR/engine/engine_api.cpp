@@ -280,6 +280,26 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
   return summary;
 }
 
+long long scene_work_particles(const Scene& scene, long long cap) {
+  long long total = 0;
+  for (std::size_t i = 0; i < scene.bodies.size() && total < cap; ++i) {
+    const BodySpec& body = scene.bodies[i];
+    if (body.mesh >= 0) {
+      const TetMeshStats& m = scene.meshes.at(static_cast<std::size_t>(body.mesh)).stats;
+      total += static_cast<long long>(m.vertices) + 5 * static_cast<long long>(m.elements);
+      continue;
+    }
+    try {
+      const BodySampler sampler(body, scene.simulation, static_cast<int>(i));
+      if (sampler.candidates() > 64e6) return std::max(cap, total);
+      total += sampler.count(scene.simulation.dx).particles;
+    } catch (const std::exception&) {
+      return std::max(cap, total);
+    }
+  }
+  return total;
+}
+
 RunResult run_guarded(const std::function<RunResult()>& run) {
   RunResult result;
   result.from_exception = true;  // for every return below

@@ -67,6 +67,17 @@ struct SummaryOptions {
 /// estimates.
 SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options = {});
 
+/// Below this many particles (scene_work_particles) one GPU steps a scene faster than 2 or 4: measured on H200s with
+/// NVLink (docs/benchmarks/2026-11-28-h200x4-small-scenes.md: the dam break's crossover near 1.6M particles, with
+/// 25 % margin). `fbar --gpus=N` runs such a scene on one GPU (cli.cpp; --keep-gpus keeps N).
+inline constexpr long long kMultiGpuMinParticles = 2000000;
+
+/// The particles a scene steps, each mesh element counted as 5 (its element pass costs 0.57 ns an element-step against
+/// 0.11 ns a particle-step on an H200: docs/benchmarks/2026-11-28-h200x2-fem.md): exact, or at least `cap` once the
+/// count reaches it. A body whose lattice has more than 64M candidate points counts as `cap` (counting it would cost
+/// more than the answer is worth); a body that cannot be sampled counts as `cap` (the engine reports it).
+long long scene_work_particles(const Scene& scene, long long cap);
+
 struct RunOptions {
   bool quiet = false;              ///< no progress lines
   std::ostream* log = nullptr;     ///< progress and failure reports; nullptr = std::cout

@@ -44,8 +44,10 @@ steps1, one, sensors1 = run("gpus1", 1, [], [])
 # A scene with sensors or trackers must write their CSVs; one without writes none (no comparison is left out).
 assert bool(sensors1) == frames_by_id.scene_declares_sensors(scene), \
     f"one GPU wrote sensor files {sorted(sensors1)}; the scene declares sensors: {frames_by_id.scene_declares_sensors(scene)}"
-cases = [("gpus2", 2, [], ["--gpus=2"]), ("gpus2_overlap", 2, [], ["--gpus=2", "--halo-overlap=on"]),
-         ("gpus3", 3, [], ["--gpus=3"])]
+# --keep-gpus: these test scenes are far below the size where several GPUs pay, which fbar would otherwise run on one.
+cases = [("gpus2", 2, [], ["--gpus=2", "--keep-gpus"]),
+         ("gpus2_overlap", 2, [], ["--gpus=2", "--keep-gpus", "--halo-overlap=on"]),
+         ("gpus3", 3, [], ["--gpus=3", "--keep-gpus"])]
 if gpus >= 2 and mpiexec:
     cases.append(("mpi2", 2, [mpiexec, "-np", "2", "--allow-run-as-root", "-x", "NCCL_NVLS_ENABLE"], []))
 for label, n, prefix, extra in cases:
@@ -66,7 +68,8 @@ for label, n, prefix, extra in cases:
         again = os.path.join(work, "gpus2_restarted")
         shutil.copytree(os.path.join(work, label), again)
         steps_r, restarted, sensors_r = run("gpus2_restarted", 2, [],
-                                            ["--gpus=2", "--restart=" + os.path.join(again, "checkpoint_frame[1]_dev[0].h5")])
+                                            ["--gpus=2", "--keep-gpus",
+                                             "--restart=" + os.path.join(again, "checkpoint_frame[1]_dev[0].h5")])
         assert steps_r == steps, f"restarted: {steps_r} steps, the run {steps}"
         dx, dv = frames_by_id.max_differences(restarted, many)
         worst, where = frames_by_id.max_sensor_difference(sensors_r, sensors, "restarted")

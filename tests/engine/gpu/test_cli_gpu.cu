@@ -19,6 +19,9 @@ namespace {
 namespace fs = std::filesystem;
 
 const fs::path kTinyFluid = fs::path(FBAR_SOURCE_DIR) / "tests" / "scenes" / "good" / "tiny_fluid.json";
+/// 7,200 water particles over several block planes: two ranks can share it.
+const fs::path kDecomposedDamBreak =
+    fs::path(FBAR_SOURCE_DIR) / "tests" / "scenes" / "good" / "decomposed_dam_break.json";
 
 EngineSet with_gpu() {
   EngineSet e;
@@ -71,6 +74,24 @@ TEST(CliGpu, AutoAndGpuRunTheGpuEngine) {
     EXPECT_EQ(r.err.find("warning"), std::string::npos) << r.err;
     EXPECT_EQ(backend_in_run_json(out), "gpu") << backend;
     EXPECT_TRUE(fs::exists(out / "model[0]_dev[0]_frame[1].csv")) << backend;
+    fs::remove_all(out.parent_path());
+  }
+}
+
+// A scene below kMultiGpuMinParticles runs on one GPU when --gpus=N asks for more (one GPU steps it faster: the
+// note says so and only rank 0's files appear); --keep-gpus runs the N ranks (rank 1 writes its part of the water).
+TEST(CliGpu, SmallSceneRunsOnOneGpuUnlessKept) {
+  FBAR_REQUIRE_DEVICE();
+  for (const bool keep : {false, true}) {
+    const fs::path out = scratch(keep ? "small_kept" : "small");
+    std::vector<std::string> args = {"--gpus=2", "--quiet", "--frames=1", "--output=" + out.string(),
+                                      "--file=" + kDecomposedDamBreak.string()};
+    if (keep) args.push_back("--keep-gpus");
+    const test::CliResult r = test::run_cli(args, with_gpu());
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(r.err.find("running on one GPU") != std::string::npos, !keep) << r.err;
+    EXPECT_TRUE(fs::exists(out / "model[0]_dev[0]_frame[1].csv"));
+    EXPECT_EQ(fs::exists(out / "model[0]_dev[1]_frame[1].csv"), keep) << (keep ? "kept" : "reduced");
     fs::remove_all(out.parent_path());
   }
 }

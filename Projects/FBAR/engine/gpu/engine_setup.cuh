@@ -68,7 +68,7 @@ double MgspBenchmark<T, TG>::add_body(int b, const std::vector<std::vector<Vec3d
   check_engine_body(spec, b, "GPU engine");
   const MaterialSpec& mat = spec.material;
   const AlgorithmSpec& alg = spec.algorithm;
-  Aabb geometry_bounds;  // the free surface of a hydrostatic body is its top (engine/hydrostatic.h)
+  Aabb geometry_bounds{};  // the free surface of a hydrostatic body is its top (engine/hydrostatic.h)
   if (positions) {
     const std::vector<Vec3d>& x = (*positions)[static_cast<std::size_t>(b)];
     const Vec3d domain{{sim.domain[0], sim.domain[1], sim.domain[2]}};
