@@ -113,6 +113,23 @@ TEST(SlabPartition, RefusesMoreRanksThanPlanes) {
   }
 }
 
+// Work placed whole on a rank (a mesh, a placed body: comm/placement.h placed_work) is a preload: the cuts even out
+// preload + slab count (100 planes of 10 particles: rank 1 holding 500 takes 250 of the 1,000, rank 0 750), and a
+// rank whose preload exceeds the even share keeps only its minimum width.
+TEST(SlabPartition, PreloadedRanksTakeFewerParticles) {
+  PlaneCounts planes;
+  planes.axis = 0;
+  planes.first = 3;
+  planes.counts.assign(100, 10);
+  const std::vector<long long> one = rank_counts(choose_slabs(planes, 2, 1, {0, 500}), planes);
+  EXPECT_EQ(one, (std::vector<long long>{750, 250}));
+  const std::vector<long long> three = rank_counts(choose_slabs(planes, 3, 1, {0, 0, 400}), planes);
+  EXPECT_EQ(three, (std::vector<long long>{470, 470, 60}));  // level (1000 + 400) / 3 = 466.7, whole planes
+  const SlabPartition heavy = choose_slabs(planes, 2, 2, {5000, 0});
+  EXPECT_EQ(rank_counts(heavy, planes), (std::vector<long long>{20, 980}));  // min_planes 2
+  EXPECT_EQ(choose_slabs(planes, 2, 1, {0, 0}).cuts, choose_slabs(planes, 2).cuts);  // no preload: as before
+}
+
 TEST(SlabPartition, ImbalanceIsMaxOverMeanMinusOne) {
   EXPECT_DOUBLE_EQ(imbalance({100, 100}), 0.0);
   EXPECT_DOUBLE_EQ(imbalance({150, 50}), 0.5);

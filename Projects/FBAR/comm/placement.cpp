@@ -7,6 +7,19 @@
 
 namespace fbar::comm {
 
+std::vector<long long> placed_work(const Scene& scene, int ranks, const std::vector<long long>& body_particles) {
+  std::vector<long long> work(static_cast<std::size_t>(std::max(ranks, 1)), 0);
+  const std::vector<int> homes = body_ranks(scene, ranks);
+  for (std::size_t i = 0; i < scene.bodies.size() && i < body_particles.size(); ++i) {
+    if (homes[i] < 0) continue;
+    long long w = body_particles[i];
+    if (const int m = scene.bodies[i].mesh; m >= 0)
+      w += 5 * static_cast<long long>(scene.meshes.at(static_cast<std::size_t>(m)).stats.elements);
+    work[static_cast<std::size_t>(homes[i])] += w;
+  }
+  return work;
+}
+
 bool places_bodies(const Scene& scene) {
   std::set<int> named;
   for (const BodySpec& b : scene.bodies)

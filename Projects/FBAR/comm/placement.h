@@ -27,4 +27,10 @@ int ranks_asked(const Scene& scene);
 /// a GPU the run does not have.
 std::vector<int> body_ranks(const Scene& scene, int ranks);
 
+/// Per rank, the work of the bodies placed whole on it (body_ranks), for choose_slabs' preload: a body's particles
+/// (body_particles[i], every rank's), a mesh's vertices and 5 per element (its element pass costs 0.57 ns an
+/// element-step against 0.11 ns a particle-step: docs/benchmarks/2026-11-28-h200x2-fem.md). All zero when nothing is
+/// placed.
+std::vector<long long> placed_work(const Scene& scene, int ranks, const std::vector<long long>& body_particles);
+
 }  // namespace fbar::comm

@@ -2,6 +2,7 @@
 #include "comm/slab_partition.h"
 
 #include <algorithm>
+#include <cmath>
 #include <numeric>
 #include <sstream>
 #include <stdexcept>
@@ -47,7 +48,7 @@ PlaneCounts plane_counts(const std::vector<const SampleCount*>& counts) {
   return p;
 }
 
-SlabPartition choose_slabs(const PlaneCounts& planes, int ranks, int min_planes) {
+SlabPartition choose_slabs(const PlaneCounts& planes, int ranks, int min_planes, const std::vector<long long>& preload) {
   if (ranks < 1) throw std::invalid_argument("choose_slabs: ranks must be at least 1");
   min_planes = std::max(1, min_planes);
   const int n = static_cast<int>(planes.counts.size());
@@ -62,14 +63,47 @@ SlabPartition choose_slabs(const PlaneCounts& planes, int ranks, int min_planes)
                                 std::string(1, "xyz"[planes.axis]) + ", fewer than " + std::to_string(ranks) +
                                 " ranks x " + std::to_string(min_planes) + " planes: use fewer GPUs");
   const long long total = planes.total();
-  // Plane index (0-based) where rank r starts: the first plane whose preceding sum reaches r/ranks of the total,
-  // then moved so that every slab keeps min_planes planes on both sides.
+  // The spread particles each rank should take: total / ranks, or with a preload the water level T with
+  // sum_r max(0, T - preload_r) = total (ranks above it take none).
+  const bool preloaded = std::any_of(preload.begin(), preload.end(), [](long long w) { return w > 0; });
+  const auto preload_of = [&](int r) {
+    return r < static_cast<int>(preload.size()) ? static_cast<double>(preload[static_cast<std::size_t>(r)]) : 0.0;
+  };
+  std::vector<double> share(static_cast<std::size_t>(ranks), 0.0);
+  if (preloaded) {
+    // The level falls as ranks above it drop out, so a rank that dropped out stays out.
+    std::vector<bool> active(static_cast<std::size_t>(ranks), true);
+    for (bool changed = true; changed;) {
+      changed = false;
+      double sum = static_cast<double>(total);
+      int count = 0;
+      for (int r = 0; r < ranks; ++r)
+        if (active[static_cast<std::size_t>(r)]) {
+          sum += preload_of(r);
+          ++count;
+        }
+      const double level = sum / count;
+      for (int r = 0; r < ranks; ++r) {
+        const bool on = active[static_cast<std::size_t>(r)] && preload_of(r) < level;
+        if (active[static_cast<std::size_t>(r)] && !on) {
+          active[static_cast<std::size_t>(r)] = false;
+          changed = true;
+        }
+        share[static_cast<std::size_t>(r)] = on ? level - preload_of(r) : 0.0;
+      }
+    }
+  }
+  // Plane index (0-based) where rank r starts: the first plane whose preceding sum reaches the shares of the ranks
+  // before it, then moved so that every slab keeps min_planes planes on both sides.
   std::vector<int> start(static_cast<std::size_t>(ranks) + 1, 0);
   start[ranks] = n;
   long long running = 0;
   int plane = 0;
+  double before = 0.0;
   for (int r = 1; r < ranks; ++r) {
-    const long long target = (total * r + ranks - 1) / ranks;  // ceil(total r / ranks)
+    before += share[static_cast<std::size_t>(r - 1)];
+    const long long target = preloaded ? static_cast<long long>(std::ceil(before))
+                                       : (total * r + ranks - 1) / ranks;  // ceil(total r / ranks)
     while (plane < n && running < target) running += planes.counts[static_cast<std::size_t>(plane++)];
     start[r] = plane;
   }

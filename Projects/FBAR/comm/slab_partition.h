@@ -58,7 +58,11 @@ PlaneCounts plane_counts(const std::vector<const SampleCount*>& counts);
 /// Cuts for `ranks` slabs with particle counts as equal as whole planes allow (each cut at the first plane where
 /// the running count reaches r / ranks of the total), every slab at least `min_planes` planes wide. Throws
 /// std::invalid_argument when the active region has fewer than ranks x min_planes planes (the message names both).
-SlabPartition choose_slabs(const PlaneCounts& planes, int ranks, int min_planes = 1);
+/// preload[r] (empty: none): work rank r holds besides its slab (bodies placed whole on it, placed_work in
+/// comm/placement.h); the slabs then even out preload + slab count instead (water-filling: a rank whose preload
+/// exceeds the even share gets no more than its min_planes planes).
+SlabPartition choose_slabs(const PlaneCounts& planes, int ranks, int min_planes = 1,
+                           const std::vector<long long>& preload = {});
 
 /// Particles of each rank under `partition`.
 std::vector<long long> rank_counts(const SlabPartition& partition, const PlaneCounts& planes);

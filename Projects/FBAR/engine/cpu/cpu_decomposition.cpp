@@ -418,7 +418,13 @@ void CpuEngine<T, TG>::choose_slabs_now(bool replicated) {
     }
   }
   if (!replicated) transport_->allreduce_sum(planes.counts.data(), static_cast<int>(planes.counts.size()));
-  slabs_ = comm::choose_slabs(planes, ranks());
+  // Placed bodies are a preload of their rank (comm/placement.h placed_work): whole on their home, or everywhere
+  // while the scene is still replicated.
+  std::vector<long long> placed(bodies_.size(), 0);
+  for (std::size_t b = 0; b < bodies_.size(); ++b)
+    if (bodies_[b].home >= 0) placed[b] = static_cast<long long>(bodies_[b].x.size());
+  if (!replicated) transport_->allreduce_sum(placed.data(), static_cast<int>(placed.size()));
+  slabs_ = comm::choose_slabs(planes, ranks(), 1, comm::placed_work(scene_, ranks(), placed));
 }
 
 template class CpuEngine<double, double>;

@@ -23,7 +23,9 @@ io::Checkpoint MgspBenchmark<T, TG>::merged_checkpoint() const {
 template <typename T, typename TG>
 bool MgspBenchmark<T, TG>::slabs_change_for(const io::Checkpoint& merged) const {
   std::vector<SampleCount> counts;
-  const std::vector<int> homes = comm::body_ranks(scene_, ranks());  // placed bodies have no say in the slabs
+  const std::vector<int> homes = comm::body_ranks(scene_, ranks());  // placed bodies: a preload, not planes
+  std::vector<long long> particles;
+  for (const io::CheckpointBody& b : merged.bodies) particles.push_back(static_cast<long long>(b.particles()));
   for (std::size_t i = 0; i < merged.bodies.size(); ++i) {
     if (homes[i] >= 0) continue;
     const io::CheckpointBody& b = merged.bodies[i];
@@ -34,7 +36,8 @@ bool MgspBenchmark<T, TG>::slabs_change_for(const io::Checkpoint& merged) const 
   std::vector<const SampleCount*> pointers;
   for (const SampleCount& c : counts) pointers.push_back(&c);
   const comm::PlaneCounts planes = comm::plane_counts(pointers);
-  return planes.total() > 0 && comm::choose_slabs(planes, ranks()).cuts != dec_.slabs.cuts;
+  return planes.total() > 0 &&
+         comm::choose_slabs(planes, ranks(), 1, comm::placed_work(scene_, ranks(), particles)).cuts != dec_.slabs.cuts;
 }
 
 }  // namespace fbar

@@ -21,7 +21,9 @@ void MgspBenchmark<T, TG>::choose_slabs(const std::vector<std::vector<Vec3d>>* p
   }
   const comm::PlaneCounts planes = comm::plane_counts(spread);
   if (planes.total() > 0) {
-    dec_.slabs = comm::choose_slabs(planes, n);
+    std::vector<long long> particles;  // every body's, whole (the counts before this rank keeps its share)
+    for (const SampleCount& c : counts_) particles.push_back(c.particles);
+    dec_.slabs = comm::choose_slabs(planes, n, 1, comm::placed_work(scene_, n, particles));
   } else {  // only placed bodies: rank 0 "owns" all of space, which nothing asks about
     dec_.slabs.axis = 0;
     dec_.slabs.cuts.assign(static_cast<std::size_t>(n) + 1, INT_MAX);
