@@ -63,41 +63,4 @@ MeshElements<T> mesh_elements(const TetMesh& mesh) {
   return out;
 }
 
-/// The gradient each element's stress uses at positions x (by vertex): F = Ds Dm^-1, or with F-bar (psi > 0) F
-/// scaled to the blend of its J and its vertices' V0-weighted mean J (physics/fem.cuh), in the engines' order.
-/// Serial: for energies and checks on the host (the engines run their own passes).
-template <typename T>
-std::vector<Mat3<T>> mesh_element_gradients(const MeshElements<T>& m, const std::vector<Vec3<T>>& x, T psi) {
-  const std::size_t ne = m.elements.size();
-  std::vector<Mat3<T>> F(ne);
-  std::vector<T> J(ne);
-  bool inverted = false;
-  for (std::size_t e = 0; e < ne; ++e) {
-    const TetElement<T>& el = m.elements[e];
-    F[e] = tet_deformation_gradient(el, x[static_cast<std::size_t>(el.v[0])], x[static_cast<std::size_t>(el.v[1])],
-                                    x[static_cast<std::size_t>(el.v[2])], x[static_cast<std::size_t>(el.v[3])]);
-    J[e] = determinant(F[e]);
-    inverted = inverted || !(J[e] > T(0));
-  }
-  if (inverted || psi == T(0)) return F;
-  const std::size_t nv = m.vertex_start.size() - 1;
-  std::vector<T> vertex_J(nv);
-  for (std::size_t v = 0; v < nv; ++v) {
-    T sum_J = T(0), sum_V = T(0);
-    for (int c = m.vertex_start[v]; c < m.vertex_start[v + 1]; ++c) {
-      const std::size_t e = static_cast<std::size_t>(m.vertex_elements[static_cast<std::size_t>(c)] / 4);
-      sum_J += J[e] * m.elements[e].volume;
-      sum_V += m.elements[e].volume;
-    }
-    vertex_J[v] = sum_V > T(0) ? sum_J / sum_V : T(1);
-  }
-  for (std::size_t e = 0; e < ne; ++e) {
-    const TetElement<T>& el = m.elements[e];
-    const T Jbar = T(0.25) * (vertex_J[static_cast<std::size_t>(el.v[0])] + vertex_J[static_cast<std::size_t>(el.v[1])] +
-                              vertex_J[static_cast<std::size_t>(el.v[2])] + vertex_J[static_cast<std::size_t>(el.v[3])]);
-    F[e] = tet_fbar_gradient(F[e], J[e], Jbar, psi);
-  }
-  return F;
-}
-
 }  // namespace fbar

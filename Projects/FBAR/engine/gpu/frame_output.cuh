@@ -383,12 +383,12 @@ double MgspBenchmark<T, TG>::elastic_energy() const {
   double e = 0.0;
   for (int body = 0; body < body_count(); ++body) {
     const BodyBase& b = body_at(body);
-    const std::vector<T> r = gather_host(body, stream_);
-    const int W = b.stored_scalars() + kAuxScalars;
-    if (b.mesh) {  // the elements' energy at the vertex positions (as the CPU engine), on the rank holding them
-      if (b.particles > 0) e += mesh_energy(b, r, W);
+    if (b.mesh) {  // the elements' energy (as the CPU engine), on the rank holding them
+      if (b.mesh->on_device()) e += mesh_energy(b);
       continue;
     }
+    const std::vector<T> r = gather_host(body, stream_);
+    const int W = b.stored_scalars() + kAuxScalars;
     for (std::size_t p = 0; p < static_cast<std::size_t>(b.global_particles); ++p)
       if (!decomposed() || !std::isnan(r[p * W]))
         e += static_cast<double>(b.volume) * b.energy_density_of(r.data() + p * W);
@@ -397,11 +397,16 @@ double MgspBenchmark<T, TG>::elastic_energy() const {
 }
 
 template <typename T, typename TG>
-double MgspBenchmark<T, TG>::mesh_energy(const BodyBase& b, const std::vector<T>& records, int W) const {
-  std::vector<Vec3<T>> x(static_cast<std::size_t>(b.global_particles));
-  for (std::size_t p = 0; p < x.size(); ++p)
-    x[p] = Vec3<T>{{records[p * W], records[p * W + 1], records[p * W + 2]}};
-  const std::vector<Mat3<T>> F = mesh_element_gradients(b.mesh->host, x, b.mesh->fbar_psi);
+double MgspBenchmark<T, TG>::mesh_energy(const BodyBase& b) const {
+  // The gradients the element pass left (MeshDevice::F, F-bar's when use_FBAR): those of the committed positions,
+  // since every try ends with its pass and a committed step's last try is the committed one (after a step that
+  // returned a failure: the failed try's).
+  std::vector<Mat3<T>> F(b.mesh->host.elements.size());
+  if (!F.empty()) {
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(F.data(), b.mesh->F.get(), sizeof(Mat3<T>) * F.size(), cudaMemcpyDeviceToHost,
+                                    stream_));
+    FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+  }
   double e = 0.0;
   for (std::size_t k = 0; k < F.size(); ++k)
     e += static_cast<double>(b.mesh->host.elements[k].volume) * b.element_energy_density(F[k]);

@@ -232,8 +232,8 @@ class MgspBenchmark {
   template <typename M>
   struct Body;
 
-  /// sum_e V0_e psi(F_e) of a mesh body from its gathered records (W scalars each) [J].
-  double mesh_energy(const BodyBase& b, const std::vector<T>& records, int W) const;
+  /// sum_e V0_e psi(F_e) of a mesh body on the rank holding it, from the element pass's gradients [J].
+  double mesh_energy(const BodyBase& b) const;
   BodyBase& body_at(int b) const {
     if (b < 0 || b >= body_count()) throw std::out_of_range("GpuEngine: no body " + std::to_string(b));
     return *bodies_[b];
