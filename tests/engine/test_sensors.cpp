@@ -44,7 +44,7 @@ TEST(SensorReduction, OperationsFromTheAccumulator) {
   hi.add(4.0);
   hi.add(3.0);
   lo.merge(hi);
-  EXPECT_DOUBLE_EQ(lo.sum, a.sum);
+  EXPECT_EQ(lo.sum.value(), a.sum.value());
   EXPECT_DOUBLE_EQ(lo.max, a.max);
   EXPECT_DOUBLE_EQ(lo.min, a.min);
   // No node: Sum and Count are 0, the rest undefined.
@@ -53,6 +53,50 @@ TEST(SensorReduction, OperationsFromTheAccumulator) {
   EXPECT_EQ(sensor_result(SensorOperation::Count, none), 0.0);
   EXPECT_TRUE(std::isnan(sensor_result(SensorOperation::Max, none)));
   EXPECT_TRUE(std::isnan(sensor_result(SensorOperation::Average, none)));
+}
+
+// ExactSum: any order of the same additions, and any split into merged parts, gives the same words; the value is
+// the exact sum of the values rounded to 2^-100 (checked against integers whose sum a double holds exactly), and
+// non-finite values win.
+TEST(SensorReduction, SumsAreOrderFree) {
+  std::vector<double> v;
+  for (int i = 0; i < 2000; ++i) {
+    const double m = std::ldexp(1.0 + (i * 7919 % 1000) / 1000.0, (i * 37) % 120 - 60);  // 2^-60 .. 2^60
+    v.push_back(i % 3 == 0 ? -m : m);
+  }
+  ExactSum forward, backward, split;
+  for (double x : v) forward.add(x);
+  for (auto it = v.rbegin(); it != v.rend(); ++it) backward.add(*it);
+  ExactSum part[3];
+  for (std::size_t i = 0; i < v.size(); ++i) part[(i * 13) % 3].add(v[i]);
+  split.merge(part[2]);
+  split.merge(part[0]);
+  split.merge(part[1]);
+  for (int k = 0; k < ExactSum::kWords; ++k) {
+    EXPECT_EQ(forward.word[k], backward.word[k]) << "word " << k;
+    EXPECT_EQ(forward.word[k], split.word[k]) << "word " << k;
+  }
+  // A double's plain sum of the same values depends on the order; the exact one equals the long double reference to
+  // the double's rounding (the values span 120 binades, so long double cancels less but is not exact either).
+  long double reference = 0;
+  for (double x : v) reference += x;
+  EXPECT_NEAR(forward.value(), static_cast<double>(reference), 1e-15 * std::fabs(static_cast<double>(reference)));
+  // Integers: exact.
+  ExactSum ints;
+  long long total = 0;
+  double quarters = 0.0;  // exact: multiples of 0.25 below 2^50
+  for (int i = -500; i < 700; ++i) {
+    ints.add(static_cast<double>(i) * 1e9 + 0.25 * (i % 4));
+    total += static_cast<long long>(i) * 1000000000LL;
+    quarters += 0.25 * (i % 4);
+  }
+  EXPECT_EQ(ints.value(), static_cast<double>(total) + quarters);
+  ExactSum bad;
+  bad.add(1.0);
+  bad.add(std::numeric_limits<double>::infinity());
+  EXPECT_EQ(bad.value(), std::numeric_limits<double>::infinity());
+  bad.add(-std::numeric_limits<double>::infinity());
+  EXPECT_TRUE(std::isnan(bad.value()));
 }
 
 TEST(SensorReduction, NodeValuesAndDirections) {

@@ -105,7 +105,7 @@ Result run(bool mesh) {
       return r;
     }
     r.t.push_back(engine.time());
-    r.force.push_back(engine.grid_samples(1)[0].sum);
+    r.force.push_back(engine.grid_samples(1)[0].sum.value());
   }
   r.ok = true;
   r.steps = engine.steps();

@@ -55,11 +55,23 @@ class Handle {
   herr_t (*close_)(hid_t);
 };
 
+/// A creation property list of class `cls` (H5P_DATASET_CREATE, H5P_GROUP_CREATE, H5P_FILE_CREATE) without object
+/// times: HDF5 stamps every object with the clock by default, so two runs' files would differ in those bytes alone.
+inline Handle untimed(hid_t cls, const std::string& where) {
+  const hid_t p = H5Pcreate(cls);
+  if (p >= 0 && H5Pset_obj_track_times(p, 0) < 0) {
+    H5Pclose(p);
+    throw std::runtime_error("HDF5: cannot turn off object times in " + where);
+  }
+  return Handle(p, H5Pclose, "create a property list for " + where);
+}
+
 inline void write_dataset(hid_t file, const std::string& name, hid_t type, std::size_t n, int width, const void* data,
                           const std::string& unit, const std::string& where) {
   const hsize_t dims[2] = {static_cast<hsize_t>(n), static_cast<hsize_t>(width)};
   Handle space(H5Screate_simple(width == 1 ? 1 : 2, dims, nullptr), H5Sclose, "create a dataspace for " + where);
-  Handle set(H5Dcreate2(file, name.c_str(), type, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Dclose,
+  const Handle dcpl = untimed(H5P_DATASET_CREATE, where);
+  Handle set(H5Dcreate2(file, name.c_str(), type, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), H5Dclose,
              "create dataset " + name + " in " + where);
   if (n > 0 && H5Dwrite(set.get(), type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
     throw std::runtime_error("HDF5: cannot write dataset " + name + " of " + where);

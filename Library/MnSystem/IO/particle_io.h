@@ -608,7 +608,8 @@ inline void write_h5(const std::filesystem::path& path, const ParticleFrame& fra
   temp += ".part";
   {
     std::lock_guard<std::mutex> lock(h5_detail::hdf5_mutex());
-    h5_detail::Handle file(H5Fcreate(temp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose,
+    const h5_detail::Handle fcpl = h5_detail::untimed(H5P_FILE_CREATE, temp.string());
+    h5_detail::Handle file(H5Fcreate(temp.c_str(), H5F_ACC_TRUNC, fcpl.get(), H5P_DEFAULT), H5Fclose,
                            "create " + temp.string());
     const bool dbl = frame.double_precision();
     const void* x = std::visit([](const auto& v) { return static_cast<const void*>(v.data()); }, frame.positions);

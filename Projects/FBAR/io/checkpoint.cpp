@@ -20,6 +20,7 @@ namespace fbar::io {
 namespace {
 
 using h5_detail::Handle;
+using h5_detail::untimed;
 
 std::string describe(const std::filesystem::path& path) { return "checkpoint " + path.string(); }
 
@@ -84,7 +85,8 @@ void put_array(hid_t where, const char* name, const std::vector<V>& data, std::s
     throw std::logic_error(std::string("checkpoint: ") + name + " has the wrong size");
   const hsize_t dims[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(width)};
   Handle space(H5Screate_simple(2, dims, nullptr), H5Sclose, "create a dataspace for " + file);
-  Handle set(H5Dcreate2(where, name, file_type, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Dclose,
+  const Handle dcpl = untimed(H5P_DATASET_CREATE, file);
+  Handle set(H5Dcreate2(where, name, file_type, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), H5Dclose,
              std::string("create dataset ") + name + " in " + file);
   if (rows > 0 && H5Dwrite(set.get(), mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data.data()) < 0)
     throw std::runtime_error(std::string("HDF5: cannot write dataset ") + name + " of " + file);
@@ -175,7 +177,8 @@ void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c) {
   {
     std::lock_guard<std::mutex> lock(h5_detail::hdf5_mutex());
     QuietHdf5 quiet;
-    Handle f(H5Fcreate(part.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose, "create " + part.string());
+    const Handle fcpl = untimed(H5P_FILE_CREATE, part.string());
+    Handle f(H5Fcreate(part.c_str(), H5F_ACC_TRUNC, fcpl.get(), H5P_DEFAULT), H5Fclose, "create " + part.string());
     const hid_t root = f.get();
     put_int(root, "format", c.format, file);
     put_string(root, "precision", c.precision, file);
@@ -198,7 +201,8 @@ void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c) {
     put_int(root, "bodies", static_cast<long long>(c.bodies.size()), file);
     put_array(root, "slab_cuts", c.slab_cuts, c.slab_cuts.size(), 1, H5T_STD_I32LE, H5T_NATIVE_INT, file);
     {
-      Handle g(H5Gcreate2(root, "csv", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose, "create group csv in " + file);
+      const Handle gcpl = untimed(H5P_GROUP_CREATE, file);
+      Handle g(H5Gcreate2(root, "csv", H5P_DEFAULT, gcpl.get(), H5P_DEFAULT), H5Gclose, "create group csv in " + file);
       put_int(g.get(), "files", static_cast<long long>(c.csv.size()), file);
       for (std::size_t i = 0; i < c.csv.size(); ++i) {
         put_string(g.get(), ("name" + std::to_string(i)).c_str(), c.csv[i].first, file);
@@ -208,7 +212,8 @@ void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c) {
     for (std::size_t b = 0; b < c.bodies.size(); ++b) {
       const CheckpointBody& body = c.bodies[b];
       const std::string group = "body" + std::to_string(b);
-      Handle g(H5Gcreate2(root, group.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose,
+      const Handle gcpl = untimed(H5P_GROUP_CREATE, file);
+      Handle g(H5Gcreate2(root, group.c_str(), H5P_DEFAULT, gcpl.get(), H5P_DEFAULT), H5Gclose,
                "create group " + group + " in " + file);
       const hid_t w = g.get();
       const std::size_t n = body.particles();

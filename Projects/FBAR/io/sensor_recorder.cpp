@@ -152,15 +152,23 @@ void SensorRecorder::Schedule::flush(const std::vector<SensorAccum>& values, com
     return;
   }
   if (values.size() < count) throw std::logic_error("SensorRecorder::flush: fewer values than pending samples");
+  // The ranks' sums merge as integers (ExactSum's words): the same bits on any number of ranks.
+  constexpr int kW = ExactSum::kWords;
+  std::vector<long long> words(2 * kW * count);
   std::vector<double> sums(3 * count), maxima(count), minima(count);
   for (std::size_t k = 0; k < count; ++k) {
-    sums[3 * k + 0] = values[k].sum;
-    sums[3 * k + 1] = values[k].sum_sq;
+    for (int w = 0; w < kW; ++w) {
+      words[2 * kW * k + w] = values[k].sum.word[w];
+      words[2 * kW * k + kW + w] = values[k].sum_sq.word[w];
+    }
+    sums[3 * k + 0] = values[k].sum.special;
+    sums[3 * k + 1] = values[k].sum_sq.special;
     sums[3 * k + 2] = values[k].count;
     maxima[k] = values[k].max;
     minima[k] = values[k].min;
   }
   if (transport && transport->size() > 1) {
+    transport->allreduce_sum(words.data(), static_cast<int>(words.size()));
     transport->allreduce_sum(sums.data(), static_cast<int>(sums.size()));
     transport->allreduce_max(maxima.data(), static_cast<int>(maxima.size()));
     transport->allreduce_min(minima.data(), static_cast<int>(minima.size()));
@@ -170,8 +178,12 @@ void SensorRecorder::Schedule::flush(const std::vector<SensorAccum>& values, com
       if (!slot_due_[slot][o.sensor] || !o.file) continue;
       const std::size_t k = slot * values_per_slot_ + o.value;
       SensorAccum a;
-      a.sum = sums[3 * k + 0];
-      a.sum_sq = sums[3 * k + 1];
+      for (int w = 0; w < kW; ++w) {
+        a.sum.word[w] = words[2 * kW * k + w];
+        a.sum_sq.word[w] = words[2 * kW * k + kW + w];
+      }
+      a.sum.special = sums[3 * k + 0];
+      a.sum_sq.special = sums[3 * k + 1];
       a.count = sums[3 * k + 2];
       a.max = maxima[k];
       a.min = minima[k];

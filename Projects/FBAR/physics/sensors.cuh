@@ -102,24 +102,67 @@ FBAR_HOST_DEVICE inline int tracker_index(const TrackerSet& t, int id) {
   return -1;
 }
 
+/// An order-free sum of doubles: each value rounded to a multiple of 2^-100 and added as an integer, held in six
+/// signed 64-bit words of 32-bit chunks (word k weighs 2^(32 k - 100); a value adds a chunk of magnitude below 2^32
+/// to each word, with its sign, so no word carries: 2^31 values fit). Any order of additions and
+/// merges, on one thread, several CUDA blocks or several ranks, gives the same words, so the same value() bits.
+/// Resolution 2^-100 ~ 7.9e-31, range 2^123 ~ 1e37 (a sensor's sums: forces, masses, pressures, their squares).
+/// Non-finite values are summed apart as doubles (inf, -inf and NaN add order-free too) and win.
+struct ExactSum {
+  static constexpr int kWords = 6;
+  static constexpr int kLowBit = -100;
+  long long word[kWords] = {0, 0, 0, 0, 0, 0};
+  double special = 0.0;  ///< the sum of the non-finite values (0: none)
+
+  FBAR_HOST_DEVICE void add(double v) {
+    if (!(v - v == 0.0)) {  // inf or NaN
+      special += v;
+      return;
+    }
+    // |v| / 2^-100 as an integer, cut into 32-bit chunks from the top; every step is exact (the magnitude has at most
+    // 53 significant bits and each step removes the top ones), and the sign goes onto every chunk (signed words).
+    const long long sign = v < 0.0 ? -1 : 1;
+    double r = rint(ldexp(fabs(v), -kLowBit));
+    for (int k = kWords - 1; k > 0; --k) {
+      const double chunk = floor(ldexp(r, -32 * k));
+      r -= ldexp(chunk, 32 * k);  // in [0, 2^(32 k))
+      word[k] += sign * static_cast<long long>(chunk);
+    }
+    word[0] += sign * static_cast<long long>(r);
+  }
+  FBAR_HOST_DEVICE void merge(const ExactSum& o) {
+    for (int k = 0; k < kWords; ++k) word[k] += o.word[k];
+    special += o.special;
+  }
+  /// The sum, rounded (the words added from the top: a fixed order).
+  FBAR_HOST_DEVICE double value() const {
+    if (special != 0.0 || special != special) return special;
+    double s = 0.0;
+    for (int k = kWords - 1; k >= 0; --k) s += ldexp(static_cast<double>(word[k]), 32 * k + kLowBit);
+    return s;
+  }
+};
+
 /// Running reduction of one sensor's values in one sample: Sum, Count, Average, STDEV, Max and Min follow from it.
+/// Order-free (ExactSum; count, max and min are): a sample's bits do not depend on the order the nodes or particles
+/// are visited in, nor on how many ranks share them.
 struct SensorAccum {
-  double sum = 0.0;
-  double sum_sq = 0.0;
+  ExactSum sum;
+  ExactSum sum_sq;
   double count = 0.0;
   double max = -std::numeric_limits<double>::infinity();
   double min = std::numeric_limits<double>::infinity();
 
   FBAR_HOST_DEVICE void add(double v) {
-    sum += v;
-    sum_sq += v * v;
+    sum.add(v);
+    sum_sq.add(v * v);
     count += 1.0;
     max = v > max ? v : max;
     min = v < min ? v : min;
   }
   FBAR_HOST_DEVICE void merge(const SensorAccum& o) {
-    sum += o.sum;
-    sum_sq += o.sum_sq;
+    sum.merge(o.sum);
+    sum_sq.merge(o.sum_sq);
     count += o.count;
     max = o.max > max ? o.max : max;
     min = o.min < min ? o.min : min;

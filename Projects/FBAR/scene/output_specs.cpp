@@ -128,16 +128,16 @@ std::size_t sensor_device_bytes(const Scene& scene) {
 double sensor_result(SensorOperation op, const SensorAccum& a) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   switch (op) {
-    case SensorOperation::Sum: return a.sum;
+    case SensorOperation::Sum: return a.sum.value();
     case SensorOperation::Count: return a.count;
     case SensorOperation::Max: return a.count > 0 ? a.max : nan;
     case SensorOperation::Min: return a.count > 0 ? a.min : nan;
-    case SensorOperation::Average: return a.count > 0 ? a.sum / a.count : nan;
+    case SensorOperation::Average: return a.count > 0 ? a.sum.value() / a.count : nan;
     case SensorOperation::Variance:
     case SensorOperation::STDEV: {
       if (!(a.count > 0)) return nan;
-      const double mean = a.sum / a.count;
-      const double variance = std::max(0.0, a.sum_sq / a.count - mean * mean);  // population variance
+      const double mean = a.sum.value() / a.count;
+      const double variance = std::max(0.0, a.sum_sq.value() / a.count - mean * mean);  // population variance
       return op == SensorOperation::Variance ? variance : std::sqrt(variance);
     }
   }

@@ -1052,7 +1052,8 @@ namespace fbar {
 namespace {
 
 // The GPU memory plan of --check (memory_plan.h): frames cost N (3 sizeof(T) + 4 per float attribute); the
-// per-particle figure of a compact single-precision JFluid body is at most 120 B with frames of its positions; a
+// per-particle figure of a compact single-precision JFluid body is at most 135 B with frames of its positions (120 B
+// with float grid sums; their int64 words, grid_buffer.cuh "Order-free grid sums", add 9.6 B at this size); a
 // device too small gets a message naming a coarser dx, fewer ppc and more GPUs, and none when it fits.
 TEST(Summary, GpuPlanCountsFramesAndNamesWhatFits) {
   Scene scene = empty_scene(r3(1, 1, 1), 0.02, r3(0, -9.81, 0));
@@ -1069,7 +1070,7 @@ TEST(Summary, GpuPlanCountsFramesAndNamesWhatFits) {
   EXPECT_EQ(with.gpu_bytes[0] - bare.gpu_bytes[0], static_cast<std::size_t>(n) * 12);
   scene.bodies[0].output_attribs = {"ID", "Pressure", "Velocity_Magnitude"};
   EXPECT_EQ(summarize_scene(scene).gpu_plans[0].frames, static_cast<std::size_t>(n) * (12 + 8));
-  EXPECT_LE(static_cast<double>(with.gpu_bytes[0]) / static_cast<double>(n), 120.0);
+  EXPECT_LE(static_cast<double>(with.gpu_bytes[0]) / static_cast<double>(n), 135.0);
   const DeviceMemoryPlan& plan = with.gpu_plans[0];
   EXPECT_TRUE(memory_fit_message(plan, plan.total() + 1, plan.total() * 2, scene, "GPU 0").empty());
   const std::string m = memory_fit_message(plan, plan.total() / 3, plan.total(), scene, "GPU 0");

@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <string>
 
@@ -94,6 +95,66 @@ TEST(CliGpu, SmallSceneRunsOnOneGpuUnlessKept) {
     EXPECT_EQ(fs::exists(out / "model[0]_dev[1]_frame[1].csv"), keep) << (keep ? "kept" : "reduced");
     fs::remove_all(out.parent_path());
   }
+}
+
+/// Every file under `dir` (relative path -> bytes), run.json (wall-clock times) aside.
+std::map<std::string, std::string> output_files(const fs::path& dir) {
+  std::map<std::string, std::string> files;
+  for (const auto& e : fs::recursive_directory_iterator(dir)) {
+    if (!e.is_regular_file() || e.path().filename() == "run.json") continue;
+    std::ifstream in(e.path(), std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    files[fs::relative(e.path(), dir).string()] = ss.str();
+  }
+  return files;
+}
+
+// Runs that repeat bit for bit (grid_buffer.cuh "Order-free grid sums", physics/sensors.cuh ExactSum): the same
+// scene twice, in single and double precision, writes the same bytes: frames, the load cells' and gauges' CSVs, the
+// trackers and the checkpoints.
+TEST(CliGpu, TwoRunsWriteTheSameBytes) {
+  FBAR_REQUIRE_DEVICE();
+  const fs::path scene = fs::path(FBAR_SOURCE_DIR) / "tests" / "scenes" / "good" / "decomposed_sensors.json";
+  std::string text;
+  {
+    std::ifstream in(scene);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    text = ss.str();
+  }
+  for (const std::string precision : {"single", "double"}) {
+    SCOPED_TRACE(precision);
+    std::string patched = text;
+    const std::size_t at = patched.find("\"precision\": \"double\"");
+    ASSERT_NE(at, std::string::npos);
+    patched.replace(at, std::string("\"precision\": \"double\"").size(), "\"precision\": \"" + precision + "\"");
+    const fs::path base = scratch("repeat_" + precision);
+    fs::create_directories(base);
+    const fs::path file = base / "scene.json";
+    std::ofstream(file) << patched;
+    std::map<std::string, std::string> runs[2];
+    for (int run = 0; run < 2; ++run) {
+      const fs::path out = base / ("run" + std::to_string(run));
+      const test::CliResult r = test::run_cli(
+          {"--backend=gpu", "--quiet", "--output=" + out.string(), "--file=" + file.string()}, with_gpu());
+      ASSERT_EQ(r.code, 0) << r.err;
+      runs[run] = output_files(out);
+    }
+    ASSERT_FALSE(runs[0].empty());
+    std::size_t sensors = 0, checkpoints = 0;
+    for (const auto& [name, bytes] : runs[0]) {
+      sensors += name.find("Target") != std::string::npos || name.find("Track") != std::string::npos;
+      checkpoints += name.find("checkpoint") != std::string::npos;
+      const auto it = runs[1].find(name);
+      ASSERT_NE(it, runs[1].end()) << name << " is missing from the second run";
+      EXPECT_TRUE(it->second == bytes) << name << " differs between two runs";
+    }
+    EXPECT_EQ(runs[0].size(), runs[1].size());
+    EXPECT_GT(sensors, 0u) << "no sensor files were compared";
+    EXPECT_GT(checkpoints, 0u) << "no checkpoint was compared";
+  }
+  fs::remove_all(scratch("").parent_path());
 }
 
 }  // namespace

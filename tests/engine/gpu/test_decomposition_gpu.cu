@@ -75,14 +75,12 @@ using test::kVelocityTolerance;
 /// gpus = 1: 2 and 3 ranks on GPU 0 (peer copies); gpus > 1: that many ranks, one per GPU, with NCCL. overlap:
 /// the halo-first G2P2G with the halo sums on a second stream (GpuEngineOptions::overlap_halo), or one after the
 /// other.
-/// dt > 0: steps of exactly dt. A CFL run takes the step from the fastest grid node, which on a body's edge is a
-/// light node whose velocity the ranks' own fixed-point quanta round differently (the travelling block below: 2.3e-12
-/// of the time); where strong accelerations act (a saturated block hitting a wall, c v / dx = 4e3 m/s^2), that
-/// difference of the clock alone moves velocities by 1.5e-11 m/s over 150 steps. With equal steps the same run keeps
-/// the fixed tolerances (measured on two H200s: |dv| <= 7.6e-14 m/s, as two one-rank runs differ), so fixed steps
-/// compare the decomposition itself.
+/// dt > 0: steps of exactly dt.
+/// bits: the grid's sums (the seepage sums included) are fixed point and order-free and every rank uses the same
+/// bounds and quanta (grid_buffer.cuh "Order-free grid sums"), so the ranks give one rank's particles bit for bit,
+/// time included; the tolerances below remain as the looser bound of the same comparison.
 void expect_same_run(const Scene& scene, int steps, bool expect_migration, int gpus = 1, bool overlap = true,
-                     double dt = 0.0) {
+                     double dt = 0.0, bool bits = true) {
   FBAR_REQUIRE_DEVICE();
   const RunResult one = run_rank(scene, nullptr, steps, 0, false, true, 0, 0, dt);
   ASSERT_TRUE(one.error.empty()) << one.error;
@@ -110,6 +108,11 @@ void expect_same_run(const Scene& scene, int steps, bool expect_migration, int g
                 ranks, gpus > 1 ? " NCCL" : "", many.steps, many.time, many.migrated, many.halo_blocks, max_dx, max_dv, momentum,
                 c.pore_pressure);
     EXPECT_LT(c.pore_pressure, test::kPorePressureTolerance);
+    if (bits) {
+      EXPECT_EQ(max_dx, 0.0) << "positions differ from one rank's";
+      EXPECT_EQ(max_dv, 0.0) << "velocities differ from one rank's";
+      EXPECT_EQ(many.time, one.time);
+    }
     EXPECT_LT(max_dx, kPositionTolerance);
     EXPECT_LT(max_dv, kVelocityTolerance);
     EXPECT_LT(momentum, kMomentumTolerance);

@@ -1,9 +1,11 @@
 // Byte layout of the GPU engine's structures, written by kernels and checked on the host: particle bins (AoSoA,
-// attribute-major lanes, ID last) per material and precision, and the grid blocks (SoA channels of 64 nodes).
+// attribute-major lanes, ID last) per material and precision, and the grid's fixed-point sums (channels of 64
+// nodes, order-free).
 #include <gtest/gtest.h>
 
 #include <cuda_runtime.h>
 
+#include <cmath>
 #include <cstring>
 #include <vector>
 
@@ -77,40 +79,59 @@ TEST(GpuLayout, FixedCorotatedBinsDouble) {
   check_bins<FixedCorotated, double>();
 }
 
+/// Adds, for every (block, channel, node), the contributions k = 0 .. kTerms - 1 of value(b, c, n, k) in units,
+/// thread t taking contribution (t + shift) % kTerms: a different shift is a different order of the same additions.
+inline constexpr int kTerms = 96;
+FBAR_HOST_DEVICE inline double term(int b, int c, int n, int k) {
+  // Mixed signs and magnitudes (1e-3 .. 1e9 units, non-integers): rounding happens in every addition.
+  const double m = ((b * 7 + c * 3 + n + k * 13) % 17 - 8) * 0.37;
+  return m * (k % 5 == 0 ? 1.0e9 : k % 3 == 0 ? 1.0e3 : 1.0e-3) + 0.25 * k;
+}
 template <typename T>
-__global__ void write_grid(typename GridLayout<T>::Buffer grid) {
-  const int b = blockIdx.x, node = threadIdx.x;
-  const auto g = grid.ch(placeholder::_0, b);
-  g.val_1d(grid_mass, node) = T(tag(b * 64 + node, 0));
-  g.val_1d(grid_momentum_x, node) = T(tag(b * 64 + node, 1));
-  g.val_1d(grid_momentum_y, node) = T(tag(b * 64 + node, 2));
-  g.val_1d(grid_momentum_z, node) = T(tag(b * 64 + node, 3));
+__global__ void add_terms(GridSums<T> grid, int shift) {
+  const int b = blockIdx.x, k = (threadIdx.x + shift) % kTerms;
+  for (int c = 0; c < 4; ++c)
+    for (int n = 0; n < 64; ++n) grid.add(b, c, n, term(b, c, n, k));
 }
 
+/// Fixed-point grid sums (grid_buffer.cuh): word (block, word, channel, node) at the documented index, the same words
+/// whatever the order of the additions, and each sum equal to the rounded terms' exact sum.
 template <typename T>
 void check_grid() {
-  GridBuffer<T> grid;
-  grid.allocate(5);
-  write_grid<T><<<5, 64>>>(grid.instance());
-  FBAR_CUDA_CHECK(cudaGetLastError());
-  FBAR_CUDA_CHECK(cudaDeviceSynchronize());
-  std::vector<std::byte> host(grid.bytes());
-  FBAR_CUDA_CHECK(cudaMemcpy(host.data(), grid.instance().data(), host.size(), cudaMemcpyDeviceToHost));
-  ASSERT_EQ(host.size(), 5 * 4 * 64 * sizeof(T));
-  for (int b = 0; b < 5; ++b)
+  constexpr int kBlocks = 5;
+  using View = typename GridBuffer<T>::View;
+  static_assert(GridBuffer<T>::kBlockBytes == 4 * 64 * 8 * FixedSumFormat<T>::kWords, "4 channels x 64 nodes");
+  std::vector<std::vector<unsigned long long>> words;
+  for (int shift : {0, 37, 95}) {
+    GridBuffer<T> grid;
+    grid.allocate(kBlocks);
+    add_terms<T><<<kBlocks, kTerms>>>(grid.view(), shift);
+    FBAR_CUDA_CHECK(cudaGetLastError());
+    FBAR_CUDA_CHECK(cudaDeviceSynchronize());
+    std::vector<unsigned long long> host(grid.bytes() / 8);
+    ASSERT_EQ(host.size(), kBlocks * View::kBlockWords);
+    FBAR_CUDA_CHECK(cudaMemcpy(host.data(), grid.data(), grid.bytes(), cudaMemcpyDeviceToHost));
+    words.push_back(host);
+  }
+  EXPECT_EQ(words[0], words[1]) << "the order of the additions changed the sums";
+  EXPECT_EQ(words[0], words[2]) << "the order of the additions changed the sums";
+  const View view{words[0].data()};
+  for (int b = 0; b < kBlocks; ++b)
     for (int c = 0; c < 4; ++c)
-      for (int node = 0; node < 64; ++node) {
-        T v;
-        std::memcpy(&v, host.data() + ((b * 4 + c) * 64 + node) * sizeof(T), sizeof(T));
-        EXPECT_EQ(v, T(tag(b * 64 + node, c)));
+      for (int n = 0; n < 64; ++n) {
+        long long exact = 0;  // the sum of the rounded terms, computed apart
+        for (int k = 0; k < kTerms; ++k) exact += std::llrint(term(b, c, n, k));
+        EXPECT_EQ(view.units(b, c, n), static_cast<double>(exact)) << b << " " << c << " " << n;
+        if constexpr (FixedSumFormat<T>::kWords == 1)
+          EXPECT_EQ(static_cast<long long>(words[0][b * View::kBlockWords + c * 64 + n]), exact);
       }
 }
 
-TEST(GpuLayout, GridBlocksFloat) {
+TEST(GpuLayout, GridSumsFloat) {
   FBAR_REQUIRE_DEVICE();
   check_grid<float>();
 }
-TEST(GpuLayout, GridBlocksDouble) {
+TEST(GpuLayout, GridSumsDouble) {
   FBAR_REQUIRE_DEVICE();
   check_grid<double>();
 }

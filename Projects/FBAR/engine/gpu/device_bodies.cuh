@@ -188,9 +188,9 @@ struct MgspBenchmark<T, TG>::BodyBase {
   virtual double seed_states(const ParticleSeeds& seeds) = 0;
   /// pass: every block of layout(cur) (one GPU, the initial P2G), or one part of its list (the halo-first step).
   virtual void g2p2g(MgspBenchmark& e, bool initial, T dt, G2P2GPass pass = G2P2GPass::All) = 0;
-  /// Saturated bodies: the seepage channels of bins[cur] added into e.pore_sums_ (kernels/seepage_kernels.cuh);
-  /// nothing for other laws.
-  virtual void seepage_sums(MgspBenchmark& e) = 0;
+  /// Saturated bodies: the seepage channels of bins[cur] added into e.pore_fixed_ (kernels/seepage_kernels.cuh), or
+  /// (bounds_only) their bounds raised in e.pore_bound_d_; nothing for other laws.
+  virtual void seepage_sums(MgspBenchmark& e, bool bounds_only) = 0;
   virtual void dest_from_positions(MgspBenchmark& e, int bins_which, const int* valid, int first, int slots) = 0;
   virtual std::size_t migrant_bytes(const MgspBenchmark& e) const = 0;
   /// The emigrants G2P2G listed (emigrant_slots) from bins[1 - cur] into the areas lo / hi of `capacity` records
@@ -312,13 +312,15 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     p.dest = this->partition.dest();
     p.table = e.table_.view();
     p.velocity = e.velocity_.instance();
-    p.grid_next = e.grid_[1 - e.gc_].instance();
-    p.grid_this = e.grid_[e.gc_].instance();
+    p.grid_next = e.grid_[1 - e.gc_].view();
+    p.grid_this = e.grid_[e.gc_].view();
+    p.quantum_next = e.quantum(1 - e.gc_);
+    p.bound_only = e.measuring_bound_;
     const bool mesh = this->is_mesh();  // its vertices always record v and C: the element pass's frames read them
     p.aux = e.record_ || mesh ? this->aux.get() : nullptr;
     if (e.capture_next_ && this->capture.x && !mesh) p.capture = this->capture;  // a mesh's: the element pass
     p.vertex_mass = mesh ? this->mesh->vertex_mass.get() : nullptr;
-    if (e.asflip_) p.transported_next = e.transported_[1 - e.gc_].instance();
+    if (e.asflip_) p.transported_next = e.transported_[1 - e.gc_].view();
     p.asflip = this->asflip;
     p.asflip_params = this->asflip_params;
     if (this->asflip) {
@@ -327,7 +329,10 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
       p.particle_v_out = this->particle_v[1 - e.cur_].get();
     }
     p.fbar_psi = initial ? T(0) : this->fbar_psi;
-    if (p.fbar_psi != T(0)) p.fbar_sums = e.fbar_sums_.instance();
+    if (p.fbar_psi != T(0)) {
+      p.fbar_sums = e.fbar_sums_.view();
+      p.fbar_quantum = fbar_quantum<TG>(static_cast<double>(this->volume));
+    }
     if constexpr (IsPoreFluid<M>::value) p.pore = e.pore_sums_.instance();
     p.gravity = e.k_.gravity;
     p.material = params;
@@ -351,6 +356,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     p.wave_speed = e.wave_d_.get() + (1 - e.wave_cur_) * e.bodies_.size() + this->index;
     p.p2g_bound_in = e.p2g_bound_d_.get() + e.bound_cur_ * e.bodies_.size() + this->index;
     p.p2g_bound_out = e.p2g_bound_d_.get() + (1 - e.bound_cur_) * e.bodies_.size() + this->index;
+    if (e.measuring_bound_) p.p2g_bound_out = e.p2g_bound_d_.get() + e.bound_cur_ * e.bodies_.size() + this->index;
     if (e.block_count_ == 0 || this->particles == 0) return;
     if (p.fbar_psi != T(0) && pass != G2P2GPass::Interior) {  // F-bar: the cell sums first (fbar_cell_sums)
       const int blocks = e.block_count_;
@@ -360,12 +366,13 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
       f.layout = p.layout;
       f.table = p.table;
       f.sums = p.fbar_sums;
+      f.quantum = p.fbar_quantum;
       f.volume = p.volume;
       f.inv_dx = p.inv_dx;
       f.stats = p.stats;
       ::fbar::fbar_cell_sums<M, T, TG><<<blocks, kG2P2GThreads, 0, e.stream_>>>(f);
       cuda::check_launch("fbar_cell_sums");
-      if (e.decomposed()) e.halo_exchange({{e.fbar_sums_.instance().data(), GridFbarBuffer<TG>::kBlockBytes}}, -1);
+      if (e.decomposed()) e.halo_exchange({HaloBuffer{e.fbar_sums_.data(), FbarSumBuffer<TG>::kBlockBytes, true}}, -1);
     }
     int blocks = e.block_count_;
     p.order_first = -1;
@@ -393,7 +400,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     else
       ::fbar::g2p2g<M, T, TG, false, false><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
     cuda::check_launch("g2p2g");
-    if (mesh && pass == G2P2GPass::All) mesh_pass(e);
+    if (mesh && pass == G2P2GPass::All && !e.measuring_bound_) mesh_pass(e);
   }
 
   /// The G2P2G of a mesh's vertices (kMesh; instantiated for the element laws only).
@@ -441,7 +448,8 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
       vp.params = params;
       vp.force = m.force[1 - m.force_cur].get();
       vp.table = e.table_.view();
-      vp.grid_next = e.grid_[1 - e.gc_].instance();
+      vp.grid_next = e.grid_[1 - e.gc_].view();
+      vp.quantum_next = e.quantum(1 - e.gc_);
       vp.dt_next = &e.stats_d_->dt_next;
       vp.inv_dx = e.k_.inv_dx;
       vp.aux = this->aux.get();
@@ -456,7 +464,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     }
   }
 
-  void seepage_sums(MgspBenchmark& e) override {
+  void seepage_sums(MgspBenchmark& e, bool bounds_only) override {
     if constexpr (IsPoreFluid<M>::value) {
       const int blocks = e.block_count_;
       if (blocks == 0) return;
@@ -464,7 +472,9 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
       f.in = bins[e.cur_].instance();
       f.layout = this->partition.layout(e.cur_);
       f.table = e.table_.view();
-      f.sums = e.pore_sums_.instance();
+      f.sums = e.pore_fixed_.view();
+      f.bound = e.pore_bound_d_.get();
+      f.bounds_only = bounds_only;
       f.material = params;
       f.volume = this->volume;
       f.dx = e.k_.dx;
@@ -501,8 +511,8 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     ::fbar::dest_from_positions<M, T, TG><<<cuda::grid_for(slots - first, kPartitionThreads), kPartitionThreads,
                                       0, e.stream_>>>(
         bins[which].instance(), valid, this->particles, first, slots, e.k_.inv_dx, e.slab_of(this->index), e.table_.view(),
-        this->partition.layout(1 - e.cur_).count, this->partition.dest(), e.grid_[0].instance(),
-        e.grid_[1].instance(), e.body_stats_d_ + this->index);
+        this->partition.layout(1 - e.cur_).count, this->partition.dest(), e.grid_[0].view(), e.grid_[1].view(),
+        e.body_stats_d_ + this->index);
     cuda::check_launch("dest_from_positions");
   }
 
@@ -536,13 +546,14 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
       if (!m.on_device() || !m.forces) return;
       ::fbar::mesh_rescale_impulse<M, T, TG><<<cuda::grid_for(slots, kFemThreads), kFemThreads, 0, e.stream_>>>(
           bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, m.force[m.force_cur].get(),
-          static_cast<int>(m.mass.size()), ddt, e.k_.inv_dx, e.table_.view(), e.grid_[e.gc_].instance(), e.stats_d_);
+          static_cast<int>(m.mass.size()), ddt, e.k_.inv_dx, e.table_.view(), e.grid_[e.gc_].view(), e.quantum(e.gc_),
+          e.stats_d_);
       cuda::check_launch("mesh_rescale_impulse");
       return;
     }
     ::fbar::rescale_impulse<M, T, TG><<<cuda::grid_for(slots, kPartitionThreads), kPartitionThreads, 0, e.stream_>>>(
         bins[e.cur_].instance(), this->partition.layout(e.cur_), slots, params, this->volume, ddt, e.k_.dx, e.k_.inv_dx,
-        e.k_.d_inv, e.table_.view(), e.grid_[e.gc_].instance(), e.stats_d_);
+        e.k_.d_inv, e.table_.view(), e.grid_[e.gc_].view(), e.quantum(e.gc_), e.stats_d_);
     cuda::check_launch("rescale_impulse");
   }
 

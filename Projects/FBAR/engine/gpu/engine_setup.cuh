@@ -285,14 +285,20 @@ void MgspBenchmark<T, TG>::allocate_device_state(const std::vector<std::vector<V
   grid_[1].allocate(block_capacity_);
   velocity_.allocate(block_capacity_);
   if (fbar_) fbar_sums_.allocate(block_capacity_);
-  if (pore_) pore_sums_.allocate(block_capacity_);
+  if (pore_) {
+    pore_sums_.allocate(block_capacity_);
+    pore_fixed_.allocate(block_capacity_);
+    pore_bound_d_.allocate(kSeepageChannels);
+  }
   if (asflip_) {
     transported_[0].allocate(block_capacity_);
     transported_[1].allocate(block_capacity_);
     old_velocity_.allocate(block_capacity_);
   }
-  FBAR_CUDA_CHECK(cudaMemsetAsync(grid_[0].instance().data(), 0, grid_[0].bytes(), stream_));
-  FBAR_CUDA_CHECK(cudaMemsetAsync(grid_[1].instance().data(), 0, grid_[1].bytes(), stream_));
+  quantum_d_.allocate(2);
+  mass_bound_ = 0.0;
+  for (const auto& b : bodies_) mass_bound_ = std::max(mass_bound_, static_cast<double>(b->mass));
+  if (decomposed()) mass_bound_ = dec_.host->max(mass_bound_);  // every rank sums in the same quanta
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     BodyBase& body = *bodies_[b];
     // The flat upload needs ceil(N/32) bins; the grouped layouts need the plan's.
@@ -400,19 +406,18 @@ void MgspBenchmark<T, TG>::initial_p2g() {
   cur_ = 0;
   gc_ = 1;  // the initial P2G goes into grid[1 - gc_] = grid[0]
   reset_stats(false);
-  {
-    // dt_next of the initial P2G is dt0: written by compute_next_dt with a fixed dt.
-    DtParams dp{};
-    dp.body_count = 0;
-    dp.wave_speed = wave_d_.get();
-    dp.fixed_dt = dt0;
-    dp.t_next = time_;
-    dp.t_target = std::numeric_limits<double>::infinity();
-    dp.stats = stats_d_;
-    dp.scale = 1.0;
-    compute_next_dt<<<1, 1, 0, stream_>>>(dp);
-    cuda::check_launch("compute_next_dt");
-  }
+  // dt_next of the initial P2G is dt0: written by compute_next_dt with a fixed dt, first for the pass that measures
+  // the P2G bound, then with the quanta of grid[0] from that bound.
+  DtParams dp{};
+  dp.body_count = 0;
+  dp.wave_speed = wave_d_.get();
+  dp.fixed_dt = dt0;
+  dp.t_next = time_;
+  dp.t_target = std::numeric_limits<double>::infinity();
+  dp.stats = stats_d_;
+  dp.scale = 1.0;
+  compute_next_dt<<<1, 1, 0, stream_>>>(dp);
+  cuda::check_launch("compute_next_dt");
   grid_[0].clear(0, block_capacity_, stream_);
   if (asflip_) transported_[0].clear(0, block_capacity_, stream_);
   for (auto& b : bodies_) {
@@ -421,14 +426,16 @@ void MgspBenchmark<T, TG>::initial_p2g() {
     b->pending_particles = b->particles;
   }
   ensure_emigrant_lists();
+  measuring_bound_ = true;  // into slot bound_cur_, which the second pass reads
+  for (auto& b : bodies_) b->g2p2g(*this, true, T(0));
+  measuring_bound_ = false;
+  launch_dt(dp);
   for (auto& b : bodies_) b->g2p2g(*this, true, T(0));
   if (decomposed()) {
     if (asflip_)
-      halo_exchange({{grid_[0].instance().data(), GridBuffer<TG>::kBlockBytes},
-                     {transported_[0].instance().data(), GridVelocityBuffer<TG>::kBlockBytes}},
-                    0);
+      halo_exchange({grid_halo(0), transported_halo(0)}, 0);
     else
-      halo_exchange({{grid_[0].instance().data(), GridBuffer<TG>::kBlockBytes}}, 0);
+      halo_exchange({grid_halo(0)}, 0);
     migrate_particles();
   }
   partition_after_g2p2g();

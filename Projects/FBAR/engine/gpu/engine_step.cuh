@@ -54,7 +54,7 @@ void MgspBenchmark<T, TG>::partition_after_g2p2g() {
     BodyBase& b = *bp;
     const LayoutView nl = b.partition.layout(next);
     activate_footprint<TG><<<cuda::grid_for(block_capacity_, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
-        nl.count, block_capacity_, table_.view(), grid_[0].instance(), grid_[1].instance());
+        nl.count, block_capacity_, table_.view(), grid_[0].view(), grid_[1].view());
     cuda::check_launch("activate_footprint");
   }
   for (auto& bp : bodies_) {
@@ -150,6 +150,7 @@ void MgspBenchmark<T, TG>::grow_blocks_to(int capacity) {
   velocity_.grow(capacity, keep, stream_);
   if (fbar_) fbar_sums_.grow(capacity, 0, stream_);  // refilled before every use
   if (pore_) pore_sums_.grow(capacity, 0, stream_);   // likewise
+  if (pore_) pore_fixed_.grow(capacity, 0, stream_);
   if (asflip_) {
     transported_[0].grow(capacity, keep, stream_);
     transported_[1].grow(capacity, keep, stream_);
@@ -299,7 +300,7 @@ void MgspBenchmark<T, TG>::begin_try(double dt) {
   // 0. the grid must hold the impulse of this dt
   if (dt != dt_p2g_) {
     for (auto& b : bodies_) b->rescale_impulse(*this, static_cast<T>(dt - dt_p2g_));
-    if (decomposed()) halo_exchange({{grid_[gc_].instance().data(), GridBuffer<TG>::kBlockBytes}}, gc_, true);
+    if (decomposed()) halo_exchange({grid_halo(gc_)}, gc_, true);
     dt_p2g_ = dt;
   }
   event_record(0);
@@ -310,16 +311,27 @@ void MgspBenchmark<T, TG>::begin_try(double dt) {
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::update_grid(double dt) {
   if (pore_ && block_count_ > 0) {  // the seepage sums of state n, every try (the update replaces them in place)
-    pore_sums_.clear(0, block_count_, stream_);
-    for (auto& b : bodies_) b->seepage_sums(*this);
-    if (decomposed()) halo_exchange({{pore_sums_.instance().data(), GridPoreBuffer<TG>::kBlockBytes}}, -1);
+    pore_fixed_.clear(0, block_count_, stream_);
+    // Every saturated body's bounds first (on every rank), then the sums in the quanta they set.
+    FBAR_CUDA_CHECK(cudaMemsetAsync(pore_bound_d_.get(), 0, pore_bound_d_.bytes(), stream_));
+    for (auto& b : bodies_) b->seepage_sums(*this, true);
+    if (decomposed())  // bits of non-negative doubles: reduced as doubles
+      dec_.device->allreduce_max(reinterpret_cast<double*>(pore_bound_d_.get()), kSeepageChannels, stream_);
+    for (auto& b : bodies_) b->seepage_sums(*this, false);
+    if (decomposed())
+      halo_exchange({HaloBuffer{pore_fixed_.data(), PoreSumBuffer<TG>::kBlockBytes, true}}, -1);
   }
   GridUpdateParams<TG> gp{};
-  if (pore_) gp.pore = pore_sums_.instance();
-  gp.grid = grid_[gc_].instance();
+  if (pore_) {
+    gp.pore = pore_sums_.instance();
+    gp.pore_sums = pore_fixed_.view();
+    gp.pore_bound = pore_bound_d_.get();
+  }
+  gp.grid = grid_[gc_].view();
+  gp.quantum = quantum(gc_);
   gp.velocity = velocity_.instance();
   if (asflip_) {
-    gp.transported = transported_[gc_].instance();
+    gp.transported = transported_[gc_].view();
     gp.old_velocity = old_velocity_.instance();
   }
   gp.coords = table_.view().coords;
@@ -341,6 +353,7 @@ void MgspBenchmark<T, TG>::update_grid(double dt) {
     SensorAccum* out = sensors_.grid_samples_d.get() + static_cast<std::size_t>(sensors_.grid_sample_slot) * sensors_.grid.count;
     GridSensorSampleParams<TG> sp{};
     sp.grid = gp.grid;
+    sp.quantum = gp.quantum;
     sp.velocity = gp.velocity;
     sp.pore = gp.pore;
     sp.coords = gp.coords;
@@ -382,13 +395,28 @@ void MgspBenchmark<T, TG>::launch_next_dt(double dt, bool cfl_dt, double target,
   // Landing on the target, the next step heads for `following`: its dt is clamped for that one.
   dp.t_target = reaches && !std::isnan(following) ? following : target;
   dp.stats = stats_d_;
-  if (decomposed()) {  // the maxima are stored as the bits of non-negative doubles: reduce them as doubles,
-    // the grid speed and every body's wave speed in one message (one NCCL call a step)
-    if (dec_.dt_inputs_d.size() < bodies_.size() + 1) dec_.dt_inputs_d.allocate(bodies_.size() + 1);
+  launch_dt(dp);
+}
+
+/// compute_next_dt with the quanta of the grid the next P2G sums into (grid[1 - gc]) from the P2G bounds this try's
+/// G2P2G reads; decomposed, its inputs reduced over the ranks first (the maxima are stored as the bits of
+/// non-negative doubles: reduced as doubles, the grid speed, every body's wave speed and P2G bound in one message,
+/// one NCCL call a step), so every rank takes the same dt, bounds and quanta.
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::launch_dt(DtParams& dp) {
+  const int n = body_count();
+  dp.quantum = quantum(1 - gc_);
+  dp.p2g_bound = p2g_bound_d_.get() + bound_cur_ * bodies_.size();
+  dp.bound_count = n;
+  dp.mass_bound = mass_bound_;
+  dp.headroom = kP2GHeadroom;
+  dp.fraction_bits = FixedSumFormat<TG>::kFractionBits;
+  if (decomposed()) {
+    if (dec_.dt_inputs_d.size() < static_cast<std::size_t>(2 * n + 1)) dec_.dt_inputs_d.allocate(2 * n + 1);
     gather_dt_inputs<<<1, DtParams::kMaxBodies, 0, stream_>>>(stats_d_, wave_d_.get() + wave_cur_ * bodies_.size(),
-                                                               body_count(), dec_.dt_inputs_d.get());
+                                                               dp.p2g_bound, n, dec_.dt_inputs_d.get());
     cuda::check_launch("gather_dt_inputs");
-    dec_.device->allreduce_max(reinterpret_cast<double*>(dec_.dt_inputs_d.get()), body_count() + 1, stream_);
+    dec_.device->allreduce_max(reinterpret_cast<double*>(dec_.dt_inputs_d.get()), 2 * n + 1, stream_);
     dp.reduced = dec_.dt_inputs_d.get();
   }
   compute_next_dt<<<1, 1, 0, stream_>>>(dp);

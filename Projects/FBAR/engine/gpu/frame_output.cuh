@@ -415,22 +415,23 @@ double MgspBenchmark<T, TG>::mesh_energy(const BodyBase& b) const {
 
 template <typename T, typename TG>
 double MgspBenchmark<T, TG>::grid_mass() const {
-  using L = GridLayout<TG>;
-  const std::size_t bytes = GridBuffer<TG>::kBlockBytes * static_cast<std::size_t>(block_count_);
-  std::vector<std::byte> host(bytes);
-  if (bytes) FBAR_CUDA_CHECK(cudaMemcpy(host.data(), grid_[gc_].instance().data(), bytes, cudaMemcpyDeviceToHost));
-  typename L::Buffer view(host.data(), static_cast<std::size_t>(block_count_));
+  using View = typename GridBuffer<TG>::View;
+  std::vector<unsigned long long> host(View::kBlockWords * static_cast<std::size_t>(block_count_));
+  if (!host.empty())
+    FBAR_CUDA_CHECK(cudaMemcpy(host.data(), grid_[gc_].data(), sizeof(unsigned long long) * host.size(),
+                               cudaMemcpyDeviceToHost));
+  GridQuantum q;
+  FBAR_CUDA_CHECK(cudaMemcpy(&q, quantum(gc_), sizeof(q), cudaMemcpyDeviceToHost));
+  const View view{host.data()};
   double m = 0.0;
-  for (int b = 0; b < block_count_; ++b) {
-    const auto g = view.ch(placeholder::_0, b);
-    for (int n = 0; n < 64; ++n) m += static_cast<double>(g.val_1d(fbar::grid_mass, n));
-  }
+  for (int b = 0; b < block_count_; ++b)
+    for (int n = 0; n < 64; ++n) m += static_cast<double>(static_cast<TG>(view.units(b, kSumMass, n) * q.mass));
   return m;
 }
 
 template <typename T, typename TG>
 std::size_t MgspBenchmark<T, TG>::device_bytes() const {
-  std::size_t bytes = table_.bytes() + grid_[0].bytes() + grid_[1].bytes() + velocity_.bytes() + fbar_sums_.bytes() + pore_sums_.bytes() +
+  std::size_t bytes = table_.bytes() + grid_[0].bytes() + grid_[1].bytes() + velocity_.bytes() + fbar_sums_.bytes() + pore_sums_.bytes() + pore_fixed_.bytes() +
                       transported_[0].bytes() + transported_[1].bytes() + old_velocity_.bytes() +
                       stats_bytes_.bytes() + wave_d_.bytes() + p2g_bound_d_.bytes() + scan_temp_.bytes() +
                       sensors_.grid_samples_d.bytes() + sensors_.particle_samples_d.bytes() + sensors_.partials_d.bytes() +

@@ -1,42 +1,43 @@
-// Grid buffers of the GPU engine: a run-time number of 4x4x4-node blocks, SoA inside a block (Library structurals).
+// Grid buffers of the GPU engine: a run-time number of 4x4x4-node blocks, channels of 64 nodes inside a block.
 //
-// Two kinds of buffer share the block indexing of the hash table (hash_table.cuh):
-//   GridBuffer<T>          mass + momentum (4 channels): what P2G accumulates. Double-buffered by the driver:
-//                          G2P2G of step n reads the velocities of step n and scatters into the other buffer.
-//   GridFbarBuffer<T>      F-bar's cell sums (2 channels, transfer.cuh), only when a body uses F-bar.
-//   GridPoreBuffer<T>      the seepage channels of saturated bodies (5 channels, physics/seepage.cuh), only when a
-//                          body is saturated (CoupledUP): P2G sums, then the grid update's node values in place.
+// The buffers share the block indexing of the hash table (hash_table.cuh). What P2G sums is fixed point
+// (FixedGridBuffer, "Order-free grid sums" below); what the grid update writes is TG (Library structurals):
+//   GridBuffer<T>          mass + momentum (4 fixed-point channels): what P2G accumulates. Double-buffered by the
+//                          driver: G2P2G of step n reads the velocities of step n and scatters into the other buffer.
+//   TransportedBuffer<T>   ASFLIP's transported momentum (3 fixed-point channels), double-buffered like GridBuffer.
+//   FbarSumBuffer<T>       F-bar's cell sums (2 fixed-point channels, transfer.cuh), only when a body uses F-bar.
+//   PoreSumBuffer<T>       the seepage sums of saturated bodies (5 fixed-point channels, physics/seepage.cuh), and
+//   GridPoreBuffer<T>      the node values the grid update writes from them (5 channels of T), only when a body is
+//                          saturated (CoupledUP).
 //   GridVelocityBuffer<T>  velocity (3 channels): what the grid update writes and G2P reads. Keeping it apart from
 //                          the momentum leaves the P2G sums of step n intact until step n commits, which is what
 //                          a retried step (on_failure = reduce_dt) and a changed dt need (see mgsp_benchmark.cuh).
-// Byte layout of block b (channel c, node (i, j, k) = 16 i + 4 j + k), T = float:
-//   b * 1024 + c * 256 + node * 4     (mass c = 0, momentum x/y/z c = 1..3; velocity buffer: 768 B per block)
-// so a warp reading one channel of 32 consecutive nodes reads 128 contiguous bytes.
+// Byte layout of block b of a structural buffer (channel c, node (i, j, k) = 16 i + 4 j + k), T = float:
+//   b * 768 + c * 256 + node * 4     (velocity x/y/z c = 0..2)
+// so a warp reading one channel of 32 consecutive nodes reads 128 contiguous bytes; a fixed-point buffer's words
+// follow FixedGrid's index (below).
 #pragma once
 
 #include <cuda_runtime.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstddef>
+#include <cstring>
 
 #include "MnBase/Memory/structural_instance.h"
 #include "MnBase/Meta/placeholder.h"
 #include "MnSystem/Cuda/allocators.h"
+#include "MnSystem/Cuda/device_array.cuh"
 #include "engine/gpu/block_access.cuh"
 #include "settings.h"
 
 namespace fbar {
 
-/// Named grid channels (placeholder indices of the block structural).
-inline constexpr auto grid_mass = placeholder::_0;        ///< [kg]
-inline constexpr auto grid_momentum_x = placeholder::_1;  ///< [kg m/s]
-inline constexpr auto grid_momentum_y = placeholder::_2;
-inline constexpr auto grid_momentum_z = placeholder::_3;
+/// Named channels of the structural buffers (placeholder indices of the block structural).
 inline constexpr auto grid_velocity_x = placeholder::_0;  ///< [m/s] (velocity buffer)
 inline constexpr auto grid_velocity_y = placeholder::_1;
 inline constexpr auto grid_velocity_z = placeholder::_2;
-inline constexpr auto grid_fbar_compression = placeholder::_0;  ///< [m^3] F-bar cell sum of V0 (1 - J) (cell at node)
-inline constexpr auto grid_fbar_volume = placeholder::_1;       ///< [m^3] F-bar cell sum of V0
 // Seepage channels (physics/seepage.cuh): what the seepage P2G sums, and what the grid update leaves in their place.
 inline constexpr auto grid_pore_volume = placeholder::_0;   ///< [m^3] sum w V
 inline constexpr auto grid_pore_head = placeholder::_1;     ///< [Pa m^3] sum w V (h + grad h . (x_i - x_p)); then h_i [Pa]
@@ -51,25 +52,15 @@ struct GridLayout {
   using soa = decorator<structural_allocation_policy::full_allocation, structural_padding_policy::compact,
                         attrib_layout::soa>;
   using block_domain = domain<int, 4, 4, 4>;
-  /// (channel, node) mass and momentum of one block.
-  using block_ = structural<structural_type::dense, block_domain, soa, scalar_, scalar_, scalar_, scalar_>;
   /// (channel, node) velocity of one block.
   using velocity_block_ = structural<structural_type::dense, block_domain, soa, scalar_, scalar_, scalar_>;
-  /// (channel, cell) F-bar's cell sums of one block (transfer.cuh), allocated only when a body uses F-bar.
-  using fbar_block_ = structural<structural_type::dense, block_domain, soa, scalar_, scalar_>;
   /// (channel, node) seepage channels of one block, allocated only when a body is saturated.
   using pore_block_ = structural<structural_type::dense, block_domain, soa, scalar_, scalar_, scalar_, scalar_, scalar_>;
-  using buffer_ = structural<structural_type::dynamic, dynamic_domain<int>, soa, block_>;
-  using fbar_buffer_ = structural<structural_type::dynamic, dynamic_domain<int>, soa, fbar_block_>;
   using velocity_buffer_ = structural<structural_type::dynamic, dynamic_domain<int>, soa, velocity_block_>;
   using pore_buffer_ = structural<structural_type::dynamic, dynamic_domain<int>, soa, pore_block_>;
-  using Buffer = structural_instance<buffer_>;
   using VelocityBuffer = structural_instance<velocity_buffer_>;
-  using FbarBuffer = structural_instance<fbar_buffer_>;
   using PoreBuffer = structural_instance<pore_buffer_>;
 
-  static constexpr std::size_t kBlockBytes = block_::element_storage_size * block_domain::extent;
-  static_assert(block_::size == 4 * 64 * sizeof(T), "a grid block is 4 channels x 64 nodes, nothing else");
   static_assert(velocity_block_::size == 3 * 64 * sizeof(T), "a velocity block is 3 channels x 64 nodes");
 };
 
@@ -123,12 +114,166 @@ class BlockBuffer {
   Instance instance_{};
 };
 
-template <typename T>
-using GridBuffer = BlockBuffer<typename GridLayout<T>::block_>;
+/// Order-free grid sums. Every addition into a grid block's sums (the flush of a G2P2G arena, the mesh and rescaled
+/// impulses, the halo and shared-block sums of a decomposed run) adds integers in units of a quantum per channel
+/// kind (GridQuantum), so the sum is the same bits whatever order the additions come in: the same scene, build and
+/// rank count give the same grid, and the grid does not depend on how many ranks summed it (docs/developer_guide.md
+/// "Repeatable runs").
+///   float grids:  one int64 word per value, quantum B 2^-40: B is a bound on one particle's contribution per unit
+///                 weight, so a node may take 2^63 / (0.42 x 2^40) ~ 2e7 particles before the word overflows;
+///                 the G2P2G flush converts a block's integer sum in float (rounded to 24 bits: the float grid's
+///                 own precision, as a float atomic rounds), so the grid's quantum (4.5e-13 B) costs nothing.
+///   double grids: two int64 words per value, hi 2^32 + lo with 0 <= lo < 2^32 per addition, each word summed on
+///                 its own (no carry: the low word takes 2^31 additions before it could overflow, a node takes at
+///                 most 8 per flush), quantum B 2^-60: range 2^95 q = 3e10 B, rounding 4.3e-19 B (the double arena's
+///                 quantum is 2.3e-17 B at 512 particles per block).
+/// Word (block, word, channel, node) = block * kBlockWords + (word * C + channel) * 64 + node: a warp reading one
+/// channel of 32 nodes reads 256 contiguous bytes.
+template <typename TG>
+struct FixedSumFormat;
+template <>
+struct FixedSumFormat<float> {
+  static constexpr int kWords = 1;
+  static constexpr int kFractionBits = 40;
+};
+template <>
+struct FixedSumFormat<double> {
+  static constexpr int kWords = 2;
+  static constexpr int kFractionBits = 60;
+};
+
+/// The quanta of one grid's sums: [kg] and [kg m/s] per unit (compute_next_dt writes them before the P2G).
+struct GridQuantum {
+  double mass = 0.0;
+  double momentum = 0.0;
+};
+
+/// A device view of C channels of fixed-point sums per node (FixedSumFormat<TG>).
+template <typename TG, int C>
+struct FixedGrid {
+  static constexpr int kChannels = C;
+  static constexpr int kWords = FixedSumFormat<TG>::kWords;
+  static constexpr std::size_t kBlockWords = static_cast<std::size_t>(kWords) * C * 64;
+  unsigned long long* words = nullptr;
+
+  FBAR_HOST_DEVICE explicit operator bool() const { return words != nullptr; }
+  FBAR_HOST_DEVICE unsigned long long* word(int block, int word_index, int channel, int node) const {
+    return words + static_cast<std::size_t>(block) * kBlockWords + (word_index * C + channel) * 64 + node;
+  }
+#if defined(__CUDACC__)
+  /// Adds `units` (any real: rounded to the nearest integer here) to the sum. Order-free.
+  __device__ __forceinline__ void add(int block, int channel, int node, double units) const {
+    if constexpr (kWords == 1) {
+      const long long v = __double2ll_rn(units);
+      if (v != 0) atomicAdd(word(block, 0, channel, node), static_cast<unsigned long long>(v));
+    } else {
+      const double r = rint(units);
+      if (r == 0.0) return;
+      const double hi = floor(r * 0x1p-32);  // exact: r is an integer of at most 53 significant bits
+      const double lo = r - hi * 0x1p32;     // in [0, 2^32), exact
+      if (lo != 0.0) atomicAdd(word(block, 0, channel, node), static_cast<unsigned long long>(lo));
+      if (hi != 0.0) atomicAdd(word(block, 1, channel, node), static_cast<unsigned long long>(__double2ll_rn(hi)));
+    }
+  }
+  /// The same from a float (float grids: the arena's flush converts in float, the sums' own precision).
+  __device__ __forceinline__ void add(int block, int channel, int node, float units) const {
+    static_assert(kWords == 1, "float units go into a float grid's one-word sums");
+    const long long v = __float2ll_rn(units);
+    if (v != 0) atomicAdd(word(block, 0, channel, node), static_cast<unsigned long long>(v));
+  }
+#endif
+  /// The sum in units (rounded to double).
+  FBAR_HOST_DEVICE double units(int block, int channel, int node) const {
+    if constexpr (kWords == 1) {
+      return static_cast<double>(static_cast<long long>(*word(block, 0, channel, node)));
+    } else {
+      return static_cast<double>(static_cast<long long>(*word(block, 1, channel, node))) * 0x1p32 +
+             static_cast<double>(*word(block, 0, channel, node));
+    }
+  }
+  /// Zeroes block `block` (one thread: a block the table just created).
+  FBAR_HOST_DEVICE void zero_block(int block) const {
+    unsigned long long* w = words + static_cast<std::size_t>(block) * kBlockWords;
+    for (std::size_t i = 0; i < kBlockWords; ++i) w[i] = 0ull;
+  }
+};
+
+/// The owner of a FixedGrid's words: a run-time number of blocks.
+template <typename TG, int C>
+class FixedGridBuffer {
+ public:
+  using View = FixedGrid<TG, C>;
+  static constexpr std::size_t kBlockBytes = View::kBlockWords * sizeof(unsigned long long);
+
+  void allocate(int block_capacity) {
+    words_.allocate(View::kBlockWords * static_cast<std::size_t>(block_capacity));  // zeroed
+    capacity_ = block_capacity;
+  }
+  /// New capacity keeping blocks [0, keep_blocks).
+  void grow(int block_capacity, int keep_blocks, cudaStream_t stream) {
+    cuda::DeviceArray<unsigned long long> bigger;
+    bigger.allocate(View::kBlockWords * static_cast<std::size_t>(block_capacity));  // zeroed
+    if (words_.size() && keep_blocks > 0)
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(bigger.get(), words_.get(), kBlockBytes * keep_blocks, cudaMemcpyDeviceToDevice,
+                                      stream));
+    FBAR_CUDA_CHECK(cudaStreamSynchronize(stream));
+    words_.swap(bigger);
+    capacity_ = block_capacity;
+  }
+  /// Zeroes blocks [begin, end).
+  void clear(int begin, int end, cudaStream_t stream) {
+    if (end > begin)
+      FBAR_CUDA_CHECK(cudaMemsetAsync(words_.get() + View::kBlockWords * begin, 0, kBlockBytes * (end - begin), stream));
+  }
+  View view() const { return View{words_.get()}; }
+  std::byte* data() const { return reinterpret_cast<std::byte*>(words_.get()); }
+  std::size_t bytes() const { return words_.bytes(); }
+  int capacity() const { return capacity_; }
+
+ private:
+  cuda::DeviceArray<unsigned long long> words_;
+  int capacity_ = 0;
+};
+
+/// The grid's P2G sums (mass, momentum x, y, z) and ASFLIP's transported momentum (x, y, z), in fixed point.
+template <typename TG>
+using GridSums = FixedGrid<TG, 4>;
+template <typename TG>
+using TransportedSums = FixedGrid<TG, 3>;
+template <typename TG>
+using GridBuffer = FixedGridBuffer<TG, 4>;
+template <typename TG>
+using TransportedBuffer = FixedGridBuffer<TG, 3>;
+/// F-bar's cell sums (grid_fbar_compression, grid_fbar_volume: channels 0, 1), in fixed point with the quantum
+/// V0 2^-F of the body whose sums they hold (fbar_quantum).
+template <typename TG>
+using FbarSums = FixedGrid<TG, 2>;
+template <typename TG>
+using FbarSumBuffer = FixedGridBuffer<TG, 2>;
+/// The seepage channels' sums (grid_pore_volume .. grid_pore_density: channels 0..4, kernels/seepage_kernels.cuh)
+/// in fixed point, channel c in units of pore_quantum(B_c); the grid update writes the node values into the
+/// GridPoreBuffer that G2P and the sensors read.
+template <typename TG>
+using PoreSums = FixedGrid<TG, 5>;
+template <typename TG>
+using PoreSumBuffer = FixedGridBuffer<TG, 5>;
+/// The quantum of a seepage channel from the bits of its bound B_c (a non-negative double): B_c 2^-F.
+template <typename TG>
+FBAR_HOST_DEVICE inline double pore_quantum(unsigned long long bound_bits) {
+  double b;
+  memcpy(&b, &bound_bits, sizeof(b));
+  return ldexp(b, -FixedSumFormat<TG>::kFractionBits);
+}
+template <typename TG>
+inline double fbar_quantum(double volume) {
+  return std::ldexp(volume, -FixedSumFormat<TG>::kFractionBits);
+}
+
+/// Channels of GridSums (mass, momentum) and of TransportedSums (momentum).
+inline constexpr int kSumMass = 0;
+inline constexpr int kSumMomentum = 1;  ///< x; y, z follow
 template <typename T>
 using GridVelocityBuffer = BlockBuffer<typename GridLayout<T>::velocity_block_>;
-template <typename T>
-using GridFbarBuffer = BlockBuffer<typename GridLayout<T>::fbar_block_>;
 template <typename T>
 using GridPoreBuffer = BlockBuffer<typename GridLayout<T>::pore_block_>;
 

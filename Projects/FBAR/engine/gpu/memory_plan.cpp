@@ -13,6 +13,8 @@ namespace {
 
 std::size_t particle_scalar_bytes(Precision p) { return p == Precision::Single ? 4 : 8; }
 std::size_t grid_scalar_bytes(Precision p) { return p == Precision::Double ? 8 : 4; }
+/// A fixed-point grid sum (grid_buffer.cuh FixedSumFormat): one int64 word (float grids) or two (double).
+std::size_t grid_sum_bytes(Precision p) { return p == Precision::Double ? 16 : 8; }
 
 /// Hash-table slots for a block capacity: the next power of two >= 2 x capacity, at least 1024 (hash_table.cuh).
 std::size_t table_slots(long long capacity) {
@@ -25,12 +27,13 @@ std::size_t table_slots(long long capacity) {
 std::size_t grid_bytes(long long capacity, Precision precision, bool asflip, bool fbar, bool pore) {
   const std::size_t c = static_cast<std::size_t>(capacity);
   const std::size_t tg = grid_scalar_bytes(precision);
+  const std::size_t sum = grid_sum_bytes(precision);
   std::size_t bytes = table_slots(capacity) * (8 + 4) + c * 3 * 4 + 8;  // keys, values, coordinates, counters
-  bytes += 2 * c * 4 * 64 * tg;                                         // two P2G grids (mass, momentum)
+  bytes += 2 * c * 4 * 64 * sum;                                        // two P2G grids (mass, momentum)
   bytes += c * 3 * 64 * tg;                                             // grid velocity
-  if (asflip) bytes += 3 * c * 3 * 64 * tg;                             // transported momentum x 2, v^n
-  if (fbar) bytes += c * 2 * 64 * tg;                                   // cell sums
-  if (pore) bytes += c * 5 * 64 * tg;                                   // seepage channels
+  if (asflip) bytes += 2 * c * 3 * 64 * sum + c * 3 * 64 * tg;          // transported momentum x 2, v^n
+  if (fbar) bytes += c * 2 * 64 * sum;                                  // cell sums
+  if (pore) bytes += c * 5 * 64 * (tg + sum);                           // seepage channels: node values, sums
   return bytes;
 }
 
@@ -88,7 +91,7 @@ DeviceMemoryPlan plan_device_memory(Precision precision, long long footprint_blo
   }
   const std::size_t t = particle_scalar_bytes(precision);
   plan.grid = grid_bytes(plan.block_capacity, precision, asflip, fbar, pore);
-  const std::size_t grid_largest = static_cast<std::size_t>(plan.block_capacity) * 4 * 64 * grid_scalar_bytes(precision);
+  const std::size_t grid_largest = static_cast<std::size_t>(plan.block_capacity) * 4 * 64 * grid_sum_bytes(precision);
   // Doubling: the bigger arrays, and one old grid array alive during its copy.
   plan.grid_growth = grid_bytes(2 * plan.block_capacity, precision, asflip, fbar, pore) - plan.grid + grid_largest;
   for (const BodyMemoryInput& b : bodies) {

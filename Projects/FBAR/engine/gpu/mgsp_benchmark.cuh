@@ -279,6 +279,8 @@ class MgspBenchmark {
   void allocate_device_state(const std::vector<std::vector<Vec3d>>* positions);
   void partition_upload();
   void initial_p2g();
+  /// compute_next_dt with the next grid's quanta, its inputs reduced over the ranks first (engine_step.cuh).
+  void launch_dt(DtParams& dp);
   void upload_sampled(BodyBase& body);
   std::vector<FailureReport> failures_of_try(double dt) const;
   /// The phases of a try (engine_step.cuh; steps 0-3 of the header).
@@ -315,24 +317,31 @@ class MgspBenchmark {
   void sync_new_shared_blocks(int summed_grid, const std::vector<std::vector<unsigned long long>>& sync_out,
                               const std::vector<std::vector<unsigned long long>>& sync_in);
   /// Placed bodies: halo_exchange over the shared lists, every holder's contribution added in rank order.
-  void shared_exchange(std::initializer_list<std::pair<std::byte*, std::size_t>> buffers, int grid, bool delta,
+  void shared_exchange(std::initializer_list<HaloBuffer> buffers, int grid, bool delta,
                        cudaStream_t stream);
   /// Placed bodies: dec_.not_counted from the lists (a block shared with a lower rank counts there).
   void mark_not_counted();
   /// Sums the listed block buffers' halo blocks with the neighbours (data, bytes per block). grid >= 0: the first
   /// buffer is grid_[grid], whose summed halo is kept for a later delta exchange; delta: add (mine + theirs) - saved.
   /// On `stream` (nullptr: the compute stream).
-  void halo_exchange(std::initializer_list<std::pair<std::byte*, std::size_t>> buffers, int grid, bool delta = false,
+  void halo_exchange(std::initializer_list<HaloBuffer> buffers, int grid, bool delta = false,
                      cudaStream_t stream = nullptr);
-  using BlockBuffers = std::vector<std::pair<std::byte*, std::size_t>>;
+  using BlockBuffers = std::vector<HaloBuffer>;
   /// halo_exchange in two halves (neighbour planes only), so that one exchange can carry other messages too: the
   /// packed halo messages, then, after the exchange, the sums.
   std::vector<comm::DeviceTransport::Message> pack_halo_messages(const BlockBuffers& buffers, cudaStream_t stream);
   void add_halo_messages(const BlockBuffers& buffers, int grid, bool delta, cudaStream_t stream);
+  /// grid[g]'s and transported[g]'s fixed-point words as halo buffers.
+  HaloBuffer grid_halo(int g) const { return HaloBuffer{grid_[g].data(), GridBuffer<TG>::kBlockBytes, true}; }
+  HaloBuffer transported_halo(int g) const {
+    return HaloBuffer{transported_[g].data(), TransportedBuffer<TG>::kBlockBytes, true};
+  }
+  /// The quanta of grid[g]'s sums (device).
+  GridQuantum* quantum(int g) const { return quantum_d_.get() + g; }
   /// The buffers a step's halo sums: grid[g] and, with ASFLIP, the transported momentum.
   BlockBuffers step_halo_buffers(int g) {
-    BlockBuffers out{{grid_[g].instance().data(), GridBuffer<TG>::kBlockBytes}};
-    if (asflip_) out.emplace_back(transported_[g].instance().data(), GridVelocityBuffer<TG>::kBlockBytes);
+    BlockBuffers out{grid_halo(g)};
+    if (asflip_) out.push_back(transported_halo(g));
     return out;
   }
   /// Step 3 of a decomposed rank: G2P2G of the halo particle blocks, then of the others on the compute stream while
@@ -388,13 +397,15 @@ class MgspBenchmark {
   BlockHashTable table_;
   GridBuffer<TG> grid_[2];
   GridVelocityBuffer<TG> velocity_;
-  GridFbarBuffer<TG> fbar_sums_;         ///< F-bar cell sums, allocated only when a body uses F-bar
+  FbarSumBuffer<TG> fbar_sums_;          ///< F-bar cell sums, allocated only when a body uses F-bar
   /// Seepage channels, allocated only when a body is saturated (CoupledUP): summed from the particles at the start of
   /// every try (seepage_sums), then the grid update's h_i, r_i and p_i in place (kernels/seepage_kernels.cuh).
   GridPoreBuffer<TG> pore_sums_;
+  PoreSumBuffer<TG> pore_fixed_;                  ///< the seepage sums in fixed point (the grid update reads them)
+  cuda::DeviceArray<unsigned long long> pore_bound_d_;  ///< (channel) bits of B_c (kernels/seepage_kernels.cuh)
   /// ASFLIP, allocated only when a body uses it: transported momentum of each P2G (double-buffered like grid_) and
   /// v^n from the grid update.
-  GridVelocityBuffer<TG> transported_[2];
+  TransportedBuffer<TG> transported_[2];
   GridVelocityBuffer<TG> old_velocity_;
   bool asflip_ = false;
   bool fbar_ = false;
@@ -412,6 +423,10 @@ class MgspBenchmark {
   /// (2, body) bits of the fixed-point P2G momentum bound: the one in use / the one measured by this try.
   cuda::DeviceArray<unsigned long long> p2g_bound_d_;
   int bound_cur_ = 0;
+  /// (grid) the quanta of grid_[g] and transported_[g] (compute_next_dt writes those of the grid a P2G sums into).
+  cuda::DeviceArray<GridQuantum> quantum_d_;
+  double mass_bound_ = 0.0;  ///< [kg] the largest particle (vertex) mass of any body: the mass quantum's scale
+  bool measuring_bound_ = false;  ///< the initial P2G's first pass (G2P2GParams::bound_only)
   cuda::DeviceArray<std::byte> scan_temp_;
   std::size_t scan_temp_bytes_ = 0;
   cuda::DeviceArray<int> missing_d_;

@@ -10,11 +10,9 @@ template <typename T, typename TG>
 void MgspBenchmark<T, TG>::g2p2g_and_halo(T dt) {
   auto sums = [&](cudaStream_t s) {
     if (asflip_)
-      halo_exchange({{grid_[1 - gc_].instance().data(), GridBuffer<TG>::kBlockBytes},
-                     {transported_[1 - gc_].instance().data(), GridVelocityBuffer<TG>::kBlockBytes}},
-                    1 - gc_, false, s);
+      halo_exchange({grid_halo(1 - gc_), transported_halo(1 - gc_)}, 1 - gc_, false, s);
     else
-      halo_exchange({{grid_[1 - gc_].instance().data(), GridBuffer<TG>::kBlockBytes}}, 1 - gc_, false, s);
+      halo_exchange({grid_halo(1 - gc_)}, 1 - gc_, false, s);
   };
   if (!options_.overlap_halo) {
     for (auto& b : bodies_) b->g2p2g(*this, false, dt);
@@ -48,7 +46,7 @@ void MgspBenchmark<T, TG>::g2p2g_and_halo(T dt) {
 }
 
 template <typename T, typename TG>
-void MgspBenchmark<T, TG>::halo_exchange(std::initializer_list<std::pair<std::byte*, std::size_t>> buffers, int grid,
+void MgspBenchmark<T, TG>::halo_exchange(std::initializer_list<HaloBuffer> buffers, int grid,
                                          bool delta, cudaStream_t stream) {
   if (!stream) stream = stream_;
   if (dec_.placed) {
@@ -64,7 +62,7 @@ template <typename T, typename TG>
 std::vector<comm::DeviceTransport::Message> MgspBenchmark<T, TG>::pack_halo_messages(const BlockBuffers& buffers,
                                                                                      cudaStream_t stream) {
   std::size_t per_block = 0;  // scalars of every listed buffer's block
-  for (const auto& [data, bytes] : buffers) per_block += bytes / sizeof(TG);
+  for (const HaloBuffer& b : buffers) per_block += b.block_bytes / sizeof(TG);
   std::vector<comm::DeviceTransport::Message> messages;
   for (HaloSide& h : dec_.halo) {
     if (h.peer < 0) continue;
@@ -75,9 +73,9 @@ std::vector<comm::DeviceTransport::Message> MgspBenchmark<T, TG>::pack_halo_mess
       h.recv.allocate(scalars);
     }
     std::size_t offset = 0;
-    for (const auto& [data, bytes] : buffers) {
-      const int block_scalars = static_cast<int>(bytes / sizeof(TG));
-      launch_pack_halo(reinterpret_cast<const TG*>(data), block_scalars, h.index.get(), n, h.send.get() + offset, stream);
+    for (const HaloBuffer& b : buffers) {
+      const int block_scalars = static_cast<int>(b.block_bytes / sizeof(TG));
+      launch_pack_halo(reinterpret_cast<const TG*>(b.data), block_scalars, h.index.get(), n, h.send.get() + offset, stream);
       offset += static_cast<std::size_t>(n) * block_scalars;
     }
     comm::DeviceTransport::Message m;
@@ -98,14 +96,14 @@ void MgspBenchmark<T, TG>::add_halo_messages(const BlockBuffers& buffers, int gr
     const int n = static_cast<int>(h.keys.size());
     std::size_t offset = 0;
     bool first = true;
-    for (const auto& [data, bytes] : buffers) {
-      const int block_scalars = static_cast<int>(bytes / sizeof(TG));
-      TG* target = reinterpret_cast<TG*>(data);
+    for (const HaloBuffer& b : buffers) {
+      const int block_scalars = static_cast<int>(b.block_bytes / sizeof(TG));
+      TG* target = reinterpret_cast<TG*>(b.data);
       const std::size_t count = static_cast<std::size_t>(n) * block_scalars;
       const bool saved = first && delta;
       if (saved && h.saved[grid].size() < count) throw std::logic_error("GpuEngine: a delta exchange before any sum");
-      launch_add_halo(target, block_scalars, h.index.get(), n, h.recv.get() + offset,
-                      saved ? h.saved[grid].get() : nullptr, stream);
+      launch_add_halo_as<TG>(b, block_scalars, h.index.get(), n, h.recv.get() + offset,
+                             saved ? h.saved[grid].get() : nullptr, stream);
       if (first && save) {  // the sums both ranks now hold, for a later delta exchange
         if (h.saved[grid].size() < count) h.saved[grid].allocate(count);
         launch_pack_halo(target, block_scalars, h.index.get(), n, h.saved[grid].get(), stream);
@@ -194,7 +192,7 @@ void MgspBenchmark<T, TG>::rebuild_halo(int summed_grid) {
                                     cudaMemcpyHostToDevice, stream_));
     for (;;) {
       insert_halo_blocks<TG><<<cuda::grid_for(n, kHaloThreads), kHaloThreads, 0, stream_>>>(
-          table_.view(), keys.get(), n, h.index.get(), grid_[0].instance(), grid_[1].instance());
+          table_.view(), keys.get(), n, h.index.get(), grid_[0].view(), grid_[1].view());
       cuda::check_launch("insert_halo_blocks");
       TableCounters c{};
       FBAR_CUDA_CHECK(cudaMemcpyAsync(&c, table_.counters(), sizeof(c), cudaMemcpyDeviceToHost, stream_));
@@ -211,7 +209,7 @@ void MgspBenchmark<T, TG>::rebuild_halo(int summed_grid) {
     const std::size_t count = static_cast<std::size_t>(n) * kScalars;
     for (int g = 0; g < 2; ++g) h.saved[g].allocate(count);  // the other grid is summed (and saved) before its use
     if (summed_grid >= 0) {
-      launch_pack_halo(reinterpret_cast<const TG*>(grid_[summed_grid].instance().data()), kScalars, h.index.get(), n,
+      launch_pack_halo(reinterpret_cast<const TG*>(grid_[summed_grid].data()), kScalars, h.index.get(), n,
                        h.saved[summed_grid].get(), stream_);
     }
   }

@@ -25,7 +25,7 @@ bool MgspBenchmark<T, TG>::index_shared_lists(const std::vector<bool>& changed) 
     FBAR_CUDA_CHECK(cudaMemcpyAsync(keys[q].get(), peer.keys.data(), sizeof(Key) * peer.keys.size(),
                                     cudaMemcpyHostToDevice, stream_));
     insert_halo_blocks<TG><<<cuda::grid_for(count, kHaloThreads), kHaloThreads, 0, stream_>>>(
-        table_.view(), keys[q].get(), count, peer.index.get(), grid_[0].instance(), grid_[1].instance());
+        table_.view(), keys[q].get(), count, peer.index.get(), grid_[0].view(), grid_[1].view());
     cuda::check_launch("insert_halo_blocks");
     peer.blocks.resize(peer.keys.size());
     FBAR_CUDA_CHECK(cudaMemcpyAsync(peer.blocks.data(), peer.index.get(), sizeof(int) * peer.blocks.size(),
@@ -76,7 +76,7 @@ void MgspBenchmark<T, TG>::sync_new_shared_blocks(int summed_grid,
   using Key = unsigned long long;
   const int r = rank(), n = ranks();
   constexpr int kScalars = static_cast<int>(GridBuffer<TG>::kBlockBytes / sizeof(TG));
-  TG* grid = reinterpret_cast<TG*>(grid_[summed_grid].instance().data());
+  TG* grid = reinterpret_cast<TG*>(grid_[summed_grid].data());
   std::unordered_map<Key, int> where;
   for (int q = 0; q < n; ++q)
     for (std::size_t k = 0; k < dec_.shared[q].keys.size(); ++k) where[dec_.shared[q].keys[k]] = dec_.shared[q].blocks[k];
@@ -124,8 +124,8 @@ void MgspBenchmark<T, TG>::sync_new_shared_blocks(int summed_grid,
   for (int q = 0; q < n; ++q) {
     if (sync_in[q].empty()) continue;
     const int count = static_cast<int>(sync_in[q].size());  // a new block is zero here: adding sets it
-    launch_add_halo(grid, kScalars, in_index[q].get(), count, in_values[q].get(), static_cast<const TG*>(nullptr),
-                    stream_);
+    launch_add_halo_as<TG>(grid_halo(summed_grid), kScalars, in_index[q].get(), count, in_values[q].get(),
+                           static_cast<const TG*>(nullptr), stream_);
   }
   const std::size_t count = dec_.union_blocks.size() * kScalars;
   for (int g = 0; g < 2; ++g)
@@ -195,7 +195,7 @@ void MgspBenchmark<T, TG>::rebuild_shared(int summed_grid, const std::vector<uns
 }
 
 template <typename T, typename TG>
-void MgspBenchmark<T, TG>::shared_exchange(std::initializer_list<std::pair<std::byte*, std::size_t>> buffers, int grid,
+void MgspBenchmark<T, TG>::shared_exchange(std::initializer_list<HaloBuffer> buffers, int grid,
                                            bool delta, cudaStream_t stream) {
   const int r = rank(), n = ranks();
   const int held = static_cast<int>(dec_.union_blocks.size());
@@ -204,7 +204,7 @@ void MgspBenchmark<T, TG>::shared_exchange(std::initializer_list<std::pair<std::
     return;
   }
   std::size_t per_block = 0;
-  for (const auto& [data, bytes] : buffers) per_block += bytes / sizeof(TG);
+  for (const HaloBuffer& b : buffers) per_block += b.block_bytes / sizeof(TG);
   // 1. Each peer's blocks out, theirs in.
   std::vector<comm::DeviceTransport::Message> messages;
   for (int q = 0; q < n; ++q) {
@@ -217,9 +217,9 @@ void MgspBenchmark<T, TG>::shared_exchange(std::initializer_list<std::pair<std::
       peer.recv.allocate(scalars);
     }
     std::size_t offset = 0;
-    for (const auto& [data, bytes] : buffers) {
-      const int block_scalars = static_cast<int>(bytes / sizeof(TG));
-      launch_pack_halo(reinterpret_cast<const TG*>(data), block_scalars, peer.index.get(), count,
+    for (const HaloBuffer& b : buffers) {
+      const int block_scalars = static_cast<int>(b.block_bytes / sizeof(TG));
+      launch_pack_halo(reinterpret_cast<const TG*>(b.data), block_scalars, peer.index.get(), count,
                        peer.send.get() + offset, stream);
       offset += static_cast<std::size_t>(count) * block_scalars;
     }
@@ -235,9 +235,9 @@ void MgspBenchmark<T, TG>::shared_exchange(std::initializer_list<std::pair<std::
   if (dec_.union_own.size() < own) dec_.union_own.allocate(own);
   {
     std::size_t offset = 0;
-    for (const auto& [data, bytes] : buffers) {
-      const int block_scalars = static_cast<int>(bytes / sizeof(TG));
-      launch_pack_halo(reinterpret_cast<const TG*>(data), block_scalars, dec_.union_index.get(), held,
+    for (const HaloBuffer& b : buffers) {
+      const int block_scalars = static_cast<int>(b.block_bytes / sizeof(TG));
+      launch_pack_halo(reinterpret_cast<const TG*>(b.data), block_scalars, dec_.union_index.get(), held,
                        dec_.union_own.get() + offset, stream);
       offset += static_cast<std::size_t>(held) * block_scalars;
     }
@@ -247,9 +247,9 @@ void MgspBenchmark<T, TG>::shared_exchange(std::initializer_list<std::pair<std::
   // in rank order.
   std::size_t offset = 0, own_offset = 0;
   bool first = true;
-  for (const auto& [data, bytes] : buffers) {
-    const int block_scalars = static_cast<int>(bytes / sizeof(TG));
-    TG* target = reinterpret_cast<TG*>(data);
+  for (const HaloBuffer& b : buffers) {
+    const int block_scalars = static_cast<int>(b.block_bytes / sizeof(TG));
+    TG* target = reinterpret_cast<TG*>(b.data);
     const bool use_saved = first && delta;
     if (use_saved && dec_.union_saved[grid].size() < static_cast<std::size_t>(held) * block_scalars)
       throw std::logic_error("GpuEngine: a delta exchange before any sum");
@@ -260,18 +260,15 @@ void MgspBenchmark<T, TG>::shared_exchange(std::initializer_list<std::pair<std::
     cuda::check_launch("start_shared");
     for (int q = 0; q < n; ++q) {
       if (q == r) {
-        add_shared<TG><<<cuda::grid_for(all, kHaloThreads), kHaloThreads, 0, stream>>>(
-            target, block_scalars, dec_.union_index.get(), held, dec_.union_own.get() + own_offset, saved, nullptr);
-        cuda::check_launch("add_shared");
+        launch_add_shared_as<TG>(b, block_scalars, dec_.union_index.get(), held, dec_.union_own.get() + own_offset,
+                                 saved, nullptr, stream);
         continue;
       }
       SharedPeer& peer = dec_.shared[q];
       if (peer.blocks.empty()) continue;
       const int count = static_cast<int>(peer.blocks.size());
-      add_shared<TG><<<cuda::grid_for(static_cast<long long>(count) * block_scalars, kHaloThreads), kHaloThreads,
-                       0, stream>>>(target, block_scalars, peer.index.get(), count,
-                                    peer.recv.get() + offset * count, saved, peer.upos.get());
-      cuda::check_launch("add_shared");
+      launch_add_shared_as<TG>(b, block_scalars, peer.index.get(), count, peer.recv.get() + offset * count, saved,
+                               peer.upos.get(), stream);
     }
     if (first && grid >= 0) {  // the sums every holder now has, for a later delta exchange
       if (dec_.union_saved[grid].size() < static_cast<std::size_t>(all)) dec_.union_saved[grid].allocate(all);

@@ -56,11 +56,12 @@ FBAR_DEVICE FBAR_FORCE_INLINE void fem_stencil_blocks(const BlockHashTableView& 
     blocks[n] = table.find(BlockKey::pack(lo[0] + (n >> 2), lo[1] + ((n >> 1) & 1), lo[2] + (n & 1)));
 }
 
-/// Adds w_ip * impulse to the momentum of the 27 stencil nodes of x (their blocks found in the table; a missing one
-/// is an internal error).
+/// Adds w_ip * impulse to the momentum of the 27 stencil nodes of x in the grid's quantum (their blocks found in the
+/// table; a missing one is an internal error).
 template <typename T, typename TG>
-FBAR_DEVICE void fem_add_impulse(const BlockHashTableView& table, const typename GridLayout<TG>::Buffer& grid,
+FBAR_DEVICE void fem_add_impulse(const BlockHashTableView& table, const GridSums<TG>& grid, const GridQuantum* quantum,
                                  const Vec3<T>& x, T inv_dx, const Vec3<T>& impulse, StepStats* stats) {
+  const double per_unit = 1.0 / quantum->momentum;
   const QuadraticBspline<T> w = quadratic_bspline_inv(x, inv_dx);
   const Vec3i lo{{floor_div4(w.base[0]), floor_div4(w.base[1]), floor_div4(w.base[2])}};
   int blocks[8];
@@ -76,9 +77,8 @@ FBAR_DEVICE void fem_add_impulse(const BlockHashTableView& table, const typename
         }
         const int node = ((n0 & 3) * 4 + (n1 & 3)) * 4 + (n2 & 3);
         const T wt = w.w[0][i] * w.w[1][j] * w.w[2][k];
-        atomicAdd(&block_val(grid, grid_momentum_x, nb, node), static_cast<TG>(wt * impulse[0]));
-        atomicAdd(&block_val(grid, grid_momentum_y, nb, node), static_cast<TG>(wt * impulse[1]));
-        atomicAdd(&block_val(grid, grid_momentum_z, nb, node), static_cast<TG>(wt * impulse[2]));
+        for (int a = 0; a < 3; ++a)
+          grid.add(nb, kSumMomentum + a, node, static_cast<double>(wt * impulse[a]) * per_unit);
       }
 }
 
@@ -167,7 +167,8 @@ struct MeshVertexParams {
   material_params_t<M, T> params;
   Vec3<T>* force;                              ///< (vertex) the elements' force at these positions [N], written
   BlockHashTableView table;
-  typename GridLayout<TG>::Buffer grid_next;   ///< the next step's P2G sums (the impulse is added)
+  GridSums<TG> grid_next;                      ///< the next step's P2G sums (the impulse is added)
+  const GridQuantum* quantum_next;             ///< their quanta
   const double* dt_next;                       ///< [s] that P2G's impulse dt (device)
   T inv_dx;
   const T* aux;                                ///< (slot, kAuxScalars) v and C the G2P2G recorded
@@ -214,7 +215,8 @@ __global__ void __launch_bounds__(kFemThreads) mesh_vertex_pass(MeshVertexParams
     } else {
       wave = static_cast<double>(M::wave_speed(p.params, s));
       if (inside && m.forces && (f[0] != T(0) || f[1] != T(0) || f[2] != T(0)))
-        fem_add_impulse<T, TG>(p.table, p.grid_next, m.x[v], p.inv_dx, f * static_cast<T>(*p.dt_next), p.stats);
+        fem_add_impulse<T, TG>(p.table, p.grid_next, p.quantum_next, m.x[v], p.inv_dx, f * static_cast<T>(*p.dt_next),
+                               p.stats);
     }
     if (p.capture.x) {
       const T* a = p.aux + static_cast<std::size_t>(slot) * kAuxScalars;
@@ -234,7 +236,7 @@ template <typename M, typename T, typename TG>
 __global__ void __launch_bounds__(kFemThreads)
     mesh_rescale_impulse(typename ParticleLayout<M, T>::Buffer bins, const int* src, int slots, const Vec3<T>* force,
                          int vertex_count, T ddt, T inv_dx, BlockHashTableView table,
-                         typename GridLayout<TG>::Buffer grid, StepStats* stats) {
+                         GridSums<TG> grid, const GridQuantum* quantum, StepStats* stats) {
   const int slot = blockIdx.x * blockDim.x + threadIdx.x;
   if (slot >= slots) return;
   const int s = src[slot];
@@ -243,7 +245,7 @@ __global__ void __launch_bounds__(kFemThreads)
   if (r.id < 0 || r.id >= vertex_count) return;
   const Vec3<T> f = force[r.id];
   if (f[0] == T(0) && f[1] == T(0) && f[2] == T(0)) return;
-  fem_add_impulse<T, TG>(table, grid, r.x, inv_dx, f * ddt, stats);
+  fem_add_impulse<T, TG>(table, grid, quantum, r.x, inv_dx, f * ddt, stats);
 }
 
 }  // namespace fbar

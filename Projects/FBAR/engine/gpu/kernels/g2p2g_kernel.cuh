@@ -14,13 +14,15 @@
 //      advection, state update (material advance), checks (NaN/Inf, left domain, CFL), store the particle in
 //      layout order, stress (material kirchhoff_stress with the new C), P2G into arena_p with shared atomics,
 //      record the particle's next block and rank (hash-table insert deduplicated per warp);
-//   3. add arena_p into the next grid with global atomics (nodes no particle touched are skipped).
+//   3. add arena_p into the next grid's fixed-point sums with global integer atomics (nodes no particle touched are
+//      skipped; grid_buffer.cuh "Order-free grid sums").
 // The P2G impulse uses the next step's dt (read from the device: compute_next_dt ran before this kernel), so the
 // next grid holds exactly what the CPU engine's P2G of the next step computes.
 // kInitial: the P2G of the initial state (v = initial velocity, C = 0 or a restart's, no motion): how the driver
-// starts.
+// starts. Launched twice: first with bound_only (each particle's P2G bound measured, nothing written but the
+// maxima), then into the arena with that bound, like every other launch.
 //
-// Fixed-point arena (every launch but the initial one). On sm_90 a shared-memory float or double atomicAdd is a
+// Fixed-point arena. On sm_90 a shared-memory float or double atomicAdd is a
 // compare-and-swap loop (LDS, FADD, ATOMS.CAST.SPIN, branch; tools/benchmark/shared_atomics.cu): 108 of them per
 // particle were ~90 % of this kernel. 32-bit integer shared atomics are native (ATOMS.ADD), 3.6x faster on the same
 // scatter, so the arena accumulates integers in units of a per-block quantum q (FixedArena: int32 for float, int64
@@ -32,7 +34,10 @@
 // try's measured maximum times kP2GHeadroom; a particle above it flags the try (StepStats::p2g_range) and the driver
 // repeats the step with the bound it just measured, which then holds for every particle. Rounding: |error| <= q/2
 // per contribution, about 1e-7 B (float) or 2e-16 B (double) at 512 particles per block: the size of the
-// floating-point round-off of the same sums. Summation becomes order-independent within a block.
+// floating-point round-off of the same sums. Summation is order-independent within a block; the flush converts a
+// block's integers to the grid's quanta (one rounding per node and block) and adds integers there too, so the whole
+// P2G is order-free: the bound B and the grid's quanta are the same on every rank (reduced over the ranks with the
+// wave speeds, compute_next_dt), so 1, 2 or 4 GPUs give the same sums.
 #pragma once
 
 #include <cuda_runtime.h>
@@ -134,20 +139,23 @@ struct G2P2GParams {
   ParticleDest* dest;        ///< (slot) next block and rank of each particle
   BlockHashTableView table;
   typename GridLayout<TG>::VelocityBuffer velocity;  ///< grid velocities of this step
-  typename GridLayout<TG>::Buffer grid_next;         ///< P2G target (zeroed on blocks [0, block count))
-  typename GridLayout<TG>::Buffer grid_this;         ///< this step's P2G sums: a new block is zeroed here as well
+  GridSums<TG> grid_next;               ///< P2G target (zeroed on blocks [0, block count))
+  GridSums<TG> grid_this;               ///< this step's P2G sums: a new block is zeroed here as well
+  const GridQuantum* quantum_next;      ///< the quanta of grid_next (compute_next_dt)
+  bool bound_only;                      ///< kInitial: measure the P2G bound only (nothing else is written)
   T* aux;                    ///< (slot, kAuxScalars) v and C, or nullptr
   FrameCapture<T> capture;   ///< this body's frame (capture.x != nullptr on a frame step)
   /// ASFLIP (transfer.cuh). Every body adds its transported momentum m (v + C (x_i - x_p)) to `transported_next`
   /// when any body uses ASFLIP (non-null); a body that uses it also reads v^n (`old_velocity`) and its particles'
   /// velocities (`particle_v_in` at the storage slot, `particle_v_out` at the layout slot; 3 scalars per slot).
-  typename GridLayout<TG>::VelocityBuffer transported_next;
+  TransportedSums<TG> transported_next;
   typename GridLayout<TG>::VelocityBuffer old_velocity;
   const T* particle_v_in;
   T* particle_v_out;
   bool asflip;                ///< this body uses PIC-FLIP / ASFLIP
   AsflipParams<T> asflip_params;
-  typename GridLayout<TG>::FbarBuffer fbar_sums;  ///< F-bar cell sums of this body (fbar_cell_sums), when fbar_psi > 0
+  FbarSums<TG> fbar_sums;    ///< F-bar cell sums of this body (fbar_cell_sums), when fbar_psi > 0
+  double fbar_quantum;       ///< [m^3] their quantum
   T fbar_psi;                ///< [-] F-bar: the fraction of J pulled to its cell's mean per step, 0: off (transfer.cuh)
   /// Saturated bodies (IsPoreFluid): the grid's h_i and r_i after the grid update (seepage_sums, then
   /// update_grid_velocity_query_max), read by G2P's seepage (physics/seepage.cuh); gravity for the head's datum.
@@ -213,6 +221,9 @@ struct FixedArena<float> {
   FBAR_DEVICE FBAR_FORCE_INLINE float units(int ch, int a) const {
     return static_cast<float>(static_cast<int>(words[ch * kArenaStorage + a]));
   }
+  FBAR_DEVICE FBAR_FORCE_INLINE double exact(int ch, int a) const {  ///< the sum, exactly
+    return static_cast<double>(static_cast<int>(words[ch * kArenaStorage + a]));
+  }
 };
 template <>
 struct FixedArena<double> {
@@ -232,6 +243,7 @@ struct FixedArena<double> {
                                     words[ch * kArenaStorage + a];
     return static_cast<double>(static_cast<long long>(bits));
   }
+  FBAR_DEVICE FBAR_FORCE_INLINE double exact(int ch, int a) const { return units(ch, a); }  ///< rounded to 53 bits
 };
 
 /// Shared-memory index of arena node (a, b, c) (x-planes padded, see kArenaPlane).
@@ -276,17 +288,6 @@ FBAR_DEVICE FBAR_FORCE_INLINE void load_arena_velocities(const typename GridLayo
   }
 }
 
-/// Zeroes block `index` of a grid buffer (one thread, a new block: rare).
-template <typename T>
-FBAR_DEVICE void zero_block(const typename GridLayout<T>::Buffer& grid, int index) {
-  for (int n = 0; n < 64; ++n) {
-    block_val(grid, grid_mass, index, n) = T(0);
-    block_val(grid, grid_momentum_x, index, n) = T(0);
-    block_val(grid, grid_momentum_y, index, n) = T(0);
-    block_val(grid, grid_momentum_z, index, n) = T(0);
-  }
-}
-
 /// transfer.cuh's for_each_stencil_node with the 27 nodes unrolled: the same weights in the same order
 /// (w0 w1, then x w2), so the stencil arrays stay in registers (the rolled loop put them in local memory).
 template <typename T, typename F>
@@ -323,8 +324,7 @@ FBAR_DEVICE FBAR_FORCE_INLINE bool state_finite(const State& state) {
 /// table overflowed. grid_a/grid_b: new blocks are zeroed there. Must be called by all 32 lanes.
 template <typename T>
 FBAR_DEVICE ParticleDest claim_block_rank(bool has_key, std::uint64_t key, const BlockHashTableView& table,
-                                          int* next_count, const typename GridLayout<T>::Buffer& grid_a,
-                                          const typename GridLayout<T>::Buffer& grid_b) {
+                                          int* next_count, const GridSums<T>& grid_a, const GridSums<T>& grid_b) {
   ParticleDest d{-1, -1};
   const unsigned keyed = __ballot_sync(0xffffffffu, has_key);
   if (has_key) {
@@ -336,8 +336,8 @@ FBAR_DEVICE ParticleDest claim_block_rank(bool has_key, std::uint64_t key, const
       bool inserted = false;
       index = table.insert(key, inserted);
       if (inserted) {
-        zero_block<T>(grid_a, index);
-        zero_block<T>(grid_b, index);
+        grid_a.zero_block(index);
+        grid_b.zero_block(index);
       }
       if (index >= 0) base = atomicAdd(&next_count[index], __popc(peers));
     }
@@ -348,19 +348,20 @@ FBAR_DEVICE ParticleDest claim_block_rank(bool has_key, std::uint64_t key, const
   return d;
 }
 
-/// What the threads of one g2p2g CUDA block share: the arena in shared memory (grid velocities, P2G sums and their
-/// integer view, the hash-table indices of its 2x2x2 grid blocks), the particle block's origin, and the fixed-point
-/// quanta of this block's P2G [kg], [kg m/s] with their inverses and the bound every particle must meet.
+/// What the threads of one g2p2g CUDA block share: the arena in shared memory (grid velocities, the P2G sums as
+/// integers, the hash-table indices of its 2x2x2 grid blocks), the particle block's origin, the fixed-point quanta
+/// of this block's P2G [kg], [kg m/s] with their inverses and the bound every particle must meet, and the factors
+/// from this block's quanta to the grid's (q / Q).
 template <typename T, typename TG>
 struct BlockArena {
   const ArenaVelocity<TG>* velocity;
-  TG* sums;
   FixedArena<TG> fixed;
   const int* blocks;
   Vec3i origin;
   int channels;  ///< 4, or 7 with the transported momentum (ASFLIP)
   T dt_next;
   T q_mass, inv_q_mass, q_momentum, inv_q_momentum, limit;
+  double to_grid_mass, to_grid_momentum;
 };
 
 /// One lane's particle between its G2P and its P2G: the new state, velocity and affine matrix, the check that
@@ -421,8 +422,8 @@ FBAR_DEVICE FBAR_FORCE_INLINE void g2p_particle(const G2P2GParams<M, T, TG>& p, 
     const T one_minus_J = one_minus_volume_ratio<M>(in.state);
     const T cell_mean = nb < 0 ? one_minus_J
                                : fbar_cell_compression(
-                                     static_cast<T>(block_val(p.fbar_sums, grid_fbar_compression, nb, node)),
-                                     static_cast<T>(block_val(p.fbar_sums, grid_fbar_volume, nb, node)));
+                                     static_cast<T>(p.fbar_sums.units(nb, 0, node) * p.fbar_quantum),
+                                     static_cast<T>(p.fbar_sums.units(nb, 1, node) * p.fbar_quantum));
     out.state = M::advance(p.material, in.state,
                            fbar_velocity_gradient(out.C, one_minus_J, cell_mean, p.fbar_psi, p.dt), p.dt);
   } else {
@@ -498,12 +499,12 @@ FBAR_DEVICE FBAR_FORCE_INLINE void store_particle_outputs(const G2P2GParams<M, T
 }
 
 /// P2G of one particle that passed its checks: wave speed, stress, the MLS payload with the next step's impulse
-/// into the arena (integers in the block's quanta, or float atomics in the initial P2G), the momentum bound it
-/// needs, and its next block (key) or the neighbour that owns it.
-template <typename M, typename T, typename TG, bool kFixed, bool kMayMesh>
+/// into the arena (integers in the block's quanta), the momentum bound it needs, and its next block (key) or the
+/// neighbour that owns it. measure_only (the initial launch's first pass): the bound and the wave speed only.
+template <typename M, typename T, typename TG, bool kMayMesh>
 FBAR_DEVICE FBAR_FORCE_INLINE void p2g_particle(const G2P2GParams<M, T, TG>& p, const BlockArena<T, TG>& arena,
                                                 LaneParticle<M, T>& s, int id, double& wave_max, double& bound_max,
-                                                bool& out_of_range) {
+                                                bool& out_of_range, bool measure_only) {
   const QuadraticBspline<T> w = quadratic_bspline_inv(s.x_new, p.inv_dx);
   const Vec3i& origin = arena.origin;
   const int l0 = w.base[0] - 4 * origin[0], l1 = w.base[1] - 4 * origin[1], l2 = w.base[2] - 4 * origin[2];
@@ -528,49 +529,32 @@ FBAR_DEVICE FBAR_FORCE_INLINE void p2g_particle(const G2P2GParams<M, T, TG>& p, 
     s.failed = kFailNonFinite;  // a finite state whose stress overflowed
   } else {
     bound_max = fmax(bound_max, static_cast<double>(b));
-    if constexpr (kFixed) {
-      if (b > arena.limit) {
-        out_of_range = true;  // this try is repeated with the measured bound
-      } else {
-        // The payload in quanta: the per-node products then need no scaling (4 multiplies fewer per node).
-        const P2GParticle<T> units{payload.mass * arena.inv_q_mass, payload.momentum * arena.inv_q_momentum,
-                                   payload.affine * arena.inv_q_momentum};
-        for_each_stencil_node_unrolled(w, p.dx, [&](int i, int j, int k, T wt, const Vec3<T>& xixp) {
-          const int a = arena_index(l0 + i, l1 + j, l2 + k);
-          const Vec3<T> mv = p2g_node_momentum(units, wt, xixp);
-          arena.fixed.add(0, a, wt * units.mass);
-          arena.fixed.add(1, a, mv[0]);
-          arena.fixed.add(2, a, mv[1]);
-          arena.fixed.add(3, a, mv[2]);
-        });
-        if (transport) {
-          const P2GParticle<T> carried_units{T(0), carried.momentum * arena.inv_q_momentum,
-                                             carried.affine * arena.inv_q_momentum};
-          for_each_stencil_node_unrolled(w, p.dx, [&](int i, int j, int k, T wt, const Vec3<T>& xixp) {
-            const int a = arena_index(l0 + i, l1 + j, l2 + k);
-            const Vec3<T> mv = p2g_node_momentum(carried_units, wt, xixp);
-            arena.fixed.add(4, a, mv[0]);
-            arena.fixed.add(5, a, mv[1]);
-            arena.fixed.add(6, a, mv[2]);
-          });
-        }
-      }
+    if (measure_only) return;
+    if (b > arena.limit) {
+      out_of_range = true;  // this try is repeated with the measured bound
     } else {
-      TG* const sums = arena.sums;
+      // The payload in quanta: the per-node products then need no scaling (4 multiplies fewer per node).
+      const P2GParticle<T> units{payload.mass * arena.inv_q_mass, payload.momentum * arena.inv_q_momentum,
+                                 payload.affine * arena.inv_q_momentum};
       for_each_stencil_node_unrolled(w, p.dx, [&](int i, int j, int k, T wt, const Vec3<T>& xixp) {
         const int a = arena_index(l0 + i, l1 + j, l2 + k);
-        const Vec3<T> mv = p2g_node_momentum(payload, wt, xixp);
-        atomicAdd(&sums[0 * kArenaStorage + a], static_cast<TG>(wt * payload.mass));
-        atomicAdd(&sums[1 * kArenaStorage + a], static_cast<TG>(mv[0]));
-        atomicAdd(&sums[2 * kArenaStorage + a], static_cast<TG>(mv[1]));
-        atomicAdd(&sums[3 * kArenaStorage + a], static_cast<TG>(mv[2]));
-        if (transport) {
-          const Vec3<T> cv = p2g_node_momentum(carried, wt, xixp);
-          atomicAdd(&sums[4 * kArenaStorage + a], static_cast<TG>(cv[0]));
-          atomicAdd(&sums[5 * kArenaStorage + a], static_cast<TG>(cv[1]));
-          atomicAdd(&sums[6 * kArenaStorage + a], static_cast<TG>(cv[2]));
-        }
+        const Vec3<T> mv = p2g_node_momentum(units, wt, xixp);
+        arena.fixed.add(0, a, wt * units.mass);
+        arena.fixed.add(1, a, mv[0]);
+        arena.fixed.add(2, a, mv[1]);
+        arena.fixed.add(3, a, mv[2]);
       });
+      if (transport) {
+        const P2GParticle<T> carried_units{T(0), carried.momentum * arena.inv_q_momentum,
+                                           carried.affine * arena.inv_q_momentum};
+        for_each_stencil_node_unrolled(w, p.dx, [&](int i, int j, int k, T wt, const Vec3<T>& xixp) {
+          const int a = arena_index(l0 + i, l1 + j, l2 + k);
+          const Vec3<T> mv = p2g_node_momentum(carried_units, wt, xixp);
+          arena.fixed.add(4, a, mv[0]);
+          arena.fixed.add(5, a, mv[1]);
+          arena.fixed.add(6, a, mv[2]);
+        });
+      }
     }
   }
   const int b0 = floor_div4(w.base[0] - 1), b1 = floor_div4(w.base[1] - 1), b2 = floor_div4(w.base[2] - 1);
@@ -626,38 +610,27 @@ FBAR_DEVICE FBAR_FORCE_INLINE void reduce_block_maxima(const G2P2GParams<M, T, T
   }
 }
 
-/// The arena's sums into the next grid: one thread per arena node, atomics into the (up to 8) grid blocks (nodes no
-/// particle's stencil covers are skipped). Every thread of the block, after the P2G.
-template <typename M, typename T, typename TG, bool kFixed>
+/// The arena's sums into the next grid: one thread per arena node, each channel's block integer converted to the
+/// grid's quantum (q / Q, rounded to the nearest unit) and added with an integer atomic into the (up to 8) grid
+/// blocks (nodes no particle's stencil covers are skipped). Every thread of the block, after the P2G.
+template <typename M, typename T, typename TG>
 FBAR_DEVICE FBAR_FORCE_INLINE void flush_arena(const G2P2GParams<M, T, TG>& p, const BlockArena<T, TG>& arena) {
   for (int i = threadIdx.x; i < kArenaNodes; i += blockDim.x) {
     const int a = i >> 6, b = (i >> 3) & 7, c = i & 7;
     const int ai = arena_index(a, b, c);
-    TG mass_units;
-    if constexpr (kFixed) mass_units = arena.fixed.units(0, ai);
-    else mass_units = arena.sums[ai];
-    if (mass_units == TG(0)) continue;  // no particle's stencil covers this node
+    // Float grids convert in float (the grid's own precision; the same bits on every run), double grids in double.
+    using U = TG;
+    const U mass_units = arena.fixed.units(0, ai);
+    if (mass_units == U(0)) continue;  // no particle's stencil covers this node
     const int nb = arena.blocks[arena_neighbour(a, b, c)];
     if (nb < 0) continue;  // counted as an internal error when the arena was set up
     const int node = arena_node_in_block(a, b, c);
-    TG sum[7];
-    if constexpr (kFixed) {
-      sum[0] = static_cast<TG>(mass_units * arena.q_mass);
-      for (int ch = 1; ch < arena.channels; ++ch)
-        sum[ch] = static_cast<TG>(arena.fixed.units(ch, ai) * arena.q_momentum);
-    } else {
-      sum[0] = mass_units;
-      for (int ch = 1; ch < arena.channels; ++ch) sum[ch] = arena.sums[ch * kArenaStorage + ai];
-    }
-    atomicAdd(&block_val(p.grid_next, grid_mass, nb, node), sum[0]);
-    atomicAdd(&block_val(p.grid_next, grid_momentum_x, nb, node), sum[1]);
-    atomicAdd(&block_val(p.grid_next, grid_momentum_y, nb, node), sum[2]);
-    atomicAdd(&block_val(p.grid_next, grid_momentum_z, nb, node), sum[3]);
-    if (arena.channels == 7) {
-      atomicAdd(&block_val(p.transported_next, grid_velocity_x, nb, node), sum[4]);
-      atomicAdd(&block_val(p.transported_next, grid_velocity_y, nb, node), sum[5]);
-      atomicAdd(&block_val(p.transported_next, grid_velocity_z, nb, node), sum[6]);
-    }
+    const U to_mass = static_cast<U>(arena.to_grid_mass), to_momentum = static_cast<U>(arena.to_grid_momentum);
+    p.grid_next.add(nb, kSumMass, node, mass_units * to_mass);
+    for (int ch = 1; ch < 4; ++ch) p.grid_next.add(nb, ch, node, arena.fixed.units(ch, ai) * to_momentum);
+    if (arena.channels == 7)
+      for (int ch = 0; ch < 3; ++ch)
+        p.transported_next.add(nb, ch, node, arena.fixed.units(4 + ch, ai) * to_momentum);
   }
 }
 
@@ -675,12 +648,13 @@ FBAR_DEVICE FBAR_FORCE_INLINE void flush_arena(const G2P2GParams<M, T, TG>& p, c
 /// stress in P2G (the initial launch decides at run time from p.vertex_mass).
 template <typename M, typename T, typename TG, bool kInitial, bool kTransport, bool kCapture = false, bool kMesh = false>
 __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) {
-  constexpr bool kFixed = !kInitial;  // the initial P2G has no bound yet: it adds T with CAS atomics
+  // The initial launch's first pass measures the bound the second one uses (nothing else is written).
+  const bool measure = kInitial && p.bound_only;
   // (x, y, z) grid velocities of the 8x8x8-node arena (vx, vy, vz, pad per node), index arena_index(x, y, z) =
   // 68 x + 8 y + z.
   __shared__ g2p2g_detail::ArenaVelocity<TG> arena_v[kArenaStorage];
-  // (channel, x, y, z) P2G sums: mass, momentum x, y, z; same indexing. Fixed point: the same bytes as integers
-  // in units of q_mass, q_momentum (FixedArena).
+  // (channel, x, y, z) P2G sums: mass, momentum x, y, z; same indexing, integers in units of q_mass, q_momentum
+  // (FixedArena).
   // Dynamic shared memory (the launch gives g2p2g_arena_bytes): 4 channels, or 7 when a body uses ASFLIP (the
   // transported momentum x, y, z as channels 4..6, transfer.cuh); in double 7 channels take 30.5 KB, which with
   // arena_v stays inside the 48 KB a block may use without opting in.
@@ -713,13 +687,17 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
   const double span = kMaxNodeWeight * count / g2p2g_detail::FixedArena<TG>::kRange;
   const double bound = kP2GHeadroom * __longlong_as_double(static_cast<long long>(*p.p2g_bound_in));
   const g2p2g_detail::FixedArena<TG> fixed{reinterpret_cast<unsigned*>(arena_p), channels};
-  g2p2g_detail::BlockArena<T, TG> arena{arena_v, arena_p, fixed, arena_blocks, origin, channels,
-                                        static_cast<T>(*p.dt_next)};
+  g2p2g_detail::BlockArena<T, TG> arena{arena_v, fixed, arena_blocks, origin, channels, static_cast<T>(*p.dt_next)};
   arena.q_mass = static_cast<T>(static_cast<double>(p.mass) * span);
   arena.inv_q_mass = T(1) / arena.q_mass;
   arena.q_momentum = static_cast<T>(bound * span);
   arena.inv_q_momentum = bound > 0.0 ? static_cast<T>(1.0 / (bound * span)) : T(0);
   arena.limit = static_cast<T>(bound);
+  if (!measure) {
+    const GridQuantum q = *p.quantum_next;
+    arena.to_grid_mass = static_cast<double>(arena.q_mass) / q.mass;
+    arena.to_grid_momentum = static_cast<double>(arena.q_momentum) / q.momentum;
+  }
   double bound_max = 0.0, wave_max = 0.0;
   bool out_of_range = false;
   const int lane = threadIdx.x % 32;
@@ -736,11 +714,12 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
       const ParticleRecord<M, T> in = load_particle<M, T>(p.in, src);
       id = in.id;
       g2p2g_detail::g2p_particle<M, T, TG, kInitial, kMayAsflip, kMesh>(p, arena, in, src, s);
-      g2p2g_detail::store_particle_outputs<M, T, TG, kMayAsflip, kCapture>(p, slot, in.id, s);
+      if (!measure) g2p2g_detail::store_particle_outputs<M, T, TG, kMayAsflip, kCapture>(p, slot, in.id, s);
       if (s.failed < 0)
-        g2p2g_detail::p2g_particle<M, T, TG, kFixed, kMesh || kInitial>(p, arena, s, in.id, wave_max, bound_max,
-                                                                        out_of_range);
+        g2p2g_detail::p2g_particle<M, T, TG, kMesh || kInitial>(p, arena, s, in.id, wave_max, bound_max,
+                                                                out_of_range, measure);
     }
+    if (measure) continue;
     g2p2g_detail::count_failures(p, lane, s.failed, id);
     const ParticleDest d =
         g2p2g_detail::claim_block_rank<TG>(s.has_key, s.key, p.table, p.next_count, p.grid_next, p.grid_this);
@@ -752,7 +731,7 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
     }
   }
   g2p2g_detail::reduce_block_maxima(p, wave_max, bound_max, out_of_range, block_max, block_over);
-  g2p2g_detail::flush_arena<M, T, TG, kFixed>(p, arena);
+  if (!measure) g2p2g_detail::flush_arena<M, T, TG>(p, arena);
 }
 
 /// F-bar's cell sums of one body (transfer.cuh): per particle, V0 (1 - J) and V0 of the state at the start of the
@@ -763,7 +742,8 @@ struct FbarCellSumsParams {
   typename ParticleLayout<M, T>::Buffer in;  ///< particles of this step (storage order)
   LayoutView layout;                         ///< this step's layout
   BlockHashTableView table;
-  typename GridLayout<TG>::FbarBuffer sums;  ///< target (zeroed on blocks [0, block count))
+  FbarSums<TG> sums;                         ///< target (zeroed on blocks [0, block count))
+  double quantum;                            ///< [m^3] their quantum (fbar_quantum)
   T volume;                                  ///< [m^3] reference volume per particle
   T inv_dx;                                  ///< [1/m]
   StepStats* stats;
@@ -791,9 +771,9 @@ __global__ void __launch_bounds__(kG2P2GThreads) fbar_cell_sums(FbarCellSumsPara
     const int nb = arena_blocks[g2p2g_detail::arena_neighbour(a, b, c)];
     if (nb < 0) continue;  // counted by find_arena_blocks
     const int node = g2p2g_detail::arena_node_in_block(a, b, c);
-    atomicAdd(&block_val(p.sums, grid_fbar_compression, nb, node),
-              static_cast<TG>(p.volume * one_minus_volume_ratio<M>(in.state)));
-    atomicAdd(&block_val(p.sums, grid_fbar_volume, nb, node), static_cast<TG>(p.volume));
+    const double per_unit = 1.0 / p.quantum;
+    p.sums.add(nb, 0, node, static_cast<double>(p.volume * one_minus_volume_ratio<M>(in.state)) * per_unit);
+    p.sums.add(nb, 1, node, static_cast<double>(p.volume) * per_unit);
   }
 }
 

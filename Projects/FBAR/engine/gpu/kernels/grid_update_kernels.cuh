@@ -24,16 +24,33 @@ struct BoundarySet {
   BoundaryProfiles<T> profiles;  ///< the points of the Bathymetry boundaries
 };
 
+/// A node's mass [kg] and momentum [kg m/s] from fixed-point sums (grid_buffer.cuh) and their quanta.
+template <typename T>
+FBAR_DEVICE FBAR_FORCE_INLINE T sum_mass(const GridSums<T>& g, const GridQuantum& q, int block, int node) {
+  return static_cast<T>(g.units(block, kSumMass, node) * q.mass);
+}
+template <typename T, int C>
+FBAR_DEVICE FBAR_FORCE_INLINE Vec3<T> sum_momentum(const FixedGrid<T, C>& g, const GridQuantum& q, int block, int node) {
+  constexpr int first = C == 4 ? kSumMomentum : 0;
+  return Vec3<T>{{static_cast<T>(g.units(block, first, node) * q.momentum),
+                  static_cast<T>(g.units(block, first + 1, node) * q.momentum),
+                  static_cast<T>(g.units(block, first + 2, node) * q.momentum)}};
+}
+
 template <typename T>
 struct GridUpdateParams {
-  typename GridLayout<T>::Buffer grid;              ///< P2G sums of this step (read only: kept for a retry)
+  GridSums<T> grid;                                 ///< P2G sums of this step (read only: kept for a retry)
+  const GridQuantum* quantum;                       ///< their quanta
   typename GridLayout<T>::VelocityBuffer velocity;  ///< written: node velocities
   /// ASFLIP (when a body uses it, else null): the transported momentum the P2G summed apart (read), and v^n =
   /// transported / m (written), what G2P's FLIP increment needs (transfer.cuh).
-  typename GridLayout<T>::VelocityBuffer transported;
+  TransportedSums<T> transported;
   typename GridLayout<T>::VelocityBuffer old_velocity;
-  /// Saturated bodies (else null): the seepage sums (seepage_sums), replaced at every node with mass by the node's
-  /// head h_i, inflow r_i and pore pressure p_i (seepage_node; grid_buffer.cuh names the channels).
+  /// Saturated bodies (else null): the seepage sums (seepage_sums, fixed point in the quanta of their bounds), and
+  /// the node values written from them: the sums, replaced at every node with mass by the node's head h_i, inflow
+  /// r_i and pore pressure p_i (seepage_node; grid_buffer.cuh names the channels).
+  PoreSums<T> pore_sums;
+  const unsigned long long* pore_bound;
   typename GridLayout<T>::PoreBuffer pore;
   const int* coords;                                ///< (block, axis) block coordinates (hash table)
   int block_count;
@@ -53,15 +70,16 @@ __global__ void __launch_bounds__(kGridUpdateThreads) update_grid_velocity_query
   const int node = threadIdx.x % 64;
   double speed_sq = 0.0;
   if (block < p.block_count) {
-    const T m = block_val(p.grid, grid_mass, block, node);
-    const Vec3<T> momentum{{block_val(p.grid, grid_momentum_x, block, node),
-                            block_val(p.grid, grid_momentum_y, block, node),
-                            block_val(p.grid, grid_momentum_z, block, node)}};
+    const GridQuantum q = *p.quantum;
+    const T m = sum_mass(p.grid, q, block, node);
+    const Vec3<T> momentum = sum_momentum(p.grid, q, block, node);
     Vec3<T> v = grid_node_velocity(m, momentum, p.gravity, p.dt);
+    T pore[5] = {T(0), T(0), T(0), T(0), T(0)};
+    if (p.pore)
+      for (int c = 0; c < 5; ++c)
+        pore[c] = static_cast<T>(p.pore_sums.units(block, c, node) * pore_quantum<T>(p.pore_bound[c]));
     if (p.old_velocity) {
-      const Vec3<T> transported{{block_val(p.transported, grid_velocity_x, block, node),
-                                 block_val(p.transported, grid_velocity_y, block, node),
-                                 block_val(p.transported, grid_velocity_z, block, node)}};
+      const Vec3<T> transported = sum_momentum(p.transported, q, block, node);
       const Vec3<T> v_old = grid_node_velocity(m, transported, Vec3<T>::zero(), p.dt);
       block_val(p.old_velocity, grid_velocity_x, block, node) = v_old[0];
       block_val(p.old_velocity, grid_velocity_y, block, node) = v_old[1];
@@ -80,14 +98,19 @@ __global__ void __launch_bounds__(kGridUpdateThreads) update_grid_velocity_query
             if (boundary_holds(p.boundaries.b[b], x_node, &p.boundaries.profiles)) return true;
           return false;
         };
-        const SeepageNode<T> n = seepage_node(
-            block_val(p.pore, grid_pore_volume, block, node), block_val(p.pore, grid_pore_head, block, node),
-            block_val(p.pore, grid_pore_inflow, block, node), block_val(p.pore, grid_pore_density, block, node), x_node,
-            p.gravity, held, p.dx * p.dx * p.dx);
-        block_val(p.pore, grid_pore_head, block, node) = n.head;
-        block_val(p.pore, grid_pore_inflow, block, node) = n.inflow;
-        block_val(p.pore, grid_pore_density, block, node) = n.pressure;
+        const SeepageNode<T> n = seepage_node(pore[0], pore[1], pore[2], pore[4], x_node, p.gravity, held,
+                                              p.dx * p.dx * p.dx);
+        pore[1] = n.head;
+        pore[2] = n.inflow;
+        pore[4] = n.pressure;
       }
+    }
+    if (p.pore) {
+      block_val(p.pore, grid_pore_volume, block, node) = pore[0];
+      block_val(p.pore, grid_pore_head, block, node) = pore[1];
+      block_val(p.pore, grid_pore_inflow, block, node) = pore[2];
+      block_val(p.pore, grid_pore_water, block, node) = pore[3];
+      block_val(p.pore, grid_pore_density, block, node) = pore[4];
     }
     block_val(p.velocity, grid_velocity_x, block, node) = v[0];
     block_val(p.velocity, grid_velocity_y, block, node) = v[1];
@@ -104,7 +127,8 @@ __global__ void __launch_bounds__(kGridUpdateThreads) update_grid_velocity_query
 /// (v* = p/m + dt g again, bit for bit the update's) and the velocities it wrote, on the nodes this rank owns.
 template <typename T>
 struct GridSensorSampleParams {
-  typename GridLayout<T>::Buffer grid;              ///< P2G sums of the step
+  GridSums<T> grid;                                 ///< P2G sums of the step
+  const GridQuantum* quantum;                       ///< their quanta
   typename GridLayout<T>::VelocityBuffer velocity;  ///< node velocities after the boundary projections
   typename GridLayout<T>::PoreBuffer pore;  ///< saturated bodies: water mass and p_i after the grid update (or null)
   const int* coords;
@@ -122,35 +146,26 @@ struct GridSensorSampleParams {
 inline constexpr int kSensorThreads = 256;
 inline constexpr int kSensorBlocks = 512;  ///< CUDA blocks per sensor at most (grid-stride beyond; sensor_device_bytes)
 
-/// Reduces a block's SensorAccum onto thread 0 (warp shuffles, then the warps' results through shared memory).
+/// Reduces a block's SensorAccum onto thread 0 (warp shuffles, then the warps' results through shared memory), as
+/// 8-byte words (SensorAccum has initializers: __shared__ cannot hold one; its sums merge order-free anyway).
 FBAR_DEVICE inline SensorAccum block_reduce_sensor(SensorAccum a) {
-  __shared__ double warps[kSensorThreads / 32][5];  // (warp, field): SensorAccum has initializers, __shared__ cannot
+  constexpr int kWords = static_cast<int>(sizeof(SensorAccum) / sizeof(long long));
+  static_assert(sizeof(SensorAccum) == kWords * sizeof(long long), "SensorAccum is whole 8-byte words");
+  __shared__ long long warps[kSensorThreads / 32][kWords];
   for (int offset = 16; offset > 0; offset /= 2) {
+    long long mine[kWords], theirs[kWords];
+    memcpy(mine, &a, sizeof(a));
+    for (int k = 0; k < kWords; ++k) theirs[k] = __shfl_down_sync(0xffffffffu, mine[k], offset);
     SensorAccum o;
-    o.sum = __shfl_down_sync(0xffffffffu, a.sum, offset);
-    o.sum_sq = __shfl_down_sync(0xffffffffu, a.sum_sq, offset);
-    o.count = __shfl_down_sync(0xffffffffu, a.count, offset);
-    o.max = __shfl_down_sync(0xffffffffu, a.max, offset);
-    o.min = __shfl_down_sync(0xffffffffu, a.min, offset);
+    memcpy(&o, theirs, sizeof(o));
     a.merge(o);
   }
-  if (threadIdx.x % 32 == 0) {
-    double* w = warps[threadIdx.x / 32];
-    w[0] = a.sum;
-    w[1] = a.sum_sq;
-    w[2] = a.count;
-    w[3] = a.max;
-    w[4] = a.min;
-  }
+  if (threadIdx.x % 32 == 0) memcpy(warps[threadIdx.x / 32], &a, sizeof(a));
   __syncthreads();
   if (threadIdx.x == 0)
     for (int w = 1; w < kSensorThreads / 32; ++w) {
       SensorAccum o;
-      o.sum = warps[w][0];
-      o.sum_sq = warps[w][1];
-      o.count = warps[w][2];
-      o.max = warps[w][3];
-      o.min = warps[w][4];
+      memcpy(&o, warps[w], sizeof(o));
       a.merge(o);
     }
   return a;
@@ -162,6 +177,7 @@ template <typename T>
 __global__ void __launch_bounds__(kSensorThreads) sample_grid_sensors(GridSensorSampleParams<T> p) {
   const GridSensorParams<T>& g = p.sensors.s[blockIdx.y];
   SensorAccum a;
+  const GridQuantum q = *p.quantum;
   const long long nodes = static_cast<long long>(p.block_count) * 64;
   for (long long idx = static_cast<long long>(blockIdx.x) * blockDim.x + threadIdx.x; idx < nodes;
        idx += static_cast<long long>(gridDim.x) * blockDim.x) {
@@ -173,14 +189,13 @@ __global__ void __launch_bounds__(kSensorThreads) sample_grid_sensors(GridSensor
     for (int d = 0; d < 3; ++d)
       overlaps = overlaps && static_cast<T>(c[d] * 4 + 3) * p.dx >= g.lo[d] && static_cast<T>(c[d] * 4) * p.dx <= g.hi[d];
     if (!overlaps) continue;
-    const T m = block_val(p.grid, grid_mass, block, node);
+    const T m = sum_mass(p.grid, q, block, node);
     if (!(m > T(0))) continue;
     const int i = node / 16, j = (node / 4) % 4, k = node % 4;
     const Vec3<T> x_node{{static_cast<T>(c0 * 4 + i) * p.dx, static_cast<T>(c1 * 4 + j) * p.dx,
                           static_cast<T>(c2 * 4 + k) * p.dx}};
     if (!sensor_box_contains(g.lo, g.hi, x_node)) continue;
-    const Vec3<T> momentum{{block_val(p.grid, grid_momentum_x, block, node), block_val(p.grid, grid_momentum_y, block, node),
-                            block_val(p.grid, grid_momentum_z, block, node)}};
+    const Vec3<T> momentum = sum_momentum(p.grid, q, block, node);
     const Vec3<T> v_free = grid_node_velocity(m, momentum, p.gravity, p.dt);
     const Vec3<T> v{{block_val(p.velocity, grid_velocity_x, block, node), block_val(p.velocity, grid_velocity_y, block, node),
                      block_val(p.velocity, grid_velocity_z, block, node)}};
@@ -223,19 +238,34 @@ struct DtParams {
   double t_next;                         ///< [s] time at the start of the next step
   double t_target;                       ///< [s] the next step is shortened to land here (inf: no target)
   StepStats* stats;
-  /// Decomposed runs: the largest grid speed (bits of |v|^2) then each body's wave speed, reduced over the ranks in
-  /// one message (gather_dt_inputs); read instead of stats->max_speed_sq and wave_speed, and the speed is written
-  /// back to stats. nullptr: one GPU.
+  /// The quanta of the grid the next P2G sums into (grid_buffer.cuh "Order-free grid sums"), or nullptr: mass
+  /// M 2^-F, momentum max(headroom max_b B_b, M dx / dt) 2^-F, with M the largest particle (vertex) mass of any
+  /// body, B_b the P2G bounds this try's G2P2G reads (p2g_bound, bound_count bodies) and dx / dt the speed no
+  /// particle passes without failing the CFL check (a floor: a grid whose particles are at rest still takes the
+  /// elements' impulses).
+  GridQuantum* quantum;
+  unsigned long long* p2g_bound;  ///< (body) bits of B_b; decomposed: replaced by the maximum over the ranks
+  int bound_count;
+  double mass_bound;              ///< [kg] M
+  double headroom;                ///< kP2GHeadroom
+  int fraction_bits;              ///< F: FixedSumFormat<TG>::kFractionBits
+  /// Decomposed runs: the largest grid speed (bits of |v|^2), each body's wave speed, then each body's P2G bound,
+  /// reduced over the ranks in one message (gather_dt_inputs); read instead of stats->max_speed_sq, wave_speed and
+  /// p2g_bound, and the speed is written back to stats. nullptr: one GPU.
   const unsigned long long* reduced;
 };
 
 /// The inputs of compute_next_dt of a decomposed rank, side by side for one reduction over the ranks: out[0] the
-/// largest |v|^2 of the grid update, out[1 + b] body b's wave speed (all as bits of non-negative doubles).
-static __global__ void gather_dt_inputs(const StepStats* stats, const unsigned long long* wave_speed, int bodies,
-                                        unsigned long long* out) {
+/// largest |v|^2 of the grid update, out[1 + b] body b's wave speed, out[1 + bodies + b] its P2G bound (all as bits
+/// of non-negative doubles).
+static __global__ void gather_dt_inputs(const StepStats* stats, const unsigned long long* wave_speed,
+                                        const unsigned long long* p2g_bound, int bodies, unsigned long long* out) {
   const int i = threadIdx.x;
   if (i == 0) out[0] = stats->max_speed_sq;
-  if (i < bodies) out[1 + i] = wave_speed[i];
+  if (i < bodies) {
+    out[1 + i] = wave_speed[i];
+    out[1 + bodies + i] = p2g_bound[i];
+  }
 }
 
 /// dt of the next step: min(default_dt, min_b CFL_b dx / (c_b + |v|max)) x scale, clamped to the target time.
@@ -263,6 +293,17 @@ static __global__ void compute_next_dt(DtParams p) {
   else if (remaining > 0.0 && 2.0 * dt > remaining)
     dt = 0.5 * remaining;
   p.stats->dt_next = dt;
+  if (p.quantum) {
+    double bound = 0.0;
+    for (int b = 0; b < p.bound_count; ++b) {
+      const unsigned long long bits = p.reduced ? p.reduced[1 + p.bound_count + b] : p.p2g_bound[b];
+      if (p.reduced) p.p2g_bound[b] = bits;  // every rank's arena uses the same bound
+      bound = fmax(bound, __longlong_as_double(static_cast<long long>(bits)));
+    }
+    const double momentum = fmax(p.headroom * bound, p.mass_bound * p.dx / dt);
+    p.quantum->mass = ldexp(p.mass_bound, -p.fraction_bits);
+    p.quantum->momentum = ldexp(momentum, -p.fraction_bits);
+  }
 }
 
 }  // namespace fbar

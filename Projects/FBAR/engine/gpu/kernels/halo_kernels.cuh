@@ -73,6 +73,29 @@ inline void launch_add_halo(TG* buffer, int scalars, const int* index, int n, co
   cuda::check_launch("add_halo");
 }
 
+/// One buffer of a halo or shared-block exchange: its blocks' bytes, and whether they are fixed-point words
+/// (FixedGridBuffer: added as integers, exact and order-free) rather than TG scalars.
+struct HaloBuffer {
+  std::byte* data;
+  std::size_t block_bytes;
+  bool fixed = false;
+};
+
+/// launch_add_halo in the buffer's arithmetic: `block_scalars`, `in` and `saved` count TG scalars; a fixed-point
+/// buffer's words are added as 64-bit integers (a float add would not even copy their bits: denormals flush).
+template <typename TG>
+inline void launch_add_halo_as(const HaloBuffer& b, int block_scalars, const int* index, int n, const TG* in,
+                               const TG* saved, cudaStream_t stream) {
+  if (b.fixed) {
+    using W = unsigned long long;
+    constexpr int kPer = static_cast<int>(sizeof(W) / sizeof(TG));
+    launch_add_halo(reinterpret_cast<W*>(b.data), block_scalars / kPer, index, n, reinterpret_cast<const W*>(in),
+                    reinterpret_cast<const W*>(saved), stream);
+  } else {
+    launch_add_halo(reinterpret_cast<TG*>(b.data), block_scalars, index, n, in, saved, stream);
+  }
+}
+
 /// Keys of the table blocks [first, block count) that lie in the halo planes (plane[0]: shared with rank - 1,
 /// plane[1]: with rank + 1; INT_MIN when there is no such neighbour), appended to keys[side] (at most `capacity`
 /// each; count[side] counts them all, so the host can tell an overflow).
@@ -134,6 +157,25 @@ __global__ void __launch_bounds__(kHaloThreads)
 }
 
 /// flags[index[k]] = 1 for the n listed blocks.
+/// add_shared of n listed blocks in the buffer's arithmetic (launch_add_halo_as).
+template <typename TG>
+inline void launch_add_shared_as(const HaloBuffer& b, int block_scalars, const int* index, int n, const TG* in,
+                                 const TG* saved, const int* upos, cudaStream_t stream) {
+  if (n <= 0) return;
+  if (b.fixed) {
+    using W = unsigned long long;
+    constexpr int kPer = static_cast<int>(sizeof(W) / sizeof(TG));
+    const int scalars = block_scalars / kPer;
+    add_shared<W><<<cuda::grid_for(static_cast<long long>(n) * scalars, kHaloThreads), kHaloThreads, 0, stream>>>(
+        reinterpret_cast<W*>(b.data), scalars, index, n, reinterpret_cast<const W*>(in),
+        reinterpret_cast<const W*>(saved), upos);
+  } else {
+    add_shared<TG><<<cuda::grid_for(static_cast<long long>(n) * block_scalars, kHaloThreads), kHaloThreads, 0, stream>>>(
+        reinterpret_cast<TG*>(b.data), block_scalars, index, n, in, saved, upos);
+  }
+  cuda::check_launch("add_shared");
+}
+
 static __global__ void __launch_bounds__(kHaloThreads) mark_blocks(const int* index, int n, unsigned char* flags) {
   const int k = blockIdx.x * blockDim.x + threadIdx.x;
   if (k < n) flags[index[k]] = 1;
@@ -160,14 +202,14 @@ static __global__ void __launch_bounds__(kHaloThreads)
 template <typename TG>
 __global__ void __launch_bounds__(kHaloThreads)
     insert_halo_blocks(BlockHashTableView table, const unsigned long long* keys, int n, int* index,
-                       typename GridLayout<TG>::Buffer grid_a, typename GridLayout<TG>::Buffer grid_b) {
+                       GridSums<TG> grid_a, GridSums<TG> grid_b) {
   const int k = blockIdx.x * blockDim.x + threadIdx.x;
   if (k >= n) return;
   bool inserted = false;
   const int b = table.insert(keys[k], inserted);
   if (inserted) {
-    g2p2g_detail::zero_block<TG>(grid_a, b);
-    g2p2g_detail::zero_block<TG>(grid_b, b);
+    grid_a.zero_block(b);
+    grid_b.zero_block(b);
   }
   index[k] = b;
 }

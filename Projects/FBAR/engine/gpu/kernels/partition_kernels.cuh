@@ -32,8 +32,7 @@ template <typename M, typename T, typename TG>
 __global__ void __launch_bounds__(kPartitionThreads)
     dest_from_positions(typename ParticleLayout<M, T>::Buffer bins, const int* valid, int particles, int first,
                         int slots, T inv_dx, SlabBounds slab, BlockHashTableView table, int* next_count,
-                        ParticleDest* dest, typename GridLayout<TG>::Buffer grid_a,
-                        typename GridLayout<TG>::Buffer grid_b, BodyStepStats* body_stats) {
+                        ParticleDest* dest, GridSums<TG> grid_a, GridSums<TG> grid_b, BodyStepStats* body_stats) {
   const int slot = first + blockIdx.x * blockDim.x + threadIdx.x;  // whole warps run: claim_block_rank is collective
   const bool in_range = slot < slots;
   const bool active = in_range && (valid ? valid[slot] >= 0 : slot < particles);
@@ -63,8 +62,8 @@ __global__ void __launch_bounds__(kPartitionThreads)
 /// Every block holding particles of the body activates the other 7 blocks of its 2x2x2 arena.
 template <typename T>
 __global__ void __launch_bounds__(kPartitionThreads)
-    activate_footprint(const int* count, int block_limit, BlockHashTableView table,
-                       typename GridLayout<T>::Buffer grid_a, typename GridLayout<T>::Buffer grid_b) {
+    activate_footprint(const int* count, int block_limit, BlockHashTableView table, GridSums<T> grid_a,
+                       GridSums<T> grid_b) {
   const int b = blockIdx.x * blockDim.x + threadIdx.x;
   if (b >= block_limit || b >= table.counters->block_count || count[b] == 0) return;
   const Vec3i c = table.block_coords(b);
@@ -72,8 +71,8 @@ __global__ void __launch_bounds__(kPartitionThreads)
     bool inserted = false;
     const int index = table.insert(BlockKey::pack(c[0] + (n >> 2), c[1] + ((n >> 1) & 1), c[2] + (n & 1)), inserted);
     if (inserted) {
-      g2p2g_detail::zero_block<T>(grid_a, index);
-      g2p2g_detail::zero_block<T>(grid_b, index);
+      grid_a.zero_block(index);
+      grid_b.zero_block(index);
     }
   }
 }
@@ -131,12 +130,12 @@ static __global__ void __launch_bounds__(kPartitionThreads)
 /// Rescales the P2G impulse of a grid: adds w (-ddt V0 D^-1 tau)(x_i - x_p) per node for every particle of the
 /// layout, so a grid built with impulse dt_old holds the one of dt_old + ddt (a repeated step with a smaller dt,
 /// or step(dt) with a new dt). The stress is evaluated with C = 0: exact for rate-independent materials; the
-/// viscous part of a JFluid keeps its old dt (C is not stored between steps).
+/// viscous part of a JFluid keeps its old dt (C is not stored between steps). Added in the grid's quantum.
 template <typename M, typename T, typename TG>
 __global__ void __launch_bounds__(kPartitionThreads)
     rescale_impulse(typename ParticleLayout<M, T>::Buffer bins, LayoutView layout, int slots,
                     material_params_t<M, T> material, T volume, T ddt, T dx, T inv_dx, T d_inv,
-                    BlockHashTableView table, typename GridLayout<TG>::Buffer grid, StepStats* stats) {
+                    BlockHashTableView table, GridSums<TG> grid, const GridQuantum* quantum, StepStats* stats) {
   const int slot = blockIdx.x * blockDim.x + threadIdx.x;
   if (slot >= slots) return;
   const int src = layout.src[slot];
@@ -146,6 +145,7 @@ __global__ void __launch_bounds__(kPartitionThreads)
   const P2GParticle<T> payload =
       mls_p2g_particle(T(0), volume, Vec3<T>::zero(), Mat3<T>::zero(), stress.kirchhoff, ddt, d_inv);
   const QuadraticBspline<T> s = quadratic_bspline_inv(p.x, inv_dx);
+  const double per_unit = 1.0 / quantum->momentum;
   for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
     const int nx = s.base[0] + i, ny = s.base[1] + j, nz = s.base[2] + k;
     const int b = table.find(BlockKey::pack(floor_div4(nx), floor_div4(ny), floor_div4(nz)));
@@ -155,9 +155,7 @@ __global__ void __launch_bounds__(kPartitionThreads)
     }
     const int node = ((nx & 3) * 4 + (ny & 3)) * 4 + (nz & 3);
     const Vec3<T> mv = p2g_node_momentum(payload, w, xixp);
-    atomicAdd(&block_val(grid, grid_momentum_x, b, node), static_cast<TG>(mv[0]));
-    atomicAdd(&block_val(grid, grid_momentum_y, b, node), static_cast<TG>(mv[1]));
-    atomicAdd(&block_val(grid, grid_momentum_z, b, node), static_cast<TG>(mv[2]));
+    for (int a = 0; a < 3; ++a) grid.add(b, kSumMomentum + a, node, static_cast<double>(mv[a]) * per_unit);
   });
 }
 

@@ -16,10 +16,12 @@
 // contribution per unit weight (B_c, reduced over the block), which sets the channel's quantum q_c =
 // 0.75^3 count B_c / R so that no node's sum can leave the integer (R: FixedArena<TG>::kRange); the second adds
 // each contribution in units of q_c with native integer atomics (int32 for float, int64 as two words for double),
-// and one thread per arena node adds sum x q_c into the grid with a global float atomic. Rounding: q_c / 2 per
-// contribution, about 1e-7 B_c (float) or 2e-16 B_c (double): float's and double's own rounding of such sums; the
-// block's sums no longer depend on the order the particles arrive in. Bounds per unit weight (|x_i - x_p| <= 1.5 dx
-// per axis): volume V, head V (|h| + 1.5 dx |grad h|_1), inflow V D^-1 1.5 dx |q|_1, water n rhow V0, density V rhow.
+// and one thread per arena node adds its sums into the grid's fixed-point seepage sums (grid_buffer.cuh "Order-free
+// grid sums") in units of Q_c = B_c 2^-F, B_c the channel's bound over every saturated body (and rank): a first
+// launch (bounds_only) measures it, so the sums are order-free end to end. Rounding: q_c / 2 per contribution, about
+// 1e-7 B_c (float) or 2e-16 B_c (double): float's and double's own rounding of such sums. Bounds per unit weight
+// (|x_i - x_p| <= 1.5 dx per axis): volume V, head V (|h| + 1.5 dx |grad h|_1), inflow V D^-1 1.5 dx |q|_1, water
+// n rhow V0, density V rhow.
 #pragma once
 
 #include <cuda_runtime.h>
@@ -41,7 +43,11 @@ struct SeepageSumsParams {
   typename ParticleLayout<M, T>::Buffer in;  ///< particles of this step (storage order)
   LayoutView layout;                         ///< this step's layout
   BlockHashTableView table;
-  typename GridLayout<TG>::PoreBuffer sums;  ///< target (zeroed on blocks [0, block count) before)
+  PoreSums<TG> sums;                         ///< target (zeroed on blocks [0, block count) before)
+  /// (channel) bits of B_c over every saturated body: bounds_only launches raise them (zeroed before the first),
+  /// the others read them
+  unsigned long long* bound;
+  bool bounds_only;
   material_params_t<M, T> material;
   T volume;              ///< [m^3] reference volume per particle
   T dx, inv_dx, d_inv;   ///< [m], [1/m], [1/m^2]
@@ -104,6 +110,11 @@ __global__ void __launch_bounds__(kG2P2GThreads) seepage_sums(SeepageSumsParams<
     if (threadIdx.x % 32 == 0 && b > 0.0) atomic_max_nonneg(&block_bound[c], b);
   }
   __syncthreads();
+  if (p.bounds_only) {
+    if (threadIdx.x < kSeepageChannels && block_bound[threadIdx.x] != 0ull)
+      atomicMax(&p.bound[threadIdx.x], block_bound[threadIdx.x]);
+    return;
+  }
   // The channels' quanta [their units] and inverses (a channel with B_c = 0, e.g. no flow, adds nothing).
   T quantum[kSeepageChannels], inverse[kSeepageChannels];
   const double span = kMaxNodeWeight * count / Fixed::kRange;
@@ -137,19 +148,19 @@ __global__ void __launch_bounds__(kG2P2GThreads) seepage_sums(SeepageSumsParams<
     });
   }
   __syncthreads();
+  double to_grid[kSeepageChannels];  // q_c / Q_c
+  for (int c = 0; c < kSeepageChannels; ++c) {
+    const double global = pore_quantum<TG>(p.bound[c]);
+    to_grid[c] = global > 0.0 ? static_cast<double>(quantum[c]) / global : 0.0;
+  }
   for (int i = threadIdx.x; i < kArenaNodes; i += blockDim.x) {
     const int a = i >> 6, b = (i >> 3) & 7, c = i & 7;
     const int ai = arena_index(a, b, c);
-    const auto volume_units = fixed.units(0, ai);
-    if (volume_units == 0) continue;  // no particle's stencil covers this node
+    if (fixed.exact(0, ai) == 0.0) continue;  // no particle's stencil covers this node
     const int nb = arena_blocks[g2p2g_detail::arena_neighbour(a, b, c)];
     if (nb < 0) continue;  // counted by find_arena_blocks
     const int node = g2p2g_detail::arena_node_in_block(a, b, c);
-    atomicAdd(&block_val(p.sums, grid_pore_volume, nb, node), static_cast<TG>(volume_units * quantum[0]));
-    atomicAdd(&block_val(p.sums, grid_pore_head, nb, node), static_cast<TG>(fixed.units(1, ai) * quantum[1]));
-    atomicAdd(&block_val(p.sums, grid_pore_inflow, nb, node), static_cast<TG>(fixed.units(2, ai) * quantum[2]));
-    atomicAdd(&block_val(p.sums, grid_pore_water, nb, node), static_cast<TG>(fixed.units(3, ai) * quantum[3]));
-    atomicAdd(&block_val(p.sums, grid_pore_density, nb, node), static_cast<TG>(fixed.units(4, ai) * quantum[4]));
+    for (int ch = 0; ch < kSeepageChannels; ++ch) p.sums.add(nb, ch, node, fixed.exact(ch, ai) * to_grid[ch]);
   }
 }
 
