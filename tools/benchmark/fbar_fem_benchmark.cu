@@ -14,7 +14,6 @@
 #include <cuda_runtime.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <memory>
@@ -26,6 +25,7 @@
 
 #include "MnSystem/Cuda/device_query.h"
 #include "benchmark_scenes.h"
+#include "rank_timing.h"
 #include "comm/device_transport.h"
 #include "comm/transport.h"
 #include "engine/gpu/gpu_engine.h"
@@ -86,19 +86,9 @@ CaseResult run_rank(const Scene& scene, comm::Transport* host, int device, int s
     }
     GpuEngine<T, TG> engine(scene, options);
     engine.set_log(nullptr);
-    for (int s = 0; s < warmup; ++s)
-      if (!engine.step().ok) throw std::runtime_error("a warm-up step failed");
-    if (host) host->barrier();
-    FBAR_CUDA_CHECK(cudaDeviceSynchronize());
-    const auto t0 = std::chrono::steady_clock::now();
-    for (int s = 0; s < steps; ++s)
-      if (!engine.step().ok) throw std::runtime_error("a timed step failed");
-    FBAR_CUDA_CHECK(cudaDeviceSynchronize());
-    out.ms_per_step = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / steps;
-    engine.set_kernel_timing(true);
-    for (int s = 0; s < steps; ++s)
-      if (!engine.step().ok) throw std::runtime_error("a timed step failed");
-    out.kernels = engine.kernel_times();
+    const bench::StepTiming timing = bench::time_steps(engine, host, steps, warmup);
+    out.ms_per_step = timing.ms_per_step;
+    out.kernels = timing.kernels;
     out.particles = engine.particle_count();
     if (!scene.meshes.empty()) {
       const int b = static_cast<int>(scene.bodies.size()) - 1;

@@ -17,7 +17,6 @@
 #include <cuda_runtime.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -30,6 +29,7 @@
 
 #include "MnSystem/Cuda/device_query.h"
 #include "benchmark_scenes.h"
+#include "rank_timing.h"
 #include "comm/device_transport.h"
 #include "comm/mpi_transport.h"
 #include "comm/transport.h"
@@ -76,19 +76,9 @@ RankResult run_rank(const Scene& scene, comm::Transport* host, bool nccl, int de
     }
     GpuEngine<T, TG> engine(scene, options);
     engine.set_log(nullptr);
-    for (int s = 0; s < warmup; ++s)
-      if (!engine.step().ok) throw std::runtime_error("a warm-up step failed");
-    if (host) host->barrier();
-    FBAR_CUDA_CHECK(cudaDeviceSynchronize());
-    const auto t0 = std::chrono::steady_clock::now();
-    for (int s = 0; s < steps; ++s)
-      if (!engine.step().ok) throw std::runtime_error("a timed step failed");
-    FBAR_CUDA_CHECK(cudaDeviceSynchronize());
-    out.ms_per_step = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / steps;
-    engine.set_kernel_timing(true);
-    for (int s = 0; s < steps; ++s)
-      if (!engine.step().ok) throw std::runtime_error("a timed step failed");
-    out.kernels = engine.kernel_times();
+    const bench::StepTiming timing = bench::time_steps(engine, host, steps, warmup);
+    out.ms_per_step = timing.ms_per_step;
+    out.kernels = timing.kernels;
     out.particles = engine.particle_count();
     out.halo_blocks = engine.halo_blocks();
     out.migrated = engine.migrated();
