@@ -134,6 +134,7 @@ TEST(CheckpointFile, RoundTripsInTheRunsPrecision) {
   b.state_scalars = 9;
   b.global_particles = 5;
   b.max_wave_speed = 40.0;
+  b.p2g_bound = 0.75;
   for (int p = 0; p < 3; ++p) {
     b.id.push_back(4 - p);
     for (int a = 0; a < 3; ++a) b.x.push_back(static_cast<float>(0.1 * p + 0.01 * a));
@@ -174,6 +175,13 @@ TEST(CheckpointFile, RoundTripsInTheRunsPrecision) {
   EXPECT_EQ(r.bodies[0].state, b.state);
   EXPECT_EQ(r.bodies[0].volume, b.volume);
   EXPECT_EQ(r.bodies[1].particles(), 0u);
+  EXPECT_EQ(r.bodies[0].p2g_bound, 0.75);
+  EXPECT_EQ(r.bodies[1].p2g_bound, -1.0);  // not known
+  // The particle bytes of a rebalance and the merge of rank parts keep it.
+  io::Checkpoint parts = c;
+  for (io::CheckpointBody& body : parts.bodies) body = body.description();
+  io::read_checkpoint_particle_bytes(io::checkpoint_particle_bytes(c), parts);
+  EXPECT_EQ(parts.bodies[0].p2g_bound, 0.75);
   // The rank files of a set.
   EXPECT_EQ(io::checkpoint_rank_path(dir / "checkpoint_step[40]_dev[0].h5", 3).filename().string(),
             "checkpoint_step[40]_dev[3].h5");

@@ -222,6 +222,7 @@ void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c) {
       put_int(w, "particles", static_cast<long long>(n), file);
       put_int(w, "global_particles", body.global_particles, file);
       put_double(w, "max_wave_speed", body.max_wave_speed, file);
+      put_double(w, "p2g_bound", body.p2g_bound, file);
       put_array(w, "ID", body.id, n, 1, H5T_STD_I64LE, H5T_NATIVE_INT64, file);
       put_reals(w, "Position", body.x, n, 3, single, file);
       put_reals(w, "Velocity", body.v, n, 3, single, file);
@@ -297,6 +298,7 @@ Checkpoint read_checkpoint(const std::filesystem::path& path, bool particles) {
     const auto n = static_cast<std::size_t>(get_int(w, "particles", file));
     body.global_particles = get_int(w, "global_particles", file);
     body.max_wave_speed = get_double(w, "max_wave_speed", file);
+    body.p2g_bound = H5Aexists(w, "p2g_bound") > 0 ? get_double(w, "p2g_bound", file) : -1.0;
     body.id = get_array<std::int64_t>(w, "ID", n, 1, H5T_NATIVE_INT64, file);
     body.x = get_reals(w, "Position", n, 3, file);
     body.v = get_reals(w, "Velocity", n, 3, file);
@@ -347,6 +349,7 @@ Checkpoint merge_checkpoints(std::vector<Checkpoint> parts, const std::string& w
       from.push_back(&c.bodies[b]);
       total += c.bodies[b].particles();
       out.max_wave_speed = std::max(out.max_wave_speed, c.bodies[b].max_wave_speed);
+      out.p2g_bound = std::max(out.p2g_bound, c.bodies[b].p2g_bound);  // the same on every rank
     }
     if (total != static_cast<std::size_t>(out.global_particles))
       throw std::runtime_error(what + ": body " + std::to_string(b) + " has " + std::to_string(total) +
@@ -400,12 +403,13 @@ std::vector<std::uint8_t> checkpoint_particle_bytes(const Checkpoint& c) {
   std::vector<std::uint8_t> out;
   std::size_t total = 0;
   for (const CheckpointBody& b : c.bodies)
-    total += 16 + b.particles() * (8 * (1 + 3 + 3 + 9 + 1 + 1) + 8 * static_cast<std::size_t>(b.state_scalars));
+    total += 24 + b.particles() * (8 * (1 + 3 + 3 + 9 + 1 + 1) + 8 * static_cast<std::size_t>(b.state_scalars));
   out.reserve(total);
   for (const CheckpointBody& b : c.bodies) {
     const std::uint64_t n = b.particles();
     put_raw(out, &n, 1);
     put_raw(out, &b.max_wave_speed, 1);
+    put_raw(out, &b.p2g_bound, 1);
     put_raw(out, b.id.data(), n);
     put_raw(out, b.x.data(), 3 * n);
     put_raw(out, b.v.data(), 3 * n);
@@ -423,6 +427,7 @@ void read_checkpoint_particle_bytes(const std::vector<std::uint8_t>& bytes, Chec
     std::uint64_t n = 0;
     take_raw(bytes, at, &n, 1);
     take_raw(bytes, at, &b.max_wave_speed, 1);
+    take_raw(bytes, at, &b.p2g_bound, 1);
     const auto S = static_cast<std::size_t>(b.state_scalars);
     b.id.resize(n);
     b.x.resize(3 * n);

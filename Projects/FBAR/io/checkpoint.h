@@ -47,6 +47,10 @@ struct CheckpointBody {
   std::vector<double> mass;       ///< [kg]
   std::vector<double> volume;     ///< [m^3] reference volume V0
   std::vector<double> state;      ///< (particle, state_scalars)
+  /// [kg m/s] GPU engine: the P2G bound (before the arena's headroom, the maximum over the ranks) its last G2P2G
+  /// summed the grid with, so that a restart sums the same grid bit for bit; < 0: not known (a CPU checkpoint, or
+  /// one written before this field existed: the restart measures its own bound and continues to round-off)
+  double p2g_bound = -1.0;
   std::size_t particles() const { return id.size(); }
   /// The same body without particles (law, state scalars, global count; max_wave_speed 0).
   CheckpointBody description() const {

@@ -156,8 +156,10 @@ TEST(GpuResume, ABgeoFrameSeedsBodiesAsOnTheCpuEngine) {
   }
 }
 
-// Double: the continued run's positions within 1e-9 m of the uninterrupted run's after 150 more steps (the grid
-// rebuilt by the restart's P2G differs from the fused G2P2G's only in the order of its atomic sums).
+// Double: the continued run's positions within 1e-9 m of the uninterrupted run's after 150 more steps. The restart's
+// P2G sums its grid with the P2G bound the checkpoint kept (order-free, in the run's quanta), yet the continued run
+// is not bit for bit the uninterrupted one: measured on an H200, 1.7e-16 m (double) and 3.9e-7 m (single) apart
+// after 150 steps (docs/benchmarks/2026-11-28-h200x2-repeatable.md).
 TEST(GpuCheckpoint, EngineContinuesFromItsCheckpointDouble) {
   FBAR_REQUIRE_DEVICE();
   expect_engine_restart<double, double>(Precision::Double, 1e-9);

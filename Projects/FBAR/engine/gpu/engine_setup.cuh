@@ -426,9 +426,20 @@ void MgspBenchmark<T, TG>::initial_p2g() {
     b->pending_particles = b->particles;
   }
   ensure_emigrant_lists();
-  measuring_bound_ = true;  // into slot bound_cur_, which the second pass reads
-  for (auto& b : bodies_) b->g2p2g(*this, true, T(0));
-  measuring_bound_ = false;
+  // The bound the arena and the grid's quanta use, in slot bound_cur_: a restart's checkpoint holds the one its run
+  // summed this grid with (so the restart sums the same bits), else a first pass measures it.
+  const bool bounds_known = restart && std::all_of(restart->bodies.begin(), restart->bodies.end(),
+                                                   [](const io::CheckpointBody& b) { return b.p2g_bound >= 0.0; });
+  if (bounds_known) {
+    std::vector<double> bounds;
+    for (const io::CheckpointBody& b : restart->bodies) bounds.push_back(b.p2g_bound);
+    FBAR_CUDA_CHECK(cudaMemcpy(p2g_bound_d_.get() + bound_cur_ * bodies_.size(), bounds.data(),
+                               sizeof(double) * bounds.size(), cudaMemcpyHostToDevice));
+  } else {
+    measuring_bound_ = true;
+    for (auto& b : bodies_) b->g2p2g(*this, true, T(0));
+    measuring_bound_ = false;
+  }
   launch_dt(dp);
   for (auto& b : bodies_) b->g2p2g(*this, true, T(0));
   if (decomposed()) {

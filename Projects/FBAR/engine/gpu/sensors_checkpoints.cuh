@@ -170,6 +170,10 @@ io::Checkpoint MgspBenchmark<T, TG>::checkpoint() const {
     c.slab_cuts = dec_.slabs.cuts;
   }
   const bool initial = steps_ == 0 && !aux_valid_;  // before the first step: v = initial velocity, C = 0 exactly
+  // The P2G bounds the current grid was summed with (the slot the last G2P2G read): a restart sums the same grid.
+  std::vector<double> bounds(bodies_.size());
+  FBAR_CUDA_CHECK(cudaMemcpy(bounds.data(), p2g_bound_d_.get() + (1 - bound_cur_) * bodies_.size(),
+                             sizeof(double) * bounds.size(), cudaMemcpyDeviceToHost));
   for (const auto& bp : bodies_) {
     const BodyBase& b = *bp;
     const std::vector<T> r = gather_host(b.index, stream_);
@@ -180,6 +184,7 @@ io::Checkpoint MgspBenchmark<T, TG>::checkpoint() const {
     out.state_scalars = S - 3;
     out.global_particles = b.global_particles;
     out.max_wave_speed = b.rest_wave_speed;
+    out.p2g_bound = bounds[static_cast<std::size_t>(b.index)];
     const Vec3d v0{{b.spec.velocity[0], b.spec.velocity[1], b.spec.velocity[2]}};
     const std::size_t n = static_cast<std::size_t>(b.particles);  // this rank's
     out.id.resize(n);
