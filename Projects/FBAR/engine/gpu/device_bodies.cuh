@@ -331,7 +331,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     p.fbar_psi = initial ? T(0) : this->fbar_psi;
     if (p.fbar_psi != T(0)) {
       p.fbar_sums = e.fbar_sums_.view();
-      p.fbar_quantum = fbar_quantum<TG>(static_cast<double>(this->volume));
+      p.fbar_quantum = fixed_quantum<TG>(static_cast<double>(this->volume));
     }
     if constexpr (IsPoreFluid<M>::value) p.pore = e.pore_sums_.instance();
     p.gravity = e.k_.gravity;

@@ -245,7 +245,7 @@ using GridBuffer = FixedGridBuffer<TG, 4>;
 template <typename TG>
 using TransportedBuffer = FixedGridBuffer<TG, 3>;
 /// F-bar's cell sums (grid_fbar_compression, grid_fbar_volume: channels 0, 1), in fixed point with the quantum
-/// V0 2^-F of the body whose sums they hold (fbar_quantum).
+/// fixed_quantum(V0) of the body whose sums they hold.
 template <typename TG>
 using FbarSums = FixedGrid<TG, 2>;
 template <typename TG>
@@ -257,16 +257,17 @@ template <typename TG>
 using PoreSums = FixedGrid<TG, 5>;
 template <typename TG>
 using PoreSumBuffer = FixedGridBuffer<TG, 5>;
-/// The quantum of a seepage channel from the bits of its bound B_c (a non-negative double): B_c 2^-F.
+/// The quantum of a channel whose contributions per unit weight are bounded by `bound`: bound 2^-F (FixedSumFormat).
+template <typename TG>
+FBAR_HOST_DEVICE inline double fixed_quantum(double bound) {
+  return ldexp(bound, -FixedSumFormat<TG>::kFractionBits);
+}
+/// The quantum of a seepage channel from the bits of its bound B_c (a non-negative double).
 template <typename TG>
 FBAR_HOST_DEVICE inline double pore_quantum(unsigned long long bound_bits) {
   double b;
   memcpy(&b, &bound_bits, sizeof(b));
-  return ldexp(b, -FixedSumFormat<TG>::kFractionBits);
-}
-template <typename TG>
-inline double fbar_quantum(double volume) {
-  return std::ldexp(volume, -FixedSumFormat<TG>::kFractionBits);
+  return fixed_quantum<TG>(b);
 }
 
 /// Channels of GridSums (mass, momentum) and of TransportedSums (momentum).

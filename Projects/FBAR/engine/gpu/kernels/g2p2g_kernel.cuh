@@ -743,7 +743,7 @@ struct FbarCellSumsParams {
   LayoutView layout;                         ///< this step's layout
   BlockHashTableView table;
   FbarSums<TG> sums;                         ///< target (zeroed on blocks [0, block count))
-  double quantum;                            ///< [m^3] their quantum (fbar_quantum)
+  double quantum;                            ///< [m^3] their quantum (fixed_quantum of V0)
   T volume;                                  ///< [m^3] reference volume per particle
   T inv_dx;                                  ///< [1/m]
   StepStats* stats;
