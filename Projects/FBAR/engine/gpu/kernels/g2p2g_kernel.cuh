@@ -308,6 +308,100 @@ FBAR_DEVICE FBAR_FORCE_INLINE void for_each_stencil_node_unrolled(const Quadrati
     }
 }
 
+/// G2P's velocity and affine sums, v = sum_i w v_i and B = sum_i w v_i (x_i - x_p)^T (transfer.cuh's G2PSum), with
+/// the sums over k done first per (i, j) column of nodes: S = sum_k w_k v, Z = sum_k w_k d_k v (6 multiply-adds per
+/// node), then v += w_i w_j S, B += (w_i w_j S) (d_i, d_j, 0)^T + w_i w_j Z e_z^T (12 per column), 10 a node instead
+/// of 3 multiplies, 3 adds and 9 multiply-adds (the compiler may not re-associate them). Same sums, other rounding
+/// (a few ulps of |v|). Arena: the stencil's first node at (c0, c1, c2).
+template <typename T, typename TG>
+FBAR_DEVICE FBAR_FORCE_INLINE void g2p_sums_by_column(const QuadraticBspline<T>& s, T dx, const ArenaVelocity<TG>* arena,
+                                                      int c0, int c1, int c2, Vec3<T>& v, Mat3<T>& B) {
+  T d[3][3];  // x_i - x_p per axis and node
+#if FBAR_IN_DEVICE_CODE
+#pragma unroll
+#endif
+  for (int a = 0; a < 3; ++a)
+#if FBAR_IN_DEVICE_CODE
+#pragma unroll
+#endif
+    for (int n = 0; n < 3; ++n) d[a][n] = (T(n) - s.frac[a]) * dx;
+  v = Vec3<T>::zero();
+  B = Mat3<T>::zero();
+#if FBAR_IN_DEVICE_CODE
+#pragma unroll
+#endif
+  for (int i = 0; i < 3; ++i)
+#if FBAR_IN_DEVICE_CODE
+#pragma unroll
+#endif
+    for (int j = 0; j < 3; ++j) {
+      Vec3<T> sk = Vec3<T>::zero(), zk = Vec3<T>::zero();
+#if FBAR_IN_DEVICE_CODE
+#pragma unroll
+#endif
+      for (int k = 0; k < 3; ++k) {
+        const ArenaVelocity<TG> n = arena[arena_index(c0 + i, c1 + j, c2 + k)];
+        const Vec3<T> vn{{static_cast<T>(n.x), static_cast<T>(n.y), static_cast<T>(n.z)}};
+        sk += vn * s.w[2][k];
+        zk += vn * (s.w[2][k] * d[2][k]);
+      }
+      const T wij = s.w[0][i] * s.w[1][j];
+      const Vec3<T> ws = sk * wij;
+      v += ws;
+      for (int r = 0; r < 3; ++r) {
+        B(r, 0) += ws[r] * d[0][i];
+        B(r, 1) += ws[r] * d[1][j];
+        B(r, 2) += zk[r] * wij;
+      }
+    }
+}
+
+/// P2G of one particle's momentum into arena channels ch .. ch + 2 (and, kMass, its mass into channel 0), all
+/// in the block's quanta: node (i, j, k) gets w (p + A (x_i - x_p)) with p + A (x_i - x_p) built up per axis
+/// (p + A_x d_i per i, + A_y d_j per (i, j), + A_z d_k per node: 3 adds and 3 multiplies per node instead of 3
+/// multiplies and 9 multiply-adds). The weight is transfer.cuh's (w_i w_j) w_k, so the mass is added exactly as
+/// before; the momentum is rounded otherwise (a few ulps). Arena: the stencil's first node at (l0, l1, l2).
+template <bool kMass, typename T, typename TG>
+FBAR_DEVICE FBAR_FORCE_INLINE void p2g_add_factored(const QuadraticBspline<T>& w, T dx, const FixedArena<TG>& fixed,
+                                                    int l0, int l1, int l2, T mass, const Vec3<T>& p,
+                                                    const Mat3<T>& A, int ch) {
+  Vec3<T> az[3];  // A_z d_k
+#if FBAR_IN_DEVICE_CODE
+#pragma unroll
+#endif
+  for (int k = 0; k < 3; ++k) {
+    const T d = (T(k) - w.frac[2]) * dx;
+    az[k] = Vec3<T>{{A(0, 2) * d, A(1, 2) * d, A(2, 2) * d}};
+  }
+#if FBAR_IN_DEVICE_CODE
+#pragma unroll
+#endif
+  for (int i = 0; i < 3; ++i) {
+    const T wi = w.w[0][i];
+    const T dxi = (T(i) - w.frac[0]) * dx;
+    const Vec3<T> pi{{p[0] + A(0, 0) * dxi, p[1] + A(1, 0) * dxi, p[2] + A(2, 0) * dxi}};
+#if FBAR_IN_DEVICE_CODE
+#pragma unroll
+#endif
+    for (int j = 0; j < 3; ++j) {
+      const T dyj = (T(j) - w.frac[1]) * dx;
+      const Vec3<T> pij{{pi[0] + A(0, 1) * dyj, pi[1] + A(1, 1) * dyj, pi[2] + A(2, 1) * dyj}};
+      const T wij = wi * w.w[1][j];
+#if FBAR_IN_DEVICE_CODE
+#pragma unroll
+#endif
+      for (int k = 0; k < 3; ++k) {
+        const T wt = wij * w.w[2][k];
+        const int a = arena_index(l0 + i, l1 + j, l2 + k);
+        if constexpr (kMass) fixed.add(0, a, wt * mass);
+        fixed.add(ch, a, (pij[0] + az[k][0]) * wt);
+        fixed.add(ch + 1, a, (pij[1] + az[k][1]) * wt);
+        fixed.add(ch + 2, a, (pij[2] + az[k][2]) * wt);
+      }
+    }
+  }
+}
+
 template <typename T, int N, typename State>
 FBAR_DEVICE FBAR_FORCE_INLINE bool state_finite(const State& state) {
   const T* s = reinterpret_cast<const T*>(&state);
@@ -404,13 +498,19 @@ FBAR_DEVICE FBAR_FORCE_INLINE void g2p_particle(const G2P2GParams<M, T, TG>& p, 
     atomicAdd(&p.stats->internal_error, 1);  // a particle outside its block's arena: never expected
   }
   const int c0 = min(max(l0, 0), 5), c1 = min(max(l1, 0), 5), c2 = min(max(l2, 0), 5);
-  G2PSum<T> sum;
-  for_each_stencil_node_unrolled(s, p.dx, [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
-    const ArenaVelocity<TG> node_v = arena.velocity[arena_index(c0 + i, c1 + j, c2 + k)];
-    sum.add(w, Vec3<T>{{static_cast<T>(node_v.x), static_cast<T>(node_v.y), static_cast<T>(node_v.z)}}, xixp);
-  });
-  out.v = sum.velocity();
-  out.C = sum.affine(p.d_inv);
+  if constexpr (std::is_same_v<T, float>) {
+    Mat3<T> B;
+    g2p_sums_by_column<T, TG>(s, p.dx, arena.velocity, c0, c1, c2, out.v, B);
+    out.C = B * p.d_inv;  // G2PSum::affine
+  } else {  // double particles: the column sums' extra registers cost more than their instructions save
+    G2PSum<T> sum;
+    for_each_stencil_node_unrolled(s, p.dx, [&](int i, int j, int k, T w, const Vec3<T>& xixp) {
+      const ArenaVelocity<TG> node_v = arena.velocity[arena_index(c0 + i, c1 + j, c2 + k)];
+      sum.add(w, Vec3<T>{{static_cast<T>(node_v.x), static_cast<T>(node_v.y), static_cast<T>(node_v.z)}}, xixp);
+    });
+    out.v = sum.velocity();
+    out.C = sum.affine(p.d_inv);
+  }
   if (!(kMayAsflip && p.asflip)) out.x_new = advect(in.x, out.v, p.dt);
   if constexpr (kMesh) {
     out.state = in.state;  // a vertex's state is its elements' (the element pass sets it from the new positions)
@@ -534,27 +634,11 @@ FBAR_DEVICE FBAR_FORCE_INLINE void p2g_particle(const G2P2GParams<M, T, TG>& p, 
       out_of_range = true;  // this try is repeated with the measured bound
     } else {
       // The payload in quanta: the per-node products then need no scaling (4 multiplies fewer per node).
-      const P2GParticle<T> units{payload.mass * arena.inv_q_mass, payload.momentum * arena.inv_q_momentum,
-                                 payload.affine * arena.inv_q_momentum};
-      for_each_stencil_node_unrolled(w, p.dx, [&](int i, int j, int k, T wt, const Vec3<T>& xixp) {
-        const int a = arena_index(l0 + i, l1 + j, l2 + k);
-        const Vec3<T> mv = p2g_node_momentum(units, wt, xixp);
-        arena.fixed.add(0, a, wt * units.mass);
-        arena.fixed.add(1, a, mv[0]);
-        arena.fixed.add(2, a, mv[1]);
-        arena.fixed.add(3, a, mv[2]);
-      });
-      if (transport) {
-        const P2GParticle<T> carried_units{T(0), carried.momentum * arena.inv_q_momentum,
-                                           carried.affine * arena.inv_q_momentum};
-        for_each_stencil_node_unrolled(w, p.dx, [&](int i, int j, int k, T wt, const Vec3<T>& xixp) {
-          const int a = arena_index(l0 + i, l1 + j, l2 + k);
-          const Vec3<T> mv = p2g_node_momentum(carried_units, wt, xixp);
-          arena.fixed.add(4, a, mv[0]);
-          arena.fixed.add(5, a, mv[1]);
-          arena.fixed.add(6, a, mv[2]);
-        });
-      }
+      p2g_add_factored<true, T, TG>(w, p.dx, arena.fixed, l0, l1, l2, payload.mass * arena.inv_q_mass,
+                              payload.momentum * arena.inv_q_momentum, payload.affine * arena.inv_q_momentum, 1);
+      if (transport)
+        p2g_add_factored<false, T, TG>(w, p.dx, arena.fixed, l0, l1, l2, T(0), carried.momentum * arena.inv_q_momentum,
+                                carried.affine * arena.inv_q_momentum, 4);
     }
   }
   const int b0 = floor_div4(w.base[0] - 1), b1 = floor_div4(w.base[1] - 1), b2 = floor_div4(w.base[2] - 1);
