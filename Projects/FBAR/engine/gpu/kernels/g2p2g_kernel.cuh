@@ -30,7 +30,9 @@
 // sum x q into the grid. The quantum makes overflow impossible: a node's sum is bounded by
 // sum_p w_ip |c_p| <= 0.75^3 count B, with count the block's particles and B a bound on every contribution per unit
 // weight (mass: m_p; momentum: p2g_momentum_bound of every particle), so q = 0.75^3 count B / R keeps every sum,
-// rounding included, inside the integer (R = 2^31 - 2^24 or 2^63 - 2^40). The momentum bound B is the previous
+// rounding included, inside the integer (R = 2^31 - 2^24 or 2^63 - 2^40; the int32 arena counts a block as 512
+// particles at least, so that one contribution is at most 2^22 units and one FFMA rounds it: FixedArena::add_product).
+// The momentum bound B is the previous
 // try's measured maximum times kP2GHeadroom; a particle above it flags the try (StepStats::p2g_range) and the driver
 // repeats the step with the bound it just measured, which then holds for every particle. Rounding: |error| <= q/2
 // per contribution, about 1e-7 B (float) or 2e-16 B (double) at 512 particles per block: the size of the
@@ -218,6 +220,22 @@ struct FixedArena<float> {
     else v = __float2int_rn(units);
     atomicAdd(reinterpret_cast<int*>(words) + ch * kArenaStorage + a, v);
   }
+  /// Blocks count as kMinCount particles at least in their quantum (g2p2g's span), so that one contribution, at most
+  /// 0.75^3 B / q = kRange / max(count, kMinCount) units, stays within 2^22: add_product can then round x y to the
+  /// integer with one FFMA instead of a multiply and an F2I (a quarter-rate instruction).
+  static constexpr int kMinCount = 512;
+  /// Adds round(x y) units (|x y| < 2^22): fma(x, y, 1.5 2^23) is the float nearest x y + 1.5 2^23, whose bits are
+  /// those of 1.5 2^23 plus the nearest integer to x y (a double: 1.5 2^52, whose low 32 bits are 0).
+  template <typename U>
+  FBAR_DEVICE FBAR_FORCE_INLINE void add_product(int ch, int a, U x, U y) const {
+    int v;
+    if constexpr (std::is_same_v<U, double>)
+      v = static_cast<int>(static_cast<unsigned>(static_cast<unsigned long long>(
+          __double_as_longlong(__fma_rn(x, y, 6755399441055744.0)))));
+    else
+      v = __float_as_int(__fmaf_rn(x, y, 12582912.0f)) - 0x4B400000;
+    atomicAdd(reinterpret_cast<int*>(words) + ch * kArenaStorage + a, v);
+  }
   FBAR_DEVICE FBAR_FORCE_INLINE float units(int ch, int a) const {
     return static_cast<float>(static_cast<int>(words[ch * kArenaStorage + a]));
   }
@@ -232,6 +250,8 @@ struct FixedArena<double> {
   int channels;     // 4, or 7 with ASFLIP's transported momentum
   /// 64-bit add from two native 32-bit ones: a low word that wraps carries exactly once into the high word, so the
   /// pair holds the exact sum modulo 2^64 whatever the interleaving.
+  static constexpr int kMinCount = 1;  ///< the quantum follows the block's count (FixedArena<float>::kMinCount)
+  FBAR_DEVICE FBAR_FORCE_INLINE void add_product(int ch, int a, double x, double y) const { add(ch, a, x * y); }
   FBAR_DEVICE FBAR_FORCE_INLINE void add(int ch, int a, double units) const {
     const long long v = __double2ll_rn(units);
     const unsigned lo = static_cast<unsigned>(v), hi = static_cast<unsigned>(static_cast<unsigned long long>(v) >> 32);
@@ -393,10 +413,10 @@ FBAR_DEVICE FBAR_FORCE_INLINE void p2g_add_factored(const QuadraticBspline<T>& w
       for (int k = 0; k < 3; ++k) {
         const T wt = wij * w.w[2][k];
         const int a = arena_index(l0 + i, l1 + j, l2 + k);
-        if constexpr (kMass) fixed.add(0, a, wt * mass);
-        fixed.add(ch, a, (pij[0] + az[k][0]) * wt);
-        fixed.add(ch + 1, a, (pij[1] + az[k][1]) * wt);
-        fixed.add(ch + 2, a, (pij[2] + az[k][2]) * wt);
+        if constexpr (kMass) fixed.add_product(0, a, wt, mass);
+        fixed.add_product(ch, a, pij[0] + az[k][0], wt);
+        fixed.add_product(ch + 1, a, pij[1] + az[k][1], wt);
+        fixed.add_product(ch + 2, a, pij[2] + az[k][2], wt);
       }
     }
   }
@@ -768,7 +788,8 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
   }
 
   // Fixed-point quanta of this block [kg], [kg m/s] and their inverses; limit: the bound every particle must meet.
-  const double span = kMaxNodeWeight * count / g2p2g_detail::FixedArena<TG>::kRange;
+  const double span =
+      kMaxNodeWeight * max(count, g2p2g_detail::FixedArena<TG>::kMinCount) / g2p2g_detail::FixedArena<TG>::kRange;
   const double bound = kP2GHeadroom * __longlong_as_double(static_cast<long long>(*p.p2g_bound_in));
   const g2p2g_detail::FixedArena<TG> fixed{reinterpret_cast<unsigned*>(arena_p), channels};
   g2p2g_detail::BlockArena<T, TG> arena{arena_v, fixed, arena_blocks, origin, channels, static_cast<T>(*p.dt_next)};
