@@ -41,9 +41,12 @@ struct QuadraticBspline {
     return Vec3<T>{{dw[0][i] * w[1][j] * w[2][k], w[0][i] * dw[1][j] * w[2][k], w[0][i] * w[1][j] * dw[2][k]}};
   }
 
+  /// x_node - x_particle along one axis for the stencil's node n on that axis, in metres: (n - frac[axis]) * dx.
+  FBAR_HOST_DEVICE constexpr T axis_offset(int axis, int n, T dx) const { return (T(n) - frac[axis]) * dx; }
+
   /// x_node - x_particle for stencil node (i, j, k), in metres: ((i, j, k) - frac) * dx.
   FBAR_HOST_DEVICE constexpr Vec3<T> node_offset(int i, int j, int k, T dx) const {
-    return Vec3<T>{{(T(i) - frac[0]) * dx, (T(j) - frac[1]) * dx, (T(k) - frac[2]) * dx}};
+    return Vec3<T>{{axis_offset(0, i, dx), axis_offset(1, j, dx), axis_offset(2, k, dx)}};
   }
 };
 

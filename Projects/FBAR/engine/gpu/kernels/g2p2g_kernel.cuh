@@ -344,7 +344,7 @@ FBAR_DEVICE FBAR_FORCE_INLINE void g2p_sums_by_column(const QuadraticBspline<T>&
 #if FBAR_IN_DEVICE_CODE
 #pragma unroll
 #endif
-    for (int n = 0; n < 3; ++n) d[a][n] = (T(n) - s.frac[a]) * dx;
+    for (int n = 0; n < 3; ++n) d[a][n] = s.axis_offset(a, n, dx);
   v = Vec3<T>::zero();
   B = Mat3<T>::zero();
 #if FBAR_IN_DEVICE_CODE
@@ -390,7 +390,7 @@ FBAR_DEVICE FBAR_FORCE_INLINE void p2g_add_factored(const QuadraticBspline<T>& w
 #pragma unroll
 #endif
   for (int k = 0; k < 3; ++k) {
-    const T d = (T(k) - w.frac[2]) * dx;
+    const T d = w.axis_offset(2, k, dx);
     az[k] = Vec3<T>{{A(0, 2) * d, A(1, 2) * d, A(2, 2) * d}};
   }
 #if FBAR_IN_DEVICE_CODE
@@ -398,13 +398,13 @@ FBAR_DEVICE FBAR_FORCE_INLINE void p2g_add_factored(const QuadraticBspline<T>& w
 #endif
   for (int i = 0; i < 3; ++i) {
     const T wi = w.w[0][i];
-    const T dxi = (T(i) - w.frac[0]) * dx;
+    const T dxi = w.axis_offset(0, i, dx);
     const Vec3<T> pi{{p[0] + A(0, 0) * dxi, p[1] + A(1, 0) * dxi, p[2] + A(2, 0) * dxi}};
 #if FBAR_IN_DEVICE_CODE
 #pragma unroll
 #endif
     for (int j = 0; j < 3; ++j) {
-      const T dyj = (T(j) - w.frac[1]) * dx;
+      const T dyj = w.axis_offset(1, j, dx);
       const Vec3<T> pij{{pi[0] + A(0, 1) * dyj, pi[1] + A(1, 1) * dyj, pi[2] + A(2, 1) * dyj}};
       const T wij = wi * w.w[1][j];
 #if FBAR_IN_DEVICE_CODE
