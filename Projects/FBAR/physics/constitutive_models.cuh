@@ -9,7 +9,10 @@
 //        with its return mapping), wave_speed(params, state), energy_density(params, state);
 //      optional: kAliases (other JSON names), initial_state<T>(MaterialSpec) (a state set by parameters, e.g.
 //      logJp0), check(MaterialSpec) -> ParameterProblem (a rule across parameters), hydrostatic_state<T>(params,
-//      kirchhoff_pressure) (host: lets bodies[].initial_state be "hydrostatic", engine/hydrostatic.h);
+//      kirchhoff_pressure) (host: lets bodies[].initial_state be "hydrostatic", engine/hydrostatic.h),
+//      wave_speed_order(params, state) with wave_speed_at_order(params, key) (a key that orders states by wave
+//      speed, and the wave speed at a key: the GPU then evaluates the wave speed once per particle block, at its
+//      largest key, instead of once per particle);
 //   2. include it here and append M to MaterialTypes; add its enumerator to Constitutive (scene.h).
 // Parsing, validation, --check, the scene writer, Froude scaling, both engines' kernels and particle bins, and the
 // output attributes follow from the type. Engines never compare strings: visit_material(law, f) calls f(M{}) for
@@ -74,6 +77,14 @@ struct has_wave_speed : std::false_type {};
 template <typename M>
 struct has_wave_speed<M, std::void_t<decltype(M::wave_speed(std::declval<const material_params_t<M, double>&>(),
                                                             std::declval<const material_state_t<M, double>&>()))>>
+    : std::true_type {};
+template <typename M, typename = void>
+struct has_wave_speed_order : std::false_type {};
+template <typename M>
+struct has_wave_speed_order<
+    M, std::void_t<decltype(M::wave_speed_order(std::declval<const material_params_t<M, float>&>(),
+                                                std::declval<const material_state_t<M, float>&>())),
+                   decltype(M::wave_speed_at_order(std::declval<const material_params_t<M, float>&>(), 1.0f))>>
     : std::true_type {};
 template <typename M, typename = void>
 struct has_energy : std::false_type {};

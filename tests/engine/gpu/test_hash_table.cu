@@ -28,6 +28,14 @@ __global__ void find_keys(BlockHashTableView table, const unsigned long long* ke
   if (i < n) index[i] = table.find(keys[i]);
 }
 
+/// find_arena of every (block, neighbour) of `blocks` (index 8 i + n).
+__global__ void find_arena_all(BlockHashTableView table, const int* blocks, int n, int* index) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= 8 * n) return;
+  const int block = blocks[i / 8];
+  index[i] = table.find_arena(block, table.block_coords(block), i % 8);
+}
+
 struct Keys {
   std::vector<unsigned long long> keys;  // with repeats, shuffled
   std::vector<unsigned long long> absent;
@@ -177,6 +185,61 @@ TEST(GpuHashTable, OverflowIsCountedAndGrowthKeepsIndices) {
   // Now all 3000 fit; the ones already present keep their index.
   insert_and_check(table, k.keys, 3000);
   EXPECT_EQ(find_all(table, first), before);
+}
+
+std::vector<int> find_arena_all(const BlockHashTable& table, const std::vector<int>& blocks) {
+  const int n = static_cast<int>(blocks.size());
+  int* d_blocks = to_device(blocks);
+  int* d_index = nullptr;
+  FBAR_CUDA_CHECK(cudaMalloc(&d_index, sizeof(int) * 8 * n));
+  find_arena_all<<<(8 * n + 255) / 256, 256>>>(table.view(), d_blocks, n, d_index);
+  FBAR_CUDA_CHECK(cudaGetLastError());
+  std::vector<int> index(8 * n);
+  FBAR_CUDA_CHECK(cudaMemcpy(index.data(), d_index, sizeof(int) * index.size(), cudaMemcpyDeviceToHost));
+  cudaFree(d_blocks);
+  cudaFree(d_index);
+  return index;
+}
+
+std::vector<int> arena_cache(const BlockHashTable& table, int blocks) {
+  std::vector<int> cache(8 * static_cast<std::size_t>(blocks));
+  FBAR_CUDA_CHECK(cudaMemcpy(cache.data(), table.view().arena, sizeof(int) * cache.size(), cudaMemcpyDeviceToHost));
+  return cache;
+}
+
+// The arena cache (BlockHashTableView::find_arena, which G2P2G's set-up reads) against find(): the same index from
+// the lookup and from the cache, -1 (and nothing cached) for a neighbour that is absent, kept by growth, reset by
+// clear() (where the indices are handed out again).
+TEST(GpuHashTable, ArenaCacheAgreesWithFindAndLivesAsLongAsTheIndices) {
+  FBAR_REQUIRE_DEVICE();
+  // Blocks of a 6 x 5 x 4 box, so that the +x/+y/+z neighbours of its last layers are absent.
+  std::vector<unsigned long long> keys;
+  for (int x = 0; x < 6; ++x)
+    for (int y = 0; y < 5; ++y)
+      for (int z = 0; z < 4; ++z) keys.push_back(BlockKey::pack(x - 3, y, z + 7));
+  BlockHashTable table;
+  table.allocate(200, nullptr);
+  insert_and_check(table, keys, static_cast<int>(keys.size()));
+  const std::vector<int> index = find_all(table, keys);
+  std::vector<unsigned long long> neighbour_keys;
+  for (unsigned long long key : keys) {
+    const Vec3i c = BlockKey::unpack(key);
+    for (int n = 0; n < 8; ++n) neighbour_keys.push_back(BlockKey::pack(c[0] + (n >> 2), c[1] + ((n >> 1) & 1), c[2] + (n & 1)));
+  }
+  const std::vector<int> expected = find_all(table, neighbour_keys);
+  int absent = 0;
+  for (int v : expected) absent += v < 0;
+  ASSERT_GT(absent, 0);
+  const int n = static_cast<int>(keys.size());
+  EXPECT_EQ(find_arena_all(table, index), expected);  // looked up, then cached
+  std::vector<int> cache = arena_cache(table, n);
+  for (int i = 0; i < 8 * n; ++i) EXPECT_EQ(cache[8 * static_cast<std::size_t>(index[i / 8]) + i % 8], expected[i]);
+  EXPECT_EQ(find_arena_all(table, index), expected);  // from the cache
+  table.grow(400, nullptr);
+  EXPECT_EQ(arena_cache(table, n), cache) << "growth lost the cache";
+  EXPECT_EQ(find_arena_all(table, index), expected);
+  table.clear(nullptr);
+  for (int v : arena_cache(table, n)) EXPECT_EQ(v, -1) << "clear() kept a cached index";
 }
 
 }  // namespace

@@ -72,6 +72,21 @@ struct BlockHashTableView {
   TableCounters* counters;
   std::uint32_t slot_mask;   ///< slot_capacity - 1 (a power of two)
   int block_capacity;        ///< most blocks the grid buffers can hold
+  /// (block, neighbour) a cache of each block's 2x2x2 arena (the block itself and its +x/+y/+z neighbours,
+  /// neighbour = (di * 2 + dj) * 2 + dk): the index once a kernel has looked it up, -1 before. Valid for the
+  /// table's life because indices never change (growth keeps them and the cache; clear() resets both).
+  int* arena = nullptr;
+
+  /// Index of neighbour n of block `block` (at `origin`) of its arena, -1 when absent: from the cache, else looked up
+  /// and cached. For launches after the inserting one (as find).
+  FBAR_DEVICE int find_arena(int block, const Vec3i& origin, int n) const {
+    int index = arena[8 * block + n];
+    if (index < 0) {
+      index = find(BlockKey::pack(origin[0] + (n >> 2), origin[1] + ((n >> 1) & 1), origin[2] + (n & 1)));
+      if (index >= 0) arena[8 * block + n] = index;  // another CUDA block may write the same value: benign
+    }
+    return index;
+  }
 
   /// Index of the block `key`, or -1 when it is not in the table. For launches after the inserting one.
   FBAR_DEVICE int find(std::uint64_t key) const {
@@ -197,6 +212,7 @@ class BlockHashTable {
     hash_table_detail::reset_slots<<<(slots_ + 255) / 256, 256, 0, stream>>>(keys_, values_, slots_);
     FBAR_CUDA_CHECK(cudaGetLastError());
     FBAR_CUDA_CHECK(cudaMemsetAsync(counters_, 0, sizeof(TableCounters), stream));
+    FBAR_CUDA_CHECK(cudaMemsetAsync(arena_, 0xff, arena_bytes(block_capacity_), stream));
   }
 
   /// Grows to `block_capacity` blocks keeping every key and block index (and the block counter). The overflow
@@ -205,6 +221,7 @@ class BlockHashTable {
     unsigned long long* old_keys = keys_;
     int* old_values = values_;
     int* old_coords = coords_;
+    int* old_arena = arena_;
     TableCounters* old_counters = counters_;
     const std::uint32_t old_slots = slots_;
     const int old_capacity = block_capacity_;
@@ -215,6 +232,7 @@ class BlockHashTable {
     FBAR_CUDA_CHECK(cudaGetLastError());
     FBAR_CUDA_CHECK(cudaMemcpyAsync(coords_, old_coords, sizeof(int) * 3 * static_cast<std::size_t>(old_capacity),
                                     cudaMemcpyDeviceToDevice, stream));
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(arena_, old_arena, arena_bytes(old_capacity), cudaMemcpyDeviceToDevice, stream));
     FBAR_CUDA_CHECK(cudaMemcpyAsync(counters_, old_counters, sizeof(TableCounters), cudaMemcpyDeviceToDevice, stream));
     FBAR_CUDA_CHECK(cudaMemsetAsync(&counters_->overflow, 0, sizeof(int), stream));
     hash_table_detail::clamp_block_count<<<1, 1, 0, stream>>>(counters_, old_capacity);
@@ -227,23 +245,30 @@ class BlockHashTable {
     device.deallocate(old_keys, 0);
     device.deallocate(old_values, 0);
     device.deallocate(old_coords, 0);
+    device.deallocate(old_arena, 0);
     device.deallocate(old_counters, 0);
   }
 
   BlockHashTableView view() const {
-    return BlockHashTableView{keys_, values_, coords_, counters_, slots_ - 1, block_capacity_};
+    return BlockHashTableView{keys_, values_, coords_, counters_, slots_ - 1, block_capacity_, arena_};
   }
   int block_capacity() const { return block_capacity_; }
   std::uint32_t slot_capacity() const { return slots_; }
   TableCounters* counters() const { return counters_; }
   std::size_t bytes() const {
     return static_cast<std::size_t>(slots_) * (sizeof(unsigned long long) + sizeof(int)) +
-           static_cast<std::size_t>(block_capacity_) * 3 * sizeof(int) + sizeof(TableCounters);
+           static_cast<std::size_t>(block_capacity_) * 3 * sizeof(int) + arena_bytes(block_capacity_) +
+           sizeof(TableCounters);
   }
 
  private:
+  static std::size_t arena_bytes(int block_capacity) {
+    return sizeof(int) * 8 * static_cast<std::size_t>(block_capacity);
+  }
   void allocate_arrays() {
     cuda::DeviceAllocator device;
+    arena_ = static_cast<int*>(device.allocate(arena_bytes(block_capacity_)));
+    FBAR_CUDA_CHECK(cudaMemset(arena_, 0xff, arena_bytes(block_capacity_)));  // no index cached
     keys_ = static_cast<unsigned long long*>(device.allocate(sizeof(unsigned long long) * slots_));
     values_ = static_cast<int*>(device.allocate(sizeof(int) * slots_));
     coords_ = static_cast<int*>(device.allocate(sizeof(int) * 3 * static_cast<std::size_t>(block_capacity_)));
@@ -258,18 +283,21 @@ class BlockHashTable {
       cudaFree(keys_);
       cudaFree(values_);
       cudaFree(coords_);
+      cudaFree(arena_);
       cudaFree(counters_);
     }
     (void)device;
     keys_ = nullptr;
     values_ = nullptr;
     coords_ = nullptr;
+    arena_ = nullptr;
     counters_ = nullptr;
   }
 
   unsigned long long* keys_ = nullptr;
   int* values_ = nullptr;
   int* coords_ = nullptr;
+  int* arena_ = nullptr;  ///< (block, neighbour) BlockHashTableView::arena
   TableCounters* counters_ = nullptr;
   std::uint32_t slots_ = 0;
   int block_capacity_ = 0;

@@ -28,7 +28,8 @@ std::size_t grid_bytes(long long capacity, Precision precision, bool asflip, boo
   const std::size_t c = static_cast<std::size_t>(capacity);
   const std::size_t tg = grid_scalar_bytes(precision);
   const std::size_t sum = grid_sum_bytes(precision);
-  std::size_t bytes = table_slots(capacity) * (8 + 4) + c * 3 * 4 + 8;  // keys, values, coordinates, counters
+  // keys, values, coordinates, the arena cache (8 indices a block), counters
+  std::size_t bytes = table_slots(capacity) * (8 + 4) + c * 3 * 4 + c * 8 * 4 + 8;
   bytes += 2 * c * 4 * 64 * sum;                                        // two P2G grids (mass, momentum)
   bytes += c * 3 * 64 * tg;                                             // grid velocity
   if (asflip) bytes += 2 * c * 3 * 64 * sum + c * 3 * 64 * tg;          // transported momentum x 2, v^n

@@ -152,6 +152,18 @@ struct JFluid {
     return sqrt(p.bulk_modulus / p.rho0 * exp((T(1) - p.gamma) * log1p(-s.one_minus_J)));
   }
 
+  /// A key that orders states by wave speed (constitutive_models.cuh): c^2 is proportional to J^(1 - gamma), which
+  /// grows with compression (1 - J) for gamma > 1 and shrinks for gamma < 1.
+  template <typename T>
+  FBAR_HOST_DEVICE static constexpr T wave_speed_order(const Params<T>& p, const State<T>& s) {
+    return p.gamma >= T(1) ? s.one_minus_J : -s.one_minus_J;
+  }
+  /// The wave speed of the state whose wave_speed_order is `key`.
+  template <typename T>
+  FBAR_HOST_DEVICE static inline T wave_speed_at_order(const Params<T>& p, T key) {
+    return wave_speed(p, State<T>{p.gamma >= T(1) ? key : -key});
+  }
+
   /// Stored energy per reference volume psi(J) = (K/gamma) [(J^(1-gamma) - 1)/(gamma - 1) + (J - 1)] [J/m^3],
   /// the potential with -dpsi/dJ = p and psi(1) = 0 (gamma = 1: K (J - 1 - ln J)).
   template <typename T>

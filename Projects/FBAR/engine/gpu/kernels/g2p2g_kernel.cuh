@@ -277,13 +277,13 @@ FBAR_DEVICE FBAR_FORCE_INLINE int arena_node_in_block(int a, int b, int c) {
   return ((a & 3) * 4 + (b & 3)) * 4 + (c & 3);
 }
 
-/// Threads 0..7 of the CUDA block: the hash-table index of each of the arena's 2x2x2 grid blocks (-1 and an internal
-/// error when one is missing). The caller synchronises.
-FBAR_DEVICE FBAR_FORCE_INLINE void find_arena_blocks(const BlockHashTableView& table, const Vec3i& origin,
+/// Threads 0..7 of the CUDA block: the hash-table index of each of the arena's 2x2x2 grid blocks of table block
+/// `block` at `origin` (from the table's arena cache after a block's first lookup), -1 and an internal error when
+/// one is missing. The caller synchronises.
+FBAR_DEVICE FBAR_FORCE_INLINE void find_arena_blocks(const BlockHashTableView& table, int block, const Vec3i& origin,
                                                      int* arena_blocks, StepStats* stats) {
   if (threadIdx.x < 8) {
-    const int di = threadIdx.x >> 2, dj = (threadIdx.x >> 1) & 1, dk = threadIdx.x & 1;
-    const int found = table.find(BlockKey::pack(origin[0] + di, origin[1] + dj, origin[2] + dk));
+    const int found = table.find_arena(block, origin, static_cast<int>(threadIdx.x));
     arena_blocks[threadIdx.x] = found;
     if (found < 0) atomicAdd(&stats->internal_error, 1);
   }
@@ -294,7 +294,13 @@ FBAR_DEVICE FBAR_FORCE_INLINE void find_arena_blocks(const BlockHashTableView& t
 template <typename TG>
 FBAR_DEVICE FBAR_FORCE_INLINE void load_arena_velocities(const typename GridLayout<TG>::VelocityBuffer& velocity,
                                                          const int* arena_blocks, ArenaVelocity<TG>* arena_v) {
-  for (int i = threadIdx.x; i < kArenaNodes; i += blockDim.x) {
+  static_assert(kArenaNodes % kG2P2GThreads == 0, "every thread loads the same number of nodes");
+  // Unrolled: a thread's loads of all its nodes are in flight together.
+#if FBAR_IN_DEVICE_CODE
+#pragma unroll
+#endif
+  for (int r = 0; r < kArenaNodes / kG2P2GThreads; ++r) {
+    const int i = static_cast<int>(threadIdx.x) + r * kG2P2GThreads;
     const int a = i >> 6, b = (i >> 3) & 7, c = i & 7;
     const int nb = arena_blocks[arena_neighbour(a, b, c)];
     const int node = arena_node_in_block(a, b, c);
@@ -435,31 +441,43 @@ FBAR_DEVICE FBAR_FORCE_INLINE bool state_finite(const State& state) {
 
 /// Warp-cooperative: every lane with has_key inserts/finds its block once per distinct key (one leader per key),
 /// reserves ranks for all lanes sharing it and returns {block, rank}; {-1, -1} for lanes without a key or when the
-/// table overflowed. grid_a/grid_b: new blocks are zeroed there. Must be called by all 32 lanes.
+/// table overflowed. grid_a/grid_b: new blocks are zeroed there. Must be called by all 32 lanes, converged.
+/// own_key / own_index: a block known to be in the table (g2p2g: the particle block itself), which needs no lookup.
+/// The common case (every keyed lane has one key) skips the lane matching; the leader's index and rank base reach
+/// the other lanes by full-warp shuffles after the leader's branch has reconverged (a shuffle inside the branch,
+/// masked to the peers, compiled to a collective loop that every bin of every G2P2G paid).
 template <typename T>
 FBAR_DEVICE ParticleDest claim_block_rank(bool has_key, std::uint64_t key, const BlockHashTableView& table,
-                                          int* next_count, const GridSums<T>& grid_a, const GridSums<T>& grid_b) {
-  ParticleDest d{-1, -1};
-  const unsigned keyed = __ballot_sync(0xffffffffu, has_key);
-  if (has_key) {
-    const unsigned peers = __match_any_sync(keyed, static_cast<unsigned long long>(key));
-    const int leader = __ffs(peers) - 1;
-    const int lane = threadIdx.x % 32;
-    int index = -1, base = 0;
-    if (lane == leader) {
+                                          int* next_count, const GridSums<T>& grid_a, const GridSums<T>& grid_b,
+                                          std::uint64_t own_key = BlockKey::kEmpty, int own_index = -1) {
+  constexpr unsigned kFull = 0xffffffffu;
+  const unsigned keyed = __ballot_sync(kFull, has_key);
+  if (keyed == 0) return ParticleDest{-1, -1};
+  const std::uint64_t k = has_key ? key : BlockKey::kEmpty;
+  const std::uint64_t first_key = __shfl_sync(kFull, k, __ffs(keyed) - 1);
+  const unsigned peers = __all_sync(kFull, !has_key || k == first_key)
+                             ? keyed
+                             : __match_any_sync(kFull, static_cast<unsigned long long>(k));
+  const int lane = threadIdx.x % 32;
+  const int leader = has_key ? __ffs(peers) - 1 : lane;
+  int index = -1, base = 0;
+  if (has_key && lane == leader) {
+    if (k == own_key) {
+      index = own_index;
+    } else {
       bool inserted = false;
-      index = table.insert(key, inserted);
+      index = table.insert(k, inserted);
       if (inserted) {
         grid_a.zero_block(index);
         grid_b.zero_block(index);
       }
-      if (index >= 0) base = atomicAdd(&next_count[index], __popc(peers));
     }
-    index = __shfl_sync(peers, index, leader);
-    base = __shfl_sync(peers, base, leader);
-    if (index >= 0) d = ParticleDest{index, base + __popc(peers & lanemask_lt())};
+    if (index >= 0) base = atomicAdd(&next_count[index], __popc(peers));
   }
-  return d;
+  index = __shfl_sync(kFull, index, leader);
+  base = __shfl_sync(kFull, base, leader);
+  if (!has_key || index < 0) return ParticleDest{-1, -1};
+  return ParticleDest{index, base + __popc(peers & lanemask_lt())};
 }
 
 /// What the threads of one g2p2g CUDA block share: the arena in shared memory (grid velocities, the P2G sums as
@@ -632,7 +650,11 @@ FBAR_DEVICE FBAR_FORCE_INLINE void p2g_particle(const G2P2GParams<M, T, TG>& p, 
     s.failed = kFailCfl;  // left the arena (rounding at exactly one cell): same meaning, never written
     return;
   }
-  wave_max = fmax(wave_max, static_cast<double>(M::wave_speed(p.material, s.state)));
+  // The wave speed, or the key that orders states by it (evaluated once per block: reduce_block_maxima).
+  if constexpr (material_detail::has_wave_speed_order<M>::value)
+    wave_max = fmax(wave_max, static_cast<double>(M::wave_speed_order(p.material, s.state)));
+  else
+    wave_max = fmax(wave_max, static_cast<double>(M::wave_speed(p.material, s.state)));
   // A mesh vertex: its own mass and no MLS stress (physics/fem.cuh).
   const bool mesh = kMayMesh && p.vertex_mass != nullptr;
   const T mass = mesh ? p.vertex_mass[id] : p.mass;
@@ -675,6 +697,7 @@ FBAR_DEVICE FBAR_FORCE_INLINE void p2g_particle(const G2P2GParams<M, T, TG>& p, 
 /// Failure counts of one warp: one atomic per warp and kind; the smallest failing ID for the report. All 32 lanes.
 template <typename M, typename T, typename TG>
 FBAR_DEVICE FBAR_FORCE_INLINE void count_failures(const G2P2GParams<M, T, TG>& p, int lane, int failed, int id) {
+  if (!__any_sync(0xffffffffu, failed >= 0)) return;  // the common case: one vote
   for (int kind = 0; kind < kFailKinds; ++kind) {
     const unsigned mask = __ballot_sync(0xffffffffu, failed == kind);
     if (mask != 0) {
@@ -684,7 +707,11 @@ FBAR_DEVICE FBAR_FORCE_INLINE void count_failures(const G2P2GParams<M, T, TG>& p
   }
 }
 
-/// Per-body maxima of the wave speed and the P2G bound, and whether a particle exceeded the bound: warp, then CUDA
+/// What a lane's wave-speed maximum starts from: no particle yet (a law with wave_speed_order reduces its keys, which
+/// may be negative, and evaluates the wave speed of the block's largest).
+inline constexpr double kNoWave = -1.0e300;
+
+/// Per-body maxima of the wave speed (or its order key) and the P2G bound, and whether a particle exceeded the bound: warp, then CUDA
 /// block (block_max, block_over: shared), then one global atomic per block (per-warp atomics on one address
 /// serialise in L2). Every thread of the block.
 template <typename M, typename T, typename TG>
@@ -703,11 +730,13 @@ FBAR_DEVICE FBAR_FORCE_INLINE void reduce_block_maxima(const G2P2GParams<M, T, T
   }
   __syncthreads();
   if (threadIdx.x == 0) {
-    double wave = 0.0, bound = 0.0;
+    double wave = kNoWave, bound = 0.0;
     for (int w = 0; w < kG2P2GThreads / 32; ++w) {
       wave = fmax(wave, block_max[0][w]);
       bound = fmax(bound, block_max[1][w]);
     }
+    if constexpr (material_detail::has_wave_speed_order<M>::value)  // the block's largest key, to its wave speed
+      wave = wave > kNoWave ? static_cast<double>(M::wave_speed_at_order(p.material, static_cast<T>(wave))) : 0.0;
     if (wave > 0.0) atomic_max_nonneg(p.wave_speed, wave);
     if (bound > 0.0) atomic_max_nonneg(p.p2g_bound_out, bound);
     if (block_over) atomicAdd(&p.stats->p2g_range, 1);
@@ -777,17 +806,25 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
                                        : static_cast<int>(blockIdx.x);
   const int count = p.layout.count[block];
   if (count == 0) return;  // uniform per CUDA block: a stale or footprint-only block
+  const int lane = threadIdx.x % 32;
+  const int warp = threadIdx.x / 32;
+  const int bins = (count + 31) / 32;
+  const int first_bin = p.layout.bin_offset[block];
+  // Each warp reads the gather index of its next bin one bin ahead (the first one before the arena's set-up), so
+  // that a bin waits for one global load (its particle) instead of two in a row (the index, then the particle).
+  int src_ahead = warp < bins ? p.layout.src[(first_bin + warp) * 32 + lane] : -1;
   const Vec3i origin = p.table.block_coords(block);
   if (threadIdx.x == 0) block_over = 0;
-  g2p2g_detail::find_arena_blocks(p.table, origin, arena_blocks, p.stats);
-  for (int i = threadIdx.x; i < channels * kArenaStorage; i += blockDim.x) arena_p[i] = TG(0);
-  __syncthreads();
-  if constexpr (!kInitial) {
-    g2p2g_detail::load_arena_velocities<TG>(p.velocity, arena_blocks, arena_v);
-    __syncthreads();
+  g2p2g_detail::find_arena_blocks(p.table, block, origin, arena_blocks, p.stats);
+  {  // zero the P2G arena, 16 bytes a store (its size is a multiple of 16 bytes: 4 or 7 channels of 8 x 68 words)
+    static_assert((kArenaStorage * sizeof(float)) % sizeof(uint4) == 0, "the arena is zeroed in 16-byte words");
+    uint4* const words = reinterpret_cast<uint4*>(arena_p);
+    const int n = channels * static_cast<int>(kArenaStorage * sizeof(TG) / sizeof(uint4));
+    for (int i = threadIdx.x; i < n; i += kG2P2GThreads) words[i] = make_uint4(0u, 0u, 0u, 0u);
   }
 
   // Fixed-point quanta of this block [kg], [kg m/s] and their inverses; limit: the bound every particle must meet.
+  // (Before the barrier: the warps that do not look up the arena's blocks compute them while those loads run.)
   const double span =
       kMaxNodeWeight * max(count, g2p2g_detail::FixedArena<TG>::kMinCount) / g2p2g_detail::FixedArena<TG>::kRange;
   const double bound = kP2GHeadroom * __longlong_as_double(static_cast<long long>(*p.p2g_bound_in));
@@ -803,15 +840,19 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
     arena.to_grid_mass = static_cast<double>(arena.q_mass) / q.mass;
     arena.to_grid_momentum = static_cast<double>(arena.q_momentum) / q.momentum;
   }
-  double bound_max = 0.0, wave_max = 0.0;
+  __syncthreads();
+  if constexpr (!kInitial) {
+    g2p2g_detail::load_arena_velocities<TG>(p.velocity, arena_blocks, arena_v);
+    __syncthreads();
+  }
+  // The particle block's own key: its particles that stay claim their rank without a table lookup.
+  const std::uint64_t own_key = BlockKey::pack(origin[0], origin[1], origin[2]);
+  double bound_max = 0.0, wave_max = g2p2g_detail::kNoWave;
   bool out_of_range = false;
-  const int lane = threadIdx.x % 32;
-  const int warp = threadIdx.x / 32;
-  const int bins = (count + 31) / 32;
-  const int first_bin = p.layout.bin_offset[block];
   for (int bin = warp; bin < bins; bin += kG2P2GThreads / 32) {
     const int slot = (first_bin + bin) * 32 + lane;
-    const int src = p.layout.src[slot];
+    const int src = src_ahead;
+    if (bin + kG2P2GThreads / 32 < bins) src_ahead = p.layout.src[slot + kG2P2GThreads];
     const bool active = src >= 0;
     g2p2g_detail::LaneParticle<M, T> s;
     int id = INT_MAX;
@@ -827,7 +868,8 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
     if (measure) continue;
     g2p2g_detail::count_failures(p, lane, s.failed, id);
     const ParticleDest d =
-        g2p2g_detail::claim_block_rank<TG>(s.has_key, s.key, p.table, p.next_count, p.grid_next, p.grid_this);
+        g2p2g_detail::claim_block_rank<TG>(s.has_key, s.key, p.table, p.next_count, p.grid_next, p.grid_this,
+                                           own_key, block);
     if (active) p.dest[slot] = s.emigrant >= 0 ? ParticleDest{kEmigrant, s.emigrant} : d;
     // The emigrants' slots, listed so that the migration reads those few instead of every slot's destination.
     if (active && s.emigrant >= 0 && p.emigrant_slots) {
@@ -861,7 +903,7 @@ __global__ void __launch_bounds__(kG2P2GThreads) fbar_cell_sums(FbarCellSumsPara
   const int count = p.layout.count[block];
   if (count == 0) return;
   const Vec3i origin = p.table.block_coords(block);
-  g2p2g_detail::find_arena_blocks(p.table, origin, arena_blocks, p.stats);
+  g2p2g_detail::find_arena_blocks(p.table, block, origin, arena_blocks, p.stats);
   __syncthreads();
   const int first_slot = p.layout.bin_offset[block] * 32;
   for (int t = threadIdx.x; t < ((count + 31) / 32) * 32; t += blockDim.x) {

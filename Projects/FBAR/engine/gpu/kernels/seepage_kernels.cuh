@@ -71,7 +71,7 @@ __global__ void __launch_bounds__(kG2P2GThreads) seepage_sums(SeepageSumsParams<
   const int count = p.layout.count[block];
   if (count == 0) return;  // uniform per CUDA block
   const Vec3i origin = p.table.block_coords(block);
-  g2p2g_detail::find_arena_blocks(p.table, origin, arena_blocks, p.stats);
+  g2p2g_detail::find_arena_blocks(p.table, block, origin, arena_blocks, p.stats);
   for (int i = threadIdx.x; i < kWords; i += blockDim.x) arena_words[i] = 0u;
   if (threadIdx.x < kSeepageChannels) block_bound[threadIdx.x] = 0ull;
   __syncthreads();
