@@ -711,9 +711,9 @@ FBAR_DEVICE FBAR_FORCE_INLINE void count_failures(const G2P2GParams<M, T, TG>& p
 /// may be negative, and evaluates the wave speed of the block's largest).
 inline constexpr double kNoWave = -1.0e300;
 
-/// Per-body maxima of the wave speed (or its order key) and the P2G bound, and whether a particle exceeded the bound: warp, then CUDA
-/// block (block_max, block_over: shared), then one global atomic per block (per-warp atomics on one address
-/// serialise in L2). Every thread of the block.
+/// Per-body maxima of the wave speed (or its order key) and the P2G bound, and whether a particle exceeded the
+/// bound: warp, then CUDA block (block_max, block_over: shared), then one global atomic per block (per-warp atomics
+/// on one address serialise in L2). Every thread of the block.
 template <typename M, typename T, typename TG>
 FBAR_DEVICE FBAR_FORCE_INLINE void reduce_block_maxima(const G2P2GParams<M, T, TG>& p, double wave_max,
                                                        double bound_max, bool out_of_range,
