@@ -224,8 +224,7 @@ TEST(GpuHashTable, ArenaCacheAgreesWithFindAndLivesAsLongAsTheIndices) {
   std::vector<unsigned long long> neighbour_keys;
   for (unsigned long long key : keys) {
     const Vec3i c = BlockKey::unpack(key);
-    for (int n = 0; n < 8; ++n)
-      neighbour_keys.push_back(BlockKey::pack(c[0] + (n >> 2), c[1] + ((n >> 1) & 1), c[2] + (n & 1)));
+    for (int n = 0; n < 8; ++n) neighbour_keys.push_back(BlockKey::arena_neighbour(c, n));
   }
   const std::vector<int> expected = find_all(table, neighbour_keys);
   int absent = 0;

@@ -41,6 +41,11 @@ struct BlockKey {
     return Vec3i{{static_cast<int>((key >> 42) & 0x1fffff) - kBias, static_cast<int>((key >> 21) & 0x1fffff) - kBias,
                   static_cast<int>(key & 0x1fffff) - kBias}};
   }
+  /// Key of neighbour n of the 2x2x2 arena that starts at block `origin`: the block + (n >> 2, (n >> 1) & 1, n & 1),
+  /// so neighbour = (di * 2 + dj) * 2 + dk (G2P2G's arena, the footprint the partition activates, a mesh's stencil).
+  FBAR_HOST_DEVICE static constexpr std::uint64_t arena_neighbour(const Vec3i& origin, int n) {
+    return pack(origin[0] + (n >> 2), origin[1] + ((n >> 1) & 1), origin[2] + (n & 1));
+  }
   /// Coordinates representable by pack() (a particle far outside the domain must not alias another block).
   FBAR_HOST_DEVICE static constexpr bool representable(int x, int y, int z) {
     return x >= -kBias && x < kBias && y >= -kBias && y < kBias && z >= -kBias && z < kBias;
@@ -82,7 +87,7 @@ struct BlockHashTableView {
   FBAR_DEVICE int find_arena(int block, const Vec3i& origin, int n) const {
     int index = arena[8 * block + n];
     if (index < 0) {
-      index = find(BlockKey::pack(origin[0] + (n >> 2), origin[1] + ((n >> 1) & 1), origin[2] + (n & 1)));
+      index = find(BlockKey::arena_neighbour(origin, n));
       if (index >= 0) arena[8 * block + n] = index;  // another CUDA block may write the same value: benign
     }
     return index;

@@ -53,7 +53,7 @@ struct MeshView {
 /// The grid block indices of the 2x2x2 blocks from `lo` (table look-ups; -1 where missing).
 FBAR_DEVICE FBAR_FORCE_INLINE void fem_stencil_blocks(const BlockHashTableView& table, const Vec3i& lo, int (&blocks)[8]) {
   for (int n = 0; n < 8; ++n)
-    blocks[n] = table.find(BlockKey::pack(lo[0] + (n >> 2), lo[1] + ((n >> 1) & 1), lo[2] + (n & 1)));
+    blocks[n] = table.find(BlockKey::arena_neighbour(lo, n));
 }
 
 /// Adds w_ip * impulse to the momentum of the 27 stencil nodes of x in the grid's quantum (their blocks found in the

@@ -69,7 +69,7 @@ __global__ void __launch_bounds__(kPartitionThreads)
   const Vec3i c = table.block_coords(b);
   for (int n = 1; n < 8; ++n) {
     bool inserted = false;
-    const int index = table.insert(BlockKey::pack(c[0] + (n >> 2), c[1] + ((n >> 1) & 1), c[2] + (n & 1)), inserted);
+    const int index = table.insert(BlockKey::arena_neighbour(c, n), inserted);
     if (inserted) {
       grid_a.zero_block(index);
       grid_b.zero_block(index);
