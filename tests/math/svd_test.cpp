@@ -27,6 +27,7 @@
 #include <limits>
 #include <random>
 #include <string>
+#include <type_traits>
 
 #include "math_test_support.h"
 
@@ -438,6 +439,62 @@ TYPED_TEST(SvdTyped, PolarOfStretchAndInversionIsAnalytic) {
       EXPECT_LE(frobenius_norm(p.R.template cast<double>() - from_eigen(r0 * c.flip.asDiagonal())), tol);
       EXPECT_LE(frobenius_norm(p.S.template cast<double>() - from_eigen(Eigen::Matrix3d(c.s.asDiagonal()))), tol);
     }
+}
+
+// polar_rotation (Newton): for det f > 0 the rotation of polar_decomposition within the same perturbation bound
+// (Li 1995: ||dR|| <= 2 ||dF|| / (sigma_2 + sigma_3), the SVD's backward error as ||dF||), orthonormal to the same
+// tolerance, in the number of steps svd.h states for each range of singular values; it declines (converged false)
+// an inverted or singular f and a non-finite one, where callers take svd().
+TYPED_TEST(SvdTyped, PolarRotationMatchesPolarDecomposition) {
+  using T = TypeParam;
+  std::mt19937_64 rng(4242);
+  struct Range {
+    double lo, hi;
+    int max_steps;  // the counts svd.h states (NewtonPolar)
+  };
+  const bool is_float = std::is_same_v<T, float>;
+  const Range ranges[] = {{0.9, 1.1, is_float ? 3 : 4},
+                          {0.5, 2.0, is_float ? 4 : 6},
+                          {0.2, 5.0, is_float ? 6 : 7},
+                          {0.01, 100.0, is_float ? 10 : 11}};
+  for (const Range& r : ranges) {
+    std::uniform_real_distribution<double> log_s(std::log(r.lo), std::log(r.hi));
+    double worst_r = 0, worst_orth = 0;
+    int worst_steps = 0;
+    for (int n = 0; n < 5000; ++n) {
+      const Eigen::Vector3d s(std::exp(log_s(rng)), std::exp(log_s(rng)), std::exp(log_s(rng)));
+      const Mat3<T> f = from_eigen(random_rotation(rng) * s.asDiagonal() * random_rotation(rng)).template cast<T>();
+      const PolarRotation<T> p = polar_rotation(f);
+      ASSERT_TRUE(p.converged) << "singular values in [" << r.lo << ", " << r.hi << "], #" << n;
+      const Mat3d fd = f.template cast<double>(), rd = p.R.template cast<double>();
+      const Eigen::JacobiSVD<Eigen::Matrix3d> ref(to_eigen(fd), Eigen::ComputeFullU | Eigen::ComputeFullV);
+      const Eigen::Vector3d sv = ref.singularValues();
+      const Eigen::Matrix3d r_ref = ref.matrixU() * ref.matrixV().transpose();  // det f > 0: a rotation
+      const double bound = 2.0 * sigma_tol<T>() * norm_or_one(f) / (sv(1) + sv(2));
+      const double err = frobenius_norm(rd - from_eigen(r_ref));
+      EXPECT_LE(err, bound) << "#" << n;
+      EXPECT_LE(orthogonality_error(p.R), 2.0 * backward_tol<T>()) << "#" << n;
+      worst_r = std::max(worst_r, err);
+      worst_orth = std::max(worst_orth, orthogonality_error(p.R));
+      worst_steps = std::max(worst_steps, p.steps);
+    }
+    EXPECT_LE(worst_steps, r.max_steps) << "singular values in [" << r.lo << ", " << r.hi << "]";
+    std::printf("[measured] polar_rotation (%s), singular values in [%g, %g]: ||R - R_ref|| <= %.2e, "
+                "orthogonality %.2e, at most %d steps\n",
+                type_name(T{}), r.lo, r.hi, worst_r, worst_orth, worst_steps);
+  }
+  // Declines: inverted (det < 0), singular, non-finite.
+  const Mat3<T> inverted = from_eigen(random_rotation(rng) * Eigen::Vector3d(1.2, 0.9, -0.3).asDiagonal()).template cast<T>();
+  EXPECT_FALSE(polar_rotation(inverted).converged);
+  EXPECT_FALSE(polar_rotation(Mat3<T>::diagonal(Vec3<T>{{T(1), T(1), T(0)}})).converged);
+  Mat3<T> nan = Mat3<T>::identity();
+  nan(1, 2) = std::numeric_limits<T>::quiet_NaN();
+  EXPECT_FALSE(polar_rotation(nan).converged);
+  // A rotation is its own polar factor (one step).
+  const Mat3<T> rot = from_eigen(random_rotation(rng)).template cast<T>();
+  const PolarRotation<T> pr = polar_rotation(rot);
+  EXPECT_TRUE(pr.converged);
+  EXPECT_LE(frobenius_norm((pr.R - rot).template cast<double>()), 16.0 * eps<T>());
 }
 
 }  // namespace

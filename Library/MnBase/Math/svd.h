@@ -5,6 +5,7 @@
 //   Svd3<T>    svd(const Mat3<T>& a);                  // a = U diag(sigma) V^T
 //   SymEig3<T> symmetric_eigen(const Mat3<T>& s);      // s = Q diag(lambda) Q^T
 //   Polar3<T>  polar_decomposition(const Mat3<T>& f);  // f = R S
+//   PolarRotation<T> polar_rotation(const Mat3<T>& f);  // R of f = R S for det f > 0 (Newton; faster, may decline)
 //   Mat3<T>    u_diag_vt(U, d, V);                     // U diag(d) V^T, the usual way back from principal space
 //
 // Conventions
@@ -365,6 +366,64 @@ FBAR_HOST_DEVICE inline Polar3<T> polar_decomposition(const Mat3<T>& f) {
   r.S.m[2][0] = r.S.m[0][2];
   r.S.m[2][1] = r.S.m[1][2];
   return r;
+}
+
+/// Newton's polar iteration (polar_rotation): it stops after the first step that changes no entry by more than
+/// sqrt(eps) (quadratic convergence leaves about half the square of that, eps / 2, in R) or after kMaxIterations
+/// steps. Measured most steps (tests/math/svd_test.cpp, PolarRotationMatchesPolarDecomposition), float / double:
+/// singular values in [0.9, 1.1] 3 / 4, [0.5, 2] 4 / 6, [0.2, 5] 6 / 7, [0.01, 100] 10 / 11; ||R - R_ref|| 2.2e-7 /
+/// 2.3e-15 up to [0.5, 2] (svd(): 7.1e-7 / 7.1e-7 on random matrices of its own test).
+template <typename T>
+struct NewtonPolar;
+template <>
+struct NewtonPolar<float> {
+  static constexpr float kTolerance = 3.4526698e-4f;  // sqrt(2^-23)
+  static constexpr int kMaxIterations = 16;
+};
+template <>
+struct NewtonPolar<double> {
+  static constexpr double kTolerance = 1.4901161193847656e-8;  // sqrt(2^-52)
+  static constexpr int kMaxIterations = 16;
+};
+
+/// The rotation of f = R S for det f > 0, and whether it converged.
+template <typename T>
+struct PolarRotation {
+  Mat3<T> R;
+  bool converged;
+  int steps;  ///< Newton steps taken
+};
+
+/// R of the polar decomposition f = R S (S positive definite) for det f > 0, by Newton's iteration
+/// X <- (X + X^-T) / 2 from X = f (Higham, SIAM J. Sci. Stat. Comput. 7(4), 1986), X^-T = cof(X) / det(X). Each
+/// step maps every singular value s of X to (s + 1/s) / 2 and keeps the singular vectors, so the iterates converge
+/// quadratically to U V^T, the rotation svd() gives, at a fraction of its cost: a step is a cofactor matrix, one
+/// division and 18 multiply-adds, against svd()'s 12 Jacobi rotations. It is backward stable like svd(): the error
+/// in R is O(eps) times the condition number of f. converged = false (R then means nothing) when det f <= 0 (the
+/// iteration would converge to the reflection U V^T with det -1, not the rotation-variant factor), a step's
+/// determinant is not a positive finite number, or kMaxIterations pass; callers then use svd().
+template <typename T>
+FBAR_HOST_DEVICE inline PolarRotation<T> polar_rotation(const Mat3<T>& f) {
+  Mat3<T> x = f;
+#if FBAR_IN_DEVICE_CODE
+#pragma unroll 1
+#endif
+  for (int it = 0; it < NewtonPolar<T>::kMaxIterations; ++it) {
+    const Mat3<T> c = cofactor(x);
+    const T det = x.m[0][0] * c.m[0][0] + x.m[0][1] * c.m[0][1] + x.m[0][2] * c.m[0][2];
+    if (!(det > T(0)) || !(det <= std::numeric_limits<T>::max())) return PolarRotation<T>{x, false, it};
+    const T half_inv_det = T(0.5) / det;
+    T change = T(0);
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) {
+        const T next = T(0.5) * x.m[i][j] + half_inv_det * c.m[i][j];
+        const T d = next - x.m[i][j];
+        change = (d < T(0) ? -d : d) > change ? (d < T(0) ? -d : d) : change;
+        x.m[i][j] = next;
+      }
+    if (change <= NewtonPolar<T>::kTolerance) return PolarRotation<T>{x, true, it + 1};
+  }
+  return PolarRotation<T>{x, false, NewtonPolar<T>::kMaxIterations};
 }
 
 }  // namespace fbar

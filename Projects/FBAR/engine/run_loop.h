@@ -443,7 +443,7 @@ class RunLoop {
     const double ms_per_step = stepped > 0 ? 1e3 * elapsed / static_cast<double>(stepped) : 0.0;
     const std::string note = engine_.resource_note();
     char text[512];
-    std::snprintf(text, sizeof(text), "%s  t = %.6g s  dt = %.3g s  steps = %lld  particles = %zu  %.3g ms/step  ETA %s"
+    std::snprintf(text, sizeof(text), "%s  t = %.6g s  dt = %.3g s  steps = %lld  particles = %zu  %.4g ms/step  ETA %s"
                   "  (output wait %.3g s%s%s)\n", head.c_str(), engine_.time(), engine_.last_dt(), engine_.steps(),
                   count.particles, ms_per_step, run_detail::format_duration(eta).c_str(),
                   engine_.output_wait_seconds(), note.empty() ? "" : "; ", note.c_str());

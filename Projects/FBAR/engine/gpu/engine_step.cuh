@@ -69,15 +69,16 @@ void MgspBenchmark<T, TG>::partition_after_g2p2g() {
     finalize_layout<<<1, 1, 0, stream_>>>(nl.bin_offset, block_capacity_, b.partition.bin_capacity(),
                                           body_stats_d_ + b.index, stats_d_, table_.counters());
     cuda::check_launch("finalize_layout");
-    // The previous layout's slots: those of layout(cur) (a G2P2G wrote bins[next] in that order), or the flat
-    // upload before the first layout exists.
+    // The previous layout's slots: those of layout(cur) (a G2P2G wrote bins[next] in that order, and a dest for
+    // every slot of its bins), or the flat upload before the first layout exists. Decomposed, the received
+    // particles' slots follow the layout's: layout(cur).src says which slots hold particles.
     const bool flat = flat_source_;
-    const int* valid = flat ? nullptr : b.partition.layout(cur_).src;
+    const int* valid = !flat && decomposed() ? b.partition.layout(cur_).src : nullptr;
     const int slots = flat ? b.particles : b.source_slots;
     if (slots > 0) {
-      scatter_src<<<cuda::grid_for(slots, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
-          b.partition.dest(), valid, b.particles, slots, nl.bin_offset, nl.src, b.partition.bin_capacity(),
-          body_stats_d_ + b.index);
+      scatter_src<<<cuda::grid_for(slots, kPartitionThreads * kScatterSlotsPerThread), kPartitionThreads, 0,
+                    stream_>>>(b.partition.dest(), valid, flat ? b.particles : -1, slots, nl.bin_offset, nl.src,
+                               b.partition.bin_capacity(), body_stats_d_ + b.index);
       cuda::check_launch("scatter_src");
     }
     pad_src<<<cuda::grid_for(block_capacity_, kPartitionThreads), kPartitionThreads, 0, stream_>>>(

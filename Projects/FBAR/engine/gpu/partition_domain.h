@@ -34,6 +34,9 @@ struct ParticleDest {
   int rank;   ///< 0-based rank among the block's particles (arbitrary order: atomic arrival)
 };
 inline constexpr int kEmigrant = -2;
+/// ParticleDest::block of a G2P2G lane without a particle (the padding of a block's last bin): the partition needs no
+/// other record of which slots hold particles.
+inline constexpr int kNoParticle = -3;
 
 /// Device arrays of one layout, as kernels see them (passed by value).
 struct LayoutView {

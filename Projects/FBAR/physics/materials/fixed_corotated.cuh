@@ -1,10 +1,14 @@
 // FixedCorotated: the fixed corotated hyperelastic solid (Stomakhin et al. 2012), state = F (material header).
 //
 // First Piola-Kirchhoff stress P = 2 mu (F - R) + lambda (J - 1) J F^-T, with F = R S the polar decomposition
-// (Library/MnBase/Math/svd.h, rotation-variant: inverted F gives J < 0 and a restoring stress).
-// With the SVD F = U diag(s) V^T (R = U V^T) the Kirchhoff stress tau = P F^T is
-//     tau = U diag(2 mu (s_i - 1) s_i) U^T + lambda (J - 1) J I,     J = s0 s1 s2,
-// exactly symmetric and free of F^-T (no division, defined for any F).
+// (Library/MnBase/Math/svd.h, rotation-variant: inverted F gives J < 0 and a restoring stress). The Kirchhoff
+// stress tau = P F^T is
+//     tau = 2 mu (F - R) F^T + lambda (J - 1) J I,
+// free of F^-T; (F - R) F^T = F F^T - R S R^T is symmetric, so the upper triangle is computed and mirrored.
+// For J > 0 (every particle of a committed step: G2P2G fails a step whose J <= 0) R comes from Newton's polar
+// iteration (polar_rotation: 3-4 cofactor steps for everyday strains, a third of svd()'s instructions), J - 1 from
+// F - I without cancellation (determinant_minus_one). An inverted F, or one the iteration declines, takes the SVD
+// F = U diag(s) V^T (R = U V^T): tau = U diag(2 mu (s_i - 1) s_i) U^T + lambda (J - 1) J I, J = s0 s1 s2.
 // Uniaxial check (the constitutive patch test): F = diag(s, 1, 1) gives sigma = tau / J with
 //     sigma11 = (lambda + 2 mu)(s - 1),  sigma22 = sigma33 = lambda (s - 1).
 // Energy psi = mu sum_i (s_i - 1)^2 + lambda/2 (J - 1)^2 per reference volume.
@@ -69,6 +73,24 @@ struct FixedCorotated {
   template <typename T>
   FBAR_HOST_DEVICE static inline StressResult<T> kirchhoff_stress(const Params<T>& p, const State<T>& s,
                                                                   const Mat3<T>& /*C*/) {
+    const T det_minus_1 = determinant_minus_one(s.F);
+    if (det_minus_1 > T(-1)) {
+      const PolarRotation<T> polar = polar_rotation(s.F);
+      if (polar.converged) {
+        const Mat3<T> D = s.F - polar.R;
+        const T shear = T(2) * p.mu;
+        const T volumetric = p.lambda * det_minus_1 * (T(1) + det_minus_1);
+        Mat3<T> tau;
+        for (int i = 0; i < 3; ++i)
+          for (int j = i; j < 3; ++j)
+            tau.m[i][j] = shear * (D.m[i][0] * s.F.m[j][0] + D.m[i][1] * s.F.m[j][1] + D.m[i][2] * s.F.m[j][2]) +
+                          (i == j ? volumetric : T(0));
+        tau.m[1][0] = tau.m[0][1];
+        tau.m[2][0] = tau.m[0][2];
+        tau.m[2][1] = tau.m[1][2];
+        return StressResult<T>{tau, T(1) + det_minus_1};
+      }
+    }
     const Svd3<T> d = svd(s.F);
     const Vec3<T> sm1{{d.sigma[0] - T(1), d.sigma[1] - T(1), d.sigma[2] - T(1)}};
     const T J_minus_1 = product_minus_one(sm1[0], sm1[1], sm1[2]);

@@ -66,6 +66,19 @@ FBAR_HOST_DEVICE constexpr T product_minus_one(T a, T b, T c) {
   return a + b + c + a * b + b * c + c * a + a * b * c;
 }
 
+/// det(F) - 1 without the cancellation of det(F) - 1 near the identity: with H = F - I (exact in floating point
+/// for diagonal entries in [0.5, 2]), det(I + H) - 1 = tr H + the principal 2x2 minors of H + det H.
+template <typename T>
+FBAR_HOST_DEVICE constexpr T determinant_minus_one(const Mat3<T>& F) {
+  const T h00 = F.m[0][0] - T(1), h11 = F.m[1][1] - T(1), h22 = F.m[2][2] - T(1);
+  const T m01 = h00 * h11 - F.m[0][1] * F.m[1][0];
+  const T m02 = h00 * h22 - F.m[0][2] * F.m[2][0];
+  const T m12 = h11 * h22 - F.m[1][2] * F.m[2][1];
+  const T det_h = h00 * m12 - F.m[0][1] * (F.m[1][0] * h22 - F.m[1][2] * F.m[2][0]) +
+                  F.m[0][2] * (F.m[1][0] * F.m[2][1] - h11 * F.m[2][0]);
+  return (h00 + h11 + h22) + (m01 + m02 + m12) + det_h;
+}
+
 /// F <- (I + dt C) F (MLS-MPM deformation update, Hu et al. 2018 eq. 16 with grad v = C).
 template <typename T>
 FBAR_HOST_DEVICE constexpr Mat3<T> advance_deformation_gradient(const Mat3<T>& F, const Mat3<T>& C, T dt) {

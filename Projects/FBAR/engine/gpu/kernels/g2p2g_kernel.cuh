@@ -870,7 +870,8 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
     const ParticleDest d =
         g2p2g_detail::claim_block_rank<TG>(s.has_key, s.key, p.table, p.next_count, p.grid_next, p.grid_this,
                                            own_key, block);
-    if (active) p.dest[slot] = s.emigrant >= 0 ? ParticleDest{kEmigrant, s.emigrant} : d;
+    // Every lane of the bin (kNoParticle for the padding): scatter_src then reads no validity array.
+    p.dest[slot] = !active ? ParticleDest{kNoParticle, 0} : s.emigrant >= 0 ? ParticleDest{kEmigrant, s.emigrant} : d;
     // The emigrants' slots, listed so that the migration reads those few instead of every slot's destination.
     if (active && s.emigrant >= 0 && p.emigrant_slots) {
       const int k = atomicAdd(&p.body_stats->emigrant_list, 1);

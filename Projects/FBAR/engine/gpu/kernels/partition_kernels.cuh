@@ -59,21 +59,34 @@ __global__ void __launch_bounds__(kPartitionThreads)
   if (active) dest[slot] = emigrant >= 0 ? ParticleDest{kEmigrant, emigrant} : d;
 }
 
-/// Every block holding particles of the body activates the other 7 blocks of its 2x2x2 arena.
+/// Every block holding particles of the body activates the other 7 blocks of its 2x2x2 arena. A neighbour already
+/// in the block's arena cache (BlockHashTableView::arena) is in the table: no lookup; one inserted or found here is
+/// cached, so a block that keeps its particles costs one 32-byte read a step.
 template <typename T>
 __global__ void __launch_bounds__(kPartitionThreads)
     activate_footprint(const int* count, int block_limit, BlockHashTableView table, GridSums<T> grid_a,
                        GridSums<T> grid_b) {
   const int b = blockIdx.x * blockDim.x + threadIdx.x;
   if (b >= block_limit || b >= table.counters->block_count || count[b] == 0) return;
-  const Vec3i c = table.block_coords(b);
+  const int4* cached = reinterpret_cast<const int4*>(table.arena + 8 * static_cast<std::size_t>(b));
+  const int4 lo = cached[0], hi = cached[1];
+  const int known[8] = {lo.x, lo.y, lo.z, lo.w, hi.x, hi.y, hi.z, hi.w};
+  Vec3i c{};
+  bool have_coords = false;
+#pragma unroll
   for (int n = 1; n < 8; ++n) {
+    if (known[n] >= 0) continue;
+    if (!have_coords) {
+      c = table.block_coords(b);
+      have_coords = true;
+    }
     bool inserted = false;
     const int index = table.insert(BlockKey::arena_neighbour(c, n), inserted);
     if (inserted) {
       grid_a.zero_block(index);
       grid_b.zero_block(index);
     }
+    if (index >= 0) table.arena[8 * static_cast<std::size_t>(b) + n] = index;
   }
 }
 
@@ -93,26 +106,41 @@ static __global__ void finalize_layout(const int* bin_offset, int capacity, int 
   stats->table_overflow = counters->overflow;
 }
 
-/// src_next[offset(block) * 32 + rank] = slot for every particle of the previous layout (valid[slot] >= 0, or
-/// slot < particles when valid is nullptr).
+/// Slots one thread of scatter_src places (kPartitionThreads apart, so each pass is coalesced).
+inline constexpr int kScatterSlotsPerThread = 8;
+
+/// src_next[offset(block) * 32 + rank] = slot for every particle of the previous layout: slots whose dest names a
+/// block (a G2P2G wrote every slot of its bins: kNoParticle marks the padding), or, with `valid`, only slots with
+/// valid[slot] >= 0 (dest written for those alone: the partition from positions), or with `particles` >= 0 only
+/// slots below it (the flat upload). Launch cuda::grid_for(slots, kPartitionThreads * kScatterSlotsPerThread).
 static __global__ void __launch_bounds__(kPartitionThreads)
     scatter_src(const ParticleDest* dest, const int* valid, int particles, int slots, const int* bin_offset,
                 int* src_next, int bin_capacity, BodyStepStats* body_stats) {
-  const int slot = blockIdx.x * blockDim.x + threadIdx.x;
-  bool placed = false;
-  if (slot < slots && (valid ? valid[slot] >= 0 : slot < particles)) {
+  const int first = blockIdx.x * (kPartitionThreads * kScatterSlotsPerThread) + threadIdx.x;
+  int placed = 0;
+#pragma unroll
+  for (int k = 0; k < kScatterSlotsPerThread; ++k) {
+    const int slot = first + k * kPartitionThreads;
+    if (slot >= slots) break;
+    if (valid ? valid[slot] < 0 : (particles >= 0 && slot >= particles)) continue;
     const ParticleDest d = dest[slot];
-    if (d.block >= 0) {
-      const long long target = static_cast<long long>(bin_offset[d.block]) * 32 + d.rank;
-      if (target < static_cast<long long>(bin_capacity) * 32) {
-        src_next[target] = slot;
-        placed = true;
-      }
+    if (d.block < 0) continue;
+    const long long target = static_cast<long long>(bin_offset[d.block]) * 32 + d.rank;
+    if (target < static_cast<long long>(bin_capacity) * 32) {
+      src_next[target] = slot;
+      ++placed;
     }
   }
-  // One atomic per CUDA block: a per-warp atomic on this one counter serialised in L2 and was most of this kernel.
-  const int block_placed = __syncthreads_count(placed);
-  if (threadIdx.x == 0 && block_placed) atomicAdd(&body_stats->particles, block_placed);
+  // One atomic per CUDA block of 2,048 slots: same-address atomics serialise in L2.
+  __shared__ int warp_placed[kPartitionThreads / 32];
+  placed = __reduce_add_sync(0xffffffffu, placed);
+  if (threadIdx.x % 32 == 0) warp_placed[threadIdx.x / 32] = placed;
+  __syncthreads();
+  if (threadIdx.x == 0) {
+    int block_placed = 0;
+    for (int w = 0; w < kPartitionThreads / 32; ++w) block_placed += warp_placed[w];
+    if (block_placed) atomicAdd(&body_stats->particles, block_placed);
+  }
 }
 
 /// Lanes past the last particle of each block's last bin get src = -1.
