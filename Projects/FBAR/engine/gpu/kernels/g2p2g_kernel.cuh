@@ -65,7 +65,10 @@ namespace fbar {
 static_assert(settings::kBinSize == 32, "one warp processes one bin: lane = particle");
 static_assert(settings::kArenaSide == 8 && settings::kBlockSide == 4, "the arena is 2x2x2 blocks of 4x4x4 nodes");
 
-inline constexpr int kG2P2GThreads = 128;                 ///< 4 warps per particle block
+/// 2 warps per particle block: 12 CUDA blocks per SM in float (shared memory: 12 x 17.4 KB arenas), so that while
+/// some blocks set up their arena or flush it others run particles; 4 warps (6 blocks per SM) took 1.5-5 % longer a
+/// step (tools/benchmark/NOTES.md, v13).
+inline constexpr int kG2P2GThreads = 64;
 inline constexpr int kArenaSide = settings::kArenaSide;  ///< nodes per axis of the shared arena (2 grid blocks)
 inline constexpr int kArenaNodes = kArenaSide * kArenaSide * kArenaSide;
 /// Shared-memory stride of one x-plane of the arena: 64 nodes + 4. Unpadded, nodes one x apart are 64 words apart
