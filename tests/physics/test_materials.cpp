@@ -444,6 +444,34 @@ TEST(JFluid, SinglePrecisionPressureNearRestViaOneMinusJ) {
   EXPECT_GT(std::fabs(p_naive - p_ref), 1e-3 * p_ref);
 }
 
+// Single precision evaluates the pressure by its Taylor series in 1 - J where that is within a quarter ulp of the law
+// (JFluid::set_pressure_series): against the double law over |1 - J| up to 1.2 times that limit (log1p / expm1 past
+// it), for gamma 1 to 20. The series' truncation (2^-26) plus 12 roundings of a multiply-add and the coefficients'
+// own: tolerance 8 float ulps. The limit for gamma = 7.15 is the one jfluid.cuh quotes.
+TEST(JFluid, SinglePrecisionPressureSeriesMatchesTheLaw) {
+  for (const double gamma : {1.0, 3.0, 7.15, 20.0}) {
+    SCOPED_TRACE(gamma);
+    const double K = 2e6;
+    const auto pf = JFluid::make_params<float>(fluid_spec(K, gamma, 0.0, 1000.0));
+    const auto pd = JFluid::make_params<double>(fluid_spec(K, gamma, 0.0, 1000.0));
+    ASSERT_GT(pf.series_limit, 0.0f);
+    EXPECT_LT(pd.series_limit, 0.0);  // double keeps log1p / expm1
+    if (gamma == 7.15) {
+      EXPECT_NEAR(pf.series_limit, 0.108, 1e-3);
+    }
+    double worst = 0;
+    for (int i = 0; i <= 4000; ++i) {
+      const float omj = static_cast<float>(pf.series_limit * (-1.2 + 2.4 * i / 4000.0));
+      const double ref = JFluid::pressure(pd, JFluidState<double>{static_cast<double>(omj)});
+      const float got = JFluid::pressure(pf, JFluidState<float>{omj});
+      EXPECT_NEAR(got, ref, 8 * test::kEpsF * std::fabs(ref)) << "1 - J = " << omj;
+      if (ref != 0) worst = std::max(worst, std::fabs(got - ref) / std::fabs(ref));
+    }
+    std::printf("[measured] JFluid float pressure, gamma %g: series up to |1 - J| = %g, worst %.2e relative\n", gamma,
+                static_cast<double>(pf.series_limit), worst);
+  }
+}
+
 // physics/frame_attributes.h: an output attribute is available where the material's state has its quantity.
 TEST(MaterialSupportsAttribute, FollowsTheMaterialsState) {
   EXPECT_TRUE(material_supports_attribute(Constitutive::JFluid, "Pressure"));

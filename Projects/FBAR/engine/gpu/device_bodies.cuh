@@ -370,7 +370,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
       f.volume = p.volume;
       f.inv_dx = p.inv_dx;
       f.stats = p.stats;
-      ::fbar::fbar_cell_sums<M, T, TG><<<blocks, kG2P2GThreads, 0, e.stream_>>>(f);
+      ::fbar::fbar_cell_sums<M, T, TG><<<blocks, kParticleBlockThreads, 0, e.stream_>>>(f);
       cuda::check_launch("fbar_cell_sums");
       if (e.decomposed()) e.halo_exchange({HaloBuffer{e.fbar_sums_.data(), FbarSumBuffer<TG>::kBlockBytes, true}}, -1);
     }
@@ -388,17 +388,17 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     const std::size_t arena = g2p2g_arena_bytes<TG>(transport);
     const bool capture = p.capture.x != nullptr;
     if (initial)
-      ::fbar::g2p2g<M, T, TG, true, false><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
+      ::fbar::g2p2g<M, T, TG, true, false><<<blocks, kG2P2GThreads<TG>, arena, e.stream_>>>(p);
     else if (mesh)
       launch_mesh_g2p2g(p, blocks, arena, transport, e.stream_);
     else if (transport && capture)
-      ::fbar::g2p2g<M, T, TG, false, true, true><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
+      ::fbar::g2p2g<M, T, TG, false, true, true><<<blocks, kG2P2GThreads<TG>, arena, e.stream_>>>(p);
     else if (transport)
-      ::fbar::g2p2g<M, T, TG, false, true><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
+      ::fbar::g2p2g<M, T, TG, false, true><<<blocks, kG2P2GThreads<TG>, arena, e.stream_>>>(p);
     else if (capture)
-      ::fbar::g2p2g<M, T, TG, false, false, true><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
+      ::fbar::g2p2g<M, T, TG, false, false, true><<<blocks, kG2P2GThreads<TG>, arena, e.stream_>>>(p);
     else
-      ::fbar::g2p2g<M, T, TG, false, false><<<blocks, kG2P2GThreads, arena, e.stream_>>>(p);
+      ::fbar::g2p2g<M, T, TG, false, false><<<blocks, kG2P2GThreads<TG>, arena, e.stream_>>>(p);
     cuda::check_launch("g2p2g");
     if (mesh && pass == G2P2GPass::All && !e.measuring_bound_) mesh_pass(e);
   }
@@ -408,9 +408,9 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
                                 cudaStream_t s) {
     if constexpr (kMeshLaw<M, T>) {
       if (transport)
-        ::fbar::g2p2g<M, T, TG, false, true, false, true><<<blocks, kG2P2GThreads, arena, s>>>(p);
+        ::fbar::g2p2g<M, T, TG, false, true, false, true><<<blocks, kG2P2GThreads<TG>, arena, s>>>(p);
       else
-        ::fbar::g2p2g<M, T, TG, false, false, false, true><<<blocks, kG2P2GThreads, arena, s>>>(p);
+        ::fbar::g2p2g<M, T, TG, false, false, false, true><<<blocks, kG2P2GThreads<TG>, arena, s>>>(p);
     } else {
       throw std::logic_error("GpuEngine: a mesh body with a law that is not an element law");
     }
@@ -482,7 +482,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
       f.d_inv = e.k_.d_inv;
       f.gravity = e.k_.gravity;
       f.stats = e.stats_d_;
-      ::fbar::seepage_sums<M, T, TG><<<blocks, kG2P2GThreads, 0, e.stream_>>>(f);
+      ::fbar::seepage_sums<M, T, TG><<<blocks, kParticleBlockThreads, 0, e.stream_>>>(f);
       cuda::check_launch("seepage_sums");
     }
   }

@@ -65,10 +65,15 @@ namespace fbar {
 static_assert(settings::kBinSize == 32, "one warp processes one bin: lane = particle");
 static_assert(settings::kArenaSide == 8 && settings::kBlockSide == 4, "the arena is 2x2x2 blocks of 4x4x4 nodes");
 
-/// 2 warps per particle block: 12 CUDA blocks per SM in float (shared memory: 12 x 17.4 KB arenas), so that while
-/// some blocks set up their arena or flush it others run particles; 4 warps (6 blocks per SM) took 1.5-5 % longer a
-/// step (tools/benchmark/NOTES.md, v13).
-inline constexpr int kG2P2GThreads = 64;
+/// Threads of a G2P2G CUDA block (one particle block) over a grid of TG: float grids 2 warps, so that 12 blocks are
+/// resident per SM (float JFluid: 80 registers, 12 x 17.5 KB of shared memory) and while some set up or flush their
+/// arena others run particles (4 warps, 6 blocks per SM, took 1.7 % longer for JFluid and 4.8 % for FixedCorotated:
+/// tools/benchmark/NOTES.md, v13); double grids 4 warps, where the int64 arena's 35 KB per block allow 6 blocks per
+/// SM and 2 warps would halve the resident warps (double JFluid took 11 % longer).
+template <typename TG>
+inline constexpr int kG2P2GThreads = sizeof(TG) == sizeof(float) ? 64 : 128;
+/// Threads of the other passes with one CUDA block per particle block (F-bar's cell sums, the seepage sums).
+inline constexpr int kParticleBlockThreads = 128;
 inline constexpr int kArenaSide = settings::kArenaSide;  ///< nodes per axis of the shared arena (2 grid blocks)
 inline constexpr int kArenaNodes = kArenaSide * kArenaSide * kArenaSide;
 /// Shared-memory stride of one x-plane of the arena: 64 nodes + 4. Unpadded, nodes one x apart are 64 words apart
@@ -297,13 +302,14 @@ FBAR_DEVICE FBAR_FORCE_INLINE void find_arena_blocks(const BlockHashTableView& t
 template <typename TG>
 FBAR_DEVICE FBAR_FORCE_INLINE void load_arena_velocities(const typename GridLayout<TG>::VelocityBuffer& velocity,
                                                          const int* arena_blocks, ArenaVelocity<TG>* arena_v) {
-  static_assert(kArenaNodes % kG2P2GThreads == 0, "every thread loads the same number of nodes");
+  constexpr int kThreads = kG2P2GThreads<TG>;
+  static_assert(kArenaNodes % kThreads == 0, "every thread loads the same number of nodes");
   // Unrolled: a thread's loads of all its nodes are in flight together.
 #if FBAR_IN_DEVICE_CODE
 #pragma unroll
 #endif
-  for (int r = 0; r < kArenaNodes / kG2P2GThreads; ++r) {
-    const int i = static_cast<int>(threadIdx.x) + r * kG2P2GThreads;
+  for (int r = 0; r < kArenaNodes / kThreads; ++r) {
+    const int i = static_cast<int>(threadIdx.x) + r * kThreads;
     const int a = i >> 6, b = (i >> 3) & 7, c = i & 7;
     const int nb = arena_blocks[arena_neighbour(a, b, c)];
     const int node = arena_node_in_block(a, b, c);
@@ -720,7 +726,7 @@ inline constexpr double kNoWave = -1.0e300;
 template <typename M, typename T, typename TG>
 FBAR_DEVICE FBAR_FORCE_INLINE void reduce_block_maxima(const G2P2GParams<M, T, TG>& p, double wave_max,
                                                        double bound_max, bool out_of_range,
-                                                       double (*block_max)[kG2P2GThreads / 32], int& block_over) {
+                                                       double (*block_max)[kG2P2GThreads<TG> / 32], int& block_over) {
   const int lane = threadIdx.x % 32;
   const int warp = threadIdx.x / 32;
   wave_max = warp_max(wave_max);
@@ -734,7 +740,7 @@ FBAR_DEVICE FBAR_FORCE_INLINE void reduce_block_maxima(const G2P2GParams<M, T, T
   __syncthreads();
   if (threadIdx.x == 0) {
     double wave = kNoWave, bound = 0.0;
-    for (int w = 0; w < kG2P2GThreads / 32; ++w) {
+    for (int w = 0; w < kG2P2GThreads<TG> / 32; ++w) {
       wave = fmax(wave, block_max[0][w]);
       bound = fmax(bound, block_max[1][w]);
     }
@@ -783,7 +789,8 @@ FBAR_DEVICE FBAR_FORCE_INLINE void flush_arena(const G2P2GParams<M, T, TG>& p, c
 /// kMesh: a mesh body's vertices (physics/fem.cuh): the state kept, no inversion check, the vertex's mass and no
 /// stress in P2G (the initial launch decides at run time from p.vertex_mass).
 template <typename M, typename T, typename TG, bool kInitial, bool kTransport, bool kCapture = false, bool kMesh = false>
-__global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) {
+__global__ void __launch_bounds__(kG2P2GThreads<TG>) g2p2g(G2P2GParams<M, T, TG> p) {
+  constexpr int kThreads = kG2P2GThreads<TG>;
   // The initial launch's first pass measures the bound the second one uses (nothing else is written).
   const bool measure = kInitial && p.bound_only;
   // (x, y, z) grid velocities of the 8x8x8-node arena (vx, vy, vz, pad per node), index arena_index(x, y, z) =
@@ -802,7 +809,7 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
   // (neighbour) hash-table index of the arena's 2x2x2 grid blocks, neighbour = (di * 2 + dj) * 2 + dk.
   __shared__ int arena_blocks[8];
   // (quantity, warp) per-warp maxima of the wave speed and the P2G bound; whether a particle exceeded the bound.
-  __shared__ double block_max[2][kG2P2GThreads / 32];
+  __shared__ double block_max[2][kThreads / 32];
   __shared__ int block_over;
 
   const int block = p.order_first >= 0 ? p.layout.order[p.order_first + static_cast<int>(blockIdx.x)]
@@ -823,7 +830,7 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
     static_assert((kArenaStorage * sizeof(float)) % sizeof(uint4) == 0, "the arena is zeroed in 16-byte words");
     uint4* const words = reinterpret_cast<uint4*>(arena_p);
     const int n = channels * static_cast<int>(kArenaStorage * sizeof(TG) / sizeof(uint4));
-    for (int i = threadIdx.x; i < n; i += kG2P2GThreads) words[i] = make_uint4(0u, 0u, 0u, 0u);
+    for (int i = threadIdx.x; i < n; i += kThreads) words[i] = make_uint4(0u, 0u, 0u, 0u);
   }
 
   // Fixed-point quanta of this block [kg], [kg m/s] and their inverses; limit: the bound every particle must meet.
@@ -852,10 +859,10 @@ __global__ void __launch_bounds__(kG2P2GThreads) g2p2g(G2P2GParams<M, T, TG> p) 
   const std::uint64_t own_key = BlockKey::pack(origin[0], origin[1], origin[2]);
   double bound_max = 0.0, wave_max = g2p2g_detail::kNoWave;
   bool out_of_range = false;
-  for (int bin = warp; bin < bins; bin += kG2P2GThreads / 32) {
+  for (int bin = warp; bin < bins; bin += kThreads / 32) {
     const int slot = (first_bin + bin) * 32 + lane;
     const int src = src_ahead;
-    if (bin + kG2P2GThreads / 32 < bins) src_ahead = p.layout.src[slot + kG2P2GThreads];
+    if (bin + kThreads / 32 < bins) src_ahead = p.layout.src[slot + kThreads];
     const bool active = src >= 0;
     g2p2g_detail::LaneParticle<M, T> s;
     int id = INT_MAX;
@@ -901,7 +908,7 @@ struct FbarCellSumsParams {
 };
 
 template <typename M, typename T, typename TG>
-__global__ void __launch_bounds__(kG2P2GThreads) fbar_cell_sums(FbarCellSumsParams<M, T, TG> p) {
+__global__ void __launch_bounds__(kParticleBlockThreads) fbar_cell_sums(FbarCellSumsParams<M, T, TG> p) {
   __shared__ int arena_blocks[8];
   const int block = blockIdx.x;
   const int count = p.layout.count[block];

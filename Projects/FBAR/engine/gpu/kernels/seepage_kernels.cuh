@@ -58,7 +58,7 @@ struct SeepageSumsParams {
 inline constexpr int kSeepageChannels = 5;
 
 template <typename M, typename T, typename TG>
-__global__ void __launch_bounds__(kG2P2GThreads) seepage_sums(SeepageSumsParams<M, T, TG> p) {
+__global__ void __launch_bounds__(kParticleBlockThreads) seepage_sums(SeepageSumsParams<M, T, TG> p) {
   static_assert(IsPoreFluid<M>::value, "seepage_sums runs for saturated materials only");
   using g2p2g_detail::arena_index;
   using Fixed = g2p2g_detail::FixedArena<TG>;
