@@ -48,7 +48,7 @@ void MgspBenchmark<T, TG>::reset_stats(bool partition_only) {
 }
 
 template <typename T, typename TG>
-void MgspBenchmark<T, TG>::partition_after_g2p2g() {
+void MgspBenchmark<T, TG>::partition_after_g2p2g(bool dest_complete) {
   const int next = 1 - cur_;
   for (auto& bp : bodies_) {
     BodyBase& b = *bp;
@@ -70,10 +70,11 @@ void MgspBenchmark<T, TG>::partition_after_g2p2g() {
                                           body_stats_d_ + b.index, stats_d_, table_.counters());
     cuda::check_launch("finalize_layout");
     // The previous layout's slots: those of layout(cur) (a G2P2G wrote bins[next] in that order, and a dest for
-    // every slot of its bins), or the flat upload before the first layout exists. Decomposed, the received
-    // particles' slots follow the layout's: layout(cur).src says which slots hold particles.
+    // every slot of its bins), or the flat upload before the first layout exists. Decomposed (the received
+    // particles' slots follow the layout's) or after dest was rewritten from positions for the valid slots alone
+    // (handle_overflow: a bin growth reallocates dest), layout(cur).src says which slots hold particles.
     const bool flat = flat_source_;
-    const int* valid = !flat && decomposed() ? b.partition.layout(cur_).src : nullptr;
+    const int* valid = !flat && (decomposed() || !dest_complete) ? b.partition.layout(cur_).src : nullptr;
     const int slots = flat ? b.particles : b.source_slots;
     if (slots > 0) {
       scatter_src<<<cuda::grid_for(slots, kPartitionThreads * kScatterSlotsPerThread), kPartitionThreads, 0,
@@ -258,7 +259,7 @@ bool MgspBenchmark<T, TG>::handle_overflow() {
     else
       b->dest_from_positions(*this, next, b->partition.layout(cur_).src, 0, b->source_slots);
   }
-  partition_after_g2p2g();
+  partition_after_g2p2g(false);
   read_stats();
   return true;
 }

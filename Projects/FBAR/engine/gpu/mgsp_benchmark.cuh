@@ -241,7 +241,9 @@ class MgspBenchmark {
 
   // ---------------------------------------------------------------- step pieces
   void reset_stats(bool partition_only);
-  void partition_after_g2p2g();          ///< footprint, scan, finalize, src scatter for every body
+  /// Footprint, scan, finalize, src scatter for every body. dest_complete: this try's G2P2G wrote the dest of every
+  /// slot of layout(cur) (false when dest was rewritten from positions for the valid slots alone).
+  void partition_after_g2p2g(bool dest_complete = true);
   void read_stats();                     ///< the one small copy + synchronisation of a step
   bool handle_overflow();                ///< grows what overflowed and redoes the partition; true if it did
   void grow_blocks(int needed);

@@ -70,6 +70,7 @@ class PartitionDomain {
       FBAR_CUDA_CHECK(cudaMemset(bin_offset_[l], 0, sizeof(int) * (blocks + 1)));
     }
     dest_ = static_cast<ParticleDest*>(cuda::device_malloc(sizeof(ParticleDest) * slots(), "partition arrays"));
+    FBAR_CUDA_CHECK(cudaMemset(dest_, 0xff, sizeof(ParticleDest) * slots()));  // block -1: no destination
     bins_per_block_ = static_cast<int*>(cuda::device_malloc(sizeof(int) * (blocks + 1), "partition arrays"));
     allocate_order(blocks);
   }
@@ -102,7 +103,8 @@ class PartitionDomain {
     block_capacity_ = blocks;
   }
 
-  /// Grows the per-slot arrays: src of layout `keep` is kept, the other src and dest are reallocated empty.
+  /// Grows the per-slot arrays: src of layout `keep` is kept, the other src and dest are reallocated empty (dest:
+  /// block -1, no destination).
   void grow_bins(int bins, int keep, cudaStream_t stream) {
     const std::size_t new_slots = static_cast<std::size_t>(bins) * 32;
     for (int l = 0; l < 2; ++l) {
@@ -117,6 +119,7 @@ class PartitionDomain {
     }
     cudaFree(dest_);
     dest_ = static_cast<ParticleDest*>(cuda::device_malloc(sizeof(ParticleDest) * new_slots, "partition arrays"));
+    FBAR_CUDA_CHECK(cudaMemsetAsync(dest_, 0xff, sizeof(ParticleDest) * new_slots, stream));
     bin_capacity_ = bins;
   }
 
