@@ -403,27 +403,20 @@ TEST(GpuVsCpu, CapacityGrowthMatchesCpu) {
 // A bin growth inside a step (MgspBenchmark::handle_overflow): 32 one-cell boxes of 8 particles, each alone in its
 // particle block and two blocks from the next box along x (32 bins; a capacity of 36 holds them without growing
 // between steps), move 0.8 dx along x in one step, so half of each box crosses into the empty block next to it and
-// the next layout needs 64 bins. The engine grows the bins
-// inside the step (reallocating the destinations G2P2G wrote) and partitions again from the particles' positions;
-// every particle must be placed (the engine checks the count) and land where the CPU engine puts it.
+// the next layout needs 64 bins. The engine grows the bins inside the step (reallocating the destinations G2P2G
+// wrote) and partitions again from the particles' positions; every particle must be placed (the engine checks the
+// count) and land where the CPU engine puts it.
 TEST(GpuVsCpu, BinGrowthInsideAStepMatchesCpu) {
   FBAR_REQUIRE_DEVICE();
-  Scene scene;
-  scene.simulation.domain = {1.0, 1.0, 1.0};
-  scene.simulation.dx = 0.05;
-  scene.simulation.default_dt = 1e-3;
+  const double speed = 1.0;
+  // small_scene's JFluid (dx 0.05 in a 1 m domain), without walls, gravity or viscosity, its block replaced by the
+  // boxes below.
+  Scene scene = test::small_scene(Constitutive::JFluid, Precision::Single, {speed, 0.0, 0.0}, false);
   scene.simulation.gravity = {0.0, 0.0, 0.0};
-  scene.simulation.precision = Precision::Single;
-  BodySpec body;
-  body.material.law = Constitutive::JFluid;
-  body.material.ppc = 8;
-  body.material.cfl = 0.5;
-  body.material.rho = 1000;
-  body.material.bulk_modulus = 2e6;
-  body.material.gamma = 7.1;
+  BodySpec& body = scene.bodies[0];
   body.material.viscosity = 0.0;
-  body.algorithm.use_asflip = false;
-  body.algorithm.use_fbar = false;
+  body.output_attribs = {"ID"};
+  body.geometry.clear();
   const double dx = scene.simulation.dx;
   // A particle at x belongs to the block of its stencil base minus one, floor((floor(x / dx - 0.5) - 1) / 4): the
   // cells 4q + 4 (x) and 4q + 3 (y, z) keep both particle planes of a cell in block q; 0.8 dx along x moves the
@@ -438,10 +431,6 @@ TEST(GpuVsCpu, BinGrowthInsideAStepMatchesCpu) {
         box.offset = {(4 * qx + 4) * dx, cy * dx, cz * dx};
         body.geometry.push_back(box);
       }
-  const double speed = 1.0;
-  body.velocity = {speed, 0.0, 0.0};
-  body.output_attribs = {"ID"};
-  scene.bodies.push_back(body);
   const auto positions = test::sample_scene(scene);
   ASSERT_EQ(positions[0].size(), 32u * 8u);
   GpuEngineOptions options;

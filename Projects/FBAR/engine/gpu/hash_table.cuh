@@ -93,6 +93,18 @@ struct BlockHashTableView {
     return index;
   }
 
+  /// As find_arena, inserting the neighbour when the table lacks it (`inserted`: this call created it). -1 (and the
+  /// overflow counter raised) as insert.
+  FBAR_DEVICE int insert_arena(int block, const Vec3i& origin, int n, bool& inserted) const {
+    inserted = false;
+    int index = arena[8 * block + n];
+    if (index < 0) {
+      index = insert(BlockKey::arena_neighbour(origin, n), inserted);
+      if (index >= 0) arena[8 * block + n] = index;
+    }
+    return index;
+  }
+
   /// Index of the block `key`, or -1 when it is not in the table. For launches after the inserting one.
   FBAR_DEVICE int find(std::uint64_t key) const {
     std::uint32_t slot = static_cast<std::uint32_t>(BlockKey::hash(key)) & slot_mask;

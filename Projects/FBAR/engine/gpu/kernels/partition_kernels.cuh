@@ -59,34 +59,23 @@ __global__ void __launch_bounds__(kPartitionThreads)
   if (active) dest[slot] = emigrant >= 0 ? ParticleDest{kEmigrant, emigrant} : d;
 }
 
-/// Every block holding particles of the body activates the other 7 blocks of its 2x2x2 arena. A neighbour already
-/// in the block's arena cache (BlockHashTableView::arena) is in the table: no lookup; one inserted or found here is
-/// cached, so a block that keeps its particles costs one 32-byte read a step.
+/// Every block holding particles of the body activates the other 7 blocks of its 2x2x2 arena. Through the arena
+/// cache (BlockHashTableView::insert_arena): a block that keeps its particles reads its 32 cached bytes and looks
+/// nothing up.
 template <typename T>
 __global__ void __launch_bounds__(kPartitionThreads)
     activate_footprint(const int* count, int block_limit, BlockHashTableView table, GridSums<T> grid_a,
                        GridSums<T> grid_b) {
   const int b = blockIdx.x * blockDim.x + threadIdx.x;
   if (b >= block_limit || b >= table.counters->block_count || count[b] == 0) return;
-  const int4* cached = reinterpret_cast<const int4*>(table.arena + 8 * static_cast<std::size_t>(b));
-  const int4 lo = cached[0], hi = cached[1];
-  const int known[8] = {lo.x, lo.y, lo.z, lo.w, hi.x, hi.y, hi.z, hi.w};
-  Vec3i c{};
-  bool have_coords = false;
-#pragma unroll
+  const Vec3i c = table.block_coords(b);
   for (int n = 1; n < 8; ++n) {
-    if (known[n] >= 0) continue;
-    if (!have_coords) {
-      c = table.block_coords(b);
-      have_coords = true;
-    }
     bool inserted = false;
-    const int index = table.insert(BlockKey::arena_neighbour(c, n), inserted);
+    const int index = table.insert_arena(b, c, n, inserted);
     if (inserted) {
       grid_a.zero_block(index);
       grid_b.zero_block(index);
     }
-    if (index >= 0) table.arena[8 * static_cast<std::size_t>(b) + n] = index;
   }
 }
 
