@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# The multi-GPU checks and scaling of issues 10 (two GPUs) and 14 (four GPUs) on a machine with 2 or more GPUs
-# (nvidia-h200-x2, nvidia-h200-x4, ...). Uses the binaries in BIN (default build/release) and writes logs to $OUT (or
-# ./out); prints a short table last.
+# The multi-GPU checks and scaling on a machine with 2 or more GPUs (two GPUs: the decomposition's correctness and
+# 2-GPU scaling; four: the same on 4 GPUs). Uses the binaries in BIN (default build/release) and writes logs to $OUT
+# (or ./out); prints a short table last.
 #   tools/benchmark/run_multi_gpu.sh                  every stage the visible GPUs allow
 #   STAGES="two four" STRONG2=32 STRONG4=64 WEAK=16 STEPS=50 tools/benchmark/run_multi_gpu.sh
 # Stages (each skipped when fewer GPUs are visible than it needs):

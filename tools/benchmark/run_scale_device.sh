@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
-# One device call for the scale work (issue 16): GPU tests, the engine benchmark rows (compact tank_box and spreading
+# The one-GPU scale runs on a GPU machine: GPU tests, the engine benchmark rows (compact tank_box and spreading
 # dam_break, single precision), then the command-line runs of the large tank scenes with device and host peaks.
-#   tools/benchmark/run_scale_device.sh BIN_DIR "SIZES" [scene.json ...]     (binaries built here, carried)
+#   tools/benchmark/run_scale_device.sh BIN_DIR "SIZES" [scene.json ...]
+# BIN_DIR is a build of this source tree (build/release, say); run the script from the tree's root, at the path the
+# build was configured in (the tests find their files through FBAR_SOURCE_DIR, compiled in).
 set -uo pipefail
 OUT=${OUT:-$PWD/out}
 mkdir -p "$OUT"
 BIN=$1; SIZES=$2; shift 2
-[ -e /work/main ] || { mkdir -p /work && ln -s "$PWD" /work/main; }  # FBAR_SOURCE_DIR of a build made here
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader | tee "$OUT/device.txt"
 if [ -x "$BIN/gpu_engine_tests" ] && [ "${FBAR_SKIP_TESTS:-0}" != "1" ]; then
   "$BIN/gpu_engine_tests" --gtest_brief=1 > "$OUT/gpu_tests.log" 2>&1
