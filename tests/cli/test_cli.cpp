@@ -277,6 +277,33 @@ TEST(Cli, RunWritesRunJsonWithTheResolvedScene) {
   EXPECT_TRUE(ran == expected) << sb.GetString();
 }
 
+// A scene of one FEM mesh and no particle body runs on the CPU reference engine: the mesh's frames (its 648
+// vertices), its tracker and sensor files, and run.json completed.
+TEST(Cli, MeshOnlySceneRuns) {
+  const fs::path out = scratch("mesh_only") / "out";
+  const CliResult r = run_cli({"--backend=cpu", "--quiet", "--output=" + out.string(),
+                               (kScenes / "good" / "mesh_only_post.json").string()});
+  ASSERT_EQ(r.code, 0) << r.err;
+  for (int f : {0, 1}) {
+    std::ifstream frame(out / ("model[0]_dev[0]_frame[" + std::to_string(f) + "].csv"));
+    ASSERT_TRUE(frame) << "frame " << f;
+    std::string line;
+    int rows = -1;  // the header
+    while (std::getline(frame, line)) ++rows;
+    EXPECT_EQ(rows, 648) << "frame " << f;
+  }
+  EXPECT_TRUE(fs::exists(out / "particleTrack_model[0]_dev[0].csv"));
+  EXPECT_TRUE(fs::exists(out / "gridTarget[0]_dev[0].csv"));
+  std::ifstream in(out / "run.json");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  rapidjson::Document doc;
+  doc.Parse<rapidjson::kParseNanAndInfFlag>(ss.str().c_str());
+  ASSERT_FALSE(doc.HasParseError()) << ss.str();
+  EXPECT_STREQ(doc["status"].GetString(), "completed");
+  EXPECT_EQ(doc["frames_written"].GetInt(), 1);
+}
+
 // SIGTERM (a batch system's time limit, `kill`, `timeout`) stops the run at the next step with a checkpoint: run.json
 // says "interrupted" with the signal, the step, the last frame written and the checkpoint, and the exit code is
 // 128 + 15 as a shell reports a killed process. A SIGTERM repeated at once does not end the process. --restart from

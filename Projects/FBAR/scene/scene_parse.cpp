@@ -551,12 +551,22 @@ Scene parse_document(const rj::Document& doc, Context& ctx) {
   const SimulationRead sim = parse_simulation(root.get("simulation"), ctx);
   scene.simulation = sim.spec;
 
-  std::string bodies_path = "bodies";
-  const rj::Value* bodies = optional_array(root, {"bodies", "models"}, bodies_path, "a non-empty array of bodies");
-  if (!bodies) root.missing("bodies", "a non-empty array of bodies");
-  if (bodies->Size() == 0) throw SceneError(bodies_path, "[]", "a non-empty array of bodies");
+  // A scene of FEM meshes alone (a structure under its own weight) has no particle body: `bodies` may then be absent
+  // or empty; a scene with neither is an error (naming bodies, or meshes when only that key is given).
+  std::string bodies_path = "bodies", meshes_path = "meshes";
+  const char* const kBodiesExpected = "a non-empty array of bodies (or of meshes)";
+  const rj::Value* bodies = optional_array(root, {"bodies", "models"}, bodies_path, kBodiesExpected);
+  const rj::Value* meshes = optional_array(root, {"meshes"}, meshes_path, "an array of mesh objects");
+  const bool has_meshes = meshes && meshes->Size() > 0;
+  if (!bodies && !has_meshes) {
+    if (meshes) throw SceneError(meshes_path, "[]", "a non-empty array of meshes (or a non-empty array of bodies)");
+    root.missing("bodies", kBodiesExpected);
+  }
+  if (bodies && bodies->Size() == 0 && !has_meshes) throw SceneError(bodies_path, "[]", kBodiesExpected);
   std::vector<BodyRead> read;
-  for (rj::SizeType i = 0; i < bodies->Size(); ++i) read.push_back(parse_body((*bodies)[i], index_path(bodies_path, i), ctx));
+  if (bodies)
+    for (rj::SizeType i = 0; i < bodies->Size(); ++i)
+      read.push_back(parse_body((*bodies)[i], index_path(bodies_path, i), ctx));
   assign_models(read, bodies_path);
   for (auto& b : read) {
     if (sim.cfl && !b.cfl_given) b.spec.material.cfl = *sim.cfl;
@@ -597,9 +607,9 @@ Scene parse_document(const rj::Document& doc, Context& ctx) {
   warn_claymoreuw_sensor_frequencies(scene.particle_sensors, "particle-sensors", ctx);
   // FEM meshes: each entry's mesh files are read and checked now (a bad mesh is named by --check), and each becomes
   // a body after the particle bodies (append_mesh_bodies, below).
-  if (auto* a = optional_array(root, {"meshes"}, path, "an array of mesh objects")) {
-    for (rj::SizeType i = 0; i < a->Size(); ++i)
-      scene.meshes.push_back(read_mesh_entry((*a)[i], index_path(path, i), ctx, scene.simulation.domain,
+  if (meshes) {
+    for (rj::SizeType i = 0; i < meshes->Size(); ++i)
+      scene.meshes.push_back(read_mesh_entry((*meshes)[i], index_path(meshes_path, i), ctx, scene.simulation.domain,
                                              scene.simulation.froude_scaling_applied ? scene.simulation.froude_scaling : 1.0));
   }
   for (const char* k : kWrapperKeys)
