@@ -5,7 +5,11 @@
 #include <rapidjson/writer.h>
 #include <rapidjson/stringbuffer.h>
 
+#include <unistd.h>
+
+#include <cerrno>
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <ctime>
 #include <exception>
@@ -16,6 +20,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <system_error>
 #include <thread>
 #include <vector>
 
@@ -91,7 +96,8 @@ const char* kHelp =
     "  --halo-overlap=on|off   GPU ranks: run G2P2G on the particle blocks next to the cuts first and the rest\n"
     "                          while the halo sums travel (default off: between GPUs of one node the sums are\n"
     "                          faster than the overlap costs; on can pay between nodes on slow links)\n"
-    "  --allow-unknown-keys    unknown keys (and parameters the chosen law does not use) are warnings, not errors\n"
+    "  --allow-unknown-keys    unknown keys (a misspelling, a key the object does not have) are warnings, not\n"
+    "                          errors (keys the chosen law or object does not use are warnings already)\n"
     "  --data-dir=DIR          where geometry and motion files are looked up first (then $AssetDirPath, the\n"
     "                          scene's folder and the source tree's Data/)\n"
     "  --restart=FILE          continue the run from a checkpoint (checkpoint_frame[f]_dev[0].h5 or\n"
@@ -228,9 +234,9 @@ std::string utc_now() {
   return buf;
 }
 
-/// run.json: the resolved scene and how the run went, next to the frames.
-void write_run_json(const fs::path& path, const Scene& scene, const std::vector<std::string>& command_line,
-                    const std::string& started, double wall_s, const RunResult& result, bool gpu, int ranks) {
+/// run.json's text: the resolved scene and how the run went (running: the record written at the start).
+std::string run_json_text(const Scene& scene, const std::vector<std::string>& command_line, const std::string& started,
+                          double wall_s, const RunResult& result, bool gpu, int ranks, bool running) {
   rj::Document doc(rj::kObjectType);
   auto& a = doc.GetAllocator();
   auto str = [&](const std::string& s) { return rj::Value(s.c_str(), static_cast<rj::SizeType>(s.size()), a); };
@@ -249,9 +255,10 @@ void write_run_json(const fs::path& path, const Scene& scene, const std::vector<
   doc.AddMember("steps", static_cast<int64_t>(result.steps), a);
   doc.AddMember("end_time_s", result.end_time, a);
   doc.AddMember("frames_written", result.frames_written, a);
-  doc.AddMember("status", str(result.exit_code == kExitOk ? "completed"
-                              : result.stop_signal != 0 ? "interrupted"
-                                                        : "failed"),
+  doc.AddMember("status", str(running                     ? "running"
+                              : result.exit_code == kExitOk ? "completed"
+                              : result.stop_signal != 0    ? "interrupted"
+                                                           : "failed"),
                 a);
   if (result.stop_signal != 0) doc.AddMember("signal", str(signal_name(result.stop_signal)), a);
   if (!result.checkpoint.empty()) doc.AddMember("checkpoint", str(result.checkpoint), a);
@@ -265,10 +272,47 @@ void write_run_json(const fs::path& path, const Scene& scene, const std::vector<
   rj::StringBuffer sb;
   rj::Writer<rj::StringBuffer, rj::UTF8<>, rj::UTF8<>, rj::CrtAllocator, rj::kWriteNanAndInfFlag> w(sb);
   doc.Accept(w);
-  std::ofstream out(path);
-  out << indent_json(std::string_view(sb.GetString(), sb.GetSize()));
-  if (!out) throw std::runtime_error("cannot write " + path.string());
+  return indent_json(std::string_view(sb.GetString(), sb.GetSize()));
 }
+
+/// run.json is written when the run starts (status "running") with room reserved after the text (trailing
+/// whitespace, which JSON allows), and rewritten in place at the end: a disk that fills up during the run still
+/// takes the final record, which overwrites blocks the file already holds.
+class RunJson {
+ public:
+  static constexpr std::size_t kReserve = 64 * 1024;  ///< [bytes] beyond the first record (the final one's message)
+
+  /// The first record; false (with `error`) when it cannot be written.
+  bool start(const fs::path& path, const std::string& text, std::string& error) {
+    path_ = path;
+    std::FILE* f = std::fopen(path.c_str(), "wb");
+    if (!f) return failed(error);
+    const std::string room(kReserve, ' ');
+    const bool ok = std::fwrite(text.data(), 1, text.size(), f) == text.size() &&
+                    std::fwrite(room.data(), 1, room.size(), f) == room.size() && std::fflush(f) == 0;
+    const int err = errno;
+    if (std::fclose(f) != 0 || !ok) return failed(error, ok ? errno : err);
+    return true;
+  }
+  /// The final record over the first, the file cut to its length; false (with `error`) when it cannot be written.
+  bool finish(const std::string& text, std::string& error) {
+    std::FILE* f = std::fopen(path_.c_str(), "r+b");
+    if (!f) f = std::fopen(path_.c_str(), "wb");  // removed during the run
+    if (!f) return failed(error);
+    const bool ok = std::fwrite(text.data(), 1, text.size(), f) == text.size() && std::fflush(f) == 0 &&
+                    ftruncate(fileno(f), static_cast<off_t>(text.size())) == 0;
+    const int err = errno;
+    if (std::fclose(f) != 0 || !ok) return failed(error, ok ? errno : err);
+    return true;
+  }
+
+ private:
+  bool failed(std::string& error, int err = errno) const {
+    error = "cannot write " + path_.string() + ": " + std::error_code(err, std::generic_category()).message();
+    return false;
+  }
+  fs::path path_;
+};
 
 /// fbar --check: the scene's report with, when a device is present, its free memory and whether the plan fits.
 int check_scene(const CliOptions& o, const Scene& scene) {
@@ -459,6 +503,15 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
 
   const std::string started = utc_now();
   const auto t0 = std::chrono::steady_clock::now();
+  RunJson run_json;
+  if (rank == 0) {  // before anything runs: a folder that takes no file fails here, not after the run
+    std::string error;
+    if (!run_json.start(out_dir / "run.json", run_json_text(scene, command_line, started, 0.0, RunResult{}, gpu, ranks, true),
+                        error)) {
+      std::cerr << "fbar: error: " << error << " (the output folder, simulation.save_path or --output)\n";
+      return kExitRuntime;
+    }
+  }
   RunOptions ro;
   ro.quiet = o.quiet;
   ro.halo_overlap = o.halo_overlap;
@@ -492,9 +545,17 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
     transport->abort(result.exit_code);
   }
   if (rank != 0) return result.exit_code;  // rank 0 writes run.json and the report
-  write_run_json(out_dir / "run.json", scene, command_line, started, wall_s, result, gpu, ranks);
+  std::string json_error;
+  const bool json_written =
+      run_json.finish(run_json_text(scene, command_line, started, wall_s, result, gpu, ranks, false), json_error);
+  if (!json_written) {
+    // The run's own message first; then why its record could not be kept (run.json then holds the start's record).
+    if (result.exit_code == kExitOk) result.exit_code = kExitRuntime;
+    result.message = (result.message.empty() ? std::string() : result.message + "; ") + json_error +
+                     " (it holds the record written when the run started, status \"running\")";
+  }
   if (result.stop_signal != 0)
-    std::cerr << "fbar: " << result.message << "; run.json written\n";
+    std::cerr << "fbar: " << result.message << (json_written ? "; run.json written" : "") << "\n";
   else if (result.exit_code != kExitOk)
     std::cerr << "fbar: error: " << (result.message.empty() ? "the run failed" : result.message) << '\n';
   return result.exit_code;

@@ -7,7 +7,7 @@
 //
 // Errors are never swallowed: the first job that throws is remembered, every later job is skipped (the run is
 // going to stop anyway, and a full disk would fail them all), and the exception is rethrown by the next
-// submit(), flush() or close() on the engine's thread. The destructor runs the remaining jobs and joins; since a
+// submit(), flush() or close() on the engine's thread, as an OutputError with the job's message. The destructor runs the remaining jobs and joins; since a
 // destructor must not throw, an error nobody has been told about yet is printed to std::cerr there. Call close()
 // to receive it as an exception.
 #pragma once
@@ -25,6 +25,7 @@
 #include <thread>
 #include <utility>
 
+#include "MnSystem/IO/output_error.h"
 #include "MnSystem/IO/particle_io.h"
 
 namespace fbar::io {
@@ -54,11 +55,12 @@ class AsyncWriter {
     space_.wait(lock, [this] { return queue_.size() < max_pending_ || error_; });
     rethrow_locked();
     queue_.push_back(std::move(job));
+    ++submitted_;
     work_.notify_one();
   }
 
-  /// Blocks until every queued job has run. After a failure every call (submit, flush, close) throws: the first
-  /// rethrows the job's own exception, later ones a std::runtime_error carrying its message.
+  /// Blocks until every queued job has run. After a failure every call (submit, flush, close) throws an OutputError:
+  /// the first with the job's message, later ones saying that an earlier job failed, with it.
   void flush() {
     std::unique_lock<std::mutex> lock(mutex_);
     idle_.wait(lock, [this] { return queue_.empty() && !busy_; });
@@ -78,10 +80,16 @@ class AsyncWriter {
     return static_cast<bool>(error_);
   }
 
-  /// Jobs finished successfully so far.
+  /// Jobs finished successfully so far (in order: the first completed() jobs submitted are done).
   std::size_t completed() const {
     std::lock_guard<std::mutex> lock(mutex_);
     return completed_;
+  }
+  /// Jobs submitted so far: after a failure, the jobs up to a count taken at submission are complete when
+  /// completed() has reached it.
+  std::size_t submitted() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return submitted_;
   }
 
  private:
@@ -136,9 +144,9 @@ class AsyncWriter {
     if (!error_) return;
     if (!error_reported_) {
       error_reported_ = true;
-      std::rethrow_exception(error_);
+      throw OutputError(error_message_);
     }
-    throw std::runtime_error("an earlier output job failed: " + error_message_);
+    throw OutputError("an earlier output job failed: " + error_message_);
   }
 
   const std::size_t max_pending_;
@@ -150,7 +158,7 @@ class AsyncWriter {
   bool error_reported_ = false;
   bool busy_ = false;
   bool closed_ = false;
-  std::size_t completed_ = 0;
+  std::size_t completed_ = 0, submitted_ = 0;
   std::thread worker_;
 };
 

@@ -32,11 +32,58 @@ inline std::mutex& hdf5_mutex() {
   return m;
 }
 
+/// HDF5 prints its own error stack (tens of lines) to stderr on every failed call. Inside a Quiet scope it does
+/// not: the caller's message says what failed, with the system's reason taken from the stack (failure()).
+class Quiet {
+ public:
+  Quiet() {
+    H5Eget_auto2(H5E_DEFAULT, &func_, &data_);
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  }
+  Quiet(const Quiet&) = delete;
+  Quiet& operator=(const Quiet&) = delete;
+  ~Quiet() { H5Eset_auto2(H5E_DEFAULT, func_, data_); }
+
+ private:
+  H5E_auto2_t func_ = nullptr;
+  void* data_ = nullptr;
+};
+
+/// The system's reason on HDF5's error stack for the call that just failed ("No space left on device": the file
+/// drivers record "errno = 28, error message = '...'"), or the innermost description when none is there.
+inline std::string system_reason() {
+  struct Found {
+    std::string errno_text, innermost;
+  } found;
+  H5Ewalk2(
+      H5E_DEFAULT, H5E_WALK_DOWNWARD,
+      [](unsigned, const H5E_error2_t* e, void* data) -> herr_t {
+        auto& f = *static_cast<Found*>(data);
+        const std::string desc = e->desc ? e->desc : "";
+        const std::string key = "error message = '";
+        const std::size_t at = desc.find(key);
+        if (at != std::string::npos && f.errno_text.empty()) {
+          const std::size_t end = desc.find('\'', at + key.size());
+          f.errno_text = desc.substr(at + key.size(), end == std::string::npos ? std::string::npos : end - at - key.size());
+        }
+        if (f.innermost.empty() && !desc.empty()) f.innermost = desc;
+        return 0;
+      },
+      &found);
+  return found.errno_text.empty() ? found.innermost : found.errno_text;
+}
+
+/// "HDF5: cannot <what>: <the system's reason>" for the call that just failed.
+inline std::runtime_error failure(const std::string& what) {
+  const std::string reason = system_reason();
+  return std::runtime_error("HDF5: cannot " + what + (reason.empty() ? std::string() : ": " + reason));
+}
+
 /// Closes an HDF5 handle on scope exit (close: H5Fclose, H5Dclose, ...).
 class Handle {
  public:
   Handle(hid_t id, herr_t (*close)(hid_t), const std::string& what) : id_(id), close_(close) {
-    if (id_ < 0) throw std::runtime_error("HDF5: cannot " + what);
+    if (id_ < 0) throw failure(what);
   }
   Handle(const Handle&) = delete;
   Handle& operator=(const Handle&) = delete;
@@ -61,7 +108,7 @@ inline Handle untimed(hid_t cls, const std::string& where) {
   const hid_t p = H5Pcreate(cls);
   if (p >= 0 && H5Pset_obj_track_times(p, 0) < 0) {
     H5Pclose(p);
-    throw std::runtime_error("HDF5: cannot turn off object times in " + where);
+    throw failure("turn off object times in " + where);
   }
   return Handle(p, H5Pclose, "create a property list for " + where);
 }
@@ -74,7 +121,7 @@ inline void write_dataset(hid_t file, const std::string& name, hid_t type, std::
   Handle set(H5Dcreate2(file, name.c_str(), type, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), H5Dclose,
              "create dataset " + name + " in " + where);
   if (n > 0 && H5Dwrite(set.get(), type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
-    throw std::runtime_error("HDF5: cannot write dataset " + name + " of " + where);
+    throw failure("write dataset " + name + " of " + where);
   if (!unit.empty()) {
     Handle str(H5Tcopy(H5T_C_S1), H5Tclose, "make a string type");
     H5Tset_size(str.get(), unit.size());
@@ -82,7 +129,7 @@ inline void write_dataset(hid_t file, const std::string& name, hid_t type, std::
     Handle attr(H5Acreate2(set.get(), "unit", str.get(), scalar.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose,
                 "create the unit of " + name);
     if (H5Awrite(attr.get(), str.get(), unit.c_str()) < 0)
-      throw std::runtime_error("HDF5: cannot write the unit of " + name + " in " + where);
+      throw failure("write the unit of " + name + " in " + where);
   }
 }
 

@@ -606,8 +606,9 @@ inline void write_h5(const std::filesystem::path& path, const ParticleFrame& fra
   const std::string file_name = path.filename().string();
   std::filesystem::path temp = path;
   temp += ".part";
-  {
+  try {
     std::lock_guard<std::mutex> lock(h5_detail::hdf5_mutex());
+    const h5_detail::Quiet quiet;  // the error's reason goes into the message, not HDF5's stack onto stderr
     const h5_detail::Handle fcpl = h5_detail::untimed(H5P_FILE_CREATE, temp.string());
     h5_detail::Handle file(H5Fcreate(temp.c_str(), H5F_ACC_TRUNC, fcpl.get(), H5P_DEFAULT), H5Fclose,
                            "create " + temp.string());
@@ -621,7 +622,11 @@ inline void write_h5(const std::filesystem::path& path, const ParticleFrame& fra
       h5_detail::write_dataset(file.get(), a.name, integer ? H5T_NATIVE_INT32 : H5T_NATIVE_FLOAT, n, a.width, data,
                                a.unit, path.string());
     }
-    if (file.release() < 0) throw std::runtime_error("HDF5: cannot close " + temp.string());
+    if (file.release() < 0) throw h5_detail::failure("close " + temp.string());
+  } catch (...) {
+    std::error_code ec;
+    std::filesystem::remove(temp, ec);  // no half-written .part left behind
+    throw;
   }
   std::error_code ec;
   std::filesystem::rename(temp, path, ec);

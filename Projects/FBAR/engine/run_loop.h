@@ -75,6 +75,13 @@ inline std::string format_duration(double seconds) {
   return buf;
 }
 
+/// A time or a count as %.6g prints it.
+inline std::string format_number(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.6g", x);
+  return buf;
+}
+
 /// 0.123 -> "12.3 %".
 inline std::string format_percent(double fraction) {
   char buf[32];
@@ -181,13 +188,17 @@ class RunLoop {
     first_step_ = engine_.steps();
     first_time_ = engine_.time();
     steps_logged_ = engine_.steps();
-    for (int frame = first_frame; frame <= sim_.frames; ++frame) {
-      const double target = t0_ + frame / sim_.fps;
-      while (engine_.time() < target)
-        if (!step(frame, target)) return finish();
-      end_frame(frame);
+    try {
+      for (int frame = first_frame; frame <= sim_.frames; ++frame) {
+        const double target = t0_ + frame / sim_.fps;
+        while (engine_.time() < target)
+          if (!step(frame, target)) return finish();
+        end_frame(frame);
+      }
+      return finish();
+    } catch (const io::OutputError& e) {
+      return output_failure(e);
     }
-    return finish();
   }
 
  private:
@@ -357,6 +368,43 @@ class RunLoop {
     }
   }
 
+  /// A frame, sensor, tracker or checkpoint file could not be written (a full disk, a folder that vanished): one
+  /// message naming the file, the system's reason and what is complete (the last frame whose files were all
+  /// written, the last checkpoint written whole). It ends this rank's run as an exception would (from_exception:
+  /// several MPI ranks are stopped together by the command line), without waiting for the others.
+  RunResult output_failure(const io::OutputError& e) {
+    try {
+      writer_.close();  // the remaining jobs are skipped; it throws the error again
+    } catch (const io::OutputError&) {
+    }
+    const std::size_t done = writer_.completed();
+    int frame = resume_ ? resume_->frame : -1;
+    for (const auto& [jobs, f] : frame_marks_)
+      if (jobs <= done) frame = f;
+    std::string checkpoint = resume_ && !options_.restart.empty() ? options_.restart : std::string();
+    for (const auto& [jobs, path] : checkpoint_marks_)
+      if (jobs <= done) checkpoint = path;
+    RunResult r = result_;
+    r.exit_code = 2;
+    r.from_exception = true;
+    r.steps = engine_.steps();
+    r.end_time = engine_.time();
+    r.frames_written = frame;
+    r.checkpoint = rank_ == 0 ? checkpoint : std::string();
+    std::string what = e.what();
+    const std::string earlier = "an earlier output job failed: ";
+    if (what.compare(0, earlier.size(), earlier) == 0) what = what.substr(earlier.size());
+    r.message = "output failed at step " + std::to_string(engine_.steps()) + ", t = " +
+                run_detail::format_number(engine_.time()) + " s: " + what + ". Complete: " +
+                (frame >= 0 ? "frames 0 to " + std::to_string(frame) + " (t = " +
+                                  run_detail::format_number(t0_ + frame / sim_.fps) + " s)"
+                            : std::string("no frame")) +
+                ", " + (checkpoint.empty() ? std::string("no checkpoint") : "the checkpoint " + checkpoint) +
+                "; the sensor files up to the failure. Free space in " + sim_.save_path +
+                (checkpoint.empty() ? " and run again" : " and continue with --restart=" + checkpoint);
+    return r;
+  }
+
   /// Every body's frame of the current state, and its place in frames.xdmf.
   void write_frame(int frame) {
     for (int b = 0; b < engine_.body_count(); ++b) {
@@ -371,6 +419,7 @@ class RunLoop {
       series_->expect(frame, t0_ + frame / sim_.fps);
       writer_.submit_job([s = series_.get()] { s->update(); });
     }
+    frame_marks_.emplace_back(writer_.submitted(), frame);  // complete once the writer has done that many jobs
   }
 
   /// The sensors' pending samples to their files (a collective; ranks agree on what is pending).
@@ -411,6 +460,7 @@ class RunLoop {
       trackers_.file_sizes(c->csv);
     }
     writer_.submit_job([c, path] { io::write_checkpoint(path, *c); });
+    checkpoint_marks_.emplace_back(writer_.submitted(), path.string());
     if (rank_ == 0) result_.checkpoint = path.string();
   }
   std::filesystem::path step_checkpoint_path() const {
@@ -499,6 +549,9 @@ class RunLoop {
   TrackerRecorder trackers_;
   const std::filesystem::path save_dir_;
   RunResult result_;
+  /// The writer's submitted() after each frame's and each checkpoint's jobs: complete once completed() reaches it.
+  std::vector<std::pair<std::size_t, int>> frame_marks_;
+  std::vector<std::pair<std::size_t, std::string>> checkpoint_marks_;
   std::chrono::steady_clock::time_point wall_start_{};
   long long first_step_ = 0, steps_logged_ = 0;
   double first_time_ = 0.0;

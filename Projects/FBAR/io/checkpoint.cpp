@@ -30,7 +30,7 @@ void put_attr(hid_t where, const char* name, hid_t type, const void* value, cons
   Handle attr(H5Acreate2(where, name, type, space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose,
               std::string("create attribute ") + name + " in " + file);
   if (H5Awrite(attr.get(), type, value) < 0)
-    throw std::runtime_error(std::string("HDF5: cannot write attribute ") + name + " of " + file);
+    throw h5_detail::failure(std::string("write attribute ") + name + " of " + file);
 }
 void put_double(hid_t where, const char* name, double v, const std::string& file) {
   put_attr(where, name, H5T_NATIVE_DOUBLE, &v, file);
@@ -89,7 +89,7 @@ void put_array(hid_t where, const char* name, const std::vector<V>& data, std::s
   Handle set(H5Dcreate2(where, name, file_type, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), H5Dclose,
              std::string("create dataset ") + name + " in " + file);
   if (rows > 0 && H5Dwrite(set.get(), mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data.data()) < 0)
-    throw std::runtime_error(std::string("HDF5: cannot write dataset ") + name + " of " + file);
+    throw h5_detail::failure(std::string("write dataset ") + name + " of " + file);
 }
 
 /// A real array in the file's precision: float32 converted here (HDF5's own conversion is several times slower).
@@ -122,16 +122,8 @@ std::vector<V> get_array(hid_t where, const char* name, std::size_t rows, int wi
   return out;
 }
 
-// HDF5 prints its own error stack to stderr on every failed call; our messages say what failed.
-struct QuietHdf5 {
-  H5E_auto2_t func = nullptr;
-  void* data = nullptr;
-  QuietHdf5() {
-    H5Eget_auto2(H5E_DEFAULT, &func, &data);
-    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
-  }
-  ~QuietHdf5() { H5Eset_auto2(H5E_DEFAULT, func, data); }
-};
+// HDF5 prints its own error stack to stderr on every failed call; our messages say what failed, and why.
+using QuietHdf5 = h5_detail::Quiet;
 
 /// A real array stored as float32 or float64, as double.
 std::vector<double> get_reals(hid_t where, const char* name, std::size_t rows, int width, const std::string& file) {
@@ -174,7 +166,7 @@ void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c) {
   const bool single = c.precision == "single";
   std::filesystem::path part = path;
   part += ".part";
-  {
+  try {
     std::lock_guard<std::mutex> lock(h5_detail::hdf5_mutex());
     QuietHdf5 quiet;
     const Handle fcpl = untimed(H5P_FILE_CREATE, part.string());
@@ -231,7 +223,11 @@ void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c) {
       put_reals(w, "Volume", body.volume, n, 1, single, file);
       put_reals(w, "State", body.state, n, body.state_scalars, single, file);
     }
-    if (f.release() < 0) throw std::runtime_error("HDF5: cannot close " + part.string());
+    if (f.release() < 0) throw h5_detail::failure("close " + part.string());
+  } catch (...) {
+    std::error_code ec;
+    std::filesystem::remove(part, ec);  // no half-written .part left behind
+    throw;
   }
   std::error_code ec;
   std::filesystem::rename(part, path, ec);

@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <system_error>
 
+#include "MnSystem/IO/output_error.h"
 #include "io/particle_frame.h"
 #include "physics/constitutive_models.cuh"
 #include "scene/scene_error.h"
@@ -27,7 +28,7 @@ namespace {
 std::FILE* open_csv(const std::filesystem::path& path, const std::string& header, const char* what,
                     const io::Checkpoint* resume) {
   auto fail = [&] {
-    return std::runtime_error(std::string("cannot write ") + what + " file " + path.string() + ": " +
+    return io::OutputError(std::string("cannot write ") + what + " file " + path.string() + ": " +
                               std::error_code(errno, std::generic_category()).message());
   };
   if (resume) {
@@ -39,7 +40,7 @@ std::FILE* open_csv(const std::filesystem::path& path, const std::string& header
     const auto size = std::filesystem::file_size(path, ec);
     if (recorded >= 0 && !ec && static_cast<long long>(size) >= recorded) {
       std::filesystem::resize_file(path, static_cast<std::uintmax_t>(recorded), ec);
-      if (ec) throw std::runtime_error(std::string("cannot truncate ") + what + " file " + path.string() + ": " + ec.message());
+      if (ec) throw io::OutputError(std::string("cannot truncate ") + what + " file " + path.string() + ": " + ec.message());
       std::FILE* f = std::fopen(path.c_str(), "a");
       if (!f) throw fail();
       return f;
@@ -191,7 +192,7 @@ void SensorRecorder::Schedule::flush(const std::vector<SensorAccum>& values, com
     }
   for (Output& o : outputs_)
     if (o.file && std::fflush(o.file) != 0)
-      throw std::runtime_error("cannot write sensor file " + o.path.string() + ": " +
+      throw io::OutputError("cannot write sensor file " + o.path.string() + ": " +
                                std::error_code(errno, std::generic_category()).message());
   slot_times_.clear();
   slot_due_.clear();
@@ -315,7 +316,7 @@ void TrackerRecorder::record(std::size_t k, double time, std::vector<double> val
     }
   std::fprintf(f, "\n");
   if (std::fflush(f) != 0)
-    throw std::runtime_error("cannot write tracker file " + paths_[k].string() + ": " +
+    throw io::OutputError("cannot write tracker file " + paths_[k].string() + ": " +
                              std::error_code(errno, std::generic_category()).message());
 }
 
