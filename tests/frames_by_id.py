@@ -12,6 +12,8 @@ import glob
 import json
 import math
 import os
+import re
+import shutil
 import sys
 
 
@@ -87,14 +89,53 @@ def scene_declares_sensors(scene):
     return any(f'"{key}"' in text for key in ("grid-sensors", "particle-sensors", "track_particle_id"))
 
 
+def nan_max(values):
+    """The largest of `values`, NaN when any is NaN (Python's max keeps or drops a NaN depending on where it stands,
+    so a NaN state would pass a `max(...) < tol` check); 0 for none."""
+    m = 0.0
+    for v in values:
+        if math.isnan(v):
+            return v
+        m = max(m, v)
+    return m
+
+
 def max_differences(many, one):
-    """Largest |dx| and |dv| over the particles of `one` (both dicts from read_run)."""
-    dx = max(max(abs(a - b) for a, b in zip(many[k][:3], one[k][:3])) for k in one)
-    dv = max(max(abs(a - b) for a, b in zip(many[k][3:], one[k][3:])) for k in one)
+    """Largest |dx| and |dv| over the particles of `one` (both dicts from read_run); NaN when a state is NaN."""
+    dx = nan_max(abs(a - b) for k in one for a, b in zip(many[k][:3], one[k][:3]))
+    dv = nan_max(abs(a - b) for k in one for a, b in zip(many[k][3:], one[k][3:]))
     return dx, dv
 
 
 SENSOR_PATTERNS = ("gridTarget*.csv", "particleTarget*.csv", "particleTrack*.csv")
+FRAME_NAME = re.compile(r"model\[\d+\]_dev\[\d+\]_frame\[(\d+)\]\.")
+
+
+def copy_up_to_checkpoint(src, dst, checkpoint, frame):
+    """dst as a user leaves a run's folder to continue it in place from `checkpoint` (a file name in src, one rank's
+    file of the set): src's files, less the frames after `frame`, each sensor / tracker CSV cut to the length the
+    checkpoint recorded (its /csv group) and followed by a planted row the restart must cut. A restart that writes
+    nothing then leaves missing frames and planted rows, instead of src's own files, behind."""
+    import h5py
+    shutil.copytree(src, dst)
+    for name in os.listdir(dst):
+        m = FRAME_NAME.match(name)
+        if m and int(m.group(1)) > frame:
+            os.remove(os.path.join(dst, name))
+    with h5py.File(os.path.join(dst, checkpoint), "r") as f:
+        a = f["csv"].attrs  # io/checkpoint.cpp: files, name<i>, bytes<i>
+        recorded = []
+        for i in range(int(a["files"])):
+            name = a[f"name{i}"]
+            recorded.append((name.decode() if isinstance(name, bytes) else str(name), int(a[f"bytes{i}"])))
+    assert recorded, f"{checkpoint}: the checkpoint recorded no sensor file"
+    for name, size in recorded:
+        path = os.path.join(dst, name)
+        with open(path, "rb") as fh:
+            data = fh.read()
+        assert len(data) >= size, f"{name}: {len(data)} bytes, the checkpoint recorded {size}"
+        with open(path, "wb") as fh:
+            fh.write(data[:size] + b"9.99,planted row after the checkpoint\n")
 
 
 def read_sensors(out):
@@ -120,7 +161,7 @@ def max_sensor_difference(many, one, label):
         assert h == header, f"{label}: {name} header {h} against {header}"
         assert len(r) == len(rows), f"{label}: {name} has {len(r)} rows against {len(rows)}"
         for c in range(len(header)):
-            scale = max(abs(row[c]) for row in rows)
+            scale = nan_max(abs(row[c]) for row in rows if not math.isnan(row[c]))
             for i, (a, b) in enumerate(zip(r, rows)):
                 if c == 0:
                     assert a[0] == b[0], f"{label}: {name} row {i}: sample time {a[0]} against {b[0]}"

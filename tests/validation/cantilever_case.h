@@ -89,12 +89,14 @@ Result run(int n, bool fbar = false) {
                                                   validation::WallFit::LastWallNodePlane));
   Engine engine(scene);
   std::vector<std::size_t> tip;
-  const auto& x_start = engine.positions(0);
+  // A copy: positions() may return a cache that the next step replaces (the GPU engine's snapshot).
+  const auto x_start = engine.positions(0);
   for (std::size_t v = 0; v < x_start.size(); ++v)
     if (std::fabs(static_cast<double>(x_start[v][0]) - (x0 + kL)) < 1e-9) tip.push_back(v);
   auto tip_y = [&] {
     double s = 0;
-    for (std::size_t v : tip) s += static_cast<double>(engine.positions(0)[v][1]);
+    const auto& x = engine.positions(0);  // once a step (the GPU engine downloads a snapshot per call)
+    for (std::size_t v : tip) s += static_cast<double>(x[v][1]);
     return s / static_cast<double>(tip.size());
   };
   const double y_start = tip_y();

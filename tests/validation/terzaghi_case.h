@@ -66,6 +66,7 @@ inline double series_settlement(double a, double T) {
 struct ColumnResult {
   std::vector<double> pressure;
   std::vector<double> settlement;
+  std::size_t settlement_particles = 0;  ///< particles the settlement averages (none: the selection missed them)
 };
 
 /// The column on `Engine` (CpuEngine<double> or the GPU tests' GpuValidationEngine<double>) in Slip walls placed as
@@ -118,22 +119,28 @@ ColumnResult run_column(int cells, const std::vector<double>& factors, validatio
     const std::vector<double> p = engine.pore_pressures(0);
     const auto& x = engine.positions(0);
     double worst = 0.0, settled = 0.0, expected = 0.0;
+    std::size_t selected = 0;
     for (std::size_t i = 0; i < p.size(); ++i) {
       const double u = p[i] - kRhow * kG * depth[i];
-      worst = std::max(worst, std::fabs(u - series(depth[i], T)) / (gp * kH));
+      const double e = std::fabs(u - series(depth[i], T)) / (gp * kH);
+      worst = std::isnan(e) || std::isnan(worst) ? e : std::max(worst, e);  // a NaN pressure is the worst error
       if (std::fabs(depth[i] - kH / 8) <= 0.5 * dx) {
         settled += y0[i] - x[i][1];
         expected += series_settlement(depth[i], T);
+        ++selected;
       }
     }
+    out.settlement_particles = selected;
     out.pressure.push_back(worst);
     out.settlement.push_back(settled / expected - 1.0);
   }
   return out;
 }
 
-/// Both resolutions on `Engine`, the soil's faces on the walls' node planes, with the tolerances of the file comment;
-/// the settlement at H/8 is printed (docs/validation.md: 2-7 % short of the series next to the side walls, open).
+/// Both resolutions on `Engine`, the soil's faces on the walls' node planes, with the tolerances of the file comment.
+/// The settlement at H/8 is 2-7 % short of the series next to the side walls (docs/validation.md, "Saturated soil",
+/// open; measured +0.8 % to -7.1 % at H/16, +0.2 % to -6.0 % at H/32): it must stay within 8 % of the series, over a
+/// selection of particles that is not empty.
 template <typename Engine>
 void expect_follows_the_series(const char* engine_name) {
   const std::vector<double> factors = {0.05, 0.2, 0.5, 1.0};
@@ -141,11 +148,15 @@ void expect_follows_the_series(const char* engine_name) {
   const ColumnResult fine = run_column<Engine>(32, factors, validation::WallFit::LastWallNodePlane);
   ASSERT_EQ(coarse.pressure.size(), factors.size());
   ASSERT_EQ(fine.pressure.size(), factors.size());
+  ASSERT_GT(coarse.settlement_particles, 0u) << "no particle starts H/8 under the top (H/16)";
+  ASSERT_GT(fine.settlement_particles, 0u) << "no particle starts H/8 under the top (H/32)";
   for (std::size_t k = 0; k < factors.size(); ++k) {
     std::printf("[measured] %s, T = %.2f: max |u - u_series| / (g' H) = %.4f at H/16, %.4f at H/32 (order %.2f); "
                 "settlement at H/8 %+.2f %% at H/16, %+.2f %% at H/32\n",
                 engine_name, factors[k], coarse.pressure[k], fine.pressure[k],
                 std::log2(coarse.pressure[k] / fine.pressure[k]), 100 * coarse.settlement[k], 100 * fine.settlement[k]);
+    EXPECT_LE(std::fabs(coarse.settlement[k]), 0.08) << "T = " << factors[k] << " (H/16)";
+    EXPECT_LE(std::fabs(fine.settlement[k]), 0.08) << "T = " << factors[k] << " (H/32)";
     EXPECT_LE(coarse.pressure[k], 0.03) << "T = " << factors[k];
     EXPECT_LE(fine.pressure[k], 0.018) << "T = " << factors[k];
     EXPECT_LT(fine.pressure[k], coarse.pressure[k]) << "T = " << factors[k];

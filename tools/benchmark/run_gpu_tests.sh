@@ -4,7 +4,8 @@
 # pass / fail / skip counts and each skip's reason recorded with the commit.
 #   tools/benchmark/run_gpu_tests.sh            logs in $OUT (or ./out); the record: $OUT/gpu-tests-<date>-<commit>.md,
 #                                               to copy to docs/benchmarks/
-# Exit status: ctest's (non-zero when a test failed). A skip on a GPU machine is a finding (e.g. "needs 2 GPUs").
+# Exit status: non-zero when a test failed or skipped for any reason but "needs N GPUs" (.ci/check_skips.py
+# --gpu-machine: on a GPU machine "no CUDA device" or "this build has no NCCL" is a failure, not a skip).
 set -uo pipefail
 OUT=${OUT:-$PWD/out}
 mkdir -p "$OUT"
@@ -41,4 +42,5 @@ for c in skipped:
     print(f"- skipped: {c.get('name')}: {reason.strip()}")
 PY
 cat "$record"
+python3 "$ROOT/.ci/check_skips.py" "$BUILD/gpu_junit.xml" "$BUILD" --gpu-machine || rc=1
 exit $rc

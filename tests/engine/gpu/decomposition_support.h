@@ -131,8 +131,8 @@ inline Comparison compare(const RunResult& one, const StateById& many) {
     const auto it = many.find(key);
     if (it == many.end()) continue;
     const double m = one.mass[static_cast<std::size_t>(key.first)];
-    c.pore_pressure = std::max(c.pore_pressure, std::fabs(a.pore_pressure - it->second.pore_pressure));
-    p_scale = std::max(p_scale, std::fabs(a.pore_pressure));
+    c.pore_pressure = test::worst(c.pore_pressure, std::fabs(a.pore_pressure - it->second.pore_pressure));
+    p_scale = test::worst(p_scale, std::fabs(a.pore_pressure));
     c.max_dx = std::max(c.max_dx, max_abs(a.x - it->second.x));
     c.max_dv = std::max(c.max_dv, max_abs(a.v - it->second.v));
     pa = pa + a.v * m;

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 #include "MnSystem/Cuda/device_query.h"
@@ -79,16 +80,33 @@ inline std::vector<std::vector<Vec3d>> sample_scene(const Scene& s) {
   return p;
 }
 
+/// The larger of two differences, NaN when either is (std::max(m, NaN) is m): accumulate maxima with it.
+inline double worst(double a, double b) { return std::isnan(a) || std::isnan(b) ? std::numeric_limits<double>::quiet_NaN() : std::max(a, b); }
+
+/// Largest component-wise |a - b| over the entries; NaN when any component of either side is NaN (std::max and
+/// max_abs drop a NaN operand, so a NaN in a state would otherwise pass EXPECT_LE(max_diff, tol)), and infinity when
+/// the sizes differ.
 template <typename V>
 double max_diff(const std::vector<V>& a, const std::vector<V>& b) {
+  if (a.size() != b.size()) return std::numeric_limits<double>::infinity();
   double m = 0.0;
-  for (std::size_t i = 0; i < a.size(); ++i) m = std::max(m, static_cast<double>(max_abs(a[i] - b[i])));
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    using S = typename V::value_type;  // Vec and Mat: a plain array of S
+    const V d = a[i] - b[i];
+    const S* c = reinterpret_cast<const S*>(&d);
+    for (std::size_t k = 0; k < sizeof(V) / sizeof(S); ++k) m = worst(m, std::fabs(static_cast<double>(c[k])));
+    if (std::isnan(m)) return m;
+  }
   return m;
 }
 template <typename T>
 double max_diff_scalar(const std::vector<T>& a, const std::vector<T>& b) {
+  if (a.size() != b.size()) return std::numeric_limits<double>::infinity();
   double m = 0.0;
-  for (std::size_t i = 0; i < a.size(); ++i) m = std::max(m, std::fabs(static_cast<double>(a[i] - b[i])));
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    m = worst(m, std::fabs(static_cast<double>(a[i] - b[i])));
+    if (std::isnan(m)) return m;
+  }
   return m;
 }
 

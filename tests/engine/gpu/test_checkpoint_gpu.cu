@@ -84,8 +84,8 @@ void expect_engine_restart(Precision precision, double tolerance) {
     ASSERT_EQ(sa.x.size(), sb.x.size());
     double worst = 0.0, worst_J = 0.0;
     for (std::size_t p = 0; p < sa.x.size(); ++p) {
-      for (int d = 0; d < 3; ++d) worst = std::max(worst, std::fabs(static_cast<double>(sa.x[p][d] - sb.x[p][d])));
-      worst_J = std::max(worst_J, std::fabs(static_cast<double>(sa.J[p] - sb.J[p])));
+      for (int d = 0; d < 3; ++d) worst = test::worst(worst, std::fabs(static_cast<double>(sa.x[p][d] - sb.x[p][d])));
+      worst_J = test::worst(worst_J, std::fabs(static_cast<double>(sa.J[p] - sb.J[p])));
     }
     EXPECT_LT(worst, tolerance) << "body " << body;
     EXPECT_LT(worst_J, tolerance * 100) << "body " << body;
@@ -151,7 +151,7 @@ TEST(GpuResume, ABgeoFrameSeedsBodiesAsOnTheCpuEngine) {
     const ParticleSnapshot<double> s = gpu.snapshot(k);
     double worst = 0.0;
     for (std::size_t p = 0; p < s.x.size(); ++p)
-      for (int d = 0; d < 3; ++d) worst = std::max(worst, std::fabs(s.x[p][d] - f.position(p)[d]));
+      for (int d = 0; d < 3; ++d) worst = test::worst(worst, std::fabs(s.x[p][d] - f.position(p)[d]));
     EXPECT_LT(worst, 1e-9) << "body " << k;
   }
 }

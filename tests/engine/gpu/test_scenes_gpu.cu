@@ -56,8 +56,8 @@ void run_scene_on_both(const Scene& scene, const std::string& name) {
   double ex = 0.0, ev = 0.0, rx = 0.0, rv = 0.0;
   for (int b = 0; b < gpu.body_count(); ++b) {
     const ParticleSnapshot<T> g = gpu.snapshot(b);
-    ex = std::max(ex, test::max_diff(g.x, cpu.positions(b)));
-    ev = std::max(ev, test::max_diff(g.v, cpu.velocities(b)));
+    ex = test::worst(ex, test::max_diff(g.x, cpu.positions(b)));
+    ev = test::worst(ev, test::max_diff(g.v, cpu.velocities(b)));
     if (single) {
       for (std::size_t p = 0; p < cpu.positions(b).size(); ++p) {
         rx = std::max(rx, max_abs(cpu.positions(b)[p].template cast<double>() - reference.positions(b)[p]));
@@ -74,8 +74,8 @@ void run_scene_on_both(const Scene& scene, const std::string& name) {
     if (g.pore_pressure.empty()) continue;
     const std::vector<T> c = cpu.pore_pressures(b);
     for (std::size_t p = 0; p < c.size(); ++p) {
-      ep = std::max(ep, std::fabs(static_cast<double>(g.pore_pressure[p]) - static_cast<double>(c[p])));
-      p_scale = std::max(p_scale, std::fabs(static_cast<double>(c[p])));
+      ep = test::worst(ep, std::fabs(static_cast<double>(g.pore_pressure[p]) - static_cast<double>(c[p])));
+      p_scale = test::worst(p_scale, std::fabs(static_cast<double>(c[p])));
     }
   }
   std::cout << "[measured] scene " << name << ": " << cpu.particle_count() << " particles, 30 steps to t = "

@@ -90,7 +90,7 @@ void expect_series_near(const Series& a, const Series& b, double rel, const char
   ASSERT_EQ(a.size(), b.size());
   for (std::size_t i = 0; i < a.front().size(); ++i) {
     double scale = 0.0;
-    for (const auto& row : a) scale = std::max(scale, std::fabs(row[i]));
+    for (const auto& row : a) scale = test::worst(scale, std::fabs(row[i]));
     for (std::size_t s = 0; s < a.size(); ++s)
       EXPECT_NEAR(a[s][i], b[s][i], rel * scale + floor) << what << ": sensor " << i << ", step " << s + 1;
   }

@@ -89,7 +89,7 @@ TEST(GpuValidation, TwoDisksEnergyPerSchemeMatchesCpu) {
       const double ec = cpu.kinetic_energy() + cpu.elastic_energy();
       ke_min = std::min(ke_min, cpu.kinetic_energy());
       if (cpu.steps() % 50 == 0 || cpu.time() >= t_end) {
-        worst = std::max(worst, std::fabs(gpu_energy(gpu) - ec) / e0);
+        worst = test::worst(worst, std::fabs(gpu_energy(gpu) - ec) / e0);
         ++checks;
       }
     }
