@@ -552,8 +552,7 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
       continue;
     }
     if (failures.empty()) {
-      while (handle_overflow()) {
-      }
+      while (handle_overflow()) ++partition_redos_;
       for (const auto& b : bodies_)
         if (body_stats_[b->index].particles != b->pending_particles)
           throw std::runtime_error("GpuEngine: the partition of body " + std::to_string(b->index) + " placed " +
@@ -605,8 +604,8 @@ void MgspBenchmark<T, TG>::commit(double dt) {
   block_count_ = stats_->block_count;
   aux_valid_ = record_;
   if (decomposed() && dec_.halo_grew) rebuild_halo(gc_);  // agreed: all ranks or none
-  // Headroom for the next step (grow between steps, never inside one): blocks at 3/4, bins at 9/10 of capacity.
-  if (block_count_ > block_capacity_ * 3 / 4) grow_blocks(2 * block_capacity_);
+  // Headroom for the next step (grow between steps, rarely inside one): blocks at 3/4, bins at 9/10 of capacity.
+  if (options_.grow_ahead && block_count_ > block_capacity_ * 3 / 4) grow_blocks(2 * block_capacity_);
   ensure_step_capacity();
 }
 
@@ -614,7 +613,7 @@ template <typename T, typename TG>
 void MgspBenchmark<T, TG>::ensure_step_capacity() {
   for (auto& b : bodies_) {
     const int need = b->total_bins[cur_];
-    if (need > b->partition.bin_capacity() * 9 / 10) grow_bins(*b, cur_, need * 3 / 2);
+    if (options_.grow_ahead && need > b->partition.bin_capacity() * 9 / 10) grow_bins(*b, cur_, need * 3 / 2);
     // The next G2P2G writes bins[1 - cur] (the previous state, free now) in layout(cur) order: it must hold every
     // bin of that layout (the partition's bin capacity bounds it).
     if (b->bins_capacity(1 - cur_) < b->partition.bin_capacity()) b->reallocate_bins(1 - cur_, b->partition.bin_capacity());

@@ -140,6 +140,8 @@ KernelTimes GpuEngine<T, TG>::kernel_times() const {
 template <typename T, typename TG>
 long long GpuEngine<T, TG>::p2g_range_repeats() const { return earlier_repeats_ + impl_->p2g_range_repeats(); }
 template <typename T, typename TG>
+long long GpuEngine<T, TG>::partition_redos() const { return earlier_redos_ + impl_->partition_redos(); }
+template <typename T, typename TG>
 int GpuEngine<T, TG>::body_count() const { return impl_->body_count(); }
 template <typename T, typename TG>
 std::size_t GpuEngine<T, TG>::particle_count(int body) const { return impl_->particle_count(body); }
@@ -281,6 +283,7 @@ bool GpuEngine<T, TG>::rebalance_if_drifted() {
   earlier_migrated_ = migrated();
   earlier_migration_repeats_ = migration_repeats();
   earlier_repeats_ = p2g_range_repeats();
+  earlier_redos_ = partition_redos();
   earlier_wait_s_ = output_wait_seconds();
   earlier_peak_ = peak_device_bytes();
   impl_.reset();  // the device memory first

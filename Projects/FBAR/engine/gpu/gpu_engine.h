@@ -65,6 +65,9 @@ struct KernelTimes {
 struct GpuEngineOptions {
   int block_capacity = 0;  ///< grid blocks (hash table, grid buffers, per-block partition arrays)
   int bin_capacity = 0;    ///< particle bins per body (at least what the initial upload needs)
+  /// Grow the blocks and bins between steps when they fill up (3/4, 9/10), so that a step rarely outgrows them;
+  /// false: only when a step outgrew them, inside it (tests of that path).
+  bool grow_ahead = true;
   /// Per body, per particle (ID order) initial velocities [m/s], as CpuEngine::set_velocities gives them (tests,
   /// restarts); a body without an entry, or with an empty one, starts at its scene velocity.
   std::vector<std::vector<Vec3d>> initial_velocities;
@@ -139,6 +142,9 @@ class GpuEngine {
   KernelTimes kernel_times() const;
   /// Steps repeated because P2G contributions outgrew the fixed-point bound of the last step (single precision).
   long long p2g_range_repeats() const;
+  /// Partitions redone inside a step: the step's particles outgrew the grid blocks' or a body's bins' capacity, the
+  /// engine grew it and partitioned again from the particles' new positions (MgspBenchmark::handle_overflow).
+  long long partition_redos() const;
 
   int body_count() const;
   std::size_t particle_count(int body) const;
@@ -228,7 +234,7 @@ class GpuEngine {
   std::vector<ParticleSensorSpec> particle_sensors_;
   std::vector<std::pair<int, TrackerSet>> trackers_;
   KernelTimes earlier_times_;          ///< of the engines before the last rebalance
-  long long earlier_migrated_ = 0, earlier_repeats_ = 0, earlier_migration_repeats_ = 0;
+  long long earlier_migrated_ = 0, earlier_repeats_ = 0, earlier_migration_repeats_ = 0, earlier_redos_ = 0;
   double earlier_wait_s_ = 0.0;
   std::size_t earlier_peak_ = 0;
   double chosen_imbalance_ = 0.0;     ///< right after the slabs were last chosen

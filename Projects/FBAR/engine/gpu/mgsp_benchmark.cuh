@@ -168,6 +168,7 @@ class MgspBenchmark {
   void set_tracker(int body, const TrackerSet& set);
   void track(int body, std::vector<double>& values, std::vector<double>& present);
   long long p2g_range_repeats() const { return p2g_range_repeats_; }
+  long long partition_redos() const { return partition_redos_; }
   int body_count() const { return static_cast<int>(bodies_.size()); }
   std::size_t particle_count(int body) const { return static_cast<std::size_t>(body_at(body).particles); }
   std::size_t particle_count() const {
@@ -455,6 +456,7 @@ class MgspBenchmark {
   double dt_p2g_ = 0.0;        ///< impulse dt inside grid[gc]
   DtRetryPolicy retry_;  ///< on_failure = reduce_dt (engine_common.h)
   long long p2g_range_repeats_ = 0;  ///< tries repeated because the fixed-point P2G bound was exceeded
+  long long partition_redos_ = 0;    ///< partitions redone inside a step after a growth (handle_overflow)
   double max_grid_speed_ = 0.0;
   std::ostream* log_ = &std::cerr;
 
