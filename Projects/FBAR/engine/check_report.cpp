@@ -252,8 +252,8 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
       {
         row(os, "GPU per particle", std::to_string(bs.gpu_bytes_per_particle) + " B: " + bs.gpu_bytes_detail);
         char cost[160];
-        std::snprintf(cost, sizeof(cost), "%.3g ms per step on an H100 (%.3g particle-steps/s: ", bs.gpu_ms_per_step,
-                      bs.throughput);
+        std::snprintf(cost, sizeof(cost), "%.3g ms per step on an H100 (measured 2026-11-23: %.3g particle-steps/s: ",
+                      bs.gpu_ms_per_step, bs.throughput);
         row(os, "GPU time", cost + bs.throughput_basis + ")");
       }
       row(os, "grid channels", bs.grid_channels);
