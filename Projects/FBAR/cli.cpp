@@ -314,6 +314,24 @@ class RunJson {
   fs::path path_;
 };
 
+/// The run's end on rank 0: run.json's final record (or, when it cannot be written, why, after the run's own
+/// message) and the run's message on stderr. Returns the exit code.
+int report_run(RunJson& run_json, const std::string& final_record, RunResult result) {
+  std::string json_error;
+  const bool json_written = run_json.finish(final_record, json_error);
+  if (!json_written) {
+    // The run's own message first; then why its record could not be kept (run.json then holds the start's record).
+    if (result.exit_code == kExitOk) result.exit_code = kExitRuntime;
+    result.message = (result.message.empty() ? std::string() : result.message + "; ") + json_error +
+                     " (it holds the record written when the run started, status \"running\")";
+  }
+  if (result.stop_signal != 0)
+    std::cerr << "fbar: " << result.message << (json_written ? "; run.json written" : "") << "\n";
+  else if (result.exit_code != kExitOk)
+    std::cerr << "fbar: error: " << (result.message.empty() ? "the run failed" : result.message) << '\n';
+  return result.exit_code;
+}
+
 /// fbar --check: the scene's report with, when a device is present, its free memory and whether the plan fits.
 int check_scene(const CliOptions& o, const Scene& scene) {
   SceneSummary summary = summarize_scene(scene);
@@ -545,20 +563,7 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
     transport->abort(result.exit_code);
   }
   if (rank != 0) return result.exit_code;  // rank 0 writes run.json and the report
-  std::string json_error;
-  const bool json_written =
-      run_json.finish(run_json_text(scene, command_line, started, wall_s, result, gpu, ranks, false), json_error);
-  if (!json_written) {
-    // The run's own message first; then why its record could not be kept (run.json then holds the start's record).
-    if (result.exit_code == kExitOk) result.exit_code = kExitRuntime;
-    result.message = (result.message.empty() ? std::string() : result.message + "; ") + json_error +
-                     " (it holds the record written when the run started, status \"running\")";
-  }
-  if (result.stop_signal != 0)
-    std::cerr << "fbar: " << result.message << (json_written ? "; run.json written" : "") << "\n";
-  else if (result.exit_code != kExitOk)
-    std::cerr << "fbar: error: " << (result.message.empty() ? "the run failed" : result.message) << '\n';
-  return result.exit_code;
+  return report_run(run_json, run_json_text(scene, command_line, started, wall_s, result, gpu, ranks, false), result);
 }
 
 }  // namespace
