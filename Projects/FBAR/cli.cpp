@@ -521,15 +521,6 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
 
   const std::string started = utc_now();
   const auto t0 = std::chrono::steady_clock::now();
-  RunJson run_json;
-  if (rank == 0) {  // before anything runs: a folder that takes no file fails here, not after the run
-    std::string error;
-    if (!run_json.start(out_dir / "run.json", run_json_text(scene, command_line, started, 0.0, RunResult{}, gpu, ranks, true),
-                        error)) {
-      std::cerr << "fbar: error: " << error << " (the output folder, simulation.save_path or --output)\n";
-      return kExitRuntime;
-    }
-  }
   RunOptions ro;
   ro.quiet = o.quiet;
   ro.halo_overlap = o.halo_overlap;
@@ -540,6 +531,16 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
       return kExitInput;
     }
     ro.restart = o.restart;
+  }
+  // The first record, once nothing refuses the run any more: a folder that takes no file fails here, not after it.
+  RunJson run_json;
+  if (rank == 0) {
+    std::string error;
+    if (!run_json.start(out_dir / "run.json", run_json_text(scene, command_line, started, 0.0, RunResult{}, gpu, ranks, true),
+                        error)) {
+      std::cerr << "fbar: error: " << error << " (the output folder, simulation.save_path or --output)\n";
+      return kExitRuntime;
+    }
   }
   ro.log = &std::cout;
   ro.transport = transport.get();

@@ -380,11 +380,13 @@ TEST(Cli, SigtermStopsTheRunAndWritesRunJson) {
   std::stringstream text;
   text << again.rdbuf();
   EXPECT_NE(text.str().find("\"restarted_from_frame\": " + std::to_string(written)), std::string::npos) << text.str();
-  // A checkpoint that is not there: exit 1, named.
+  // A checkpoint that is not there: exit 1, named; a run refused before it starts writes no run.json.
+  const fs::path refused = dir / "refused";
   const CliResult missing = run_cli({"--backend=cpu", "--restart=" + (dir / "nope.h5").string(),
-                                     "--file=" + (dir / "long.json").string()});
+                                     "--output=" + refused.string(), "--file=" + (dir / "long.json").string()});
   EXPECT_EQ(missing.code, 1);
   EXPECT_NE(missing.err.find("nope.h5: no such file"), std::string::npos) << missing.err;
+  EXPECT_FALSE(fs::exists(refused / "run.json")) << "a refused run wrote run.json";
 }
 
 /// Runs `body` in a child process; returns its wait status.
