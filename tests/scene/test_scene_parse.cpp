@@ -1012,7 +1012,7 @@ TEST(SceneWrite, RoundTripOfASceneBuiltInCode) {
 
 
 // ---------------------------------------------------------------------------------------------------------------
-// ClaymoreUW's silent tolerances that its HEAD scenes rely on (issue 31): each runs with exactly one warning that
+// ClaymoreUW's silent tolerances that its HEAD scenes rely on: each runs with exactly one warning that
 // names the key, what ClaymoreUW does and what fbar does.
 
 /// The warnings that contain `needle`.

@@ -1,4 +1,4 @@
-// Validation: an FEM cantilever under its own weight (issue 34; the coupling of physics/fem.cuh).
+// Validation: an FEM cantilever under its own weight (the coupling of physics/fem.cuh).
 //
 // Problem: a beam of length L = 1 m, square section h = b = 0.1 m (L / h = 10), rho = 1000 kg/m^3, E = 3e8 Pa,
 // nu = 0.25, FixedCorotated tetrahedra (Kuhn's six per cube, geometry/tet_mesh.h box_tet_mesh), clamped at x = x0 by

@@ -1,5 +1,4 @@
-// Validation: an FEM block floating in MPM water, against Archimedes and against the same block as particles
-// (issue 34).
+// Validation: an FEM block floating in MPM water, against Archimedes and against the same block as particles.
 //
 // Problem (a slab: everything 2 cells thick along z between Slip walls): water (JFluid, rho 1000 kg/m^3, K 1e5 Pa,
 // started hydrostatic) fills a tank 0.8 m long to 0.2 m; a block 0.2 m long and 0.1 m tall, rho 500 kg/m^3

@@ -1,4 +1,4 @@
-// Validation: an FEM post hit by an MPM flow, against the same post as particles (issue 34).
+// Validation: an FEM post hit by an MPM flow, against the same post as particles.
 //
 // Problem (a slab, 2 cells thick along z between Slip walls): a water column (JFluid, rho 1000 kg/m^3, K 1e5 Pa,
 // 0.2 m wide, 0.2 m tall, started hydrostatic) collapses along a Slip floor onto an elastic post 0.3 m downstream

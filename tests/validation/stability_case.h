@@ -1,4 +1,4 @@
-// Stability maps (issue 13): where the explicit scheme fails, and whether fbar says so.
+// Stability maps: where the explicit scheme fails, and whether fbar says so.
 //
 // Each run is classed as
 //   Stable    completed, and nothing impossible happened;

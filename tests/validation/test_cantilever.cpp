@@ -1,4 +1,4 @@
-// Validation: an FEM cantilever under its own weight and its first bending frequency (issue 34). The problem, its
+// Validation: an FEM cantilever under its own weight and its first bending frequency. The problem, its
 // references and the run are in cantilever_case.h; the test here runs it on the CPU engine at three mesh sizes.
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// Validation: an FEM block floating in MPM water at its Archimedes draft, and the same block as particles (issue 34).
+// Validation: an FEM block floating in MPM water at its Archimedes draft, and the same block as particles.
 // The problem and the run are in floating_block_case.h.
 #include <gtest/gtest.h>
 

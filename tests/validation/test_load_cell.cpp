@@ -1,4 +1,4 @@
-// Validation: a load cell on the wall of a hydrostatic tank reads the hydrostatic force (issue 15's test).
+// Validation: a load cell on the wall of a hydrostatic tank reads the hydrostatic force.
 //
 // Problem: the hydrostatic JFluid column of hydrostatic_column_case.h (H = 0.1 m, rho0 = 1800 kg/m^3, K = 1e6 Pa,
 // gamma 7, slip Walls), started in its exact compressible equilibrium, width w = 4 cells along x and 2 along z. A

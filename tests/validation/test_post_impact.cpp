@@ -1,4 +1,4 @@
-// Validation: an FEM post hit by an MPM flow, against the same post as particles (issue 34). The problem and the run
+// Validation: an FEM post hit by an MPM flow, against the same post as particles. The problem and the run
 // are in post_impact_case.h.
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// Stability regression (issue 13 item 5): a small stability sweep on the CPU engine must have no silent blow-up.
+// Stability regression: a small stability sweep on the CPU engine must have no silent blow-up.
 // The cases and how a run is classed: stability_case.h; the full maps: tools/study/run_study.py --problem stability
 // and docs/validation.md ("Stability maps").
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// Validation: Terzaghi's one-dimensional consolidation of a saturated column under its own weight (issue 35), on the
+// Validation: Terzaghi's one-dimensional consolidation of a saturated column under its own weight, on the
 // CPU engine (the problem, the reference, the measured errors and the tolerances: terzaghi_case.h).
 #include <gtest/gtest.h>
 

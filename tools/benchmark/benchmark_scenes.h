@@ -11,7 +11,7 @@ namespace fbar::bench {
 
 /// Water column (2k x 2k x k cells of an 8 ppc box) in a 4k x 3k x 1.5k-cell tank, or a solid block of the same
 /// size dropped from mid-height at 1 m/s; tank_box: a JFluid box filling its tank but for a four-cell margin
-/// (issue 16's scene: dx 0.002 m, a 2 : 1.2 : 1 box, Separable walls).
+/// (the scaling scene: dx 0.002 m, a 2 : 1.2 : 1 box, Separable walls).
 inline Scene make_scene(const std::string& name, double millions, Precision precision) {
   const double cells = millions * 1e6 / 8.0;
   const bool tank_box = name == "tank_box";

@@ -1,4 +1,4 @@
-// FEM bodies in MPM water on the GPU engine (issue 34): the cost of a mesh beside the particle rows, and partition by
+// FEM bodies in MPM water on the GPU engine: the cost of a mesh beside the particle rows, and partition by
 // method on two GPUs.
 //
 //   fbar_fem_benchmark [--water=16] [--cells=50,70,48] [--steps=40] [--warmup=10] [--precision=single] [--csv=FILE]

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Output overhead of the GPU engine (issue 15): a run writing frames every 100 steps against the same steps
+"""Output overhead of the GPU engine: a run writing frames every 100 steps against the same steps
 writing only the last frame.
 
 Scene: scenes/dam_break_3d.json at a finer default_dx (0.00225: 16M JFluid particles, single precision), sensors

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Accuracy against cost (issue 13): sweeps fbar over a reference problem and charts error against time.
+"""Accuracy against cost: sweeps fbar over a reference problem and charts error against time.
 
 Problem (this first version): Martin & Moyce's dam break (1952), as the validation test
 tests/validation/test_dam_break.cpp sets it up: a water column of width a = 0.05715 m and height 2a on a dry bed,

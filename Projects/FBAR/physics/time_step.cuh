@@ -7,7 +7,7 @@
 // eigenvalue, 3 lambda + 2 mu <= 3 rho c^2, over rho; c the p-wave or sound speed). Explicit steps are stable only
 // for omega dt < 2, that is c dt / dx < 1 / sqrt(3) = 0.577 in 3D, whatever the flow does elsewhere. A body's CFL
 // number may be up to 1 (ClaymoreUW's range), and the bulk of a flow is stable there, but lone particles are not: the
-// stability map of issue 13 (docs/validation.md) measured silent blow-ups of lone particles from CFL 0.75 on (their
+// stability map (docs/validation.md) measured silent blow-ups of lone particles from CFL 0.75 on (their
 // energy grew by 1e5 over a thousand steps before J <= 0 stopped the run). So the acoustic part of every step stays
 // at c dt / dx <= 0.5, below the lone particle's limit, and a CFL above 0.5 only lengthens steps that advection,
 // not sound, limits.

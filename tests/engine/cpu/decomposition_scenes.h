@@ -72,7 +72,7 @@ inline void saturate(BodySpec& body) {
   body.initial_state = InitialState::Hydrostatic;
 }
 
-/// ClaymoreUW users' load-cell check (issue 31): water H = 0.2 m deep filling a Walls box [0, 0.2] x [0, 0.3] x
+/// ClaymoreUW users' load-cell check: water H = 0.2 m deep filling a Walls box [0, 0.2] x [0, 0.3] x
 /// [0, D = 0.04] m to its faces (dx 0.01, JFluid rho 1000, K 5e5 Pa, started hydrostatic), with a Force load cell
 /// against each x wall from outside, as scenes written for ClaymoreUW place them: [-0.05, 0] read X-, [0.2, 0.25]
 /// read X+ (both boxes over every y and z). Each reads the wall's load rho g H^2 D / 2 = 7.848 N (kClaymoreTankLoad).

@@ -679,7 +679,7 @@ PistonBlockResult piston_block(double dx) {
 // bar hit by a rigid wall leaves at 2 v_p, nothing ringing) is where a falling transfer dissipation would lead, but
 // measured the block keeps 0.949 of the work (1.899 v_p) at dx 0.02 m and 0.765 (1.516 v_p) at dx 0.01 m. The
 // piston's face crosses a node plane every dx / v_p and each crossing sets a node's velocity at once; that the
-// finer grid loses more is an open finding (issue notes), so both resolutions are held to the bounds only.
+// finer grid loses more is an open finding, so both resolutions are held to the bounds only.
 TEST(Boundary, MovingPistonPushesABlock) {
   for (const PistonBlockResult& r : {piston_block(0.02), piston_block(0.01)}) {
     SCOPED_TRACE(testing::Message() << "dx " << r.dx);

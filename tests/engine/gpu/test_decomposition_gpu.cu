@@ -226,7 +226,7 @@ TEST(GpuDecomposition, PlacedAndSpreadBodiesTogether) {
   expect_same_run(test::placed_bodies(true), 120, true, 1, false);
 }
 
-// Partition by method (issue 34): an FEM post (kernels/fem_kernels.cuh) whole on rank 1 while the dam break's water is
+// Partition by method: an FEM post (kernels/fem_kernels.cuh) whole on rank 1 while the dam break's water is
 // spread over the ranks; the mesh's element impulse reaches the grid before the shared blocks are summed. In these
 // 120 steps no water particle crosses a cut (measured on an H200: 2.7e-14 m/s from one rank, 2 and 3 ranks); the post
 // and the water meet in the blocks the ranks share.

@@ -5,7 +5,7 @@
 //    test::GpuValidationEngine, with the same assertions as their CPU tests: vibrating bar per scheme, hydrostatic
 //    column with and without F-bar, the nearly incompressible block with and without F-bar, the NACC
 //    material-point element, granular collapse against Lube et al., Terzaghi's consolidation of a saturated column,
-//    and the FEM cases (issue 34): the cantilever's convergence, the floating block, the post hit by a flow, the
+//    and the FEM cases: the cantilever's convergence, the floating block, the post hit by a flow, the
 //    locking block as tetrahedra. Each engine takes its own CFL steps, so the
 //    numbers differ from the CPU's at round-off level and through the JFluid wave-speed lag (gpu_engine.h).
 #include <gtest/gtest.h>
