@@ -26,6 +26,7 @@
 #include "engine/stop_request.h"
 #include "io/checkpoint.h"
 #include "../physics/physics_test_support.h"
+#include "restart_cases.h"
 #include "resume_support.h"
 #include "run_support.h"
 
@@ -36,6 +37,7 @@ namespace fs = std::filesystem;
 using test::grid_sensor_spec;
 using test::particle_sensor_spec;
 using test::r3;
+namespace restart = test::restart;
 
 fs::path scratch(const std::string& name) {
   const fs::path dir = fs::path(::testing::TempDir()) / ("fbar_checkpoint_" + name);
@@ -44,91 +46,18 @@ fs::path scratch(const std::string& name) {
   return dir;
 }
 
-std::string bytes_of(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
 /// Runs `scene` (save_path set by the caller) through run_cpu on `ranks` ranks (threads), restarting from
 /// `restart` when it is not empty; returns rank 0's result.
 RunResult run_ranks(const Scene& scene, int ranks, const std::string& restart = "") {
   return test::run_cpu_ranks(scene, ranks, restart).front();
 }
 
-/// The dam break with ASFLIP and F-bar, a Drucker-Prager block (F and logJp) beside it, two grid sensors, two
-/// particle sensors and a tracker; 6 frames at 50 fps, bgeo frames (raw floats: a byte comparison is exact).
-Scene restart_scene(const fs::path& out) {
-  Scene scene = test::dam_break(true);
-  BodySpec sand = test::box_body(Constitutive::DruckerPrager, r3(0.44, 0.04, 0.04), r3(0.1, 0.1, 0.12));
-  sand.model = 1;
-  sand.output_attribs = {"ID", "Velocity_X", "Velocity_Y", "logJp", "Pressure"};
-  scene.bodies[0].output_attribs = {"ID", "Velocity_X", "Velocity_Y", "J"};
-  scene.bodies.push_back(sand);
-  scene.simulation.fps = 50.0;
-  scene.simulation.frames = 6;
-  scene.simulation.save_suffix = ".bgeo";
-  scene.simulation.save_path = out.string();
-  GridSensorSpec force = grid_sensor_spec("Force", SensorOperation::Sum, {0, 0, 0}, {0.64, 0.05, 0.2}, {0, 1, 0}, -1);
-  force.output_frequency = 230.0;  // sample times between steps and frames
-  GridSensorSpec mass = grid_sensor_spec("Mass", SensorOperation::Sum, {0, 0, 0}, {0.64, 0.4, 0.2});
-  mass.output_frequency = 50.0;    // on the frame times (the checkpoint's time among them)
-  scene.grid_sensors = {force, mass};
-  ParticleSensorSpec gauge = particle_sensor_spec("Position_Y", SensorOperation::Max, {0.1, 0, 0}, {0.2, 0.4, 0.2});
-  gauge.output_frequency = 100.0;
-  ParticleSensorSpec speed = particle_sensor_spec("Velocity_X", SensorOperation::Average, {0, 0, 0}, {0.64, 0.4, 0.2});
-  speed.output_frequency = 70.0;
-  scene.particle_sensors = {gauge, speed};
-  scene.bodies[0].track_particle_id = {0, 17, 3000};
-  scene.bodies[0].track_attribs = {"Position_X", "Velocity_Y"};
-  return scene;
-}
-
-/// Every frame file (model[m]_dev[d]_frame[f].*, a mesh's .vtk beside it too) of `a` after frame `from`, and every
-/// CSV of `a`, has the same bytes in `b`; `streams` (model, rank) pairs write frames (2 bodies on each rank unless
-/// the caller adds a body), and `csv_files` CSVs are compared.
-void expect_same_output(const fs::path& a, const fs::path& b, int from, int streams, int csv_files = 7) {
-  static const std::regex frame_name(R"(model\[(\d+)\]_dev\[(\d+)\]_frame\[(\d+)\]\..*)");
-  int compared_csv = 0, compared_frames = 0;
-  std::set<std::pair<int, int>> writers;
-  for (const auto& e : fs::directory_iterator(a)) {
-    const std::string name = e.path().filename().string();
-    std::smatch m;
-    if (e.path().extension() == ".csv" && !std::regex_match(name, m, frame_name)) {
-      ASSERT_TRUE(fs::exists(b / name)) << name;
-      EXPECT_EQ(bytes_of(b / name), bytes_of(e.path())) << name;
-      ++compared_csv;
-    } else if (std::regex_match(name, m, frame_name) && std::stoi(m[3]) > from) {
-      writers.insert({std::stoi(m[1]), std::stoi(m[2])});
-      ASSERT_TRUE(fs::exists(b / name)) << name << ": not written by the restarted run";
-      EXPECT_EQ(bytes_of(b / name), bytes_of(e.path())) << name;
-      ++compared_frames;
-    }
-  }
-  EXPECT_EQ(compared_csv, csv_files);
-  EXPECT_EQ(static_cast<int>(writers.size()), streams) << "frame writers (model, rank)";
-  EXPECT_GE(compared_frames, streams * (6 - from));  // .bgeo per stream and frame, and a mesh's .vtk
-}
-
-/// `b` as a user leaves it to continue a run of `a` from `checkpoint` in place: `a`'s files up to the checkpoint.
-/// Later frames are removed and each sensor / tracker CSV keeps the bytes the checkpoint recorded, followed by a
-/// line the restart must cut (a restart that wrote nothing would then leave both visible).
-void copy_up_to_checkpoint(const fs::path& a, const fs::path& b, const fs::path& checkpoint, int from) {
-  static const std::regex frame_name(R"(model\[\d+\]_dev\[\d+\]_frame\[(\d+)\]\..*)");
-  fs::copy(a, b, fs::copy_options::recursive | fs::copy_options::overwrite_existing);
-  const io::Checkpoint c = io::read_checkpoint(b / checkpoint.filename());
-  ASSERT_FALSE(c.csv.empty()) << "the checkpoint recorded no sensor file";
-  for (const auto& e : fs::directory_iterator(b)) {
-    const std::string name = e.path().filename().string();
-    std::smatch m;
-    if (std::regex_match(name, m, frame_name) && std::stoi(m[1]) > from) fs::remove(e.path());
-  }
-  for (const auto& [name, bytes] : c.csv) {
-    ASSERT_TRUE(fs::exists(b / name)) << name;
-    std::string text = bytes_of(b / name);
-    ASSERT_LE(static_cast<std::size_t>(bytes), text.size()) << name;
-    text.resize(static_cast<std::size_t>(bytes));
-    std::ofstream(b / name, std::ios::binary | std::ios::trunc) << text << "9.99,planted row after the checkpoint\n";
-  }
+using restart::bytes_of;
+using restart::copy_up_to_checkpoint;
+using restart::expect_same_output;
+using restart::restart_scene;
+void expect_frame_restart(int ranks, const std::function<void(Scene&)>& change = {}, const std::string& name = "") {
+  restart::expect_frame_restart(run_cpu, "cpu", ranks, change, name);
 }
 
 TEST(CheckpointFile, RoundTripsInTheRunsPrecision) {
@@ -168,7 +97,15 @@ TEST(CheckpointFile, RoundTripsInTheRunsPrecision) {
     b.volume.push_back(static_cast<float>(1.0 / 3.0));
     for (int a = 0; a < 9; ++a) b.state.push_back(static_cast<float>(a == 0 || a == 4 || a == 8 ? 1.0 + 0.01 * p : 0.001 * a));
   }
-  c.bodies = {b, io::CheckpointBody{"JFluid", 1, 0, 0.0, {}, {}, {}, {}, {}, {}, {}}};
+  b.p2g_known = true;  // this rank summed particles 3 and 4 (it holds 4, 3 and 2: 2 arrived after the P2G)
+  b.p2g_id = {3, 4};
+  b.p2g_block = {-1, 2, 7, 0, 0, -300};
+  c.bodies = {b, [] {
+    io::CheckpointBody e;
+    e.law = "JFluid";
+    e.state_scalars = 1;
+    return e;
+  }()};
   const fs::path path = io::checkpoint_frame_path(dir, 12, 1);
   EXPECT_EQ(path.filename().string(), "checkpoint_frame[12]_dev[1].h5");
   io::write_checkpoint(path, c);
@@ -201,11 +138,19 @@ TEST(CheckpointFile, RoundTripsInTheRunsPrecision) {
   EXPECT_EQ(r.bodies[1].particles(), 0u);
   EXPECT_EQ(r.bodies[0].p2g_bound, 0.75);
   EXPECT_EQ(r.bodies[1].p2g_bound, -1.0);  // not known
+  EXPECT_TRUE(r.bodies[0].p2g_known);
+  EXPECT_EQ(r.bodies[0].p2g_id, b.p2g_id);
+  EXPECT_EQ(r.bodies[0].p2g_block, b.p2g_block);
+  EXPECT_FALSE(r.bodies[1].p2g_known);
   // The particle bytes of a rebalance and the merge of rank parts keep it.
   io::Checkpoint parts = c;
   for (io::CheckpointBody& body : parts.bodies) body = body.description();
   io::read_checkpoint_particle_bytes(io::checkpoint_particle_bytes(c), parts);
   EXPECT_EQ(parts.bodies[0].p2g_bound, 0.75);
+  EXPECT_TRUE(parts.bodies[0].p2g_known);
+  EXPECT_EQ(parts.bodies[0].p2g_id, b.p2g_id);
+  EXPECT_EQ(parts.bodies[0].p2g_block, b.p2g_block);
+  EXPECT_FALSE(parts.bodies[1].p2g_known);
   // The rank files of a set.
   EXPECT_EQ(io::checkpoint_rank_path(dir / "checkpoint_step[40]_dev[0].h5", 3).filename().string(),
             "checkpoint_step[40]_dev[3].h5");
@@ -220,35 +165,46 @@ TEST(CheckpointFile, RoundTripsInTheRunsPrecision) {
   }
 }
 
-/// A frame checkpoint continues bit for bit: frames, sensor rows and tracker rows; also in a fresh directory (the
-/// sensor files then start again, with a warning).
-void expect_frame_restart(int ranks, const std::function<void(Scene&)>& change = {}, const std::string& name = "") {
-  const std::string tag = std::to_string(ranks) + name;
-  const fs::path a = scratch("frames_a" + tag), b = scratch("frames_b" + tag);
-  Scene scene = restart_scene(a);
-  if (change) change(scene);
-  scene.simulation.checkpoint_every = 2;
-  const RunResult full = run_ranks(scene, ranks);
-  ASSERT_EQ(full.exit_code, 0) << full.message;
-  for (int f : {2, 4, 6})
-    for (int d = 0; d < ranks; ++d) EXPECT_TRUE(fs::exists(io::checkpoint_frame_path(a, f, d))) << f;
-  EXPECT_FALSE(fs::exists(io::checkpoint_frame_path(a, 3, 0)));
-  EXPECT_EQ(full.checkpoint, io::checkpoint_frame_path(a, 6, 0).string());
-  // The same directory's files up to frame 2, continued from its checkpoint: its later frames and the CSVs' rows
-  // after it are the restart's.
-  copy_up_to_checkpoint(a, b, io::checkpoint_frame_path(a, 2, 0), 2);
-  scene.simulation.save_path = b.string();
-  const RunResult resumed = run_ranks(scene, ranks, io::checkpoint_frame_path(b, 2, 0).string());
-  ASSERT_EQ(resumed.exit_code, 0) << resumed.message;
-  EXPECT_EQ(resumed.restarted_from_frame, 2);
-  EXPECT_EQ(resumed.steps, full.steps);
-  EXPECT_EQ(resumed.end_time, full.end_time);
-  // CSVs: the tracker's, each particle sensor's per body, each grid sensor's. Frames: each particle body on every
-  // rank, a placed mesh on its own.
-  int streams = 0;
-  for (const BodySpec& body : scene.bodies) streams += body.mesh >= 0 ? 1 : ranks;
-  expect_same_output(a, b, 2, streams,
-                     1 + static_cast<int>(scene.particle_sensors.size() * scene.bodies.size() + scene.grid_sensors.size()));
+// Two ranks' parts merge into ID order with the blocks of the last P2G (io::CheckpointBody::p2g_block), which a
+// particle that migrated in that step has in the other rank's part; a part without them makes them unknown, and a
+// particle summed on both ranks is an error.
+TEST(CheckpointFile, MergeKeepsTheBlocksOfTheLastP2G) {
+  auto part = [](int rank, std::vector<std::int64_t> ids, std::vector<std::int64_t> summed) {
+    io::Checkpoint c;
+    c.precision = "double";
+    c.rank = rank;
+    c.ranks = 2;
+    io::CheckpointBody b;
+    b.law = "JFluid";
+    b.state_scalars = 1;
+    b.global_particles = 4;
+    for (const std::int64_t id : ids) {
+      b.id.push_back(id);
+      for (int a = 0; a < 3; ++a) b.x.push_back(0.1 * static_cast<double>(id) + a);
+      b.v.insert(b.v.end(), 3, 0.0);
+      b.C.insert(b.C.end(), 9, 0.0);
+      b.mass.push_back(1.0);
+      b.volume.push_back(1.0);
+      b.state.push_back(0.0);
+    }
+    b.p2g_known = true;
+    for (const std::int64_t id : summed) {
+      b.p2g_id.push_back(id);
+      for (int a = 0; a < 3; ++a) b.p2g_block.push_back(static_cast<std::int32_t>(10 * id + a + rank * 100));
+    }
+    c.bodies.push_back(b);
+    return c;
+  };
+  // Particle 1 was summed on rank 0 and then migrated to rank 1; particle 2 the other way.
+  const io::Checkpoint merged = io::merge_checkpoints({part(0, {0, 2}, {0, 1}), part(1, {1, 3}, {3, 2})}, "test");
+  const io::CheckpointBody& m = merged.bodies[0];
+  ASSERT_TRUE(m.p2g_known);
+  EXPECT_EQ(m.p2g_id, (std::vector<std::int64_t>{0, 1, 2, 3}));
+  EXPECT_EQ(m.p2g_block, (std::vector<std::int32_t>{0, 1, 2, 10, 11, 12, 120, 121, 122, 130, 131, 132}));
+  io::Checkpoint unknown = part(1, {1, 3}, {3, 2});
+  unknown.bodies[0].p2g_known = false;
+  EXPECT_FALSE(io::merge_checkpoints({part(0, {0, 2}, {0, 1}), unknown}, "test").bodies[0].p2g_known);
+  EXPECT_THROW(io::merge_checkpoints({part(0, {0, 2}, {0, 1}), part(1, {1, 3}, {3, 1})}, "test"), std::runtime_error);
 }
 
 TEST(Restart, FromAFrameCheckpointContinuesBitForBit) { expect_frame_restart(1); }
@@ -263,16 +219,7 @@ TEST(Restart, SingleAndMixedPrecisionContinueBitForBit) {
 // frames (PorePressure among the columns) and its pore-pressure and water-mass sensors are the full run's bytes, on one
 // rank and on two.
 TEST(Restart, SaturatedSoilContinuesBitForBit) {
-  const auto saturate = [](Scene& scene) {
-    test::saturate(scene.bodies[1]);
-    scene.bodies[1].output_attribs = {"ID", "Velocity_X", "PorePressure", "logJp", "Pressure"};
-    GridSensorSpec pore = grid_sensor_spec("PorePressure", SensorOperation::Average, {0, 0, 0}, {0.64, 0.4, 0.2});
-    pore.output_frequency = 230.0;
-    GridSensorSpec water = grid_sensor_spec("MassWater", SensorOperation::Sum, {0, 0, 0}, {0.64, 0.4, 0.2});
-    water.output_frequency = 50.0;
-    scene.grid_sensors.push_back(pore);
-    scene.grid_sensors.push_back(water);
-  };
+  const auto saturate = restart::saturate_second_body;
   expect_frame_restart(1, saturate, "_saturated");
   expect_frame_restart(2, saturate, "_saturated");
 }
@@ -281,12 +228,7 @@ TEST(Restart, SaturatedSoilContinuesBitForBit) {
 // elements and no vertex (the run's sensor rows over the mesh's vertices, and every other body's frames, are the
 // full run's bytes), on one rank and on two.
 TEST(Restart, MeshContinuesBitForBit) {
-  const auto add_mesh = [](Scene& scene) {
-    MeshEntrySpec& m = test::add_elastic_mesh(
-        scene, box_tet_mesh(Vec3d{{0.3, 0.26, 0.06}}, Vec3d{{0.36, 0.32, 0.12}}, Vec3i{{3, 3, 3}}), 800.0, 2e5, 0.3, 1);
-    m.output_attribs = {"ID", "Velocity_Y", "J"};
-    append_mesh_bodies(scene);
-  };
+  const auto add_mesh = restart::add_placed_mesh;
   expect_frame_restart(1, add_mesh, "_mesh");
   expect_frame_restart(2, add_mesh, "_mesh");
 }
@@ -357,34 +299,8 @@ TEST(Restart, TwoRankCheckpointContinuesOnOneRank) {
   }
 }
 
-// SIGTERM mid-run (request_stop, as the handler records it, when frame 1's progress line is written): the run stops
-// after the step in progress, writes checkpoint_step[s], and a restart from it writes what the uninterrupted run
-// wrote.
-TEST(Restart, AfterAStopRequestContinuesBitForBit) {
-  const fs::path a = scratch("stop_a"), b = scratch("stop_b");
-  Scene scene = restart_scene(a);
-  ASSERT_EQ(run_ranks(scene, 1).exit_code, 0);
-  scene.simulation.save_path = b.string();
-  clear_stop_request();
-  test::StopWhenLogged stop("frame 1/", SIGTERM);
-  std::ostream log(&stop);
-  const RunResult stopped = test::run_cpu_ranks(scene, 1, "", &log).front();
-  clear_stop_request();
-  ASSERT_EQ(stopped.exit_code, 128 + SIGTERM) << stopped.message << stop.text();
-  EXPECT_EQ(stopped.frames_written, 1);
-  ASSERT_FALSE(stopped.checkpoint.empty());
-  EXPECT_NE(stopped.checkpoint.find("checkpoint_step[" + std::to_string(stopped.steps) + "]_dev[0].h5"),
-            std::string::npos)
-      << stopped.checkpoint;
-  EXPECT_NE(stopped.message.find("--restart="), std::string::npos) << stopped.message;
-  const io::Checkpoint c = io::read_checkpoint(stopped.checkpoint);
-  EXPECT_EQ(c.reason, "SIGTERM");
-  EXPECT_EQ(c.steps, stopped.steps);
-  EXPECT_EQ(c.frame, stopped.frames_written);
-  const RunResult resumed = run_ranks(scene, 1, stopped.checkpoint);
-  ASSERT_EQ(resumed.exit_code, 0) << resumed.message;
-  expect_same_output(a, b, stopped.frames_written, 2);
-}
+// SIGTERM mid-run: the restart from checkpoint_step[s] writes what the uninterrupted run wrote (restart_cases.h).
+TEST(Restart, AfterAStopRequestContinuesBitForBit) { restart::expect_stop_restart(run_cpu, "cpu"); }
 
 // A failure writes the state before the failed step; restarting from it fails again at the same step.
 TEST(Restart, AFailureWritesTheStateBeforeTheFailedStep) {

@@ -222,6 +222,11 @@ void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c) {
       put_reals(w, "Mass", body.mass, n, 1, single, file);
       put_reals(w, "Volume", body.volume, n, 1, single, file);
       put_reals(w, "State", body.state, n, body.state_scalars, single, file);
+      put_int(w, "p2g_blocks", body.p2g_known ? 1 : 0, file);
+      if (body.p2g_known) {
+        put_array(w, "P2GID", body.p2g_id, body.p2g_id.size(), 1, H5T_STD_I64LE, H5T_NATIVE_INT64, file);
+        put_array(w, "P2GBlock", body.p2g_block, body.p2g_id.size(), 3, H5T_STD_I32LE, H5T_NATIVE_INT32, file);
+      }
     }
     if (f.release() < 0) throw h5_detail::failure("close " + part.string());
   } catch (...) {
@@ -302,6 +307,19 @@ Checkpoint read_checkpoint(const std::filesystem::path& path, bool particles) {
     body.mass = get_reals(w, "Mass", n, 1, file);
     body.volume = get_reals(w, "Volume", n, 1, file);
     body.state = get_reals(w, "State", n, body.state_scalars, file);
+    body.p2g_known = H5Aexists(w, "p2g_blocks") > 0 && get_int(w, "p2g_blocks", file) != 0;
+    if (body.p2g_known) {
+      hsize_t dims[2] = {0, 0};
+      {
+        if (H5Lexists(w, "P2GID", H5P_DEFAULT) <= 0) throw std::runtime_error(file + ": dataset 'P2GID' is missing");
+        Handle set(H5Dopen2(w, "P2GID", H5P_DEFAULT), H5Dclose, "open dataset P2GID of " + file);
+        Handle space(H5Dget_space(set.get()), H5Sclose, "read the dataspace of P2GID");
+        H5Sget_simple_extent_dims(space.get(), dims, nullptr);
+      }
+      const auto m = static_cast<std::size_t>(dims[0]);
+      body.p2g_id = get_array<std::int64_t>(w, "P2GID", m, 1, H5T_NATIVE_INT64, file);
+      body.p2g_block = get_array<std::int32_t>(w, "P2GBlock", m, 3, H5T_NATIVE_INT32, file);
+    }
     c.bodies.push_back(std::move(body));
   }
   return c;
@@ -374,6 +392,31 @@ Checkpoint merge_checkpoints(std::vector<Checkpoint> parts, const std::string& w
         out.volume[q] = src->volume[p];
         std::copy_n(src->state.begin() + S * p, S, out.state.begin() + S * q);
       }
+    // The blocks of the last P2G, by ID, when every rank recorded its share (each particle summed on one rank).
+    out.p2g_known = std::all_of(from.begin(), from.end(), [](const CheckpointBody* c) { return c->p2g_known; });
+    if (out.p2g_known) {
+      out.p2g_id.resize(total);
+      std::iota(out.p2g_id.begin(), out.p2g_id.end(), std::int64_t{0});
+      out.p2g_block.assign(3 * total, 0);
+      std::vector<char> seen(total, 0);
+      std::size_t summed = 0;
+      for (const CheckpointBody* src : from) {
+        if (src->p2g_block.size() != 3 * src->p2g_id.size())
+          throw std::runtime_error(what + ": body " + std::to_string(b) + ": P2GBlock does not match P2GID");
+        for (std::size_t p = 0; p < src->p2g_id.size(); ++p) {
+          const std::int64_t id = src->p2g_id[p];
+          if (id < 0 || static_cast<std::size_t>(id) >= total || seen[static_cast<std::size_t>(id)])
+            throw std::runtime_error(what + ": body " + std::to_string(b) + ": particle ID " + std::to_string(id) +
+                                     " of P2GID is out of range or on several ranks");
+          seen[static_cast<std::size_t>(id)] = 1;
+          std::copy_n(src->p2g_block.begin() + 3 * p, 3, out.p2g_block.begin() + 3 * static_cast<std::size_t>(id));
+          ++summed;
+        }
+      }
+      if (summed != total)
+        throw std::runtime_error(what + ": body " + std::to_string(b) + ": P2GID lists " + std::to_string(summed) +
+                                 " particles over the ranks' files, " + std::to_string(total) + " expected");
+    }
   }
   return all;
 }
@@ -399,7 +442,8 @@ std::vector<std::uint8_t> checkpoint_particle_bytes(const Checkpoint& c) {
   std::vector<std::uint8_t> out;
   std::size_t total = 0;
   for (const CheckpointBody& b : c.bodies)
-    total += 24 + b.particles() * (8 * (1 + 3 + 3 + 9 + 1 + 1) + 8 * static_cast<std::size_t>(b.state_scalars));
+    total += 32 + b.particles() * (8 * (1 + 3 + 3 + 9 + 1 + 1) + 8 * static_cast<std::size_t>(b.state_scalars)) +
+             b.p2g_id.size() * (8 + 12);
   out.reserve(total);
   for (const CheckpointBody& b : c.bodies) {
     const std::uint64_t n = b.particles();
@@ -413,6 +457,12 @@ std::vector<std::uint8_t> checkpoint_particle_bytes(const Checkpoint& c) {
     put_raw(out, b.mass.data(), n);
     put_raw(out, b.volume.data(), n);
     put_raw(out, b.state.data(), static_cast<std::size_t>(b.state_scalars) * n);
+    const std::uint64_t m = b.p2g_known ? b.p2g_id.size() : ~std::uint64_t(0);
+    put_raw(out, &m, 1);
+    if (b.p2g_known) {
+      put_raw(out, b.p2g_id.data(), b.p2g_id.size());
+      put_raw(out, b.p2g_block.data(), 3 * b.p2g_id.size());
+    }
   }
   return out;
 }
@@ -439,6 +489,17 @@ void read_checkpoint_particle_bytes(const std::vector<std::uint8_t>& bytes, Chec
     take_raw(bytes, at, b.mass.data(), n);
     take_raw(bytes, at, b.volume.data(), n);
     take_raw(bytes, at, b.state.data(), S * n);
+    std::uint64_t m = 0;
+    take_raw(bytes, at, &m, 1);
+    b.p2g_known = m != ~std::uint64_t(0);
+    b.p2g_id.clear();
+    b.p2g_block.clear();
+    if (b.p2g_known) {
+      b.p2g_id.resize(m);
+      b.p2g_block.resize(3 * m);
+      take_raw(bytes, at, b.p2g_id.data(), m);
+      take_raw(bytes, at, b.p2g_block.data(), 3 * m);
+    }
   }
   if (at != bytes.size()) throw std::runtime_error("checkpoint particles: bytes left over (another scene?)");
 }

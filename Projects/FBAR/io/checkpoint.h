@@ -2,7 +2,7 @@
 //
 // A checkpoint holds everything the next step depends on, so that a run restarted from it writes the same frames
 // and sensor rows as the run that was never stopped (bitwise on the CPU engine with the same number of ranks; on the
-// GPU engine within the order of its atomic sums):
+// GPU engine to the last bits of its grid sums: docs/user_guide.md §4.7):
 //   * per body, per particle in this rank's slot order: ID, position, velocity and APIC matrix C of the last G2P
 //     (ASFLIP: the particle's own velocity), mass, reference volume and the material's stored state (the scalars
 //     of material_state_t<M, T> in member order: 1 - J for JFluid, F row-major, then logJp, ...), in the run's
@@ -18,8 +18,9 @@
 //   checkpoint_step[s]_dev[d].h5    written when a run stops at step s (SIGINT / SIGTERM, or a failure)
 // Layout: root attributes (format, precision, engine, reason, rank, ranks, time, ...), per-body groups /body[b]
 // with attributes (law, state_scalars, particles, global_particles, max_wave_speed) and datasets ID (int64),
-// Position (N x 3), Velocity (N x 3), C (N x 9), Mass (N), Volume (N), State (N x state_scalars), and /csv with
-// the sensor files' names and lengths. Each file is written to <name>.part and renamed when complete.
+// Position (N x 3), Velocity (N x 3), C (N x 9), Mass (N), Volume (N), State (N x state_scalars), on the GPU
+// engine (attribute p2g_blocks = 1) P2GID (M) and P2GBlock (M x 3), and /csv with the sensor files' names and
+// lengths. Each file is written to <name>.part and renamed when complete.
 #pragma once
 
 #include <cstdint>
@@ -51,6 +52,16 @@ struct CheckpointBody {
   /// summed the grid with, so that a restart sums the same grid bit for bit; < 0: not known (a CPU checkpoint, or
   /// one written before this field existed: the restart measures its own bound and continues to round-off)
   double p2g_bound = -1.0;
+  /// GPU engine: the grid block (block coordinates, 4 cells a side) each particle's last P2G summed it from, which
+  /// is the block it started that step in, not the one it ends in: each block sums its particles in a fixed-point
+  /// quantum of its own (kernels/g2p2g_kernel.cuh), so a restart groups them the same way to sum the same grid.
+  /// In one rank's file: the particles that rank summed (p2g_id; after a migration not those of `id`); merged
+  /// (merge_checkpoints): every particle in ID order. p2g_known false: not recorded (a CPU checkpoint, one written
+  /// before this field existed, or before a run's first step): the restart groups the particles by position, as a
+  /// run's first P2G does.
+  bool p2g_known = false;
+  std::vector<std::int64_t> p2g_id;
+  std::vector<std::int32_t> p2g_block;  ///< (p2g_id, 3)
   std::size_t particles() const { return id.size(); }
   /// The same body without particles (law, state scalars, global count; max_wave_speed 0).
   CheckpointBody description() const {

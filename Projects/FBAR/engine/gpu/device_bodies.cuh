@@ -122,6 +122,14 @@ struct MgspBenchmark<T, TG>::BodyBase {
   /// Decomposed runs: blocks of layout 0 / 1 listed for the halo-first G2P2G (halo particle blocks, the others).
   int halo_blocks[2] = {0, 0}, interior_blocks[2] = {0, 0};
   cuda::DeviceArray<T> aux;  ///< (slot, kAuxScalars) recorded v and C
+  /// A step that recorded v and C also records, per slot of the layout its G2P2G read, the particle's ID and the
+  /// table index of the block it was summed from (record_p2g_blocks; -1 for an empty lane): what a checkpoint keeps
+  /// so that a restart sums the same grid. p2g_slots: the slots written.
+  cuda::DeviceArray<int> p2g_record;
+  int p2g_slots = 0;
+  /// A restart whose checkpoint kept those blocks: the block coordinates (3 per slot) of the flat upload, read by
+  /// the initial partition (dest_from_positions) and freed after it.
+  cuda::DeviceArray<int> restart_blocks;
   /// Per-particle initial velocities (GpuEngineOptions::initial_velocities): (ID, 3) on the device for the initial
   /// P2G, and on the host for snapshots before the first step; empty when the body starts at its scene velocity.
   cuda::DeviceArray<T> initial_v;
@@ -191,7 +199,11 @@ struct MgspBenchmark<T, TG>::BodyBase {
   /// Saturated bodies: the seepage channels of bins[cur] added into e.pore_fixed_ (kernels/seepage_kernels.cuh), or
   /// (bounds_only) their bounds raised in e.pore_bound_d_; nothing for other laws.
   virtual void seepage_sums(MgspBenchmark& e, bool bounds_only) = 0;
-  virtual void dest_from_positions(MgspBenchmark& e, int bins_which, const int* valid, int first, int slots) = 0;
+  /// blocks: a restart's recorded block per slot (3 ints), or nullptr to take each particle's from its position.
+  virtual void dest_from_positions(MgspBenchmark& e, int bins_which, const int* valid, int first, int slots,
+                                   const int* blocks = nullptr) = 0;
+  /// Into p2g_record: the IDs and blocks of layout(cur)'s particles, which the G2P2G just wrote to bins[1 - cur].
+  virtual void record_p2g_blocks(MgspBenchmark& e) = 0;
   virtual std::size_t migrant_bytes(const MgspBenchmark& e) const = 0;
   /// The emigrants G2P2G listed (emigrant_slots) from bins[1 - cur] into the areas lo / hi of `capacity` records
   /// (count_lo / count_hi: the body's device ints in the two message headers).
@@ -506,14 +518,28 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     cuda::check_launch("mark_ids");
   }
 
-  void dest_from_positions(MgspBenchmark& e, int which, const int* valid, int first, int slots) override {
+  void dest_from_positions(MgspBenchmark& e, int which, const int* valid, int first, int slots,
+                           const int* blocks) override {
     if (slots <= first) return;
     ::fbar::dest_from_positions<M, T, TG><<<cuda::grid_for(slots - first, kPartitionThreads), kPartitionThreads,
                                       0, e.stream_>>>(
         bins[which].instance(), valid, this->particles, first, slots, e.k_.inv_dx, e.slab_of(this->index), e.table_.view(),
         this->partition.layout(1 - e.cur_).count, this->partition.dest(), e.grid_[0].view(), e.grid_[1].view(),
-        e.body_stats_d_ + this->index);
+        e.body_stats_d_ + this->index, blocks);
     cuda::check_launch("dest_from_positions");
+  }
+
+  void record_p2g_blocks(MgspBenchmark& e) override {
+    const int slots = this->total_bins[e.cur_] * 32;
+    this->p2g_slots = slots;
+    if (slots == 0) return;
+    if (this->p2g_record.size() < 2 * static_cast<std::size_t>(slots))
+      this->p2g_record.allocate(2 * static_cast<std::size_t>(this->partition.bin_capacity()) * 32);
+    const int blocks = std::min(e.block_capacity_, std::max(e.block_count_, e.stats_->block_count));
+    if (blocks == 0) return;
+    ::fbar::record_p2g_blocks<M, T><<<blocks, kOutputThreads, 0, e.stream_>>>(
+        bins[1 - e.cur_].instance(), this->partition.layout(e.cur_), slots, this->p2g_record.get());
+    cuda::check_launch("record_p2g_blocks");
   }
 
   std::size_t migrant_bytes(const MgspBenchmark& e) const override {

@@ -307,29 +307,39 @@ void MgspBenchmark<T, TG>::allocate_device_state(const std::vector<std::vector<V
                                                : static_cast<int>(plan_.bin_capacity[b]);
     body.partition.allocate(block_capacity_, bins, decomposed() && options_.overlap_halo);  // the lists' only use
     body.allocate_bins(bins);
+    const std::int32_t* recorded = restart_blocks_of(static_cast<int>(b));
+    std::vector<int> blocks;  // a restart's recorded blocks of the uploaded particles (3 per slot)
     if (positions && decomposed()) {
       std::vector<Vec3d> mine;
       std::vector<int> ids;
       const std::vector<Vec3d>& x = (*positions)[static_cast<std::size_t>(b)];
       for (std::size_t p = 0; p < x.size(); ++p)
-        if (owns(b, x[p])) {
+        if (holds_at_restart(static_cast<int>(b), p, x[p])) {
           mine.push_back(x[p]);
           ids.push_back(static_cast<int>(p));
+          if (recorded) blocks.insert(blocks.end(), recorded + 3 * p, recorded + 3 * p + 3);
         }
       body.upload(mine.data(), ids.data(), mine.size(), 0, stream_);
     } else if (positions) {
       body.upload((*positions)[b].data(), nullptr, (*positions)[b].size(), 0, stream_);
+      if (recorded) blocks.assign(recorded, recorded + 3 * (*positions)[b].size());
     } else if (body.mesh) {  // the vertices, on the rank holding the mesh (a mesh is placed whole)
       const std::vector<Vec3d>& x = scene_.meshes.at(static_cast<std::size_t>(body.spec.mesh)).mesh->vertices;
       if (body.particles > 0) body.upload(x.data(), nullptr, x.size(), 0, stream_);
     } else {
       upload_sampled(body);
     }
+    if (!blocks.empty()) {
+      body.restart_blocks.allocate(blocks.size());
+      FBAR_CUDA_CHECK(cudaMemcpy(body.restart_blocks.get(), blocks.data(), sizeof(int) * blocks.size(),
+                                 cudaMemcpyHostToDevice));
+    }
     if (body.mesh && body.particles > 0) {  // the rank holding the vertices: the elements, and v and C recorded
       body.mesh->upload(stream_);
       body.aux.allocate(body.partition.slots() * kAuxScalars);
     }
   }
+  if (positions && decomposed()) size_restart_migration(*positions);
   allocate_frames();
   std::size_t temp = 0;
   FBAR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, temp, static_cast<int*>(nullptr), static_cast<int*>(nullptr),
@@ -369,11 +379,16 @@ void MgspBenchmark<T, TG>::partition_upload() {
   reset_stats(false);
   for (auto& b : bodies_) {
     FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(0).count, 0, sizeof(int) * block_capacity_, stream_));
-    b->dest_from_positions(*this, 0, nullptr, 0, b->particles);
+    // A restart whose checkpoint kept the blocks of its last P2G groups each particle there (partition_kernels.cuh).
+    b->dest_from_positions(*this, 0, nullptr, 0, b->particles, b->restart_blocks.size() ? b->restart_blocks.get() : nullptr);
   }
   partition_after_g2p2g();
   read_stats();
   while (handle_overflow()) {
+  }
+  for (auto& b : bodies_) {
+    cuda::DeviceArray<int> done;
+    b->restart_blocks.swap(done);
   }
   for (auto& b : bodies_) {
     take_layout_stats(*b, 0);
@@ -472,6 +487,7 @@ void MgspBenchmark<T, TG>::initial_p2g() {
   for (auto& b : bodies_)  // the element pass wrote the forces at the start positions
     if (b->mesh) b->mesh->force_cur = 1 - b->mesh->force_cur;
   block_count_ = stats_->block_count;
+  record_p2g_blocks();  // layout(0) was read, bins[1] written
   if (decomposed() && dec_.halo_grew) rebuild_halo(0);
   cur_ = 1;
   gc_ = 0;

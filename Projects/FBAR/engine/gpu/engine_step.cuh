@@ -255,7 +255,7 @@ bool MgspBenchmark<T, TG>::handle_overflow() {
   for (auto& b : bodies_) {
     FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(next).count, 0, sizeof(int) * block_capacity_, stream_));
     if (flat_source_)
-      b->dest_from_positions(*this, 0, nullptr, 0, b->particles);
+      b->dest_from_positions(*this, 0, nullptr, 0, b->particles, b->restart_blocks.size() ? b->restart_blocks.get() : nullptr);
     else
       b->dest_from_positions(*this, next, b->partition.layout(cur_).src, 0, b->source_slots);
   }
@@ -575,12 +575,14 @@ StepReport MgspBenchmark<T, TG>::step_impl(double dt, bool cfl_dt, double target
     report.dt = dt;
     report.failures = std::move(failures);
     if (record_) aux_valid_ = false;  // the failed try wrote over the recorded v and C
+    p2g_valid_ = false;
     return report;
   }
 }
 
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::commit(double dt) {
+  record_p2g_blocks();  // before the flip: layout(cur) is the one this G2P2G read
   for (auto& b : bodies_) {
     take_layout_stats(*b, 1 - cur_);
     b->particles = b->pending_particles;

@@ -61,6 +61,7 @@ GpuEngineOptions kept_options(const GpuEngineOptions& options) {
   GpuEngineOptions kept = options;
   kept.initial_velocities.clear();
   kept.restart = nullptr;
+  kept.restart_slab_cuts.clear();  // a rebalance chooses its own
   return kept;
 }
 
@@ -69,7 +70,9 @@ GpuEngineOptions kept_options(const GpuEngineOptions& options) {
 template <typename T, typename TG>
 GpuEngine<T, TG>::GpuEngine(const Scene& scene, const GpuEngineOptions& options)
     : impl_(make_engine<T, TG>(scene, options)), scene_(&scene), options_(kept_options(options)) {
-  chosen_imbalance_ = impl_->imbalance();
+  chosen_imbalance_ = !options.restart_slab_cuts.empty() && options.restart_chosen_imbalance >= 0.0
+                          ? options.restart_chosen_imbalance
+                          : impl_->imbalance();
 }
 template <typename T, typename TG>
 GpuEngine<T, TG>::GpuEngine(const Scene& scene, const std::vector<std::vector<Vec3d>>& positions,
@@ -199,7 +202,11 @@ void GpuEngine<T, TG>::track(int body, std::vector<double>& values, std::vector<
   impl_->track(body, values, present);
 }
 template <typename T, typename TG>
-io::Checkpoint GpuEngine<T, TG>::checkpoint() const { return impl_->checkpoint(); }
+io::Checkpoint GpuEngine<T, TG>::checkpoint() const {
+  io::Checkpoint c = impl_->checkpoint();
+  c.chosen_imbalance = chosen_imbalance_;  // a restart on as many ranks keeps the slabs and this
+  return c;
+}
 template <typename T, typename TG>
 bool GpuEngine<T, TG>::checkpoint_ready() const { return impl_->checkpoint_ready(); }
 template <typename T, typename TG>
@@ -340,6 +347,15 @@ RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& 
   if (!options.restart.empty()) {
     restart = std::make_unique<io::Checkpoint>(io::read_checkpoint_set(options.restart));
     engine_options.restart = restart.get();
+    // Written by as many ranks: their slabs again (read_checkpoint_set's merge keeps none), so that each rank
+    // continues with the particles it held.
+    const int ranks = options.transport ? options.transport->size() : 1;
+    const io::Checkpoint first = io::read_checkpoint(io::checkpoint_rank_path(options.restart, 0), false);
+    if (ranks > 1 && first.ranks == ranks && first.slab_cuts.size() == static_cast<std::size_t>(ranks) + 1) {
+      engine_options.restart_slab_axis = first.slab_axis;
+      engine_options.restart_slab_cuts = first.slab_cuts;
+      engine_options.restart_chosen_imbalance = first.chosen_imbalance;
+    }
   }
   GpuEngine<T, TG> engine(scene, engine_options);
   if (restart) {

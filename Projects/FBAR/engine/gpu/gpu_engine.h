@@ -101,6 +101,12 @@ struct GpuEngineOptions {
   /// positions, velocities, C, state, time and the next dt from it, nothing sampled. The initial P2G then makes the
   /// grid the continuous run had, to the order of its atomic sums. Must outlive the constructor only.
   const io::Checkpoint* restart = nullptr;
+  /// A restart on as many ranks as wrote the checkpoint: their slabs (comm::SlabPartition's axis and cuts, ranks + 1
+  /// entries) and the imbalance they were chosen with, so that every rank holds the particles it held and writes
+  /// the frames it would have written; empty cuts: the slabs are chosen from the restart's positions.
+  int restart_slab_axis = 0;
+  std::vector<int> restart_slab_cuts;
+  double restart_chosen_imbalance = -1.0;
 };
 
 template <typename T, typename TG>

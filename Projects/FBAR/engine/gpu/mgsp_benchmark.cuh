@@ -308,6 +308,14 @@ class MgspBenchmark {
   /// Whether this rank holds body b's particle at x: a placed body's rank holds all of it (comm/placement.h); else
   /// the slab of x's particle block (the device's arithmetic: x in T).
   bool owns(int body, const Vec3d& x) const;
+  /// A restart's recorded block of each particle of body b (3 per ID: io::CheckpointBody::p2g_block), or nullptr
+  /// when the checkpoint has none (the restart groups by position). Only during construction (options_.restart).
+  const std::int32_t* restart_blocks_of(int body) const;
+  /// Whether this rank takes particle p (at x) of a restart's positions: the owner of its recorded block, else
+  /// owns(body, x).
+  bool holds_at_restart(int body, std::size_t p, const Vec3d& x) const;
+  /// Decomposed restarts by recorded blocks: migration messages large enough for the initial P2G's (collective).
+  void size_restart_migration(const std::vector<std::vector<Vec3d>>& positions);
   /// The particle blocks body b keeps on this rank: a placed body all of them (it never migrates), else the slab.
   SlabBounds slab_of(int body) const {
     return dec_.homes.empty() || dec_.homes[static_cast<std::size_t>(body)] < 0 ? dec_.slab : SlabBounds{};
@@ -446,6 +454,15 @@ class MgspBenchmark {
   double output_wait_s_ = 0.0;
   bool flat_source_ = false;  ///< the partition reads the flat upload (slot = ID), not a layout
   bool aux_valid_ = false;  ///< aux holds v, C of the current state
+  /// Each body's p2g_record holds the blocks the current grid was summed from (the last G2P2G recorded v and C).
+  bool p2g_valid_ = false;
+  /// After a G2P2G (the initial one, or a committed step's, before the flip): when it recorded v and C, each body's
+  /// particles of layout(cur) with their blocks into p2g_record (a checkpoint keeps them); sets p2g_valid_.
+  void record_p2g_blocks() {
+    p2g_valid_ = record_;
+    if (record_)
+      for (auto& b : bodies_) b->record_p2g_blocks(*this);
+  }
   bool timing_ = false;
   KernelTimes times_;
   double time_ = 0.0;

@@ -174,6 +174,16 @@ io::Checkpoint MgspBenchmark<T, TG>::checkpoint() const {
   std::vector<double> bounds(bodies_.size());
   FBAR_CUDA_CHECK(cudaMemcpy(bounds.data(), p2g_bound_d_.get() + (1 - bound_cur_) * bodies_.size(),
                              sizeof(double) * bounds.size(), cudaMemcpyDeviceToHost));
+  // The table's block coordinates, for the blocks the current grid was summed from (p2g_record's indices).
+  std::vector<int> coords;
+  if (p2g_valid_) {
+    FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));  // the commit's record_p2g_blocks
+    const int blocks = std::min(block_capacity_, std::max(block_count_, stats_->block_count));
+    coords.resize(3 * static_cast<std::size_t>(blocks));
+    if (blocks)
+      FBAR_CUDA_CHECK(cudaMemcpy(coords.data(), table_.view().coords, sizeof(int) * coords.size(),
+                                 cudaMemcpyDeviceToHost));
+  }
   for (const auto& bp : bodies_) {
     const BodyBase& b = *bp;
     const std::vector<T> r = gather_host(b.index, stream_);
@@ -219,6 +229,30 @@ io::Checkpoint MgspBenchmark<T, TG>::checkpoint() const {
     if (k != n)
       throw std::runtime_error("GpuEngine::checkpoint: " + std::to_string(k) + " particles found by ID, " +
                                std::to_string(n) + " held");
+    if (p2g_valid_) {  // the particles this rank summed into the current grid, in ID order, with their blocks
+      std::vector<int> record(2 * static_cast<std::size_t>(b.p2g_slots));
+      if (!record.empty())
+        FBAR_CUDA_CHECK(cudaMemcpy(record.data(), b.p2g_record.get(), sizeof(int) * record.size(),
+                                   cudaMemcpyDeviceToHost));
+      std::vector<int> block_of(static_cast<std::size_t>(b.global_particles), -1);
+      for (std::size_t slot = 0; slot < record.size() / 2; ++slot) {
+        const int id = record[2 * slot], block = record[2 * slot + 1];
+        if (id < 0) continue;
+        if (id >= b.global_particles || block < 0 || 3 * static_cast<std::size_t>(block) >= coords.size() ||
+            block_of[static_cast<std::size_t>(id)] >= 0)
+          throw std::runtime_error("GpuEngine::checkpoint: internal error: body " + std::to_string(b.index) +
+                                   " slot " + std::to_string(slot) + " records particle " + std::to_string(id) +
+                                   " in block " + std::to_string(block));
+        block_of[static_cast<std::size_t>(id)] = block;
+      }
+      out.p2g_known = true;
+      for (long long p = 0; p < b.global_particles; ++p) {
+        const int block = block_of[static_cast<std::size_t>(p)];
+        if (block < 0) continue;
+        out.p2g_id.push_back(p);
+        out.p2g_block.insert(out.p2g_block.end(), coords.begin() + 3 * block, coords.begin() + 3 * block + 3);
+      }
+    }
     c.bodies.push_back(std::move(out));
   }
   return c;

@@ -20,7 +20,10 @@ void MgspBenchmark<T, TG>::choose_slabs(const std::vector<std::vector<Vec3d>>* p
     dec_.rank_keys.assign(static_cast<std::size_t>(n), {});
   }
   const comm::PlaneCounts planes = comm::plane_counts(spread);
-  if (planes.total() > 0) {
+  if (options_.restart_slab_cuts.size() == static_cast<std::size_t>(n) + 1) {  // a restart keeps its run's slabs
+    dec_.slabs.axis = options_.restart_slab_axis;
+    dec_.slabs.cuts = options_.restart_slab_cuts;
+  } else if (planes.total() > 0) {
     std::vector<long long> particles;  // every body's, whole (the counts before this rank keeps its share)
     for (const SampleCount& c : counts_) particles.push_back(c.particles);
     dec_.slabs = comm::choose_slabs(planes, n, 1, comm::placed_work(scene_, n, particles));
@@ -56,7 +59,8 @@ void MgspBenchmark<T, TG>::choose_slabs(const std::vector<std::vector<Vec3d>>* p
     BodyBase& body = *bodies_[b];
     long long mine = 0;
     if (positions) {
-      for (const Vec3d& p : (*positions)[b]) mine += owns(static_cast<int>(b), p) ? 1 : 0;
+      const std::vector<Vec3d>& x = (*positions)[b];
+      for (std::size_t p = 0; p < x.size(); ++p) mine += holds_at_restart(static_cast<int>(b), p, x[p]) ? 1 : 0;
       body.particles = static_cast<int>(mine);
       continue;
     }
@@ -95,6 +99,46 @@ bool MgspBenchmark<T, TG>::owns(int body, const Vec3d& x) const {
   if (!dec_.homes.empty() && dec_.homes[static_cast<std::size_t>(body)] >= 0) return dec_.homes[static_cast<std::size_t>(body)] == rank();
   const QuadraticBspline<T> s = quadratic_bspline_inv(x.template cast<T>(), k_.inv_dx);
   return dec_.slab.owns(floor_div4(s.base[0] - 1), floor_div4(s.base[1] - 1), floor_div4(s.base[2] - 1));
+}
+
+template <typename T, typename TG>
+const std::int32_t* MgspBenchmark<T, TG>::restart_blocks_of(int body) const {
+  const io::Checkpoint* cp = options_.restart;
+  if (!cp || body < 0 || static_cast<std::size_t>(body) >= cp->bodies.size()) return nullptr;
+  const io::CheckpointBody& c = cp->bodies[static_cast<std::size_t>(body)];
+  if (!c.p2g_known || c.p2g_block.size() != 3 * c.particles() || c.p2g_id.size() != c.particles()) return nullptr;
+  return c.p2g_block.data();  // merged: ID order (io::merge_checkpoints)
+}
+
+template <typename T, typename TG>
+bool MgspBenchmark<T, TG>::holds_at_restart(int body, std::size_t p, const Vec3d& x) const {
+  const std::int32_t* k = restart_blocks_of(body);
+  if (!k || (!dec_.homes.empty() && dec_.homes[static_cast<std::size_t>(body)] >= 0)) return owns(body, x);
+  return dec_.slab.owns(k[3 * p], k[3 * p + 1], k[3 * p + 2]);
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::size_restart_migration(const std::vector<std::vector<Vec3d>>& positions) {
+  // A restart that groups the particles by their recorded blocks holds each where its last P2G was summed; the
+  // initial P2G then sends those whose own block lies in a neighbour's slab, as that step's migration did. The
+  // messages are sized for them beforehand (every rank counts every particle: the same result everywhere).
+  bool any = false;
+  for (std::size_t b = 0; b < bodies_.size(); ++b) any = any || restart_blocks_of(static_cast<int>(b)) != nullptr;
+  if (!any) return;
+  long long most = 0;
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    if (!restart_blocks_of(static_cast<int>(b))) continue;
+    long long side_count[2] = {0, 0};
+    const std::vector<Vec3d>& x = positions[b];
+    for (std::size_t p = 0; p < x.size(); ++p) {
+      if (!holds_at_restart(static_cast<int>(b), p, x[p]) || owns(static_cast<int>(b), x[p])) continue;
+      const QuadraticBspline<T> s = quadratic_bspline_inv(x[p].template cast<T>(), k_.inv_dx);
+      ++side_count[dec_.slab.side(floor_div4(s.base[0] - 1), floor_div4(s.base[1] - 1), floor_div4(s.base[2] - 1))];
+    }
+    most = std::max({most, side_count[0], side_count[1]});
+  }
+  const long long agreed = static_cast<long long>(dec_.host->max(static_cast<double>(most)));
+  if (agreed > dec_.migrant_capacity) dec_.migrant_capacity = static_cast<int>(2 * agreed);
 }
 
 template <typename T, typename TG>

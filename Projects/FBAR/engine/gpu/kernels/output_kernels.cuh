@@ -37,6 +37,27 @@ __global__ void __launch_bounds__(kOutputThreads)
   for (int i = 0; i < kAuxScalars; ++i) o[S + i] = aux ? aux[static_cast<std::size_t>(s) * kAuxScalars + i] : T(0);
 }
 
+/// What a checkpoint keeps of a G2P2G's grouping (io::CheckpointBody::p2g_block): for slot s of `layout` (the
+/// layout that G2P2G read; its particle was written to `written` at slot s), out[2 s] = the particle's ID and
+/// out[2 s + 1] = the table index of the block it was summed from; (-1, -1) for an empty lane. One CUDA block per
+/// table block (a block's particles fill the first `count` slots of its bins).
+template <typename M, typename T>
+__global__ void __launch_bounds__(kOutputThreads)
+    record_p2g_blocks(typename ParticleLayout<M, T>::Buffer written, LayoutView layout, int slots, int* out) {
+  const int block = static_cast<int>(blockIdx.x);
+  const int count = layout.count[block];
+  if (count == 0) return;
+  const int first = layout.bin_offset[block] * 32;
+  const int end = first + ((count + 31) / 32) * 32;
+  for (int slot = first + static_cast<int>(threadIdx.x); slot < end && slot < slots; slot += kOutputThreads) {
+    const bool active = layout.src[slot] >= 0;
+    out[2 * static_cast<std::size_t>(slot)] =
+        active ? block_val(written, ParticleLayout<M, T>::id_attrib, slot / settings::kBinSize, slot % settings::kBinSize)
+               : -1;
+    out[2 * static_cast<std::size_t>(slot) + 1] = active ? block : -1;
+  }
+}
+
 /// The frame of the state before the first step (v = the body's initial velocity, or each particle's from v_by_id
 /// (3 per ID) when a seed gave them; C = 0): one thread per slot of the current layout, particles read through src.
 template <typename M, typename T>

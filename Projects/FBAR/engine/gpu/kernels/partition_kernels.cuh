@@ -27,12 +27,15 @@ inline constexpr int kPartitionThreads = 256;
 /// Records (block, rank) for particles at slots [first, slots) of `bins` from their positions (initial partition,
 /// the repeat of a partition after the table grew, particles received from another rank). valid: the slot holds a
 /// particle when valid[slot] >= 0 (nullptr: when slot < particles). A particle whose block lies outside `slab` is
-/// marked kEmigrant (a repeat after it was sent), as G2P2G marks it.
+/// marked kEmigrant (a repeat after it was sent), as G2P2G marks it. blocks (a restart's flat upload, or nullptr):
+/// the block coordinates of each slot's particle (3 per slot) instead of its position's, so that the restart's P2G
+/// groups the particles as the checkpointed run's last one did (io::CheckpointBody::p2g_block).
 template <typename M, typename T, typename TG>
 __global__ void __launch_bounds__(kPartitionThreads)
     dest_from_positions(typename ParticleLayout<M, T>::Buffer bins, const int* valid, int particles, int first,
                         int slots, T inv_dx, SlabBounds slab, BlockHashTableView table, int* next_count,
-                        ParticleDest* dest, GridSums<TG> grid_a, GridSums<TG> grid_b, BodyStepStats* body_stats) {
+                        ParticleDest* dest, GridSums<TG> grid_a, GridSums<TG> grid_b, BodyStepStats* body_stats,
+                        const int* blocks = nullptr) {
   const int slot = first + blockIdx.x * blockDim.x + threadIdx.x;  // whole warps run: claim_block_rank is collective
   const bool in_range = slot < slots;
   const bool active = in_range && (valid ? valid[slot] >= 0 : slot < particles);
@@ -42,7 +45,9 @@ __global__ void __launch_bounds__(kPartitionThreads)
   if (active) {
     const ParticleRecord<M, T> p = load_particle<M, T>(bins, slot);
     const QuadraticBspline<T> s = quadratic_bspline_inv(p.x, inv_dx);
-    const int b0 = floor_div4(s.base[0] - 1), b1 = floor_div4(s.base[1] - 1), b2 = floor_div4(s.base[2] - 1);
+    const int b0 = blocks ? blocks[3 * static_cast<std::size_t>(slot)] : floor_div4(s.base[0] - 1);
+    const int b1 = blocks ? blocks[3 * static_cast<std::size_t>(slot) + 1] : floor_div4(s.base[1] - 1);
+    const int b2 = blocks ? blocks[3 * static_cast<std::size_t>(slot) + 2] : floor_div4(s.base[2] - 1);
     if (all_finite(p.x) && BlockKey::representable(b0, b1, b2)) {
       if (slab.owns(b0, b1, b2)) {
         has_key = true;
