@@ -146,7 +146,7 @@ class AsyncWriter {
       error_reported_ = true;
       throw OutputError(error_message_);
     }
-    throw OutputError("an earlier output job failed: " + error_message_);
+    throw OutputError(error_message_, true);
   }
 
   const std::size_t max_pending_;

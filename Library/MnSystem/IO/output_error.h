@@ -4,12 +4,20 @@
 #pragma once
 
 #include <stdexcept>
+#include <string>
 
 namespace fbar::io {
 
 class OutputError : public std::runtime_error {
  public:
-  using std::runtime_error::runtime_error;
+  /// `failure`: the file and the system's reason. `repeated`: an earlier job's failure reported again (what()
+  /// then says so; failure() stays the original text, which the run loop puts in its one report).
+  explicit OutputError(const std::string& failure, bool repeated = false)
+      : std::runtime_error(repeated ? "an earlier output job failed: " + failure : failure), failure_(failure) {}
+  const std::string& failure() const { return failure_; }
+
+ private:
+  std::string failure_;
 };
 
 }  // namespace fbar::io

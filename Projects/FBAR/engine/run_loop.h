@@ -391,9 +391,7 @@ class RunLoop {
     r.end_time = engine_.time();
     r.frames_written = frame;
     r.checkpoint = rank_ == 0 ? checkpoint : std::string();
-    std::string what = e.what();
-    const std::string earlier = "an earlier output job failed: ";
-    if (what.compare(0, earlier.size(), earlier) == 0) what = what.substr(earlier.size());
+    const std::string& what = e.failure();
     r.message = "output failed at step " + std::to_string(engine_.steps()) + ", t = " +
                 run_detail::format_number(engine_.time()) + " s: " + what + ". Complete: " +
                 (frame >= 0 ? "frames 0 to " + std::to_string(frame) + " (t = " +
