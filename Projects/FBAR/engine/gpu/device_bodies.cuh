@@ -122,9 +122,9 @@ struct MgspBenchmark<T, TG>::BodyBase {
   /// Decomposed runs: blocks of layout 0 / 1 listed for the halo-first G2P2G (halo particle blocks, the others).
   int halo_blocks[2] = {0, 0}, interior_blocks[2] = {0, 0};
   cuda::DeviceArray<T> aux;  ///< (slot, kAuxScalars) recorded v and C
-  /// A step that recorded v and C also records, per slot of the layout its G2P2G read, the particle's ID and the
-  /// table index of the block it was summed from (record_p2g_blocks; -1 for an empty lane): what a checkpoint keeps
-  /// so that a restart sums the same grid. p2g_slots: the slots written.
+  /// A step that records for a checkpoint also records, per slot of the layout its G2P2G read, the particle's ID and
+  /// the table index of the block it was summed from (record_p2g_blocks; -1 for an empty lane): what a checkpoint
+  /// keeps so that a restart groups the particles as the run did. p2g_slots: the slots written.
   cuda::DeviceArray<int> p2g_record;
   int p2g_slots = 0;
   /// A restart whose checkpoint kept those blocks: the block coordinates (3 per slot) of the flat upload, read by

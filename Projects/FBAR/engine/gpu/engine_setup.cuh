@@ -214,6 +214,7 @@ void MgspBenchmark<T, TG>::plan_memory() {
     in.fbar = body.fbar_psi != T(0);
     in.pore = material_has_pore_fluid(body.spec.material.law);
     in.record = record || body.mesh;  // a mesh's vertices always record v and C
+    in.checkpoints = sim.checkpoint_every > 0;
     if (body.mesh && counts_[b].particles > 0) {  // the rank holding the mesh
       const MeshEntrySpec& entry = scene_.meshes.at(static_cast<std::size_t>(body.spec.mesh));
       in.mesh_bytes = mesh_device_bytes(kPrecision, entry.stats.elements, entry.stats.vertices, entry.fbar_elements,

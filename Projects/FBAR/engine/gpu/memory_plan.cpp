@@ -105,8 +105,8 @@ DeviceMemoryPlan plan_device_memory(Precision precision, long long footprint_blo
     const std::size_t record = particle_record_bytes(b.stored_scalars, t);
     std::size_t particle = 2 * slots * record;
     if (b.asflip) particle += 2 * slots * 3 * t;
-    // v and C (kAuxScalars), one copy; the ID and block of each slot's last P2G (a checkpoint's grouping)
-    if (b.record) particle += slots * (12 * t + 8);
+    if (b.record) particle += slots * 12 * t;  // v and C (kAuxScalars), one copy
+    if (b.checkpoints) particle += slots * 8;  // the ID and block of each slot's last P2G (a checkpoint's grouping)
     plan.particles_bytes += particle;
     const std::size_t per_slot = slots * (2 * 4 + 8);
     plan.partition += partition_block_bytes(plan.block_capacity) + per_slot;

@@ -50,6 +50,7 @@ struct BodyMemoryInput {
   bool pore = false;             ///< saturated (CoupledUP): the grid's seepage channels
   int frame_columns = -1;        ///< float attributes of its output frame, -1: no frames on the device
   bool record = false;           ///< v and C per particle slot (12 scalars: a particle sensor reads velocities)
+  bool checkpoints = false;      ///< the ID and block of each slot's last P2G, for checkpoints (8 B a slot)
   std::size_t mesh_bytes = 0;    ///< a mesh body on this device: its elements (mesh_device_bytes)
 };
 

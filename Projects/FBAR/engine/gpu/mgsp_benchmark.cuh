@@ -454,13 +454,15 @@ class MgspBenchmark {
   double output_wait_s_ = 0.0;
   bool flat_source_ = false;  ///< the partition reads the flat upload (slot = ID), not a layout
   bool aux_valid_ = false;  ///< aux holds v, C of the current state
-  /// Each body's p2g_record holds the blocks the current grid was summed from (the last G2P2G recorded v and C).
+  /// Each body's p2g_record holds the blocks the current grid was summed from (the last G2P2G recorded what a
+  /// checkpoint needs).
   bool p2g_valid_ = false;
-  /// After a G2P2G (the initial one, or a committed step's, before the flip): when it recorded v and C, each body's
-  /// particles of layout(cur) with their blocks into p2g_record (a checkpoint keeps them); sets p2g_valid_.
+  /// After a G2P2G (the initial one, or a committed step's, before the flip): when it recorded for a checkpoint
+  /// (keep_checkpoint_inputs), each body's particles of layout(cur) with their blocks into p2g_record; sets p2g_valid_.
+  /// Steps that record v and C only for sensors skip it (a checkpoint or rebalance after them groups by position).
   void record_p2g_blocks() {
-    p2g_valid_ = record_;
-    if (record_)
+    p2g_valid_ = record_ && checkpoint_keep_;
+    if (p2g_valid_)
       for (auto& b : bodies_) b->record_p2g_blocks(*this);
   }
   bool timing_ = false;
