@@ -10,11 +10,9 @@
 #include <fstream>
 #include <functional>
 #include <iterator>
-#include <memory>
 #include <regex>
 #include <set>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "cpu/decomposition_scenes.h"
@@ -37,8 +35,7 @@ inline void expect_same_bytes(const std::string& a, const std::string& b, const 
                 << a.size() << " bytes, first difference at byte " << i << ")";
 }
 
-/// run_cpu or run_gpu.
-using RunFn = RunResult (*)(const Scene&, const RunOptions&);
+using test::RunFn;
 
 inline fs::path scratch(const std::string& name) {
   const fs::path dir = fs::path(::testing::TempDir()) / ("fbar_restart_" + name);
@@ -52,25 +49,10 @@ inline std::string bytes_of(const fs::path& p) {
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
 
-/// `run` of `scene` on `ranks` ranks (threads; GPU ranks share the visible GPU by peer copies), continued from
-/// `restart` when it is not empty, logging to `log` (nullptr: quiet); rank 0's result.
+/// rank 0's result of run_ranks_with (run_support.h).
 inline RunResult run_ranks(RunFn run, const Scene& scene, int ranks, const std::string& restart = "",
                            std::ostream* log = nullptr) {
-  std::vector<std::unique_ptr<comm::Transport>> transports = comm::make_thread_transports(ranks);
-  std::vector<RunResult> results(static_cast<std::size_t>(ranks));
-  std::vector<std::thread> threads;
-  for (int r = 0; r < ranks; ++r)
-    threads.emplace_back([&, r] {
-      RunOptions o;
-      o.quiet = log == nullptr;
-      o.log = log;
-      o.transport = ranks > 1 ? transports[static_cast<std::size_t>(r)].get() : nullptr;
-      o.shared_gpus = true;
-      o.restart = restart;
-      results[static_cast<std::size_t>(r)] = run(scene, o);
-    });
-  for (auto& t : threads) t.join();
-  return results.front();
+  return run_ranks_with(run, scene, ranks, restart, log).front();
 }
 
 /// The dam break with ASFLIP and F-bar, a Drucker-Prager block (F and logJp) beside it, two grid sensors, two

@@ -15,10 +15,14 @@
 
 namespace fbar::test {
 
-/// run_cpu of `scene` on `ranks` ranks (threads; one rank: no transport), continuing from the checkpoint `restart`
-/// when it is not empty, logging to `log` (nullptr: quiet); every rank's result.
-inline std::vector<RunResult> run_cpu_ranks(const Scene& scene, int ranks, const std::string& restart = "",
-                                            std::ostream* log = nullptr) {
+/// run_cpu or run_gpu.
+using RunFn = RunResult (*)(const Scene&, const RunOptions&);
+
+/// `run` of `scene` on `ranks` ranks (threads; one rank: no transport; GPU ranks share the visible GPUs by peer
+/// copies), continuing from the checkpoint `restart` when it is not empty, logging to `log` (nullptr: quiet); every
+/// rank's result.
+inline std::vector<RunResult> run_ranks_with(RunFn run, const Scene& scene, int ranks, const std::string& restart = "",
+                                             std::ostream* log = nullptr) {
   std::vector<std::unique_ptr<comm::Transport>> transports = comm::make_thread_transports(ranks);
   std::vector<RunResult> results(static_cast<std::size_t>(ranks));
   std::vector<std::thread> threads;
@@ -28,11 +32,18 @@ inline std::vector<RunResult> run_cpu_ranks(const Scene& scene, int ranks, const
       o.quiet = log == nullptr;
       o.log = log;
       o.transport = ranks > 1 ? transports[static_cast<std::size_t>(r)].get() : nullptr;
+      o.shared_gpus = true;  // read by run_gpu only
       o.restart = restart;
-      results[static_cast<std::size_t>(r)] = run_cpu(scene, o);
+      results[static_cast<std::size_t>(r)] = run(scene, o);
     });
   for (auto& t : threads) t.join();
   return results;
+}
+
+/// run_ranks_with(run_cpu, ...).
+inline std::vector<RunResult> run_cpu_ranks(const Scene& scene, int ranks, const std::string& restart = "",
+                                            std::ostream* log = nullptr) {
+  return run_ranks_with(run_cpu, scene, ranks, restart, log);
 }
 
 /// A log (std::ostream over it) that records a stop request for `signal` when a line starting with `prefix` is
