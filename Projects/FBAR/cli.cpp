@@ -45,6 +45,14 @@ constexpr int kExitOk = 0;
 constexpr int kExitInput = 1;    ///< invalid scene, input file or command line
 constexpr int kExitRuntime = 2;  ///< run-time failure (NaN, CFL, capacity, device, output)
 
+/// Why a program has no GPU engine, for its messages: a build without the CUDA toolkit, or (with it) a program
+/// that links the front end alone (the CLI tests).
+#if defined(FBAR_HAS_CUDA)
+constexpr const char* kNoGpuEngineWhy = "";
+#else
+constexpr const char* kNoGpuEngineWhy = "; fbar was configured without the CUDA toolkit";
+#endif
+
 /// A command-line mistake (exit 1).
 struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
@@ -271,7 +279,7 @@ void write_run_json(const fs::path& path, const Scene& scene, const std::vector<
 }
 
 /// fbar --check: the scene's report with, when a device is present, its free memory and whether the plan fits.
-int check_scene(const CliOptions& o, const Scene& scene) {
+int check_scene(const CliOptions& o, const Scene& scene, const EngineSet& engines) {
   SceneSummary summary = summarize_scene(scene);
   // With a device present: its free memory, and whether the plan fits (a run that does not fit is refused).
   const int devices = cuda::device_count();
@@ -282,17 +290,21 @@ int check_scene(const CliOptions& o, const Scene& scene) {
       continue;
     }
     std::size_t free_bytes = 0, total_bytes = 0;
-    if (cudaSetDevice(static_cast<int>(g)) == cudaSuccess) cuda::memory_info(free_bytes, total_bytes);
-    cudaDeviceProp prop{};
-    cudaGetDeviceProperties(&prop, static_cast<int>(g));
+    cuda::device_memory(static_cast<int>(g), free_bytes, total_bytes);
+    cuda::DeviceInfo info;
+    cuda::device_info(static_cast<int>(g), info);
     const std::string fit = memory_fit_message(summary.gpu_plans[g], free_bytes, total_bytes, scene,
                                                "GPU " + std::to_string(g));
-    summary.device_notes.push_back("GPU " + std::to_string(g) + " (" + prop.name + "): " +
+    summary.device_notes.push_back("GPU " + std::to_string(g) + " (" + info.name + "): " +
                                    format_bytes(static_cast<double>(free_bytes)) + " free of " +
                                    format_bytes(static_cast<double>(total_bytes)) + "; " +
                                    (fit.empty() ? std::string("the scene fits") : "DOES NOT FIT: " + fit));
   }
-  if (devices == 0) summary.device_notes.push_back("no CUDA device on this machine: free memory not checked");
+  if (engines.run_gpu == nullptr)
+    summary.device_notes.push_back(std::string("no GPU engine in this build") + kNoGpuEngineWhy +
+                                   ": device memory not checked");
+  else if (devices == 0)
+    summary.device_notes.push_back("no CUDA device on this machine: free memory not checked");
   std::cout << "fbar " << FBAR_VERSION << ": scene " << o.file << " is valid\n";
   print_scene_report(std::cout, scene, summary);
   return kExitOk;
@@ -336,11 +348,12 @@ bool choose_gpu_engine(const CliOptions& o, const EngineSet& engines, bool& gpu)
     if (engines.run_gpu == nullptr) {
       if (o.backend == Backend::Gpu) {
         std::cerr << "fbar: error: --backend=gpu: the GPU engine is not available in this build (fbar "
-                  << FBAR_VERSION << " has the CPU reference engine only; use --backend=cpu or auto)\n";
+                  << FBAR_VERSION << " has the CPU reference engine only" << kNoGpuEngineWhy
+                  << "; use --backend=cpu or auto)\n";
         return false;
       }
       std::cerr << "fbar: warning: no GPU engine in this build; running on the CPU reference engine (--backend=cpu "
-                   "silences this)\n";
+                   "silences this" << kNoGpuEngineWhy << ")\n";
     } else if (cuda::device_count() == 0) {
       if (o.backend == Backend::Gpu) {
         std::cerr << "fbar: error: --backend=gpu: " << cuda::no_device_reason() << " (use --backend=cpu or auto)\n";
@@ -366,7 +379,7 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
   if (o.frames) scene.simulation.frames = *o.frames;
   if (o.output) scene.simulation.save_path = *o.output;
 
-  if (o.check) return check_scene(o, scene);
+  if (o.check) return check_scene(o, scene, engines);
 
   bool gpu = false;
   if (!choose_gpu_engine(o, engines, gpu)) return kExitRuntime;

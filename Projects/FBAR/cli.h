@@ -6,7 +6,8 @@
 namespace fbar {
 
 /// The engines an executable links beyond the CPU reference engine. The fbar executable (project.cu) passes the GPU
-/// engine's run_gpu; a program that links only the front end (the CLI tests) passes nothing and runs on the CPU.
+/// engine's run_gpu when it is built with the GPU engine; a program that links only the front end (the CLI tests, a
+/// build without the CUDA toolkit) passes nothing and runs on the CPU.
 struct EngineSet {
   RunResult (*run_gpu)(const Scene& scene, const RunOptions& options) = nullptr;
 };
