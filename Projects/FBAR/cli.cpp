@@ -5,6 +5,7 @@
 #include <rapidjson/writer.h>
 #include <rapidjson/stringbuffer.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <ctime>
@@ -85,7 +86,8 @@ const char* kHelp =
     "  --check                 validate the scene, print it resolved with units, particle counts per body,\n"
     "                          the time step and memory estimates (CPU and per GPU); do not simulate\n"
     "  --backend=auto|gpu|cpu  engine: auto (default) uses the GPU engine when the build has one and a CUDA\n"
-    "                          device is present, otherwise the CPU reference engine (with a warning)\n"
+    "                          device it has code for is present, otherwise the CPU reference engine (with a\n"
+    "                          warning that says why)\n"
     "  --output=DIR            write frames and run.json to DIR (overrides simulation.save_path; created if missing)\n"
     "  --frames=N              number of frames to simulate (overrides simulation.frames; N >= 1)\n"
     "  --quiet                 no progress lines (warnings and errors are still printed)\n"
@@ -305,6 +307,10 @@ int check_scene(const CliOptions& o, const Scene& scene, const EngineSet& engine
                                    ": device memory not checked");
   else if (devices == 0)
     summary.device_notes.push_back("no CUDA device on this machine: free memory not checked");
+  for (int g = 0; engines.run_gpu != nullptr && engines.gpu_fit != nullptr && g < devices; ++g) {
+    const GpuCodeFit fit = engines.gpu_fit(g);
+    if (!fit.runs || fit.jit) summary.device_notes.push_back(fit.message);
+  }
   std::cout << "fbar " << FBAR_VERSION << ": scene " << o.file << " is valid\n";
   print_scene_report(std::cout, scene, summary);
   return kExitOk;
@@ -340,31 +346,45 @@ RunResult run_thread_ranks(const Scene& scene, const RunOptions& options, const 
   return result;
 }
 
-/// The engine of a run: --backend=gpu needs the GPU engine and a device; auto takes the GPU engine when both are
-/// there. False: --backend=gpu cannot be met (the error is printed).
+/// The engine of a run: --backend=gpu needs the GPU engine, a device and code for it; auto takes the GPU engine when
+/// all three are there. False: --backend=gpu cannot be met (the error is printed).
 bool choose_gpu_engine(const CliOptions& o, const EngineSet& engines, bool& gpu) {
   gpu = false;
-  if (o.backend != Backend::Cpu) {
-    if (engines.run_gpu == nullptr) {
-      if (o.backend == Backend::Gpu) {
-        std::cerr << "fbar: error: --backend=gpu: the GPU engine is not available in this build (fbar "
-                  << FBAR_VERSION << " has the CPU reference engine only" << kNoGpuEngineWhy
-                  << "; use --backend=cpu or auto)\n";
-        return false;
-      }
-      std::cerr << "fbar: warning: no GPU engine in this build; running on the CPU reference engine (--backend=cpu "
-                   "silences this" << kNoGpuEngineWhy << ")\n";
-    } else if (cuda::device_count() == 0) {
-      if (o.backend == Backend::Gpu) {
-        std::cerr << "fbar: error: --backend=gpu: " << cuda::no_device_reason() << " (use --backend=cpu or auto)\n";
-        return false;
-      }
-      std::cerr << "fbar: warning: " << cuda::no_device_reason()
-                << "; running on the CPU reference engine (--backend=cpu silences this)\n";
-    } else {
-      gpu = true;
+  if (o.backend == Backend::Cpu) return true;
+  // Why the GPU engine cannot run here ("" when it can): no engine, no device, or no code for a device it would use.
+  std::string why;
+  if (engines.run_gpu == nullptr) {
+    if (o.backend == Backend::Gpu) {
+      std::cerr << "fbar: error: --backend=gpu: the GPU engine is not available in this build (fbar "
+                << FBAR_VERSION << " has the CPU reference engine only" << kNoGpuEngineWhy << "; use --backend=cpu "
+                << "or auto)\n";
+      return false;
+    }
+    std::cerr << "fbar: warning: no GPU engine in this build; running on the CPU reference engine (--backend=cpu "
+                 "silences this" << kNoGpuEngineWhy << ")\n";
+    return true;
+  }
+  const int devices = cuda::device_count();
+  if (devices == 0) {
+    why = cuda::no_device_reason();
+  } else if (engines.gpu_fit != nullptr) {
+    // The devices the run would use: 0 .. --gpus-1 (rank r on GPU r mod devices), all of them under a launcher.
+    const int used = comm::launched_by_mpi() ? devices : std::min(o.gpus, devices);
+    for (int d = 0; d < used && why.empty(); ++d) {
+      const GpuCodeFit fit = engines.gpu_fit(d);
+      if (!fit.runs) why = fit.message;
+      else if (fit.jit && d == 0) std::cerr << "fbar: note: " << fit.message << '\n';
     }
   }
+  if (why.empty()) {
+    gpu = true;
+    return true;
+  }
+  if (o.backend == Backend::Gpu) {
+    std::cerr << "fbar: error: --backend=gpu: " << why << " (use --backend=cpu or auto)\n";
+    return false;
+  }
+  std::cerr << "fbar: warning: " << why << "; running on the CPU reference engine (--backend=cpu silences this)\n";
   return true;
 }
 

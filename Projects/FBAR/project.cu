@@ -9,6 +9,7 @@ int main(int argc, char** argv) {
   fbar::EngineSet engines;
 #if defined(FBAR_HAS_CUDA)
   engines.run_gpu = &fbar::run_gpu;
+  engines.gpu_fit = &fbar::gpu_engine_fit;
 #endif
   return fbar::cli_main(argc, argv, engines);
 }
