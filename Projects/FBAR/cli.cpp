@@ -346,6 +346,16 @@ RunResult run_thread_ranks(const Scene& scene, const RunOptions& options, const 
   return result;
 }
 
+/// An environment variable's integer value: the first of `names` that is set, otherwise `fallback`.
+int env_int(const std::vector<const char*>& names, int fallback) {
+  for (const char* n : names)
+    if (const char* v = std::getenv(n)) return std::atoi(v);
+  return fallback;
+}
+/// Where MPI launchers (Open MPI, Slurm, MPICH / Intel MPI) put a process's rank on its node.
+const std::vector<const char*> kLocalRankVariables = {"OMPI_COMM_WORLD_LOCAL_RANK", "SLURM_LOCALID",
+                                                      "MPI_LOCALRANKID"};
+
 /// The engine of a run: --backend=gpu needs the GPU engine, a device and code for it; auto takes the GPU engine when
 /// all three are there. False: --backend=gpu cannot be met (the error is printed).
 bool choose_gpu_engine(const CliOptions& o, const EngineSet& engines, bool& gpu) {
@@ -368,12 +378,17 @@ bool choose_gpu_engine(const CliOptions& o, const EngineSet& engines, bool& gpu)
   if (devices == 0) {
     why = cuda::no_device_reason();
   } else if (engines.gpu_fit != nullptr) {
-    // The devices the run would use: 0 .. --gpus-1 (rank r on GPU r mod devices), all of them under a launcher.
-    const int used = comm::launched_by_mpi() ? devices : std::min(o.gpus, devices);
-    for (int d = 0; d < used && why.empty(); ++d) {
+    // The devices this process would use (the check loads a kernel there, which makes the device's context): 0 ..
+    // --gpus-1 (rank r on GPU r mod devices), or under a launcher its node-local rank's GPU.
+    int first = 0, used = std::min(o.gpus, devices);
+    if (comm::launched_by_mpi()) {
+      first = env_int(kLocalRankVariables, 0) % devices;
+      used = 1;
+    }
+    for (int d = first; d < first + used && why.empty(); ++d) {
       const GpuCodeFit fit = engines.gpu_fit(d);
       if (!fit.runs) why = fit.message;
-      else if (fit.jit && d == 0) std::cerr << "fbar: note: " << fit.message << '\n';
+      else if (fit.jit && d == first) std::cerr << "fbar: note: " << fit.message << '\n';
     }
   }
   if (why.empty()) {
@@ -430,12 +445,7 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
   const int devices = gpu ? cuda::device_count() : 0;
   int local_gpu = -1;
   if (gpu && mpi_ranks > 1) {  // one MPI rank per GPU of its node, NCCL between them
-    auto env_int = [](std::initializer_list<const char*> names, int fallback) {
-      for (const char* n : names)
-        if (const char* v = std::getenv(n)) return std::atoi(v);
-      return fallback;
-    };
-    const int local_rank = env_int({"OMPI_COMM_WORLD_LOCAL_RANK", "SLURM_LOCALID", "MPI_LOCALRANKID"}, rank);
+    const int local_rank = env_int(kLocalRankVariables, rank);
     const int local_size =
         env_int({"OMPI_COMM_WORLD_LOCAL_SIZE", "SLURM_NTASKS_PER_NODE", "MPI_LOCALNRANKS"}, mpi_ranks);
     std::string why;
