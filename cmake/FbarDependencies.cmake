@@ -27,7 +27,11 @@ fbar_require(HDF5_FOUND "HDF5 (C)" "libhdf5-dev")
 find_package(OpenMP QUIET COMPONENTS CXX)
 fbar_require(OpenMP_CXX_FOUND "OpenMP" "libgomp1 (part of gcc)")
 
-find_package(CUDAToolkit REQUIRED)
+# The CUDA runtime of the GPU engine (FBAR_ENABLE_CUDA, top-level CMakeLists.txt); a build without it has the CPU
+# reference engine only.
+if(FBAR_ENABLE_CUDA)
+  find_package(CUDAToolkit REQUIRED)
+endif()
 
 if(FBAR_BUILD_TESTS)
   find_package(GTest QUIET)
@@ -36,12 +40,13 @@ endif()
 
 # Optional: multi-GPU transport (later issues) and partio (bgeo through the reference library).
 find_package(MPI QUIET COMPONENTS CXX)
-find_library(FBAR_NCCL_LIBRARY nccl HINTS ${CUDAToolkit_LIBRARY_DIR})
-find_path(FBAR_NCCL_INCLUDE nccl.h HINTS ${CUDAToolkit_INCLUDE_DIRS})
-if(FBAR_NCCL_LIBRARY AND FBAR_NCCL_INCLUDE)
-  set(FBAR_HAVE_NCCL TRUE)
-else()
-  set(FBAR_HAVE_NCCL FALSE)
+set(FBAR_HAVE_NCCL FALSE)
+if(FBAR_ENABLE_CUDA)  # NCCL moves device memory: only the GPU engine uses it
+  find_library(FBAR_NCCL_LIBRARY nccl HINTS ${CUDAToolkit_LIBRARY_DIR})
+  find_path(FBAR_NCCL_INCLUDE nccl.h HINTS ${CUDAToolkit_INCLUDE_DIRS})
+  if(FBAR_NCCL_LIBRARY AND FBAR_NCCL_INCLUDE)
+    set(FBAR_HAVE_NCCL TRUE)
+  endif()
 endif()
 find_library(FBAR_PARTIO_LIBRARY partio)
 find_path(FBAR_PARTIO_INCLUDE Partio.h)

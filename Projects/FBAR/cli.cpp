@@ -7,6 +7,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstdio>
@@ -50,6 +51,14 @@ constexpr int kExitOk = 0;
 constexpr int kExitInput = 1;    ///< invalid scene, input file or command line
 constexpr int kExitRuntime = 2;  ///< run-time failure (NaN, CFL, capacity, device, output)
 
+/// Why a program has no GPU engine, for its messages: a build without the CUDA toolkit, or (with it) a program
+/// that links the front end alone (the CLI tests).
+#if defined(FBAR_HAS_CUDA)
+constexpr const char* kNoGpuEngineWhy = "";
+#else
+constexpr const char* kNoGpuEngineWhy = "; fbar was configured without the CUDA toolkit";
+#endif
+
 /// A command-line mistake (exit 1).
 struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
@@ -82,7 +91,8 @@ const char* kHelp =
     "  --check                 validate the scene, print it resolved with units, particle counts per body,\n"
     "                          the time step and memory estimates (CPU and per GPU); do not simulate\n"
     "  --backend=auto|gpu|cpu  engine: auto (default) uses the GPU engine when the build has one and a CUDA\n"
-    "                          device is present, otherwise the CPU reference engine (with a warning)\n"
+    "                          device it has code for is present, otherwise the CPU reference engine (with a\n"
+    "                          warning that says why)\n"
     "  --output=DIR            write frames and run.json to DIR (overrides simulation.save_path; created if missing)\n"
     "  --frames=N              number of frames to simulate (overrides simulation.frames; N >= 1)\n"
     "  --quiet                 no progress lines (warnings and errors are still printed)\n"
@@ -333,7 +343,7 @@ int report_run(RunJson& run_json, const std::string& final_record, RunResult res
 }
 
 /// fbar --check: the scene's report with, when a device is present, its free memory and whether the plan fits.
-int check_scene(const CliOptions& o, const Scene& scene) {
+int check_scene(const CliOptions& o, const Scene& scene, const EngineSet& engines) {
   SceneSummary summary = summarize_scene(scene);
   // With a device present: its free memory, and whether the plan fits (a run that does not fit is refused).
   const int devices = cuda::device_count();
@@ -344,17 +354,25 @@ int check_scene(const CliOptions& o, const Scene& scene) {
       continue;
     }
     std::size_t free_bytes = 0, total_bytes = 0;
-    if (cudaSetDevice(static_cast<int>(g)) == cudaSuccess) cuda::memory_info(free_bytes, total_bytes);
-    cudaDeviceProp prop{};
-    cudaGetDeviceProperties(&prop, static_cast<int>(g));
+    cuda::device_memory(static_cast<int>(g), free_bytes, total_bytes);
+    cuda::DeviceInfo info;
+    cuda::device_info(static_cast<int>(g), info);
     const std::string fit = memory_fit_message(summary.gpu_plans[g], free_bytes, total_bytes, scene,
                                                "GPU " + std::to_string(g));
-    summary.device_notes.push_back("GPU " + std::to_string(g) + " (" + prop.name + "): " +
+    summary.device_notes.push_back("GPU " + std::to_string(g) + " (" + info.name + "): " +
                                    format_bytes(static_cast<double>(free_bytes)) + " free of " +
                                    format_bytes(static_cast<double>(total_bytes)) + "; " +
                                    (fit.empty() ? std::string("the scene fits") : "DOES NOT FIT: " + fit));
   }
-  if (devices == 0) summary.device_notes.push_back("no CUDA device on this machine: free memory not checked");
+  if (engines.run_gpu == nullptr)
+    summary.device_notes.push_back(std::string("no GPU engine in this build") + kNoGpuEngineWhy +
+                                   ": device memory not checked");
+  else if (devices == 0)
+    summary.device_notes.push_back("no CUDA device on this machine: free memory not checked");
+  for (int g = 0; engines.run_gpu != nullptr && engines.gpu_fit != nullptr && g < devices; ++g) {
+    const GpuCodeFit fit = engines.gpu_fit(g);
+    if (!fit.runs || fit.jit) summary.device_notes.push_back(fit.message);
+  }
   std::cout << "fbar " << FBAR_VERSION << ": scene " << o.file << " is valid\n";
   print_scene_report(std::cout, scene, summary);
   return kExitOk;
@@ -390,30 +408,60 @@ RunResult run_thread_ranks(const Scene& scene, const RunOptions& options, const 
   return result;
 }
 
-/// The engine of a run: --backend=gpu needs the GPU engine and a device; auto takes the GPU engine when both are
-/// there. False: --backend=gpu cannot be met (the error is printed).
+/// An environment variable's integer value: the first of `names` that is set, otherwise `fallback`.
+int env_int(const std::vector<const char*>& names, int fallback) {
+  for (const char* n : names)
+    if (const char* v = std::getenv(n)) return std::atoi(v);
+  return fallback;
+}
+/// Where MPI launchers (Open MPI, Slurm, MPICH / Intel MPI) put a process's rank on its node.
+const std::vector<const char*> kLocalRankVariables = {"OMPI_COMM_WORLD_LOCAL_RANK", "SLURM_LOCALID",
+                                                      "MPI_LOCALRANKID"};
+
+/// The engine of a run: --backend=gpu needs the GPU engine, a device and code for it; auto takes the GPU engine when
+/// all three are there. False: --backend=gpu cannot be met (the error is printed).
 bool choose_gpu_engine(const CliOptions& o, const EngineSet& engines, bool& gpu) {
   gpu = false;
-  if (o.backend != Backend::Cpu) {
-    if (engines.run_gpu == nullptr) {
-      if (o.backend == Backend::Gpu) {
-        std::cerr << "fbar: error: --backend=gpu: the GPU engine is not available in this build (fbar "
-                  << FBAR_VERSION << " has the CPU reference engine only; use --backend=cpu or auto)\n";
-        return false;
-      }
-      std::cerr << "fbar: warning: no GPU engine in this build; running on the CPU reference engine (--backend=cpu "
-                   "silences this)\n";
-    } else if (cuda::device_count() == 0) {
-      if (o.backend == Backend::Gpu) {
-        std::cerr << "fbar: error: --backend=gpu: " << cuda::no_device_reason() << " (use --backend=cpu or auto)\n";
-        return false;
-      }
-      std::cerr << "fbar: warning: " << cuda::no_device_reason()
-                << "; running on the CPU reference engine (--backend=cpu silences this)\n";
-    } else {
-      gpu = true;
+  if (o.backend == Backend::Cpu) return true;
+  // Why the GPU engine cannot run here ("" when it can): no engine, no device, or no code for a device it would use.
+  std::string why;
+  if (engines.run_gpu == nullptr) {
+    if (o.backend == Backend::Gpu) {
+      std::cerr << "fbar: error: --backend=gpu: the GPU engine is not available in this build (fbar "
+                << FBAR_VERSION << " has the CPU reference engine only" << kNoGpuEngineWhy << "; use --backend=cpu "
+                << "or auto)\n";
+      return false;
+    }
+    std::cerr << "fbar: warning: no GPU engine in this build; running on the CPU reference engine (--backend=cpu "
+                 "silences this" << kNoGpuEngineWhy << ")\n";
+    return true;
+  }
+  const int devices = cuda::device_count();
+  if (devices == 0) {
+    why = cuda::no_device_reason();
+  } else if (engines.gpu_fit != nullptr) {
+    // The devices this process would use (the check loads a kernel there, which makes the device's context): 0 ..
+    // --gpus-1 (rank r on GPU r mod devices), or under a launcher its node-local rank's GPU.
+    int first = 0, used = std::min(o.gpus, devices);
+    if (comm::launched_by_mpi()) {
+      first = env_int(kLocalRankVariables, 0) % devices;
+      used = 1;
+    }
+    for (int d = first; d < first + used && why.empty(); ++d) {
+      const GpuCodeFit fit = engines.gpu_fit(d);
+      if (!fit.runs) why = fit.message;
+      else if (fit.jit && d == first) std::cerr << "fbar: note: " << fit.message << '\n';
     }
   }
+  if (why.empty()) {
+    gpu = true;
+    return true;
+  }
+  if (o.backend == Backend::Gpu) {
+    std::cerr << "fbar: error: --backend=gpu: " << why << " (use --backend=cpu or auto)\n";
+    return false;
+  }
+  std::cerr << "fbar: warning: " << why << "; running on the CPU reference engine (--backend=cpu silences this)\n";
   return true;
 }
 
@@ -428,7 +476,7 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
   if (o.frames) scene.simulation.frames = *o.frames;
   if (o.output) scene.simulation.save_path = *o.output;
 
-  if (o.check) return check_scene(o, scene);
+  if (o.check) return check_scene(o, scene, engines);
 
   bool gpu = false;
   if (!choose_gpu_engine(o, engines, gpu)) return kExitRuntime;
@@ -459,12 +507,7 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
   const int devices = gpu ? cuda::device_count() : 0;
   int local_gpu = -1;
   if (gpu && mpi_ranks > 1) {  // one MPI rank per GPU of its node, NCCL between them
-    auto env_int = [](std::initializer_list<const char*> names, int fallback) {
-      for (const char* n : names)
-        if (const char* v = std::getenv(n)) return std::atoi(v);
-      return fallback;
-    };
-    const int local_rank = env_int({"OMPI_COMM_WORLD_LOCAL_RANK", "SLURM_LOCALID", "MPI_LOCALRANKID"}, rank);
+    const int local_rank = env_int(kLocalRankVariables, rank);
     const int local_size =
         env_int({"OMPI_COMM_WORLD_LOCAL_SIZE", "SLURM_NTASKS_PER_NODE", "MPI_LOCALNRANKS"}, mpi_ranks);
     std::string why;

@@ -1,14 +1,46 @@
-// CUDA device discovery and checked calls for host code (links against the CUDA runtime).
+// CUDA device discovery and checked calls for host code (the CUDA runtime; a build without it sees no device).
 #pragma once
-
-#include <cuda_runtime_api.h>
 
 #include <cstddef>
 #include <sstream>
 #include <stdexcept>
 #include <string>
 
+#if defined(FBAR_HAS_CUDA)
+#include <cuda_runtime_api.h>
+#endif
+
 namespace fbar::cuda {
+
+/// A device allocation the device could not satisfy (std::runtime_error; message: bytes asked, free and total).
+struct OutOfMemory : std::runtime_error {
+  using std::runtime_error::runtime_error;
+  std::size_t requested = 0;
+};
+
+/// What a CUDA device is, for messages and the start-up check: its name and compute capability (major.minor).
+struct DeviceInfo {
+  std::string name;
+  int major = 0;
+  int minor = 0;
+};
+
+#if !defined(FBAR_HAS_CUDA)
+// Configured without the CUDA toolkit (FBAR_ENABLE_CUDA=OFF): the host code that asks for devices sees none, and
+// says why.
+
+inline int device_count() { return 0; }
+inline std::string no_device_reason() {
+  return "no CUDA device: this build has no GPU engine (configured without the CUDA toolkit)";
+}
+inline bool device_info(int /*device*/, DeviceInfo& /*info*/) { return false; }
+inline void memory_info(std::size_t& free_bytes, std::size_t& total_bytes) { free_bytes = total_bytes = 0; }
+inline bool device_memory(int /*device*/, std::size_t& free_bytes, std::size_t& total_bytes) {
+  free_bytes = total_bytes = 0;
+  return false;
+}
+
+#else
 
 /// Number of usable CUDA devices; 0 when there is no driver, no device, or the runtime fails.
 inline int device_count() {
@@ -40,12 +72,6 @@ inline void check(cudaError_t e, const char* what, const char* file, int line) {
   }
 }
 
-/// A device allocation the device could not satisfy (std::runtime_error; message: bytes asked, free and total).
-struct OutOfMemory : std::runtime_error {
-  using std::runtime_error::runtime_error;
-  std::size_t requested = 0;
-};
-
 /// Bytes of device memory free and in total on the current device (0, 0 without one).
 inline void memory_info(std::size_t& free_bytes, std::size_t& total_bytes) {
   free_bytes = total_bytes = 0;
@@ -53,6 +79,30 @@ inline void memory_info(std::size_t& free_bytes, std::size_t& total_bytes) {
     cudaGetLastError();
     free_bytes = total_bytes = 0;
   }
+}
+
+/// Makes `device` current and gives its free and total memory; false (0, 0) when it cannot be made current.
+inline bool device_memory(int device, std::size_t& free_bytes, std::size_t& total_bytes) {
+  free_bytes = total_bytes = 0;
+  if (cudaSetDevice(device) != cudaSuccess) {
+    cudaGetLastError();
+    return false;
+  }
+  memory_info(free_bytes, total_bytes);
+  return true;
+}
+
+/// The name and compute capability of `device`; false when the runtime cannot tell.
+inline bool device_info(int device, DeviceInfo& info) {
+  cudaDeviceProp prop{};
+  if (cudaGetDeviceProperties(&prop, device) != cudaSuccess) {
+    cudaGetLastError();
+    return false;
+  }
+  info.name = prop.name;
+  info.major = prop.major;
+  info.minor = prop.minor;
+  return true;
 }
 
 /// cudaMalloc that turns an out-of-memory failure into OutOfMemory (naming `what`, the bytes and what is free),
@@ -78,6 +128,10 @@ inline void* device_malloc(std::size_t bytes, const char* what = "device buffer"
   return ptr;
 }
 
+#endif  // FBAR_HAS_CUDA
+
 }  // namespace fbar::cuda
 
+#if defined(FBAR_HAS_CUDA)
 #define FBAR_CUDA_CHECK(call) ::fbar::cuda::check((call), #call, __FILE__, __LINE__)
+#endif

@@ -1,7 +1,5 @@
-// ThreadDeviceTransport and NcclTransport (device_transport.h).
+// ThreadDeviceTransport and NcclTransport (device_transport.h); without the CUDA toolkit only nccl_available().
 #include "comm/device_transport.h"
-
-#include <cuda_runtime.h>
 
 #include <cstdint>
 #include <cstring>
@@ -9,11 +7,24 @@
 #include <string>
 #include <vector>
 
+#if defined(FBAR_HAS_CUDA)
+#include <cuda_runtime.h>
+#endif
 #if defined(FBAR_HAS_NCCL)
 #include <nccl.h>
 #endif
 
 namespace fbar::comm {
+
+bool nccl_available() {
+#if defined(FBAR_HAS_NCCL)
+  return true;
+#else
+  return false;
+#endif
+}
+
+#if defined(FBAR_HAS_CUDA)
 
 namespace {
 
@@ -174,14 +185,6 @@ std::unique_ptr<DeviceTransport> make_thread_device_transport(Transport& host) {
   return std::make_unique<ThreadDeviceTransport>(host);
 }
 
-bool nccl_available() {
-#if defined(FBAR_HAS_NCCL)
-  return true;
-#else
-  return false;
-#endif
-}
-
 std::unique_ptr<DeviceTransport> make_nccl_transport(Transport& host) {
 #if defined(FBAR_HAS_NCCL)
   return std::make_unique<NcclTransport>(host);
@@ -190,5 +193,7 @@ std::unique_ptr<DeviceTransport> make_nccl_transport(Transport& host) {
   throw std::runtime_error("this fbar was built without NCCL (install NCCL and rebuild; docs/user_guide.md)");
 #endif
 }
+
+#endif  // FBAR_HAS_CUDA
 
 }  // namespace fbar::comm

@@ -11,9 +11,9 @@
 //
 // Like the host Transport, every rank calls every operation in the same order. Messages are paired: when rank a
 // sends b bytes to rank c, rank c receives exactly b bytes from rank a in the same call.
+//
+// A build without the CUDA toolkit (FBAR_HAS_CUDA undefined) has no device transport: only nccl_available().
 #pragma once
-
-#include <cuda_runtime_api.h>
 
 #include <cstddef>
 #include <memory>
@@ -22,7 +22,16 @@
 
 #include "comm/transport.h"
 
+#if defined(FBAR_HAS_CUDA)
+#include <cuda_runtime_api.h>
+#endif
+
 namespace fbar::comm {
+
+/// Whether this build has NCCL (never without the CUDA toolkit).
+bool nccl_available();
+
+#if defined(FBAR_HAS_CUDA)
 
 class DeviceTransport {
  public:
@@ -48,10 +57,10 @@ class DeviceTransport {
 /// one per thread) must create one, on its thread, with its CUDA device current.
 std::unique_ptr<DeviceTransport> make_thread_device_transport(Transport& host);
 
-/// Whether this build has NCCL.
-bool nccl_available();
 /// An NCCL communicator over the ranks of `host` (MPI ranks or threads), on the current CUDA device; rank 0 makes
 /// the id and `host` shares it. Collective over `host`. Throws std::runtime_error without NCCL or on its failure.
 std::unique_ptr<DeviceTransport> make_nccl_transport(Transport& host);
+
+#endif  // FBAR_HAS_CUDA
 
 }  // namespace fbar::comm

@@ -21,6 +21,7 @@
 #include "MnSystem/IO/particle_io.h"
 #include "engine/engine_common.h"
 #include "engine/engine_api.h"
+#include "engine/gpu/gpu_architectures.h"
 #include "engine/gpu/memory_plan.h"
 #include "io/checkpoint.h"
 #include "physics/sensors.cuh"
@@ -256,5 +257,11 @@ using MixedGpuEngine = GpuEngine<double, float>;
 /// Runs the scene on the GPU engine (device 0), writing frames like run_cpu. Exit code 1: scene not supported;
 /// 2: run-time failure (CFL, NaN, left domain, CUDA error).
 RunResult run_gpu(const Scene& scene, const RunOptions& options);
+
+/// Whether this build's GPU engine runs on CUDA device `device` (gpu_check.cu): the architectures compiled in
+/// (FBAR_CUDA_ARCHITECTURES) against its compute capability (gpu_code_fit), confirmed by loading one of the
+/// library's kernels there. The message (why not, or the JIT note) starts with "GPU d (name, compute capability
+/// X.Y)". Leaves the current device as it was.
+GpuCodeFit gpu_engine_fit(int device);
 
 }  // namespace fbar
