@@ -332,8 +332,8 @@ void MgspBenchmark<T, TG>::allocate_device_state(const std::vector<std::vector<V
     }
     if (!blocks.empty()) {
       body.restart_blocks.allocate(blocks.size());
-      FBAR_CUDA_CHECK(cudaMemcpy(body.restart_blocks.get(), blocks.data(), sizeof(int) * blocks.size(),
-                                 cudaMemcpyHostToDevice));
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(body.restart_blocks.get(), blocks.data(), sizeof(int) * blocks.size(),
+                                      cudaMemcpyHostToDevice, stream_));
     }
     if (body.mesh && body.particles > 0) {  // the rank holding the vertices: the elements, and v and C recorded
       body.mesh->upload(stream_);
@@ -365,8 +365,8 @@ void MgspBenchmark<T, TG>::allocate_device_state(const std::vector<std::vector<V
       std::memcpy(&bits[b], &c, sizeof(double));
       bits[bodies_.size() + b] = 0;
     }
-    FBAR_CUDA_CHECK(cudaMemcpy(wave_d_.get(), bits.data(), sizeof(unsigned long long) * bits.size(),
-                               cudaMemcpyHostToDevice));
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(wave_d_.get(), bits.data(), sizeof(unsigned long long) * bits.size(),
+                                    cudaMemcpyHostToDevice, stream_));
   }
 
 }
@@ -428,6 +428,7 @@ void MgspBenchmark<T, TG>::initial_p2g() {
   dp.body_count = 0;
   dp.wave_speed = wave_d_.get();
   dp.fixed_dt = dt0;
+  dp.dx = scene_.simulation.dx;  // the momentum quantum's floor M dx / dt, as every step's (launch_next_dt)
   dp.t_next = time_;
   dp.t_target = std::numeric_limits<double>::infinity();
   dp.stats = stats_d_;
@@ -449,8 +450,8 @@ void MgspBenchmark<T, TG>::initial_p2g() {
   if (bounds_known) {
     std::vector<double> bounds;
     for (const io::CheckpointBody& b : restart->bodies) bounds.push_back(b.p2g_bound);
-    FBAR_CUDA_CHECK(cudaMemcpy(p2g_bound_d_.get() + bound_cur_ * bodies_.size(), bounds.data(),
-                               sizeof(double) * bounds.size(), cudaMemcpyHostToDevice));
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(p2g_bound_d_.get() + bound_cur_ * bodies_.size(), bounds.data(),
+                                    sizeof(double) * bounds.size(), cudaMemcpyHostToDevice, stream_));
   } else {
     measuring_bound_ = true;
     for (auto& b : bodies_) b->g2p2g(*this, true, T(0));
