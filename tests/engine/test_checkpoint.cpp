@@ -168,6 +168,79 @@ TEST(CheckpointFile, RoundTripsInTheRunsPrecision) {
 // Two ranks' parts merge into ID order with the blocks of the last P2G (io::CheckpointBody::p2g_block), which a
 // particle that migrated in that step has in the other rank's part; a part without them makes them unknown, and a
 // particle summed on both ranks is an error.
+// A body whose datasets come from a source in pieces (io::CheckpointPieces, as the GPU engine gives a body too
+// large to copy into host memory) writes the bytes of the same body held in arrays: single and double precision,
+// pieces of 1, 7 and 1000 rows, the P2G datasets too.
+TEST(CheckpointFile, StreamedBodyWritesTheBytesOfItsArrays) {
+  const fs::path dir = scratch("streamed");
+  for (const char* precision : {"single", "double"}) {
+    io::Checkpoint c;
+    c.precision = precision;
+    c.engine = "gpu";
+    c.reason = "frame";
+    c.time = 0.25;
+    io::CheckpointBody b;
+    b.law = "FixedCorotated";
+    b.state_scalars = 9;
+    b.global_particles = 2000;
+    b.p2g_bound = 0.5;
+    b.p2g_known = true;
+    for (int p = 0; p < 1501; ++p) {
+      b.id.push_back(2 * p + 1);
+      for (int a = 0; a < 3; ++a) b.x.push_back(std::sin(0.37 * p + a));
+      for (int a = 0; a < 3; ++a) b.v.push_back(std::cos(0.11 * p - a));
+      for (int a = 0; a < 9; ++a) b.C.push_back(0.001 * (p % 13) - a);
+      b.mass.push_back(1e-3 * (1 + p % 3));
+      b.volume.push_back(1e-6);
+      for (int a = 0; a < 9; ++a) b.state.push_back(a % 4 == 0 ? 1.0 + 1e-4 * p : 1e-5 * a);
+      if (p % 5 != 0) {
+        b.p2g_id.push_back(2 * p + 1);
+        for (int a = 0; a < 3; ++a) b.p2g_block.push_back(p % 11 - 4 * a);
+      }
+    }
+    c.bodies = {b};
+    io::write_checkpoint(dir / "arrays.h5", c);
+    const std::string arrays = restart::bytes_of(dir / "arrays.h5");
+    for (const std::size_t piece : {std::size_t(1), std::size_t(7), std::size_t(1000)}) {
+      io::Checkpoint s = c;
+      io::CheckpointBody& body = s.bodies[0];
+      const io::CheckpointBody data = body;
+      for (auto* v : {&body.x, &body.v, &body.C, &body.mass, &body.volume, &body.state}) v->clear();
+      body.id.clear();
+      body.p2g_id.clear();
+      body.p2g_block.clear();
+      io::CheckpointPieces pieces;
+      pieces.particles = data.id.size();
+      pieces.p2g_rows = data.p2g_id.size();
+      pieces.pieces = [&data, piece](io::CheckpointDataset d, const std::function<void(std::size_t, const void*)>& emit) {
+        auto each = [&](const auto& values, std::size_t rows, std::size_t width) {
+          for (std::size_t first = 0; first < rows; first += piece)
+            emit(std::min(piece, rows - first), values.data() + first * width);
+        };
+        const std::size_t n = data.id.size();
+        switch (d) {
+          case io::CheckpointDataset::Id: return each(data.id, n, 1);
+          case io::CheckpointDataset::Position: return each(data.x, n, 3);
+          case io::CheckpointDataset::Velocity: return each(data.v, n, 3);
+          case io::CheckpointDataset::C: return each(data.C, n, 9);
+          case io::CheckpointDataset::Mass: return each(data.mass, n, 1);
+          case io::CheckpointDataset::Volume: return each(data.volume, n, 1);
+          case io::CheckpointDataset::State: return each(data.state, n, 9);
+          case io::CheckpointDataset::P2GId: return each(data.p2g_id, data.p2g_id.size(), 1);
+          case io::CheckpointDataset::P2GBlock: return each(data.p2g_block, data.p2g_id.size(), 3);
+        }
+      };
+      s.streamed = {pieces};
+      io::write_checkpoint(dir / "pieces.h5", s);
+      EXPECT_TRUE(restart::bytes_of(dir / "pieces.h5") == arrays) << precision << ", pieces of " << piece << " rows";
+      // A source that gives fewer rows than it announced is refused.
+      s.streamed[0].particles += 1;
+      EXPECT_THROW(io::write_checkpoint(dir / "short.h5", s), std::logic_error);
+      EXPECT_FALSE(fs::exists(dir / "short.h5"));
+    }
+  }
+}
+
 TEST(CheckpointFile, MergeKeepsTheBlocksOfTheLastP2G) {
   auto part = [](int rank, std::vector<std::int64_t> ids, std::vector<std::int64_t> summed) {
     io::Checkpoint c;

@@ -558,5 +558,79 @@ TEST_F(IoTest, ExteriorFilterKeepsTheSurfaceBlocks) {
   EXPECT_EQ(read_bgeo(dir_ / "surface.bgeo").size(), 98u * 8u + 1u);
 }
 
+
+// A frame streamed in pieces (FrameStream) writes the bytes of the same frame read in one piece, in every format,
+// with and without the exterior filter; each column of the source is read in increasing order within a pass and
+// never more than a piece at a time, so a writer's host memory follows the piece, not the frame.
+TEST_F(IoTest, StreamedFrameWritesTheBytesOfOnePiece) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (const bool dbl : {false, true}) {
+    const std::size_t n = 3001;
+    ParticleFrame f;
+    std::vector<Vec3d> xd(n);
+    for (auto& x : xd)  // a slab thicker in x, so the filter keeps some blocks and drops others
+      for (int a = 0; a < 3; ++a) x[a] = 0.3 * u(rng) * (a == 0 ? 2 : 1);
+    if (dbl) {
+      f.positions = xd;
+    } else {
+      std::vector<Vec3f> xf(n);
+      for (std::size_t p = 0; p < n; ++p) xf[p] = xd[p].cast<float>();
+      f.positions = xf;
+    }
+    std::vector<std::int32_t> id(n);
+    std::vector<float> s1(n), v3(3 * n), w2(2 * n);
+    for (std::size_t p = 0; p < n; ++p) {
+      id[p] = static_cast<std::int32_t>(5 * p + 2);
+      s1[p] = static_cast<float>(u(rng) - 0.5);
+      for (int c = 0; c < 3; ++c) v3[3 * p + c] = static_cast<float>(u(rng));
+      for (int c = 0; c < 2; ++c) w2[2 * p + c] = static_cast<float>(-u(rng));
+    }
+    f.add("ID", 1, id);
+    f.add("Pressure", 1, s1, "Pa");
+    f.add("Velocity", 3, v3, "m/s");
+    f.add("Pair", 2, w2);
+    for (const double threshold : {0.0, 6.0, 1e9}) {
+      f.exterior = threshold > 0 ? ExteriorFilter{0.06, threshold} : ExteriorFilter{};
+      for (const char* suffix : {".bgeo", ".geo", ".csv", ".h5"}) {
+        const std::string tag = std::string(dbl ? "d" : "f") + std::to_string(static_cast<int>(threshold)) + suffix;
+        write_frame(dir_ / ("whole" + tag), stream_of(f, n));
+        FrameStream s = stream_of(f, 97);
+        const auto positions = s.read_positions;
+        const auto values = s.read_values;
+        std::vector<std::size_t> next(f.attributes.size() + 1, 0);  // per column: positions, then attributes
+        std::size_t largest = 0;
+        bool ordered = true;
+        auto seen = [&](std::size_t column, std::size_t first, std::size_t count) {
+          if (first == 0) next[column] = 0;  // a new pass
+          ordered = ordered && first >= next[column];
+          next[column] = first + count;
+          largest = std::max(largest, count);
+        };
+        s.read_positions = [&](std::size_t first, std::size_t count, void* out) {
+          seen(0, first, count);
+          positions(first, count, out);
+        };
+        s.read_values = [&](std::size_t a, std::size_t first, std::size_t count, void* out) {
+          seen(a + 1, first, count);
+          values(a, first, count, out);
+        };
+        write_frame(dir_ / ("pieces" + tag), s);
+        EXPECT_TRUE(ordered) << tag;
+        EXPECT_LE(largest, 97u) << tag;
+        const std::string whole = slurp(dir_ / ("whole" + tag)), pieces = slurp(dir_ / ("pieces" + tag));
+        EXPECT_GT(whole.size(), 100u) << tag;
+        EXPECT_TRUE(whole == pieces) << tag << ": " << whole.size() << " vs " << pieces.size() << " bytes";
+      }
+      if (threshold == 6.0) {  // the filter drops some points and keeps others
+        const std::size_t kept = exterior_points(f).size();
+        EXPECT_GT(kept, 0u);
+        EXPECT_LT(kept, n);
+        EXPECT_EQ(read_bgeo(dir_ / (std::string("pieces") + (dbl ? "d" : "f") + "6.bgeo")).size(), kept);
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace fbar::io

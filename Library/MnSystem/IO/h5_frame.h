@@ -113,15 +113,31 @@ inline Handle untimed(hid_t cls, const std::string& where) {
   return Handle(p, H5Pclose, "create a property list for " + where);
 }
 
-inline void write_dataset(hid_t file, const std::string& name, hid_t type, std::size_t n, int width, const void* data,
-                          const std::string& unit, const std::string& where) {
+/// A dataset of n x width values written piece by piece: pieces(emit) calls emit(rows, data) for consecutive
+/// pieces of rows x width values (`type` in memory and in the file), n rows in all; then its unit.
+template <class Pieces>
+void write_dataset_pieces(hid_t file, const std::string& name, hid_t type, std::size_t n, int width,
+                          const std::string& unit, const std::string& where, const Pieces& pieces) {
   const hsize_t dims[2] = {static_cast<hsize_t>(n), static_cast<hsize_t>(width)};
-  Handle space(H5Screate_simple(width == 1 ? 1 : 2, dims, nullptr), H5Sclose, "create a dataspace for " + where);
+  const int rank = width == 1 ? 1 : 2;
+  Handle space(H5Screate_simple(rank, dims, nullptr), H5Sclose, "create a dataspace for " + where);
   const Handle dcpl = untimed(H5P_DATASET_CREATE, where);
   Handle set(H5Dcreate2(file, name.c_str(), type, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), H5Dclose,
              "create dataset " + name + " in " + where);
-  if (n > 0 && H5Dwrite(set.get(), type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
-    throw failure("write dataset " + name + " of " + where);
+  hsize_t offset = 0;
+  pieces([&](std::size_t rows, const void* data) {
+    if (rows == 0) return;
+    if (offset + rows > n) throw std::logic_error("write_dataset_pieces: more rows than " + std::to_string(n));
+    const hsize_t start[2] = {offset, 0};
+    const hsize_t count[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(width)};
+    Handle memory(H5Screate_simple(rank, count, nullptr), H5Sclose, "create a dataspace for " + where);
+    if (H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr) < 0 ||
+        H5Dwrite(set.get(), type, memory.get(), space.get(), H5P_DEFAULT, data) < 0)
+      throw failure("write dataset " + name + " of " + where);
+    offset += rows;
+  });
+  if (offset != n)
+    throw std::logic_error("write_dataset_pieces: " + std::to_string(offset) + " rows of " + std::to_string(n));
   if (!unit.empty()) {
     Handle str(H5Tcopy(H5T_C_S1), H5Tclose, "make a string type");
     H5Tset_size(str.get(), unit.size());

@@ -45,6 +45,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -213,6 +214,17 @@ class AtomicFile {
     if (!buffer_.empty() && std::fwrite(buffer_.data(), 1, buffer_.size(), file_) != buffer_.size())
       throw std::runtime_error("cannot write " + temp_.string() + ": " + errno_text(errno));
     buffer_.clear();
+  }
+  /// Appends n bytes (large blocks go to the file without a copy).
+  void append(const char* data, std::size_t n) {
+    if (buffer_.size() + n <= kChunk) {
+      buffer_.append(data, n);
+      maybe_flush();
+      return;
+    }
+    flush();
+    if (n > 0 && std::fwrite(data, 1, n, file_) != n)
+      throw std::runtime_error("cannot write " + temp_.string() + ": " + errno_text(errno));
   }
   /// Reserves `n` bytes after what the buffer holds and returns their file offset; the caller fills them with
   /// write_at() (from several threads: pwrite).
@@ -393,10 +405,227 @@ inline std::vector<std::string> column_names(const FrameAttribute& a) {
 
 // ---------------------------------------------------------------------------------------------
 // Writers
+//
+// Every writer reads its frame through a FrameStream, a piece of `piece` points at a time, so a frame of any size
+// is written with the host memory of a few pieces: a ParticleFrame in memory is one source (stream_of), the GPU
+// engine's device buffers another. The exterior filter is applied while streaming: two passes over the positions
+// (count the points of each cube, then mark the points kept: one bit each) before the file is written.
 
-/// Classic binary Houdini geometry, byte for byte what partio's writeBGEO produces for the same data
-/// (positions are stored as float). Throws std::invalid_argument (bad frame, > 2^31-1 points) or
-/// std::runtime_error (I/O).
+/// One attribute of a streamed frame: a FrameAttribute without its values.
+struct StreamAttribute {
+  std::string name;
+  int width = 1;
+  std::string unit;
+  AttributeType type = AttributeType::Float;
+};
+
+/// A frame read piece by piece. read_positions(first, count, out) writes the 3 x count coordinates [m] of points
+/// [first, first + count) to `out` (double when double_precision, float otherwise); read_values(a, first, count,
+/// out) writes count x width 4-byte values of attribute a (float, or int32 for an Int attribute). Within a pass
+/// each column's reads come in increasing `first`; a writer makes several passes (the exterior filter's two, one per HDF5
+/// dataset), each from point 0.
+struct FrameStream {
+  std::size_t points = 0;
+  bool double_precision = false;
+  std::vector<StreamAttribute> attributes;
+  ExteriorFilter exterior;                   ///< applied by the writers
+  std::size_t piece = std::size_t(1) << 22;  ///< points per read
+  std::function<void(std::size_t first, std::size_t count, void* out)> read_positions;
+  std::function<void(std::size_t attribute, std::size_t first, std::size_t count, void* out)> read_values;
+};
+
+/// The stream of a frame in memory (which must outlive it): its points, attributes and exterior filter.
+inline FrameStream stream_of(const ParticleFrame& frame, std::size_t piece = std::size_t(1) << 22) {
+  validate_frame(frame);
+  FrameStream s;
+  s.points = frame.size();
+  s.double_precision = frame.double_precision();
+  s.exterior = frame.exterior;
+  s.piece = piece;
+  for (const FrameAttribute& a : frame.attributes) s.attributes.push_back({a.name, a.width, a.unit, a.type()});
+  s.read_positions = [&frame](std::size_t first, std::size_t count, void* out) {
+    std::visit(
+        [&](const auto& xs) {
+          using V = typename std::decay_t<decltype(xs)>::value_type;
+          if (count) std::memcpy(out, xs.data() + first, count * sizeof(V));
+        },
+        frame.positions);
+  };
+  s.read_values = [&frame](std::size_t a, std::size_t first, std::size_t count, void* out) {
+    const FrameAttribute& at = frame.attributes[a];
+    const std::size_t w = static_cast<std::size_t>(at.width);
+    std::visit([&](const auto& v) { if (count) std::memcpy(out, v.data() + first * w, count * w * 4); }, at.values);
+  };
+  return s;
+}
+
+namespace detail {
+
+static_assert(sizeof(Vec3f) == 3 * sizeof(float) && sizeof(Vec3d) == 3 * sizeof(double),
+              "frame positions are read as packed coordinates");
+
+inline int houdini_type(const StreamAttribute& a) {
+  if (a.type == AttributeType::Int) return kHoudiniInt;
+  return a.width == 3 ? kHoudiniVector : kHoudiniFloat;
+}
+
+inline std::vector<std::string> column_names(const StreamAttribute& a) {
+  return column_names(FrameAttribute{a.name, a.width, a.unit, {}});
+}
+
+/// A FrameStream read in pieces with its exterior filter applied: each piece holds only the points written.
+class FrameReader {
+ public:
+  struct Piece {
+    std::size_t rows = 0;                   ///< points of the piece that are written
+    std::vector<char> positions;            ///< rows x 3 coordinates (the stream's precision)
+    std::vector<std::vector<char>> values;  ///< per attribute asked for: rows x width x 4 bytes
+  };
+
+  explicit FrameReader(const FrameStream& s) : s_(s) {
+    for (std::size_t i = 0; i < s.attributes.size(); ++i) {
+      const StreamAttribute& a = s.attributes[i];
+      if (!valid_attribute_name(a.name))
+        throw std::invalid_argument("particle attribute name \"" + a.name +
+                                    "\" is not an identifier ([A-Za-z_][A-Za-z0-9_]*, not \"P\")");
+      if (a.width < 1 || a.width > 65535)
+        throw std::invalid_argument("particle attribute " + a.name + ": width " + std::to_string(a.width) +
+                                    " (expected 1..65535)");
+      for (std::size_t j = 0; j < i; ++j)
+        if (s.attributes[j].name == a.name)
+          throw std::invalid_argument("particle attribute " + a.name + " appears twice");
+    }
+    if (s.piece == 0) throw std::invalid_argument("FrameStream: piece must be at least 1 point");
+    rows_ = s.points;
+    if (s.exterior.on() && s.points > 0) mark_exterior();
+  }
+
+  std::size_t rows() const { return rows_; }
+  std::size_t coordinate_bytes() const { return s_.double_precision ? 8 : 4; }
+  double coordinate(const char* xs, std::size_t i) const {
+    if (s_.double_precision) {
+      double d;
+      std::memcpy(&d, xs + 8 * i, 8);
+      return d;
+    }
+    float f;
+    std::memcpy(&f, xs + 4 * i, 4);
+    return static_cast<double>(f);
+  }
+
+  /// f(piece) for every piece with points written, in order; the positions when `positions`, and the values of
+  /// the attributes listed in `attributes` (piece.values[k] holds attributes[k]'s).
+  template <class F>
+  void each_piece(bool positions, const std::vector<std::size_t>& attributes, F&& f) const {
+    Piece piece;
+    piece.values.resize(attributes.size());
+    std::vector<char> scratch;
+    const std::size_t cb = coordinate_bytes();
+    for (std::size_t first = 0; first < s_.points; first += s_.piece) {
+      const std::size_t count = std::min(s_.piece, s_.points - first);
+      const std::size_t rows = kept_in(first, count);
+      if (rows == 0) continue;
+      piece.rows = rows;
+      const bool all = rows == count;  // nothing to drop: read straight into the piece
+      auto read = [&](std::vector<char>& into, std::size_t record, auto&& reader) {
+        into.resize(rows * record);
+        if (all) {
+          reader(into.data());
+          return;
+        }
+        scratch.resize(count * record);
+        reader(scratch.data());
+        std::size_t r = 0;
+        for (std::size_t i = 0; i < count; ++i)
+          if (kept(first + i)) std::memcpy(into.data() + record * r++, scratch.data() + record * i, record);
+      };
+      if (positions) read(piece.positions, 3 * cb, [&](void* out) { s_.read_positions(first, count, out); });
+      for (std::size_t k = 0; k < attributes.size(); ++k) {
+        const std::size_t a = attributes[k];
+        read(piece.values[k], 4 * static_cast<std::size_t>(s_.attributes[a].width),
+             [&](void* out) { s_.read_values(a, first, count, out); });
+      }
+      f(static_cast<const Piece&>(piece));
+    }
+  }
+
+ private:
+  bool kept(std::size_t p) const { return keep_.empty() || ((keep_[p >> 6] >> (p & 63)) & 1u); }
+  std::size_t kept_in(std::size_t first, std::size_t count) const {
+    if (keep_.empty()) return count;
+    std::size_t k = 0;
+    for (std::size_t p = first; p < first + count; ++p) k += kept(p);
+    return k;
+  }
+
+  /// The exterior filter (ExteriorFilter): the points of each cube counted in a first pass over the positions, one
+  /// decision per occupied cube, the points kept marked in a second pass.
+  void mark_exterior() {
+    const double inv = 1.0 / s_.exterior.block;
+    auto pack = [](long long i, long long j, long long k) {  // 21 bits per axis, offset to stay non-negative
+      const auto u = [](long long c) { return static_cast<std::uint64_t>(c + (1LL << 20)) & 0x1fffffULL; };
+      return (u(i) << 42) | (u(j) << 21) | u(k);
+    };
+    const std::size_t cb = coordinate_bytes();
+    std::vector<char> xs;
+    auto each_cube = [&](auto&& visit) {
+      for (std::size_t first = 0; first < s_.points; first += s_.piece) {
+        const std::size_t count = std::min(s_.piece, s_.points - first);
+        xs.resize(3 * cb * count);
+        s_.read_positions(first, count, xs.data());
+        for (std::size_t i = 0; i < count; ++i) {
+          long long c[3];
+          for (int a = 0; a < 3; ++a) c[a] = static_cast<long long>(std::floor(coordinate(xs.data(), 3 * i + a) * inv));
+          visit(first + i, c);
+        }
+      }
+    };
+    std::unordered_map<std::uint64_t, long long> count;
+    each_cube([&](std::size_t, const long long* c) { ++count[pack(c[0], c[1], c[2])]; });
+    std::unordered_map<std::uint64_t, char> keep;
+    keep.reserve(count.size());
+    keep_.assign((s_.points + 63) / 64, 0);
+    rows_ = 0;
+    each_cube([&](std::size_t p, const long long* c) {
+      const std::uint64_t key = pack(c[0], c[1], c[2]);
+      auto it = keep.find(key);
+      if (it == keep.end()) {
+        bool exterior = false;
+        for (int di = -1; di <= 1 && !exterior; ++di)
+          for (int dj = -1; dj <= 1 && !exterior; ++dj)
+            for (int dk = -1; dk <= 1 && !exterior; ++dk) {
+              const auto n = count.find(pack(c[0] + di, c[1] + dj, c[2] + dk));
+              exterior = static_cast<double>(n == count.end() ? 0 : n->second) <= s_.exterior.threshold;
+            }
+        it = keep.emplace(key, exterior ? 1 : 0).first;
+      }
+      if (it->second) {
+        keep_[p >> 6] |= std::uint64_t(1) << (p & 63);
+        ++rows_;
+      }
+    });
+    if (rows_ == s_.points) keep_.clear();  // every point kept
+  }
+
+  const FrameStream& s_;
+  std::vector<std::uint64_t> keep_;  ///< bit p: point p is written (empty: every point)
+  std::size_t rows_ = 0;
+};
+
+inline std::vector<std::size_t> every_attribute(const FrameStream& s) {
+  std::vector<std::size_t> all(s.attributes.size());
+  for (std::size_t a = 0; a < all.size(); ++a) all[a] = a;
+  return all;
+}
+
+inline std::uint32_t word_at(const char* p) {
+  std::uint32_t u;
+  std::memcpy(&u, p, 4);
+  return u;
+}
+
+}  // namespace detail
+
 /// One point attribute of a bgeo's dictionary: name, components, Houdini type code (0 float, 1 int, 5 vector).
 struct BgeoAttribute {
   std::string name;
@@ -449,74 +678,89 @@ inline void write_bgeo_records(const std::filesystem::path& path, std::size_t n,
   file.commit();
 }
 
-inline void write_bgeo(const std::filesystem::path& path, const ParticleFrame& frame) {
-  validate_frame(frame);
-  const std::size_t n = frame.size();
+/// Classic binary Houdini geometry, byte for byte what partio's writeBGEO produces for the same data
+/// (positions are stored as float). Throws std::invalid_argument (bad frame, > 2^31-1 points) or
+/// std::runtime_error (I/O). The bgeo of a streamed frame: the header, then each piece's records (x y z w = 1, every attribute's
+/// components), serialised by several threads (a 16M-particle frame with 4 attributes is 0.58 GB: byte by byte on
+/// one thread it took 1.3 s) and appended.
+inline void write_bgeo(const std::filesystem::path& path, const FrameStream& s) {
+  const detail::FrameReader reader(s);
+  const std::size_t n = reader.rows();
   if (n > 0x7fffffffu) throw std::invalid_argument(path.string() + ": bgeo holds at most 2^31-1 points");
-  detail::AtomicFile file(path);
   std::vector<BgeoAttribute> dictionary;
-  for (const FrameAttribute& a : frame.attributes) dictionary.push_back({a.name, a.width, detail::houdini_type(a)});
-  file.buffer() = bgeo_header(n, dictionary);
-  std::string& out = file.buffer();
-  // The points: fixed-size records (x y z w, then every attribute's components). Several threads each serialise a
-  // range of points in 4 MiB pieces and pwrite them at their offsets (a 16M-particle frame with 4 attributes is
-  // 0.58 GB: byte by byte on one thread it took 1.3 s, longer than the 100 steps between two frames).
   std::size_t record = 16;
-  for (const FrameAttribute& a : frame.attributes) record += 4 * static_cast<std::size_t>(a.width);
-  const off_t base = file.reserve(n * record);
-  const std::size_t piece = std::max<std::size_t>(1, (std::size_t(4) << 20) / record);
+  for (const StreamAttribute& a : s.attributes) {
+    dictionary.push_back({a.name, a.width, detail::houdini_type(a)});
+    record += 4 * static_cast<std::size_t>(a.width);
+  }
+  detail::AtomicFile file(path);
+  file.buffer() = bgeo_header(n, dictionary);
   const unsigned threads = std::max(1u, std::min(8u, std::thread::hardware_concurrency() / 2));
-  detail::parallel_ranges(n, threads, [&](std::size_t lo, std::size_t hi) {
-    std::vector<char> points(std::min(hi - lo, piece) * record);
-    for (std::size_t first = lo; first < hi; first += piece) {
-      const std::size_t count = std::min(piece, hi - first);
-      std::visit(
-          [&](const auto& xs) {
-            for (std::size_t i = 0; i < count; ++i) {
-              const std::size_t p = first + i;
-              char* o = points.data() + i * record;
-              const Vec3f x = xs[p].template cast<float>();
-              detail::store_be32(o, detail::bits_of(x[0]));
-              detail::store_be32(o + 4, detail::bits_of(x[1]));
-              detail::store_be32(o + 8, detail::bits_of(x[2]));
-              detail::store_be32(o + 12, detail::bits_of(1.0f));  // homogeneous w
-              o += 16;
-              for (const FrameAttribute& a : frame.attributes) {
-                const std::size_t first_value = p * static_cast<std::size_t>(a.width);
-                if (a.type() == AttributeType::Float) {
-                  const float* v = a.floats().data() + first_value;
-                  for (int c = 0; c < a.width; ++c, o += 4) detail::store_be32(o, detail::bits_of(v[c]));
-                } else {
-                  const std::int32_t* v = a.ints().data() + first_value;
-                  for (int c = 0; c < a.width; ++c, o += 4) detail::store_be32(o, static_cast<std::uint32_t>(v[c]));
-                }
-              }
-            }
-          },
-          frame.positions);
-      file.write_at(points.data(), count * record, base + static_cast<off_t>(first * record));
-    }
+  std::vector<char> records;
+  reader.each_piece(true, detail::every_attribute(s), [&](const detail::FrameReader::Piece& p) {
+    records.resize(p.rows * record);
+    detail::parallel_ranges(p.rows, threads, [&](std::size_t lo, std::size_t hi) {
+      for (std::size_t i = lo; i < hi; ++i) {
+        char* o = records.data() + i * record;
+        for (int a = 0; a < 3; ++a)
+          detail::store_be32(o + 4 * a, detail::bits_of(static_cast<float>(
+                                            reader.coordinate(p.positions.data(), 3 * i + static_cast<std::size_t>(a)))));
+        detail::store_be32(o + 12, detail::bits_of(1.0f));  // homogeneous w
+        o += 16;
+        for (std::size_t k = 0; k < s.attributes.size(); ++k) {
+          const std::size_t w = static_cast<std::size_t>(s.attributes[k].width);
+          const char* v = p.values[k].data() + 4 * w * i;
+          for (std::size_t c = 0; c < w; ++c, o += 4) detail::store_be32(o, detail::word_at(v + 4 * c));
+        }
+      }
+    });
+    file.append(records.data(), records.size());
   });
+  std::string& out = file.buffer();
   out.push_back(static_cast<char>(0x00));  // begin extra
   out.push_back(static_cast<char>(0xff));  // end extra
   file.commit();
 }
 
+namespace detail {
+
+/// The text of component c of attribute a's values for one point (`v`: its width x 4 bytes).
+inline void put_value(std::string& out, const StreamAttribute& a, const char* v, std::size_t c) {
+  const std::uint32_t u = word_at(v + 4 * c);
+  if (a.type == AttributeType::Float) {
+    float f;
+    std::memcpy(&f, &u, 4);
+    put_text(out, f);
+  } else {
+    put_text(out, static_cast<std::int32_t>(u));
+  }
+}
+
+/// The text of coordinate i of a piece's positions, in the stream's precision.
+inline void put_coordinate(std::string& out, const FrameReader& reader, const char* xs, std::size_t i) {
+  if (reader.coordinate_bytes() == 8)
+    put_text(out, reader.coordinate(xs, i));
+  else
+    put_text(out, static_cast<float>(reader.coordinate(xs, i)));
+}
+
+}  // namespace detail
+
 /// Classic ASCII Houdini geometry (PGEOMETRY V5), the layout of partio's writeGEO.
-inline void write_geo(const std::filesystem::path& path, const ParticleFrame& frame) {
-  validate_frame(frame);
-  const std::size_t n = frame.size();
+inline void write_geo(const std::filesystem::path& path, const FrameStream& s) {
+  const detail::FrameReader reader(s);
+  const std::size_t n = reader.rows();
   detail::AtomicFile file(path);
   std::string& out = file.buffer();
   const bool has_prim = n > 0;  // an empty particle primitive is not written
   out += "PGEOMETRY V5\n";
   out += "NPoints " + std::to_string(n) + " NPrims " + (has_prim ? "1" : "0") + "\n";
   out += "NPointGroups 0 NPrimGroups 0\n";
-  out += "NPointAttrib " + std::to_string(frame.attributes.size()) + " NVertexAttrib 0 NPrimAttrib " +
+  out += "NPointAttrib " + std::to_string(s.attributes.size()) + " NVertexAttrib 0 NPrimAttrib " +
          (has_prim ? "1" : "0") + " NAttrib 0\n";
-  if (!frame.attributes.empty()) {
+  if (!s.attributes.empty()) {
     out += "PointAttrib\n";
-    for (const FrameAttribute& a : frame.attributes) {
+    for (const StreamAttribute& a : s.attributes) {
       const int t = detail::houdini_type(a);
       out += a.name + " " + std::to_string(a.width) + " " +
              (t == detail::kHoudiniInt ? "int" : t == detail::kHoudiniVector ? "vector" : "float");
@@ -524,33 +768,28 @@ inline void write_geo(const std::filesystem::path& path, const ParticleFrame& fr
       out += "\n";
     }
   }
-  for (std::size_t p = 0; p < n; ++p) {
-    std::visit(
-        [&](const auto& v) {
-          for (int d = 0; d < 3; ++d) {
-            detail::put_text(out, v[p][d]);
-            out.push_back(' ');
-          }
-        },
-        frame.positions);
-    out.push_back('1');
-    if (!frame.attributes.empty()) out += " (";
-    for (std::size_t i = 0; i < frame.attributes.size(); ++i) {
-      const FrameAttribute& a = frame.attributes[i];
-      if (i > 0) out.push_back('\t');
-      const std::size_t base = p * static_cast<std::size_t>(a.width);
-      for (int c = 0; c < a.width; ++c) {
-        if (c > 0) out.push_back(' ');
-        if (a.type() == AttributeType::Float)
-          detail::put_text(out, a.floats()[base + c]);
-        else
-          detail::put_text(out, a.ints()[base + c]);
+  reader.each_piece(true, detail::every_attribute(s), [&](const detail::FrameReader::Piece& p) {
+    for (std::size_t i = 0; i < p.rows; ++i) {
+      for (std::size_t d = 0; d < 3; ++d) {
+        detail::put_coordinate(out, reader, p.positions.data(), 3 * i + d);
+        out.push_back(' ');
       }
+      out.push_back('1');
+      if (!s.attributes.empty()) out += " (";
+      for (std::size_t k = 0; k < s.attributes.size(); ++k) {
+        const StreamAttribute& a = s.attributes[k];
+        if (k > 0) out.push_back('\t');
+        const std::size_t w = static_cast<std::size_t>(a.width);
+        for (std::size_t c = 0; c < w; ++c) {
+          if (c > 0) out.push_back(' ');
+          detail::put_value(out, a, p.values[k].data() + 4 * w * i, c);
+        }
+      }
+      if (!s.attributes.empty()) out.push_back(')');
+      out.push_back('\n');
+      file.maybe_flush();
     }
-    if (!frame.attributes.empty()) out.push_back(')');
-    out.push_back('\n');
-    file.maybe_flush();
-  }
+  });
   if (has_prim) {
     out += "PrimitiveAttrib\ngenerator 1 index 1 papi\nPart " + std::to_string(n);
     for (std::size_t p = 0; p < n; ++p) {
@@ -565,44 +804,39 @@ inline void write_geo(const std::filesystem::path& path, const ParticleFrame& fr
 }
 
 /// CSV with a header row of names and units; one particle per row.
-inline void write_csv(const std::filesystem::path& path, const ParticleFrame& frame) {
-  validate_frame(frame);
-  const std::size_t n = frame.size();
+inline void write_csv(const std::filesystem::path& path, const FrameStream& s) {
+  const detail::FrameReader reader(s);
   detail::AtomicFile file(path);
   std::string& out = file.buffer();
   out += "Position_X [m],Position_Y [m],Position_Z [m]";
-  for (const FrameAttribute& a : frame.attributes)
+  for (const StreamAttribute& a : s.attributes)
     for (const std::string& col : detail::column_names(a)) out += "," + col;
   out.push_back('\n');
-  for (std::size_t p = 0; p < n; ++p) {
-    std::visit(
-        [&](const auto& v) {
-          for (int d = 0; d < 3; ++d) {
-            if (d > 0) out.push_back(',');
-            detail::put_text(out, v[p][d]);
-          }
-        },
-        frame.positions);
-    for (const FrameAttribute& a : frame.attributes) {
-      const std::size_t base = p * static_cast<std::size_t>(a.width);
-      for (int c = 0; c < a.width; ++c) {
-        out.push_back(',');
-        if (a.type() == AttributeType::Float)
-          detail::put_text(out, a.floats()[base + c]);
-        else
-          detail::put_text(out, a.ints()[base + c]);
+  reader.each_piece(true, detail::every_attribute(s), [&](const detail::FrameReader::Piece& p) {
+    for (std::size_t i = 0; i < p.rows; ++i) {
+      for (std::size_t d = 0; d < 3; ++d) {
+        if (d > 0) out.push_back(',');
+        detail::put_coordinate(out, reader, p.positions.data(), 3 * i + d);
       }
+      for (std::size_t k = 0; k < s.attributes.size(); ++k) {
+        const std::size_t w = static_cast<std::size_t>(s.attributes[k].width);
+        for (std::size_t c = 0; c < w; ++c) {
+          out.push_back(',');
+          detail::put_value(out, s.attributes[k], p.values[k].data() + 4 * w * i, c);
+        }
+      }
+      out.push_back('\n');
+      file.maybe_flush();
     }
-    out.push_back('\n');
-    file.maybe_flush();
-  }
+  });
   file.commit();
 }
 
-/// HDF5 frame and its XDMF description (h5_frame.h): `path` ends in .h5; the .xdmf goes next to it.
-inline void write_h5(const std::filesystem::path& path, const ParticleFrame& frame) {
-  validate_frame(frame);
-  const std::size_t n = frame.size();
+/// HDF5 frame and its XDMF description (h5_frame.h): `path` ends in .h5; the .xdmf goes next to it. Each dataset
+/// is written piece by piece (a pass over the stream per dataset).
+inline void write_h5(const std::filesystem::path& path, const FrameStream& s) {
+  const detail::FrameReader reader(s);
+  const std::size_t n = reader.rows();
   const std::string file_name = path.filename().string();
   std::filesystem::path temp = path;
   temp += ".part";
@@ -612,15 +846,18 @@ inline void write_h5(const std::filesystem::path& path, const ParticleFrame& fra
     const h5_detail::Handle fcpl = h5_detail::untimed(H5P_FILE_CREATE, temp.string());
     h5_detail::Handle file(H5Fcreate(temp.c_str(), H5F_ACC_TRUNC, fcpl.get(), H5P_DEFAULT), H5Fclose,
                            "create " + temp.string());
-    const bool dbl = frame.double_precision();
-    const void* x = std::visit([](const auto& v) { return static_cast<const void*>(v.data()); }, frame.positions);
-    h5_detail::write_dataset(file.get(), "Position", dbl ? H5T_NATIVE_DOUBLE : H5T_NATIVE_FLOAT, n, 3, x, "m",
-                             path.string());
-    for (const FrameAttribute& a : frame.attributes) {
-      const bool integer = a.type() == AttributeType::Int;
-      const void* data = integer ? static_cast<const void*>(a.ints().data()) : static_cast<const void*>(a.floats().data());
-      h5_detail::write_dataset(file.get(), a.name, integer ? H5T_NATIVE_INT32 : H5T_NATIVE_FLOAT, n, a.width, data,
-                               a.unit, path.string());
+    h5_detail::write_dataset_pieces(
+        file.get(), "Position", s.double_precision ? H5T_NATIVE_DOUBLE : H5T_NATIVE_FLOAT, n, 3, "m", path.string(),
+        [&](const auto& emit) {
+          reader.each_piece(true, {}, [&](const detail::FrameReader::Piece& p) { emit(p.rows, p.positions.data()); });
+        });
+    for (std::size_t a = 0; a < s.attributes.size(); ++a) {
+      const StreamAttribute& at = s.attributes[a];
+      h5_detail::write_dataset_pieces(
+          file.get(), at.name, at.type == AttributeType::Int ? H5T_NATIVE_INT32 : H5T_NATIVE_FLOAT, n, at.width,
+          at.unit, path.string(), [&](const auto& emit) {
+            reader.each_piece(false, {a}, [&](const detail::FrameReader::Piece& p) { emit(p.rows, p.values[0].data()); });
+          });
     }
     if (file.release() < 0) throw h5_detail::failure("close " + temp.string());
   } catch (...) {
@@ -635,11 +872,11 @@ inline void write_h5(const std::filesystem::path& path, const ParticleFrame& fra
   std::string x = "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n <Domain>\n  <Grid Name=\"particles\" GridType=\"Uniform\">\n";
   x += "   <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" + std::to_string(n) + "\" NodesPerElement=\"1\"/>\n";
   x += "   <Geometry GeometryType=\"XYZ\">\n    " +
-       h5_detail::data_item(n, 3, false, frame.double_precision() ? 8 : 4, file_name, "Position") + "\n   </Geometry>\n";
-  for (const FrameAttribute& a : frame.attributes) {
+       h5_detail::data_item(n, 3, false, s.double_precision ? 8 : 4, file_name, "Position") + "\n   </Geometry>\n";
+  for (const StreamAttribute& a : s.attributes) {
     const char* kind = a.width == 1 ? "Scalar" : a.width == 3 ? "Vector" : "Matrix";
     x += "   <Attribute Name=\"" + a.name + "\" AttributeType=\"" + kind + "\" Center=\"Node\">\n    " +
-         h5_detail::data_item(n, a.width, a.type() == AttributeType::Int, 4, file_name, a.name) + "\n   </Attribute>\n";
+         h5_detail::data_item(n, a.width, a.type == AttributeType::Int, 4, file_name, a.name) + "\n   </Attribute>\n";
   }
   x += "  </Grid>\n </Domain>\n</Xdmf>\n";
   std::filesystem::path xdmf = path;
@@ -649,61 +886,77 @@ inline void write_h5(const std::filesystem::path& path, const ParticleFrame& fra
   out.commit();
 }
 
-/// Writes `frame` in the format named by path's extension (.bgeo, .geo, .csv, .h5).
+/// Writes a streamed frame in the format named by path's extension (.bgeo, .geo, .csv, .h5), its exterior filter
+/// applied.
+inline void write_frame(const std::filesystem::path& path, const FrameStream& s) {
+  switch (frame_format(path.extension().string())) {
+    case FrameFormat::Bgeo: write_bgeo(path, s); break;
+    case FrameFormat::Geo: write_geo(path, s); break;
+    case FrameFormat::Csv: write_csv(path, s); break;
+    case FrameFormat::H5: write_h5(path, s); break;
+  }
+}
+
+/// Every point of a frame in memory (its exterior filter is not applied: write_frame applies it).
+inline void write_bgeo(const std::filesystem::path& path, const ParticleFrame& frame) {
+  FrameStream s = stream_of(frame);
+  s.exterior = {};
+  write_bgeo(path, s);
+}
+inline void write_geo(const std::filesystem::path& path, const ParticleFrame& frame) {
+  FrameStream s = stream_of(frame);
+  s.exterior = {};
+  write_geo(path, s);
+}
+inline void write_csv(const std::filesystem::path& path, const ParticleFrame& frame) {
+  FrameStream s = stream_of(frame);
+  s.exterior = {};
+  write_csv(path, s);
+}
+inline void write_h5(const std::filesystem::path& path, const ParticleFrame& frame) {
+  FrameStream s = stream_of(frame);
+  s.exterior = {};
+  write_h5(path, s);
+}
+
 /// The points of `frame` that frame.exterior keeps, with their attributes, in their order (the filter is off in the
 /// result).
 inline ParticleFrame exterior_points(const ParticleFrame& frame) {
-  const double inv = 1.0 / frame.exterior.block;
-  const std::size_t n = frame.size();
-  auto pack = [](long long i, long long j, long long k) {  // 21 bits per axis, offset to stay non-negative
-    const auto u = [](long long c) { return static_cast<std::uint64_t>(c + (1LL << 20)) & 0x1fffffULL; };
-    return (u(i) << 42) | (u(j) << 21) | u(k);
-  };
-  std::vector<std::array<long long, 3>> cube(n);
-  std::unordered_map<std::uint64_t, long long> count;
-  for (std::size_t p = 0; p < n; ++p) {
-    const Vec3d x = frame.position(p);
-    for (int a = 0; a < 3; ++a) cube[p][a] = static_cast<long long>(std::floor(x[a] * inv));
-    ++count[pack(cube[p][0], cube[p][1], cube[p][2])];
-  }
-  // One decision per occupied cube.
-  std::unordered_map<std::uint64_t, char> keep;
-  keep.reserve(count.size());
-  for (std::size_t p = 0; p < n; ++p) {
-    const std::uint64_t key = pack(cube[p][0], cube[p][1], cube[p][2]);
-    if (keep.count(key)) continue;
-    bool exterior = false;
-    for (int di = -1; di <= 1 && !exterior; ++di)
-      for (int dj = -1; dj <= 1 && !exterior; ++dj)
-        for (int dk = -1; dk <= 1 && !exterior; ++dk) {
-          const auto it = count.find(pack(cube[p][0] + di, cube[p][1] + dj, cube[p][2] + dk));
-          exterior = static_cast<double>(it == count.end() ? 0 : it->second) <= frame.exterior.threshold;
-        }
-    keep.emplace(key, exterior ? 1 : 0);
-  }
-  std::vector<std::size_t> rows;
-  for (std::size_t p = 0; p < n; ++p)
-    if (keep[pack(cube[p][0], cube[p][1], cube[p][2])]) rows.push_back(p);
+  const FrameStream s = stream_of(frame, std::max<std::size_t>(frame.size(), 1));
+  const detail::FrameReader reader(s);
   ParticleFrame out;
-  std::visit(
-      [&](const auto& v) {
-        std::decay_t<decltype(v)> kept(rows.size());
-        for (std::size_t r = 0; r < rows.size(); ++r) kept[r] = v[rows[r]];
-        out.positions = std::move(kept);
-      },
-      frame.positions);
-  for (const FrameAttribute& a : frame.attributes) {
-    FrameAttribute b{a.name, a.width, a.unit, {}};
-    std::visit(
-        [&](const auto& values) {
-          std::decay_t<decltype(values)> kept(rows.size() * static_cast<std::size_t>(a.width));
-          for (std::size_t r = 0; r < rows.size(); ++r)
-            for (int c = 0; c < a.width; ++c)
-              kept[r * a.width + c] = values[rows[r] * static_cast<std::size_t>(a.width) + c];
-          b.values = std::move(kept);
-        },
-        a.values);
-    out.attributes.push_back(std::move(b));
+  std::vector<char> xs;
+  std::vector<std::vector<char>> values(s.attributes.size());
+  reader.each_piece(true, detail::every_attribute(s), [&](const detail::FrameReader::Piece& p) {
+    xs = p.positions;
+    values = p.values;
+  });
+  const std::size_t n = reader.rows();
+  auto copy = [](auto& into, const std::vector<char>& from, std::size_t count) {
+    into.resize(count);
+    if (count) std::memcpy(into.data(), from.data(), sizeof(into[0]) * count);
+  };
+  if (s.double_precision) {
+    std::vector<Vec3d> x;
+    copy(x, xs, n);
+    out.positions = std::move(x);
+  } else {
+    std::vector<Vec3f> x;
+    copy(x, xs, n);
+    out.positions = std::move(x);
+  }
+  for (std::size_t a = 0; a < s.attributes.size(); ++a) {
+    const StreamAttribute& at = s.attributes[a];
+    const std::size_t count = n * static_cast<std::size_t>(at.width);
+    if (at.type == AttributeType::Int) {
+      std::vector<std::int32_t> v;
+      copy(v, values[a], count);
+      out.add(at.name, at.width, std::move(v), at.unit);
+    } else {
+      std::vector<float> v;
+      copy(v, values[a], count);
+      out.add(at.name, at.width, std::move(v), at.unit);
+    }
   }
   return out;
 }
@@ -766,25 +1019,14 @@ inline void write_vtk_tetrahedra(const std::filesystem::path& path, const Partic
   file.commit();
 }
 
+/// Writes `frame` in the format named by path's extension (.bgeo, .geo, .csv, .h5), its exterior filter applied;
+/// a mesh's frame also as the .vtk of its tetrahedra beside it (every vertex).
 inline void write_frame(const std::filesystem::path& path, const ParticleFrame& frame) {
   if (frame.tetrahedra) {  // the whole mesh (connectivity needs every vertex), then the points as asked
     std::filesystem::path vtk = path;
     write_vtk_tetrahedra(vtk.replace_extension(".vtk"), frame);
-    ParticleFrame points = frame;
-    points.tetrahedra.reset();
-    write_frame(path, points);
-    return;
   }
-  if (frame.exterior.on()) {
-    write_frame(path, exterior_points(frame));
-    return;
-  }
-  switch (frame_format(path.extension().string())) {
-    case FrameFormat::Bgeo: write_bgeo(path, frame); break;
-    case FrameFormat::Geo: write_geo(path, frame); break;
-    case FrameFormat::Csv: write_csv(path, frame); break;
-    case FrameFormat::H5: write_h5(path, frame); break;
-  }
+  write_frame(path, stream_of(frame));
 }
 
 // ---------------------------------------------------------------------------------------------

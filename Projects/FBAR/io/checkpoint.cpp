@@ -92,15 +92,53 @@ void put_array(hid_t where, const char* name, const std::vector<V>& data, std::s
     throw h5_detail::failure(std::string("write dataset ") + name + " of " + file);
 }
 
-/// A real array in the file's precision: float32 converted here (HDF5's own conversion is several times slower).
-void put_reals(hid_t where, const char* name, const std::vector<double>& data, std::size_t rows, int width,
-               bool single, const std::string& file) {
-  if (!single) {
-    put_array(where, name, data, rows, width, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, file);
-    return;
-  }
-  const std::vector<float> narrow(data.begin(), data.end());
-  put_array(where, name, narrow, rows, width, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, file);
+using Emit = std::function<void(std::size_t rows, const void* values)>;
+using Pieces = std::function<void(const Emit&)>;
+
+/// A dataset of rows x width written piece by piece (pieces(emit) calls emit(rows, values) in row order, `rows` in
+/// all); `narrow`: the values come as doubles and are written as float32, converted here a piece at a time (HDF5's
+/// own conversion is several times slower).
+void put_pieces(hid_t where, const char* name, std::size_t rows, int width, hid_t file_type, hid_t mem_type,
+                bool narrow, const Pieces& pieces, const std::string& file) {
+  const hsize_t dims[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(width)};
+  Handle space(H5Screate_simple(2, dims, nullptr), H5Sclose, "create a dataspace for " + file);
+  const Handle dcpl = untimed(H5P_DATASET_CREATE, file);
+  Handle set(H5Dcreate2(where, name, file_type, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), H5Dclose,
+             std::string("create dataset ") + name + " in " + file);
+  hsize_t done = 0;
+  std::vector<float> floats;
+  pieces([&](std::size_t count, const void* values) {
+    if (count == 0) return;
+    if (done + count > rows)
+      throw std::logic_error(std::string("checkpoint: more rows of ") + name + " than " + std::to_string(rows));
+    if (narrow) {
+      const double* d = static_cast<const double*>(values);
+      floats.assign(d, d + count * static_cast<std::size_t>(width));
+      values = floats.data();
+    }
+    const hsize_t start[2] = {done, 0};
+    const hsize_t piece[2] = {static_cast<hsize_t>(count), static_cast<hsize_t>(width)};
+    Handle memory(H5Screate_simple(2, piece, nullptr), H5Sclose, "create a dataspace for " + file);
+    if (H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start, nullptr, piece, nullptr) < 0 ||
+        H5Dwrite(set.get(), mem_type, memory.get(), space.get(), H5P_DEFAULT, values) < 0)
+      throw h5_detail::failure(std::string("write dataset ") + name + " of " + file);
+    done += count;
+  });
+  if (done != rows)
+    throw std::logic_error(std::string("checkpoint: ") + std::to_string(done) + " rows of " + name + " for " +
+                           std::to_string(rows));
+}
+
+/// The pieces of an array in memory: kPieceRows rows at a time.
+template <class V>
+Pieces pieces_of(const std::vector<V>& data, std::size_t rows, int width, const char* name) {
+  if (data.size() != rows * static_cast<std::size_t>(width))
+    throw std::logic_error(std::string("checkpoint: ") + name + " has the wrong size");
+  return [&data, rows, width](const Emit& emit) {
+    constexpr std::size_t kPieceRows = std::size_t(1) << 22;
+    for (std::size_t first = 0; first < rows; first += kPieceRows)
+      emit(std::min(kPieceRows, rows - first), data.data() + first * static_cast<std::size_t>(width));
+  };
 }
 
 template <class V>
@@ -208,24 +246,37 @@ void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c) {
       Handle g(H5Gcreate2(root, group.c_str(), H5P_DEFAULT, gcpl.get(), H5P_DEFAULT), H5Gclose,
                "create group " + group + " in " + file);
       const hid_t w = g.get();
-      const std::size_t n = body.particles();
+      const bool streamed = c.is_streamed(b);
+      const std::size_t n = streamed ? c.streamed[b].particles : body.particles();
       put_string(w, "law", body.law, file);
       put_int(w, "state_scalars", body.state_scalars, file);
       put_int(w, "particles", static_cast<long long>(n), file);
       put_int(w, "global_particles", body.global_particles, file);
       put_double(w, "max_wave_speed", body.max_wave_speed, file);
       put_double(w, "p2g_bound", body.p2g_bound, file);
-      put_array(w, "ID", body.id, n, 1, H5T_STD_I64LE, H5T_NATIVE_INT64, file);
-      put_reals(w, "Position", body.x, n, 3, single, file);
-      put_reals(w, "Velocity", body.v, n, 3, single, file);
-      put_reals(w, "C", body.C, n, 9, single, file);
-      put_reals(w, "Mass", body.mass, n, 1, single, file);
-      put_reals(w, "Volume", body.volume, n, 1, single, file);
-      put_reals(w, "State", body.state, n, body.state_scalars, single, file);
+      const std::size_t p2g_rows = streamed ? c.streamed[b].p2g_rows : body.p2g_id.size();
+      auto source = [&](CheckpointDataset d, const auto& data, std::size_t rows, int width, const char* name) -> Pieces {
+        if (!streamed) return pieces_of(data, rows, width, name);
+        return [&c, b, d](const Emit& emit) { c.streamed[b].pieces(d, emit); };
+      };
+      auto reals = [&](CheckpointDataset d, const char* name, const std::vector<double>& data, int width) {
+        put_pieces(w, name, n, width, single ? H5T_IEEE_F32LE : H5T_IEEE_F64LE, single ? H5T_NATIVE_FLOAT : H5T_NATIVE_DOUBLE,
+                   single, source(d, data, n, width, name), file);
+      };
+      put_pieces(w, "ID", n, 1, H5T_STD_I64LE, H5T_NATIVE_INT64, false, source(CheckpointDataset::Id, body.id, n, 1, "ID"),
+                 file);
+      reals(CheckpointDataset::Position, "Position", body.x, 3);
+      reals(CheckpointDataset::Velocity, "Velocity", body.v, 3);
+      reals(CheckpointDataset::C, "C", body.C, 9);
+      reals(CheckpointDataset::Mass, "Mass", body.mass, 1);
+      reals(CheckpointDataset::Volume, "Volume", body.volume, 1);
+      reals(CheckpointDataset::State, "State", body.state, body.state_scalars);
       put_int(w, "p2g_blocks", body.p2g_known ? 1 : 0, file);
       if (body.p2g_known) {
-        put_array(w, "P2GID", body.p2g_id, body.p2g_id.size(), 1, H5T_STD_I64LE, H5T_NATIVE_INT64, file);
-        put_array(w, "P2GBlock", body.p2g_block, body.p2g_id.size(), 3, H5T_STD_I32LE, H5T_NATIVE_INT32, file);
+        put_pieces(w, "P2GID", p2g_rows, 1, H5T_STD_I64LE, H5T_NATIVE_INT64, false,
+                   source(CheckpointDataset::P2GId, body.p2g_id, p2g_rows, 1, "P2GID"), file);
+        put_pieces(w, "P2GBlock", p2g_rows, 3, H5T_STD_I32LE, H5T_NATIVE_INT32, false,
+                   source(CheckpointDataset::P2GBlock, body.p2g_block, p2g_rows, 3, "P2GBlock"), file);
       }
     }
     if (f.release() < 0) throw h5_detail::failure("close " + part.string());

@@ -25,6 +25,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -73,6 +74,19 @@ struct CheckpointBody {
   }
 };
 
+/// A body's particle datasets in write_checkpoint's order.
+enum class CheckpointDataset { Id, Position, Velocity, C, Mass, Volume, State, P2GId, P2GBlock };
+
+/// A body's particle datasets read piece by piece instead of from its CheckpointBody's arrays (which stay empty): a
+/// body too large to copy into host memory. pieces(dataset, emit) calls emit(rows, values) for consecutive pieces of
+/// the dataset in its row order, `particles` rows in all (`p2g_rows` for P2GId and P2GBlock): doubles, rows x width
+/// (width 3, 3, 9, 1, 1, state_scalars), int64 IDs, int32 blocks (rows x 3).
+struct CheckpointPieces {
+  std::size_t particles = 0;
+  std::size_t p2g_rows = 0;
+  std::function<void(CheckpointDataset, const std::function<void(std::size_t rows, const void* values)>& emit)> pieces;
+};
+
 struct Checkpoint {
   static constexpr int kFormat = 1;
   int format = kFormat;
@@ -97,6 +111,11 @@ struct Checkpoint {
   bool particle_sample_due = false;
   std::vector<std::pair<std::string, long long>> csv;  ///< sensor / tracker file name and length [bytes] (rank 0)
   std::vector<CheckpointBody> bodies;
+  /// Per body (empty, or as many as bodies): its datasets read in pieces (write_checkpoint) where `pieces` is set;
+  /// such a body's arrays are empty, and the source must outlive the write (the GPU engine's reads its device
+  /// state: the run writes such a checkpoint before the next step).
+  std::vector<CheckpointPieces> streamed;
+  bool is_streamed(std::size_t b) const { return b < streamed.size() && static_cast<bool>(streamed[b].pieces); }
 };
 
 /// checkpoint_frame[f]_dev[d].h5 / checkpoint_step[s]_dev[d].h5 in `dir`.
@@ -106,7 +125,8 @@ std::filesystem::path checkpoint_step_path(const std::filesystem::path& dir, lon
 /// Throws std::invalid_argument when `given` has no "_dev[d]" part and rank != its rank.
 std::filesystem::path checkpoint_rank_path(const std::filesystem::path& given, int rank);
 
-/// Writes `c` (positions and state in float32 when c.precision is "single"). Throws std::runtime_error.
+/// Writes `c` (positions and state in float32 when c.precision is "single"), each dataset a piece at a time (a
+/// streamed body's from its source, the others' 4,194,304 rows at a time). Throws std::runtime_error.
 void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c);
 /// Reads a checkpoint (without `particles`: the root attributes only, every body left empty); throws
 /// std::runtime_error naming the file and what is missing or inconsistent.
