@@ -74,6 +74,7 @@ struct CliOptions {
   int gpus = 1;  ///< GPU ranks of one process (threads); under mpirun each process is one rank
   bool halo_overlap = false;  ///< --halo-overlap=on: GPU ranks overlap the halo sums with G2P2G
   bool keep_gpus = false;     ///< --keep-gpus: --gpus=N runs N ranks even for a scene too small to gain from them
+  std::size_t frame_buffer = kFrameHostBytes;  ///< --frame-buffer=MiB: host memory of one body's frame download [B]
   bool allow_unknown_keys = false;
   std::string data_dir;
   std::string restart;  ///< --restart=FILE: a checkpoint to continue from
@@ -106,6 +107,9 @@ const char* kHelp =
     "  --halo-overlap=on|off   GPU ranks: run G2P2G on the particle blocks next to the cuts first and the rest\n"
     "                          while the halo sums travel (default off: between GPUs of one node the sums are\n"
     "                          faster than the overlap costs; on can pay between nodes on slow links)\n"
+    "  --frame-buffer=MiB      GPU engine: host memory one body's frame download may take (default 1024); a\n"
+    "                          larger frame is streamed to its file a piece at a time, and the next frame's\n"
+    "                          capture waits until it is written\n"
     "  --allow-unknown-keys    unknown keys (a misspelling, a key the object does not have) are warnings, not\n"
     "                          errors (keys the chosen law or object does not use are warnings already)\n"
     "  --data-dir=DIR          where geometry and motion files are looked up first (then $AssetDirPath, the\n"
@@ -125,7 +129,7 @@ const char* kHelp =
 const std::vector<std::string_view> kLongOptions = {"--file",   "--check",  "--backend",           "--output",
                                                     "--frames", "--quiet",  "--allow-unknown-keys", "--data-dir",
                                                     "--version", "--help",  "--gpus", "--restart", "--halo-overlap",
-                                                    "--keep-gpus"};
+                                                    "--keep-gpus", "--frame-buffer"};
 
 CliOptions parse_arguments(int argc, char** argv) {
   CliOptions o;
@@ -211,6 +215,18 @@ CliOptions parse_arguments(int argc, char** argv) {
       const std::string v = take_value();
       if (v != "on" && v != "off") throw UsageError("--halo-overlap: got '" + v + "'; expected on or off");
       o.halo_overlap = v == "on";
+    } else if (name == "--frame-buffer") {
+      const std::string v = take_value();
+      std::size_t used = 0;
+      double mib = 0.0;
+      try {
+        mib = std::stod(v, &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (used != v.size() || v.empty() || !(mib >= 0.001 && mib <= 1048576.0))
+        throw UsageError("--frame-buffer: got '" + v + "'; expected a size in MiB from 0.001 to 1048576");
+      o.frame_buffer = static_cast<std::size_t>(mib * 1048576.0);
     } else if (name == "--allow-unknown-keys") {
       no_value();
       o.allow_unknown_keys = true;
@@ -344,7 +360,9 @@ int report_run(RunJson& run_json, const std::string& final_record, RunResult res
 
 /// fbar --check: the scene's report with, when a device is present, its free memory and whether the plan fits.
 int check_scene(const CliOptions& o, const Scene& scene, const EngineSet& engines) {
-  SceneSummary summary = summarize_scene(scene);
+  SummaryOptions summary_options;
+  summary_options.frame_host_bytes = o.frame_buffer;
+  SceneSummary summary = summarize_scene(scene, summary_options);
   // With a device present: its free memory, and whether the plan fits (a run that does not fit is refused).
   const int devices = cuda::device_count();
   for (std::size_t g = 0; devices > 0 && g < summary.gpu_plans.size(); ++g) {
@@ -567,6 +585,7 @@ int run(const CliOptions& o, const std::vector<std::string>& command_line, const
   RunOptions ro;
   ro.quiet = o.quiet;
   ro.halo_overlap = o.halo_overlap;
+  ro.frame_host_bytes = o.frame_buffer;
   if (!o.restart.empty()) {
     std::error_code exists_ec;
     if (!fs::is_regular_file(o.restart, exists_ec)) {

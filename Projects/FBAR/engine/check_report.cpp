@@ -322,6 +322,21 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
   }
   row(os, "host memory (set-up)", bytes(summary.host_setup_bytes) +
                                       " at most while sampling (bodies are sampled and uploaded in batches)");
+  {
+    long long particles = 0;
+    for (const BodySummary& b : summary.bodies) particles += b.particles;
+    std::ostringstream per;
+    per << std::fixed << std::setprecision(0)
+        << static_cast<double>(summary.host_checkpoint_bytes) / static_cast<double>(std::max<long long>(1, particles));
+    row(os, "host memory (run)",
+        bytes(summary.host_run_bytes) + " at most on the GPU engine: " + bytes(kHostProgramBytes) +
+            " program and CUDA runtime, then the larger of the set-up and frames " +
+            bytes(summary.host_frame_pinned_bytes + summary.host_frame_writer_bytes) + " (pinned download buffers " +
+            bytes(summary.host_frame_pinned_bytes) + ", frames above --frame-buffer stream a piece at a time; the "
+            "writer " + bytes(summary.host_frame_writer_bytes) + ") + a checkpoint " +
+            bytes(summary.host_checkpoint_bytes) + " while it is taken and written (" + per.str() +
+            " B per particle: every particle's state is copied to the host)");
+  }
   row(os, "limits (per GPU)", std::to_string(DeviceLimits::kMaxSlots) + " particle slots per body (particles and the "
                               "empty lanes of partly filled bins of 32), " + std::to_string(DeviceLimits::kMaxBlocks) +
                               " grid blocks, " + std::to_string(DeviceLimits::kMaxBodies) + " bodies");

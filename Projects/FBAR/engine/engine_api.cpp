@@ -129,6 +129,39 @@ LawThroughput law_throughput(Constitutive law) {
   return {6.45e9, 2.95e9, "FixedCorotated's (not measured for this law)"};
 }
 
+HostFrameBytes host_frame_bytes(std::size_t n, std::size_t t, int columns, int attributes, const std::string& suffix,
+                                bool exterior, std::size_t frame_host_bytes, bool mesh) {
+  // GPU engine (frame_output.cuh submit_frame): the frame comes down whole into its pinned buffer when it fits
+  // frame_host_bytes (a .bgeo without the filter as its packed records), else a piece at a time; the writer reads
+  // io::FrameStream::piece points at a time (particle_io.h FrameReader: with the filter, a scratch copy of each
+  // piece, one bit per point and two maps over the occupied cubes), a .bgeo serialises each piece's records.
+  constexpr std::size_t kPiece = std::size_t(1) << 22;
+  const std::size_t whole = n * (3 * t + 4 * static_cast<std::size_t>(columns));
+  const std::size_t attrs = static_cast<std::size_t>(attributes);
+  const std::size_t record = 16 + 4 * attrs;
+  const bool bgeo = suffix == ".bgeo";
+  HostFrameBytes f;
+  const bool streamed = !mesh && whole > frame_host_bytes;
+  f.pinned = streamed ? std::min(frame_host_bytes, kPiece * 3 * t) : bgeo && !exterior && !mesh ? n * record : whole;
+  const std::size_t piece = std::min(n, kPiece);
+  f.writer = piece * (3 * t + 4 * attrs) * (exterior ? 2 : 1) + (bgeo ? piece * record : 0);
+  if (exterior) f.writer += n / 8 + n / 16;  // the bits, and the cube maps (~80 B per cube of >= 128 points)
+  if (mesh) f.writer += n * (3 * t + 4 * attrs);  // a mesh's frame is built whole (its .vtk)
+  return f;
+}
+
+HostCheckpointBytes host_checkpoint_bytes(std::size_t n, std::size_t slots, std::size_t t, int stored_scalars) {
+  // GPU engine (sensors_checkpoints.cuh checkpoint): each body gathered in ID order (its stored scalars and v, C),
+  // copied into the checkpoint's arrays (doubles: ID, x, v, C, mass, volume, state; the P2G block of each particle:
+  // ID and 3 coordinates), the P2G record of every slot and a block per ID while it is read; the writer narrows
+  // each array to float for a single-precision file.
+  const std::size_t state = static_cast<std::size_t>(stored_scalars - 3);
+  HostCheckpointBytes c;
+  c.kept = n * (8 + 8 * (3 + 3 + 9 + 1 + 1 + state) + 8 + 12);
+  c.transient = std::max(n * (static_cast<std::size_t>(stored_scalars) + 12) * t, slots * 8 + n * 4) + n * 9 * 4;
+  return c;
+}
+
 SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) {
   const SimulationSpec& sim = scene.simulation;
   SceneSummary summary;
@@ -142,6 +175,7 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
   std::vector<std::vector<BodyMemoryInput>> gpu_inputs(max_gpu + 1);
   std::size_t cpu_particle_bytes = 0;
   bool asflip = false, fbar = false, pore = false;  // some body uses ASFLIP / F-bar / pore water: grid channels
+  std::size_t checkpoint_transient = 0;             // the largest body's gather while a checkpoint is taken
 
   // v and C kept for particle sensors, trackers or checkpoints (on the steps landing on their times)
   const bool record = sensors_read_velocity(scene) || sim.checkpoint_every > 0;
@@ -167,12 +201,15 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     s.seepage_dt = body_seepage_step_bound(body, dx);
     summary.dt = min_time_step(min_time_step(min_time_step(summary.dt, s.dt_bound), s.viscous_dt), s.seepage_dt);
     // Float columns of the body's frame on the GPU (-1: no frames); a list the run refuses still counts its bytes.
-    int frame_columns = -1;
+    int frame_columns = -1, frame_attrs = 0;
     if (options.frames) {
       try {
-        frame_columns = frame_float_columns(frame_attributes(body, static_cast<int>(i), "GPU engine"));
+        const std::vector<FrameAttributeSpec> attrs = frame_attributes(body, static_cast<int>(i), "GPU engine");
+        frame_columns = frame_float_columns(attrs);
+        frame_attrs = static_cast<int>(attrs.size());
       } catch (const std::invalid_argument&) {
         frame_columns = static_cast<int>(body.output_attribs.size());
+        frame_attrs = frame_columns;
       }
     }
     {
@@ -240,6 +277,21 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
         std::max(summary.host_setup_bytes,
                  batch * (2 * 24 + particle_record_bytes(facts.stored_scalars, particle_scalar_bytes(sim.precision))) +
                      count.blocks.size() * (sizeof(BlockCount) + 8 * 16));
+    if (frame_columns >= 0) {
+      const HostFrameBytes f = host_frame_bytes(static_cast<std::size_t>(count.particles), particle_scalar_bytes(sim.precision),
+                                                frame_columns, frame_attrs, sim.save_suffix,
+                                                sim.particles_output_exterior_only || body.output_exterior_only,
+                                                options.frame_host_bytes, mesh != nullptr);
+      summary.host_frame_pinned_bytes += f.pinned;
+      summary.host_frame_writer_bytes = std::max(summary.host_frame_writer_bytes, f.writer);
+    }
+    {
+      const HostCheckpointBytes c = host_checkpoint_bytes(static_cast<std::size_t>(count.particles),
+                                                          static_cast<std::size_t>(in.bins_needed) * 32,
+                                                          particle_scalar_bytes(sim.precision), facts.stored_scalars);
+      summary.host_checkpoint_bytes += c.kept;
+      checkpoint_transient = std::max(checkpoint_transient, c.transient);
+    }
 
     // CPU engine: x, v, their next copies (4 x 3), C and its next copy (2 x 9), mass, volume (2), state twice, in
     // the particle scalar type, plus order / block index / key scratch (16 bytes).
@@ -258,6 +310,11 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     if (scene.bodies[i].algorithm.fbar_blend() != 0.0) s.grid_channels += " + F-bar cell sums (2)";
     if (material_has_pore_fluid(scene.bodies[i].material.law)) s.grid_channels += " + seepage channels (5)";
   }
+
+  summary.host_checkpoint_bytes += checkpoint_transient;
+  summary.host_run_bytes = kHostProgramBytes + std::max(summary.host_setup_bytes, summary.host_frame_pinned_bytes +
+                                                                                      summary.host_frame_writer_bytes +
+                                                                                      summary.host_checkpoint_bytes);
 
   // CPU grid: 4 channels x 64 nodes per block in the grid scalar type (+3 for ASFLIP's v^n, +2 for F-bar's cell
   // sums, +5 for the seepage channels, only when a body uses them), coordinates and a hash-map entry.

@@ -47,6 +47,13 @@ struct SceneSummary {
   std::size_t cpu_bytes = 0;                ///< estimated host memory of the CPU engine
   std::vector<std::size_t> gpu_bytes;       ///< estimated device memory per GPU (index = gpu id): gpu_plans' totals
   std::size_t host_setup_bytes = 0;         ///< host memory of the GPU engine's set-up (one sampling batch)
+  /// Host memory of the GPU engine's run beside the set-up: the bodies' pinned frame buffers, the frame writer's
+  /// pieces (one frame at a time), a checkpoint's copy of the particles (host_checkpoint_bytes), and the whole run:
+  /// kHostProgramBytes + max(set-up, frames + checkpoint).
+  std::size_t host_frame_pinned_bytes = 0;
+  std::size_t host_frame_writer_bytes = 0;
+  std::size_t host_checkpoint_bytes = 0;
+  std::size_t host_run_bytes = 0;
   std::vector<std::string> device_notes;    ///< free memory of the devices present, and whether the plan fits
   /// [ms] estimated H100 time per step: kGpuStepOverheadMs, kGpuBodyOverheadMs per body, and every body's
   /// gpu_ms_per_step.
@@ -61,7 +68,27 @@ inline constexpr double kGpuBodyOverheadMs = 0.05;
 
 struct SummaryOptions {
   bool frames = true;  ///< the run writes frames (the GPU keeps each body's frame on the device)
+  std::size_t frame_host_bytes = kFrameHostBytes;  ///< --frame-buffer (GpuEngineOptions::frame_host_bytes)
 };
+
+/// Host memory of the program and the CUDA runtime before any scene data (measured: see check_report.cpp's row).
+inline constexpr std::size_t kHostProgramBytes = std::size_t(512) << 20;
+
+/// One body's host memory for frames on the GPU engine [bytes]: its pinned download buffer (kept between frames)
+/// and the writer's memory while it writes one of its frames.
+struct HostFrameBytes {
+  std::size_t pinned = 0, writer = 0;
+};
+HostFrameBytes host_frame_bytes(std::size_t particles, std::size_t scalar_bytes, int columns, int attributes,
+                                const std::string& suffix, bool exterior, std::size_t frame_host_bytes, bool mesh);
+
+/// One body's host memory while the GPU engine takes and writes a checkpoint [bytes]: what the checkpoint keeps
+/// until it is written, and what one body's gather takes on top while it is read.
+struct HostCheckpointBytes {
+  std::size_t kept = 0, transient = 0;
+};
+HostCheckpointBytes host_checkpoint_bytes(std::size_t particles, std::size_t slots, std::size_t scalar_bytes,
+                                          int stored_scalars);
 
 /// Counts every body's particles (deterministically, without storing them) and computes the time step and memory
 /// estimates.
@@ -90,6 +117,9 @@ struct RunOptions {
   bool shared_gpus = false;
   /// GPU ranks: the halo-first G2P2G overlapped with the halo sums (GpuEngineOptions::overlap_halo; --halo-overlap).
   bool halo_overlap = false;
+  /// GPU engine: host memory one body's frame download may take before the frame is streamed [bytes]
+  /// (GpuEngineOptions::frame_host_bytes; --frame-buffer).
+  std::size_t frame_host_bytes = kFrameHostBytes;
   /// --restart: a checkpoint file (io/checkpoint.h; any rank's file of the set) to continue from, or empty.
   std::string restart{};
 };

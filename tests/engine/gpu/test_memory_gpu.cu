@@ -174,5 +174,72 @@ TEST(GpuFrames, RefusesAFrameThatWasNotCaptured) {
                std::logic_error);
 }
 
+// A frame larger than GpuEngineOptions::frame_host_bytes is streamed from the device through a buffer of that size
+// (here 4 KiB: hundreds of pieces) instead of coming down whole: the files hold the same bytes (two runs of a scene
+// write the same bytes), in every format, with and without the exterior filter (threshold 0 drops the blocks
+// surrounded by particles), in single and double precision; frame 1 is still being written from the device while
+// the steps to frame 2 run, so frame 2's capture waits for it.
+template <typename T>
+void expect_streamed_frames_equal_whole(Precision precision) {
+  for (const bool exterior : {false, true})
+    for (const char* suffix : {".bgeo", ".geo", ".csv", ".h5"}) {
+      Scene scene = frame_scene(Constitutive::FixedCorotated, precision);
+      scene.simulation.dx = 0.02;
+      scene.simulation.particles_output_exterior_only = exterior;
+      scene.bodies[0].exterior_threshold = 0;
+      std::vector<std::string> files[2];
+      long long particles = 0;
+      for (int streamed = 0; streamed < 2; ++streamed) {
+        GpuEngineOptions o;
+        o.frames = true;
+        if (streamed) o.frame_host_bytes = 4096;
+        GpuEngine<T> gpu(scene, o);
+        particles = gpu.particle_count();
+        const auto dir = std::filesystem::temp_directory_path() / ("fbar_streamed_" + std::to_string(streamed));
+        std::filesystem::remove_all(dir);
+        std::filesystem::create_directories(dir);
+        {
+          io::AsyncWriter writer(1);
+          gpu.submit_frame(0, dir / (std::string("f0") + suffix), writer);
+          for (int s = 0; s < 6; ++s) {
+            gpu.set_frame_capture(s == 2 || s == 5);
+            ASSERT_TRUE(gpu.step(1e-3).ok);
+            if (s == 2) gpu.submit_frame(0, dir / (std::string("f1") + suffix), writer);
+          }
+          gpu.submit_frame(0, dir / (std::string("f2") + suffix), writer);
+          writer.close();
+        }
+        for (const char* f : {"f0", "f1", "f2"}) {
+          files[streamed].push_back(io::detail::read_whole_file(dir / (std::string(f) + suffix)));
+          if (std::string(suffix) == ".h5") files[streamed].push_back(io::detail::read_whole_file(dir / (std::string(f) + ".xdmf")));
+        }
+        if (std::string(suffix) == ".bgeo") {
+          const std::size_t written = io::read_bgeo(dir / "f2.bgeo").size();
+          if (exterior) {
+            EXPECT_LT(written, static_cast<std::size_t>(particles)) << "the filter drops the inner blocks";
+            EXPECT_GT(written, 0u);
+          } else {
+            EXPECT_EQ(written, static_cast<std::size_t>(particles));
+          }
+        }
+      }
+      ASSERT_EQ(files[0].size(), files[1].size());
+      for (std::size_t k = 0; k < files[0].size(); ++k) {
+        EXPECT_GT(files[0][k].size(), 100u) << suffix << " file " << k;
+        EXPECT_TRUE(files[0][k] == files[1][k]) << suffix << " exterior " << exterior << " file " << k << ": "
+                                                << files[0][k].size() << " vs " << files[1][k].size() << " bytes";
+      }
+    }
+}
+
+TEST(GpuFrames, StreamedFramesWriteTheBytesOfWholeFramesSingle) {
+  FBAR_REQUIRE_DEVICE();
+  expect_streamed_frames_equal_whole<float>(Precision::Single);
+}
+TEST(GpuFrames, StreamedFramesWriteTheBytesOfWholeFramesDouble) {
+  FBAR_REQUIRE_DEVICE();
+  expect_streamed_frames_equal_whole<double>(Precision::Double);
+}
+
 }  // namespace
 }  // namespace fbar

@@ -149,14 +149,18 @@ struct MgspBenchmark<T, TG>::BodyBase {
     std::mutex mutex;
     std::condition_variable released;
     bool busy = false;
-    /// The writer's hold on the slot: the host buffer goes back to the step loop when it ends, also when the
-    /// writing throws.
+    /// A streamed frame (GpuEngineOptions::frame_host_bytes): the writer reads the device frame too, so the next
+    /// capture waits for the release.
+    bool device = false;
+    /// The writer's hold on the slot: the host buffer (and a streamed frame's device frame) goes back to the step
+    /// loop when it ends, also when the writing throws.
     struct Hold {
       std::shared_ptr<HostSlot> slot;
       ~Hold() {
         {
           std::lock_guard<std::mutex> lock(slot->mutex);
           slot->busy = false;
+          slot->device = false;
         }
         slot->released.notify_all();
       }

@@ -440,6 +440,7 @@ void MgspBenchmark<T, TG>::g2p2g_step(double dt) {
     FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(1 - cur_).count, 0, sizeof(int) * block_capacity_, stream_));
   if (capture_next_)  // the device frames are overwritten: their last download must be done
     for (auto& b : bodies_) {
+      wait_for_device_frame(*b);
       if (b->frame_copied) FBAR_CUDA_CHECK(cudaStreamWaitEvent(stream_, b->frame_copied, 0));
       if (decomposed() && b->capture.x) prepare_capture(*b);
     }

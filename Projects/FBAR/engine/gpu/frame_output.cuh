@@ -203,6 +203,15 @@ void MgspBenchmark<T, TG>::wait_for_frame_slot(BodyBase& b, io::AsyncWriter& wri
   output_wait_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::wait_for_device_frame(BodyBase& b) {
+  if (!b.frame_slot) return;
+  const auto t0 = std::chrono::steady_clock::now();
+  std::unique_lock<std::mutex> lock(b.frame_slot->mutex);
+  b.frame_slot->released.wait(lock, [&] { return !b.frame_slot->device; });
+  output_wait_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
 /// A .bgeo frame without the exterior filter: pack_bgeo_records writes the file's point records into the pinned
 /// buffer (mapped) on the copy stream, and the writer thread only writes them out. n entries; words: the ID
 /// directory's words of a decomposed rank (by_directory), 0 otherwise.
@@ -254,6 +263,66 @@ void MgspBenchmark<T, TG>::submit_bgeo_records(BodyBase& b, const std::filesyste
   });
 }
 
+/// The IDs of a frame's entries: a decomposed rank's are the set bits of its ID directory (one bit per ID of the
+/// body, ascending), the others' the entry index (one GPU writes its frames in ID order). An index of every 64th
+/// word's first entry finds the entry a read starts at.
+class IdDirectory {
+ public:
+  IdDirectory(const unsigned* bits, std::size_t words, std::size_t entries) : bits_(bits), words_(words), n_(entries) {
+    if (!words_) return;
+    std::size_t k = 0;
+    for (std::size_t w = 0; w < words_; ++w) {
+      if (w % kStride == 0) first_.push_back(k);
+      k += static_cast<std::size_t>(__builtin_popcount(bits_[w]));
+    }
+  }
+  void read(std::size_t first, std::size_t count, std::int32_t* out) const {
+    if (count == 0) return;
+    if (!words_) {
+      for (std::size_t i = 0; i < count; ++i) out[i] = static_cast<std::int32_t>(first + i);
+      return;
+    }
+    if (first + count > n_) throw std::logic_error("IdDirectory: entries past the frame");
+    std::size_t g = static_cast<std::size_t>(std::upper_bound(first_.begin(), first_.end(), first) - first_.begin()) - 1;
+    std::size_t k = first_[g], w = g * kStride;
+    for (; k + static_cast<std::size_t>(__builtin_popcount(bits_[w])) <= first; ++w)
+      k += static_cast<std::size_t>(__builtin_popcount(bits_[w]));
+    std::size_t done = 0;
+    for (; w < words_ && done < count; ++w)
+      for (unsigned m = bits_[w]; m != 0 && done < count; m &= m - 1, ++k)
+        if (k >= first) out[done++] = static_cast<std::int32_t>(32 * w + static_cast<std::size_t>(__builtin_ctz(m)));
+  }
+
+ private:
+  static constexpr std::size_t kStride = 64;
+  const unsigned* bits_;
+  std::size_t words_, n_;
+  std::vector<std::size_t> first_;  ///< entries before word kStride x g
+};
+
+/// Per frame attribute: its device column, or -1 for ID (from the directory).
+inline std::vector<int> frame_column_of(const std::vector<FrameAttributeSpec>& attrs) {
+  std::vector<int> of;
+  int column = 0;
+  for (const FrameAttributeSpec& a : attrs) of.push_back(a.column.quantity == FrameQuantity::Id ? -1 : column++);
+  return of;
+}
+
+/// A captured frame's stream without its readers: n entries, positions in T, the attributes (width 1; ID int32).
+template <typename T>
+io::FrameStream frame_stream(const std::vector<FrameAttributeSpec>& attrs, std::size_t n,
+                             const io::ExteriorFilter& exterior) {
+  io::FrameStream s;
+  s.points = n;
+  s.double_precision = std::is_same_v<T, double>;
+  s.exterior = exterior;
+  for (const FrameAttributeSpec& a : attrs) {
+    const bool id = a.column.quantity == FrameQuantity::Id;
+    s.attributes.push_back({a.name, 1, id ? std::string() : a.unit, id ? io::AttributeType::Int : io::AttributeType::Float});
+  }
+  return s;
+}
+
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer) {
   // The frame is on the device already (the capture step, or capture_state before the first step). Its download
@@ -275,15 +344,22 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
   const int columns = b.capture.column_count;
   const std::size_t words = by_directory ? static_cast<std::size_t>((b.global_particles + 31) / 32) : 0;
   const io::ExteriorFilter exterior = exterior_filter(scene_, body);
-  // A .bgeo frame without the exterior filter: the GPU writes the file's point records into the pinned buffer
-  // (pack_bgeo_records) and the writer thread only writes them out. Other formats: positions and columns come down
-  // and the writer builds the frame.
-  // A mesh's frame goes the general way: the writer adds the .vtk of its tetrahedra (particle_io.h).
-  const bool records = !b.mesh && path.extension() == ".bgeo" && !exterior.on() &&
-                       b.frame_attrs.size() <= static_cast<std::size_t>(kMaxFrameColumns) + 1;
   const std::size_t record_bytes = 4 * (4 + b.frame_attrs.size());
-  const std::size_t host_bytes =
-      records ? n * record_bytes : n * (3 * sizeof(T) + sizeof(float) * columns) + words * sizeof(unsigned);
+  const std::size_t whole_bytes = n * (3 * sizeof(T) + sizeof(float) * columns) + words * sizeof(unsigned);
+  // A frame whose download fits GpuEngineOptions::frame_host_bytes comes down whole into the body's pinned buffer
+  // and the device frame is free at once; a larger one is streamed: the writer reads it from the device a piece at
+  // a time through a pinned buffer of one piece's positions (or frame_host_bytes if less), and the next capture
+  // waits until it has (host memory O(piece), whatever the particle count).
+  // A mesh's frame always comes down whole (the .vtk of its tetrahedra needs every vertex).
+  const bool whole = b.mesh || whole_bytes <= options_.frame_host_bytes;
+  // A whole .bgeo frame without the exterior filter: the GPU writes the file's point records into the pinned
+  // buffer (pack_bgeo_records) and the writer thread only writes them out.
+  const bool records = whole && !b.mesh && path.extension() == ".bgeo" && !exterior.on() &&
+                       b.frame_attrs.size() <= static_cast<std::size_t>(kMaxFrameColumns) + 1;
+  // Streamed: a piece's positions at most (the writers read io::FrameStream::piece points at a time).
+  const std::size_t stream_bytes = std::max<std::size_t>(
+      std::min<std::size_t>(options_.frame_host_bytes, io::FrameStream{}.piece * 3 * sizeof(T)), 3 * sizeof(T));
+  const std::size_t host_bytes = records ? n * record_bytes : whole ? whole_bytes : stream_bytes;
   if (!b.frame_host || b.frame_host_size < host_bytes) {  // the writer has released it (busy was false)
     b.frame_host = cuda::pinned(std::max<std::size_t>(host_bytes, 1));
     b.frame_host_size = std::max<std::size_t>(host_bytes, 1);
@@ -296,6 +372,50 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
   auto* host = static_cast<std::byte*>(b.frame_host.get());
   if (records) {
     submit_bgeo_records(b, path, writer, n, words, by_directory);
+    return;
+  }
+  const std::shared_ptr<typename BodyBase::HostSlot> slot = b.frame_slot;
+  const std::vector<FrameAttributeSpec> attrs = b.frame_attrs;
+  const io::FrameStream layout = frame_stream<T>(b.frame_attrs, n, exterior);
+  if (!whole) {  // the writer reads the device frame, on the copy stream, until it has written the file
+    {
+      std::lock_guard<std::mutex> lock(slot->mutex);
+      slot->device = true;
+    }
+    int device = 0;
+    FBAR_CUDA_CHECK(cudaGetDevice(&device));
+    const T* x_d = b.frame_x.get();
+    const float* columns_d = b.frame_columns.get();
+    const std::size_t stride = static_cast<std::size_t>(b.capture.particles);
+    const unsigned* bits_d = b.id_bits.get();
+    const cudaStream_t copy = copy_stream_;
+    const std::size_t buffer = host_bytes;
+    writer.submit_job([=] {
+      const typename BodyBase::HostSlot::Hold hold{slot};  // the pinned buffer and the device frame, until written
+      FBAR_CUDA_CHECK(cudaSetDevice(device));
+      auto fetch = [&](const void* from, std::size_t bytes, void* out) {
+        for (std::size_t done = 0; done < bytes; done += buffer) {
+          const std::size_t part = std::min(buffer, bytes - done);
+          FBAR_CUDA_CHECK(cudaMemcpyAsync(host, static_cast<const std::byte*>(from) + done, part,
+                                          cudaMemcpyDeviceToHost, copy));
+          FBAR_CUDA_CHECK(cudaStreamSynchronize(copy));
+          std::memcpy(static_cast<std::byte*>(out) + done, host, part);
+        }
+      };
+      std::vector<unsigned> bits(words);  // a decomposed rank's ID directory: 4 B per 32 IDs of the body
+      if (words) fetch(bits_d, words * sizeof(unsigned), bits.data());
+      io::FrameStream s = layout;
+      s.read_positions = [&](std::size_t first, std::size_t count, void* out) {
+        fetch(x_d + 3 * first, 3 * count * sizeof(T), out);
+      };
+      const IdDirectory ids(bits.data(), words, n);
+      const std::vector<int> column_of = frame_column_of(attrs);
+      s.read_values = [&](std::size_t a, std::size_t first, std::size_t count, void* out) {
+        if (column_of[a] < 0) return ids.read(first, count, static_cast<std::int32_t*>(out));
+        fetch(columns_d + static_cast<std::size_t>(column_of[a]) * stride + first, count * sizeof(float), out);
+      };
+      io::write_frame(path, s);
+    });
     return;
   }
   if (n) {
@@ -313,52 +433,45 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
                                     words * sizeof(unsigned), cudaMemcpyDeviceToHost, copy_stream_));
   FBAR_CUDA_CHECK(cudaEventRecord(b.frame_copied, copy_stream_));
   const cudaEvent_t copied = b.frame_copied;
-  const std::vector<FrameAttributeSpec> attrs = b.frame_attrs;
-  const std::shared_ptr<typename BodyBase::HostSlot> slot = b.frame_slot;
   std::shared_ptr<const std::vector<std::array<int, 4>>> tetrahedra;
   if (b.mesh) {
     const std::shared_ptr<const TetMesh>& mesh = scene_.meshes[static_cast<std::size_t>(b.spec.mesh)].mesh;
     tetrahedra = std::shared_ptr<const std::vector<std::array<int, 4>>>(mesh, &mesh->elements);
   }
   writer.submit_job([=] {
+    const typename BodyBase::HostSlot::Hold hold{slot};  // the pinned buffer, until written
+    FBAR_CUDA_CHECK(cudaEventSynchronize(copied));
+    // The frame is read straight out of the pinned buffer: positions, then the columns, then the ID directory.
+    const T* x = reinterpret_cast<const T*>(host);
+    const float* col = reinterpret_cast<const float*>(host + 3 * n * sizeof(T));
+    const IdDirectory ids(reinterpret_cast<const unsigned*>(host + n * (3 * sizeof(T) + sizeof(float) * columns)),
+                          words, n);
+    const std::vector<int> column_of = frame_column_of(attrs);
+    io::FrameStream s = layout;
+    s.read_positions = [&](std::size_t first, std::size_t count, void* out) {
+      std::memcpy(out, x + 3 * first, 3 * count * sizeof(T));
+    };
+    s.read_values = [&](std::size_t a, std::size_t first, std::size_t count, void* out) {
+      if (column_of[a] < 0) return ids.read(first, count, static_cast<std::int32_t*>(out));
+      std::memcpy(out, col + static_cast<std::size_t>(column_of[a]) * n + first, count * sizeof(float));
+    };
+    if (!tetrahedra) return io::write_frame(path, s);
+    // A mesh: the frame in memory (its vertices are few), written with the .vtk of its tetrahedra.
     io::ParticleFrame f;
     f.exterior = exterior;
     f.tetrahedra = tetrahedra;
-    {
-      const typename BodyBase::HostSlot::Hold hold{slot};  // released once the frame is built
-      FBAR_CUDA_CHECK(cudaEventSynchronize(copied));
-      // The copies out of the pinned buffer run on several threads (a 16M-particle frame is 0.4 GB of them).
-      const unsigned threads = std::max(1u, std::min(8u, std::thread::hardware_concurrency() / 2));
-      const T* x = reinterpret_cast<const T*>(host);
-      std::vector<Vec3<T>> positions(n);
-      io::detail::parallel_ranges(n, threads, [&](std::size_t lo, std::size_t hi) {
-        for (std::size_t p = lo; p < hi; ++p) positions[p] = Vec3<T>{{x[3 * p], x[3 * p + 1], x[3 * p + 2]}};
-      });
-      f.positions = std::move(positions);
-      const float* col = reinterpret_cast<const float*>(host + 3 * n * sizeof(T));
-      for (const FrameAttributeSpec& a : attrs) {
-        if (a.column.quantity == FrameQuantity::Id) {
-          std::vector<std::int32_t> ids(n);
-          if (words) {  // a decomposed rank's IDs, ascending
-            const auto* bits = reinterpret_cast<const unsigned*>(host + n * (3 * sizeof(T) + sizeof(float) * columns));
-            std::size_t k = 0;
-            for (std::size_t w = 0; w < words && k < n; ++w)
-              for (unsigned m = bits[w]; m != 0 && k < n; m &= m - 1)
-                ids[k++] = static_cast<std::int32_t>(32 * w + static_cast<std::size_t>(__builtin_ctz(m)));
-          } else {
-            io::detail::parallel_ranges(n, threads, [&](std::size_t lo, std::size_t hi) {  // frames are in ID order
-              std::iota(ids.begin() + lo, ids.begin() + hi, static_cast<std::int32_t>(lo));
-            });
-          }
-          f.add(a.name, 1, std::move(ids));
-        } else {
-          std::vector<float> values(n);
-          io::detail::parallel_ranges(n, threads, [&](std::size_t lo, std::size_t hi) {
-            std::copy(col + lo, col + hi, values.begin() + lo);
-          });
-          f.add(a.name, 1, std::move(values), a.unit);
-          col += n;
-        }
+    std::vector<Vec3<T>> positions(n);
+    s.read_positions(0, n, positions.data());
+    f.positions = std::move(positions);
+    for (std::size_t a = 0; a < attrs.size(); ++a) {
+      if (column_of[a] < 0) {
+        std::vector<std::int32_t> v(n);
+        s.read_values(a, 0, n, v.data());
+        f.add(attrs[a].name, 1, std::move(v));
+      } else {
+        std::vector<float> v(n);
+        s.read_values(a, 0, n, v.data());
+        f.add(attrs[a].name, 1, std::move(v), attrs[a].unit);
       }
     }
     io::write_frame(path, f);

@@ -333,6 +333,7 @@ template <typename T, typename TG>
 RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& log) {
   GpuEngineOptions engine_options;
   engine_options.frames = true;
+  engine_options.frame_host_bytes = options.frame_host_bytes;
   std::unique_ptr<comm::DeviceTransport> device;  // a decomposed run: NCCL, or peer copies when ranks share GPUs
   if (options.transport && options.transport->size() > 1) {
     device = options.shared_gpus ? comm::make_thread_device_transport(*options.transport)

@@ -74,6 +74,11 @@ struct GpuEngineOptions {
   std::vector<std::vector<Vec3d>> initial_velocities;
   /// Plan and keep every body's output frame on the device (submit_frame); the run loop sets it.
   bool frames = false;
+  /// Host memory a frame's download may take per body [bytes]: a frame that needs more (positions, columns and, on
+  /// a rank of a decomposed run, its ID directory) is streamed to its file a piece at a time through a pinned
+  /// buffer of one piece's positions (or this size if smaller), the device frame held until the writer has written
+  /// it (the next capture waits for that). Tests make it small.
+  std::size_t frame_host_bytes = kFrameHostBytes;
   /// Treat the device as having at most this much free memory [bytes] when checking the plan (0: what it has).
   std::size_t memory_limit = 0;
   /// Particles sampled and uploaded per batch at start (host memory is O(batch)); tests make it small.

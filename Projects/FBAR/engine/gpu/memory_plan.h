@@ -76,6 +76,9 @@ struct DeviceMemoryPlan {
 /// Particles sampled and uploaded per batch by the GPU engine's set-up (host memory is O(batch), not O(N)).
 inline constexpr long long kSampleBatchParticles = 1LL << 23;
 
+/// Host memory one body's frame download may take before the GPU engine streams the frame (--frame-buffer).
+inline constexpr std::size_t kFrameHostBytes = std::size_t(1) << 30;
+
 /// CUDA context and runtime memory not in the plan (measured on an H100 with CUDA 13: 0.5-0.6 GiB).
 inline constexpr std::size_t kCudaContextBytes = std::size_t(600) << 20;
 

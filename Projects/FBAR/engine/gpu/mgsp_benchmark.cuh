@@ -269,6 +269,8 @@ class MgspBenchmark {
   void allocate_frames();
   /// submit_frame's parts (frame_output.cuh).
   void wait_for_frame_slot(BodyBase& b, io::AsyncWriter& writer);
+  /// Until the writer no longer reads body b's device frame (a streamed frame); the wait counts as output wait.
+  void wait_for_device_frame(BodyBase& b);
   void submit_bgeo_records(BodyBase& b, const std::filesystem::path& path, io::AsyncWriter& writer, std::size_t n,
                            std::size_t words, bool by_directory);
   /// Decomposed runs, before a capture: frame buffers for the rank's particles, and the ID directory of layout(cur).
