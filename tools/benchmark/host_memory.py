@@ -7,7 +7,7 @@ Usage: host_memory.py FBAR WORKDIR CASE [CASE ...]
 Each case is a JFluid box (single precision, dx = 1/512 m, 8 particles per cell, the particle count chosen by the
 box's height) run for one frame of 50 steps: frames 0 and 1 written as .bgeo (every particle, or the exterior shell),
 and with `checkpoint` a checkpoint at each frame. The peak resident memory of the run (the child's ru_maxrss) is
-compared with --check's plan; the output folder is removed after each case. Prints one table row per case.
+compared with --check's plan; the output folder is removed after each case. Prints a table row as each case ends.
 """
 import json
 import os
@@ -55,7 +55,8 @@ def main():
         sys.exit(__doc__)
     fbar, work = sys.argv[1], sys.argv[2]
     os.makedirs(work, exist_ok=True)
-    rows = []
+    print(f"{'case':24} {'particles':>12} {'--check GiB':>12} {'peak GiB':>10} {'peak/plan':>9} {'wall s':>8} rc",
+          flush=True)
     for case in sys.argv[3:]:
         parts = case.split(":")
         millions, exterior, checkpoint = float(parts[0]), parts[1] == "exterior", "checkpoint" in parts[2:]
@@ -67,20 +68,31 @@ def main():
         planned = re.search(r"host memory \(run\)\s+([0-9.]+ \w+)", check.stdout)
         particles = re.search(r"particles\s+(\d+) in", check.stdout)
         # A fresh interpreter per run: its only child is the run, so its children's ru_maxrss is the run's peak.
-        probe = ("import resource, subprocess, sys; r = subprocess.run(sys.argv[1:], capture_output=True, text=True); "
-                 "sys.stderr.write(r.stderr); print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss); "
-                 "sys.exit(r.returncode)")
+        # It also samples the run's resident memory every 0.2 s: the time of the peak tells the phase (set-up,
+        # steps, frames) that holds it.
+        probe = ("import resource, subprocess, sys, time\n"
+                 "p = subprocess.Popen(sys.argv[1:], stderr=subprocess.PIPE, text=True); t0 = time.time(); top = (0, 0)\n"
+                 "while p.poll() is None:\n"
+                 "    try:\n"
+                 "        kb = int([l for l in open('/proc/%d/status' % p.pid) if l.startswith('VmRSS')][0].split()[1])\n"
+                 "        top = max(top, (kb, time.time() - t0))\n"
+                 "    except Exception: pass\n"
+                 "    time.sleep(0.2)\n"
+                 "sys.stderr.write(p.stderr.read()); t = time.time() - t0\n"
+                 "print('peak at %.1f of %.1f s' % (top[1], t)); print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)\n"
+                 "sys.exit(p.returncode)")
         t0 = time.time()
         run = subprocess.run([sys.executable, "-c", probe, fbar, "--quiet", "--file", path], capture_output=True,
                              text=True)
         wall = time.time() - t0
         peak = int(run.stdout.split()[-1]) / 2 ** 20 if run.stdout.split() else float("nan")  # KiB -> GiB
-        rows.append((case, int(particles.group(1)) if particles else -1, gib(planned.group(1)) if planned else
-                     float("nan"), peak, wall, run.returncode, (run.stderr.strip().splitlines() or [""])[-1][:80]))
+        n = int(particles.group(1)) if particles else -1
+        plan = gib(planned.group(1)) if planned else float("nan")
+        err = (run.stderr.strip().splitlines() or [""])[-1][:80] if run.returncode else ""
+        when = next((l for l in run.stdout.splitlines() if l.startswith("peak at")), "")
+        print(f"{case:24} {n:12d} {plan:12.2f} {peak:10.2f} {peak / plan:9.2f} {wall:8.1f} {run.returncode} {when} {err}",
+              flush=True)
         shutil.rmtree(out, ignore_errors=True)
-    print(f"{'case':24} {'particles':>12} {'--check GiB':>12} {'peak GiB':>10} {'peak/plan':>9} {'wall s':>8} rc")
-    for case, n, plan, peak, wall, rc, err in rows:
-        print(f"{case:24} {n:12d} {plan:12.2f} {peak:10.2f} {peak / plan:9.2f} {wall:8.1f} {rc} {err if rc else ''}")
 
 
 if __name__ == "__main__":

@@ -328,14 +328,16 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
     std::ostringstream per;
     per << std::fixed << std::setprecision(0)
         << static_cast<double>(summary.host_checkpoint_bytes) / static_cast<double>(std::max<long long>(1, particles));
+    const std::string checkpoint = bytes(summary.host_checkpoint_bytes) + " while it is taken and written (" +
+                                   per.str() + " B per particle: every particle's state is copied to the host)";
     row(os, "host memory (run)",
         bytes(summary.host_run_bytes) + " at most on the GPU engine: " + bytes(kHostProgramBytes) +
-            " program and CUDA runtime, then the larger of the set-up and frames " +
+            " program and CUDA runtime, the set-up (above: much of it stays resident), frames " +
             bytes(summary.host_frame_pinned_bytes + summary.host_frame_writer_bytes) + " (pinned download buffers " +
             bytes(summary.host_frame_pinned_bytes) + ", frames above --frame-buffer stream a piece at a time; the "
-            "writer " + bytes(summary.host_frame_writer_bytes) + ") + a checkpoint " +
-            bytes(summary.host_checkpoint_bytes) + " while it is taken and written (" + per.str() +
-            " B per particle: every particle's state is copied to the host)");
+            "writer " + bytes(summary.host_frame_writer_bytes) + ")" +
+            (summary.checkpoints ? " + a checkpoint " + checkpoint
+                                 : "; a checkpoint on SIGTERM or a failure adds " + checkpoint));
   }
   row(os, "limits (per GPU)", std::to_string(DeviceLimits::kMaxSlots) + " particle slots per body (particles and the "
                               "empty lanes of partly filled bins of 32), " + std::to_string(DeviceLimits::kMaxBlocks) +

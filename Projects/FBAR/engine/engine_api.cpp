@@ -312,9 +312,14 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
   }
 
   summary.host_checkpoint_bytes += checkpoint_transient;
-  summary.host_run_bytes = kHostProgramBytes + std::max(summary.host_setup_bytes, summary.host_frame_pinned_bytes +
-                                                                                      summary.host_frame_writer_bytes +
-                                                                                      summary.host_checkpoint_bytes);
+  summary.checkpoints = sim.checkpoint_every > 0;
+  // The set-up's memory counts as still held while frames are written (measured on 150M to 1e9 particles: the
+  // allocator keeps much of it resident; docs/benchmarks/2026-12-02-h200-host-memory.md). Checkpoints every
+  // checkpoint_every frames count in the run's peak; without, only a stop (SIGTERM, a failure) writes one, and the
+  // report says what it adds.
+  summary.host_run_bytes = kHostProgramBytes + summary.host_setup_bytes + summary.host_frame_pinned_bytes +
+                           summary.host_frame_writer_bytes +
+                           (sim.checkpoint_every > 0 ? summary.host_checkpoint_bytes : 0);
 
   // CPU grid: 4 channels x 64 nodes per block in the grid scalar type (+3 for ASFLIP's v^n, +2 for F-bar's cell
   // sums, +5 for the seepage channels, only when a body uses them), coordinates and a hash-map entry.

@@ -49,11 +49,13 @@ struct SceneSummary {
   std::size_t host_setup_bytes = 0;         ///< host memory of the GPU engine's set-up (one sampling batch)
   /// Host memory of the GPU engine's run beside the set-up: the bodies' pinned frame buffers, the frame writer's
   /// pieces (one frame at a time), a checkpoint's copy of the particles (host_checkpoint_bytes), and the whole run:
-  /// kHostProgramBytes + max(set-up, frames + checkpoint).
+  /// kHostProgramBytes + set-up + frames + the checkpoint when simulation.checkpoint_every > 0 (the set-up's memory
+  /// is not all given back to the system before the frames are written).
   std::size_t host_frame_pinned_bytes = 0;
   std::size_t host_frame_writer_bytes = 0;
   std::size_t host_checkpoint_bytes = 0;
   std::size_t host_run_bytes = 0;
+  bool checkpoints = false;  ///< simulation.checkpoint_every > 0
   std::vector<std::string> device_notes;    ///< free memory of the devices present, and whether the plan fits
   /// [ms] estimated H100 time per step: kGpuStepOverheadMs, kGpuBodyOverheadMs per body, and every body's
   /// gpu_ms_per_step.
@@ -71,8 +73,9 @@ struct SummaryOptions {
   std::size_t frame_host_bytes = kFrameHostBytes;  ///< --frame-buffer (GpuEngineOptions::frame_host_bytes)
 };
 
-/// Host memory of the program and the CUDA runtime before any scene data (measured: see check_report.cpp's row).
-inline constexpr std::size_t kHostProgramBytes = std::size_t(512) << 20;
+/// Host memory of the program and the CUDA runtime besides a scene's data: 0.30 GiB peak measured for a
+/// 524,288-particle GPU run on an H200 with CUDA 13 (docs/benchmarks/2026-12-02-h200-host-memory.md).
+inline constexpr std::size_t kHostProgramBytes = std::size_t(300) << 20;
 
 /// One body's host memory for frames on the GPU engine [bytes]: its pinned download buffer (kept between frames)
 /// and the writer's memory while it writes one of its frames.

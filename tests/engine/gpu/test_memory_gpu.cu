@@ -195,7 +195,8 @@ void expect_streamed_frames_equal_whole(Precision precision) {
         if (streamed) o.frame_host_bytes = 4096;
         GpuEngine<T> gpu(scene, o);
         particles = gpu.particle_count();
-        const auto dir = std::filesystem::temp_directory_path() / ("fbar_streamed_" + std::to_string(streamed));
+        const auto dir = std::filesystem::temp_directory_path() /
+                         ("fbar_streamed_" + std::to_string(sizeof(T)) + "_" + std::to_string(streamed));
         std::filesystem::remove_all(dir);
         std::filesystem::create_directories(dir);
         {
