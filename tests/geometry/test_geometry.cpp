@@ -527,7 +527,7 @@ TEST(SampleBody, InvalidEntriesNameTheirKey) {
 
 // 4 million particles (a 1 x 1 x 0.5 m box, dx = 1 cm, ppc 8): the lattice count is exact at this size (no int
 // overflow, no lost plane). The sampling time is printed and recorded (RecordProperty "seconds") as a figure, not
-// asserted: a shared 2-core CI machine gives it no budget to hold.
+// asserted: a shared CI machine gives it no budget to hold.
 TEST(SampleBody, FourMillionParticlesCountIsExact) {
   const SimulationSpec sim = make_sim(0.01, {1.0, 1.0, 1.0});
   const auto t0 = std::chrono::steady_clock::now();

@@ -49,8 +49,8 @@ struct MatrixCase {
   Eigen::Matrix3d a;
 };
 
-/// The adversarial list of the SVD brief, each structured case also wrapped in random rotations (so nothing relies on
-/// axis alignment) and scaled by 10^s for s in {-20, -10, 0, 10, 20} (the "very large / small scale" requirement).
+/// The adversarial SVD inputs, each structured case also wrapped in random rotations (so nothing relies on
+/// axis alignment) and scaled by 10^s for s in {-20, -10, 0, 10, 20} (very large and very small scales).
 inline std::vector<MatrixCase> adversarial_cases(std::uint64_t seed = 2024) {
   std::mt19937_64 rng(seed);
   std::vector<MatrixCase> base;

@@ -115,7 +115,7 @@ MaterialSpec hencky_spec(double E, double nu, double rho) {
   return m;
 }
 
-// VALIDATION.md item 2 for Hencky: F = diag(s, 1, 1) gives tau_11 = (lambda + 2 mu) log s, tau_22 = tau_33 =
+// Hencky: F = diag(s, 1, 1) gives tau_11 = (lambda + 2 mu) log s, tau_22 = tau_33 =
 // lambda log s, no shear. A diagonal SVD is exact; tolerance 16 eps (lambda + 2 mu) max(1, |log s|).
 TEST(Hencky, UniaxialStretchMatchesClosedForm) {
   const auto p = Hencky::make_params<double>(hencky_spec(1e7, 0.3, 1000.0));

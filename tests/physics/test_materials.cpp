@@ -71,7 +71,7 @@ TEST(MaterialList, LameParametersFollowValidationFormulas) {
 
 // ------------------------------------------------------------------------------------------------ FixedCorotated
 
-// VALIDATION.md item 2: F = diag(s, 1, 1) gives sigma11 = (lambda + 2 mu)(s - 1), sigma22 = sigma33 = lambda (s - 1).
+// F = diag(s, 1, 1) gives sigma11 = (lambda + 2 mu)(s - 1), sigma22 = sigma33 = lambda (s - 1).
 // (Cauchy stress; what kirchhoff_stress returns is tau = J sigma = s sigma, cauchy_stress() divides by J.)
 // The SVD of a diagonal matrix is exact (no rotation is needed), so the only error is the rounding of a few products:
 // tolerance 16 eps (lambda + 2 mu) max(1, s)^2.
@@ -187,7 +187,7 @@ TEST(FixedCorotated, StressIsEnergyDerivative) {
 
 // ------------------------------------------------------------------------------------------------ NeoHookean
 
-// VALIDATION.md item 2: P = mu (F - F^-T) + lambda ln J F^-T; F = diag(s, 1, 1) gives the Cauchy stress
+// P = mu (F - F^-T) + lambda ln J F^-T; F = diag(s, 1, 1) gives the Cauchy stress
 // sigma11 = mu (s - 1/s) + lambda ln(s) / s, sigma22 = sigma33 = lambda ln(s) / s. The material evaluates
 // tau = mu (F F^T - I) + lambda ln J I: a few roundings of products of size (lambda + 2 mu) max(1, s^2), so
 // 16 eps of that, divided by J = s for sigma.
@@ -208,7 +208,7 @@ TEST(NeoHookean, UniaxialStretchMatchesClosedForm) {
   }
 }
 
-// tau = P F^T with P evaluated literally from the VALIDATION.md formula (inverse, transpose) for general F; both
+// tau = P F^T with P evaluated literally from the formula above (inverse, transpose) for general F; both
 // are backward stable with condition ~ |F| |F^-1| < 10: 1e-13 (lambda + 2 mu). Objectivity tau(R F) = R tau R^T to
 // the same bound, a rotation carries no stress, and an inverted F gives a NaN stress (the engines report it).
 TEST(NeoHookean, KirchhoffStressEqualsLiteralPiolaFormulaAndIsObjective) {
@@ -256,7 +256,7 @@ TEST(NeoHookean, StressIsEnergyDerivativeAndWaveSpeedIsPWaveSpeed) {
             FixedCorotated::wave_speed(p, FixedCorotated::reference_state<double>()));
 }
 
-// VALIDATION.md: c_p = sqrt((lambda + 2 mu) / rho) = sqrt(E (1 - nu) / ((1 + nu)(1 - 2 nu) rho)); ClaymoreUW's
+// c_p = sqrt((lambda + 2 mu) / rho) = sqrt(E (1 - nu) / ((1 + nu)(1 - 2 nu) rho)); ClaymoreUW's
 // sqrt(K / rho) under-estimates it by sqrt(3 (1 - nu) / (1 + nu)) (sqrt(3) at nu = 0).
 TEST(FixedCorotated, WaveSpeedIsPWaveSpeed) {
   for (double nu : {0.0, 0.2, 0.3, 0.45}) {
@@ -288,7 +288,7 @@ double tait_pressure_reference(double K, double gamma, double one_minus_J) {
                              (std::pow(J, -static_cast<long double>(gamma)) - 1.0L));
 }
 
-// VALIDATION.md item 2: JFluid sigma = -p I (no viscosity, any C), p = (K/gamma)(J^-gamma - 1). Reference from a
+// JFluid sigma = -p I (no viscosity, any C), p = (K/gamma)(J^-gamma - 1). Reference from a
 // long-double pow: its own error ~1e-19 / (gamma (1 - J)) relative stays below 1e-11 for |1 - J| >= 1e-8;
 // tolerance 1e-12 relative (+ that) for the double log1p/expm1 form.
 TEST(JFluid, StressIsMinusPressureIdentity) {
@@ -334,7 +334,7 @@ TEST(JFluid, ViscousStressIsDeviatoricStrainRate) {
   EXPECT_LE(max_abs_diff(sigma_rot, R * sigma * transpose(R)), 1e-12 * pr);
 }
 
-// c^2 = (K/rho0) J^(1 - gamma) = (K + gamma p) / rho with rho = rho0 / J (VALIDATION.md); c0 = sqrt(K / rho0).
+// c^2 = (K/rho0) J^(1 - gamma) = (K + gamma p) / rho with rho = rho0 / J; c0 = sqrt(K / rho0).
 TEST(JFluid, SoundSpeed) {
   const double K = 2e7, gamma = 7.1, rho0 = 1000.0;
   const auto p = JFluid::make_params<double>(fluid_spec(K, gamma, 0.0, rho0));

@@ -1,5 +1,5 @@
 // Single-particle tests of the plastic laws (DruckerPrager, NACC): elastic closed forms, energy derivatives, and
-// the return mappings against the yield surfaces they must land on (VALIDATION.md item 2).
+// the return mappings against the yield surfaces they must land on.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -48,7 +48,7 @@ Mat3d shear(const Mat3d& F, double g) {
 // ------------------------------------------------------------------------------------------------ DruckerPrager
 
 // Inside the cone the law is Hencky elasticity: F = diag(s, 1, 1) gives tau11 = (lambda + 2 mu) ln s,
-// tau22 = lambda ln s, sigma = tau / s (VALIDATION.md item 2 in Hencky strain). Uniaxial compression stays inside
+// tau22 = lambda ln s, sigma = tau / s (the uniaxial closed form in Hencky strain). Uniaxial compression stays inside
 // the phi = 30 deg cone for nu = 0.3: |dev e| = sqrt(2/3) |ln s| < (3 lambda + 2 mu)/(2 mu) alpha |ln s|
 // (0.816 < 1.061). Tolerance: the SVD and log of a diagonal F, 64 eps of (lambda + 2 mu).
 TEST(DruckerPrager, UniaxialCompressionInsideConeIsHenckyElastic) {
@@ -334,7 +334,7 @@ TEST(NACC, TipsReturnIsotropicallyAndHarden) {
   }
 }
 
-// VALIDATION.md item 2: a shear path at constant pressure saturates on the critical-state line q = M p (beta = 0:
+// A shear path at constant pressure saturates on the critical-state line q = M p (beta = 0:
 // the ellipse's top lies on it). Hardening drives p_c = (1 - beta) p0 / 2 to the particle's pressure from either
 // side (loose: p < p_c softens, dense: p > p_c hardens). Simple shear keeps J, hence p, exactly. The approach is
 // geometric: measured |q/p - M| / M = 1e-5 after 500 increments of 1e-3 and 3e-13 after 4000 (the slowest case,

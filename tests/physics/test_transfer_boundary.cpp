@@ -27,7 +27,7 @@ using test::kEps;
 // ------------------------------------------------------------------------------------------------ transfers
 
 // Quadratic B-spline moments behind every conservation property: sum w = 1, sum w (x_i - x_p) = 0 and
-// sum w (x_i - x_p)(x_i - x_p)^T = dx^2/4 I = D_p, i.e. D_p^-1 = 4/dx^2 for any dx (VALIDATION.md: it must follow dx).
+// sum w (x_i - x_p)(x_i - x_p)^T = dx^2/4 I = D_p, i.e. D_p^-1 = 4/dx^2 for any dx (it must follow dx).
 // Each sum has 27 terms of size <= dx^k: tolerance 64 eps dx^k.
 TEST(Transfer, BsplineMomentsGiveApicInertia) {
   std::mt19937_64 rng(1);

@@ -1,4 +1,4 @@
-// Validation: volumetric locking and F-bar (VALIDATION.md, "Volumetric locking"; transfer.cuh, fbar_velocity_gradient).
+// Validation: volumetric locking and F-bar (docs/validation.md, its locking rows; transfer.cuh, fbar_velocity_gradient).
 //
 // Problem: a nearly incompressible elastic block (FixedCorotated, E = 1 MPa, nu = 0.499, rho = 1000 kg/m^3), W = H =
 // 0.2 m, standing on a frictionless (Slip) floor under gravity, free on its sides, in plane strain (Slip walls one

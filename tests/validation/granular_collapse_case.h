@@ -1,4 +1,4 @@
-// Validation: planar granular column collapse against Lube et al. 2005 (VALIDATION.md experiment 2), DruckerPrager.
+// Validation: planar granular column collapse against Lube et al. 2005 (docs/validation.md), DruckerPrager.
 //
 // Setup (the MPM set-up GeoTaichi uses for this benchmark): a column L0 = 2 m wide and H0 = 1 m high (aspect ratio
 // a = H0 / L0 = 0.5) against a smooth back wall on a rough floor; rho 2700 kg/m^3, E 20 MPa, nu 0.2, friction angle
@@ -18,7 +18,7 @@
 // Measured (CPU, double, 3 s, 2026-11-23): runout 0.496, H_inf / H0 0.999, kinetic / released 3.4e-6. With the
 // compression cone at 33 deg: runout 0.285 (dx 0.05), 0.321 (dx 0.025), short of the band; with a frictionless floor
 // the pile leaves the 5 m domain (runout > 1.5).
-// Runout is the 99th-percentile particle distance from the back wall (VALIDATION.md), so a few saltating particles
+// Runout is the 99th-percentile particle distance from the back wall, so a few saltating particles
 // do not set it.
 // Shared by the CPU validation test and the GPU engine's (tests/engine/gpu/test_validation_gpu.cu): the run is
 // templated on the engine (CpuEngine, or test::GpuValidationEngine with the same queries).

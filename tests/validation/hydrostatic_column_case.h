@@ -1,4 +1,4 @@
-// Validation: hydrostatic JFluid column (VALIDATION.md item 5, the cb-geo benchmark) at two resolutions.
+// Validation: hydrostatic JFluid column (docs/validation.md; the cb-geo benchmark) at two resolutions.
 //
 // Problem: fluid column of height H = 0.1 m, rho0 = 1800 kg/m^3, g = 9.81 m/s^2, K = 1e6 Pa, walls on the sides and
 // base; base pressure rho0 g H = 1765.8 Pa. cb-geo (linear basis, 25 ppc, elastic E = 1e6, nu = 0) reports base

@@ -1,5 +1,5 @@
-// Validation: the plastic laws inside the engine against their single-particle reference (VALIDATION.md: "a NACC case
-// against its single-particle reference"; the same for DruckerPrager).
+// Validation: the plastic laws inside the engine against their single-particle reference (docs/validation.md),
+// NACC and DruckerPrager.
 //
 // Problem: a free cube (0.6 m, dx 0.025 m, 8 ppc, no gravity, no walls) given the linear velocity field
 // v = L (x - x_c), L = [[-2, 10, 0], [0, -2, 0], [0, 0, -2]] 1/s: compression (-6 /s volumetric rate) with simple shear.

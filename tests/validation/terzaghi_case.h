@@ -15,8 +15,8 @@
 // T = c_v t / H^2, g' = (rho - rhow) g. Kperm is set for c_v = 2 m^2/s (T = 1 at t = 0.5 s).
 // Measured (CPU engine, double): the largest error over the particles, relative to g' H, at T = 0.05, 0.2, 0.5, 1:
 // dx = H/16: 0.013, 0.017, 0.018, 0.007; dx = H/32: 0.009, 0.011, 0.010, 0.004 (first order: the drained surface
-// sits within a cell of the soil's top). Tolerances: 3 % at H/16 and 1.8 % at H/32 (about 1.6 x the measured;
-// the 5 % is met at both), and the error must fall with dx at every time factor.
+// sits within a cell of the soil's top). Tolerances: 3 % at H/16 and 1.8 % at H/32 (about 1.6 x the measured,
+// both inside 5 %), and the error must fall with dx at every time factor.
 #pragma once
 
 #include <gtest/gtest.h>

@@ -13,7 +13,7 @@ namespace {
 using namespace cantilever_case;
 
 // n = 2, 4, 8 cubes through the thickness (576, 4,224, 32,256 tetrahedra; dx = 2 h / n), double precision.
-// Measured on this machine (2026-11-28): tip deflection -44.8 %, -15.5 %, -2.8 % of Timoshenko's; first frequency
+// Measured on the CPU engine (2026-11-28): tip deflection -44.8 %, -15.5 %, -2.8 % of Timoshenko's; first frequency
 // +30.0 %, +8.0 %, +2.0 % of f_T. Linear tetrahedra are too stiff in bending (shear locking), and the error falls with
 // the mesh at the order of the method: log2 of the error ratio 2.5 (deflection, n = 4 to 8) and 2.0 (frequency).
 // Richardson's extrapolation with order 2 from n = 4 and 8 lands on the references: deflection +1.4 % (the clamp,

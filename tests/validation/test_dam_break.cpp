@@ -1,4 +1,4 @@
-// Validation: Martin & Moyce (1952) dam break on a dry bed (VALIDATION.md validation item 1).
+// Validation: Martin & Moyce (1952) dam break on a dry bed (docs/validation.md).
 //
 // Experiment: a water column of width a = 2.25 in = 0.05715 m and height 2a against the back wall of a flat dry
 // channel is released at t = 0. Martin & Moyce report the surge front Z = z / a (z from the back wall) against

@@ -1,4 +1,4 @@
-// Validation: volumetric locking and F-bar (VALIDATION.md, "Volumetric locking"; transfer.cuh, fbar_velocity_gradient).
+// Validation: volumetric locking and F-bar (docs/validation.md, its locking rows; transfer.cuh, fbar_velocity_gradient).
 // The problem, its reference and the run are in fbar_locking_case.h; the tests here run it on the CPU engine.
 #include <gtest/gtest.h>
 

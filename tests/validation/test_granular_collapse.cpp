@@ -1,4 +1,4 @@
-// Validation: planar granular column collapse against Lube et al. 2005 (VALIDATION.md experiment 2), DruckerPrager.
+// Validation: planar granular column collapse against Lube et al. 2005 (docs/validation.md), DruckerPrager.
 // The problem, its reference and the run are in granular_collapse_case.h; the test here runs it on the CPU engine.
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// Validation: hydrostatic JFluid column (VALIDATION.md item 5, the cb-geo benchmark) at two resolutions.
+// Validation: hydrostatic JFluid column (docs/validation.md; the cb-geo benchmark) at two resolutions.
 // The problem, its reference and the run are in hydrostatic_column_case.h; the tests here run it on the CPU engine.
 #include <gtest/gtest.h>
 
@@ -104,8 +104,8 @@ TEST(HydrostaticColumn, StressFreeStartConvergesToHydrostaticBasePressure) {
   EXPECT_LE(fine.ke_last, fine.ke_first);
 }
 
-// The same stress-free column with and without F-bar (VALIDATION.md: "hydrostatic pressure error and checkerboard
-// index with and without F-bar"). The row alternation inside cells described above is a volume mode: F-bar pulls
+// The same stress-free column with and without F-bar: the hydrostatic pressure error and the
+// checkerboard index of each. The row alternation inside cells described above is a volume mode: F-bar pulls
 // both rows of a cell to the cell's J every step, so it must vanish (checkerboard index: RMS over the cells above the bottom
 // one of half the difference of their two row means, over rho0 g H), while the base pressure read from the bulk
 // keeps cb-geo's accuracy. Tolerances: F-bar's checkerboard below a tenth of the plain run's (the mode is gone, what
@@ -123,8 +123,8 @@ TEST(HydrostaticColumn, FbarRemovesTheRowCheckerboard) {
   EXPECT_LE(std::fabs(fbar.base_fit_error()), 0.0485);
 }
 
-// Precision chart (VALIDATION.md: "fp32 J and fp32 atomics limit hydrostatic accuracy; chart single vs mixed vs
-// double"): the stress-free column at dx = 0.01 in the three precisions of simulation.precision. Mixed keeps the
+// Precision chart (float J and float grid sums limit the hydrostatic accuracy: single against mixed against
+// double): the stress-free column at dx = 0.01 in the three precisions of simulation.precision. Mixed keeps the
 // particle state in double and sums the grid in float (CpuEngine<double, float>, as the GPU engine's mixed mode).
 // Printed per precision: base error from the bulk profile, profile RMS, checkerboard, and the largest difference of
 // the period-averaged row pressures from the double run (rho0 g H).

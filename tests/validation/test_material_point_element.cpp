@@ -1,4 +1,4 @@
-// Validation: the plastic laws inside the engine against their single-particle reference (VALIDATION.md: "a NACC case
+// Validation: the plastic laws inside the engine against their single-particle reference (NACC, DruckerPrager).
 // The problem, its reference and the run are in material_point_element_case.h; the tests here run it on the CPU engine.
 #include <gtest/gtest.h>
 

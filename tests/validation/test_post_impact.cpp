@@ -13,7 +13,7 @@ namespace {
 
 using namespace post_impact_case;
 
-// Measured on this machine (2026-11-28, dx 0.02 m): the water reaches the post at 0.15-0.2 s; clamp force FEM /
+// Measured on the CPU engine (2026-11-28, dx 0.02 m): the water reaches the post at 0.15-0.2 s; clamp force FEM /
 // particles: impulse over 0-0.6 s 1.242 / 1.326 N s (-6.3 %), mean over 0.2-0.6 s 3.10 / 3.32 N (-6.6 %; per 0.1 s
 // window -10 %, +2 %, -5 %, -13 %), peak 10.24 / 10.94 N (-6.4 %); before the water arrives the clamp reads 1.5e-4 N
 // (FEM: the post settling under its weight) and 1e-14 N. The two posts meet the water on the grid with different

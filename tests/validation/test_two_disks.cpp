@@ -1,4 +1,4 @@
-// Validation: two elastic disks colliding head-on (VALIDATION.md item 6, Sulsky, Chen & Schreyer 1994).
+// Validation: two elastic disks colliding head-on (docs/validation.md; Sulsky, Chen & Schreyer 1994).
 // The problem, its reference and the run are in two_disks_case.h; the tests here run it on the CPU engine.
 #include <gtest/gtest.h>
 
@@ -54,12 +54,12 @@ TEST(TwoDisks, MomentumEnergyAndRebound) {
       -runs[2].v_end[0][0] / kSpeed);
 }
 
-// Energy history per transfer scheme (VALIDATION.md item 6: "report energy loss per scheme"), R/dx = 8. Each scheme
+// Energy history per transfer scheme (the energy lost by each), R/dx = 8. Each scheme
 // must conserve momentum to round-off (P2G/G2P conserve it for any alpha, beta: the FLIP increment is a grid
 // difference) and rebound; FLIP keeps the particle velocity through the contact and dissipates less than APIC: the
 // loss must not exceed APIC's. Energy growth: the blends (alpha 0.95) must stay within the symplectic oscillation
-// (1e-3) like APIC; pure FLIP (alpha = 1) keeps the particle velocity modes the grid cannot see (the FLIP noise of
-// VALIDATION.md "where methods fail"), nothing damps them and the contact pumps some energy into them: measured
+// (1e-3) like APIC; pure FLIP (alpha = 1) keeps the particle velocity modes the grid cannot see (FLIP
+// noise), nothing damps them and the contact pumps some energy into them: measured
 // +0.26 % at the peak, bounded here at +1 % (a growing instability would exceed it; engineering use keeps
 // alpha < 1).
 // Measured (CPU, double): energy lost APIC 12.04 %, PIC-FLIP 0.95 4.58 %, FLIP 4.44 %, ASFLIP (0.95, 0, 0.2) 4.56 %;

@@ -1,4 +1,4 @@
-// Validation: axial vibration of a clamped-free elastic bar (VALIDATION.md item 3, Bardenhagen 2002).
+// Validation: axial vibration of a clamped-free elastic bar (docs/validation.md; Bardenhagen 2002).
 // The problem, its reference and the run are in vibrating_bar_case.h; the tests here run it on the CPU engine.
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// Validation case: two elastic disks colliding head-on (VALIDATION.md item 6, Sulsky, Chen & Schreyer 1994).
+// Validation case: two elastic disks colliding head-on (docs/validation.md; Sulsky, Chen & Schreyer 1994).
 //
 // Problem (2D, per unit thickness): domain [-0.5, 0.5]^2, disks of radius R = 0.2 m centred at (-0.3, -0.3) and
 // (0.3, 0.3), E = 1000 Pa, nu = 0.3, rho = 1000 kg/m^3, velocities +(0.1, 0.1) and -(0.1, 0.1) m/s. No gravity, no

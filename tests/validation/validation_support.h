@@ -76,7 +76,7 @@ struct Scheme {
   double alpha, beta_min, beta_max;
 };
 inline constexpr Scheme kApic{"APIC", 0, 0, 0};
-/// The four schemes the validation tests and the study runner compare (VALIDATION.md item 6).
+/// The four schemes the validation tests and the study runner compare.
 inline constexpr Scheme kTransferSchemes[] = {
     kApic, {"PIC-FLIP 0.95", 0.95, 0, 0}, {"FLIP", 1.0, 0, 0}, {"ASFLIP", 0.95, 0.0, 0.2}};
 

@@ -1,4 +1,4 @@
-// Validation: axial vibration of a clamped-free elastic bar (VALIDATION.md item 3, Bardenhagen 2002).
+// Validation: axial vibration of a clamped-free elastic bar (docs/validation.md; Bardenhagen 2002).
 //
 // Problem: L = 25 m, E = 100 Pa, rho = 1 kg/m^3, nu = 0, clamped at x = 0, free at x = L, initial velocity
 // v(x, 0) = v0 sin(pi x / (2 L)), v0 = 0.1 m/s (the first mode). Exact (linear elasticity):

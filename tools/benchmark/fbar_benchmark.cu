@@ -6,7 +6,7 @@
 // device memory per particle at start and at its peak during the run (cudaMemGetInfo before construction, after
 // it, and after every step), the host's peak resident memory during set-up and run (VmHWM, reset per case), and
 // the set-up time (counting, sampling in batches, upload, first partition). Prints a table and writes a CSV.
-// tank_box: the issue-16 scene (a JFluid box filling its tank: compact, at rest); dam_break: the water column in a
+// tank_box: the compact scene (a JFluid box filling its tank: compact, at rest); dam_break: the water column in a
 // tank twice its width (spreading). --frames=K also captures and writes a frame (ID and positions, .bgeo) every K
 // steps through the engine's asynchronous output into --frame-dir (default /tmp/fbar_benchmark_frames).
 //   fbar_benchmark [--sizes=1,4,16,64] [--precisions=single,double,mixed]

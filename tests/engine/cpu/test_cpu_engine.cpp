@@ -30,7 +30,7 @@ Scene two_body_scene_for_summary() {
   return scene;
 }
 
-// VALIDATION.md item 1: symplectic Euler free fall gives x_n = x0 + g t_n^2/2 + g t_n dt/2 exactly (no spatial error:
+// Free fall: symplectic Euler gives x_n = x0 + g t_n^2/2 + g t_n dt/2 exactly (no spatial error:
 // a uniform velocity field is transferred exactly, the deformation stays I). Body far from every wall, fixed dt.
 // Error budget: each step adds O(eps |x|) to x and O(eps |v|) to v; after n = 200 steps |x| <= 1 m, |v| <= 2 m/s:
 // 2 n eps (|x| + t |v|) < 2e-13 m. Tolerance 1e-12 m; velocity 1e-12 m/s; |F - I| 1e-12; stress 1e-12 E.
@@ -98,7 +98,7 @@ INSTANTIATE_TEST_SUITE_P(
                       FallCase{Constitutive::JFluid, 0, 0, 0, 0.5}, FallCase{Constitutive::VonMises, 0, 0, 0}),
     fall_case_name);
 
-// VALIDATION.md item 1: uniform translation across many cells keeps v = v0, F = I, stress 0 to round-off. 15 cells
+// Uniform translation across many cells keeps v = v0, F = I, stress 0 to round-off. 15 cells
 // travelled (0.3 m at dx = 0.02); the CFL step is taken (it must not matter). Same budget as above.
 TEST(RigidTranslation, StaysUniformAcrossManyCells) {
   Scene scene = empty_scene(r3(1, 1, 1), 0.02, r3(0, 0, 0));
@@ -154,7 +154,7 @@ TEST(Conservation, MassExact) {
               engine.steps(), std::fabs(engine.grid_mass() - m0) / m0);
 }
 
-// Momentum and angular momentum (APIC / MLS-MPM conserve both exactly; VALIDATION.md items 6, 7): two elastic blocks
+// Momentum and angular momentum (APIC / MLS-MPM conserve both exactly): two elastic blocks
 // of different density collide and spin, no gravity, no boundaries. Each step's sums are exact up to round-off of
 // terms of size sum m |v| (momentum) and sum m |x||v| (angular momentum); over ~100 steps the drift stays below
 // 1e-12 of those scales.
@@ -213,7 +213,7 @@ TEST(Determinism, BitwiseIndependentOfThreadCount) {
 
 // ------------------------------------------------------------------------------------------------ time step
 
-// dt = min(default_dt, CFL dx / (c + |v|max)) with the p-wave speed (VALIDATION.md).
+// dt = min(default_dt, CFL dx / (c + |v|max)) with the p-wave speed (physics/time_step.cuh).
 TEST(TimeStep, EngineUsesCflFormula) {
   Scene scene = empty_scene(r3(1, 1, 1), 0.02, r3(0, 0, 0));
   scene.bodies.push_back(box_body(Constitutive::FixedCorotated, r3(0.4, 0.4, 0.4), r3(0.1, 0.1, 0.1), r3(3, 0, 4)));
@@ -959,8 +959,8 @@ TEST(Failure, LeavingTheDomainIsReported) {
 
 // ------------------------------------------------------------------------------------------------ API
 
-// Hydrostatic start (VALIDATION.md item 5): J(y) given per particle, mass rescaled so that the current density is
-// rho0 / J; pressures then follow the equation of state.
+// Hydrostatic start (as in the hydrostatic column of docs/validation.md): J(y) given per particle, mass rescaled so
+// that the current density is rho0 / J; pressures then follow the equation of state.
 TEST(Api, VolumeRatioFieldForJFluid) {
   Scene scene = empty_scene(r3(1, 1, 1), 0.05, r3(0, -9.81, 0));
   scene.bodies.push_back(box_body(Constitutive::JFluid, r3(0.2, 0.2, 0.2), r3(0.2, 0.2, 0.2)));

@@ -266,8 +266,8 @@ TEST(GpuDecomposition, TravellingBlockIsRebalanced) {
   }
 }
 
-// The same runs on every visible GPU, one rank each, through NCCL (the device script runs them on nvidia-h200-x2
-// with NCCL_NVLS_ENABLE=0, and again with NCCL_P2P_DISABLE=1 NCCL_SHM_DISABLE=1 so the network path runs).
+// The same runs on every visible GPU, one rank each, through NCCL (tools/benchmark/run_multi_gpu.sh runs them on two
+// GPUs with NCCL_NVLS_ENABLE=0; with NCCL_P2P_DISABLE=1 NCCL_SHM_DISABLE=1 they take NCCL's network path).
 // (FBAR_REQUIRE_GPUS and test::visible_gpus(): gpu_test_support.h)
 
 TEST(GpuDecomposition, NcclDamBreakOnEveryGpu) {

@@ -1,4 +1,4 @@
-// Validation scenes run to the end on the GPU engine (VALIDATION.md; issue "the same scenes on the GPU engine").
+// Validation scenes run to the end on the GPU engine (docs/validation.md).
 //  * The two-disk impact per transfer scheme, in lockstep with the CPU engine: the GPU run must give the CPU
 //    engine's energy history, and the schemes must order as on the CPU.
 //  * The CPU validation cases of tests/validation (*_case.h), run unchanged on the GPU engine through
