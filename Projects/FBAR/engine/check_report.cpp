@@ -176,6 +176,28 @@ void print_boundaries_and_sensors(std::ostream& os, const Scene& scene) {
   }
 }
 
+/// The GPU engine's host memory: the set-up's, and the whole run's (engine_api.cpp host_frame_bytes,
+/// host_checkpoint_bytes).
+void print_host_memory_rows(std::ostream& os, const SceneSummary& summary) {
+  row(os, "host memory (set-up)", bytes(summary.host_setup_bytes) +
+                                      " at most while sampling (bodies are sampled and uploaded in batches)");
+  long long particles = 0;
+  for (const BodySummary& b : summary.bodies) particles += b.particles;
+  std::ostringstream per;
+  per << std::fixed << std::setprecision(0)
+      << static_cast<double>(summary.host_checkpoint_bytes) / static_cast<double>(std::max<long long>(1, particles));
+  const std::string checkpoint = bytes(summary.host_checkpoint_bytes) + " while it is taken and written (" +
+                                 per.str() + " B per particle: every particle's state is copied to the host)";
+  row(os, "host memory (run)",
+      bytes(summary.host_run_bytes) + " at most on the GPU engine: " + bytes(kHostProgramBytes) +
+          " program and CUDA runtime, the set-up (above: much of it stays resident), frames " +
+          bytes(summary.host_frame_pinned_bytes + summary.host_frame_writer_bytes) + " (pinned download buffers " +
+          bytes(summary.host_frame_pinned_bytes) + ", frames above --frame-buffer stream a piece at a time; the "
+          "writer " + bytes(summary.host_frame_writer_bytes) + ")" +
+          (summary.checkpoints ? " + a checkpoint " + checkpoint
+                               : "; a checkpoint on SIGTERM or a failure adds " + checkpoint));
+}
+
 }  // namespace
 
 void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary& summary) {
@@ -320,25 +342,7 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
         "+" + bytes(p.grid_growth) + " if the active grid outgrows its capacity (blocks x2), +" +
             bytes(p.bins_growth) + " if the particle bins do (x1.5); logged when it happens");
   }
-  row(os, "host memory (set-up)", bytes(summary.host_setup_bytes) +
-                                      " at most while sampling (bodies are sampled and uploaded in batches)");
-  {
-    long long particles = 0;
-    for (const BodySummary& b : summary.bodies) particles += b.particles;
-    std::ostringstream per;
-    per << std::fixed << std::setprecision(0)
-        << static_cast<double>(summary.host_checkpoint_bytes) / static_cast<double>(std::max<long long>(1, particles));
-    const std::string checkpoint = bytes(summary.host_checkpoint_bytes) + " while it is taken and written (" +
-                                   per.str() + " B per particle: every particle's state is copied to the host)";
-    row(os, "host memory (run)",
-        bytes(summary.host_run_bytes) + " at most on the GPU engine: " + bytes(kHostProgramBytes) +
-            " program and CUDA runtime, the set-up (above: much of it stays resident), frames " +
-            bytes(summary.host_frame_pinned_bytes + summary.host_frame_writer_bytes) + " (pinned download buffers " +
-            bytes(summary.host_frame_pinned_bytes) + ", frames above --frame-buffer stream a piece at a time; the "
-            "writer " + bytes(summary.host_frame_writer_bytes) + ")" +
-            (summary.checkpoints ? " + a checkpoint " + checkpoint
-                                 : "; a checkpoint on SIGTERM or a failure adds " + checkpoint));
-  }
+  print_host_memory_rows(os, summary);
   row(os, "limits (per GPU)", std::to_string(DeviceLimits::kMaxSlots) + " particle slots per body (particles and the "
                               "empty lanes of partly filled bins of 32), " + std::to_string(DeviceLimits::kMaxBlocks) +
                               " grid blocks, " + std::to_string(DeviceLimits::kMaxBodies) + " bodies");

@@ -162,6 +162,51 @@ HostCheckpointBytes host_checkpoint_bytes(std::size_t n, std::size_t slots, std:
   return c;
 }
 
+namespace {
+
+/// Float columns of a body's frame on the GPU and (attributes) its attribute count; a list the run refuses still
+/// counts its bytes.
+int gpu_frame_columns(const BodySpec& body, int index, int& attributes) {
+  try {
+    const std::vector<FrameAttributeSpec> attrs = frame_attributes(body, index, "GPU engine");
+    attributes = static_cast<int>(attrs.size());
+    return frame_float_columns(attrs);
+  } catch (const std::invalid_argument&) {
+    attributes = static_cast<int>(body.output_attribs.size());
+    return attributes;
+  }
+}
+
+/// One body's frames (columns >= 0: the run writes frames) and checkpoint in the summary's host memory.
+void add_host_output_bytes(SceneSummary& summary, std::size_t& checkpoint_transient, const SimulationSpec& sim,
+                           const BodySpec& body, long long particles, long long slots, int stored_scalars,
+                           int columns, int attributes, std::size_t frame_host_bytes, bool mesh) {
+  const std::size_t n = static_cast<std::size_t>(particles), t = particle_scalar_bytes(sim.precision);
+  if (columns >= 0) {
+    const HostFrameBytes f = host_frame_bytes(n, t, columns, attributes, sim.save_suffix,
+                                              sim.particles_output_exterior_only || body.output_exterior_only,
+                                              frame_host_bytes, mesh);
+    summary.host_frame_pinned_bytes += f.pinned;
+    summary.host_frame_writer_bytes = std::max(summary.host_frame_writer_bytes, f.writer);
+  }
+  const HostCheckpointBytes c = host_checkpoint_bytes(n, static_cast<std::size_t>(slots), t, stored_scalars);
+  summary.host_checkpoint_bytes += c.kept;
+  checkpoint_transient = std::max(checkpoint_transient, c.transient);
+}
+
+/// The run's host memory from its parts. The set-up's memory counts as still held while frames are written
+/// (measured on 150M to 1e9 particles: the allocator keeps much of it resident;
+/// docs/benchmarks/2026-12-02-h200-host-memory.md). Checkpoints every checkpoint_every frames count in the run's
+/// peak; without, only a stop (SIGTERM, a failure) writes one, and the report says what it adds.
+void finish_host_run_bytes(SceneSummary& summary, std::size_t checkpoint_transient, const SimulationSpec& sim) {
+  summary.host_checkpoint_bytes += checkpoint_transient;
+  summary.checkpoints = sim.checkpoint_every > 0;
+  summary.host_run_bytes = kHostProgramBytes + summary.host_setup_bytes + summary.host_frame_pinned_bytes +
+                           summary.host_frame_writer_bytes + (summary.checkpoints ? summary.host_checkpoint_bytes : 0);
+}
+
+}  // namespace
+
 SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) {
   const SimulationSpec& sim = scene.simulation;
   SceneSummary summary;
@@ -201,17 +246,8 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     s.seepage_dt = body_seepage_step_bound(body, dx);
     summary.dt = min_time_step(min_time_step(min_time_step(summary.dt, s.dt_bound), s.viscous_dt), s.seepage_dt);
     // Float columns of the body's frame on the GPU (-1: no frames); a list the run refuses still counts its bytes.
-    int frame_columns = -1, frame_attrs = 0;
-    if (options.frames) {
-      try {
-        const std::vector<FrameAttributeSpec> attrs = frame_attributes(body, static_cast<int>(i), "GPU engine");
-        frame_columns = frame_float_columns(attrs);
-        frame_attrs = static_cast<int>(attrs.size());
-      } catch (const std::invalid_argument&) {
-        frame_columns = static_cast<int>(body.output_attribs.size());
-        frame_attrs = frame_columns;
-      }
-    }
+    int frame_attrs = 0;
+    const int frame_columns = options.frames ? gpu_frame_columns(body, static_cast<int>(i), frame_attrs) : -1;
     {
       // The GPU engine's bytes per particle (before the bins' headroom and empty lanes) and the time of its step.
       const std::size_t t = particle_scalar_bytes(sim.precision);
@@ -277,21 +313,8 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
         std::max(summary.host_setup_bytes,
                  batch * (2 * 24 + particle_record_bytes(facts.stored_scalars, particle_scalar_bytes(sim.precision))) +
                      count.blocks.size() * (sizeof(BlockCount) + 8 * 16));
-    if (frame_columns >= 0) {
-      const HostFrameBytes f = host_frame_bytes(static_cast<std::size_t>(count.particles), particle_scalar_bytes(sim.precision),
-                                                frame_columns, frame_attrs, sim.save_suffix,
-                                                sim.particles_output_exterior_only || body.output_exterior_only,
-                                                options.frame_host_bytes, mesh != nullptr);
-      summary.host_frame_pinned_bytes += f.pinned;
-      summary.host_frame_writer_bytes = std::max(summary.host_frame_writer_bytes, f.writer);
-    }
-    {
-      const HostCheckpointBytes c = host_checkpoint_bytes(static_cast<std::size_t>(count.particles),
-                                                          static_cast<std::size_t>(in.bins_needed) * 32,
-                                                          particle_scalar_bytes(sim.precision), facts.stored_scalars);
-      summary.host_checkpoint_bytes += c.kept;
-      checkpoint_transient = std::max(checkpoint_transient, c.transient);
-    }
+    add_host_output_bytes(summary, checkpoint_transient, sim, body, count.particles, in.bins_needed * 32,
+                          facts.stored_scalars, frame_columns, frame_attrs, options.frame_host_bytes, mesh != nullptr);
 
     // CPU engine: x, v, their next copies (4 x 3), C and its next copy (2 x 9), mass, volume (2), state twice, in
     // the particle scalar type, plus order / block index / key scratch (16 bytes).
@@ -311,15 +334,7 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     if (material_has_pore_fluid(scene.bodies[i].material.law)) s.grid_channels += " + seepage channels (5)";
   }
 
-  summary.host_checkpoint_bytes += checkpoint_transient;
-  summary.checkpoints = sim.checkpoint_every > 0;
-  // The set-up's memory counts as still held while frames are written (measured on 150M to 1e9 particles: the
-  // allocator keeps much of it resident; docs/benchmarks/2026-12-02-h200-host-memory.md). Checkpoints every
-  // checkpoint_every frames count in the run's peak; without, only a stop (SIGTERM, a failure) writes one, and the
-  // report says what it adds.
-  summary.host_run_bytes = kHostProgramBytes + summary.host_setup_bytes + summary.host_frame_pinned_bytes +
-                           summary.host_frame_writer_bytes +
-                           (sim.checkpoint_every > 0 ? summary.host_checkpoint_bytes : 0);
+  finish_host_run_bytes(summary, checkpoint_transient, sim);
 
   // CPU grid: 4 channels x 64 nodes per block in the grid scalar type (+3 for ASFLIP's v^n, +2 for F-bar's cell
   // sums, +5 for the seepage channels, only when a body uses them), coordinates and a hash-map entry.

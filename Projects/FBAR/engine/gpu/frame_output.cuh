@@ -323,6 +323,32 @@ io::FrameStream frame_stream(const std::vector<FrameAttributeSpec>& attrs, std::
   return s;
 }
 
+/// A mesh's frame in memory (its vertices are few) from its stream, with the tetrahedra its .vtk is written from.
+template <typename T>
+io::ParticleFrame mesh_frame(const io::FrameStream& s, const std::vector<FrameAttributeSpec>& attrs,
+                             const std::vector<int>& column_of,
+                             const std::shared_ptr<const std::vector<std::array<int, 4>>>& tetrahedra) {
+  const std::size_t n = s.points;
+  io::ParticleFrame f;
+  f.exterior = s.exterior;
+  f.tetrahedra = tetrahedra;
+  std::vector<Vec3<T>> positions(n);
+  s.read_positions(0, n, positions.data());
+  f.positions = std::move(positions);
+  for (std::size_t a = 0; a < attrs.size(); ++a) {
+    if (column_of[a] < 0) {
+      std::vector<std::int32_t> v(n);
+      s.read_values(a, 0, n, v.data());
+      f.add(attrs[a].name, 1, std::move(v));
+    } else {
+      std::vector<float> v(n);
+      s.read_values(a, 0, n, v.data());
+      f.add(attrs[a].name, 1, std::move(v), attrs[a].unit);
+    }
+  }
+  return f;
+}
+
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& path, io::AsyncWriter& writer) {
   // The frame is on the device already (the capture step, or capture_state before the first step). Its download
@@ -456,25 +482,7 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
       std::memcpy(out, col + static_cast<std::size_t>(column_of[a]) * n + first, count * sizeof(float));
     };
     if (!tetrahedra) return io::write_frame(path, s);
-    // A mesh: the frame in memory (its vertices are few), written with the .vtk of its tetrahedra.
-    io::ParticleFrame f;
-    f.exterior = exterior;
-    f.tetrahedra = tetrahedra;
-    std::vector<Vec3<T>> positions(n);
-    s.read_positions(0, n, positions.data());
-    f.positions = std::move(positions);
-    for (std::size_t a = 0; a < attrs.size(); ++a) {
-      if (column_of[a] < 0) {
-        std::vector<std::int32_t> v(n);
-        s.read_values(a, 0, n, v.data());
-        f.add(attrs[a].name, 1, std::move(v));
-      } else {
-        std::vector<float> v(n);
-        s.read_values(a, 0, n, v.data());
-        f.add(attrs[a].name, 1, std::move(v), attrs[a].unit);
-      }
-    }
-    io::write_frame(path, f);
+    io::write_frame(path, mesh_frame<T>(s, attrs, column_of, tetrahedra));  // with the .vtk of its tetrahedra
   });
 }
 
