@@ -422,20 +422,23 @@ struct StreamAttribute {
 /// A frame read piece by piece. read_positions(first, count, out) writes the 3 x count coordinates [m] of points
 /// [first, first + count) to `out` (double when double_precision, float otherwise); read_values(a, first, count,
 /// out) writes count x width 4-byte values of attribute a (float, or int32 for an Int attribute). Within a pass
-/// each column's reads come in increasing `first`; a writer makes several passes (the exterior filter's two, one per HDF5
-/// dataset), each from point 0.
+/// each column's reads come in increasing `first`; a writer makes several passes (the exterior filter's two, one
+/// per HDF5 dataset), each from point 0.
+/// Points a frame writer reads at a time (FrameStream::piece's default): 48 MB of single-precision positions.
+inline constexpr std::size_t kFramePiecePoints = std::size_t(1) << 22;
+
 struct FrameStream {
   std::size_t points = 0;
   bool double_precision = false;
   std::vector<StreamAttribute> attributes;
   ExteriorFilter exterior;                   ///< applied by the writers
-  std::size_t piece = std::size_t(1) << 22;  ///< points per read
+  std::size_t piece = kFramePiecePoints;  ///< points per read
   std::function<void(std::size_t first, std::size_t count, void* out)> read_positions;
   std::function<void(std::size_t attribute, std::size_t first, std::size_t count, void* out)> read_values;
 };
 
 /// The stream of a frame in memory (which must outlive it): its points, attributes and exterior filter.
-inline FrameStream stream_of(const ParticleFrame& frame, std::size_t piece = std::size_t(1) << 22) {
+inline FrameStream stream_of(const ParticleFrame& frame, std::size_t piece = kFramePiecePoints) {
   validate_frame(frame);
   FrameStream s;
   s.points = frame.size();
@@ -680,9 +683,9 @@ inline void write_bgeo_records(const std::filesystem::path& path, std::size_t n,
 
 /// Classic binary Houdini geometry, byte for byte what partio's writeBGEO produces for the same data
 /// (positions are stored as float). Throws std::invalid_argument (bad frame, > 2^31-1 points) or
-/// std::runtime_error (I/O). The bgeo of a streamed frame: the header, then each piece's records (x y z w = 1, every attribute's
-/// components), serialised by several threads (a 16M-particle frame with 4 attributes is 0.58 GB: byte by byte on
-/// one thread it took 1.3 s) and appended.
+/// std::runtime_error (I/O). The bgeo of a streamed frame: the header, then each piece's records (x y z w = 1,
+/// every attribute's components), serialised by several threads (a 16M-particle frame with 4 attributes is
+/// 0.58 GB: byte by byte on one thread it took 1.3 s) and appended.
 inline void write_bgeo(const std::filesystem::path& path, const FrameStream& s) {
   const detail::FrameReader reader(s);
   const std::size_t n = reader.rows();
@@ -897,26 +900,23 @@ inline void write_frame(const std::filesystem::path& path, const FrameStream& s)
   }
 }
 
-/// Every point of a frame in memory (its exterior filter is not applied: write_frame applies it).
-inline void write_bgeo(const std::filesystem::path& path, const ParticleFrame& frame) {
+/// The stream of every point of a frame in memory: its exterior filter is not applied (write_frame applies it).
+inline FrameStream every_point(const ParticleFrame& frame) {
   FrameStream s = stream_of(frame);
   s.exterior = {};
-  write_bgeo(path, s);
+  return s;
+}
+inline void write_bgeo(const std::filesystem::path& path, const ParticleFrame& frame) {
+  write_bgeo(path, every_point(frame));
 }
 inline void write_geo(const std::filesystem::path& path, const ParticleFrame& frame) {
-  FrameStream s = stream_of(frame);
-  s.exterior = {};
-  write_geo(path, s);
+  write_geo(path, every_point(frame));
 }
 inline void write_csv(const std::filesystem::path& path, const ParticleFrame& frame) {
-  FrameStream s = stream_of(frame);
-  s.exterior = {};
-  write_csv(path, s);
+  write_csv(path, every_point(frame));
 }
 inline void write_h5(const std::filesystem::path& path, const ParticleFrame& frame) {
-  FrameStream s = stream_of(frame);
-  s.exterior = {};
-  write_h5(path, s);
+  write_h5(path, every_point(frame));
 }
 
 /// The points of `frame` that frame.exterior keeps, with their attributes, in their order (the filter is off in the

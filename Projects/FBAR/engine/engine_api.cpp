@@ -135,7 +135,7 @@ HostFrameBytes host_frame_bytes(std::size_t n, std::size_t t, int columns, int a
   // frame_host_bytes (a .bgeo without the filter as its packed records), else a piece at a time; the writer reads
   // io::FrameStream::piece points at a time (particle_io.h FrameReader: with the filter, a scratch copy of each
   // piece, one bit per point and two maps over the occupied cubes), a .bgeo serialises each piece's records.
-  constexpr std::size_t kPiece = std::size_t(1) << 22;
+  constexpr std::size_t kPiece = io::kFramePiecePoints;
   const std::size_t whole = n * (3 * t + 4 * static_cast<std::size_t>(columns));
   const std::size_t attrs = static_cast<std::size_t>(attributes);
   const std::size_t record = 16 + 4 * attrs;

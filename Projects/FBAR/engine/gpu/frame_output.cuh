@@ -384,7 +384,7 @@ void MgspBenchmark<T, TG>::submit_frame(int body, const std::filesystem::path& p
                        b.frame_attrs.size() <= static_cast<std::size_t>(kMaxFrameColumns) + 1;
   // Streamed: a piece's positions at most (the writers read io::FrameStream::piece points at a time).
   const std::size_t stream_bytes = std::max<std::size_t>(
-      std::min<std::size_t>(options_.frame_host_bytes, io::FrameStream{}.piece * 3 * sizeof(T)), 3 * sizeof(T));
+      std::min<std::size_t>(options_.frame_host_bytes, io::kFramePiecePoints * 3 * sizeof(T)), 3 * sizeof(T));
   const std::size_t host_bytes = records ? n * record_bytes : whole ? whole_bytes : stream_bytes;
   if (!b.frame_host || b.frame_host_size < host_bytes) {  // the writer has released it (busy was false)
     b.frame_host = cuda::pinned(std::max<std::size_t>(host_bytes, 1));
