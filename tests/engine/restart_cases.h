@@ -49,6 +49,41 @@ inline std::string bytes_of(const fs::path& p) {
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
 
+/// Which part of two checkpoint files differs (read back: the header's fields, then each body's arrays), for a
+/// failure message that says what a restart did not carry over; "" when every field read is equal.
+inline std::string checkpoint_difference(const fs::path& a_path, const fs::path& b_path) {
+  const io::Checkpoint a = io::read_checkpoint(a_path), b = io::read_checkpoint(b_path);
+  auto field = [](const char* name, const auto& x, const auto& y) -> std::string { return x == y ? "" : name; };
+  for (const std::string& d :
+       {field("time", a.time, b.time), field("steps", a.steps, b.steps), field("last_dt", a.last_dt, b.last_dt),
+        field("next_dt", a.next_dt, b.next_dt), field("max_grid_speed", a.max_grid_speed, b.max_grid_speed),
+        field("dt_scale", a.dt_scale, b.dt_scale), field("clean_steps", a.clean_steps, b.clean_steps),
+        field("slab_cuts", a.slab_cuts, b.slab_cuts), field("chosen_imbalance", a.chosen_imbalance, b.chosen_imbalance),
+        field("particle_sample_due", a.particle_sample_due, b.particle_sample_due), field("csv", a.csv, b.csv),
+        field("bodies", a.bodies.size(), b.bodies.size())})
+    if (!d.empty()) return d;
+  for (std::size_t k = 0; k < a.bodies.size(); ++k) {
+    const io::CheckpointBody &x = a.bodies[k], &y = b.bodies[k];
+    for (const std::string& d :
+         {field("max_wave_speed", x.max_wave_speed, y.max_wave_speed), field("p2g_bound", x.p2g_bound, y.p2g_bound),
+          field("p2g_capture", x.p2g_capture, y.p2g_capture), field("ID", x.id, y.id), field("Position", x.x, y.x),
+          field("Velocity", x.v, y.v), field("C", x.C, y.C), field("State", x.state, y.state),
+          field("Mass", x.mass, y.mass), field("Volume", x.volume, y.volume), field("P2GID", x.p2g_id, y.p2g_id),
+          field("P2GBlock", x.p2g_block, y.p2g_block)})
+      if (!d.empty()) return "bodies[" + std::to_string(k) + "]." + d;
+  }
+  return "";
+}
+
+/// expect_same_bytes of two checkpoint files, naming the field that differs.
+inline void expect_same_checkpoint(const fs::path& a, const fs::path& b, const std::string& name) {
+  const std::string x = bytes_of(a), y = bytes_of(b);
+  if (x == y) return;
+  expect_same_bytes(x, y, name);
+  const std::string d = checkpoint_difference(a, b);
+  ADD_FAILURE() << name << ": " << (d.empty() ? "every field read back is equal (the file layout differs)" : d + " differs");
+}
+
 /// rank 0's result of run_ranks_with (run_support.h).
 inline RunResult run_ranks(RunFn run, const Scene& scene, int ranks, const std::string& restart = "",
                            std::ostream* log = nullptr) {
@@ -128,7 +163,7 @@ inline void expect_same_output(const fs::path& a, const fs::path& b, int from, i
       ++compared_frames;
     } else if (std::regex_match(name, m, checkpoint_name) && std::stoi(m[1]) > from) {
       ASSERT_TRUE(fs::exists(b / name)) << name << ": not written by the restarted run";
-      expect_same_bytes(bytes_of(e.path()), bytes_of(b / name), name);
+      expect_same_checkpoint(e.path(), b / name, name);
       ++compared_checkpoints;
     }
   }

@@ -88,6 +88,7 @@ TEST(CheckpointFile, RoundTripsInTheRunsPrecision) {
   b.global_particles = 5;
   b.max_wave_speed = 40.0;
   b.p2g_bound = 0.75;
+  b.p2g_capture = true;
   for (int p = 0; p < 3; ++p) {
     b.id.push_back(4 - p);
     for (int a = 0; a < 3; ++a) b.x.push_back(static_cast<float>(0.1 * p + 0.01 * a));
@@ -138,6 +139,8 @@ TEST(CheckpointFile, RoundTripsInTheRunsPrecision) {
   EXPECT_EQ(r.bodies[1].particles(), 0u);
   EXPECT_EQ(r.bodies[0].p2g_bound, 0.75);
   EXPECT_EQ(r.bodies[1].p2g_bound, -1.0);  // not known
+  EXPECT_TRUE(r.bodies[0].p2g_capture);
+  EXPECT_FALSE(r.bodies[1].p2g_capture);
   EXPECT_TRUE(r.bodies[0].p2g_known);
   EXPECT_EQ(r.bodies[0].p2g_id, b.p2g_id);
   EXPECT_EQ(r.bodies[0].p2g_block, b.p2g_block);
@@ -147,6 +150,8 @@ TEST(CheckpointFile, RoundTripsInTheRunsPrecision) {
   for (io::CheckpointBody& body : parts.bodies) body = body.description();
   io::read_checkpoint_particle_bytes(io::checkpoint_particle_bytes(c), parts);
   EXPECT_EQ(parts.bodies[0].p2g_bound, 0.75);
+  EXPECT_TRUE(parts.bodies[0].p2g_capture);
+  EXPECT_FALSE(parts.bodies[1].p2g_capture);
   EXPECT_TRUE(parts.bodies[0].p2g_known);
   EXPECT_EQ(parts.bodies[0].p2g_id, b.p2g_id);
   EXPECT_EQ(parts.bodies[0].p2g_block, b.p2g_block);

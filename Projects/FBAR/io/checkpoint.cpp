@@ -254,6 +254,7 @@ void write_checkpoint(const std::filesystem::path& path, const Checkpoint& c) {
       put_int(w, "global_particles", body.global_particles, file);
       put_double(w, "max_wave_speed", body.max_wave_speed, file);
       put_double(w, "p2g_bound", body.p2g_bound, file);
+      put_int(w, "p2g_capture", body.p2g_capture ? 1 : 0, file);
       const std::size_t p2g_rows = streamed ? c.streamed[b].p2g_rows : body.p2g_id.size();
       auto source = [&](CheckpointDataset d, const auto& data, std::size_t rows, int width, const char* name) -> Pieces {
         if (!streamed) return pieces_of(data, rows, width, name);
@@ -351,6 +352,7 @@ Checkpoint read_checkpoint(const std::filesystem::path& path, bool particles) {
     body.global_particles = get_int(w, "global_particles", file);
     body.max_wave_speed = get_double(w, "max_wave_speed", file);
     body.p2g_bound = H5Aexists(w, "p2g_bound") > 0 ? get_double(w, "p2g_bound", file) : -1.0;
+    body.p2g_capture = H5Aexists(w, "p2g_capture") > 0 && get_int(w, "p2g_capture", file) != 0;
     body.id = get_array<std::int64_t>(w, "ID", n, 1, H5T_NATIVE_INT64, file);
     body.x = get_reals(w, "Position", n, 3, file);
     body.v = get_reals(w, "Velocity", n, 3, file);
@@ -415,6 +417,7 @@ Checkpoint merge_checkpoints(std::vector<Checkpoint> parts, const std::string& w
       total += c.bodies[b].particles();
       out.max_wave_speed = std::max(out.max_wave_speed, c.bodies[b].max_wave_speed);
       out.p2g_bound = std::max(out.p2g_bound, c.bodies[b].p2g_bound);  // the same on every rank
+      out.p2g_capture = out.p2g_capture || c.bodies[b].p2g_capture;    // likewise
     }
     if (total != static_cast<std::size_t>(out.global_particles))
       throw std::runtime_error(what + ": body " + std::to_string(b) + " has " + std::to_string(total) +
@@ -493,7 +496,7 @@ std::vector<std::uint8_t> checkpoint_particle_bytes(const Checkpoint& c) {
   std::vector<std::uint8_t> out;
   std::size_t total = 0;
   for (const CheckpointBody& b : c.bodies)
-    total += 32 + b.particles() * (8 * (1 + 3 + 3 + 9 + 1 + 1) + 8 * static_cast<std::size_t>(b.state_scalars)) +
+    total += 40 + b.particles() * (8 * (1 + 3 + 3 + 9 + 1 + 1) + 8 * static_cast<std::size_t>(b.state_scalars)) +
              b.p2g_id.size() * (8 + 12);
   out.reserve(total);
   for (const CheckpointBody& b : c.bodies) {
@@ -501,6 +504,8 @@ std::vector<std::uint8_t> checkpoint_particle_bytes(const Checkpoint& c) {
     put_raw(out, &n, 1);
     put_raw(out, &b.max_wave_speed, 1);
     put_raw(out, &b.p2g_bound, 1);
+    const std::uint64_t capture = b.p2g_capture ? 1 : 0;
+    put_raw(out, &capture, 1);
     put_raw(out, b.id.data(), n);
     put_raw(out, b.x.data(), 3 * n);
     put_raw(out, b.v.data(), 3 * n);
@@ -525,6 +530,9 @@ void read_checkpoint_particle_bytes(const std::vector<std::uint8_t>& bytes, Chec
     take_raw(bytes, at, &n, 1);
     take_raw(bytes, at, &b.max_wave_speed, 1);
     take_raw(bytes, at, &b.p2g_bound, 1);
+    std::uint64_t capture = 0;
+    take_raw(bytes, at, &capture, 1);
+    b.p2g_capture = capture != 0;
     const auto S = static_cast<std::size_t>(b.state_scalars);
     b.id.resize(n);
     b.x.resize(3 * n);

@@ -53,6 +53,9 @@ struct CheckpointBody {
   /// summed the grid with, so that a restart sums the same grid bit for bit; < 0: not known (a CPU checkpoint, or
   /// one written before this field existed: the restart measures its own bound and continues to round-off)
   double p2g_bound = -1.0;
+  /// GPU engine: whether that G2P2G was a frame step's, whose kernel is another instantiation (it also writes the
+  /// frame): a restart's P2G runs the one its run did, the same machine code summing the same particles.
+  bool p2g_capture = false;
   /// GPU engine: the grid block (block coordinates, 4 cells a side) each particle's last P2G summed it from, which
   /// is the block it started that step in, not the one it ends in: each block sums its particles in a fixed-point
   /// quantum of its own (kernels/g2p2g_kernel.cuh), so a restart groups them the same way to sum the same grid.

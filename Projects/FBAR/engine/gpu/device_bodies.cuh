@@ -130,6 +130,9 @@ struct MgspBenchmark<T, TG>::BodyBase {
   /// A restart whose checkpoint kept those blocks: the block coordinates (3 per slot) of the flat upload, read by
   /// the initial partition (dest_from_positions) and freed after it.
   cuda::DeviceArray<int> restart_blocks;
+  /// Whether the last G2P2G was a frame step's (the kCapture instantiation): a checkpoint keeps it and a restart's
+  /// P2G runs that instantiation again, so that it sums the grid with the machine code its run did.
+  bool p2g_capture = false;
   /// Per-particle initial velocities (GpuEngineOptions::initial_velocities): (ID, 3) on the device for the initial
   /// P2G, and on the host for snapshots before the first step; empty when the body starts at its scene velocity.
   cuda::DeviceArray<T> initial_v;
@@ -331,6 +334,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     p.grid_next = e.grid_[1 - e.gc_].view();
     p.grid_this = e.grid_[e.gc_].view();
     p.quantum_next = e.quantum(1 - e.gc_);
+    p.initial = initial;
     p.bound_only = e.measuring_bound_;
     const bool mesh = this->is_mesh();  // its vertices always record v and C: the element pass's frames read them
     p.aux = e.record_ || mesh ? this->aux.get() : nullptr;
@@ -373,6 +377,10 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     p.p2g_bound_in = e.p2g_bound_d_.get() + e.bound_cur_ * e.bodies_.size() + this->index;
     p.p2g_bound_out = e.p2g_bound_d_.get() + (1 - e.bound_cur_) * e.bodies_.size() + this->index;
     if (e.measuring_bound_) p.p2g_bound_out = e.p2g_bound_d_.get() + e.bound_cur_ * e.bodies_.size() + this->index;
+    // The initial P2G runs the instantiation of a step (a restart's: of the step its checkpoint followed). Kept on
+    // every rank, one holding none of the body's particles too: each rank's checkpoint then has the same bytes.
+    const bool capture = initial ? this->p2g_capture : p.capture.x != nullptr;
+    if (!initial) this->p2g_capture = capture;
     if (e.block_count_ == 0 || this->particles == 0) return;
     if (p.fbar_psi != T(0) && pass != G2P2GPass::Interior) {  // F-bar: the cell sums first (fbar_cell_sums)
       const int blocks = e.block_count_;
@@ -402,19 +410,16 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     if (blocks == 0) return;
     const bool transport = static_cast<bool>(p.transported_next);
     const std::size_t arena = g2p2g_arena_bytes<TG>(transport);
-    const bool capture = p.capture.x != nullptr;
-    if (initial)
-      ::fbar::g2p2g<M, T, TG, true, false><<<blocks, kG2P2GThreads<TG>, arena, e.stream_>>>(p);
-    else if (mesh)
+    if (mesh)
       launch_mesh_g2p2g(p, blocks, arena, transport, e.stream_);
     else if (transport && capture)
-      ::fbar::g2p2g<M, T, TG, false, true, true><<<blocks, kG2P2GThreads<TG>, arena, e.stream_>>>(p);
+      ::fbar::g2p2g<M, T, TG, true, true><<<blocks, kG2P2GThreads<TG>, arena, e.stream_>>>(p);
     else if (transport)
-      ::fbar::g2p2g<M, T, TG, false, true><<<blocks, kG2P2GThreads<TG>, arena, e.stream_>>>(p);
+      ::fbar::g2p2g<M, T, TG, true><<<blocks, kG2P2GThreads<TG>, arena, e.stream_>>>(p);
     else if (capture)
-      ::fbar::g2p2g<M, T, TG, false, false, true><<<blocks, kG2P2GThreads<TG>, arena, e.stream_>>>(p);
+      ::fbar::g2p2g<M, T, TG, false, true><<<blocks, kG2P2GThreads<TG>, arena, e.stream_>>>(p);
     else
-      ::fbar::g2p2g<M, T, TG, false, false><<<blocks, kG2P2GThreads<TG>, arena, e.stream_>>>(p);
+      ::fbar::g2p2g<M, T, TG, false><<<blocks, kG2P2GThreads<TG>, arena, e.stream_>>>(p);
     cuda::check_launch("g2p2g");
     if (mesh && pass == G2P2GPass::All && !e.measuring_bound_) mesh_pass(e);
   }
@@ -424,9 +429,9 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
                                 cudaStream_t s) {
     if constexpr (kMeshLaw<M, T>) {
       if (transport)
-        ::fbar::g2p2g<M, T, TG, false, true, false, true><<<blocks, kG2P2GThreads<TG>, arena, s>>>(p);
+        ::fbar::g2p2g<M, T, TG, true, false, true><<<blocks, kG2P2GThreads<TG>, arena, s>>>(p);
       else
-        ::fbar::g2p2g<M, T, TG, false, false, false, true><<<blocks, kG2P2GThreads<TG>, arena, s>>>(p);
+        ::fbar::g2p2g<M, T, TG, false, false, true><<<blocks, kG2P2GThreads<TG>, arena, s>>>(p);
     } else {
       throw std::logic_error("GpuEngine: a mesh body with a law that is not an element law");
     }

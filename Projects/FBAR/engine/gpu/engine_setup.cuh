@@ -552,6 +552,7 @@ void MgspBenchmark<T, TG>::restore_bodies(const io::Checkpoint& cp) {
                                       " has its own mass or volume; the GPU engine keeps one per body (restart "
                                       "this checkpoint on the CPU engine, --backend=cpu)");
     }
+    b.p2g_capture = c.p2g_capture;  // the instantiation the restart's P2G runs
     b.restart_state.resize(static_cast<std::size_t>(S) * n);
     for (std::size_t i = 0; i < b.restart_state.size(); ++i) b.restart_state[i] = static_cast<T>(c.state[i]);
     std::vector<T> C(9 * n);

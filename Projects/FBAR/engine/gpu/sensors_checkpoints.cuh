@@ -195,6 +195,7 @@ io::Checkpoint MgspBenchmark<T, TG>::checkpoint() const {
     out.global_particles = b.global_particles;
     out.max_wave_speed = b.rest_wave_speed;
     out.p2g_bound = bounds[static_cast<std::size_t>(b.index)];
+    out.p2g_capture = b.p2g_capture;
     const Vec3d v0{{b.spec.velocity[0], b.spec.velocity[1], b.spec.velocity[2]}};
     const std::size_t n = static_cast<std::size_t>(b.particles);  // this rank's
     out.id.resize(n);

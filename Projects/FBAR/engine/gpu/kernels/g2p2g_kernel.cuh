@@ -18,9 +18,12 @@
 //      skipped; grid_buffer.cuh "Order-free grid sums").
 // The P2G impulse uses the next step's dt (read from the device: compute_next_dt ran before this kernel), so the
 // next grid holds exactly what the CPU engine's P2G of the next step computes.
-// kInitial: the P2G of the initial state (v = initial velocity, C = 0 or a restart's, no motion): how the driver
-// starts. Launched twice: first with bound_only (each particle's P2G bound measured, nothing written but the
-// maxima), then into the arena with that bound, like every other launch.
+// initial (a run-time flag of the same instantiation a step launches): the P2G of the initial state (v = initial
+// velocity, C = 0 or a restart's, no motion): how the driver starts. Launched twice: first with bound_only (each
+// particle's P2G bound measured, nothing written but the maxima), then into the arena with that bound, like every
+// other launch. One instantiation for both, so that a restart's P2G runs the machine code of the step it replaces:
+// a kernel of its own (it was one) sums the same particles differently in the last bit where the compiler
+// contracts a multiply and an add in one and not in the other, and a restart then leaves the uninterrupted run.
 //
 // Fixed-point arena. On sm_90 a shared-memory float or double atomicAdd is a
 // compare-and-swap loop (LDS, FADD, ATOMS.CAST.SPIN, branch; tools/benchmark/shared_atomics.cu): 108 of them per
@@ -152,9 +155,11 @@ struct G2P2GParams {
   GridSums<TG> grid_next;               ///< P2G target (zeroed on blocks [0, block count))
   GridSums<TG> grid_this;               ///< this step's P2G sums: a new block is zeroed here as well
   const GridQuantum* quantum_next;      ///< the quanta of grid_next (compute_next_dt)
-  bool bound_only;                      ///< kInitial: measure the P2G bound only (nothing else is written)
+  bool initial;                         ///< the initial (or a restart's) P2G: v and C from initial_v / initial_C
+  bool bound_only;                      ///< initial: measure the P2G bound only (nothing else is written)
   T* aux;                    ///< (slot, kAuxScalars) v and C, or nullptr
-  FrameCapture<T> capture;   ///< this body's frame (capture.x != nullptr on a frame step)
+  FrameCapture<T> capture;   ///< this body's frame (capture.x != nullptr on a frame step; nullptr in a kCapture
+                             ///< launch: none written, a restart's P2G after a frame step)
   /// ASFLIP (transfer.cuh). Every body adds its transported momentum m (v + C (x_i - x_p)) to `transported_next`
   /// when any body uses ASFLIP (non-null); a body that uses it also reads v^n (`old_velocity`) and its particles'
   /// velocities (`particle_v_in` at the storage slot, `particle_v_out` at the layout slot; 3 scalars per slot).
@@ -174,12 +179,12 @@ struct G2P2GParams {
   material_params_t<M, T> material;
   T mass;                    ///< [kg] per particle (a mesh body: the largest vertex mass, bounding the P2G quantum)
   T volume;                  ///< [m^3] reference volume per particle
-  /// A mesh body (physics/fem.cuh; the kMesh launches and the initial one): each vertex's lumped mass by ID, and its
+  /// A mesh body (physics/fem.cuh; the kMesh launches): each vertex's lumped mass by ID, and its
   /// P2G carries no MLS stress (the elements' force impulse follows, kernels/fem_kernels.cuh); nullptr otherwise.
   const T* vertex_mass;
-  Vec3<T> initial_velocity;  ///< [m/s] (kInitial)
-  const T* initial_v;        ///< (particle ID, 3) per-particle initial velocities [m/s] (kInitial), or nullptr
-  const T* initial_C;        ///< (particle ID, 9) per-particle APIC C [1/s] (kInitial; a restart), or nullptr: 0
+  Vec3<T> initial_velocity;  ///< [m/s] (initial)
+  const T* initial_v;        ///< (particle ID, 3) per-particle initial velocities [m/s] (initial), or nullptr
+  const T* initial_C;        ///< (particle ID, 9) per-particle APIC C [1/s] (initial; a restart), or nullptr: 0
   T dt;                      ///< [s] this step
   T dx, inv_dx, d_inv;       ///< [m], [1/m], [1/m^2]
   Vec3<T> domain;            ///< [m]
@@ -521,11 +526,11 @@ struct LaneParticle {
 /// G2P of one particle from the arena's velocities: v, C, advection, the material update (with F-bar's cell mean
 /// and ASFLIP's increment when the body uses them) and the checks, in the CPU engine's order: non-finite, inverted,
 /// left the domain, moved more than a cell. The initial P2G instead starts from the initial (or a restart's) v, C.
-template <typename M, typename T, typename TG, bool kInitial, bool kMayAsflip, bool kMesh>
+template <typename M, typename T, typename TG, bool kMayAsflip, bool kMesh>
 FBAR_DEVICE FBAR_FORCE_INLINE void g2p_particle(const G2P2GParams<M, T, TG>& p, const BlockArena<T, TG>& arena,
                                                 const ParticleRecord<M, T>& in, int src, LaneParticle<M, T>& out) {
   constexpr int kStateScalars = ParticleLayout<M, T>::kStateScalars;
-  if constexpr (kInitial) {
+  if (p.initial) {
     const std::size_t i = 3 * static_cast<std::size_t>(in.id);  // by ID: a rank uploads a subset of the IDs
     out.v = p.initial_v ? Vec3<T>{{p.initial_v[i], p.initial_v[i + 1], p.initial_v[i + 2]}} : p.initial_velocity;
     out.C = Mat3<T>::zero();
@@ -642,7 +647,7 @@ FBAR_DEVICE FBAR_FORCE_INLINE void store_particle_outputs(const G2P2GParams<M, T
       for (int c = 0; c < 3; ++c) a[3 + 3 * r + c] = s.C(r, c);
   }
   if constexpr (kCapture)
-    capture_particle<M, T>(p.capture, id, s.x_new, s.v, s.C, s.state, p.material, p.mass, p.volume);
+    if (p.capture.x) capture_particle<M, T>(p.capture, id, s.x_new, s.v, s.C, s.state, p.material, p.mass, p.volume);
 }
 
 /// P2G of one particle that passed its checks: wave speed, stress, the MLS payload with the next step's impulse
@@ -781,18 +786,18 @@ FBAR_DEVICE FBAR_FORCE_INLINE void flush_arena(const G2P2GParams<M, T, TG>& p, c
 /// kTransport: the arena also sums the transported momentum (some body uses ASFLIP). A separate instantiation, so
 /// that APIC scenes run a kernel without that code: with the ASFLIP code present behind run-time branches, APIC
 /// steps in double took 5.03 / 7.09 ms (dam_break / falling_block, 16M particles, H100) against 3.33 / 4.83 ms
-/// without (two runs, docs/benchmarks/2026-11-23-h100-asflip-arena.md). The initial P2G decides at run time.
+/// without (two runs, docs/benchmarks/2026-11-23-h100-asflip-arena.md). The initial P2G runs the instantiation a step would.
 /// kCapture: this launch also writes the body's output frame (a separate instantiation: a run-time branch to the
 /// capture call, even out of line, doubled the APIC kernel's time on an H100).
 /// The phases (g2p2g_detail): arena set-up, then per bin g2p_particle, store_particle_outputs, p2g_particle and the
 /// next block's claim, then reduce_block_maxima and flush_arena.
 /// kMesh: a mesh body's vertices (physics/fem.cuh): the state kept, no inversion check, the vertex's mass and no
-/// stress in P2G (the initial launch decides at run time from p.vertex_mass).
-template <typename M, typename T, typename TG, bool kInitial, bool kTransport, bool kCapture = false, bool kMesh = false>
+/// stress in P2G.
+template <typename M, typename T, typename TG, bool kTransport, bool kCapture = false, bool kMesh = false>
 __global__ void __launch_bounds__(kG2P2GThreads<TG>) g2p2g(G2P2GParams<M, T, TG> p) {
   constexpr int kThreads = kG2P2GThreads<TG>;
   // The initial launch's first pass measures the bound the second one uses (nothing else is written).
-  const bool measure = kInitial && p.bound_only;
+  const bool measure = p.bound_only;
   // (x, y, z) grid velocities of the 8x8x8-node arena (vx, vy, vz, pad per node), index arena_index(x, y, z) =
   // 68 x + 8 y + z.
   __shared__ g2p2g_detail::ArenaVelocity<TG> arena_v[kArenaStorage];
@@ -803,9 +808,9 @@ __global__ void __launch_bounds__(kG2P2GThreads<TG>) g2p2g(G2P2GParams<M, T, TG>
   // arena_v stays inside the 48 KB a block may use without opting in.
   extern __shared__ __align__(16) unsigned char g2p2g_dynamic_shared[];
   TG* const arena_p = reinterpret_cast<TG*>(g2p2g_dynamic_shared);
-  const int channels = (kTransport || (kInitial && static_cast<bool>(p.transported_next))) ? 7 : 4;
-  // A body that uses ASFLIP runs in a kTransport launch (or the initial one): only those carry its code.
-  constexpr bool kMayAsflip = kTransport || kInitial;
+  const int channels = kTransport ? 7 : 4;
+  // A body that uses ASFLIP runs in a kTransport launch: only those carry its code.
+  constexpr bool kMayAsflip = kTransport;
   // (neighbour) hash-table index of the arena's 2x2x2 grid blocks, neighbour = (di * 2 + dj) * 2 + dk.
   __shared__ int arena_blocks[8];
   // (quantity, warp) per-warp maxima of the wave speed and the P2G bound; whether a particle exceeded the bound.
@@ -851,7 +856,7 @@ __global__ void __launch_bounds__(kG2P2GThreads<TG>) g2p2g(G2P2GParams<M, T, TG>
     arena.to_grid_momentum = static_cast<double>(arena.q_momentum) / q.momentum;
   }
   __syncthreads();
-  if constexpr (!kInitial) {
+  if (!p.initial) {  // uniform over the launch
     g2p2g_detail::load_arena_velocities<TG>(p.velocity, arena_blocks, arena_v);
     __syncthreads();
   }
@@ -869,10 +874,10 @@ __global__ void __launch_bounds__(kG2P2GThreads<TG>) g2p2g(G2P2GParams<M, T, TG>
     if (active) {
       const ParticleRecord<M, T> in = load_particle<M, T>(p.in, src);
       id = in.id;
-      g2p2g_detail::g2p_particle<M, T, TG, kInitial, kMayAsflip, kMesh>(p, arena, in, src, s);
+      g2p2g_detail::g2p_particle<M, T, TG, kMayAsflip, kMesh>(p, arena, in, src, s);
       if (!measure) g2p2g_detail::store_particle_outputs<M, T, TG, kMayAsflip, kCapture>(p, slot, in.id, s);
       if (s.failed < 0)
-        g2p2g_detail::p2g_particle<M, T, TG, kMesh || kInitial>(p, arena, s, in.id, wave_max, bound_max,
+        g2p2g_detail::p2g_particle<M, T, TG, kMesh>(p, arena, s, in.id, wave_max, bound_max,
                                                                 out_of_range, measure);
     }
     if (measure) continue;
