@@ -137,7 +137,7 @@ print(f"{len(program_options)} options, {checked} quoted messages checked")
 check = run(["--check", os.path.join(work, "tiny.json")])
 m = re.search(r"ms per step on an? ([A-Z]\w+) \(measured (\d{4}-\d{2}-\d{2})", check)
 if not m:
-    failures.append("fbar --check: the GPU time row names no GPU and date ('on an H100 (measured YYYY-MM-DD')")
+    failures.append("fbar --check: the GPU time row names no GPU and date ('on an H200 (measured YYYY-MM-DD')")
 else:
     gpu, date = m.group(1).lower(), m.group(2)
     if not glob.glob(os.path.join(source, "docs/benchmarks", f"{date}-{gpu}*.md")):

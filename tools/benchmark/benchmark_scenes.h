@@ -49,6 +49,7 @@ inline Scene make_scene(const std::string& name, double millions, Precision prec
   } else {
     // falling_block: FixedCorotated; neo_block, sand_block, clay_block: the same block in NeoHookean,
     // DruckerPrager (phi 30 deg, volume correction) and NACC (phi 30 deg, consolidated: logJp0 = -0.3);
+    // vonmises_block: VonMises (J2 in Hencky strain, sigma_y 100 kPa, no hardening);
     // saturated_block: sand_block's skeleton saturated (CoupledUP: n 0.4, Kf 1e7, Ks 2.2e7, Kperm 1e-5 m/s,
     // ClaymoreUW's defaults but the porosity, the pore water carrying the overburden at the start).
     body.material.law = name == "neo_block"    ? Constitutive::NeoHookean
@@ -56,7 +57,9 @@ inline Scene make_scene(const std::string& name, double millions, Precision prec
                         : name == "saturated_block" ? Constitutive::CoupledUP
                         : name == "clay_block" ? Constitutive::NACC
                         : name == "hencky_block" ? Constitutive::Hencky
+                        : name == "vonmises_block" ? Constitutive::VonMises
                                                : Constitutive::FixedCorotated;
+    if (body.material.law == Constitutive::VonMises) body.material.tensile_yield_strength = 1e5;
     if (name == "fbar_block") body.algorithm.fbar_psi = 1.0;
     body.material.youngs_modulus = 1e7;
     body.material.poisson_ratio = 0.3;

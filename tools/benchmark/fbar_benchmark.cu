@@ -10,7 +10,8 @@
 // tank twice its width (spreading). --frames=K also captures and writes a frame (ID and positions, .bgeo) every K
 // steps through the engine's asynchronous output into --frame-dir (default /tmp/fbar_benchmark_frames).
 //   fbar_benchmark [--sizes=1,4,16,64] [--precisions=single,double,mixed]
-//                  [--scenes=dam_break,falling_block,neo_block,sand_block,saturated_block,clay_block,hencky_block,fbar_block,
+//                  [--scenes=dam_break,falling_block,neo_block,sand_block,saturated_block,clay_block,hencky_block,
+//                            vonmises_block,fbar_block,
 //                            fbar_dam_break,asflip_dam_break,asflip_block,picflip_dam_break,flip_dam_break]
 // fbar_block and fbar_dam_break: falling_block and dam_break with F-bar (FBAR_psi 1); asflip_dam_break and
 // asflip_block with ASFLIP (alpha 0.9, beta 0 / 0.2); picflip_dam_break (alpha 0.95) and flip_dam_break (alpha 1):

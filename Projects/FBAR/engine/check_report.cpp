@@ -186,8 +186,12 @@ void print_host_memory_rows(std::ostream& os, const SceneSummary& summary) {
   std::ostringstream per;
   per << std::fixed << std::setprecision(0)
       << static_cast<double>(summary.host_checkpoint_bytes) / static_cast<double>(std::max<long long>(1, particles));
-  const std::string checkpoint = bytes(summary.host_checkpoint_bytes) + " while it is taken and written (" +
-                                 per.str() + " B per particle: every particle's state is copied to the host)";
+  const std::string checkpoint =
+      bytes(summary.host_checkpoint_bytes) + " while it is taken and written (" +
+      (summary.host_checkpoint_streamed
+           ? std::string("bodies above --frame-buffer are read from the device a range of IDs at a time, and the "
+                         "run waits for the file)")
+           : per.str() + " B per particle: every particle's state is copied to the host)");
   row(os, "host memory (run)",
       bytes(summary.host_run_bytes) + " at most on the GPU engine: " + bytes(kHostProgramBytes) +
           " program and CUDA runtime, the set-up (above: much of it stays resident), frames " +
@@ -274,8 +278,8 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
       {
         row(os, "GPU per particle", std::to_string(bs.gpu_bytes_per_particle) + " B: " + bs.gpu_bytes_detail);
         char cost[160];
-        std::snprintf(cost, sizeof(cost), "%.3g ms per step on an H100 (measured 2026-11-23: %.3g particle-steps/s: ",
-                      bs.gpu_ms_per_step, bs.throughput);
+        std::snprintf(cost, sizeof(cost), "%.3g ms per step on an %s (measured %s: %.3g particle-steps/s: ",
+                      bs.gpu_ms_per_step, kGpuRateDevice, kGpuRateDate, bs.throughput);
         row(os, "GPU time", cost + bs.throughput_basis + ")");
       }
       row(os, "grid channels", bs.grid_channels);
@@ -308,9 +312,10 @@ void print_scene_report(std::ostream& os, const Scene& scene, const SceneSummary
     char cost[256];
     const double per_simulated_s = summary.dt > 0.0 ? 1e-3 * summary.gpu_ms_per_step / summary.dt : 0.0;
     std::snprintf(cost, sizeof(cost),
-                  "about %.3g ms per step on one H100 (%.2g ms + %.2g ms per body + the bodies' particles), %.3g s "
-                  "per simulated second at this time step (docs/benchmarks/2026-11-25-h100-check-estimate.md)",
-                  summary.gpu_ms_per_step, kGpuStepOverheadMs, kGpuBodyOverheadMs, per_simulated_s);
+                  "about %.3g ms per step on one %s (%.2g ms + %.2g ms per body + the bodies' particles), %.3g s "
+                  "per simulated second at this time step (%s)",
+                  summary.gpu_ms_per_step, kGpuRateDevice, kGpuStepOverheadMs, kGpuBodyOverheadMs, per_simulated_s,
+                  kGpuRateRecord);
     row(os, "GPU time", cost);
   }
   {

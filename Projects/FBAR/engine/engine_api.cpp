@@ -107,27 +107,52 @@ RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& 
   return run_frames(*engine, scene, options, log, line, restart.get());
 }
 
-}  // namespace
-
-/// H100 particle-steps per second of one law's APIC step at 16M particles (docs/benchmarks/2026-11-23-h100-materials
-/// .md), single and double precision; `basis` says which row. Laws not measured take FixedCorotated's (both do an
-/// SVD per particle and step).
+/// H200 particle-steps per second of one law's APIC step at 16M particles, single, double and mixed precision
+/// (kGpuRateRecord: the benchmark's dam break for JFluid, its falling block for the other laws); `basis` says which
+/// row. A law not measured takes FixedCorotated's (an SVD per particle and step, as most laws do).
 struct LawThroughput {
-  double single, dbl;
+  double single, dbl, mixed;
   const char* basis;
 };
 LawThroughput law_throughput(Constitutive law) {
-  const std::string name = to_string(law);
-  if (name == "JFluid") return {9.21e9, 4.75e9, "JFluid"};
-  if (name == "NeoHookean") return {8.99e9, 4.14e9, "NeoHookean"};
-  if (name == "DruckerPrager") return {4.43e9, 1.83e9, "DruckerPrager"};
-  if (name == "NACC") return {5.75e9, 2.65e9, "NACC"};
-  if (name == "FixedCorotated") return {6.45e9, 2.95e9, "FixedCorotated"};
-  // CoupledUP: DruckerPrager's rate over the ratio of the two laws' steps measured side by side on an H200 at 16M
-  // particles (docs/benchmarks/2026-11-28-h200-coupled-up.md: x 1.61 single, x 1.55 double).
-  if (name == "CoupledUP") return {4.43e9 / 1.61, 1.83e9 / 1.55, "DruckerPrager's / 1.61 (single) or 1.55 (double)"};
-  return {6.45e9, 2.95e9, "FixedCorotated's (not measured for this law)"};
+  switch (law) {
+    case Constitutive::JFluid: return {1.03e10, 5.07e9, 7.42e9, "JFluid"};
+    case Constitutive::FixedCorotated: return {9.25e9, 4.36e9, 6.51e9, "FixedCorotated"};
+    case Constitutive::NeoHookean: return {1.02e10, 5.04e9, 7.55e9, "NeoHookean"};
+    case Constitutive::DruckerPrager: return {4.90e9, 1.86e9, 2.16e9, "DruckerPrager"};
+    case Constitutive::NACC: return {6.34e9, 2.62e9, 2.92e9, "NACC"};
+    case Constitutive::Hencky: return {7.39e9, 2.96e9, 3.79e9, "Hencky"};
+    case Constitutive::VonMises: return {5.10e9, 1.90e9, 2.18e9, "VonMises"};
+    case Constitutive::CoupledUP: return {2.72e9, 1.11e9, 1.33e9, "CoupledUP"};
+    default: return {9.25e9, 4.36e9, 6.51e9, "FixedCorotated's (not measured for this law)"};
+  }
 }
+/// A step with PIC-FLIP / FLIP / ASFLIP, and one with F-bar, against an APIC step (the JFluid dam break of
+/// kGpuRateRecord), single, double and mixed.
+constexpr double kAsflipStep[3] = {1.93, 1.91, 1.81};
+constexpr double kFbarStep[3] = {1.20, 1.14, 1.21};
+
+/// A body's particle-steps per second on the GPU (law_throughput with the scheme's factors) and what it comes from.
+double body_throughput(Constitutive law_name, Precision precision, bool asflip, bool fbar, std::string& basis) {
+  const LawThroughput law = law_throughput(law_name);
+  const int p = precision == Precision::Single ? 0 : precision == Precision::Double ? 1 : 2;
+  double rate = p == 0 ? law.single : p == 1 ? law.dbl : law.mixed;
+  basis = std::string(law.basis) + ", " + to_string(precision);
+  char factor[48];
+  if (asflip) {
+    rate /= kAsflipStep[p];
+    std::snprintf(factor, sizeof(factor), ", ASFLIP x %.3g", kAsflipStep[p]);
+    basis += factor;
+  }
+  if (fbar) {
+    rate /= kFbarStep[p];
+    std::snprintf(factor, sizeof(factor), ", F-bar x %.3g", kFbarStep[p]);
+    basis += factor;
+  }
+  return rate;
+}
+
+}  // namespace
 
 HostFrameBytes host_frame_bytes(std::size_t n, std::size_t t, int columns, int attributes, const std::string& suffix,
                                 bool exterior, std::size_t frame_host_bytes, bool mesh) {
@@ -150,15 +175,28 @@ HostFrameBytes host_frame_bytes(std::size_t n, std::size_t t, int columns, int a
   return f;
 }
 
-HostCheckpointBytes host_checkpoint_bytes(std::size_t n, std::size_t slots, std::size_t t, int stored_scalars) {
+HostCheckpointBytes host_checkpoint_bytes(std::size_t n, std::size_t slots, std::size_t t, int stored_scalars,
+                                          std::size_t frame_host_bytes, bool mesh) {
   // GPU engine (sensors_checkpoints.cuh checkpoint): each body gathered in ID order (its stored scalars and v, C),
   // copied into the checkpoint's arrays (doubles: ID, x, v, C, mass, volume, state; the P2G block of each particle:
   // ID and 3 coordinates), the P2G record of every slot and a block per ID while it is read; the writer narrows
-  // each array to float for a single-precision file.
+  // each array to float for a single-precision file. A body whose copy by ID exceeds frame_host_bytes (not a mesh)
+  // is streamed: one range of IDs (as many rows as frame_host_bytes holds, at most 2^20) in pinned memory kept
+  // until the file is written, one dataset's rows of that range in doubles (C: 9) and the writer's narrowed copy,
+  // and the table's block coordinates (12 B per block, at most one block per bin of 32 slots).
   const std::size_t state = static_cast<std::size_t>(stored_scalars - 3);
+  const std::size_t by_id = n * (static_cast<std::size_t>(stored_scalars) + 12) * t;
   HostCheckpointBytes c;
+  c.streamed = !mesh && n > 0 && by_id > frame_host_bytes;
+  if (c.streamed) {
+    const std::size_t row = (static_cast<std::size_t>(stored_scalars) + 12) * t + 4;
+    const std::size_t ids = std::min(std::clamp<std::size_t>(frame_host_bytes / row, 1, std::size_t{1} << 20), n);
+    c.kept = ids * row;
+    c.transient = ids * 9 * (8 + 8) + slots / 32 * 12;
+    return c;
+  }
   c.kept = n * (8 + 8 * (3 + 3 + 9 + 1 + 1 + state) + 8 + 12);
-  c.transient = std::max(n * (static_cast<std::size_t>(stored_scalars) + 12) * t, slots * 8 + n * 4) + n * 9 * 4;
+  c.transient = std::max(by_id, slots * 8 + n * 4) + n * 9 * 4;
   return c;
 }
 
@@ -178,7 +216,8 @@ int gpu_frame_columns(const BodySpec& body, int index, int& attributes) {
 }
 
 /// One body's frames (columns >= 0: the run writes frames) and checkpoint in the summary's host memory.
-void add_host_output_bytes(SceneSummary& summary, std::size_t& checkpoint_transient, const SimulationSpec& sim,
+void add_host_output_bytes(SceneSummary& summary, std::size_t& checkpoint_kept, std::size_t& checkpoint_transient,
+                           const SimulationSpec& sim,
                            const BodySpec& body, long long particles, long long slots, int stored_scalars,
                            int columns, int attributes, std::size_t frame_host_bytes, bool mesh) {
   const std::size_t n = static_cast<std::size_t>(particles), t = particle_scalar_bytes(sim.precision);
@@ -189,20 +228,28 @@ void add_host_output_bytes(SceneSummary& summary, std::size_t& checkpoint_transi
     summary.host_frame_pinned_bytes += f.pinned;
     summary.host_frame_writer_bytes = std::max(summary.host_frame_writer_bytes, f.writer);
   }
-  const HostCheckpointBytes c = host_checkpoint_bytes(n, static_cast<std::size_t>(slots), t, stored_scalars);
-  summary.host_checkpoint_bytes += c.kept;
+  const HostCheckpointBytes c =
+      host_checkpoint_bytes(n, static_cast<std::size_t>(slots), t, stored_scalars, frame_host_bytes, mesh);
+  checkpoint_kept += c.kept;
+  summary.host_checkpoint_streamed = summary.host_checkpoint_streamed || c.streamed;
   checkpoint_transient = std::max(checkpoint_transient, c.transient);
 }
 
-/// The run's host memory from its parts. The set-up's memory counts as still held while frames are written
-/// (measured on 150M to 1e9 particles: the allocator keeps much of it resident;
-/// docs/benchmarks/2026-12-02-h200-host-memory.md). Checkpoints every checkpoint_every frames count in the run's
-/// peak; without, only a stop (SIGTERM, a failure) writes one, and the report says what it adds.
-void finish_host_run_bytes(SceneSummary& summary, std::size_t checkpoint_transient, const SimulationSpec& sim) {
-  summary.host_checkpoint_bytes += checkpoint_transient;
+/// The run's host memory from its parts. The run gives the set-up's freed pages back before its first step
+/// (gpu_engine.cu run_with), yet measured on 150M to 1e9 particles much of the set-up's memory stays resident, more
+/// at larger counts, so it counts as still held while frames and checkpoints are written
+/// (docs/benchmarks/2026-12-02-h200-host-memory.md). The frames' writer and a streamed checkpoint's reading are
+/// jobs of one writer thread, one after the other (a copied checkpoint is taken while the frames are written).
+/// Without checkpoint_every only a stop (SIGTERM, a failure) writes a checkpoint, and the report says what it adds.
+void finish_host_run_bytes(SceneSummary& summary, std::size_t checkpoint_kept, std::size_t checkpoint_transient,
+                           const SimulationSpec& sim) {
+  summary.host_checkpoint_bytes = checkpoint_kept + checkpoint_transient;
   summary.checkpoints = sim.checkpoint_every > 0;
-  summary.host_run_bytes = kHostProgramBytes + summary.host_setup_bytes + summary.host_frame_pinned_bytes +
-                           summary.host_frame_writer_bytes + (summary.checkpoints ? summary.host_checkpoint_bytes : 0);
+  const std::size_t writer =
+      !summary.checkpoints              ? summary.host_frame_writer_bytes
+      : summary.host_checkpoint_streamed ? checkpoint_kept + std::max(summary.host_frame_writer_bytes, checkpoint_transient)
+                                         : summary.host_frame_writer_bytes + summary.host_checkpoint_bytes;
+  summary.host_run_bytes = kHostProgramBytes + summary.host_setup_bytes + summary.host_frame_pinned_bytes + writer;
 }
 
 }  // namespace
@@ -220,6 +267,7 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
   std::vector<std::vector<BodyMemoryInput>> gpu_inputs(max_gpu + 1);
   std::size_t cpu_particle_bytes = 0;
   bool asflip = false, fbar = false, pore = false;  // some body uses ASFLIP / F-bar / pore water: grid channels
+  std::size_t checkpoint_kept = 0;                  // every body's part of a checkpoint until it is written
   std::size_t checkpoint_transient = 0;             // the largest body's gather while a checkpoint is taken
 
   // v and C kept for particle sensors, trackers or checkpoints (on the steps landing on their times)
@@ -272,22 +320,8 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
         s.gpu_bytes_detail += " + " + std::to_string(frame) + " B frame (" + std::to_string(frame_columns) + " columns)";
       }
       s.gpu_bytes_per_particle = bytes;
-      const LawThroughput law = law_throughput(m.law);
-      double rate = sim.precision == Precision::Single ? law.single
-                    : sim.precision == Precision::Double ? law.dbl
-                                                          : law.dbl / 0.75;  // mixed: 0.60-0.90 of a double step
-      std::string basis = std::string(law.basis) + ", " + to_string(sim.precision);
-      if (asflip_body) {
-        rate /= 1.92;  // PIC-FLIP / FLIP / ASFLIP: 1.91-1.93 x an APIC step (2026-11-23-h100-per-scheme.md)
-        basis += ", ASFLIP x 1.92";
-      }
-      if (fbar_body) {
-        rate /= 1.25;  // F-bar: 1.25 x (same record)
-        basis += ", F-bar x 1.25";
-      }
-      s.throughput = rate;
-      s.throughput_basis = basis;
-      s.gpu_ms_per_step = 1e3 * static_cast<double>(count.particles) / rate;
+      s.throughput = body_throughput(m.law, sim.precision, asflip_body, fbar_body, s.throughput_basis);
+      s.gpu_ms_per_step = 1e3 * static_cast<double>(count.particles) / s.throughput;
       summary.gpu_ms_per_step += s.gpu_ms_per_step;
     }
     summary.bodies.push_back(s);
@@ -313,7 +347,7 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
         std::max(summary.host_setup_bytes,
                  batch * (2 * 24 + particle_record_bytes(facts.stored_scalars, particle_scalar_bytes(sim.precision))) +
                      count.blocks.size() * (sizeof(BlockCount) + 8 * 16));
-    add_host_output_bytes(summary, checkpoint_transient, sim, body, count.particles, in.bins_needed * 32,
+    add_host_output_bytes(summary, checkpoint_kept, checkpoint_transient, sim, body, count.particles, in.bins_needed * 32,
                           facts.stored_scalars, frame_columns, frame_attrs, options.frame_host_bytes, mesh != nullptr);
 
     // CPU engine: x, v, their next copies (4 x 3), C and its next copy (2 x 9), mass, volume (2), state twice, in
@@ -334,7 +368,7 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     if (material_has_pore_fluid(scene.bodies[i].material.law)) s.grid_channels += " + seepage channels (5)";
   }
 
-  finish_host_run_bytes(summary, checkpoint_transient, sim);
+  finish_host_run_bytes(summary, checkpoint_kept, checkpoint_transient, sim);
 
   // CPU grid: 4 channels x 64 nodes per block in the grid scalar type (+3 for ASFLIP's v^n, +2 for F-bar's cell
   // sums, +5 for the seepage channels, only when a body uses them), coordinates and a hash-map entry.

@@ -28,7 +28,7 @@ struct BodySummary {
   std::size_t gpu_bytes_per_particle = 0;  ///< [B] bins x 2, ASFLIP velocities, recorded v and C, partition, frame
   std::string gpu_bytes_detail;       ///< what the bytes are, for --check
   std::string grid_channels;          ///< the grid channels this body's P2G writes, for --check
-  double throughput = 0.0;            ///< [particle-steps/s] on an H100 at 16M particles (docs/benchmarks)
+  double throughput = 0.0;            ///< [particle-steps/s] on a kGpuRateDevice at 16M particles (kGpuRateRecord)
   std::string throughput_basis;       ///< which measurement the throughput comes from
   double gpu_ms_per_step = 0.0;       ///< [ms] particles / throughput
   // A mesh (FEM body; its particles are the vertices):
@@ -48,25 +48,30 @@ struct SceneSummary {
   std::vector<std::size_t> gpu_bytes;       ///< estimated device memory per GPU (index = gpu id): gpu_plans' totals
   std::size_t host_setup_bytes = 0;         ///< host memory of the GPU engine's set-up (one sampling batch)
   /// Host memory of the GPU engine's run beside the set-up: the bodies' pinned frame buffers, the frame writer's
-  /// pieces (one frame at a time), a checkpoint's copy of the particles (host_checkpoint_bytes), and the whole run:
+  /// pieces (one frame at a time), a checkpoint's copy of the particles or its ranges (host_checkpoint_bytes,
+  /// host_checkpoint_streamed: some body is streamed), and the whole run:
   /// kHostProgramBytes + set-up + frames + the checkpoint when simulation.checkpoint_every > 0 (the set-up's memory
   /// is not all given back to the system before the frames are written).
   std::size_t host_frame_pinned_bytes = 0;
   std::size_t host_frame_writer_bytes = 0;
   std::size_t host_checkpoint_bytes = 0;
+  bool host_checkpoint_streamed = false;
   std::size_t host_run_bytes = 0;
   bool checkpoints = false;  ///< simulation.checkpoint_every > 0
   std::vector<std::string> device_notes;    ///< free memory of the devices present, and whether the plan fits
-  /// [ms] estimated H100 time per step: kGpuStepOverheadMs, kGpuBodyOverheadMs per body, and every body's
+  /// [ms] estimated kGpuRateDevice time per step: kGpuStepOverheadMs, kGpuBodyOverheadMs per body, and every body's
   /// gpu_ms_per_step.
   double gpu_ms_per_step = 0.0;
 };
 
-/// [ms] the parts of a GPU step that do not scale with particles: per step (the grid update, dt, the readback) and
-/// per body (its G2P2G and partition launches). Fitted to the two small runs of
-/// docs/benchmarks/2026-11-25-h100-check-estimate.md (the large one checks the throughputs).
-inline constexpr double kGpuStepOverheadMs = 0.05;
-inline constexpr double kGpuBodyOverheadMs = 0.05;
+/// The GPU, date and record of --check's GPU time: each law's particle-steps per second at 16M particles and the
+/// parts of a step that do not scale with particles [ms], per step (the grid update, dt, the readback) and per body
+/// (its G2P2G and partition launches), fitted to the record's small runs (its 16M run checks the sum).
+inline constexpr const char* kGpuRateDevice = "H200";
+inline constexpr const char* kGpuRateDate = "2026-12-02";
+inline constexpr const char* kGpuRateRecord = "docs/benchmarks/2026-12-02-h200-check-rates.md";
+inline constexpr double kGpuStepOverheadMs = 0.055;
+inline constexpr double kGpuBodyOverheadMs = 0.037;
 
 struct SummaryOptions {
   bool frames = true;  ///< the run writes frames (the GPU keeps each body's frame on the device)
@@ -86,12 +91,14 @@ HostFrameBytes host_frame_bytes(std::size_t particles, std::size_t scalar_bytes,
                                 const std::string& suffix, bool exterior, std::size_t frame_host_bytes, bool mesh);
 
 /// One body's host memory while the GPU engine takes and writes a checkpoint [bytes]: what the checkpoint keeps
-/// until it is written, and what one body's gather takes on top while it is read.
+/// until it is written, and what one body's gather takes on top while it is read. `streamed`: the body's copy by ID
+/// exceeds frame_host_bytes (not a mesh), so the checkpoint reads it from the device a range of IDs at a time.
 struct HostCheckpointBytes {
   std::size_t kept = 0, transient = 0;
+  bool streamed = false;
 };
 HostCheckpointBytes host_checkpoint_bytes(std::size_t particles, std::size_t slots, std::size_t scalar_bytes,
-                                          int stored_scalars);
+                                          int stored_scalars, std::size_t frame_host_bytes, bool mesh);
 
 /// Counts every body's particles (deterministically, without storing them) and computes the time step and memory
 /// estimates.
@@ -120,7 +127,7 @@ struct RunOptions {
   bool shared_gpus = false;
   /// GPU ranks: the halo-first G2P2G overlapped with the halo sums (GpuEngineOptions::overlap_halo; --halo-overlap).
   bool halo_overlap = false;
-  /// GPU engine: host memory one body's frame download may take before the frame is streamed [bytes]
+  /// GPU engine: host memory one body's frame or checkpoint download may take before it is streamed [bytes]
   /// (GpuEngineOptions::frame_host_bytes; --frame-buffer).
   std::size_t frame_host_bytes = kFrameHostBytes;
   /// --restart: a checkpoint file (io/checkpoint.h; any rank's file of the set) to continue from, or empty.

@@ -445,7 +445,8 @@ class RunLoop {
   }
 
   /// A checkpoint of every rank's state (collective: the engine's state is taken now; each rank's writer thread
-  /// writes its file while the run goes on, after the frames queued before it; rank 0 records its CSVs' lengths).
+  /// writes its file while the run goes on, after the frames queued before it, or before the next step when a body
+  /// is read from the engine as it is written; rank 0 records its CSVs' lengths).
   void checkpoint(const std::filesystem::path& path, const std::string& reason) {
     flush_sensors();
     auto c = std::make_shared<io::Checkpoint>(engine_.checkpoint());
@@ -460,6 +461,9 @@ class RunLoop {
     writer_.submit_job([c, path] { io::write_checkpoint(path, *c); });
     checkpoint_marks_.emplace_back(writer_.submitted(), path.string());
     if (rank_ == 0) result_.checkpoint = path.string();
+    // A streamed body (io::Checkpoint::streamed) is read from the engine while the file is written: the run waits
+    // for it before the next step changes that state.
+    if (!c->streamed.empty()) writer_.flush();
   }
   std::filesystem::path step_checkpoint_path() const {
     return io::checkpoint_step_path(save_dir_, engine_.steps(), rank_);

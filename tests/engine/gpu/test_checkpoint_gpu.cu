@@ -189,6 +189,83 @@ TEST(GpuCheckpoint, EngineContinuesFromItsCheckpointMixed) {
   expect_engine_restart<double, float>(Precision::Mixed);
 }
 
+// A body whose state by ID exceeds frame_host_bytes (here 4 KiB: ranges of 60 particles or fewer) is checkpointed
+// from the device a range of IDs at a time (io::Checkpoint::streamed, no host copy of the body): the file has the
+// bytes of the copied body's, before the first step (the initial velocities, C = 0) and after a recording step (v,
+// C and the P2G blocks), in every precision.
+template <typename T, typename TG>
+void expect_streamed_checkpoint_is_copied_one(Precision precision) {
+  const Scene scene = two_body_scene(precision);
+  for (const int steps : {0, 30}) {
+    const std::string tag = std::string(to_string(precision)) + "_" + std::to_string(steps);
+    fs::path files[2];
+    for (int streamed = 0; streamed < 2; ++streamed) {
+      GpuEngineOptions o;
+      if (streamed) o.frame_host_bytes = 4096;
+      GpuEngine<T, TG> gpu(scene, o);
+      gpu.set_log(nullptr);
+      for (int s = 0; s < steps; ++s) {
+        gpu.keep_checkpoint_inputs(s == steps - 1);
+        ASSERT_TRUE(gpu.step().ok);
+      }
+      const io::Checkpoint c = gpu.checkpoint();
+      if (streamed) {
+        ASSERT_EQ(c.streamed.size(), 2u) << tag;
+        for (std::size_t b = 0; b < 2; ++b) {
+          EXPECT_TRUE(c.is_streamed(b)) << tag << " body " << b;
+          EXPECT_TRUE(c.bodies[b].x.empty()) << tag << " body " << b << ": copied to the host";
+          EXPECT_EQ(c.streamed[b].particles, static_cast<std::size_t>(gpu.particle_count(static_cast<int>(b))));
+        }
+      } else {
+        EXPECT_TRUE(c.streamed.empty()) << tag;
+      }
+      files[streamed] = scratch("streamed_" + tag + "_" + std::to_string(streamed)) / "checkpoint.h5";
+      io::write_checkpoint(files[streamed], c);
+    }
+    EXPECT_GT(fs::file_size(files[0]), 10000u) << tag;
+    test::restart::expect_same_checkpoint(files[0], files[1], "streamed checkpoint " + tag);
+  }
+}
+TEST(GpuCheckpoint, StreamedBodyWritesTheCopiedBodysBytesDouble) {
+  FBAR_REQUIRE_DEVICE();
+  expect_streamed_checkpoint_is_copied_one<double, double>(Precision::Double);
+}
+TEST(GpuCheckpoint, StreamedBodyWritesTheCopiedBodysBytesSingleAndMixed) {
+  FBAR_REQUIRE_DEVICE();
+  expect_streamed_checkpoint_is_copied_one<float, float>(Precision::Single);
+  expect_streamed_checkpoint_is_copied_one<double, float>(Precision::Mixed);
+}
+
+/// run_gpu with a 4 KiB --frame-buffer: every particle body's checkpoint is streamed.
+RunResult run_gpu_streamed(const Scene& scene, const RunOptions& options) {
+  RunOptions o = options;
+  o.frame_host_bytes = 4096;
+  return run_gpu(scene, o);
+}
+
+// Through run_gpu on 1 and 2 ranks (with a placed mesh, which is never streamed, on two): a run whose checkpoints are
+// streamed writes the checkpoint files of a run whose checkpoints are copied, and a restart from one writes the
+// uninterrupted run's bytes.
+TEST(GpuRestart, StreamedCheckpointsWriteTheCopiedOnesBytesAndContinue) {
+  FBAR_REQUIRE_DEVICE();
+  for (const int ranks : {1, 2}) {
+    const std::string tag = std::to_string(ranks);
+    const fs::path a = test::restart::scratch("copied_" + tag), b = test::restart::scratch("streamed_" + tag);
+    Scene scene = test::restart::restart_scene(a);
+    if (ranks == 2) test::restart::add_placed_mesh(scene);
+    scene.simulation.checkpoint_every = 2;
+    ASSERT_EQ(test::restart::run_ranks(run_gpu, scene, ranks).exit_code, 0);
+    scene.simulation.save_path = b.string();
+    ASSERT_EQ(test::restart::run_ranks(run_gpu_streamed, scene, ranks).exit_code, 0);
+    for (int f : {2, 4, 6})
+      for (int d = 0; d < ranks; ++d)
+        test::restart::expect_same_checkpoint(io::checkpoint_frame_path(a, f, d), io::checkpoint_frame_path(b, f, d),
+                                              "ranks " + tag + " frame " + std::to_string(f) + " dev " +
+                                                  std::to_string(d));
+  }
+  test::restart::expect_frame_restart(run_gpu_streamed, "gpu", 2, {}, "_streamed");
+}
+
 // Through run_gpu, the cases the CPU engine passes (restart_cases.h): a frame checkpoint continued in a folder
 // holding only what the run had written by then writes the uninterrupted run's bytes (frames, sensor and tracker
 // rows), on one rank and on two thread ranks sharing the GPU, in every precision, with a saturated body and with a

@@ -224,7 +224,9 @@ struct MgspBenchmark<T, TG>::BodyBase {
   /// A mesh body, after the G2P2G wrote bins[1 - cur] in layout(cur)'s order: the element pass
   /// (kernels/fem_kernels.cuh) into those bins, mesh->force[1 - force_cur] and grid[1 - gc].
   virtual void mesh_pass(MgspBenchmark& e) = 0;
-  virtual void gather(MgspBenchmark& e, T* out, int* missing, cudaStream_t s) = 0;
+  /// The particles with IDs first .. first + count - 1 into out (count x (stored scalars + kAuxScalars), ID
+  /// order; kernels/output_kernels.cuh gather_by_id) and their IDs into held (nullptr: not written).
+  virtual void gather(MgspBenchmark& e, T* out, int* held, int* missing, cudaStream_t s, int first, int count) = 0;
   /// Particle sensors over this body's particles into partials (sensor, CUDA block); aux: v and C, or nullptr
   /// (before the first step: the initial velocity, C = 0).
   virtual void sample_sensors(MgspBenchmark& e, const T* aux, SensorAccum* partials, int per_sensor) = 0;
@@ -413,13 +415,13 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     if (mesh)
       launch_mesh_g2p2g(p, blocks, arena, transport, e.stream_);
     else if (transport && capture)
-      ::fbar::g2p2g<M, T, TG, true, true><<<blocks, kG2P2GThreads<TG>, arena, e.stream_>>>(p);
+      ::fbar::launch_g2p2g<M, T, TG, true, true>(p, blocks, arena, e.stream_);
     else if (transport)
-      ::fbar::g2p2g<M, T, TG, true><<<blocks, kG2P2GThreads<TG>, arena, e.stream_>>>(p);
+      ::fbar::launch_g2p2g<M, T, TG, true>(p, blocks, arena, e.stream_);
     else if (capture)
-      ::fbar::g2p2g<M, T, TG, false, true><<<blocks, kG2P2GThreads<TG>, arena, e.stream_>>>(p);
+      ::fbar::launch_g2p2g<M, T, TG, false, true>(p, blocks, arena, e.stream_);
     else
-      ::fbar::g2p2g<M, T, TG, false><<<blocks, kG2P2GThreads<TG>, arena, e.stream_>>>(p);
+      ::fbar::launch_g2p2g<M, T, TG, false>(p, blocks, arena, e.stream_);
     cuda::check_launch("g2p2g");
     if (mesh && pass == G2P2GPass::All && !e.measuring_bound_) mesh_pass(e);
   }
@@ -429,9 +431,9 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
                                 cudaStream_t s) {
     if constexpr (kMeshLaw<M, T>) {
       if (transport)
-        ::fbar::g2p2g<M, T, TG, true, false, true><<<blocks, kG2P2GThreads<TG>, arena, s>>>(p);
+        ::fbar::launch_g2p2g<M, T, TG, true, false, true>(p, blocks, arena, s);
       else
-        ::fbar::g2p2g<M, T, TG, false, false, true><<<blocks, kG2P2GThreads<TG>, arena, s>>>(p);
+        ::fbar::launch_g2p2g<M, T, TG, false, false, true>(p, blocks, arena, s);
     } else {
       throw std::logic_error("GpuEngine: a mesh body with a law that is not an element law");
     }
@@ -613,13 +615,13 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     cuda::check_launch("track_particles");
   }
 
-  void gather(MgspBenchmark& e, T* out, int* missing, cudaStream_t s) override {
+  void gather(MgspBenchmark& e, T* out, int* held, int* missing, cudaStream_t s, int first, int count) override {
     const int slots = this->total_bins[e.cur_] * 32;
     if (slots == 0) return;
     // aux was written at the storage slots of bins[cur] (the previous G2P2G's layout order).
     ::fbar::gather_by_id<M, T><<<cuda::grid_for(slots, kOutputThreads), kOutputThreads, 0, s>>>(
         bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, e.aux_valid_ ? this->aux.get() : nullptr,
-        static_cast<int>(this->global_particles), out, missing);
+        static_cast<int>(this->global_particles), first, count, out, held, missing);
     cuda::check_launch("gather_by_id");
   }
 

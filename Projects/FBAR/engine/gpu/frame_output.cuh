@@ -82,7 +82,7 @@ std::vector<T> MgspBenchmark<T, TG>::gather_host(int body, cudaStream_t s) const
   if (decomposed() && n) FBAR_CUDA_CHECK(cudaMemsetAsync(out.get(), 0xff, sizeof(T) * n, s));
   FBAR_CUDA_CHECK(cudaMemsetAsync(missing_d_.get(), 0, sizeof(int), s));
   auto* self = const_cast<MgspBenchmark*>(this);
-  b.gather(*self, out.get(), missing_d_.get(), s);
+  b.gather(*self, out.get(), nullptr, missing_d_.get(), s, 0, static_cast<int>(b.global_particles));
   std::vector<T> host(n);
   int missing = 0;
   if (n) FBAR_CUDA_CHECK(cudaMemcpyAsync(host.data(), out.get(), sizeof(T) * n, cudaMemcpyDeviceToHost, s));

@@ -77,7 +77,9 @@ struct GpuEngineOptions {
   /// Host memory a frame's download may take per body [bytes]: a frame that needs more (positions, columns and, on
   /// a rank of a decomposed run, its ID directory) is streamed to its file a piece at a time through a pinned
   /// buffer of one piece's positions (or this size if smaller), the device frame held until the writer has written
-  /// it (the next capture waits for that). Tests make it small.
+  /// it (the next capture waits for that). A checkpoint of a body whose copy by ID (stored scalars, v and C) needs
+  /// more is read from the device a range of IDs at a time while its file is written (checkpoint()). Tests make it
+  /// small.
   std::size_t frame_host_bytes = kFrameHostBytes;
   /// Treat the device as having at most this much free memory [bytes] when checking the plan (0: what it has).
   std::size_t memory_limit = 0;
@@ -189,7 +191,8 @@ class GpuEngine {
   void track(int body, std::vector<double>& values, std::vector<double>& present);
   /// Checkpoints (io/checkpoint.h; the run loop's interface): this rank's state, collective on several ranks; ready
   /// when the last step recorded the particles' v and C (keep_checkpoint_inputs(true) before it) or before the
-  /// first step.
+  /// first step. A body above frame_host_bytes comes without its arrays (io::Checkpoint::streamed): write the file
+  /// before the next step.
   io::Checkpoint checkpoint() const;
   bool checkpoint_ready() const;
   void keep_checkpoint_inputs(bool on);

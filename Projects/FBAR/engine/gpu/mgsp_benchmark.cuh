@@ -159,8 +159,10 @@ class MgspBenchmark {
   void keep_particle_inputs(bool on);
   void sample_particles(int slot);
   /// Checkpoints (io/checkpoint.h): this rank's particles (with v and C of the last step, which must have recorded
-  /// them: keep_checkpoint_inputs(true) before it, or the initial state) and the step state.
-  io::Checkpoint checkpoint() const;
+  /// them: keep_checkpoint_inputs(true) before it, or the initial state) and the step state. stream: a body whose
+  /// copy by ID would exceed GpuEngineOptions::frame_host_bytes (not a mesh) is left on the device
+  /// (io::Checkpoint::streamed): write_checkpoint reads it a range of IDs at a time, before the next step.
+  io::Checkpoint checkpoint(bool stream = false) const;
   bool checkpoint_ready() const { return aux_valid_ || steps_ == 0; }
   void keep_checkpoint_inputs(bool on);
   std::vector<SensorAccum> particle_samples(int slots) const;
@@ -301,6 +303,17 @@ class MgspBenchmark {
     if (timing_) FBAR_CUDA_CHECK(cudaEventRecord(events_[i], stream_));
   }
   std::vector<T> gather_host(int body, cudaStream_t s) const;
+  /// A streamed checkpoint (sensors_checkpoints.cuh): IDs per range, and body b's particles with IDs first ..
+  /// first + count - 1 into `host` (count x (stored scalars + kAuxScalars)) and which of them this rank holds into
+  /// held_host (the ID, or -1), through device buffers of a range; on copy_stream_.
+  struct CheckpointRange;
+  int checkpoint_range_ids(const BodyBase& b) const;
+  void gather_range(const BodyBase& b, CheckpointRange& r, int first, int count) const;
+  /// Body b's checkpoint without its arrays, and the source of its datasets (io::CheckpointPieces); coords: the
+  /// table's block coordinates of the current grid (p2g_valid_).
+  io::CheckpointBody streamed_checkpoint_body(const BodyBase& b, double p2g_bound, bool initial,
+                                              std::shared_ptr<const std::vector<int>> coords,
+                                              io::CheckpointPieces& pieces) const;
 
   // ---------------------------------------------------------------- decomposition (GpuEngineOptions::ranks)
   bool decomposed() const { return dec_.device != nullptr; }

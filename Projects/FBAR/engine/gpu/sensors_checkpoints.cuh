@@ -148,8 +148,190 @@ void MgspBenchmark<T, TG>::track(int body, std::vector<double>& values, std::vec
   FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
 }
 
+/// Device and pinned host buffers of one range of IDs of a streamed checkpoint.
 template <typename T, typename TG>
-io::Checkpoint MgspBenchmark<T, TG>::checkpoint() const {
+struct MgspBenchmark<T, TG>::CheckpointRange {
+  int ids = 0, width = 0;
+  cuda::DeviceArray<T> values_d;    ///< (ids, width): gather_by_id's rows
+  cuda::DeviceArray<int> held_d;    ///< (ids): the ID where this rank holds it, else -1
+  cuda::DeviceArray<int> counts_d;  ///< missing IDs, record errors
+  cuda::PinnedBytes host;           ///< values (ids x width x T), then held (ids x int)
+  const T* values() const { return static_cast<const T*>(host.get()); }
+  const int* held() const {
+    return reinterpret_cast<const int*>(static_cast<const std::byte*>(host.get()) +
+                                        sizeof(T) * static_cast<std::size_t>(ids) * width);
+  }
+  CheckpointRange(int ids_, int width_) : ids(ids_), width(width_) {
+    values_d.allocate(static_cast<std::size_t>(ids) * width);
+    held_d.allocate(static_cast<std::size_t>(ids));
+    counts_d.allocate(2);
+    host = cuda::pinned((sizeof(T) * width + sizeof(int)) * static_cast<std::size_t>(ids));
+  }
+};
+
+/// IDs per range of a streamed checkpoint: as many rows of stored scalars, v and C as frame_host_bytes holds, at
+/// most 2^20 (2^20 x 24 doubles: 192 MiB of pinned memory and as much on the device).
+template <typename T, typename TG>
+int MgspBenchmark<T, TG>::checkpoint_range_ids(const BodyBase& b) const {
+  const std::size_t row = sizeof(T) * static_cast<std::size_t>(b.stored_scalars() + kAuxScalars) + sizeof(int);
+  const std::size_t ids = std::clamp<std::size_t>(options_.frame_host_bytes / row, 1, std::size_t{1} << 20);
+  return static_cast<int>(std::min<std::size_t>(ids, static_cast<std::size_t>(std::max<long long>(b.global_particles, 1))));
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::gather_range(const BodyBase& b, CheckpointRange& r, int first, int count) const {
+  const cudaStream_t s = copy_stream_;
+  FBAR_CUDA_CHECK(cudaMemsetAsync(r.held_d.get(), 0xff, sizeof(int) * static_cast<std::size_t>(count), s));
+  FBAR_CUDA_CHECK(cudaMemsetAsync(r.counts_d.get(), 0, sizeof(int), s));
+  auto* self = const_cast<MgspBenchmark*>(this);
+  const_cast<BodyBase&>(b).gather(*self, r.values_d.get(), r.held_d.get(), r.counts_d.get(), s, first, count);
+  const std::size_t values = sizeof(T) * static_cast<std::size_t>(count) * r.width;
+  auto* host = static_cast<std::byte*>(r.host.get());
+  FBAR_CUDA_CHECK(cudaMemcpyAsync(host, r.values_d.get(), values, cudaMemcpyDeviceToHost, s));
+  FBAR_CUDA_CHECK(cudaMemcpyAsync(host + sizeof(T) * static_cast<std::size_t>(r.ids) * r.width, r.held_d.get(),
+                                  sizeof(int) * static_cast<std::size_t>(count), cudaMemcpyDeviceToHost, s));
+  int missing = 0;
+  FBAR_CUDA_CHECK(cudaMemcpyAsync(&missing, r.counts_d.get(), sizeof(int), cudaMemcpyDeviceToHost, s));
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(s));
+  if (missing) throw std::runtime_error("GpuEngine: " + std::to_string(missing) + " particles with an invalid ID");
+}
+
+template <typename T, typename TG>
+io::CheckpointBody MgspBenchmark<T, TG>::streamed_checkpoint_body(const BodyBase& b, double p2g_bound, bool initial,
+                                                                  std::shared_ptr<const std::vector<int>> coords,
+                                                                  io::CheckpointPieces& pieces) const {
+  using io::CheckpointDataset;
+  const int S = b.stored_scalars();
+  io::CheckpointBody out;
+  out.law = to_string(b.spec.material.law);
+  out.state_scalars = S - 3;
+  out.global_particles = b.global_particles;
+  out.max_wave_speed = b.rest_wave_speed;
+  out.p2g_bound = p2g_bound;
+  out.p2g_capture = b.p2g_capture;
+  out.p2g_known = p2g_valid_;
+  const int ids = checkpoint_range_ids(b);
+  const int total = static_cast<int>(b.global_particles);
+  const int blocks = coords ? static_cast<int>(coords->size() / 3) : 0;
+  // The P2G record of range [first, first + count) into r's held buffer as each ID's table block (-1: not summed
+  // here); returns the rows, throws on a record that names a particle or block twice or out of range.
+  const BodyBase* const body = &b;
+  auto p2g_range = [this, body, blocks, total](CheckpointRange& r, int first, int count) -> std::size_t {
+    const BodyBase& b = *body;
+    const cudaStream_t s = copy_stream_;
+    FBAR_CUDA_CHECK(cudaMemsetAsync(r.held_d.get(), 0xff, sizeof(int) * static_cast<std::size_t>(count), s));
+    FBAR_CUDA_CHECK(cudaMemsetAsync(r.counts_d.get(), 0, sizeof(int), s));
+    if (b.p2g_slots > 0) {
+      p2g_blocks_by_id<<<cuda::grid_for(b.p2g_slots, kOutputThreads), kOutputThreads, 0, s>>>(
+          b.p2g_record.get(), b.p2g_slots, total, blocks, first, count, r.held_d.get(), r.counts_d.get());
+      cuda::check_launch("p2g_blocks_by_id");
+    }
+    int* held = const_cast<int*>(r.held());
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(held, r.held_d.get(), sizeof(int) * static_cast<std::size_t>(count),
+                                    cudaMemcpyDeviceToHost, s));
+    int errors = 0;
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(&errors, r.counts_d.get(), sizeof(int), cudaMemcpyDeviceToHost, s));
+    FBAR_CUDA_CHECK(cudaStreamSynchronize(s));
+    if (errors)
+      throw std::runtime_error("GpuEngine::checkpoint: internal error: body " + std::to_string(b.index) + ": " +
+                               std::to_string(errors) + " slots of the P2G record name a particle twice or out of range");
+    std::size_t rows = 0;
+    for (int k = 0; k < count; ++k) rows += held[k] >= 0;
+    return rows;
+  };
+  // The pre-pass: the rows this rank holds, the largest wave speed (written before the datasets) and the P2G rows,
+  // from the same ranges the datasets are read in.
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+  // One range's buffers for the pre-pass and every dataset (allocated here: the writer thread allocates nothing).
+  const auto range = std::make_shared<CheckpointRange>(ids, S + kAuxScalars);
+  {
+    CheckpointRange& r = *range;
+    std::size_t held = 0;
+    for (int first = 0; first < total; first += ids) {
+      const int count = std::min(ids, total - first);
+      gather_range(b, r, first, count);
+      for (int k = 0; k < count; ++k) {
+        if (r.held()[k] < 0) continue;
+        ++held;
+        out.max_wave_speed =
+            std::max(out.max_wave_speed, b.wave_speed_of(r.values() + static_cast<std::size_t>(k) * r.width));
+      }
+      if (p2g_valid_) pieces.p2g_rows += p2g_range(r, first, count);
+    }
+    if (held != static_cast<std::size_t>(b.particles))
+      throw std::runtime_error("GpuEngine::checkpoint: " + std::to_string(held) + " particles found by ID, " +
+                               std::to_string(b.particles) + " held");
+    pieces.particles = held;
+  }
+  const Vec3d v0{{b.spec.velocity[0], b.spec.velocity[1], b.spec.velocity[2]}};
+  int device = 0;
+  FBAR_CUDA_CHECK(cudaGetDevice(&device));
+  // The datasets in write_checkpoint's order, read on its thread (the run writes the file before the next step),
+  // each a range of IDs at a time, as the whole copy's arrays hold them (the same values, the same bytes).
+  pieces.pieces = [this, body, device, ids, total, S, initial, v0, coords, p2g_range, range](
+                      CheckpointDataset d, const std::function<void(std::size_t, const void*)>& emit) {
+    const BodyBase& b = *body;
+    FBAR_CUDA_CHECK(cudaSetDevice(device));
+    CheckpointRange& r = *range;
+    const bool p2g = d == CheckpointDataset::P2GId || d == CheckpointDataset::P2GBlock;
+    std::vector<double> values;
+    std::vector<std::int64_t> id_rows;
+    std::vector<std::int32_t> block_rows;
+    for (int first = 0; first < total; first += ids) {
+      const int count = std::min(ids, total - first);
+      values.clear();
+      id_rows.clear();
+      block_rows.clear();
+      if (p2g) {
+        p2g_range(r, first, count);
+        for (int k = 0; k < count; ++k) {
+          const int block = r.held()[k];
+          if (block < 0) continue;
+          if (d == CheckpointDataset::P2GId) id_rows.push_back(first + k);
+          else block_rows.insert(block_rows.end(), coords->begin() + 3 * block, coords->begin() + 3 * block + 3);
+        }
+        if (d == CheckpointDataset::P2GId) emit(id_rows.size(), id_rows.data());
+        else emit(block_rows.size() / 3, block_rows.data());
+        continue;
+      }
+      gather_range(b, r, first, count);
+      std::size_t rows = 0;
+      for (int k = 0; k < count; ++k) {
+        if (r.held()[k] < 0) continue;
+        ++rows;
+        const long long p = first + k;
+        const T* q = r.values() + static_cast<std::size_t>(k) * r.width;
+        switch (d) {
+          case CheckpointDataset::Id: id_rows.push_back(p); break;
+          case CheckpointDataset::Position:
+            for (int a = 0; a < 3; ++a) values.push_back(static_cast<double>(q[a]));
+            break;
+          case CheckpointDataset::Velocity:
+            for (int a = 0; a < 3; ++a)
+              values.push_back(!initial                    ? static_cast<double>(q[S + a])
+                               : b.initial_v_host.empty() ? v0[a]
+                                                           : static_cast<double>(b.initial_v_host[static_cast<std::size_t>(p)][a]));
+            break;
+          case CheckpointDataset::C:
+            for (int i = 0; i < 9; ++i) values.push_back(initial ? 0.0 : static_cast<double>(q[S + 3 + i]));
+            break;
+          case CheckpointDataset::Mass: values.push_back(static_cast<double>(b.mass)); break;
+          case CheckpointDataset::Volume: values.push_back(static_cast<double>(b.volume)); break;
+          case CheckpointDataset::State:
+            for (int i = 3; i < S; ++i) values.push_back(static_cast<double>(q[i]));
+            break;
+          default: break;
+        }
+      }
+      if (d == CheckpointDataset::Id) emit(rows, id_rows.data());
+      else emit(rows, values.data());
+    }
+  };
+  return out;
+}
+
+template <typename T, typename TG>
+io::Checkpoint MgspBenchmark<T, TG>::checkpoint(bool stream) const {
   if (!checkpoint_ready())
     throw std::logic_error("GpuEngine::checkpoint: the last step did not record the particles' v and C "
                            "(keep_checkpoint_inputs(true) before it)");
@@ -175,7 +357,8 @@ io::Checkpoint MgspBenchmark<T, TG>::checkpoint() const {
   FBAR_CUDA_CHECK(cudaMemcpy(bounds.data(), p2g_bound_d_.get() + (1 - bound_cur_) * bodies_.size(),
                              sizeof(double) * bounds.size(), cudaMemcpyDeviceToHost));
   // The table's block coordinates, for the blocks the current grid was summed from (p2g_record's indices).
-  std::vector<int> coords;
+  auto coords_kept = std::make_shared<std::vector<int>>();
+  std::vector<int>& coords = *coords_kept;
   if (p2g_valid_) {
     FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));  // the commit's record_p2g_blocks
     const int blocks = std::min(block_capacity_, std::max(block_count_, stats_->block_count));
@@ -184,8 +367,19 @@ io::Checkpoint MgspBenchmark<T, TG>::checkpoint() const {
       FBAR_CUDA_CHECK(cudaMemcpy(coords.data(), table_.view().coords, sizeof(int) * coords.size(),
                                  cudaMemcpyDeviceToHost));
   }
+  std::vector<io::CheckpointPieces> pieces(bodies_.size());
+  bool any_streamed = false;
   for (const auto& bp : bodies_) {
     const BodyBase& b = *bp;
+    const std::size_t by_id = sizeof(T) * static_cast<std::size_t>(b.global_particles) *
+                              static_cast<std::size_t>(b.stored_scalars() + kAuxScalars);
+    if (stream && !b.mesh && b.global_particles > 0 && by_id > options_.frame_host_bytes) {
+      c.bodies.push_back(streamed_checkpoint_body(b, bounds[static_cast<std::size_t>(b.index)], initial,
+                                                  p2g_valid_ ? coords_kept : nullptr,
+                                                  pieces[static_cast<std::size_t>(b.index)]));
+      any_streamed = true;
+      continue;
+    }
     const std::vector<T> r = gather_host(b.index, stream_);
     const int S = b.stored_scalars();
     const int W = S + kAuxScalars;
@@ -256,6 +450,7 @@ io::Checkpoint MgspBenchmark<T, TG>::checkpoint() const {
     }
     c.bodies.push_back(std::move(out));
   }
+  if (any_streamed) c.streamed = std::move(pieces);
   return c;
 }
 

@@ -793,8 +793,10 @@ FBAR_DEVICE FBAR_FORCE_INLINE void flush_arena(const G2P2GParams<M, T, TG>& p, c
 /// next block's claim, then reduce_block_maxima and flush_arena.
 /// kMesh: a mesh body's vertices (physics/fem.cuh): the state kept, no inversion check, the vertex's mass and no
 /// stress in P2G.
-template <typename M, typename T, typename TG, bool kTransport, bool kCapture = false, bool kMesh = false>
-__global__ void __launch_bounds__(kG2P2GThreads<TG>) g2p2g(G2P2GParams<M, T, TG> p) {
+namespace g2p2g_detail {
+/// One CUDA block of g2p2g / g2p2g_capped (below): one particle block's G2P2G.
+template <typename M, typename T, typename TG, bool kTransport, bool kCapture, bool kMesh>
+__device__ __forceinline__ void g2p2g_block(const G2P2GParams<M, T, TG>& p) {
   constexpr int kThreads = kG2P2GThreads<TG>;
   // The initial launch's first pass measures the bound the second one uses (nothing else is written).
   const bool measure = p.bound_only;
@@ -895,6 +897,37 @@ __global__ void __launch_bounds__(kG2P2GThreads<TG>) g2p2g(G2P2GParams<M, T, TG>
   }
   g2p2g_detail::reduce_block_maxima(p, wave_max, bound_max, out_of_range, block_max, block_over);
   if (!measure) g2p2g_detail::flush_arena<M, T, TG>(p, arena);
+}
+}  // namespace g2p2g_detail
+
+template <typename M, typename T, typename TG, bool kTransport, bool kCapture = false, bool kMesh = false>
+__global__ void __launch_bounds__(kG2P2GThreads<TG>) g2p2g(G2P2GParams<M, T, TG> p) {
+  g2p2g_detail::g2p2g_block<M, T, TG, kTransport, kCapture, kMesh>(p);
+}
+
+/// Whether a G2P2G runs as g2p2g_capped: the compiler must leave room for kG2P2GCappedBlocks resident blocks per
+/// SM. A double-particle JFluid step uses 124 registers without the initial P2G's run-time branch and 165 with it,
+/// one block per SM fewer (double grid: 4 blocks of 128 threads instead of 3; mixed: 8 of 64 instead of 6) and 13 %
+/// longer steps (docs/benchmarks/2026-12-02-h200-restart-kernel.md); capped, it keeps to 128 registers. Every other
+/// launch keeps the plain bound (a minimum of 1 block is not the same: ptxas then takes up to 255 registers, which
+/// made single-precision and FixedCorotated steps 19-28 % slower, same record).
+template <typename M, typename T, typename TG, bool kTransport, bool kMesh>
+inline constexpr bool kG2P2GCapped = std::is_same_v<M, JFluid> && sizeof(T) == sizeof(double) && !kTransport && !kMesh;
+template <typename TG>
+inline constexpr int kG2P2GCappedBlocks = sizeof(TG) == sizeof(double) ? 4 : 8;
+
+template <typename M, typename T, typename TG, bool kTransport, bool kCapture = false, bool kMesh = false>
+__global__ void __launch_bounds__(kG2P2GThreads<TG>, kG2P2GCappedBlocks<TG>) g2p2g_capped(G2P2GParams<M, T, TG> p) {
+  g2p2g_detail::g2p2g_block<M, T, TG, kTransport, kCapture, kMesh>(p);
+}
+
+/// Launches the G2P2G of one body (g2p2g, or g2p2g_capped where kG2P2GCapped) over `blocks` particle blocks.
+template <typename M, typename T, typename TG, bool kTransport, bool kCapture = false, bool kMesh = false>
+void launch_g2p2g(const G2P2GParams<M, T, TG>& p, int blocks, std::size_t arena, cudaStream_t s) {
+  if constexpr (kG2P2GCapped<M, T, TG, kTransport, kMesh>)
+    g2p2g_capped<M, T, TG, kTransport, kCapture, kMesh><<<blocks, kG2P2GThreads<TG>, arena, s>>>(p);
+  else
+    g2p2g<M, T, TG, kTransport, kCapture, kMesh><<<blocks, kG2P2GThreads<TG>, arena, s>>>(p);
 }
 
 /// F-bar's cell sums of one body (transfer.cuh): per particle, V0 (1 - J) and V0 of the state at the start of the

@@ -12,12 +12,15 @@ namespace fbar {
 
 inline constexpr int kOutputThreads = 256;
 
-/// out[id * (S + kAuxScalars) + ...] = x (3), state (S - 3), then v (3) and C (9) when aux != nullptr (else 0).
-/// One thread per slot of the current layout; particles are read through src (storage order).
+/// The particles with IDs first .. first + count - 1 (every ID: first 0, count `particles`) in ID order:
+/// out[(id - first) * (S + kAuxScalars) + ...] = x (3), state (S - 3), then v (3) and C (9) when aux != nullptr
+/// (else 0), and held[id - first] = id when held != nullptr (which IDs a rank holds). One thread per slot of the
+/// current layout; particles are read through src (storage order); an ID outside 0 .. particles - 1 counts in
+/// `missing`.
 template <typename M, typename T>
 __global__ void __launch_bounds__(kOutputThreads)
     gather_by_id(typename ParticleLayout<M, T>::Buffer bins, const int* src, int slots, const T* aux, int particles,
-                 T* out, int* missing) {
+                 int first, int count, T* out, int* held, int* missing) {
   constexpr int S = ParticleLayout<M, T>::kScalars;
   constexpr int W = S + kAuxScalars;
   const int slot = blockIdx.x * blockDim.x + threadIdx.x;
@@ -29,7 +32,9 @@ __global__ void __launch_bounds__(kOutputThreads)
     atomicAdd(missing, 1);
     return;
   }
-  T* o = out + static_cast<std::size_t>(p.id) * W;
+  if (p.id < first || p.id - first >= count) return;
+  if (held) held[p.id - first] = p.id;
+  T* o = out + static_cast<std::size_t>(p.id - first) * W;
   o[0] = p.x[0];
   o[1] = p.x[1];
   o[2] = p.x[2];
@@ -56,6 +61,25 @@ __global__ void __launch_bounds__(kOutputThreads)
                : -1;
     out[2 * static_cast<std::size_t>(slot) + 1] = active ? block : -1;
   }
+}
+
+/// A streamed checkpoint's grouping of the particles with IDs first .. first + count - 1, from record_p2g_blocks'
+/// `record` (slots pairs of ID and table block): block_of[id - first] = the table block (-1 beforehand: not summed
+/// by this rank). A recorded ID outside 0 .. particles - 1, a block outside 0 .. blocks - 1 or an ID recorded twice
+/// counts in `errors`.
+__global__ void __launch_bounds__(kOutputThreads)
+    p2g_blocks_by_id(const int* record, int slots, int particles, int blocks, int first, int count, int* block_of,
+                     int* errors) {
+  const int slot = blockIdx.x * blockDim.x + threadIdx.x;
+  if (slot >= slots) return;
+  const int id = record[2 * static_cast<std::size_t>(slot)], block = record[2 * static_cast<std::size_t>(slot) + 1];
+  if (id < 0) return;
+  if (id >= particles || block < 0 || block >= blocks) {
+    atomicAdd(errors, 1);
+    return;
+  }
+  if (id < first || id - first >= count) return;
+  if (atomicExch(block_of + (id - first), block) != -1) atomicAdd(errors, 1);
 }
 
 /// The frame of the state before the first step (v = the body's initial velocity, or each particle's from v_by_id
