@@ -5,6 +5,7 @@
 #include <malloc.h>
 #endif
 
+#include "MnSystem/host_memory.h"
 #include "comm/device_transport.h"
 #include "comm/placement.h"
 #include "comm/slab_partition.h"
@@ -224,8 +225,11 @@ template <typename T, typename TG>
 std::size_t GpuEngine<T, TG>::peak_device_bytes() const { return std::max(earlier_peak_, impl_->peak_device_bytes()); }
 template <typename T, typename TG>
 std::string GpuEngine<T, TG>::resource_note() const {
+  const HostMemory host = host_memory();
   std::string note = "device memory " + format_bytes(static_cast<double>(device_bytes())) + ", peak " +
-                     format_bytes(static_cast<double>(peak_device_bytes()));
+                     format_bytes(static_cast<double>(peak_device_bytes())) + "; host memory " +
+                     format_bytes(static_cast<double>(host.resident)) + ", peak " +
+                     format_bytes(static_cast<double>(host.peak));
   if (ranks() > 1)
     note = std::to_string(ranks()) + " GPU ranks, rank " + std::to_string(rank()) + ": " +
            std::to_string(particle_count()) + " particles, " + std::to_string(migrated()) + " migrated from it, " +
@@ -368,10 +372,11 @@ RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& 
     engine_options.restart = nullptr;
   }
 #if defined(__GLIBC__)
-  // The set-up's sampling batches are freed; give their pages back, so that the run's host memory is the larger of
-  // the set-up's and the output's, not their sum (--check's "host memory (run)" counts it so).
+  // The set-up's sampling batches are freed; give their pages back (the 1e9-particle run's peak went from 1.55 to
+  // 1.47 GiB: docs/benchmarks/2026-12-02-h200-host-memory.md; --check still counts the set-up as resident).
   malloc_trim(0);
 #endif
+  const HostMemory setup_host = host_memory();
   const double setup_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - setup_start).count();
   engine.set_log(&log);
   const std::string line =
@@ -381,7 +386,8 @@ RunResult run_with(const Scene& scene, const RunOptions& options, std::ostream& 
       std::to_string(engine.body_count()) + " bodies, " +
       format_bytes(static_cast<double>(engine.device_bytes())) + " on the device (" +
       format_bytes(static_cast<double>(engine.memory_plan().total())) + " planned), set-up " +
-      mgsp_detail::format_g(setup_s) + " s";
+      mgsp_detail::format_g(setup_s) + " s (host memory " + format_bytes(static_cast<double>(setup_host.peak)) +
+      " at most, " + format_bytes(static_cast<double>(setup_host.resident)) + " kept)";
   return run_frames(engine, scene, options, log, line, restart.get());
 }
 
