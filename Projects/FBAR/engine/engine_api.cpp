@@ -187,11 +187,10 @@ HostCheckpointBytes host_checkpoint_bytes(std::size_t n, std::size_t slots, std:
   const std::size_t state = static_cast<std::size_t>(stored_scalars - 3);
   const std::size_t by_id = n * (static_cast<std::size_t>(stored_scalars) + 12) * t;
   HostCheckpointBytes c;
-  c.streamed = !mesh && n > 0 && by_id > frame_host_bytes;
+  c.streamed = checkpoint_streamed(n, stored_scalars, t, frame_host_bytes, mesh);
   if (c.streamed) {
-    const std::size_t row = (static_cast<std::size_t>(stored_scalars) + 12) * t + 4;
-    const std::size_t ids = std::min(std::clamp<std::size_t>(frame_host_bytes / row, 1, std::size_t{1} << 20), n);
-    c.kept = ids * row;
+    const std::size_t ids = checkpoint_range_ids(n, stored_scalars, t, frame_host_bytes);
+    c.kept = ids * checkpoint_range_bytes(stored_scalars, t);
     c.transient = ids * 9 * (8 + 8) + slots / 32 * 12;
     return c;
   }

@@ -18,6 +18,7 @@
 // scene outgrows them (the engine logs it; the plan reports what one growth costs).
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <string>
 #include <vector>
@@ -78,6 +79,23 @@ inline constexpr long long kSampleBatchParticles = 1LL << 23;
 
 /// Host memory one body's frame download may take before the GPU engine streams the frame (--frame-buffer).
 inline constexpr std::size_t kFrameHostBytes = std::size_t(1) << 30;
+
+/// GPU checkpoints (sensors_checkpoints.cuh) and --check's plan of them: whether a body of n particles with
+/// stored_scalars scalars of scalar_bytes each is read from the device a range of IDs at a time (its copy by ID,
+/// the stored scalars with v and C, exceeds frame_host_bytes; a mesh never is), and the IDs of a range (as many rows
+/// and held-ID marks as frame_host_bytes holds, at most 2^20, at most n).
+inline bool checkpoint_streamed(std::size_t n, int stored_scalars, std::size_t scalar_bytes,
+                                std::size_t frame_host_bytes, bool mesh) {
+  return !mesh && n > 0 && n * (static_cast<std::size_t>(stored_scalars) + 12) * scalar_bytes > frame_host_bytes;
+}
+inline std::size_t checkpoint_range_bytes(int stored_scalars, std::size_t scalar_bytes) {
+  return (static_cast<std::size_t>(stored_scalars) + 12) * scalar_bytes + sizeof(int);
+}
+inline std::size_t checkpoint_range_ids(std::size_t n, int stored_scalars, std::size_t scalar_bytes,
+                                        std::size_t frame_host_bytes) {
+  const std::size_t ids = frame_host_bytes / checkpoint_range_bytes(stored_scalars, scalar_bytes);
+  return std::max<std::size_t>(1, std::min({ids, std::size_t{1} << 20, n}));
+}
 
 /// CUDA context and runtime memory not in the plan (measured on an H100 with CUDA 13: 0.5-0.6 GiB).
 inline constexpr std::size_t kCudaContextBytes = std::size_t(600) << 20;

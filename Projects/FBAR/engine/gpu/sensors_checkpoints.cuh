@@ -169,13 +169,13 @@ struct MgspBenchmark<T, TG>::CheckpointRange {
   }
 };
 
-/// IDs per range of a streamed checkpoint: as many rows of stored scalars, v and C as frame_host_bytes holds, at
-/// most 2^20 (2^20 x 24 doubles: 192 MiB of pinned memory and as much on the device).
+/// IDs per range of a streamed checkpoint (memory_plan.h checkpoint_range_ids: at most 2^20, 2^20 x 24 doubles
+/// being 192 MiB of pinned memory and as much on the device).
+static_assert(kAuxScalars == 12, "memory_plan.h's checkpoint sizes count v and C as 12 scalars");
 template <typename T, typename TG>
 int MgspBenchmark<T, TG>::checkpoint_range_ids(const BodyBase& b) const {
-  const std::size_t row = sizeof(T) * static_cast<std::size_t>(b.stored_scalars() + kAuxScalars) + sizeof(int);
-  const std::size_t ids = std::clamp<std::size_t>(options_.frame_host_bytes / row, 1, std::size_t{1} << 20);
-  return static_cast<int>(std::min<std::size_t>(ids, static_cast<std::size_t>(std::max<long long>(b.global_particles, 1))));
+  return static_cast<int>(::fbar::checkpoint_range_ids(static_cast<std::size_t>(b.global_particles),
+                                                       b.stored_scalars(), sizeof(T), options_.frame_host_bytes));
 }
 
 template <typename T, typename TG>
@@ -371,9 +371,8 @@ io::Checkpoint MgspBenchmark<T, TG>::checkpoint(bool stream) const {
   bool any_streamed = false;
   for (const auto& bp : bodies_) {
     const BodyBase& b = *bp;
-    const std::size_t by_id = sizeof(T) * static_cast<std::size_t>(b.global_particles) *
-                              static_cast<std::size_t>(b.stored_scalars() + kAuxScalars);
-    if (stream && !b.mesh && b.global_particles > 0 && by_id > options_.frame_host_bytes) {
+    if (stream && checkpoint_streamed(static_cast<std::size_t>(b.global_particles), b.stored_scalars(), sizeof(T),
+                                      options_.frame_host_bytes, b.mesh != nullptr)) {
       c.bodies.push_back(streamed_checkpoint_body(b, bounds[static_cast<std::size_t>(b.index)], initial,
                                                   p2g_valid_ ? coords_kept : nullptr,
                                                   pieces[static_cast<std::size_t>(b.index)]));
