@@ -572,6 +572,21 @@ TEST(BodySampler, CountAndBatchesAgreeWithSampling) {
     for (long long p = 0; p < sampler.planes(); p += 3) sampler.sample_planes(p, p + 3, batched);
     ASSERT_EQ(batched.size(), all.size());
     for (std::size_t i = 0; i < all.size(); ++i) ASSERT_EQ(batched[i], all[i]) << i;
+    // Written at the counted offsets (the GPU engine's set-up): the same points in the same order; a count that
+    // is not the plane's is an error, not a hole or an overrun.
+    std::vector<Vec3d> counted;
+    for (long long p = 0; p < sampler.planes(); p += 3) sampler.sample_planes(p, p + 3, counted, &c.per_plane);
+    ASSERT_EQ(counted.size(), all.size());
+    for (std::size_t i = 0; i < all.size(); ++i) ASSERT_EQ(counted[i], all[i]) << i;
+    std::vector<long long> wrong = c.per_plane;
+    const std::size_t nonempty = static_cast<std::size_t>(
+        std::find_if(wrong.begin(), wrong.end(), [](long long n) { return n > 0; }) - wrong.begin());
+    ASSERT_LT(nonempty, wrong.size());
+    for (const long long delta : {-1LL, 1LL}) {
+      wrong[nonempty] = c.per_plane[nonempty] + delta;
+      std::vector<Vec3d> out;
+      EXPECT_THROW(sampler.sample_planes(0, sampler.planes(), out, &wrong), std::runtime_error) << delta;
+    }
   }
 }
 

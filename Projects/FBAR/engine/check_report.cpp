@@ -194,7 +194,8 @@ void print_host_memory_rows(std::ostream& os, const SceneSummary& summary) {
            : per.str() + " B per particle: every particle's state is copied to the host)");
   row(os, "host memory (run)",
       bytes(summary.host_run_bytes) + " at most on the GPU engine: " + bytes(kHostProgramBytes) +
-          " program and CUDA runtime, the set-up (above: much of it stays resident), frames " +
+          " program and CUDA runtime + the larger of the set-up (above: given back before the first frame) and "
+          "frames " +
           bytes(summary.host_frame_pinned_bytes + summary.host_frame_writer_bytes) + " (pinned download buffers " +
           bytes(summary.host_frame_pinned_bytes) + ", frames above --frame-buffer stream a piece at a time; the "
           "writer " + bytes(summary.host_frame_writer_bytes) + ")" +

@@ -234,11 +234,11 @@ void add_host_output_bytes(SceneSummary& summary, std::size_t& checkpoint_kept, 
   checkpoint_transient = std::max(checkpoint_transient, c.transient);
 }
 
-/// The run's host memory from its parts. The run gives the set-up's freed pages back before its first step
-/// (gpu_engine.cu run_with), yet measured on 150M to 1e9 particles much of the set-up's memory stays resident, more
-/// at larger counts, so it counts as still held while frames and checkpoints are written
-/// (docs/benchmarks/2026-12-02-h200-host-memory.md). The frames' writer and a streamed checkpoint's reading are
-/// jobs of one writer thread, one after the other (a copied checkpoint is taken while the frames are written).
+/// The run's host memory from its parts: the set-up's, or the frames' and checkpoints' after it. The set-up's
+/// memory is given back before the first frame (sampling allocates on the calling thread only and the run calls
+/// malloc_trim: gpu_engine.cu run_with; docs/benchmarks/2026-12-02-h200-host-memory.md). The frames' writer and a
+/// streamed checkpoint's reading are jobs of one writer thread, one after the other (a copied checkpoint is taken
+/// while the frames are written).
 /// Without checkpoint_every only a stop (SIGTERM, a failure) writes a checkpoint, and the report says what it adds.
 void finish_host_run_bytes(SceneSummary& summary, std::size_t checkpoint_kept, std::size_t checkpoint_transient,
                            const SimulationSpec& sim) {
@@ -248,7 +248,8 @@ void finish_host_run_bytes(SceneSummary& summary, std::size_t checkpoint_kept, s
       !summary.checkpoints              ? summary.host_frame_writer_bytes
       : summary.host_checkpoint_streamed ? checkpoint_kept + std::max(summary.host_frame_writer_bytes, checkpoint_transient)
                                          : summary.host_frame_writer_bytes + summary.host_checkpoint_bytes;
-  summary.host_run_bytes = kHostProgramBytes + summary.host_setup_bytes + summary.host_frame_pinned_bytes + writer;
+  summary.host_run_bytes =
+      kHostProgramBytes + std::max(summary.host_setup_bytes, summary.host_frame_pinned_bytes + writer);
 }
 
 }  // namespace
@@ -339,12 +340,14 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     fbar = fbar || in.fbar;
     pore = pore || in.pore;
     gpu_inputs[std::max(body.gpu, 0)].push_back(in);
-    // GPU set-up: one batch of sampled positions (double) in their per-plane vectors and concatenated, its bin
-    // records, and the block counts.
+    // GPU set-up: one batch of sampled positions (double, written at their counted offsets; a body spread over
+    // ranks also holds the batch it keeps), its bin records, and the block counts.
     const std::size_t batch = static_cast<std::size_t>(std::min(count.particles, kSampleBatchParticles));
+    const std::size_t position_copies = body.gpu < 0 ? 2 : 1;
     summary.host_setup_bytes =
         std::max(summary.host_setup_bytes,
-                 batch * (2 * 24 + particle_record_bytes(facts.stored_scalars, particle_scalar_bytes(sim.precision))) +
+                 batch * (position_copies * 24 +
+                          particle_record_bytes(facts.stored_scalars, particle_scalar_bytes(sim.precision))) +
                      count.blocks.size() * (sizeof(BlockCount) + 8 * 16));
     add_host_output_bytes(summary, checkpoint_kept, checkpoint_transient, sim, body, count.particles, in.bins_needed * 32,
                           facts.stored_scalars, frame_columns, frame_attrs, options.frame_host_bytes, mesh != nullptr);

@@ -50,8 +50,8 @@ struct SceneSummary {
   /// Host memory of the GPU engine's run beside the set-up: the bodies' pinned frame buffers, the frame writer's
   /// pieces (one frame at a time), a checkpoint's copy of the particles or its ranges (host_checkpoint_bytes,
   /// host_checkpoint_streamed: some body is streamed), and the whole run:
-  /// kHostProgramBytes + set-up + frames + the checkpoint when simulation.checkpoint_every > 0 (the set-up's memory
-  /// is not all given back to the system before the frames are written).
+  /// kHostProgramBytes + the larger of the set-up and (frames + the checkpoint when simulation.checkpoint_every > 0):
+  /// the set-up's memory is given back before the first frame.
   std::size_t host_frame_pinned_bytes = 0;
   std::size_t host_frame_writer_bytes = 0;
   std::size_t host_checkpoint_bytes = 0;

@@ -631,17 +631,47 @@ void BodySampler::visit_plane(long long ix, F&& f) const {
     }
 }
 
-void BodySampler::sample_planes(long long first, long long last, std::vector<Vec3d>& out) const {
+void BodySampler::sample_planes(long long first, long long last, std::vector<Vec3d>& out,
+                                const std::vector<long long>* per_plane) const {
   first = std::max(first, 0LL);
   last = std::min(last, planes());
   if (first >= last) return;
   if (last > count_[0]) {  // point-file chunks after the lattice planes
-    sample_planes(first, count_[0], out);
+    sample_planes(first, count_[0], out, per_plane);
     const long long from = std::max(first, count_[0]) - count_[0], to = last - count_[0];
     const std::size_t begin = static_cast<std::size_t>(from * kPointChunk);
     const std::size_t end = std::min(points_.size(), static_cast<std::size_t>(to * kPointChunk));
     out.insert(out.end(), points_.begin() + static_cast<std::ptrdiff_t>(begin),
                points_.begin() + static_cast<std::ptrdiff_t>(end));
+    return;
+  }
+  if (per_plane) {
+    // Each plane's points at its counted offset: one allocation, on this thread, and no concatenation.
+    if (static_cast<long long>(per_plane->size()) < last)
+      throw std::runtime_error(path_ + ": " + std::to_string(per_plane->size()) + " plane counts for plane " +
+                               std::to_string(last - 1));
+    std::vector<std::size_t> offset(static_cast<std::size_t>(last - first) + 1, out.size());
+    for (long long ix = first; ix < last; ++ix)
+      offset[static_cast<std::size_t>(ix - first) + 1] =
+          offset[static_cast<std::size_t>(ix - first)] + static_cast<std::size_t>((*per_plane)[static_cast<std::size_t>(ix)]);
+    out.reserve(offset.back());
+    out.resize(offset.back());
+    long long wrong = -1;  // a plane whose points are not its count
+#pragma omp parallel for schedule(dynamic, 1)
+    for (long long ix = first; ix < last; ++ix) {
+      std::size_t at = offset[static_cast<std::size_t>(ix - first)];
+      const std::size_t end = offset[static_cast<std::size_t>(ix - first) + 1];
+      visit_plane(ix, [&](const Vec3d& p) {
+        if (at < end) out[at] = p;
+        ++at;
+      });
+      if (at != end) {
+#pragma omp critical(fbar_sample_planes_wrong)
+        wrong = std::max(wrong, ix);
+      }
+    }
+    if (wrong >= 0)
+      throw std::runtime_error(path_ + ": plane " + std::to_string(wrong) + " sampled other points than counted");
     return;
   }
   // One output vector per x-plane, concatenated in plane order: deterministic for any thread count.

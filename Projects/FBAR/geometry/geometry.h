@@ -189,8 +189,12 @@ class BodySampler {
   /// Batches: the x-planes of the candidate lattice, then the particles of point files in chunks of kPointChunk.
   long long planes() const { return count_[0] + point_chunks_; }
   static constexpr long long kPointChunk = 1 << 20;
-  /// Appends the points of planes [first, last) in order (OpenMP over planes, deterministic).
-  void sample_planes(long long first, long long last, std::vector<Vec3d>& out) const;
+  /// Appends the points of planes [first, last) in order (OpenMP over planes, deterministic). With per_plane (the
+  /// counts of count(), indexed by plane) each thread writes its planes straight into `out`, grown once: no point
+  /// is allocated in a worker thread, whose arena glibc would keep resident after the set-up (malloc_trim does not
+  /// shrink a thread arena's top); a plane whose points differ from its count throws std::runtime_error.
+  void sample_planes(long long first, long long last, std::vector<Vec3d>& out,
+                     const std::vector<long long>* per_plane = nullptr) const;
   /// Counts particles and particles per block (OpenMP over planes). Throws SceneError, as sample_body, when no
   /// particle remains.
   SampleCount count(double dx) const;

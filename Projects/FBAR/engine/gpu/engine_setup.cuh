@@ -582,7 +582,7 @@ void MgspBenchmark<T, TG>::upload_sampled(BodyBase& body) {
       n += per_plane[static_cast<std::size_t>(end++)];
     if (decomposed()) {
       sampled.clear();
-      sampler.sample_planes(plane, end, sampled);
+      sampler.sample_planes(plane, end, sampled, &per_plane);
       for (const Vec3d& x : sampled) {
         if (owns(body.index, x)) {
           pending.push_back(x);
@@ -592,7 +592,7 @@ void MgspBenchmark<T, TG>::upload_sampled(BodyBase& body) {
       }
     } else {
       const std::size_t before = pending.size();
-      sampler.sample_planes(plane, end, pending);
+      sampler.sample_planes(plane, end, pending, &per_plane);
       next_id += static_cast<long long>(pending.size() - before);
     }
     plane = end;

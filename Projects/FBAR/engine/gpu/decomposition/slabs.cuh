@@ -73,7 +73,7 @@ void MgspBenchmark<T, TG>::choose_slabs(const std::vector<std::vector<Vec3d>>* p
     for (long long plane = 0; plane < sampler.planes();) {
       const long long end = std::min(sampler.planes(), plane + 64);
       x.clear();
-      sampler.sample_planes(plane, end, x);
+      sampler.sample_planes(plane, end, x, &counts_[b].per_plane);
       for (const Vec3d& p : x) mine += owns(static_cast<int>(b), p) ? 1 : 0;
       plane = end;
     }
