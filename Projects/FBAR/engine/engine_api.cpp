@@ -261,7 +261,11 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
   const double dx = sim.dx;
 
   int max_gpu = -1;
-  for (const BodySpec& b : scene.bodies) max_gpu = std::max(max_gpu, std::max(b.gpu, 0));  // "all": GPU 0's estimate
+  bool several_ranks = false;  // a body spread ("all") or placed beyond GPU 0: the run is decomposed
+  for (const BodySpec& b : scene.bodies) {
+    max_gpu = std::max(max_gpu, std::max(b.gpu, 0));  // "all": GPU 0's estimate
+    several_ranks = several_ranks || b.gpu != 0;
+  }
   // Every body's particle blocks (their 2x2x2 footprints are the grid blocks, per GPU and for the CPU engine).
   std::vector<SampleCount> counts;
   std::vector<std::vector<BodyMemoryInput>> gpu_inputs(max_gpu + 1);
@@ -340,10 +344,10 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     fbar = fbar || in.fbar;
     pore = pore || in.pore;
     gpu_inputs[std::max(body.gpu, 0)].push_back(in);
-    // GPU set-up: one batch of sampled positions (double, written at their counted offsets; a body spread over
-    // ranks also holds the batch it keeps), its bin records, and the block counts.
+    // GPU set-up: one batch of sampled positions (double, written at their counted offsets; on several ranks each
+    // also holds the part of the batch it keeps), its bin records, and the block counts.
     const std::size_t batch = static_cast<std::size_t>(std::min(count.particles, kSampleBatchParticles));
-    const std::size_t position_copies = body.gpu < 0 ? 2 : 1;
+    const std::size_t position_copies = several_ranks ? 2 : 1;
     summary.host_setup_bytes =
         std::max(summary.host_setup_bytes,
                  batch * (position_copies * 24 +
