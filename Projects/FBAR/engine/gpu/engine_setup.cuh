@@ -2,6 +2,8 @@
 // particles sampled and uploaded, the initial P2G and partition (or a restart's state). Part of MgspBenchmark.
 #pragma once
 
+#include <cub/device/device_scan.cuh>
+
 #include "engine/gpu/mgsp_benchmark.cuh"
 
 namespace fbar {
@@ -95,26 +97,7 @@ double MgspBenchmark<T, TG>::add_body(int b, const std::vector<std::vector<Vec3d
                                 std::to_string(DeviceLimits::kMaxSlots) +
                                 " (2^31 - 1, docs/user_guide.md \"Limits\"): use a coarser default_dx, fewer ppc, "
                                 "or split the body with partition_start / partition_end");
-  visit_material(mat.law, [&](auto m) {
-    using M = decltype(m);
-    auto body = std::make_unique<Body<M>>();
-    body->params = M::template make_params<T>(mat);
-    body->rest_wave_speed = static_cast<double>(M::wave_speed(M::template make_params<double>(mat),
-                                                              M::template reference_state<double>()));
-    if (hydrostatic.active) {  // the deepest particle's sound speed
-      double deepest = 0.0;
-      for (int c = 0; c < 8; ++c) {
-        Vec3d corner;
-        for (int d = 0; d < 3; ++d) corner[d] = (c >> d) & 1 ? geometry_bounds.hi[d] : geometry_bounds.lo[d];
-        deepest = std::max(deepest, hydrostatic.kirchhoff_pressure(corner));
-      }
-      const auto params_d = M::template make_params<double>(mat);
-      body->rest_wave_speed = std::max(
-          body->rest_wave_speed,
-          static_cast<double>(M::wave_speed(params_d, material_hydrostatic_state<M, double>(params_d, deepest))));
-    }
-    bodies_.push_back(std::move(body));
-  });
+  visit_material(mat.law, [&](auto m) { bodies_.push_back(new_body<decltype(m)>(mat, hydrostatic, geometry_bounds)); });
   BodyBase& body = *bodies_.back();
   body.spec = spec;
   body.hydrostatic = hydrostatic;

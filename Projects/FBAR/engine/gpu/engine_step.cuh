@@ -2,6 +2,8 @@
 // commit of a step and the landing on a target time. Part of MgspBenchmark.
 #pragma once
 
+#include <cub/device/device_scan.cuh>
+
 #include "engine/gpu/mgsp_benchmark.cuh"
 
 namespace fbar {

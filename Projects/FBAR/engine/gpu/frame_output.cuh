@@ -2,6 +2,8 @@
 // thread, and the totals tests read (mass, energy, grid mass, device bytes). Part of MgspBenchmark.
 #pragma once
 
+#include <cub/device/device_scan.cuh>
+
 #include "engine/gpu/mgsp_benchmark.cuh"
 
 namespace fbar {

@@ -265,6 +265,12 @@ using MixedGpuEngine = GpuEngine<double, float>;
 /// Runs the scene on the GPU engine (device 0), writing frames like run_cpu. Exit code 1: scene not supported;
 /// 2: run-time failure (CFL, NaN, left domain, CUDA error).
 RunResult run_gpu(const Scene& scene, const RunOptions& options);
+/// run_gpu's run at one precision (gpu_engine_impl.cuh; compiled per precision in instances/driver_*.cu).
+template <typename T, typename TG>
+RunResult run_gpu_as(const Scene& scene, const RunOptions& options, std::ostream& log);
+extern template RunResult run_gpu_as<float, float>(const Scene&, const RunOptions&, std::ostream&);
+extern template RunResult run_gpu_as<double, double>(const Scene&, const RunOptions&, std::ostream&);
+extern template RunResult run_gpu_as<double, float>(const Scene&, const RunOptions&, std::ostream&);
 
 /// Whether this build's GPU engine runs on CUDA device `device` (gpu_check.cu): the architectures compiled in
 /// (FBAR_CUDA_ARCHITECTURES) against its compute capability (gpu_code_fit), confirmed by loading one of the

@@ -1,8 +1,10 @@
 // The GPU simulation driver (ClaymoreUW's mgsp_benchmark): all state of one device and the step, no globals. This
-// file holds the state and the members' declarations; the members are defined by concern in the parts included at
-// its end: device_bodies.cuh (the bodies and their kernels' launches), engine_setup.cuh (construction), engine_step.cuh
-// (the step below), sensors_checkpoints.cuh, frame_output.cuh, and decomposition/ (slabs, halo, shared blocks of
-// placed bodies, migration, rebalancing). docs/developer_guide.md "Architecture" walks through one step.
+// file holds the state and the members' declarations; the members are defined by concern in the parts:
+// device_bodies.cuh (what every body shares) and, from gpu_engine_impl.cuh: engine_setup.cuh (construction),
+// engine_step.cuh (the step below), sensors_checkpoints.cuh, frame_output.cuh, and decomposition/ (slabs, halo, shared
+// blocks of placed bodies, migration, rebalancing); body.cuh and body_factory.cuh hold the material's Body<M>. The
+// templates are compiled in instances/ (docs/developer_guide.md "The GPU engine"). docs/developer_guide.md
+// "Architecture" walks through one step.
 //
 // State between steps n-1 and n (cur, gc: which of the double buffers is current):
 //   bins[cur]          particles of state n (storage order), per body
@@ -41,7 +43,6 @@
 //       new block).
 #pragma once
 
-#include <cub/device/device_scan.cuh>
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
@@ -280,6 +281,10 @@ class MgspBenchmark {
   /// Construction (engine_setup.cuh): body b from the scene (returns its largest initial speed); the memory plan,
   /// refused before anything is allocated when it does not fit; buffers, upload, the initial P2G and partition.
   double add_body(int b, const std::vector<std::vector<Vec3d>>* positions, ParticleSeeds& seed);
+  /// The Body<M> of a scene material (body_factory.cuh, compiled with the law's kernels in instances/bodies_*.cu).
+  template <typename M>
+  std::unique_ptr<BodyBase> new_body(const MaterialSpec& mat, const HydrostaticProfile& hydrostatic,
+                                     const Aabb& geometry_bounds) const;
   void add_mesh(BodyBase& body);
   void plan_memory();
   void initialize(const std::vector<std::vector<Vec3d>>* positions);
@@ -502,14 +507,14 @@ class MgspBenchmark {
 
 }  // namespace fbar
 
-// The parts of the driver, each defining the members of one concern (they include this header first).
+// What every body holds (the driver's view of a body); the parts defining the members are included by
+// gpu_engine_impl.cuh (the driver's units), Body<M> by body_factory.cuh (the laws' units).
 #include "engine/gpu/device_bodies.cuh"
-#include "engine/gpu/engine_setup.cuh"
-#include "engine/gpu/engine_step.cuh"
-#include "engine/gpu/sensors_checkpoints.cuh"
-#include "engine/gpu/frame_output.cuh"
-#include "engine/gpu/decomposition/slabs.cuh"
-#include "engine/gpu/decomposition/halo.cuh"
-#include "engine/gpu/decomposition/shared_blocks.cuh"
-#include "engine/gpu/decomposition/migration.cuh"
-#include "engine/gpu/decomposition/rebalance.cuh"
+
+namespace fbar {
+// Each precision's driver is compiled once, in instances/driver_{single,double,mixed}.cu; the bodies of each law in
+// instances/bodies_<law>.cu (body_factory.cuh).
+extern template class MgspBenchmark<float, float>;
+extern template class MgspBenchmark<double, double>;
+extern template class MgspBenchmark<double, float>;
+}  // namespace fbar

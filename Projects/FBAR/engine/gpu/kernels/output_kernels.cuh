@@ -67,20 +67,9 @@ __global__ void __launch_bounds__(kOutputThreads)
 /// `record` (slots pairs of ID and table block): block_of[id - first] = the table block (-1 beforehand: not summed
 /// by this rank). A recorded ID outside 0 .. particles - 1, a block outside 0 .. blocks - 1 or an ID recorded twice
 /// counts in `errors`.
-__global__ void __launch_bounds__(kOutputThreads)
-    p2g_blocks_by_id(const int* record, int slots, int particles, int blocks, int first, int count, int* block_of,
-                     int* errors) {
-  const int slot = blockIdx.x * blockDim.x + threadIdx.x;
-  if (slot >= slots) return;
-  const int id = record[2 * static_cast<std::size_t>(slot)], block = record[2 * static_cast<std::size_t>(slot) + 1];
-  if (id < 0) return;
-  if (id >= particles || block < 0 || block >= blocks) {
-    atomicAdd(errors, 1);
-    return;
-  }
-  if (id < first || id - first >= count) return;
-  if (atomicExch(block_of + (id - first), block) != -1) atomicAdd(errors, 1);
-}
+/// (Not a template: defined once, in output_kernels.cu.)
+__global__ void p2g_blocks_by_id(const int* record, int slots, int particles, int blocks, int first, int count,
+                                 int* block_of, int* errors);
 
 /// The frame of the state before the first step (v = the body's initial velocity, or each particle's from v_by_id
 /// (3 per ID) when a seed gave them; C = 0): one thread per slot of the current layout, particles read through src.
