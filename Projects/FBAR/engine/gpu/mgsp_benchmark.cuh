@@ -281,10 +281,14 @@ class MgspBenchmark {
   /// Construction (engine_setup.cuh): body b from the scene (returns its largest initial speed); the memory plan,
   /// refused before anything is allocated when it does not fit; buffers, upload, the initial P2G and partition.
   double add_body(int b, const std::vector<std::vector<Vec3d>>* positions, ParticleSeeds& seed);
-  /// The Body<M> of a scene material (body_factory.cuh, compiled with the law's kernels in instances/bodies_*.cu).
+  /// The Body<M> of a scene material (body_factory.cuh, compiled with the law's kernels in instances/bodies_slot_*.cu;
+  /// nothing for a NoLaw placeholder).
   template <typename M>
   std::unique_ptr<BodyBase> new_body(const MaterialSpec& mat, const HydrostaticProfile& hydrostatic,
                                      const Aabb& geometry_bounds) const;
+  template <typename M>
+  std::unique_ptr<BodyBase> new_law_body(const MaterialSpec& mat, const HydrostaticProfile& hydrostatic,
+                                         const Aabb& geometry_bounds) const;
   void add_mesh(BodyBase& body);
   void plan_memory();
   void initialize(const std::vector<std::vector<Vec3d>>* positions);

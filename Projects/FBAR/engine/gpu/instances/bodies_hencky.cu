@@ -1,8 +1,0 @@
-// The Hencky bodies of the GPU engine at every precision: Body<Hencky> (device_bodies.cuh) and its kernels.
-#include "engine/gpu/body_factory.cuh"
-
-namespace fbar {
-
-FBAR_GPU_BODIES_OF(Hencky);
-
-}  // namespace fbar
