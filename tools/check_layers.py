@@ -7,8 +7,14 @@
     Projects/FBAR/io, Projects/FBAR/comm             3
     Projects/FBAR/engine (cpu, gpu, shared)          4   engine/cpu and engine/gpu never include each other
     Projects/FBAR/*.cpp, *.cu, *.h (the program)     5
+    tools/ (benchmarks, studies)                     6
 
-Every `#include "..."` line of Library/ and Projects/FBAR/ is resolved (first beside the including file, then from
+Besides pointing up, three includes are violations: the shared engine code (files directly in Projects/FBAR/engine)
+including one engine (engine/cpu or engine/gpu: both engines read what is shared, never the reverse), two folders of
+one layer including each other's files (scene and geometry, io and comm: a layer's folders stand side by side), and
+anything outside tests/ including a file of tests/ (a tool that needs a test's case takes it from the library).
+
+Every `#include "..."` line of Library/, Projects/FBAR/ and tools/ is resolved (first beside the including file, then from
 Projects/FBAR/ and Library/) and compared. An include that points up, or across between the two engines, is a
 violation: "path:line: ...". The violations the tree has today are listed in tools/layers_baseline.txt, one
 "path -> included path" per line; the check fails on any violation not listed there, and on a listed one that no
@@ -23,7 +29,9 @@ import re
 import sys
 import tempfile
 
-LEVELS = {"Library": 0, "settings": 0, "physics": 1, "geometry": 2, "scene": 2, "io": 3, "comm": 3, "engine": 4, "program": 5}
+LEVELS = {"Library": 0, "settings": 0, "physics": 1, "geometry": 2, "scene": 2, "io": 3, "comm": 3, "engine": 4, "program": 5,
+          "tools": 6}
+SCANNED = ("Library", "Projects/FBAR", "tools")
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"')
 
 
@@ -32,6 +40,10 @@ def folder_of(rel):
     parts = rel.split("/")
     if parts[0] == "Library":
         return "Library", None
+    if parts[0] == "tests":
+        return "tests", None
+    if parts[0] == "tools":
+        return "tools", None
     if parts[:2] == ["Projects", "FBAR"]:
         rest = parts[2:]
         if rest == ["settings.h"]:
@@ -39,7 +51,9 @@ def folder_of(rel):
         if len(rest) == 1:
             return "program", None
         if rest[0] == "engine":
-            return "engine", rest[1] if len(rest) > 2 and rest[1] in ("cpu", "gpu") else None
+            if len(rest) == 2:
+                return "engine", "shared"
+            return "engine", rest[1] if rest[1] in ("cpu", "gpu") else None
         if rest[0] in LEVELS:
             return rest[0], None
     return None, None
@@ -56,7 +70,7 @@ def resolve(root, including, name):
 
 def violations(root):
     found = []  # (path, line, included path, reason)
-    for top in ("Library", "Projects/FBAR"):
+    for top in SCANNED:
         for dirpath, _, files in os.walk(os.path.join(root, top)):
             for f in sorted(files):
                 if not f.endswith((".h", ".hpp", ".cuh", ".cpp", ".cu")):
@@ -76,12 +90,22 @@ def violations(root):
                         dst, dst_side = folder_of(inc)
                         if dst is None:
                             continue
+                        if dst == "tests":
+                            found.append((rel, n, inc, f"{src} includes a file of tests/: only tests include tests"))
+                            continue
                         if LEVELS[dst] > LEVELS[src]:
                             found.append((rel, n, inc, f"{src} (layer {LEVELS[src]}) includes {dst} (layer {LEVELS[dst]}): "
                                                        "an upward include"))
-                        elif side and dst_side and side != dst_side:
+                        elif side == "shared" and dst_side in ("cpu", "gpu"):
+                            found.append((rel, n, inc, f"the shared engine code includes engine/{dst_side}: what both "
+                                                       "engines read lives in engine/, an engine's entry is declared "
+                                                       "there and defined in its folder"))
+                        elif side in ("cpu", "gpu") and dst_side in ("cpu", "gpu") and side != dst_side:
                             found.append((rel, n, inc, f"engine/{side} includes engine/{dst_side}: what both engines "
                                                        "share belongs in engine/"))
+                        elif LEVELS[dst] == LEVELS[src] and dst != src and src not in ("Library", "settings"):
+                            found.append((rel, n, inc, f"{src} includes {dst}, a folder of its own layer "
+                                                       f"({LEVELS[src]}): a layer's folders do not include each other"))
     return found
 
 
@@ -119,6 +143,11 @@ def self_test():
             "Projects/FBAR/engine/run.h": '#pragma once\n#include "physics/law.cuh"\n',
             "Projects/FBAR/engine/cpu/e.h": '#include "engine/gpu/g.h"\n',
             "Projects/FBAR/engine/gpu/g.h": '#include "../run.h"\n',
+            "Projects/FBAR/engine/api.cpp": '#include "engine/run.h"\n#include "engine/cpu/e.h"\n',
+            "Projects/FBAR/scene/s.h": '#pragma once\n#include "geometry/g.h"\n',
+            "Projects/FBAR/geometry/g.h": '#pragma once\n',
+            "tests/case.h": '#pragma once\n',
+            "tools/study/s.cu": '#include "../../tests/case.h"\n#include "engine/run.h"\n',
         }.items():
             os.makedirs(os.path.dirname(os.path.join(root, rel)), exist_ok=True)
             open(os.path.join(root, rel), "w").write(text)
@@ -128,9 +157,14 @@ def self_test():
         text = out.getvalue()
         ok = (rc == 1 and "Projects/FBAR/physics/law.cuh:4: includes Projects/FBAR/engine/run.h" in text
               and "Projects/FBAR/engine/cpu/e.h:1: includes Projects/FBAR/engine/gpu/g.h" in text
+              and "Projects/FBAR/engine/api.cpp:2: includes Projects/FBAR/engine/cpu/e.h" in text
+              and "engine/api.cpp:1:" not in text
+              and "Projects/FBAR/scene/s.h:2: includes Projects/FBAR/geometry/g.h" in text
+              and "tools/study/s.cu:1: includes tests/case.h" in text
+              and "tools/study/s.cu:2:" not in text
               and "engine/run.h:" not in text.replace("physics/law.cuh:4: includes Projects/FBAR/engine/run.h", ""))
         print(text, end="")
-        print("self-test: " + ("the planted upward and cross-engine includes were reported" if ok else "FAILED"))
+        print("self-test: " + ("the planted upward, cross-engine, shared-to-engine, same-layer and tests/ includes were reported" if ok else "FAILED"))
         return 0 if ok else 1
 
 

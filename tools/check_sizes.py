@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Sizes of the source tree, checked: no file of Projects/FBAR over 1,000 lines, no function over 150.
+"""Sizes of the source tree, checked: no file of Projects/FBAR, tests/ or tools/ over 1,000 lines, no class body over
+1,000, no function over 150.
 
 A function is a brace block opened outside any other function whose header (the text since the previous `;`, `{`
 or `}`) has a parameter list and is not a namespace, class, struct, union or enum: free functions, member functions
@@ -7,10 +8,15 @@ defined in or out of a class, kernels, constructors (their initialiser lists cou
 towards the function that holds them. Comments, string and character literals are blanked before the braces are
 counted. A function's length is the number of lines from its header's first line to its closing brace.
 
-Every violation is printed as "path:line: ..." (the file's first line, or the function's header); exit status 0
-when the tree keeps both limits, 1 otherwise.
+A class body is the brace block of a class, struct or union, from its header to its closing brace (the member
+functions defined inside count; those defined outside are counted as functions).
 
-usage: tools/check_sizes.py [--root DIR] [--max-file N] [--max-function N] [--self-test]
+Every violation is printed as "path:line: ..." (the file's first line, the class's or the function's header).
+tools/sizes_baseline.txt lists the violations the tree still has, one "path: what" per line ("path: file",
+"path: function NAME", "path: class NAME"); the check fails on any violation not listed there and on a listed one
+that no longer occurs (the list only shrinks). Exit status 0 when the tree keeps the limits, 1 otherwise.
+
+usage: tools/check_sizes.py [--root DIR] [--max-file N] [--max-function N] [--baseline FILE] [--self-test]
   --self-test  writes an over-long function and file to a scratch tree and checks that both are reported.
 """
 import argparse
@@ -21,6 +27,8 @@ import tempfile
 
 EXTENSIONS = (".h", ".hpp", ".cuh", ".cpp", ".cu")
 CONTAINER = re.compile(r"\b(namespace|class|struct|union|enum)\b")
+CLASS = re.compile(r"\b(class|struct|union)\s+(?:alignas\s*\([^)]*\)\s*)?([A-Za-z_]\w*)")
+SCANNED = ("Projects/FBAR", "tests", "tools")
 CONTROL = re.compile(r"^\s*(if|for|while|switch|catch|do|else|try)\b")
 
 
@@ -123,10 +131,64 @@ def functions(text):
     return [tuple(f) for f in found if f[1] is not None]
 
 
-def check(root, max_file, max_function):
-    problems = []
-    top = os.path.join(root, "Projects", "FBAR")
-    for dirpath, _, files in os.walk(top):
+def classes(text):
+    """(first line, last line, name) of every class, struct or union body in the text, nested ones included."""
+    code = blank(text)
+    line_at = []  # line number of each character
+    line = 1
+    for ch in code:
+        line_at.append(line)
+        if ch == "\n":
+            line += 1
+    found = []
+    stack = []  # per open brace: the index into found, or None
+    header_start = 0
+    for i, ch in enumerate(code):
+        if ch == ";":
+            header_start = i + 1
+        elif ch == "{":
+            header = code[header_start:i]
+            head = without_templates(re.sub(r"#[^\n]*", "", header).strip()).split("(")[0]
+            m = CLASS.search(head)
+            if m and not re.search(r"\benum\b", head) and "=" not in head:
+                first = header_start + (len(header) - len(header.lstrip()))
+                found.append([line_at[first], None, m.group(2)])
+                stack.append(len(found) - 1)
+            else:
+                stack.append(None)
+            header_start = i + 1
+        elif ch == "}":
+            if stack:
+                k = stack.pop()
+                if k is not None:
+                    found[k][1] = line_at[i]
+            header_start = i + 1
+    return [tuple(f) for f in found if f[1] is not None]
+
+
+def read_baseline(path):
+    entries = set()
+    if path and os.path.exists(path):
+        for line in open(path):
+            line = line.split("#", 1)[0].strip()
+            if line:
+                entries.add(line)
+    return entries
+
+
+def check(root, max_file, max_function, baseline=None):
+    """Violations not in the baseline, then listed ones that no longer occur."""
+    found = scan(root, max_file, max_function)
+    allowed = read_baseline(baseline)
+    new = [text for key, text in found if key not in allowed]
+    stale = sorted(allowed - {key for key, _ in found})
+    return new + [f"{baseline}: '{k}' no longer occurs: remove it from the baseline" for k in stale]
+
+
+def scan(root, max_file, max_function):
+    problems = []  # (baseline key, message)
+    for top in SCANNED:
+      for dirpath, _, files in os.walk(os.path.join(root, top)):
         for f in sorted(files):
             if not f.endswith(EXTENSIONS):
                 continue
@@ -136,11 +198,19 @@ def check(root, max_file, max_function):
                 text = fh.read()
             lines = text.count("\n") + (0 if text.endswith("\n") or not text else 1)
             if lines > max_file:
-                problems.append(f"{rel}:1: {lines} lines; a file holds at most {max_file} (split it by what its parts do)")
+                problems.append((f"{rel}: file", f"{rel}:1: {lines} lines; a file holds at most {max_file} "
+                                                 "(split it by what its parts do)"))
+            for first, last, name in classes(text):
+                length = last - first + 1
+                if length > max_file:
+                    problems.append((f"{rel}: class {name}", f"{rel}:{first}: class {name} of {length} lines; a class "
+                                                             f"body holds at most {max_file}"))
             for first, last, header in functions(text):
                 length = last - first + 1
                 if length > max_function:
-                    problems.append(f"{rel}:{first}: function of {length} lines ({header}); at most {max_function}")
+                    name = header.split("(")[0].split()[-1] if header.split("(")[0].split() else header
+                    problems.append((f"{rel}: function {name}",
+                                     f"{rel}:{first}: function of {length} lines ({header}); at most {max_function}"))
     return problems
 
 
@@ -154,14 +224,27 @@ def self_test():
                      "template <class E>\nint h(E e) {\n" + body + "  return e;\n}\ninline int g(int x) {\n  auto l = [&](int y) { return y; };\n  return l(x);\n}\n}\n")
         with open(os.path.join(folder, "big.cpp"), "w") as fh:
             fh.write("const char* s = \"}\";\n" * 1001)
-        problems = check(root, 1000, 150)
-        want = ["Projects/FBAR/physics/long.h:3: function of 163 lines", "Projects/FBAR/physics/long.h:167: function of 164 lines", "Projects/FBAR/physics/big.cpp:1: 1001 lines"]
+        os.makedirs(os.path.join(root, "tests", "engine"))
+        members = "".join(f"  int m{i}() const {{ return {i}; }}\n" for i in range(1001))
+        with open(os.path.join(root, "tests", "engine", "wide.h"), "w") as fh:
+            fh.write("template <class T>\nclass Wide {\n" + members + "};\n")
+        os.makedirs(os.path.join(root, "tools"))
+        with open(os.path.join(root, "tools", "listed.cpp"), "w") as fh:
+            fh.write("int x;\n" * 1001)
+        baseline = os.path.join(root, "baseline.txt")
+        with open(baseline, "w") as fh:
+            fh.write("tools/listed.cpp: file\ntools/gone.cpp: file\n")
+        problems = check(root, 1000, 150, baseline)
+        want = ["Projects/FBAR/physics/long.h:3: function of 163 lines", "Projects/FBAR/physics/long.h:167: function of 164 lines", "Projects/FBAR/physics/big.cpp:1: 1001 lines",
+                "tests/engine/wide.h:1: 1004 lines", "tests/engine/wide.h:1: class Wide of 1004 lines",
+                baseline + ": 'tools/gone.cpp: file' no longer occurs"]
         missing = [w for w in want if not any(p.startswith(w) for p in problems)]
         extra = [p for p in problems if not any(p.startswith(w) for w in want)]
         if missing or extra:
             print("self-test failed: missing", missing, "unexpected", extra)
             return 1
-        print("self-test: the planted long function and long file are reported:\n  " + "\n  ".join(problems))
+        print("self-test: the planted long functions, files and class, and a stale baseline entry, are reported; the "
+              "listed file is not:\n  " + "\n  ".join(problems))
         return 0
 
 
@@ -170,17 +253,19 @@ def main():
     ap.add_argument("--root", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
     ap.add_argument("--max-file", type=int, default=1000)
     ap.add_argument("--max-function", type=int, default=150)
+    ap.add_argument("--baseline", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "sizes_baseline.txt"))
     ap.add_argument("--self-test", action="store_true")
     args = ap.parse_args()
     if args.self_test:
         return self_test()
-    problems = check(os.path.abspath(args.root), args.max_file, args.max_function)
+    problems = check(os.path.abspath(args.root), args.max_file, args.max_function, args.baseline)
     for p in problems:
         print(p)
     if problems:
         print(f"{len(problems)} size violation(s)")
         return 1
-    print("sizes: every file within", args.max_file, "lines, every function within", args.max_function)
+    print("sizes: every file and class body within", args.max_file, "lines, every function within", args.max_function,
+          "(beyond the baseline)")
     return 0
 
 

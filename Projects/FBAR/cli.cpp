@@ -31,7 +31,7 @@
 #include "comm/mpi_transport.h"
 #include "comm/placement.h"
 #include "engine/stop_request.h"
-#include "engine/gpu/memory_plan.h"
+#include "engine/memory_plan.h"
 #include "scene/scene_parse.h"
 #include "engine/check_report.h"
 #include "physics/constitutive_models.cuh"

@@ -82,6 +82,65 @@ struct ColumnResult {
   double base_fit_error() const { return (base_fit - base_exact) / base_exact; }
 };
 
+// The profile's figures from the time-averaged row pressures: row and cell errors against the exact rows, the RMS,
+// the checkerboard, and the middle-half line's base pressure with the same line through the exact cells.
+inline void fit_profile(ColumnResult& result, const std::vector<double>& average, const std::vector<double>& row_exact,
+                        double dx) {
+  const int rows = static_cast<int>(average.size());
+  result.row_pressure = average;
+  double rms = 0;
+  for (int r = 0; r < rows; ++r) {
+    result.row_error.push_back((average[r] - row_exact[r]) / row_exact[r]);
+    rms += (average[r] - row_exact[r]) * (average[r] - row_exact[r]);
+  }
+  result.profile_rms = std::sqrt(rms / rows) / kBasePressure;
+  // Cell means, and the least-squares line through the cells of the middle half of the column (reference height),
+  // extrapolated to the bed: the base pressure one reads off the profile away from the bed and surface layers.
+  // The same line through the exact cell means is the reference (the compressible exact profile is slightly curved).
+  double sy = 0, syy = 0, sp = 0, syp = 0, se = 0, sye = 0;
+  int fitted = 0;
+  for (int c = 0; c < rows / 2; ++c) {
+    const double pm = 0.5 * (average[2 * c] + average[2 * c + 1]);
+    const double pe = 0.5 * (row_exact[2 * c] + row_exact[2 * c + 1]);
+    result.cell_error.push_back((pm - pe) / pe);
+    if (c > 0) result.checkerboard += 0.25 * (average[2 * c] - average[2 * c + 1]) * (average[2 * c] - average[2 * c + 1]);
+    const double yc = (c + 0.5) * dx;  // cell centre above the bed
+    if (yc >= 0.25 * kH && yc <= 0.75 * kH) {
+      sy += yc, syy += yc * yc, sp += pm, syp += yc * pm, se += pe, sye += yc * pe;
+      ++fitted;
+    }
+  }
+  auto intercept = [&](double s_p, double s_yp) {
+    const double slope = (fitted * s_yp - sy * s_p) / (fitted * syy - sy * sy);
+    return (s_p - slope * sy) / fitted;
+  };
+  result.checkerboard = std::sqrt(result.checkerboard / (rows / 2 - 1)) / kBasePressure;
+  result.base_fit = intercept(sp, syp);
+  result.base_exact = intercept(se, sye);
+}
+
+// One run's figures, printed.
+inline void print_column(const ColumnResult& result, Start start, validation::WallFit fit, const char* precision,
+                         double dx, double fbar_psi) {
+  std::printf("hydrostatic column, %s, %s start, %s, dx = %g m: %zu particles, %lld steps, %.2f s wall\n",
+              fit == validation::WallFit::ZeroVelocityPlane ? "bed on the zero-velocity plane"
+                                                            : "bed on the last wall node plane",
+              start == Start::Equilibrium ? "equilibrium" : start == Start::Hydrostatic ? "hydrostatic" : "stress-free",
+              precision, dx, result.particles, result.steps, result.seconds);
+  std::printf(
+      "  bottom rows error %+.4f %% %+.4f %% %+.4f %% %+.4f %%; bottom cells %+.4f %% %+.4f %% %+.4f %%; top row %+.3f "
+      "%%\n",
+      100 * result.row_error[0], 100 * result.row_error[1], 100 * result.row_error[2], 100 * result.row_error[3],
+      100 * result.cell_error[0], 100 * result.cell_error[1], 100 * result.cell_error[2],
+      100 * result.row_error.back());
+  std::printf("  base from the middle-half profile %.3f Pa (exact %.3f, error %+.4f %%); profile RMS %.3g rho0 g H; "
+              "checkerboard %.3g rho0 g H (FBAR_psi %g)\n",
+              result.base_fit, result.base_exact, 100 * result.base_fit_error(), result.profile_rms,
+              result.checkerboard, fbar_psi);
+  std::printf("  KE max %.3g J (%.3g m g H); max in first / last fifth %.3g / %.3g J; %d periods averaged\n",
+              result.ke_max, result.ke_max / result.weight_energy, result.ke_first, result.ke_last, result.periods);
+}
+
 // The column, its bed and side faces placed against the Walls box as `fit` says. T, TG: particle and grid scalar
 // types (<float, float> single, <double, double> double, <double, float> mixed).
 template <typename T, typename TG = T, class Engine = CpuEngine<T, TG>>
@@ -187,56 +246,11 @@ ColumnResult run_column(double dx, Start start, double t_end, validation::WallFi
     }
   }
 
-  result.row_pressure = average;
-  double rms = 0;
-  for (int r = 0; r < rows; ++r) {
-    result.row_error.push_back((average[r] - row_exact[r]) / row_exact[r]);
-    rms += (average[r] - row_exact[r]) * (average[r] - row_exact[r]);
-  }
-  result.profile_rms = std::sqrt(rms / rows) / kBasePressure;
-  // Cell means, and the least-squares line through the cells of the middle half of the column (reference height),
-  // extrapolated to the bed: the base pressure one reads off the profile away from the bed and surface layers.
-  // The same line through the exact cell means is the reference (the compressible exact profile is slightly curved).
-  double sy = 0, syy = 0, sp = 0, syp = 0, se = 0, sye = 0;
-  int fitted = 0;
-  for (int c = 0; c < rows / 2; ++c) {
-    const double pm = 0.5 * (average[2 * c] + average[2 * c + 1]);
-    const double pe = 0.5 * (row_exact[2 * c] + row_exact[2 * c + 1]);
-    result.cell_error.push_back((pm - pe) / pe);
-    if (c > 0) result.checkerboard += 0.25 * (average[2 * c] - average[2 * c + 1]) * (average[2 * c] - average[2 * c + 1]);
-    const double yc = (c + 0.5) * dx;  // cell centre above the bed
-    if (yc >= 0.25 * kH && yc <= 0.75 * kH) {
-      sy += yc, syy += yc * yc, sp += pm, syp += yc * pm, se += pe, sye += yc * pe;
-      ++fitted;
-    }
-  }
-  auto intercept = [&](double s_p, double s_yp) {
-    const double slope = (fitted * s_yp - sy * s_p) / (fitted * syy - sy * sy);
-    return (s_p - slope * sy) / fitted;
-  };
-  result.checkerboard = std::sqrt(result.checkerboard / (rows / 2 - 1)) / kBasePressure;
-  result.base_fit = intercept(sp, syp);
-  result.base_exact = intercept(se, sye);
+  fit_profile(result, average, row_exact, dx);
   result.seconds = clock.seconds();
   result.ok = true;
 
-  std::printf("hydrostatic column, %s, %s start, %s, dx = %g m: %zu particles, %lld steps, %.2f s wall\n",
-              fit == validation::WallFit::ZeroVelocityPlane ? "bed on the zero-velocity plane"
-                                                            : "bed on the last wall node plane",
-              start == Start::Equilibrium ? "equilibrium" : start == Start::Hydrostatic ? "hydrostatic" : "stress-free",
-              to_string(scene.simulation.precision), dx, result.particles, result.steps, result.seconds);
-  std::printf(
-      "  bottom rows error %+.4f %% %+.4f %% %+.4f %% %+.4f %%; bottom cells %+.4f %% %+.4f %% %+.4f %%; top row %+.3f "
-      "%%\n",
-      100 * result.row_error[0], 100 * result.row_error[1], 100 * result.row_error[2], 100 * result.row_error[3],
-      100 * result.cell_error[0], 100 * result.cell_error[1], 100 * result.cell_error[2],
-      100 * result.row_error.back());
-  std::printf("  base from the middle-half profile %.3f Pa (exact %.3f, error %+.4f %%); profile RMS %.3g rho0 g H; "
-              "checkerboard %.3g rho0 g H (FBAR_psi %g)\n",
-              result.base_fit, result.base_exact, 100 * result.base_fit_error(), result.profile_rms,
-              result.checkerboard, fbar_psi);
-  std::printf("  KE max %.3g J (%.3g m g H); max in first / last fifth %.3g / %.3g J; %d periods averaged\n",
-              result.ke_max, result.ke_max / result.weight_energy, result.ke_first, result.ke_last, result.periods);
+  print_column(result, start, fit, to_string(scene.simulation.precision), dx, fbar_psi);
   return result;
 }
 

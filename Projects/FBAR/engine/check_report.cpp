@@ -10,7 +10,7 @@
 #include <string>
 
 #include "MnSystem/IO/frame_size.h"
-#include "engine/gpu/memory_plan.h"
+#include "engine/memory_plan.h"
 #include "io/particle_frame.h"
 #include "scene/scene_parse.h"
 

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/gpu/memory_plan.h"
+#include "engine/memory_plan.h"
 #include "comm/transport.h"
 #include "scene/scene.h"
 

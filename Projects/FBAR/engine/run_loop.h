@@ -55,6 +55,7 @@
 #include "MnSystem/IO/particle_io.h"
 #include "comm/placement.h"
 #include "engine/engine_api.h"
+#include "engine/engine_common.h"
 #include "engine/run_constants.h"
 #include "engine/stop_request.h"
 #include "io/checkpoint.h"

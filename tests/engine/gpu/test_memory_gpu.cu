@@ -11,7 +11,7 @@
 #include "MnSystem/IO/particle_io.h"
 #include "engine/gpu/gpu_engine.h"
 #include "gpu_test_support.h"
-#include "engine/gpu/memory_plan.h"
+#include "engine/memory_plan.h"
 #include "io/particle_frame.h"
 
 namespace fbar {

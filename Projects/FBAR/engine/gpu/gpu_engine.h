@@ -22,7 +22,7 @@
 #include "engine/engine_common.h"
 #include "engine/engine_api.h"
 #include "engine/gpu/gpu_architectures.h"
-#include "engine/gpu/memory_plan.h"
+#include "engine/memory_plan.h"
 #include "io/checkpoint.h"
 #include "physics/sensors.cuh"
 #include "scene/scene.h"

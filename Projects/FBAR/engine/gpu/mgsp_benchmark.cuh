@@ -85,7 +85,7 @@
 #include "engine/gpu/decomposition/decomposition_state.cuh"
 #include "engine/gpu/hash_table.cuh"
 #include "engine/gpu/sensor_state.cuh"
-#include "engine/gpu/memory_plan.h"
+#include "engine/memory_plan.h"
 #include "engine/gpu/mgmpm_kernels.cuh"
 #include "engine/gpu/particle_buffer.cuh"
 #include "io/particle_frame.h"

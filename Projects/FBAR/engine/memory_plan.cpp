@@ -1,5 +1,5 @@
 // plan_device_memory(): the GPU engine's capacities and buffer sizes from a scene's counts (memory_plan.h).
-#include "engine/gpu/memory_plan.h"
+#include "engine/memory_plan.h"
 
 #include <algorithm>
 #include <cmath>
