@@ -109,15 +109,17 @@ def violations(root):
     return found
 
 
+def baseline_lines(path):
+    """The entries of a baseline file (tools/check_sizes.py reads its own with it): its lines without comments and
+    blanks; none when the path is empty or absent."""
+    if not path or not os.path.exists(path):
+        return []
+    with open(path) as fh:
+        return [e for e in (line.split("#", 1)[0].strip() for line in fh) if e]
+
+
 def read_baseline(path):
-    entries = set()
-    if path and os.path.exists(path):
-        for line in open(path):
-            line = line.split("#", 1)[0].strip()
-            if line:
-                a, b = (s.strip() for s in line.split("->"))
-                entries.add((a, b))
-    return entries
+    return {tuple(s.strip() for s in entry.split("->")) for entry in baseline_lines(path)}
 
 
 def check(root, baseline_path, out=sys.stdout):

@@ -17,13 +17,16 @@ tools/sizes_baseline.txt lists the violations the tree still has, one "path: wha
 that no longer occurs (the list only shrinks). Exit status 0 when the tree keeps the limits, 1 otherwise.
 
 usage: tools/check_sizes.py [--root DIR] [--max-file N] [--max-function N] [--baseline FILE] [--self-test]
-  --self-test  writes an over-long function and file to a scratch tree and checks that both are reported.
+  --self-test  writes over-long functions, files and a class, a listed file and a stale baseline entry to a scratch
+               tree and checks that each is reported (the listed file not).
 """
 import argparse
 import os
 import re
 import sys
 import tempfile
+
+from check_layers import baseline_lines
 
 EXTENSIONS = (".h", ".hpp", ".cuh", ".cpp", ".cu")
 CONTAINER = re.compile(r"\b(namespace|class|struct|union|enum)\b")
@@ -87,18 +90,24 @@ def without_templates(header):
         i = j
 
 
+def line_numbers(code):
+    """The line number of each character of the text."""
+    line_at = []
+    line = 1
+    for ch in code:
+        line_at.append(line)
+        if ch == "\n":
+            line += 1
+    return line_at
+
+
 def functions(text):
     """(first line, last line, header) of every outermost function body in the text."""
     code = blank(text)
     found = []
     stack = []  # per open brace: "container", "function" or "other"
     header_start = 0
-    line = 1
-    line_at = []  # line number of each character
-    for ch in code:
-        line_at.append(line)
-        if ch == "\n":
-            line += 1
+    line_at = line_numbers(code)
     for i, ch in enumerate(code):
         if ch in ";":
             header_start = i + 1
@@ -134,12 +143,7 @@ def functions(text):
 def classes(text):
     """(first line, last line, name) of every class, struct or union body in the text, nested ones included."""
     code = blank(text)
-    line_at = []  # line number of each character
-    line = 1
-    for ch in code:
-        line_at.append(line)
-        if ch == "\n":
-            line += 1
+    line_at = line_numbers(code)
     found = []
     stack = []  # per open brace: the index into found, or None
     header_start = 0
@@ -166,51 +170,46 @@ def classes(text):
     return [tuple(f) for f in found if f[1] is not None]
 
 
-def read_baseline(path):
-    entries = set()
-    if path and os.path.exists(path):
-        for line in open(path):
-            line = line.split("#", 1)[0].strip()
-            if line:
-                entries.add(line)
-    return entries
-
-
 def check(root, max_file, max_function, baseline=None):
     """Violations not in the baseline, then listed ones that no longer occur."""
     found = scan(root, max_file, max_function)
-    allowed = read_baseline(baseline)
+    allowed = set(baseline_lines(baseline))
     new = [text for key, text in found if key not in allowed]
     stale = sorted(allowed - {key for key, _ in found})
     return new + [f"{baseline}: '{k}' no longer occurs: remove it from the baseline" for k in stale]
 
 
 def scan(root, max_file, max_function):
-    problems = []  # (baseline key, message)
+    """(baseline key, message) of every file, class body and function over its limit."""
+    problems = []
     for top in SCANNED:
-      for dirpath, _, files in os.walk(os.path.join(root, top)):
-        for f in sorted(files):
-            if not f.endswith(EXTENSIONS):
-                continue
-            path = os.path.join(dirpath, f)
-            rel = os.path.relpath(path, root).replace(os.sep, "/")
-            with open(path, errors="replace") as fh:
-                text = fh.read()
-            lines = text.count("\n") + (0 if text.endswith("\n") or not text else 1)
-            if lines > max_file:
-                problems.append((f"{rel}: file", f"{rel}:1: {lines} lines; a file holds at most {max_file} "
-                                                 "(split it by what its parts do)"))
-            for first, last, name in classes(text):
-                length = last - first + 1
-                if length > max_file:
-                    problems.append((f"{rel}: class {name}", f"{rel}:{first}: class {name} of {length} lines; a class "
-                                                             f"body holds at most {max_file}"))
-            for first, last, header in functions(text):
-                length = last - first + 1
-                if length > max_function:
-                    name = header.split("(")[0].split()[-1] if header.split("(")[0].split() else header
-                    problems.append((f"{rel}: function {name}",
-                                     f"{rel}:{first}: function of {length} lines ({header}); at most {max_function}"))
+        for dirpath, _, files in os.walk(os.path.join(root, top)):
+            for f in sorted(files):
+                if f.endswith(EXTENSIONS):
+                    problems += file_problems(root, os.path.join(dirpath, f), max_file, max_function)
+    return problems
+
+
+def file_problems(root, path, max_file, max_function):
+    problems = []
+    rel = os.path.relpath(path, root).replace(os.sep, "/")
+    with open(path, errors="replace") as fh:
+        text = fh.read()
+    lines = text.count("\n") + (0 if text.endswith("\n") or not text else 1)
+    if lines > max_file:
+        problems.append((f"{rel}: file", f"{rel}:1: {lines} lines; a file holds at most {max_file} "
+                                         "(split it by what its parts do)"))
+    for first, last, name in classes(text):
+        length = last - first + 1
+        if length > max_file:
+            problems.append((f"{rel}: class {name}",
+                             f"{rel}:{first}: class {name} of {length} lines; a class body holds at most {max_file}"))
+    for first, last, header in functions(text):
+        length = last - first + 1
+        if length > max_function:
+            words = header.split("(")[0].split()
+            problems.append((f"{rel}: function {words[-1] if words else header}",
+                             f"{rel}:{first}: function of {length} lines ({header}); at most {max_function}"))
     return problems
 
 

@@ -1,6 +1,8 @@
 // run_cpu() (engine_api.h): the CPU engine built for the scene's precision, run through the frame loop of run_loop.h.
 #include <omp.h>
 
+#include <cmath>
+#include <cstddef>
 #include <iostream>
 #include <memory>
 #include <string>
