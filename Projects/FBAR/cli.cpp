@@ -34,6 +34,8 @@
 #include "engine/memory_plan.h"
 #include "scene/scene_parse.h"
 #include "engine/check_report.h"
+#include "run_record.h"
+#include "sweep_run.h"
 #include "physics/constitutive_models.cuh"
 
 #ifndef FBAR_VERSION
@@ -47,9 +49,6 @@ namespace {
 namespace fs = std::filesystem;
 namespace rj = rapidjson;
 
-constexpr int kExitOk = 0;
-constexpr int kExitInput = 1;    ///< invalid scene, input file or command line
-constexpr int kExitRuntime = 2;  ///< run-time failure (NaN, CFL, capacity, device, output)
 
 /// Why a program has no GPU engine, for its messages: a build without the CUDA toolkit, or (with it) a program
 /// that links the front end alone (the CLI tests).
@@ -78,6 +77,13 @@ struct CliOptions {
   bool allow_unknown_keys = false;
   std::string data_dir;
   std::string restart;  ///< --restart=FILE: a checkpoint to continue from
+  std::string sweep;    ///< --sweep=FILE: run a sweep (sweep_run.h) instead of one scene
+  int jobs = 0;         ///< --jobs=N: a sweep's cases at once per GPU
+  std::vector<int> cases;  ///< --cases=LIST: a sweep's cases to run
+  bool gather = false;
+  bool retry_failed = false;
+  bool gpus_given = false;
+  bool file_given = false;  ///< a scene file named on the command line
   bool version = false;
   bool help = false;
 };
@@ -118,6 +124,17 @@ const char* kHelp =
     "  --restart=FILE          continue the run from a checkpoint (checkpoint_frame[f]_dev[0].h5 or\n"
     "                          checkpoint_step[s]_dev[0].h5 in the run's output; the other ranks' files are found\n"
     "                          by their dev[d]): frames, sensor and tracker rows continue as if never stopped\n"
+    "  --sweep=FILE            run a sweep: the cases of FILE (a scene and the parameters that vary,\n"
+    "                          docs/user_guide.md §10), each in its folder, several at once on each GPU where\n"
+    "                          memory allows, over --gpus=N GPUs (default: every visible one) or one per MPI\n"
+    "                          rank or Slurm array task; completed cases are skipped and stopped ones resumed\n"
+    "                          from their checkpoints; then one table of every case's sensors. With --check:\n"
+    "                          every case checked and listed with its particles, memory and time\n"
+    "  --jobs=N                --sweep: cases at once per GPU (default: as many as memory and cores allow; on\n"
+    "                          the CPU engine 1)\n"
+    "  --cases=LIST            --sweep: only these cases (\"0,3,5-9\")\n"
+    "  --gather                --sweep: only gather the cases' sensors into the tables (after a job array)\n"
+    "  --retry-failed          --sweep: run failed cases again (by default they are reported and skipped)\n"
     "  --version               print the version and exit\n"
     "  -h, --help              print this help and exit\n"
     "\n"
@@ -130,7 +147,33 @@ const char* kHelp =
 const std::vector<std::string_view> kLongOptions = {"--file",   "--check",  "--backend",           "--output",
                                                     "--frames", "--quiet",  "--allow-unknown-keys", "--data-dir",
                                                     "--version", "--help",  "--gpus", "--restart", "--halo-overlap",
-                                                    "--keep-gpus", "--frame-buffer"};
+                                                    "--keep-gpus", "--frame-buffer", "--sweep", "--jobs",
+                                                    "--cases", "--gather", "--retry-failed"};
+
+/// "0,3,5-9" as case numbers.
+std::vector<int> parse_case_list(const std::string& v) {
+  std::vector<int> out;
+  std::size_t i = 0;
+  const std::string expected = "--cases: got '" + v + "'; expected case numbers such as 0,3,5-9";
+  while (i < v.size()) {
+    const std::size_t end = v.find(',', i);
+    const std::string item = v.substr(i, end == std::string::npos ? std::string::npos : end - i);
+    const std::size_t dash = item.find('-');
+    auto number = [&](const std::string& t) {
+      if (t.empty() || t.size() > 7 || t.find_first_not_of("0123456789") != std::string::npos) throw UsageError(expected);
+      return std::stoi(t);
+    };
+    const int lo = number(dash == std::string::npos ? item : item.substr(0, dash));
+    const int hi = dash == std::string::npos ? lo : number(item.substr(dash + 1));
+    if (hi < lo || hi - lo > 1000000) throw UsageError(expected);
+    for (int k = lo; k <= hi; ++k) out.push_back(k);
+    if (end == std::string::npos) break;
+    i = end + 1;
+    if (i == v.size()) throw UsageError(expected);
+  }
+  if (out.empty()) throw UsageError(expected);
+  return out;
+}
 
 CliOptions parse_arguments(int argc, char** argv) {
   CliOptions o;
@@ -140,6 +183,7 @@ CliOptions parse_arguments(int argc, char** argv) {
     if (f.empty()) throw UsageError("empty scene file name");
     o.file = f;
     file_given = true;
+    o.file_given = true;
   };
   bool options_done = false;
   for (int i = 1; i < argc; ++i) {
@@ -209,6 +253,23 @@ CliOptions parse_arguments(int argc, char** argv) {
       if (used != v.size() || v.empty() || n < 1 || n > 1024)
         throw UsageError("--gpus: got '" + v + "'; expected an integer from 1 to 1024");
       o.gpus = static_cast<int>(n);
+      o.gpus_given = true;
+    } else if (name == "--sweep") {
+      o.sweep = take_value();
+      if (o.sweep.empty()) throw UsageError("--sweep: expected a sweep file");
+    } else if (name == "--jobs") {
+      const std::string v = take_value();
+      if (v.empty() || v.size() > 4 || v.find_first_not_of("0123456789") != std::string::npos || std::stoi(v) < 1)
+        throw UsageError("--jobs: got '" + v + "'; expected an integer from 1 to 9999");
+      o.jobs = std::stoi(v);
+    } else if (name == "--cases") {
+      o.cases = parse_case_list(take_value());
+    } else if (name == "--gather") {
+      no_value();
+      o.gather = true;
+    } else if (name == "--retry-failed") {
+      no_value();
+      o.retry_failed = true;
     } else if (name == "--keep-gpus") {
       no_value();
       o.keep_gpus = true;
@@ -250,113 +311,6 @@ CliOptions parse_arguments(int argc, char** argv) {
     }
   }
   return o;
-}
-
-std::string utc_now() {
-  const std::time_t t = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
-
-/// run.json's text: the resolved scene and how the run went (running: the record written at the start).
-std::string run_json_text(const Scene& scene, const std::vector<std::string>& command_line, const std::string& started,
-                          double wall_s, const RunResult& result, bool gpu, int ranks, bool running) {
-  rj::Document doc(rj::kObjectType);
-  auto& a = doc.GetAllocator();
-  auto str = [&](const std::string& s) { return rj::Value(s.c_str(), static_cast<rj::SizeType>(s.size()), a); };
-  doc.AddMember("fbar_version", str(FBAR_VERSION), a);
-  doc.AddMember("backend", str(gpu ? "gpu" : "cpu"), a);
-  doc.AddMember("engine", str(gpu ? "GPU engine (device 0)" : "CPU reference engine"), a);
-  doc.AddMember("precision", str(to_string(scene.simulation.precision)), a);
-  doc.AddMember("ranks", ranks, a);
-  rj::Value cmd(rj::kArrayType);
-  for (const auto& c : command_line) cmd.PushBack(str(c), a);
-  doc.AddMember("command_line", cmd, a);
-  std::error_code ec;
-  doc.AddMember("scene_file", str(scene.source_path.empty() ? "" : fs::absolute(scene.source_path, ec).string()), a);
-  doc.AddMember("started_utc", str(started), a);
-  doc.AddMember("wall_time_s", wall_s, a);
-  doc.AddMember("steps", static_cast<int64_t>(result.steps), a);
-  doc.AddMember("end_time_s", result.end_time, a);
-  doc.AddMember("frames_written", result.frames_written, a);
-  doc.AddMember("status", str(running                     ? "running"
-                              : result.exit_code == kExitOk ? "completed"
-                              : result.stop_signal != 0    ? "interrupted"
-                                                           : "failed"),
-                a);
-  if (result.stop_signal != 0) doc.AddMember("signal", str(signal_name(result.stop_signal)), a);
-  if (!result.checkpoint.empty()) doc.AddMember("checkpoint", str(result.checkpoint), a);
-  if (result.restarted_from_frame >= 0) doc.AddMember("restarted_from_frame", result.restarted_from_frame, a);
-  doc.AddMember("exit_code", result.exit_code, a);
-  doc.AddMember("message", str(result.message), a);
-  rj::Document resolved(&a);
-  resolved.Parse<rj::kParseNanAndInfFlag | rj::kParseFullPrecisionFlag>(write_scene_json(scene, false).c_str());
-  doc.AddMember("scene", rj::Value(resolved, a), a);
-
-  rj::StringBuffer sb;
-  rj::Writer<rj::StringBuffer, rj::UTF8<>, rj::UTF8<>, rj::CrtAllocator, rj::kWriteNanAndInfFlag> w(sb);
-  doc.Accept(w);
-  return indent_json(std::string_view(sb.GetString(), sb.GetSize()));
-}
-
-/// run.json is written when the run starts (status "running") with room reserved after the text (trailing
-/// whitespace, which JSON allows), and rewritten in place at the end: a disk that fills up during the run still
-/// takes the final record, which overwrites blocks the file already holds.
-class RunJson {
- public:
-  static constexpr std::size_t kReserve = 64 * 1024;  ///< [bytes] beyond the first record (the final one's message)
-
-  /// The first record; false (with `error`) when it cannot be written.
-  bool start(const fs::path& path, const std::string& text, std::string& error) {
-    path_ = path;
-    std::FILE* f = std::fopen(path.c_str(), "wb");
-    if (!f) return failed(error);
-    const std::string room(kReserve, ' ');
-    const bool ok = std::fwrite(text.data(), 1, text.size(), f) == text.size() &&
-                    std::fwrite(room.data(), 1, room.size(), f) == room.size() && std::fflush(f) == 0;
-    const int err = errno;
-    if (std::fclose(f) != 0 || !ok) return failed(error, ok ? errno : err);
-    return true;
-  }
-  /// The final record over the first, the file cut to its length; false (with `error`) when it cannot be written.
-  bool finish(const std::string& text, std::string& error) {
-    std::FILE* f = std::fopen(path_.c_str(), "r+b");
-    if (!f) f = std::fopen(path_.c_str(), "wb");  // removed during the run
-    if (!f) return failed(error);
-    const bool ok = std::fwrite(text.data(), 1, text.size(), f) == text.size() && std::fflush(f) == 0 &&
-                    ftruncate(fileno(f), static_cast<off_t>(text.size())) == 0;
-    const int err = errno;
-    if (std::fclose(f) != 0 || !ok) return failed(error, ok ? errno : err);
-    return true;
-  }
-
- private:
-  bool failed(std::string& error, int err = errno) const {
-    error = "cannot write " + path_.string() + ": " + std::error_code(err, std::generic_category()).message();
-    return false;
-  }
-  fs::path path_;
-};
-
-/// The run's end on rank 0: run.json's final record (or, when it cannot be written, why, after the run's own
-/// message) and the run's message on stderr. Returns the exit code.
-int report_run(RunJson& run_json, const std::string& final_record, RunResult result) {
-  std::string json_error;
-  const bool json_written = run_json.finish(final_record, json_error);
-  if (!json_written) {
-    // The run's own message first; then why its record could not be kept (run.json then holds the start's record).
-    if (result.exit_code == kExitOk) result.exit_code = kExitRuntime;
-    result.message = (result.message.empty() ? std::string() : result.message + "; ") + json_error +
-                     " (it holds the record written when the run started, status \"running\")";
-  }
-  if (result.stop_signal != 0)
-    std::cerr << "fbar: " << result.message << (json_written ? "; run.json written" : "") << "\n";
-  else if (result.exit_code != kExitOk)
-    std::cerr << "fbar: error: " << (result.message.empty() ? "the run failed" : result.message) << '\n';
-  return result.exit_code;
 }
 
 /// fbar --check: the scene's report with, when a device is present, its free memory and whether the plan fits.
@@ -484,7 +438,31 @@ bool choose_gpu_engine(const CliOptions& o, const EngineSet& engines, bool& gpu)
   return true;
 }
 
+/// fbar --sweep=FILE: the sweep's options from the command line's, the engine chosen as for one scene.
+int sweep(const CliOptions& o, const std::vector<std::string>& command_line, const EngineSet& engines) {
+  if (o.file_given) throw UsageError("--sweep runs the sweep's scene: give no scene file with it");
+  SweepOptions s;
+  s.file = o.sweep;
+  s.check = o.check;
+  s.gather = o.gather;
+  s.retry_failed = o.retry_failed;
+  s.quiet = o.quiet;
+  s.gpus = o.gpus_given ? o.gpus : 0;
+  s.jobs = o.jobs;
+  s.cases = o.cases;
+  s.output = o.output;
+  s.frames = o.frames;
+  s.frame_buffer = o.frame_buffer;
+  s.allow_unknown_keys = o.allow_unknown_keys;
+  s.data_dir = o.data_dir;
+  if (!o.check && !o.gather && !choose_gpu_engine(o, engines, s.gpu)) return kExitRuntime;
+  return run_sweep(s, engines, command_line);
+}
+
 int run(const CliOptions& o, const std::vector<std::string>& command_line, const EngineSet& engines) {
+  if (!o.sweep.empty()) return sweep(o, command_line, engines);
+  if (o.jobs > 0 || !o.cases.empty() || o.gather || o.retry_failed)
+    throw UsageError("--jobs, --cases, --gather and --retry-failed go with --sweep");
   std::vector<std::string> warnings;
   ParseOptions parse;
   parse.allow_unknown_keys = o.allow_unknown_keys;
@@ -653,6 +631,9 @@ int cli_main(int argc, char** argv, const EngineSet& engines) {
   }
   try {
     return run(options, command_line, engines);
+  } catch (const UsageError& e) {
+    std::cerr << "fbar: error: " << e.what() << " (see fbar --help)\n";
+    return kExitInput;
   } catch (const SceneError& e) {
     std::cerr << "fbar: error: " << e.what() << '\n';
     return kExitInput;

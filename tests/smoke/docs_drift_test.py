@@ -81,6 +81,13 @@ leaving = {"simulation": {"domain": [0.3, 1, 1], "default_dx": 0.025, "default_d
                        "geometry": [{"object": "Box", "span": [0.1, 0.1, 0.1], "offset": [0.2, 0.2, 0.2]}]}]}
 outputs.append(run(["--backend=cpu", "--quiet", "--output=" + os.path.join(work, "leaving"),
                     scene(leaving, "leaving.json")]))
+# Sweeps (user guide §10.1): a path past the scene's end, and a case the scene refuses.
+with open(os.path.join(work, "s.sweep.json"), "w") as f:
+    json.dump({"scene": "tiny.json", "parameters": [{"name": "rho", "path": "bodies[3].material.rho", "values": [1]}]}, f)
+with open(os.path.join(work, "r.sweep.json"), "w") as f:
+    json.dump({"scene": "tiny.json", "parameters": [{"name": "rho", "path": "bodies[0].material.rho",
+                                                     "values": [1000, -1]}]}, f)
+outputs += [run(["--check", "--sweep=s.sweep.json"]), run(["--check", "--sweep=r.sweep.json"])]
 known = []
 for line in "\n".join(outputs).splitlines():
     line = line.strip()

@@ -718,7 +718,7 @@ std::string closest_key(std::string_view key, const std::vector<std::string_view
 }
 
 Scene parse_scene_string(const std::string& json, const ParseOptions& options) {
-  return parse_text(json, "(string)", options, fs::path());
+  return parse_text(json, "(string)", options, fs::path(options.scene_dir));
 }
 
 Scene parse_scene_file(const std::string& path, const ParseOptions& options) {

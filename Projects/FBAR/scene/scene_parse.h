@@ -27,6 +27,9 @@ struct ParseOptions {
   std::vector<std::string>* warnings = nullptr;
   /// Apply check_supported() after parsing. Tests of parsing unsupported features turn it off.
   bool check_supported = true;
+  /// parse_scene_string: the folder the scene's relative files resolve against after data_dir and $AssetDirPath
+  /// (a sweep case: its base scene's folder); empty: the working directory.
+  std::string scene_dir;
 };
 
 /// Reads and resolves a scene file. Throws SceneError (missing / unreadable file, syntax, invalid values).

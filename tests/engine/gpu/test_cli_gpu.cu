@@ -3,11 +3,14 @@
 #include <rapidjson/document.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <sstream>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "../../cli/cli_test_support.h"
 #include "MnSystem/Cuda/device_query.h"
@@ -155,6 +158,83 @@ TEST(CliGpu, TwoRunsWriteTheSameBytes) {
     EXPECT_GT(checkpoints, 0u) << "no checkpoint was compared";
   }
   fs::remove_all(scratch("").parent_path());
+}
+
+
+/// The table rows of a gathered sweep (sweep_table.csv) as (row key, value).
+std::vector<std::pair<std::string, double>> table_rows(const fs::path& sweep_dir) {
+  std::ifstream in(sweep_dir / "sweep_table.csv");
+  std::vector<std::pair<std::string, double>> rows;
+  std::string line;
+  std::getline(in, line);  // the header
+  while (std::getline(in, line)) {
+    const std::size_t comma = line.rfind(',');
+    rows.emplace_back(line.substr(0, comma), std::stod(line.substr(comma + 1)));
+  }
+  return rows;
+}
+
+// A sweep packed on one GPU (three cases at once, each on its thread and streams) writes the bytes the same sweep
+// writes one case at a time (the engine's runs repeat bit for bit, whatever else shares the GPU), and its table
+// agrees with the CPU engine's: double precision at a fixed step (default_dt below every bound), so the engines'
+// sums differ by their order only, 1e-9 of each quantity's range (test_sensors_gpu.cu) plus the CSVs' 9 digits.
+TEST(CliGpu, PackedSweepMatchesOneCaseAtATimeAndTheCpuEngine) {
+  FBAR_REQUIRE_DEVICE();
+  const fs::path dir = scratch("sweep");
+  fs::create_directories(dir);
+  std::ofstream(dir / "base.json") << R"({
+    "simulation": {"domain": [0.4, 0.4, 0.4], "default_dx": 0.05, "default_dt": 1e-4, "fps": 100, "frames": 2,
+                   "precision": "double", "save_suffix": ".csv"},
+    "bodies": [{"material": {"constitutive": "JFluid", "rho": 1000, "bulk_modulus": 2e5, "viscosity": 0.001},
+                "algorithm": {"use_ASFLIP": false, "use_FBAR": false},
+                "geometry": [{"object": "Box", "span": [0.1, 0.1, 0.1], "offset": [0.15, 0.1, 0.15]}],
+                "output_attribs": ["ID", "Pressure"]}],
+    "boundaries": [{"object": "Walls", "contact": "Separable", "domain_start": [0.05, 0.05, 0.05],
+                    "domain_end": [0.35, 0.35, 0.35]}],
+    "grid-sensors": [{"attribute": "Force", "operation": "Sum", "direction": "Y-", "output_frequency": 500,
+                      "domain_start": [0, 0, 0], "domain_end": [0.4, 0.08, 0.4]}],
+    "particle-sensors": [{"attribute": "Elevation", "operation": "Max", "output_frequency": 500,
+                          "domain_start": [0, 0, 0], "domain_end": [0.4, 0.4, 0.4]}]})";
+  std::ofstream(dir / "s.sweep.json") << R"({"scene": "base.json", "output": "packed", "parameters": [
+      {"name": "rho", "path": "bodies[0].material.rho", "values": [1000, 1100, 1200]},
+      {"name": "x", "path": "bodies[0].geometry[0].offset[0]", "values": [0.12, 0.18]}]})";
+  const std::string sweep = "--sweep=" + (dir / "s.sweep.json").string();
+  const test::CliResult packed = test::run_cli({sweep, "--backend=gpu", "--jobs=3"}, with_gpu());
+  ASSERT_EQ(packed.code, 0) << packed.err;
+  EXPECT_NE(packed.out.find("6 cases to run; on GPU 0 (3 at once)"), std::string::npos) << packed.out;
+  const test::CliResult alone =
+      test::run_cli({sweep, "--backend=gpu", "--jobs=1", "--quiet", "--output=" + (dir / "alone").string()}, with_gpu());
+  ASSERT_EQ(alone.code, 0) << alone.err;
+  const test::CliResult cpu =
+      test::run_cli({sweep, "--backend=cpu", "--quiet", "--output=" + (dir / "cpu").string()}, with_gpu());
+  ASSERT_EQ(cpu.code, 0) << cpu.err;
+  for (int c = 0; c < 6; ++c) {
+    const std::string folder = "case_000" + std::to_string(c);
+    const auto a = output_files(dir / "packed" / folder), b = output_files(dir / "alone" / folder);
+    ASSERT_GT(a.size(), 4u) << folder;
+    for (const auto& [name, bytes] : a) {
+      if (name == "log.txt" || name == "scene.json") continue;  // times; the case's save_path
+      const auto it = b.find(name);
+      ASSERT_NE(it, b.end()) << folder << "/" << name;
+      EXPECT_TRUE(it->second == bytes) << folder << "/" << name << " differs between packed and one at a time";
+    }
+  }
+  const auto g = table_rows(dir / "packed"), c = table_rows(dir / "cpu");
+  ASSERT_EQ(g.size(), c.size());
+  ASSERT_GT(g.size(), 100u);
+  std::map<std::string, double> range;  // per sensor and quantity: the largest magnitude
+  for (const auto& [key, v] : c) {
+    const std::string series = key.substr(key.find(',', key.find(',', key.find(',') + 1) + 1) + 1);
+    double& r = range[series.substr(0, series.rfind(','))];
+    r = std::max(r, std::fabs(v));
+  }
+  for (std::size_t i = 0; i < g.size(); ++i) {
+    ASSERT_EQ(g[i].first, c[i].first) << "row " << i;
+    const std::string series = g[i].first.substr(g[i].first.find(',', g[i].first.find(',', g[i].first.find(',') + 1) + 1) + 1);
+    const double scale = range[series.substr(0, series.rfind(','))];
+    EXPECT_NEAR(g[i].second, c[i].second, 1e-8 * scale + 1e-12) << g[i].first;
+  }
+  fs::remove_all(dir.parent_path());
 }
 
 }  // namespace
