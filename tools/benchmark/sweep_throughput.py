@@ -47,7 +47,7 @@ def run(cmd, what):
     p = subprocess.run(cmd, capture_output=True, text=True)
     wall = time.perf_counter() - t0
     if p.returncode != 0:
-        sys.exit(f"{what}: exit {p.returncode}\n{p.stdout[-3000:]}\n{p.stderr[-3000:]}")
+        print(f"{what}: exit {p.returncode}\n{p.stdout[-2000:]}\n{p.stderr[-2000:]}", flush=True)
     return wall, p
 
 
@@ -100,6 +100,9 @@ def main():
             plan = list(csv.DictReader(f))
         total = steps_sum = 0
         for k, row in enumerate(plan):
+            with open(os.path.join(folder, f"case_{k:04d}", "run.json")) as f:
+                if json.load(f)["status"] != "completed":
+                    sys.exit(f"{file} --jobs={j}: case {k} did not complete: the figures would not mean anything")
             s, _ = particle_steps(os.path.join(folder, f"case_{k:04d}", "run.json"))
             total += int(row["particles"]) * s
             steps_sum += s

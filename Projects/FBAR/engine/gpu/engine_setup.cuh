@@ -144,6 +144,8 @@ double MgspBenchmark<T, TG>::add_body(int b, const std::vector<std::vector<Vec3d
     body.initial_v.allocate(std::max<std::size_t>(flat.size(), 1));
     if (!flat.empty())
       FBAR_CUDA_CHECK(cudaMemcpy(body.initial_v.get(), flat.data(), sizeof(T) * flat.size(), cudaMemcpyHostToDevice));
+    // A copy from pageable memory may return before its DMA ends, and the non-blocking streams do not wait for it.
+    FBAR_CUDA_CHECK(cudaStreamSynchronize(cudaStreamLegacy));
   }
   return max_speed;
 }
@@ -543,6 +545,7 @@ void MgspBenchmark<T, TG>::restore_bodies(const io::Checkpoint& cp) {
     b.initial_C.allocate(std::max<std::size_t>(C.size(), 1));
     if (!C.empty())
       FBAR_CUDA_CHECK(cudaMemcpy(b.initial_C.get(), C.data(), sizeof(T) * C.size(), cudaMemcpyHostToDevice));
+    FBAR_CUDA_CHECK(cudaStreamSynchronize(cudaStreamLegacy));  // as for initial_v: the DMA may still be running
   }
   time_ = cp.time;
   max_grid_speed_ = cp.max_grid_speed;

@@ -85,6 +85,8 @@ class BlockBuffer {
     // Defined from the start: growth copies blocks that may not have been written since (velocities of blocks the
     // last grid update did not cover).
     FBAR_CUDA_CHECK(cudaMemset(instance_.data(), 0, kBlockBytes * static_cast<std::size_t>(block_capacity)));
+    // Done before the engine's non-blocking streams use the blocks (they do not wait for the legacy stream).
+    FBAR_CUDA_CHECK(cudaStreamSynchronize(cudaStreamLegacy));
   }
   /// New capacity keeping blocks [0, keep_blocks) (a block is one contiguous range: the outer node is one element
   /// per block, so the copy is a single memcpy).

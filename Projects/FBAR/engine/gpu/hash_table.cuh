@@ -220,7 +220,7 @@ class BlockHashTable {
     release();
     block_capacity_ = block_capacity;
     slots_ = hash_table_detail::next_pow2(2 * static_cast<std::size_t>(block_capacity));
-    allocate_arrays();
+    allocate_arrays(stream);
     clear(stream);
   }
 
@@ -244,7 +244,7 @@ class BlockHashTable {
     const int old_capacity = block_capacity_;
     block_capacity_ = block_capacity;
     slots_ = hash_table_detail::next_pow2(2 * static_cast<std::size_t>(block_capacity));
-    allocate_arrays();
+    allocate_arrays(stream);
     hash_table_detail::reset_slots<<<(slots_ + 255) / 256, 256, 0, stream>>>(keys_, values_, slots_);
     FBAR_CUDA_CHECK(cudaGetLastError());
     FBAR_CUDA_CHECK(cudaMemcpyAsync(coords_, old_coords, sizeof(int) * 3 * static_cast<std::size_t>(old_capacity),
@@ -282,16 +282,19 @@ class BlockHashTable {
   static std::size_t arena_bytes(int block_capacity) {
     return sizeof(int) * 8 * static_cast<std::size_t>(block_capacity);
   }
-  void allocate_arrays() {
+  /// The arrays for block_capacity_ and slots_, their initial contents set on `stream`: grow() copies the old
+  /// contents on the same stream after them (a memset on the legacy stream is not ordered with a non-blocking
+  /// stream: with other runs' work on the device it could land after the copy and erase it).
+  void allocate_arrays(cudaStream_t stream) {
     cuda::DeviceAllocator device;
     arena_ = static_cast<int*>(device.allocate(arena_bytes(block_capacity_)));
-    FBAR_CUDA_CHECK(cudaMemset(arena_, 0xff, arena_bytes(block_capacity_)));  // no index cached
+    FBAR_CUDA_CHECK(cudaMemsetAsync(arena_, 0xff, arena_bytes(block_capacity_), stream));  // no index cached
     keys_ = static_cast<unsigned long long*>(device.allocate(sizeof(unsigned long long) * slots_));
     values_ = static_cast<int*>(device.allocate(sizeof(int) * slots_));
     coords_ = static_cast<int*>(device.allocate(sizeof(int) * 3 * static_cast<std::size_t>(block_capacity_)));
     counters_ = static_cast<TableCounters*>(device.allocate(sizeof(TableCounters)));
     // Coordinates of blocks not inserted yet are never read, but growth copies the whole array: keep it defined.
-    FBAR_CUDA_CHECK(cudaMemset(coords_, 0, sizeof(int) * 3 * static_cast<std::size_t>(block_capacity_)));
+    FBAR_CUDA_CHECK(cudaMemsetAsync(coords_, 0, sizeof(int) * 3 * static_cast<std::size_t>(block_capacity_), stream));
   }
   void release() {
     cuda::DeviceAllocator device;

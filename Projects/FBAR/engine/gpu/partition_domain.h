@@ -73,6 +73,9 @@ class PartitionDomain {
     FBAR_CUDA_CHECK(cudaMemset(dest_, 0xff, sizeof(ParticleDest) * slots()));  // block -1: no destination
     bins_per_block_ = static_cast<int*>(cuda::device_malloc(sizeof(int) * (blocks + 1), "partition arrays"));
     allocate_order(blocks);
+    // The memsets above ran on the legacy stream, which the engine's non-blocking streams do not wait for: done
+    // before anything is queued after them (with other runs on the device they may otherwise land later).
+    FBAR_CUDA_CHECK(cudaStreamSynchronize(cudaStreamLegacy));
   }
 
   /// Grows the per-block arrays keeping layout `keep` (counts and offsets of blocks [0, old capacity)). The block
