@@ -4,6 +4,8 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <atomic>
+#include <exception>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
@@ -152,37 +154,65 @@ class SweepRunner {
               const Sweep& sweep)
       : o_(o), engines_(engines), command_line_(command_line), sweep_(sweep) {}
 
-  /// Checks every case (throws SceneError naming the case).
-  void plan() {
+  /// One case's scene, checked, and what it costs (throws SceneError naming the case).
+  CasePlan plan_case(const SweepCase& c, const SummaryOptions& summary_options, std::vector<std::string>& warnings) const {
     ParseOptions parse;
     parse.allow_unknown_keys = o_.allow_unknown_keys;
     parse.data_dir = o_.data_dir;
-    std::vector<std::string> warnings;
     parse.warnings = &warnings;
+    CasePlan p;
+    p.c = &c;
+    p.scene = sweep_case_scene(sweep_, c, io::sweep_case_path(sweep_, c.id).string(), parse);
+    if (o_.frames) p.scene.simulation.frames = *o_.frames;
+    if (comm::ranks_asked(p.scene) > 1)
+      throw SceneError("sweep case " + std::to_string(c.id) + " (" + sweep_case_label(sweep_, c) + "): bodies[].gpu",
+                       "bodies on " + std::to_string(comm::ranks_asked(p.scene)) + " GPUs",
+                       "every body on GPU 0 (a sweep runs each case on one GPU)");
+    const SceneSummary s = summarize_scene(p.scene, summary_options);
+    for (const BodySummary& b : s.bodies) p.particles += b.particles;
+    p.gpu_bytes = s.gpu_bytes.empty() ? 0 : s.gpu_bytes[0];
+    const double duration = p.scene.simulation.frames / p.scene.simulation.fps;
+    p.est_steps = s.dt > 0.0 ? std::ceil(duration / s.dt) : 0.0;
+    p.est_gpu_s = p.est_steps * s.gpu_ms_per_step * 1e-3;
+    p.weight = std::max(1.0, p.est_steps * static_cast<double>(std::max(1LL, p.particles)));
+    return p;
+  }
+
+  /// Checks every case (throws SceneError naming the first case in order that fails).
+  void plan() {
+    const auto t0 = std::chrono::steady_clock::now();
     SummaryOptions summary_options;
     if (o_.frame_buffer > 0) summary_options.frame_host_bytes = o_.frame_buffer;
-    for (const SweepCase& c : sweep_.cases) {
-      CasePlan p;
-      p.c = &c;
-      p.scene = sweep_case_scene(sweep_, c, io::sweep_case_path(sweep_, c.id).string(), parse);
-      if (o_.frames) p.scene.simulation.frames = *o_.frames;
-      if (comm::ranks_asked(p.scene) > 1)
-        throw SceneError("sweep case " + std::to_string(c.id) + " (" + sweep_case_label(sweep_, c) + "): bodies[].gpu",
-                         "bodies on " + std::to_string(comm::ranks_asked(p.scene)) + " GPUs",
-                         "every body on GPU 0 (a sweep runs each case on one GPU)");
-      const SceneSummary s = summarize_scene(p.scene, summary_options);
-      for (const BodySummary& b : s.bodies) p.particles += b.particles;
-      p.gpu_bytes = s.gpu_bytes.empty() ? 0 : s.gpu_bytes[0];
-      const double duration = p.scene.simulation.frames / p.scene.simulation.fps;
-      p.est_steps = s.dt > 0.0 ? std::ceil(duration / s.dt) : 0.0;
-      p.est_gpu_s = p.est_steps * s.gpu_ms_per_step * 1e-3;
-      p.weight = std::max(1.0, p.est_steps * static_cast<double>(std::max(1LL, p.particles)));
-      plans_.push_back(std::move(p));
-    }
+    // Cases are checked and counted on every core (a case's count is serial, one thread each); the first case in
+    // case order that fails is reported, and warnings are kept in case order.
+    const std::size_t n = sweep_.cases.size();
+    plans_.assign(n, CasePlan{});
+    std::vector<std::vector<std::string>> warnings(n);
+    std::vector<std::exception_ptr> errors(n);
+    std::atomic<std::size_t> next{0};
+    auto work = [&] {
+      omp_set_num_threads(1);
+      for (std::size_t k = next++; k < n; k = next++) {
+        try {
+          plans_[k] = plan_case(sweep_.cases[k], summary_options, warnings[k]);
+        } catch (...) {
+          errors[k] = std::current_exception();
+        }
+      }
+    };
+    const std::size_t threads = std::min<std::size_t>(n, std::max(1u, std::thread::hardware_concurrency()));
+    std::vector<std::thread> pool;
+    for (std::size_t t = 1; t < threads; ++t) pool.emplace_back(work);
+    work();
+    for (std::thread& t : pool) t.join();
+    for (const std::exception_ptr& e : errors)
+      if (e) std::rethrow_exception(e);
     // One warning of each text, for the whole sweep (every case repeats its base scene's).
     std::set<std::string> seen;
-    for (const auto& w : warnings)
-      if (seen.insert(w).second) std::cerr << "fbar: warning: " << w << '\n';
+    for (const auto& list : warnings)
+      for (const auto& w : list)
+        if (seen.insert(w).second) std::cerr << "fbar: warning: " << w << '\n';
+    plan_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   }
 
   int check(const Share& share) const {
@@ -279,7 +309,9 @@ class SweepRunner {
       for (const Place& pl : places_) std::cout << " " << pl.name << " (" << pl.slots << " at once)";
       std::cout << "; each case's log: " << sweep_.output << "/case_*/log.txt" << std::endl;
     }
+    const auto t_run = std::chrono::steady_clock::now();
     const int failed = schedule();
+    const double run_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_run).count();
     const int signal = stop_signal();
     if (signal != 0) {
       std::cerr << "fbar: sweep stopped by " << signal_name(signal) << ": " << completed_ << " cases completed, "
@@ -289,11 +321,15 @@ class SweepRunner {
     if (ranks) mpi->barrier();
     const bool gather_here = share.count == 1 || (ranks && mpi->rank() == 0);
     if (gather_here) {
+      const auto t_gather = std::chrono::steady_clock::now();
       const io::SweepGathered g = io::gather_sweep(sweep_);
+      const double gather_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_gather).count();
       if (!o_.quiet)
         std::cout << "fbar: sweep: " << g.completed << " of " << sweep_.cases.size() << " cases gathered, "
                   << count_text(g.rows) << " rows: " << (fs::path(sweep_.output) / "sweep_table.csv").string()
-                  << ", sweep_summary.csv, sweep_cases.csv, sweep_table.h5" << std::endl;
+                  << ", sweep_summary.csv, sweep_cases.csv, sweep_table.h5; cases checked in " << std::fixed
+                  << std::setprecision(2) << plan_s_ << " s, run in " << run_s << " s, gathered in " << gather_s
+                  << " s" << std::defaultfloat << std::endl;
     } else if (mpi == nullptr && !o_.quiet) {
       std::cout << "fbar: sweep: " << share.what << " done; after every task: fbar --sweep=" << o_.file
                 << " --gather" << std::endl;
@@ -526,6 +562,7 @@ class SweepRunner {
   std::vector<Todo> todo_;
   std::vector<Place> places_;
   int completed_ = 0, interrupted_ = 0;
+  double plan_s_ = 0.0;
   double todo_weight_ = 0.0, done_weight_ = 0.0, ran_weight_ = 0.0;
 };
 
