@@ -455,9 +455,6 @@ int sweep(const CliOptions& o, const std::vector<std::string>& command_line, con
   s.frame_buffer = o.frame_buffer;
   s.allow_unknown_keys = o.allow_unknown_keys;
   s.data_dir = o.data_dir;
-  // Cases packed on a GPU each queue work on two streams: more than CUDA's default 8 hardware queues would
-  // serialize streams that share one. Set before the first CUDA context; a value the user set stays.
-  setenv("CUDA_DEVICE_MAX_CONNECTIONS", std::to_string(kSweepDeviceConnections).c_str(), 0);
   if (!o.check && !o.gather && !choose_gpu_engine(o, engines, s.gpu)) return kExitRuntime;
   return run_sweep(s, engines, command_line);
 }

@@ -190,8 +190,11 @@ class SweepRunner {
     std::vector<std::vector<std::string>> warnings(n);
     std::vector<std::exception_ptr> errors(n);
     std::atomic<std::size_t> next{0};
+    const std::size_t threads = std::min<std::size_t>(n, std::max(1u, std::thread::hardware_concurrency()));
+    const int cores_each = std::max(1, static_cast<int>(std::max(1u, std::thread::hardware_concurrency()) / threads));
+    const int main_threads = omp_get_max_threads();
     auto work = [&] {
-      omp_set_num_threads(1);
+      omp_set_num_threads(cores_each);  // one case on every core, or a core to each of many
       for (std::size_t k = next++; k < n; k = next++) {
         try {
           plans_[k] = plan_case(sweep_.cases[k], summary_options, warnings[k]);
@@ -200,11 +203,11 @@ class SweepRunner {
         }
       }
     };
-    const std::size_t threads = std::min<std::size_t>(n, std::max(1u, std::thread::hardware_concurrency()));
     std::vector<std::thread> pool;
     for (std::size_t t = 1; t < threads; ++t) pool.emplace_back(work);
     work();
     for (std::thread& t : pool) t.join();
+    omp_set_num_threads(main_threads);
     for (const std::exception_ptr& e : errors)
       if (e) std::rethrow_exception(e);
     // One warning of each text, for the whole sweep (every case repeats its base scene's).

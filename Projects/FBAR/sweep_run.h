@@ -32,9 +32,6 @@ struct SweepOptions {
 /// Cases at once on one GPU when --jobs is not given: at most this many (each case's thread waits on its GPU
 /// with one CPU core) and at most the cores per GPU less one.
 inline constexpr int kSweepMaxJobsPerGpu = 16;
-/// CUDA_DEVICE_MAX_CONNECTIONS for a sweep (CUDA's default is 8; 32 is its largest): each running case has two
-/// streams, and streams beyond the connections share hardware queues, which orders their work needlessly.
-inline constexpr int kSweepDeviceConnections = 32;
 /// Share of a GPU's free memory the cases running on it may plan to take together.
 inline constexpr double kSweepMemoryShare = 0.9;
 

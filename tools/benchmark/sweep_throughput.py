@@ -6,7 +6,7 @@
 Writes a water-column scene (JFluid dam break in a tank, one floor load cell, one frame at the end) in two sizes:
 a case of about 250k particles (dx = 1 cm) and one run of about 16M (dx = 2.5 mm, the same tank 4x finer), and
 runs, one after the other on the same GPU:
-  * the 16M run alone (fbar --file), the reference;
+  * the 16M run alone (fbar --file), the reference, and the same as a sweep of one case;
   * the sweep of --cases cases (each the 250k scene with another column position, density and bulk modulus:
     the same particle count) one case at a time (--jobs=1) and packed (--jobs=N for each N given).
 Particle-steps per second = sum over runs of particles x steps / the whole command's wall time (set-up, sampling
@@ -17,6 +17,7 @@ import csv
 import itertools
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -89,7 +90,17 @@ def main():
         json.dump({"scene": "large.json", "design": "cases", "parameters": [
             {"name": "rho", "path": "bodies[0].material.rho"}], "cases": [{"rho": 1000}]}, f)
     rows = []
-    runs = [("one run", "large.sweep.json", 1)]
+    # The reference: the large scene through `fbar --file`, the path a single run takes (its particle count from
+    # --check, which counts them as the engine samples them).
+    check = subprocess.run([a.fbar, "--check", os.path.join(a.work, "large.json")], capture_output=True, text=True)
+    m = re.search(r"particles\s+(\d+) in \d+ body", check.stdout)
+    if not m:
+        sys.exit("fbar --check large.json printed no particle count:\n" + check.stdout[-2000:])
+    out = os.path.join(a.work, "large_out")
+    wall, _ = run([a.fbar, "--backend=gpu", "--quiet", f"--output={out}", os.path.join(a.work, "large.json")], "large")
+    steps, _ = particle_steps(os.path.join(out, "run.json"))
+    rows.append(("one run (--file)", 1, int(m.group(1)), steps, wall, int(m.group(1)) * steps / wall))
+    runs = [("one run (--sweep)", "large.sweep.json", 1)]
     runs += [(f"sweep, {len(combos)} cases", "s.sweep.json", j) for j in ([] if a.skip_alone else [1])]
     runs += [(f"sweep, {len(combos)} cases", "s.sweep.json", int(j)) for j in a.jobs.split(",") if j]
     for name, file, j in runs:
