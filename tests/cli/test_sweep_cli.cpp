@@ -241,7 +241,8 @@ TEST(SweepCli, RunsCasesAndGathersOneTable) {
 }
 
 // SIGTERM stops the running case at its next step with a checkpoint (run.json "interrupted"); the same command
-// resumes it from the checkpoint and skips the cases done. The resumed sweep's table equals, byte for byte, that of
+// resumes it from the checkpoint (here found as after a hard kill: the newest in the case's folder) and skips the
+// cases done. The resumed sweep's table equals, byte for byte, that of
 // the same sweep run without a stop (a restart continues a run exactly).
 TEST(SweepCli, StoppedSweepResumesFromCheckpoints) {
   const std::string design = R"("parameters": [{"name": "rho", "path": "bodies[0].material.rho",
@@ -268,11 +269,40 @@ TEST(SweepCli, StoppedSweepResumesFromCheckpoints) {
   EXPECT_FALSE(fs::exists(dir / "out" / "case_0001" / "run.json")) << "a case started after the stop";
   EXPECT_FALSE(fs::exists(dir / "out" / "sweep_table.csv")) << "a stopped sweep gathered";
 
+  // A process killed outright (SIGKILL, a node lost) leaves run.json as the run's start wrote it: status "running",
+  // no checkpoint named. The sweep then continues from the newest checkpoint in the case's folder.
+  write_text(dir / "out" / "case_0000" / "run.json", "{\"status\": \"running\"}");
   const CliResult resumed = run_cli({"--sweep=" + file.string(), "--backend=cpu"});
   ASSERT_EQ(resumed.code, 0) << resumed.err;
   EXPECT_NE(read_text(dir / "out" / "case_0000" / "run.json").find("\"restarted_from_frame\""), std::string::npos);
   EXPECT_EQ(read_text(dir / "out" / "sweep_table.csv"), read_text(whole_dir / "out" / "sweep_table.csv"));
   EXPECT_EQ(read_text(dir / "out" / "sweep_summary.csv"), read_text(whole_dir / "out" / "sweep_summary.csv"));
+}
+
+// On the CPU engine --jobs=2 runs two cases at once, each with half the cores: every case writes the bytes it
+// writes when the cases run one at a time (frames, sensors and the gathered table).
+TEST(SweepCli, CpuCasesAtOnceWriteWhatTheyWriteAlone) {
+  const fs::path dir = scratch("jobs");
+  const fs::path file = write_sweep(dir, R"("parameters": [{"name": "rho", "path": "bodies[0].material.rho",
+                                                "values": [1000, 1100, 1200, 1300]}])");
+  ASSERT_EQ(run_cli({"--sweep=" + file.string(), "--backend=cpu", "--quiet", "--jobs=1",
+                     "--output=" + (dir / "one").string()}).code, 0);
+  const CliResult two = run_cli({"--sweep=" + file.string(), "--backend=cpu", "--jobs=2",
+                                 "--output=" + (dir / "two").string()});
+  ASSERT_EQ(two.code, 0) << two.err;
+  EXPECT_NE(two.out.find("4 cases to run; on the CPU engine (2 at once)"), std::string::npos) << two.out;
+  int compared = 0;
+  for (int c = 0; c < 4; ++c) {
+    const std::string folder = "case_000" + std::to_string(c);
+    for (const auto& e : fs::directory_iterator(dir / "one" / folder)) {
+      const std::string name = e.path().filename().string();
+      if (name == "run.json" || name == "log.txt" || name == "scene.json") continue;  // times; the folder's name
+      EXPECT_EQ(read_text(dir / "two" / folder / name), read_text(e.path())) << folder << "/" << name;
+      ++compared;
+    }
+  }
+  EXPECT_GE(compared, 4 * 4);  // 3 frames and 2 sensor files a case (checkpoints too)
+  EXPECT_EQ(read_text(dir / "two" / "sweep_table.csv"), read_text(dir / "one" / "sweep_table.csv"));
 }
 
 }  // namespace
