@@ -68,6 +68,14 @@ std::string count_text(long long n) {
   return s;
 }
 
+/// A CSV field: quoted, its quotes doubled, when it holds a comma, a quote or a line break.
+std::string csv_field(const std::string& s) {
+  if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
+  std::string q = "\"";
+  for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return q + "\"";
+}
+
 /// Which share of the cases this process runs: MPI rank r of n, a Slurm array task, or all.
 struct Share {
   int index = 0, count = 1;
@@ -390,7 +398,7 @@ class SweepRunner {
       f << ",particles,gpu_bytes,estimated_steps,estimated_gpu_time [s]\n";
       for (const CasePlan& p : plans_) {
         f << p.c->id;
-        for (const auto& l : p.c->labels) f << "," << (l.find_first_of(",\"") == std::string::npos ? l : "\"" + l + "\"");
+        for (const auto& l : p.c->labels) f << "," << csv_field(l);
         f << "," << p.particles << "," << p.gpu_bytes << "," << static_cast<long long>(p.est_steps) << ","
           << p.est_gpu_s << "\n";
       }
