@@ -27,7 +27,7 @@
 #include <utility>
 #include <vector>
 
-#include "comm/transport.h"
+#include "MnSystem/Comm/transport_interface.h"
 #include "io/checkpoint.h"
 #include "physics/sensors.cuh"
 #include "scene/output_specs.h"
