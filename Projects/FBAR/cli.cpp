@@ -177,12 +177,10 @@ std::vector<int> parse_case_list(const std::string& v) {
 
 CliOptions parse_arguments(int argc, char** argv) {
   CliOptions o;
-  bool file_given = false;
   auto set_file = [&](const std::string& f) {
-    if (file_given) throw UsageError("more than one scene file given ('" + o.file + "' and '" + f + "')");
+    if (o.file_given) throw UsageError("more than one scene file given ('" + o.file + "' and '" + f + "')");
     if (f.empty()) throw UsageError("empty scene file name");
     o.file = f;
-    file_given = true;
     o.file_given = true;
   };
   bool options_done = false;
@@ -455,6 +453,7 @@ int sweep(const CliOptions& o, const std::vector<std::string>& command_line, con
   s.frame_buffer = o.frame_buffer;
   s.allow_unknown_keys = o.allow_unknown_keys;
   s.data_dir = o.data_dir;
+  s.local_rank = env_int(kLocalRankVariables, 0);
   if (!o.check && !o.gather && !choose_gpu_engine(o, engines, s.gpu)) return kExitRuntime;
   return run_sweep(s, engines, command_line);
 }

@@ -30,6 +30,7 @@
 #include "comm/placement.h"
 #include "engine/engine_api.h"
 #include "engine/memory_plan.h"
+#include "engine/run_loop.h"
 #include "engine/stop_request.h"
 #include "io/sweep_table.h"
 #include "run_record.h"
@@ -53,27 +54,10 @@ struct CasePlan {
   double weight = 0.0;         ///< the share of the sweep's work (progress and ETA)
 };
 
-std::string duration_text(double s) {
-  if (!std::isfinite(s)) return "-";
-  char buf[32];
-  if (s < 90) std::snprintf(buf, sizeof buf, "%.0f s", s);
-  else if (s < 5400) std::snprintf(buf, sizeof buf, "%.0f min", s / 60);
-  else std::snprintf(buf, sizeof buf, "%.1f h", s / 3600);
-  return buf;
-}
-
 std::string count_text(long long n) {
   std::string s = std::to_string(n);
   for (int i = static_cast<int>(s.size()) - 3; i > 0; i -= 3) s.insert(static_cast<std::size_t>(i), ",");
   return s;
-}
-
-/// A CSV field: quoted, its quotes doubled, when it holds a comma, a quote or a line break.
-std::string csv_field(const std::string& s) {
-  if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
-  std::string q = "\"";
-  for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
-  return q + "\"";
 }
 
 /// Which share of the cases this process runs: MPI rank r of n, a Slurm array task, or all.
@@ -93,13 +77,11 @@ Share job_share(comm::Transport* mpi) {
   const char* id = std::getenv("SLURM_ARRAY_TASK_ID");
   const char* count = std::getenv("SLURM_ARRAY_TASK_COUNT");
   if (id != nullptr && count != nullptr && std::atoi(count) > 1) {
+    // The task's position in the array ("--array=0-30:2" has a step of 2).
     const char* min = std::getenv("SLURM_ARRAY_TASK_MIN");
-    s.index = std::atoi(id) - (min ? std::atoi(min) : 0);
+    const char* step = std::getenv("SLURM_ARRAY_TASK_STEP");
+    s.index = (std::atoi(id) - (min ? std::atoi(min) : 0)) / std::max(1, step ? std::atoi(step) : 1);
     s.count = std::atoi(count);
-    if (s.index < 0 || s.index >= s.count) {  // an array with a step ("--array=0-30:2"): tasks by position
-      const char* step = std::getenv("SLURM_ARRAY_TASK_STEP");
-      s.index = (std::atoi(id) - (min ? std::atoi(min) : 0)) / std::max(1, step ? std::atoi(step) : 1);
-    }
     s.what = "Slurm array task " + std::to_string(s.index) + " of " + std::to_string(s.count);
   }
   return s;
@@ -242,14 +224,14 @@ class SweepRunner {
       std::cout << std::left << std::setw(6) << p.c->id << std::setw(static_cast<int>(label_width) + 2)
                 << sweep_case_label(sweep_, *p.c) << std::right << std::setw(13) << count_text(p.particles)
                 << std::setw(13) << format_bytes(static_cast<double>(p.gpu_bytes)) << std::setw(12)
-                << count_text(static_cast<long long>(p.est_steps)) << std::setw(16) << duration_text(p.est_gpu_s)
+                << count_text(static_cast<long long>(p.est_steps)) << std::setw(16) << run_detail::format_duration(p.est_gpu_s)
                 << "  " << r.status << (runs_here(share, p) ? "" : " (another task's)") << "\n";
       total_s += p.est_gpu_s;
       total_particles += p.particles;
       peak_bytes = std::max(peak_bytes, p.gpu_bytes);
     }
     std::cout << "\ntotal: " << plans_.size() << " cases, " << count_text(total_particles) << " particles, about "
-              << duration_text(total_s) << " of one " << kGpuRateDevice << " one case at a time (" << kGpuRateRecord
+              << run_detail::format_duration(total_s) << " of one " << kGpuRateDevice << " one case at a time (" << kGpuRateRecord
               << "); the largest case plans " << format_bytes(static_cast<double>(peak_bytes)) << "\n";
     const int devices = cuda::device_count();
     for (int d = 0; d < devices; ++d) {
@@ -288,7 +270,6 @@ class SweepRunner {
       const io::SweepCaseRecord r = io::read_sweep_case(sweep_, p.c->id);
       if (r.status == "completed") {
         ++done;
-        done_weight_ += p.weight;
         continue;
       }
       if (r.status == "failed" && !o_.retry_failed) {
@@ -303,16 +284,16 @@ class SweepRunner {
         if (restart.empty() || !fs::is_regular_file(restart, ec))
           restart = newest_checkpoint(io::sweep_case_path(sweep_, p.c->id));
       }
-      todo_.push_back({i, restart});
-      todo_weight_ += p.weight;
+      pending_.push_back({i, restart});
+      pending_weight_ += p.weight;
     }
     // Largest first: the long cases start early and the short ones fill the gaps.
-    std::stable_sort(todo_.begin(), todo_.end(),
-                     [&](const Todo& a, const Todo& b) { return plans_[a.index].weight > plans_[b.index].weight; });
+    std::stable_sort(pending_.begin(), pending_.end(),
+                     [&](const Pending& a, const Pending& b) { return plans_[a.index].weight > plans_[b.index].weight; });
     make_places(ranks);
     if (places_.empty()) throw std::runtime_error("sweep: no GPU to run the cases on (--backend=cpu runs them on the CPU)");
     if (!o_.quiet) {
-      std::cout << "fbar: sweep " << o_.file << ": " << todo_.size() << " cases to run";
+      std::cout << "fbar: sweep " << o_.file << ": " << pending_.size() << " cases to run";
       if (done > 0) std::cout << ", " << done << " completed before";
       if (failed_before > 0) std::cout << ", " << failed_before << " failed before";
       if (!share.what.empty()) std::cout << " (" << share.what << ")";
@@ -349,7 +330,7 @@ class SweepRunner {
   }
 
  private:
-  struct Todo {
+  struct Pending {
     std::size_t index;
     std::string restart;
   };
@@ -398,7 +379,7 @@ class SweepRunner {
       f << ",particles,gpu_bytes,estimated_steps,estimated_gpu_time [s]\n";
       for (const CasePlan& p : plans_) {
         f << p.c->id;
-        for (const auto& l : p.c->labels) f << "," << csv_field(l);
+        for (const auto& l : p.c->labels) f << "," << io::csv_field(l);
         f << "," << p.particles << "," << p.gpu_bytes << "," << static_cast<long long>(p.est_steps) << ","
           << p.est_gpu_s << "\n";
       }
@@ -418,9 +399,7 @@ class SweepRunner {
     const int visible = cuda::device_count();
     std::vector<int> devices;
     if (mpi_ranks) {  // one rank per GPU of its node
-      const char* local = std::getenv("OMPI_COMM_WORLD_LOCAL_RANK");
-      if (!local) local = std::getenv("SLURM_LOCALID");
-      devices.push_back((local ? std::atoi(local) : 0) % std::max(1, visible));
+      devices.push_back(o_.local_rank % std::max(1, visible));
     } else {
       const int n = o_.gpus > 0 ? std::min(o_.gpus, visible) : visible;
       for (int d = 0; d < n; ++d) devices.push_back(d);
@@ -447,8 +426,8 @@ class SweepRunner {
     std::vector<std::thread> threads;
     std::vector<int> place_of(plans_.size(), -1);
     int running = 0, failed = 0;
-    std::size_t next = 0;  // todo_ before next: started
-    std::vector<bool> started(todo_.size(), false);
+    std::size_t next = 0;  // pending_ before next: started
+    std::vector<bool> started(pending_.size(), false);
     const StopSignals stop_signals;  // one for the sweep: a signal stops every running case at its next step
     std::unique_lock<std::mutex> lock(m);
     for (;;) {
@@ -460,19 +439,19 @@ class SweepRunner {
         for (std::size_t pl = 0; pl < places_.size(); ++pl) {
           Place& place = places_[pl];
           if (place.running >= place.slots) continue;
-          for (std::size_t t = next; t < todo_.size(); ++t) {
+          for (std::size_t t = next; t < pending_.size(); ++t) {
             if (started[t]) continue;
-            const CasePlan& p = plans_[todo_[t].index];
+            const CasePlan& p = plans_[pending_[t].index];
             const bool fits = place.budget == 0 || place.running == 0 || place.planned + p.gpu_bytes <= place.budget;
             if (!fits) continue;
             started[t] = true;
-            while (next < todo_.size() && started[next]) ++next;
+            while (next < pending_.size() && started[next]) ++next;
             place.running += 1;
             place.planned += p.gpu_bytes;
-            place_of[todo_[t].index] = static_cast<int>(pl);
+            place_of[pending_[t].index] = static_cast<int>(pl);
             ++running;
             threads.emplace_back([this, &m, &cv, &finished, t, device = place.device, slots = place.slots] {
-              Outcome out = run_case(todo_[t].index, todo_[t].restart, device, slots);
+              Outcome out = run_case(pending_[t].index, pending_[t].restart, device, slots);
               std::lock_guard<std::mutex> g(m);
               finished.push_back(std::move(out));
               cv.notify_all();
@@ -493,24 +472,22 @@ class SweepRunner {
         const std::string who = "case " + std::to_string(p.c->id) + " (" + sweep_case_label(sweep_, *p.c) + ")";
         if (out.result.exit_code == kExitOk) {
           ++completed_;
-          done_weight_ += p.weight;
           ran_weight_ += p.weight;
         } else if (out.result.stop_signal != 0) {
           ++interrupted_;
         } else {
           ++failed;
-          done_weight_ += p.weight;
           ran_weight_ += p.weight;
           std::cerr << "fbar: sweep: " << who << " failed: "
                     << (out.result.message.empty() ? "the run failed" : out.result.message) << '\n';
         }
         if (!o_.quiet && out.result.stop_signal == 0) {
           const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-          const double left = todo_weight_ - ran_weight_;
+          const double left = pending_weight_ - ran_weight_;
           const double eta = ran_weight_ > 0 ? elapsed * left / ran_weight_ : NAN;
           std::cout << "fbar: sweep: " << who << (out.result.exit_code == kExitOk ? " completed" : " failed")
-                    << " in " << duration_text(out.wall_s) << "; " << completed_ + failed << " of " << todo_.size()
-                    << " done (" << failed << " failed), " << running << " running, ETA " << duration_text(eta)
+                    << " in " << run_detail::format_duration(out.wall_s) << "; " << completed_ + failed << " of " << pending_.size()
+                    << " done (" << failed << " failed), " << running << " running, ETA " << run_detail::format_duration(eta)
                     << std::endl;
         }
       }
@@ -570,11 +547,11 @@ class SweepRunner {
   const std::vector<std::string>& command_line_;
   const Sweep& sweep_;
   std::vector<CasePlan> plans_;
-  std::vector<Todo> todo_;
+  std::vector<Pending> pending_;
   std::vector<Place> places_;
   int completed_ = 0, interrupted_ = 0;
   double plan_s_ = 0.0;
-  double todo_weight_ = 0.0, done_weight_ = 0.0, ran_weight_ = 0.0;
+  double pending_weight_ = 0.0, ran_weight_ = 0.0;  ///< the cases to run, and those run
 };
 
 }  // namespace

@@ -21,6 +21,7 @@ struct SweepOptions {
   bool gpu = false;                    ///< the GPU engine (chosen by the command line); otherwise the CPU engine
   int gpus = 0;                        ///< GPUs of this process to use (0: every visible one)
   int jobs = 0;                        ///< cases at once per GPU (CPU engine: at once); 0: as many as fit
+  int local_rank = 0;                  ///< under an MPI launcher: this process's rank on its node (its GPU)
   std::vector<int> cases;              ///< --cases: only these (empty: all)
   std::optional<std::string> output;   ///< --output: the sweep's folder
   std::optional<int> frames;           ///< --frames for every case

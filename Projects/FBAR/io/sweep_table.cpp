@@ -25,14 +25,6 @@ namespace fs = std::filesystem;
 namespace rj = rapidjson;
 using h5_detail::Handle;
 
-/// A CSV field: quoted when it holds a comma, a quote or a line break.
-std::string csv_field(const std::string& s) {
-  if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
-  std::string q = "\"";
-  for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
-  return q + "\"";
-}
-
 /// A message on one line: its line breaks as "; " (one case, one line of sweep_cases.csv).
 std::string one_line(const std::string& s) {
   std::string out;
@@ -161,6 +153,13 @@ Handle group_in(hid_t file, const char* name, const std::string& where) {
 }
 
 }  // namespace
+
+std::string csv_field(const std::string& s) {
+  if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
+  std::string q = "\"";
+  for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return q + "\"";
+}
 
 fs::path sweep_case_path(const Sweep& sweep, int id) { return fs::path(sweep.output) / sweep_case_folder(id); }
 

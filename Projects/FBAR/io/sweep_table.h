@@ -33,6 +33,9 @@ struct SweepCaseRecord {
   double wall_s = 0.0;             ///< [s]
 };
 
+/// A CSV field: quoted, its quotes doubled, when it holds a comma, a quote or a line break.
+std::string csv_field(const std::string& s);
+
 /// <sweep.output>/case_<kkkk>.
 std::filesystem::path sweep_case_path(const Sweep& sweep, int id);
 

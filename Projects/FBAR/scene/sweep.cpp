@@ -127,8 +127,7 @@ std::vector<PathStep> split_path(const std::string& path, const std::string& whe
 }
 
 /// Writes `value` at `path` in `doc`; the last key may be new. Returns "" or what went wrong.
-std::string set_at_path(rj::Document& doc, const std::string& path, const std::vector<PathStep>& steps,
-                        const rj::Value& value) {
+std::string set_at_path(rj::Document& doc, const std::vector<PathStep>& steps, const rj::Value& value) {
   rj::Value* at = &doc;
   std::string walked;
   for (std::size_t s = 0; s < steps.size(); ++s) {
@@ -156,7 +155,6 @@ std::string set_at_path(rj::Document& doc, const std::string& path, const std::v
     }
   }
   at->CopyFrom(value, doc.GetAllocator());
-  (void)path;
   return "";
 }
 
@@ -448,7 +446,7 @@ std::string sweep_case_scene_json(const Sweep& sweep, const SweepCase& c, const 
     const SweepParameter& q = sweep.parameters[p];
     rj::Document value;
     value.Parse<kParseFlags>(c.json[p].c_str());
-    const std::string why = set_at_path(doc, q.path, split_path(q.path, parameter_where(p) + ".path"), value);
+    const std::string why = set_at_path(doc, split_path(q.path, parameter_where(p) + ".path"), value);
     if (!why.empty())
       throw SceneError(sweep.source + ": " + parameter_where(p) + ".path", quote_text(q.path),
                        "a path that leads through the scene (" + who + ": " + why + ")");
