@@ -44,18 +44,22 @@ def scene(dx, duration):
 
 
 def run(cmd, what):
+    """The command's wall time [s]; its output is printed when it fails (completed_steps then says which case)."""
     t0 = time.perf_counter()
     p = subprocess.run(cmd, capture_output=True, text=True)
     wall = time.perf_counter() - t0
     if p.returncode != 0:
         print(f"{what}: exit {p.returncode}\n{p.stdout[-2000:]}\n{p.stderr[-2000:]}", flush=True)
-    return wall, p
+    return wall
 
 
-def particle_steps(run_json):
-    with open(run_json) as f:
+def completed_steps(run_dir, what):
+    """The steps of the run whose run.json is in run_dir; exits when it did not complete (no figure then)."""
+    with open(os.path.join(run_dir, "run.json")) as f:
         r = json.load(f)
-    return r["steps"], r["wall_time_s"]
+    if r["status"] != "completed":
+        sys.exit(f"{what} did not complete ({r['status']}): the figures would not mean anything")
+    return r["steps"]
 
 
 def main():
@@ -97,24 +101,21 @@ def main():
     if not m:
         sys.exit("fbar --check large.json printed no particle count:\n" + check.stdout[-2000:])
     out = os.path.join(a.work, "large_out")
-    wall, _ = run([a.fbar, "--backend=gpu", "--quiet", f"--output={out}", os.path.join(a.work, "large.json")], "large")
-    steps, _ = particle_steps(os.path.join(out, "run.json"))
+    wall = run([a.fbar, "--backend=gpu", "--quiet", f"--output={out}", os.path.join(a.work, "large.json")], "large")
+    steps = completed_steps(out, "the large run")
     rows.append(("one run (--file)", 1, int(m.group(1)), steps, wall, int(m.group(1)) * steps / wall))
     runs = [("one run (--sweep)", "large.sweep.json", 1)]
     runs += [(f"sweep, {len(combos)} cases", "s.sweep.json", j) for j in ([] if a.skip_alone else [1])]
     runs += [(f"sweep, {len(combos)} cases", "s.sweep.json", int(j)) for j in a.jobs.split(",") if j]
     for name, file, j in runs:
         folder = os.path.join(a.work, f"{file.split('.')[0]}_jobs{j}")
-        wall, _ = run([a.fbar, f"--sweep={os.path.join(a.work, file)}", "--backend=gpu", f"--jobs={j}",
-                       f"--output={folder}"], f"{file} --jobs={j}")
+        wall = run([a.fbar, f"--sweep={os.path.join(a.work, file)}", "--backend=gpu", f"--jobs={j}",
+                    f"--output={folder}"], f"{file} --jobs={j}")
         with open(os.path.join(folder, "sweep_plan.csv"), newline="") as f:
             plan = list(csv.DictReader(f))
         total = steps_sum = 0
         for k, row in enumerate(plan):
-            with open(os.path.join(folder, f"case_{k:04d}", "run.json")) as f:
-                if json.load(f)["status"] != "completed":
-                    sys.exit(f"{file} --jobs={j}: case {k} did not complete: the figures would not mean anything")
-            s, _ = particle_steps(os.path.join(folder, f"case_{k:04d}", "run.json"))
+            s = completed_steps(os.path.join(folder, f"case_{k:04d}"), f"{file} --jobs={j}: case {k}")
             total += int(row["particles"]) * s
             steps_sum += s
         rows.append((name, j, int(plan[0]["particles"]), steps_sum // len(plan), wall, total / wall))
