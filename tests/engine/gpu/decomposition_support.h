@@ -38,6 +38,7 @@ struct RunResult {
   int rebalances = 0;        ///< times the slabs were chosen again
   long long migration_repeats = 0;  ///< steps repeated because migrants overflowed the messages (summed over ranks)
   double imbalance = 0.0;    ///< particles per rank at the end, max / mean - 1
+  long long compactions = 0;  ///< grid compactions (summed over ranks)
 };
 
 /// One rank: `steps` CFL steps on CUDA device `gpu`, then every particle it holds. host: null for a run without
@@ -79,6 +80,7 @@ inline RunResult run_rank(const Scene& scene, comm::Transport* host, int steps, 
     out.migrated = engine.migrated();
     out.migration_repeats = engine.migration_repeats();
     out.rebalances = engine.rebalances();
+    out.compactions = engine.grid_compactions();
     out.imbalance = engine.imbalance();
     const comm::SlabPartition& slabs = engine.slabs();
     const double inv_dx = 1.0 / scene.simulation.dx;

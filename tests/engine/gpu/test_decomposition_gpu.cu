@@ -50,6 +50,7 @@ RunResult run_decomposed(const Scene& scene, int ranks, int steps, int gpus = 1,
     const RunResult& one = results[static_cast<std::size_t>(r)];
     if (!one.error.empty()) merged.error += "rank " + std::to_string(r) + ": " + one.error + "\n";
     merged.migrated += one.migrated;
+    merged.compactions += one.compactions;
     merged.migration_repeats = std::max(merged.migration_repeats, one.migration_repeats);  // the same on every rank
     merged.halo_blocks = std::max(merged.halo_blocks, one.halo_blocks);
     merged.halo_particle_blocks = std::max(merged.halo_particle_blocks, one.halo_particle_blocks);
@@ -185,6 +186,28 @@ TEST(GpuDecomposition, SaturatedSoilDrainsAcrossTheCuts) {
 }
 
 TEST(GpuDecomposition, TravellingBlockMigratesEveryParticle) { expect_same_run(travelling_block(), 120, true); }
+
+// The travelling block leaves grid blocks behind on every rank: each rank compacts its grid on its own (its halo
+// lists renumbered with it), and the ranks still give one rank's bits.
+TEST(GpuDecomposition, TravellingBlockCompactsEachRanksGrid) {
+  FBAR_REQUIRE_DEVICE();
+  const Scene scene = travelling_block();
+  const RunResult one = run_rank(scene, nullptr, 200);
+  ASSERT_TRUE(one.error.empty()) << one.error;
+  EXPECT_GE(one.compactions, 1);
+  for (const bool overlap : {true, false}) {  // the halo-first G2P2G's block lists are renumbered too
+    SCOPED_TRACE(overlap ? "halo overlapped" : "halo after G2P2G");
+    const RunResult many = run_decomposed(scene, 2, 200, 1, false, overlap);
+    ASSERT_TRUE(many.error.empty()) << many.error;
+    EXPECT_GE(many.compactions, 1);  // each rank holds half the block: the 64-block floor is reached once
+    std::printf("[ GPU ranks 2 ] grid compactions: one rank %lld, two ranks %lld (summed)\n", one.compactions,
+                many.compactions);
+    ASSERT_EQ(many.states.size(), one.states.size());
+    const test::Comparison c = test::compare(one, many.states);
+    EXPECT_EQ(c.max_dx, 0.0) << "positions differ from one rank's";
+    EXPECT_EQ(c.max_dv, 0.0) << "velocities differ from one rank's";
+  }
+}
 
 // Migration messages of 2 particles per body and side: the travelling block sends about 50 a step, so the first
 // steps overflow them, are repeated with larger messages on every rank, and the run is still the one-rank run.

@@ -2,6 +2,7 @@
 // commit of a step and the landing on a target time. Part of MgspBenchmark.
 #pragma once
 
+#include <cub/device/device_radix_sort.cuh>
 #include <cub/device/device_scan.cuh>
 
 #include "engine/gpu/mgsp_benchmark.cuh"
@@ -608,10 +609,164 @@ void MgspBenchmark<T, TG>::commit(double dt) {
   max_grid_speed_ = std::sqrt(max_speed_sq);
   block_count_ = stats_->block_count;
   aux_valid_ = record_;
-  if (decomposed() && dec_.halo_grew) rebuild_halo(gc_);  // agreed: all ranks or none
+  if (decomposed() && dec_.halo_grew) {
+    rebuild_halo(gc_);  // agreed: all ranks or none
+  } else if (decomposed()) {
+    // No rank found a new halo block in this step's table: every block it holds has been looked at.
+    dec_.halo_scanned = std::max(dec_.halo_scanned, std::min(block_count_, block_capacity_));
+  }
+  maybe_compact_grid();  // before the headroom check: dropped blocks need no room
   // Headroom for the next step (grow between steps, rarely inside one): blocks at 3/4, bins at 9/10 of capacity.
   if (options_.grow_ahead && block_count_ > block_capacity_ * 3 / 4) grow_blocks(2 * block_capacity_);
   ensure_step_capacity();
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::maybe_compact_grid() {
+  // Not with placed bodies (their shared-block lists and per-block flags are not renumbered), nor when a checkpoint
+  // is about to read the table indices this step's G2P2G recorded (p2g_record), nor before the halo planes saw every
+  // block.
+  if (!options_.compact_grid || dec_.placed || p2g_valid_ || block_count_ < compact_check_at_) return;
+  if (decomposed() && dec_.halo_scanned < block_count_) return;
+  compact_grid();
+}
+
+template <typename T, typename TG>
+bool MgspBenchmark<T, TG>::compact_grid() {
+  const int count = block_count_;
+  if (count == 0) return false;
+  // Scratch: the velocity buffer, which nothing reads between a commit and the next grid update (the update
+  // rewrites every block before G2P2G reads one).
+  std::byte* const base = reinterpret_cast<std::byte*>(velocity_.instance().data());
+  std::size_t used = 0;
+  const auto take = [&](std::size_t bytes) {
+    std::byte* p = base + used;
+    used += (bytes + 255) / 256 * 256;
+    return p;
+  };
+  const std::size_t n = static_cast<std::size_t>(count);
+  int* live = reinterpret_cast<int*>(take(sizeof(int) * (n + 1)));
+  int* position = reinterpret_cast<int*>(take(sizeof(int) * (n + 1)));  // then: old index -> new index
+  auto* keys_in = reinterpret_cast<unsigned long long*>(take(sizeof(unsigned long long) * n));
+  auto* keys_out = reinterpret_cast<unsigned long long*>(take(sizeof(unsigned long long) * n));
+  int* old_in = reinterpret_cast<int*>(take(sizeof(int) * n));
+  int* old_of_new = reinterpret_cast<int*>(take(sizeof(int) * n));
+  int* table_scratch = reinterpret_cast<int*>(take(sizeof(int) * 11 * n));
+  int* count_tmp = reinterpret_cast<int*>(take(sizeof(int) * n));
+  int* old_bin = reinterpret_cast<int*>(take(sizeof(int) * n));
+  int* total_d = reinterpret_cast<int*>(take(sizeof(int) * bodies_.size()));
+  std::size_t sort_bytes = 0;
+  FBAR_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(nullptr, sort_bytes, keys_in, keys_out, old_in, old_of_new, count,
+                                                  0, 63, stream_));
+  std::byte* sort_temp = take(sort_bytes);
+  compact_check_at_ = count + std::max(count / 8, 64);
+  if (used > velocity_.bytes()) return false;  // ~100 of its 768 bytes a block: does not happen
+  // 1. Which blocks stay: every layout's particle blocks and their arenas, and the halo lists.
+  FBAR_CUDA_CHECK(cudaMemsetAsync(live, 0, sizeof(int) * (n + 1), stream_));
+  for (auto& b : bodies_) {
+    mark_live_blocks<<<cuda::grid_for(count, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
+        b->partition.layout(cur_).count, count, table_.view(), live);
+    cuda::check_launch("mark_live_blocks");
+  }
+  if (decomposed())
+    for (const HaloSide& h : dec_.halo)
+      if (h.peer >= 0 && !h.keys.empty()) {
+        const int listed = static_cast<int>(h.keys.size());
+        mark_listed_blocks<<<cuda::grid_for(listed, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
+            h.index.get(), listed, live);
+        cuda::check_launch("mark_listed_blocks");
+      }
+  std::size_t temp = scan_temp_bytes_;
+  FBAR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(scan_temp_.get(), temp, live, position, count + 1, stream_));
+  int kept = 0;
+  FBAR_CUDA_CHECK(cudaMemcpyAsync(&kept, position + count, sizeof(int), cudaMemcpyDeviceToHost, stream_));
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+  compact_check_at_ = kept + std::max(kept / 8, 64);
+  if (count - kept < std::max(kept / 16, 1)) return false;  // too few to drop: not worth the moves
+  // 2. The kept blocks in the order of their keys (x, then y, then z: neighbours along z are neighbours in memory,
+  // as the first partition of a box leaves them), and each old index's new one.
+  pack_kept_blocks<<<cuda::grid_for(count, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
+      live, position, count, table_.view(), keys_in, old_in);
+  cuda::check_launch("pack_kept_blocks");
+  FBAR_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(sort_temp, sort_bytes, keys_in, keys_out, old_in, old_of_new, kept,
+                                                  0, 63, stream_));
+  int* const new_index = position;
+  FBAR_CUDA_CHECK(cudaMemsetAsync(new_index, 0xff, sizeof(int) * n, stream_));
+  invert_block_order<<<cuda::grid_for(kept, kPartitionThreads), kPartitionThreads, 0, stream_>>>(old_of_new, kept,
+                                                                                                  new_index);
+  cuda::check_launch("invert_block_order");
+  // 3. The table, then the per-block state a step reads before writing it: the current grid's sums (and ASFLIP's
+  // transported momentum), moved through the other grid (free until the next G2P2G clears it).
+  table_.renumber(old_of_new, new_index, kept, count, table_scratch, stream_);
+  const auto move = [&](std::byte* current, std::byte* spare, std::size_t block_bytes) {
+    const int words = static_cast<int>(block_bytes / sizeof(uint4));
+    const int grid = static_cast<int>(std::min<long long>(
+        (static_cast<long long>(kept) * words + kPartitionThreads - 1) / kPartitionThreads, 65536));
+    gather_blocks<<<grid, kPartitionThreads, 0, stream_>>>(reinterpret_cast<const uint4*>(current),
+                                                           reinterpret_cast<uint4*>(spare), words, old_of_new, kept);
+    cuda::check_launch("gather_blocks");
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(current, spare, block_bytes * kept, cudaMemcpyDeviceToDevice, stream_));
+    FBAR_CUDA_CHECK(cudaMemsetAsync(current + block_bytes * kept, 0, block_bytes * (n - kept), stream_));
+  };
+  static_assert(GridBuffer<TG>::kBlockBytes % sizeof(uint4) == 0 && TransportedBuffer<TG>::kBlockBytes % sizeof(uint4) == 0,
+                "grid blocks move in 16-byte words");
+  move(grid_[gc_].data(), grid_[1 - gc_].data(), GridBuffer<TG>::kBlockBytes);
+  if (asflip_) move(transported_[gc_].data(), transported_[1 - gc_].data(), TransportedBuffer<TG>::kBlockBytes);
+  // 4. Each layout: counts at the new indices, bin offsets scanned again, each block's bins moved with it (through
+  // the other layout's src, which the next partition rewrites).
+  std::vector<int> total(bodies_.size(), 0);
+  for (auto& b : bodies_) {
+    const LayoutView l = b->partition.layout(cur_);
+    const LayoutView spare = b->partition.layout(1 - cur_);
+    gather_layout_blocks<<<cuda::grid_for(kept, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
+        l.count, l.bin_offset, old_of_new, kept, count_tmp, old_bin);
+    cuda::check_launch("gather_layout_blocks");
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(l.count, count_tmp, sizeof(int) * kept, cudaMemcpyDeviceToDevice, stream_));
+    FBAR_CUDA_CHECK(cudaMemsetAsync(l.count + kept, 0, sizeof(int) * (n - kept), stream_));
+    blocks_to_bins<<<cuda::grid_for(block_capacity_ + 1, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
+        l.count, b->partition.bins_per_block(), block_capacity_);
+    cuda::check_launch("blocks_to_bins");
+    temp = scan_temp_bytes_;
+    FBAR_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(scan_temp_.get(), temp, b->partition.bins_per_block(), l.bin_offset,
+                                                  block_capacity_ + 1, stream_));
+    move_block_bins<<<cuda::grid_for(kept, kPartitionThreads / 32), kPartitionThreads, 0, stream_>>>(
+        l.src, spare.src, l.count, l.bin_offset, old_bin, kept);
+    cuda::check_launch("move_block_bins");
+    const std::size_t slots = static_cast<std::size_t>(b->total_bins[cur_]) * 32;
+    if (slots > 0)
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(l.src, spare.src, sizeof(int) * slots, cudaMemcpyDeviceToDevice, stream_));
+    FBAR_CUDA_CHECK(cudaMemcpyAsync(total_d + b->index, l.bin_offset + block_capacity_, sizeof(int),
+                                    cudaMemcpyDeviceToDevice, stream_));
+    if (b->partition.ordered()) list_blocks(*b, cur_, b->partition.list_counters());
+  }
+  // 5. A decomposed rank's halo lists name the new indices.
+  if (decomposed())
+    for (HaloSide& h : dec_.halo)
+      if (h.peer >= 0 && !h.keys.empty()) {
+        const int listed = static_cast<int>(h.keys.size());
+        renumber_list<<<cuda::grid_for(listed, kPartitionThreads), kPartitionThreads, 0, stream_>>>(h.index.get(),
+                                                                                                   listed, new_index);
+        cuda::check_launch("renumber_list");
+      }
+  FBAR_CUDA_CHECK(cudaMemcpyAsync(total.data(), total_d, sizeof(int) * total.size(), cudaMemcpyDeviceToHost,
+                                  stream_));
+  TableCounters counters{};
+  FBAR_CUDA_CHECK(cudaMemcpyAsync(&counters, table_.counters(), sizeof(counters), cudaMemcpyDeviceToHost, stream_));
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+  for (const auto& b : bodies_)
+    if (total[b->index] != b->total_bins[cur_])
+      throw std::logic_error("GpuEngine: the grid compaction at step " + std::to_string(steps_) + " left body " +
+                             std::to_string(b->index) + " " + std::to_string(total[b->index]) + " bins instead of " +
+                             std::to_string(b->total_bins[cur_]));
+  if (counters.overflow != 0 || counters.block_count != kept)
+    throw std::logic_error("GpuEngine: the grid compaction at step " + std::to_string(steps_) +
+                           " could not rebuild the hash table");
+  block_count_ = kept;
+  stats_->block_count = kept;
+  if (decomposed()) dec_.halo_scanned = kept;
+  ++compactions_;
+  compacted_blocks_ += count - kept;
+  return true;
 }
 
 template <typename T, typename TG>

@@ -69,6 +69,11 @@ struct GpuEngineOptions {
   /// Grow the blocks and bins between steps when they fill up (3/4, 9/10), so that a step rarely outgrows them;
   /// false: only when a step outgrew them, inside it (tests of that path).
   bool grow_ahead = true;
+  /// Drop the grid blocks no particle uses any more between steps (a moving or spreading body leaves them behind),
+  /// once they are 1/8 of those in use: the grid update, the clear and the per-block passes then visit only what
+  /// the particles need, and memory stays flat. Results are the same bytes either way; false: the table keeps every
+  /// block until the run ends (the benchmark's comparison).
+  bool compact_grid = true;
   /// Per body, per particle (ID order) initial velocities [m/s], as CpuEngine::set_velocities gives them (tests,
   /// restarts); a body without an entry, or with an empty one, starts at its scene velocity.
   std::vector<std::vector<Vec3d>> initial_velocities;
@@ -159,6 +164,9 @@ class GpuEngine {
   /// Partitions redone inside a step: the step's particles outgrew the grid blocks' or a body's bins' capacity, the
   /// engine grew it and partitioned again from the particles' new positions (MgspBenchmark::handle_overflow).
   long long partition_redos() const;
+  /// Grid compactions so far (GpuEngineOptions::compact_grid) and the blocks they dropped.
+  long long grid_compactions() const;
+  long long compacted_blocks() const;
 
   int body_count() const;
   std::size_t particle_count(int body) const;
@@ -250,6 +258,7 @@ class GpuEngine {
   std::vector<std::pair<int, TrackerSet>> trackers_;
   KernelTimes earlier_times_;          ///< of the engines before the last rebalance
   long long earlier_migrated_ = 0, earlier_repeats_ = 0, earlier_migration_repeats_ = 0, earlier_redos_ = 0;
+  long long earlier_compactions_ = 0, earlier_compacted_ = 0;
   double earlier_wait_s_ = 0.0;
   std::size_t earlier_peak_ = 0;
   double chosen_imbalance_ = 0.0;     ///< right after the slabs were last chosen

@@ -166,6 +166,10 @@ long long GpuEngine<T, TG>::p2g_range_repeats() const { return earlier_repeats_ 
 template <typename T, typename TG>
 long long GpuEngine<T, TG>::partition_redos() const { return earlier_redos_ + impl_->partition_redos(); }
 template <typename T, typename TG>
+long long GpuEngine<T, TG>::grid_compactions() const { return earlier_compactions_ + impl_->grid_compactions(); }
+template <typename T, typename TG>
+long long GpuEngine<T, TG>::compacted_blocks() const { return earlier_compacted_ + impl_->compacted_blocks(); }
+template <typename T, typename TG>
 int GpuEngine<T, TG>::body_count() const { return impl_->body_count(); }
 template <typename T, typename TG>
 std::size_t GpuEngine<T, TG>::particle_count(int body) const { return impl_->particle_count(body); }
@@ -315,6 +319,8 @@ bool GpuEngine<T, TG>::rebalance_if_drifted() {
   earlier_migration_repeats_ = migration_repeats();
   earlier_repeats_ = p2g_range_repeats();
   earlier_redos_ = partition_redos();
+  earlier_compactions_ = grid_compactions();
+  earlier_compacted_ = compacted_blocks();
   earlier_wait_s_ = output_wait_seconds();
   earlier_peak_ = peak_device_bytes();
   impl_.reset();  // the device memory first

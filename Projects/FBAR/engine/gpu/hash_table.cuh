@@ -5,14 +5,16 @@
 // load factor stays <= 1/2 and probes stay short) slots of {key: u64, value: i32}. Keys pack the three block
 // coordinates in 21 bits each with a bias of 2^20 (the CPU engine's packing: coordinates in [-2^20, 2^20)).
 //
-// Protocol (lock-free, insert-only between rebuilds):
+// Protocol (lock-free, insert-only between growths and compactions):
 //   insert: atomicCAS claims an empty slot for the key; the winner takes the next block index with atomicAdd on
 //           the block counter, records the block coordinates, and publishes the index with a release store. A thread
 //           that finds the key already claimed spins (acquire loads) until the index is published; the publisher is
 //           a thread past its CAS, so the wait is finite (independent thread scheduling, sm_70+).
 //   find:   used only in launches after the inserting launch (kernel boundaries order memory), no spinning.
-// Indices are dense [0, block_count) in insertion order and never change while the table lives, so grid buffers
-// indexed by them stay valid as blocks are added (rehash() on growth keeps every index).
+// Indices are dense [0, block_count) in insertion order and do not change as blocks are added, so grid buffers
+// indexed by them stay valid (grow() keeps every index). renumber() is the one exception: the driver's grid
+// compaction (MgspBenchmark::compact_grid) drops the blocks nothing uses any more between two steps and moves every
+// per-block buffer with the table.
 // Failure is never silent: an insert past the block capacity or after kMaxProbes slots sets a flag the host reads
 // every step (TableStats), and the host grows the table before retrying the partition.
 #pragma once
@@ -78,8 +80,8 @@ struct BlockHashTableView {
   std::uint32_t slot_mask;   ///< slot_capacity - 1 (a power of two)
   int block_capacity;        ///< most blocks the grid buffers can hold
   /// (block, neighbour) a cache of each block's 2x2x2 arena (the block itself and its +x/+y/+z neighbours,
-  /// neighbour = (di * 2 + dj) * 2 + dk): the index once a kernel has looked it up, -1 before. Valid for the
-  /// table's life because indices never change (growth keeps them and the cache; clear() resets both).
+  /// neighbour = (di * 2 + dj) * 2 + dk): the index once a kernel has looked it up, -1 before. Valid while
+  /// indices do not change (growth keeps them and the cache, renumber() renumbers the cache, clear() resets both).
   int* arena = nullptr;
 
   /// Index of neighbour n of block `block` (at `origin`) of its arena, -1 when absent: from the cache, else looked up
@@ -194,6 +196,42 @@ static __global__ void rehash_slots(const unsigned long long* old_keys, const in
   atomicAdd(&table.counters->overflow, 1);
 }
 
+/// Compaction (BlockHashTable::renumber): new block i is old block old_of_new[i]; its coordinates and its arena
+/// cache (a neighbour that was dropped: -1) into coords_out and arena_out.
+static __global__ void renumber_blocks(BlockHashTableView table, const int* old_of_new, const int* new_index, int kept,
+                                       int* coords_out, int* arena_out) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= kept) return;
+  const int old = old_of_new[i];
+  for (int a = 0; a < 3; ++a) coords_out[3 * i + a] = table.coords[3 * old + a];
+  for (int n = 0; n < 8; ++n) {
+    const int v = table.arena[8 * old + n];
+    arena_out[8 * i + n] = v >= 0 ? new_index[v] : -1;
+  }
+}
+
+/// Compaction: the keys of blocks [0, kept) (from their coordinates) into the emptied slots, each with its index.
+static __global__ void insert_renumbered(BlockHashTableView table, int kept) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= kept) return;
+  const Vec3i c = table.block_coords(i);
+  const unsigned long long key = BlockKey::pack(c[0], c[1], c[2]);
+  std::uint32_t slot = static_cast<std::uint32_t>(BlockKey::hash(key)) & table.slot_mask;
+  for (int probe = 0; probe <= static_cast<int>(table.slot_mask); ++probe) {
+    if (atomicCAS(&table.keys[slot], BlockKey::kEmpty, key) == BlockKey::kEmpty) {
+      table.values[slot] = i;
+      return;
+    }
+    slot = (slot + 1) & table.slot_mask;
+  }
+  atomicAdd(&table.counters->overflow, 1);
+}
+
+static __global__ void set_block_count(TableCounters* counters, int count) {
+  counters->block_count = count;
+  counters->overflow = 0;
+}
+
 /// After a growth: blocks whose insert overflowed were never recorded; the count restarts at the old capacity.
 static __global__ void clamp_block_count(TableCounters* counters, int old_capacity) {
   if (counters->block_count > old_capacity) counters->block_count = old_capacity;
@@ -264,6 +302,36 @@ class BlockHashTable {
     device.deallocate(old_coords, 0);
     device.deallocate(old_arena, 0);
     device.deallocate(old_counters, 0);
+  }
+
+  /// Compaction: keeps the `kept` blocks old_of_new[0, kept) (old indices) as blocks [0, kept), in that order;
+  /// new_index: (old block, of old_count) its new index or -1 (dropped). Coordinates and arena caches follow (a
+  /// cached neighbour that was dropped is looked up again when needed); the slots are rebuilt. scratch: 11 ints per
+  /// kept block. The caller moves every per-block buffer alike.
+  void renumber(const int* old_of_new, const int* new_index, int kept, int old_count, int* scratch,
+                cudaStream_t stream) {
+    int* coords_out = scratch;
+    int* arena_out = scratch + 3 * static_cast<std::size_t>(kept);
+    const int threads = 256;
+    if (kept > 0) {
+      hash_table_detail::renumber_blocks<<<(kept + threads - 1) / threads, threads, 0, stream>>>(
+          view(), old_of_new, new_index, kept, coords_out, arena_out);
+      FBAR_CUDA_CHECK(cudaGetLastError());
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(coords_, coords_out, sizeof(int) * 3 * static_cast<std::size_t>(kept),
+                                      cudaMemcpyDeviceToDevice, stream));
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(arena_, arena_out, arena_bytes(kept), cudaMemcpyDeviceToDevice, stream));
+    }
+    if (old_count > kept)
+      FBAR_CUDA_CHECK(cudaMemsetAsync(arena_ + 8 * static_cast<std::size_t>(kept), 0xff,
+                                      arena_bytes(old_count) - arena_bytes(kept), stream));
+    hash_table_detail::reset_slots<<<(slots_ + 255) / 256, 256, 0, stream>>>(keys_, values_, slots_);
+    FBAR_CUDA_CHECK(cudaGetLastError());
+    hash_table_detail::set_block_count<<<1, 1, 0, stream>>>(counters_, kept);
+    FBAR_CUDA_CHECK(cudaGetLastError());
+    if (kept > 0) {
+      hash_table_detail::insert_renumbered<<<(kept + threads - 1) / threads, threads, 0, stream>>>(view(), kept);
+      FBAR_CUDA_CHECK(cudaGetLastError());
+    }
   }
 
   BlockHashTableView view() const {

@@ -10,7 +10,8 @@
 //   bins[cur]          particles of state n (storage order), per body
 //   layout(cur)        their grouping by particle block (src: layout slot -> storage slot), per body
 //   grid[gc]           P2G of state n (mass, momentum with the internal-force impulse of dt_p2g_)
-//   table              every block any layout or grid uses (insert-only between growths; indices stable)
+//   table              every block any layout or grid uses (insert-only within a step; between steps the grid
+//                      compaction drops the blocks no particle uses any more and renumbers the rest: compact_grid)
 // Step n (dt):
 //   0. dt != dt_p2g_ (a repeated step, or step(dt) with a new dt): rescale_impulse adds (dt - dt_p2g_) x the
 //      stress impulse to grid[gc] (exact for rate-independent stress; see partition_kernels.cuh)
@@ -172,6 +173,8 @@ class MgspBenchmark {
   void track(int body, std::vector<double>& values, std::vector<double>& present);
   long long p2g_range_repeats() const { return p2g_range_repeats_; }
   long long partition_redos() const { return partition_redos_; }
+  long long grid_compactions() const { return compactions_; }
+  long long compacted_blocks() const { return compacted_blocks_; }
   int body_count() const { return static_cast<int>(bodies_.size()); }
   std::size_t particle_count(int body) const { return static_cast<std::size_t>(body_at(body).particles); }
   std::size_t particle_count() const {
@@ -260,6 +263,15 @@ class MgspBenchmark {
   /// wrote there (its first `written` slots, their destinations and recorded v and C) and layout(cur).
   void grow_for_arrivals(BodyBase& b, int written, long long needed);
   void ensure_aux();
+  /// At a commit (GpuEngineOptions::compact_grid): compact_grid() once the table holds 1/8 more blocks than the last
+  /// check found in use.
+  void maybe_compact_grid();
+  /// Drops the table blocks that neither a particle block of layout(cur) nor its 2x2x2 arena nor a halo list uses
+  /// (blocks a moving or spreading body left: the grid update, the clear and the per-block passes would visit them
+  /// every step), when that is at least 1/16 of those kept; the kept ones are renumbered in the order of their keys,
+  /// and grid[gc] (with the transported momentum), every layout(cur), the arena caches and the halo lists move with
+  /// them. Results do not change (the sums are order-free). True when it compacted.
+  bool compact_grid();
   void update_record();
   /// A restart: every body's mass, volume, state and C from the checkpoint (positions and velocities came in as
   /// the constructor's positions and GpuEngineOptions::initial_velocities); time and CFL inputs.
@@ -500,6 +512,9 @@ class MgspBenchmark {
   DtRetryPolicy retry_;  ///< on_failure = reduce_dt (engine_common.h)
   long long p2g_range_repeats_ = 0;  ///< tries repeated because the fixed-point P2G bound was exceeded
   long long partition_redos_ = 0;    ///< partitions redone inside a step after a growth (handle_overflow)
+  long long compactions_ = 0;        ///< grid compactions (compact_grid)
+  long long compacted_blocks_ = 0;   ///< blocks they dropped
+  int compact_check_at_ = 0;         ///< the block count at which the next commit looks for blocks to drop
   double max_grid_speed_ = 0.0;
   std::ostream* log_ = &std::cerr;
 

@@ -62,6 +62,17 @@ FBAR_DEVICE FBAR_FORCE_INLINE double warp_max(double v) {
   return v;
 }
 
+/// Sum over the 32 lanes of a full warp (every lane gets it): the warp-reduce instruction of compute capability 8.0
+/// and newer, shuffles on 7.x.
+FBAR_DEVICE FBAR_FORCE_INLINE int warp_sum(int v) {
+#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ >= 800
+  return __reduce_add_sync(0xffffffffu, v);
+#else
+  for (int o = 16; o > 0; o >>= 1) v += __shfl_xor_sync(0xffffffffu, v, o);
+  return v;
+#endif
+}
+
 FBAR_DEVICE FBAR_FORCE_INLINE unsigned lanemask_lt() {
   unsigned m;
   asm("mov.u32 %0, %%lanemask_lt;" : "=r"(m));

@@ -127,7 +127,7 @@ static __global__ void __launch_bounds__(kPartitionThreads)
   }
   // One atomic per CUDA block of 2,048 slots: same-address atomics serialise in L2.
   __shared__ int warp_placed[kPartitionThreads / 32];
-  placed = __reduce_add_sync(0xffffffffu, placed);
+  placed = warp_sum(placed);
   if (threadIdx.x % 32 == 0) warp_placed[threadIdx.x / 32] = placed;
   __syncthreads();
   if (threadIdx.x == 0) {
@@ -147,6 +147,88 @@ static __global__ void __launch_bounds__(kPartitionThreads)
   const int bin = bin_offset[b] + c / 32;
   if (bin >= bin_capacity) return;
   for (int lane = c % 32; lane < 32; ++lane) src_next[bin * 32 + lane] = -1;
+}
+
+// Grid compaction (MgspBenchmark::compact_grid, between two steps): the blocks a layout's particles use (their
+// particle blocks and 2x2x2 arenas) and the listed halo blocks are kept, in the order of their keys, the others
+// dropped; the table, the current grid sums and each layout are moved to the new indices.
+
+/// live[b] = 1 for every block of the layout holding particles and the other 7 blocks of its arena.
+static __global__ void __launch_bounds__(kPartitionThreads)
+    mark_live_blocks(const int* count, int block_count, BlockHashTableView table, int* live) {
+  const int b = blockIdx.x * blockDim.x + threadIdx.x;
+  if (b >= block_count || count[b] == 0) return;
+  live[b] = 1;
+  const Vec3i c = table.block_coords(b);
+  for (int n = 1; n < 8; ++n) {
+    const int index = table.find_arena(b, c, n);
+    if (index >= 0) live[index] = 1;  // the footprint activation inserted it: always found
+  }
+}
+
+/// live[index[i]] = 1 for a list of table blocks (a decomposed run's halo).
+static __global__ void __launch_bounds__(kPartitionThreads) mark_listed_blocks(const int* index, int n, int* live) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i < n && index[i] >= 0) live[index[i]] = 1;
+}
+
+/// The kept blocks' keys and old indices, packed at their position among the kept (position: exclusive scan of live).
+static __global__ void __launch_bounds__(kPartitionThreads)
+    pack_kept_blocks(const int* live, const int* position, int block_count, BlockHashTableView table,
+                     unsigned long long* keys, int* old_index) {
+  const int b = blockIdx.x * blockDim.x + threadIdx.x;
+  if (b >= block_count || !live[b]) return;
+  const Vec3i c = table.block_coords(b);
+  keys[position[b]] = BlockKey::pack(c[0], c[1], c[2]);
+  old_index[position[b]] = b;
+}
+
+/// new_index[old_of_new[i]] = i (new_index holds -1 for the dropped blocks beforehand).
+static __global__ void __launch_bounds__(kPartitionThreads)
+    invert_block_order(const int* old_of_new, int kept, int* new_index) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i < kept) new_index[old_of_new[i]] = i;
+}
+
+/// Block i of dst = block old_of_new[i] of src, for i < kept (words: 16-byte words per block).
+static __global__ void __launch_bounds__(kPartitionThreads)
+    gather_blocks(const uint4* src, uint4* dst, int words, const int* old_of_new, int kept) {
+  const long long total = static_cast<long long>(kept) * words;
+  for (long long w = blockIdx.x * static_cast<long long>(blockDim.x) + threadIdx.x; w < total;
+       w += static_cast<long long>(gridDim.x) * blockDim.x) {
+    const long long i = w / words;
+    const int o = static_cast<int>(w - i * words);
+    dst[w] = src[static_cast<long long>(old_of_new[i]) * words + o];
+  }
+}
+
+/// A layout's per-block arrays at the new indices: count and the first bin each block had (for moving its bins).
+static __global__ void __launch_bounds__(kPartitionThreads)
+    gather_layout_blocks(const int* count, const int* bin_offset, const int* old_of_new, int kept, int* count_out,
+                         int* old_bin_out) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= kept) return;
+  count_out[i] = count[old_of_new[i]];
+  old_bin_out[i] = bin_offset[old_of_new[i]];
+}
+
+/// The bins of new block i (one warp a block): src_out's bins from bin_offset[i] = src's bins from old_bin[i].
+static __global__ void __launch_bounds__(kPartitionThreads)
+    move_block_bins(const int* src, int* src_out, const int* count, const int* bin_offset, const int* old_bin,
+                    int kept) {
+  const int i = blockIdx.x * (kPartitionThreads / 32) + threadIdx.x / 32;
+  const int lane = threadIdx.x % 32;
+  if (i >= kept) return;
+  const int bins = (count[i] + 31) / 32;
+  const long long to = static_cast<long long>(bin_offset[i]) * 32 + lane;
+  const long long from = static_cast<long long>(old_bin[i]) * 32 + lane;
+  for (int k = 0; k < bins; ++k) src_out[to + 32LL * k] = src[from + 32LL * k];
+}
+
+/// index[i] = new_index[index[i]] (a list of table blocks after a compaction).
+static __global__ void __launch_bounds__(kPartitionThreads) renumber_list(int* index, int n, const int* new_index) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i < n && index[i] >= 0) index[i] = new_index[index[i]];
 }
 
 /// Rescales the P2G impulse of a grid: adds w (-ddt V0 D^-1 tau)(x_i - x_p) per node for every particle of the
