@@ -7,7 +7,9 @@
 //   moving_box    tank_box's box translating at 2 m/s along x without gravity through a tank 2.5 box lengths long
 //   thrown_box    a box thrown at (0.5, -2, 0.3) m/s into a tank under gravity: it lands and spreads
 // Per frame: steps, ms per step, particle-steps per second, that rate over the compact box's (measured first, same
-// run), grid blocks at the frame's end and the device memory the engine holds. The compact box's rate is its mean
+// run), grid blocks and those holding particles at the frame's end, the device memory the engine holds, and the
+// grid update, G2P2G and partition per step (CUDA events; the step's other time is the dt kernel, the readback and
+// the host). The compact box's rate is its mean
 // over its frames after the first.
 //   fbar_moving [--millions=16] [--frames=5] [--scenes=dam_break,moving_box,thrown_box] [--precision=single]
 //               [--csv=moving.csv]
@@ -85,6 +87,8 @@ struct Frame {
   double ms_per_step = 0.0, rate = 0.0, ratio = 0.0;
   std::size_t particles = 0, blocks = 0, device_bytes = 0;
   long long compactions = 0;
+  double grid_ms = 0.0, g2p2g_ms = 0.0, partition_ms = 0.0;  ///< per step, CUDA events (KernelTimes)
+  std::size_t particle_blocks = 0;                            ///< table blocks holding particles at the frame's end
 };
 
 template <typename T, typename TG>
@@ -93,9 +97,11 @@ std::vector<Frame> run_case(const std::string& name, const Case& c, bool compact
   options.compact_grid = compact;
   GpuEngine<T, TG> engine(c.scene, options);
   engine.set_log(nullptr);
+  engine.set_kernel_timing(true);  // a few microseconds a step, in every scene alike
   std::vector<Frame> out;
   for (int f = 0; f < frames; ++f) {
     const long long steps0 = engine.steps();
+    const KernelTimes k0 = engine.kernel_times();
     const auto t0 = std::chrono::steady_clock::now();
     const StepReport r = engine.advance_to(c.duration * (f + 1) / frames);
     FBAR_CUDA_CHECK(cudaDeviceSynchronize());
@@ -113,6 +119,12 @@ std::vector<Frame> run_case(const std::string& name, const Case& c, bool compact
     row.blocks = engine.active_grid_blocks();
     row.device_bytes = engine.device_bytes();
     row.compactions = engine.grid_compactions();
+    const KernelTimes k1 = engine.kernel_times();
+    const double timed = static_cast<double>(std::max(1LL, k1.steps - k0.steps));
+    row.grid_ms = (k1.grid_update_ms - k0.grid_update_ms) / timed;
+    row.g2p2g_ms = (k1.g2p2g_ms - k0.g2p2g_ms) / timed;
+    row.partition_ms = (k1.partition_ms - k0.partition_ms) / timed;
+    row.particle_blocks = engine.particle_blocks();
     out.push_back(row);
   }
   return out;
@@ -169,17 +181,18 @@ int main(int argc, char** argv) {
                                                               : run_all<float, float>(scenes, millions, frames, precision);
     std::ofstream out(csv);
     out << "scene,compact_grid,frame,t_end_s,steps,particles,ms_per_step,particle_steps_per_s,ratio_to_compact,blocks,"
-           "device_mib,compactions,precision,commit\n";
-    std::printf("%-11s %-7s %5s %9s %6s %10s %8s %10s %7s %8s %9s %5s\n", "scene", "compact", "frame", "t_end s",
-                "steps", "particles", "ms/step", "p-steps/s", "ratio", "blocks", "dev MiB", "cmp");
+           "device_mib,compactions,grid_update_ms,g2p2g_ms,partition_ms,particle_blocks,precision,commit\n";
+    std::printf("%-11s %-7s %5s %8s %6s %8s %10s %7s %7s %7s %7s %7s %6s %4s\n", "scene", "compact", "frame",
+                "t_end s", "steps", "ms/step", "p-steps/s", "ratio", "blocks", "p-blk", "grid", "g2p2g", "part", "cmp");
     for (const Frame& f : rows) {
       const double mib = static_cast<double>(f.device_bytes) / (1 << 20);
-      std::printf("%-11s %-7s %5d %9.4f %6lld %10zu %8.4f %10.4g %7.3f %8zu %9.1f %5lld\n", f.scene.c_str(),
-                  f.compact ? "on" : "off", f.frame, f.t_end, f.steps, f.particles, f.ms_per_step, f.rate, f.ratio,
-                  f.blocks, mib, f.compactions);
+      std::printf("%-11s %-7s %5d %8.4f %6lld %8.4f %10.4g %7.3f %7zu %7zu %7.4f %7.4f %6.4f %4lld\n",
+                  f.scene.c_str(), f.compact ? "on" : "off", f.frame, f.t_end, f.steps, f.ms_per_step, f.rate, f.ratio,
+                  f.blocks, f.particle_blocks, f.grid_ms, f.g2p2g_ms, f.partition_ms, f.compactions);
       out << f.scene << "," << (f.compact ? "on" : "off") << "," << f.frame << "," << f.t_end << "," << f.steps << ","
           << f.particles << "," << f.ms_per_step << "," << f.rate << "," << f.ratio << "," << f.blocks << "," << mib
-          << "," << f.compactions << "," << precision_name << "," << FBAR_GIT_COMMIT << "\n";
+          << "," << f.compactions << "," << f.grid_ms << "," << f.g2p2g_ms << "," << f.partition_ms << ","
+          << f.particle_blocks << "," << precision_name << "," << FBAR_GIT_COMMIT << "\n";
     }
   } catch (const std::exception& e) {
     std::cerr << "fbar_moving: " << e.what() << "\n";

@@ -553,6 +553,23 @@ double MgspBenchmark<T, TG>::grid_mass() const {
 }
 
 template <typename T, typename TG>
+std::size_t MgspBenchmark<T, TG>::particle_blocks() const {
+  if (block_count_ == 0) return 0;
+  cuda::DeviceArray<int> flags;  // zeroed
+  flags.allocate(static_cast<std::size_t>(block_count_) + 1);
+  for (const auto& b : bodies_)
+    mark_particle_blocks<<<cuda::grid_for(block_count_, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
+        b->partition.layout(cur_).count, block_count_, flags.get());
+  count_flags<<<cuda::grid_for(block_count_, kPartitionThreads), kPartitionThreads, 0, stream_>>>(flags.get(),
+                                                                                               block_count_);
+  cuda::check_launch("count_flags");
+  int n = 0;
+  FBAR_CUDA_CHECK(cudaMemcpyAsync(&n, flags.get() + block_count_, sizeof(int), cudaMemcpyDeviceToHost, stream_));
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+  return static_cast<std::size_t>(n);
+}
+
+template <typename T, typename TG>
 std::size_t MgspBenchmark<T, TG>::device_bytes() const {
   std::size_t bytes = table_.bytes() + grid_[0].bytes() + grid_[1].bytes() + velocity_.bytes() + fbar_sums_.bytes() + pore_sums_.bytes() + pore_fixed_.bytes() +
                       transported_[0].bytes() + transported_[1].bytes() + old_velocity_.bytes() +

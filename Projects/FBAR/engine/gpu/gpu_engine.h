@@ -217,6 +217,9 @@ class GpuEngine {
   double elastic_energy() const;         ///< [J] sum V0 psi(state), in double on the host (as CpuEngine)
   double grid_mass() const;              ///< [kg] sum of node masses of the current grid (P2G of this state)
   std::size_t active_grid_blocks() const;
+  /// The grid blocks holding particles of some body (a reduction on the device and a synchronisation: diagnostics
+  /// and benchmarks, not every step).
+  std::size_t particle_blocks() const;
   std::size_t device_bytes() const;      ///< device memory held by the engine's buffers
 
   // Decomposed runs (GpuEngineOptions::ranks); one rank otherwise.

@@ -275,6 +275,8 @@ double GpuEngine<T, TG>::grid_mass() const { return impl_->grid_mass(); }
 template <typename T, typename TG>
 std::size_t GpuEngine<T, TG>::active_grid_blocks() const { return impl_->active_grid_blocks(); }
 template <typename T, typename TG>
+std::size_t GpuEngine<T, TG>::particle_blocks() const { return impl_->particle_blocks(); }
+template <typename T, typename TG>
 std::size_t GpuEngine<T, TG>::device_bytes() const { return impl_->device_bytes(); }
 template <typename T, typename TG>
 int GpuEngine<T, TG>::rank() const { return impl_->rank(); }

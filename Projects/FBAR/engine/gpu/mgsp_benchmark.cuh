@@ -196,6 +196,7 @@ class MgspBenchmark {
   double elastic_energy() const;
   double grid_mass() const;
   std::size_t active_grid_blocks() const { return static_cast<std::size_t>(block_count_); }
+  std::size_t particle_blocks() const;  ///< table blocks holding particles of some body (a device reduction)
   std::size_t device_bytes() const;
   int rank() const { return dec_.host ? dec_.host->rank() : 0; }
   int ranks() const { return dec_.host ? dec_.host->size() : 1; }

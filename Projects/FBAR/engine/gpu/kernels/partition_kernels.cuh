@@ -225,6 +225,19 @@ static __global__ void __launch_bounds__(kPartitionThreads)
   for (int k = 0; k < bins; ++k) src_out[to + 32LL * k] = src[from + 32LL * k];
 }
 
+/// flags[b] = 1 for the blocks of a layout holding particles; flags[block_count] counts them once the caller has
+/// run count_flags (diagnostics: GpuEngine::particle_blocks).
+static __global__ void __launch_bounds__(kPartitionThreads)
+    mark_particle_blocks(const int* count, int block_count, int* flags) {
+  const int b = blockIdx.x * blockDim.x + threadIdx.x;
+  if (b < block_count && count[b] > 0) flags[b] = 1;
+}
+static __global__ void __launch_bounds__(kPartitionThreads) count_flags(int* flags, int n) {
+  const int b = blockIdx.x * blockDim.x + threadIdx.x;
+  const int set = __syncthreads_count(b < n && flags[b] != 0);
+  if (threadIdx.x == 0 && set > 0) atomicAdd(&flags[n], set);
+}
+
 /// index[i] = new_index[index[i]] (a list of table blocks after a compaction).
 static __global__ void __launch_bounds__(kPartitionThreads) renumber_list(int* index, int n, const int* new_index) {
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
