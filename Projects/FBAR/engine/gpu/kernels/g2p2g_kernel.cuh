@@ -9,7 +9,8 @@
 // stencil at l' = base' - 4B in [0, 5]; the kernel checks l' and counts a violation (never writes outside).
 //
 // Per CUDA block (particle block b, 8x8x8-node arena):
-//   1. look up the 8 grid blocks of the arena, load their velocities into shared memory (arena_v);
+//   1. look up the 8 grid blocks of the arena, load the velocities of its inner 6x6x6 nodes into shared memory
+//      (arena_v);
 //   2. each warp takes bins of the block: read particles through the layout (fused reorder), G2P (v, C),
 //      advection, state update (material advance), checks (NaN/Inf, left domain, CFL), store the particle in
 //      layout order, stress (material kirchhoff_stress with the new C), P2G into arena_p with shared atomics,
@@ -302,20 +303,23 @@ FBAR_DEVICE FBAR_FORCE_INLINE void find_arena_blocks(const BlockHashTableView& t
   }
 }
 
-/// The grid velocities of the arena's 8x8x8 nodes into shared memory (zero in a missing block). The caller
-/// synchronises before and after.
+/// The grid velocities G2P reads into shared memory (zero in a missing block): the arena's inner 6x6x6 nodes, 1..6
+/// on each axis, where the G2P stencils of the block's particles lie (they start at l = base - 4B in [1, 4]; the
+/// arena's outer nodes 0 and 7 only receive the P2G of particles that moved). The outer nodes are not written.
+/// The caller synchronises before and after.
 template <typename TG>
 FBAR_DEVICE FBAR_FORCE_INLINE void load_arena_velocities(const typename GridLayout<TG>::VelocityBuffer& velocity,
                                                          const int* arena_blocks, ArenaVelocity<TG>* arena_v) {
   constexpr int kThreads = kG2P2GThreads<TG>;
-  static_assert(kArenaNodes % kThreads == 0, "every thread loads the same number of nodes");
+  constexpr int kInner = 6 * 6 * 6;
   // Unrolled: a thread's loads of all its nodes are in flight together.
 #if FBAR_IN_DEVICE_CODE
 #pragma unroll
 #endif
-  for (int r = 0; r < kArenaNodes / kThreads; ++r) {
+  for (int r = 0; r < (kInner + kThreads - 1) / kThreads; ++r) {
     const int i = static_cast<int>(threadIdx.x) + r * kThreads;
-    const int a = i >> 6, b = (i >> 3) & 7, c = i & 7;
+    if (i >= kInner) break;
+    const int a = 1 + i / 36, bc = i - (a - 1) * 36, b = 1 + bc / 6, c = 1 + bc - (b - 1) * 6;
     const int nb = arena_blocks[arena_neighbour(a, b, c)];
     const int node = arena_node_in_block(a, b, c);
     TG vx = TG(0), vy = TG(0), vz = TG(0);
