@@ -19,6 +19,7 @@
 #include "physics/constitutive_models.cuh"
 #include "engine/run_constants.h"
 #include "geometry/geometry.h"
+#include "engine/grid_channels.h"
 #include "engine/memory_plan.h"
 #include "io/particle_frame.h"
 #include "io/sensor_recorder.h"
@@ -57,7 +58,6 @@ MaterialFacts material_facts(const MaterialSpec& m) {
 /// in float; double in double; mixed keeps the particle state in double and the grid in float (ClaymoreUW's choice;
 /// GpuEngine<double, float>, CpuEngine<double, float>).
 std::size_t particle_scalar_bytes(Precision p) { return p == Precision::Single ? 4 : 8; }
-std::size_t grid_scalar_bytes(Precision p) { return p == Precision::Double ? 8 : 4; }
 
 /// A mesh's part of its body's summary: elements, quality, the lumped vertex volume, the element step bound and the
 /// engines' bytes for the elements (physics/fem.cuh).
@@ -336,21 +336,20 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
   }
 
   summary.gpu_ms_per_step += kGpuStepOverheadMs + kGpuBodyOverheadMs * static_cast<double>(summary.bodies.size());
-  // The grid channels each body's P2G writes: mass and momentum; the transported momentum when any body uses
-  // ASFLIP (every body then sums it); F-bar's two cell sums for an F-bar body.
+  // The grid channel sets each body's P2G sums into (grid_channels.h).
+  const GridFeatures scene_grid{asflip, fbar, pore};
   for (std::size_t i = 0; i < summary.bodies.size(); ++i) {
-    BodySummary& s = summary.bodies[i];
-    s.grid_channels = "mass, momentum (4)";
-    if (asflip) s.grid_channels += " + transported momentum (3: some body uses ASFLIP)";
-    if (scene.bodies[i].algorithm.fbar_blend() != 0.0) s.grid_channels += " + F-bar cell sums (2)";
-    if (material_has_pore_fluid(scene.bodies[i].material.law)) s.grid_channels += " + seepage channels (5)";
+    const BodySpec& body = scene.bodies[i];
+    const GridFeatures own{body.algorithm.asflip_active(), body.algorithm.fbar_blend() != 0.0,
+                           material_has_pore_fluid(body.material.law)};
+    summary.bodies[i].grid_channels = grid_channels_of_body(own, scene_grid);
   }
 
   finish_host_run_bytes(summary, checkpoint_kept, checkpoint_transient, sim);
 
-  // CPU grid: 4 channels x 64 nodes per block in the grid scalar type (+3 for ASFLIP's v^n, +2 for F-bar's cell
-  // sums, +5 for the seepage channels, only when a body uses them), coordinates and a hash-map entry.
-  const std::size_t cpu_channels = 4 + (asflip ? 3 : 0) + (fbar ? 2 : 0) + (pore ? 5 : 0);
+  // CPU grid: the channel sets it keeps (grid_channels.h cpu_grid_channels) x 64 nodes per block in the grid scalar
+  // type, coordinates and a hash-map entry.
+  const std::size_t cpu_channels = static_cast<std::size_t>(cpu_grid_channels(scene_grid));
   std::vector<const SampleCount*> all;
   for (const SampleCount& c : counts) all.push_back(&c);
   summary.cpu_bytes = cpu_particle_bytes + static_cast<std::size_t>(footprint_blocks(all)) *

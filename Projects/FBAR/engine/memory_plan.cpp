@@ -1,6 +1,8 @@
 // plan_device_memory(): the GPU engine's capacities and buffer sizes from a scene's counts (memory_plan.h).
 #include "engine/memory_plan.h"
 
+#include "engine/grid_channels.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -12,9 +14,6 @@ namespace fbar {
 namespace {
 
 std::size_t particle_scalar_bytes(Precision p) { return p == Precision::Single ? 4 : 8; }
-std::size_t grid_scalar_bytes(Precision p) { return p == Precision::Double ? 8 : 4; }
-/// A fixed-point grid sum (grid_buffer.cuh FixedSumFormat): one int64 word (float grids) or two (double).
-std::size_t grid_sum_bytes(Precision p) { return p == Precision::Double ? 16 : 8; }
 
 /// Hash-table slots for a block capacity: the next power of two >= 2 x capacity, at least 1024 (hash_table.cuh).
 std::size_t table_slots(long long capacity) {
@@ -23,19 +22,22 @@ std::size_t table_slots(long long capacity) {
   return p;
 }
 
-/// Grid bytes at a block capacity (everything indexed by block, bodies' partition arrays excluded).
-std::size_t grid_bytes(long long capacity, Precision precision, bool asflip, bool fbar, bool pore) {
+/// Grid bytes at a block capacity (everything indexed by block, bodies' partition arrays excluded): the table and
+/// every channel set the scene carries (grid_channels.h).
+std::size_t grid_bytes(long long capacity, Precision precision, GridFeatures features) {
   const std::size_t c = static_cast<std::size_t>(capacity);
-  const std::size_t tg = grid_scalar_bytes(precision);
-  const std::size_t sum = grid_sum_bytes(precision);
   // keys, values, coordinates, the arena cache (8 indices a block), counters
-  std::size_t bytes = table_slots(capacity) * (8 + 4) + c * 3 * 4 + c * 8 * 4 + 8;
-  bytes += 2 * c * 4 * 64 * sum;                                        // two P2G grids (mass, momentum)
-  bytes += c * 3 * 64 * tg;                                             // grid velocity
-  if (asflip) bytes += 2 * c * 3 * 64 * sum + c * 3 * 64 * tg;          // transported momentum x 2, v^n
-  if (fbar) bytes += c * 2 * 64 * sum;                                  // cell sums
-  if (pore) bytes += c * 5 * 64 * (tg + sum);                           // seepage channels: node values, sums
-  return bytes;
+  const std::size_t bytes = table_slots(capacity) * (8 + 4) + c * 3 * 4 + c * 8 * 4 + 8;
+  return bytes + c * grid_channel_block_bytes(precision, features);
+}
+
+/// The largest one copy of a channel set the scene carries, per block (alive beside its bigger copy while the
+/// grid grows).
+std::size_t largest_grid_set_block_bytes(Precision precision, GridFeatures features) {
+  std::size_t largest = 0;
+  for (const GridSetDecl& d : kGridSets)
+    if (features.has(d.need)) largest = std::max(largest, grid_set_block_bytes(d, grid_scalar_bytes(precision)));
+  return largest;
 }
 
 /// Per-block partition arrays of one body (partition_domain.h): count and bin offset of two layouts, bins per
@@ -84,17 +86,18 @@ DeviceMemoryPlan plan_device_memory(Precision precision, long long footprint_blo
   plan.precision = precision;
   plan.footprint_blocks = footprint_blocks;
   plan.block_capacity = std::max<long long>(1024, 2 * footprint_blocks);
-  bool asflip = false, fbar = false, pore = false;
+  GridFeatures features;
   for (const BodyMemoryInput& b : bodies) {
-    asflip = asflip || b.asflip;
-    fbar = fbar || b.fbar;
-    pore = pore || b.pore;
+    features.asflip = features.asflip || b.asflip;
+    features.fbar = features.fbar || b.fbar;
+    features.pore = features.pore || b.pore;
   }
   const std::size_t t = particle_scalar_bytes(precision);
-  plan.grid = grid_bytes(plan.block_capacity, precision, asflip, fbar, pore);
-  const std::size_t grid_largest = static_cast<std::size_t>(plan.block_capacity) * 4 * 64 * grid_sum_bytes(precision);
-  // Doubling: the bigger arrays, and one old grid array alive during its copy.
-  plan.grid_growth = grid_bytes(2 * plan.block_capacity, precision, asflip, fbar, pore) - plan.grid + grid_largest;
+  plan.grid = grid_bytes(plan.block_capacity, precision, features);
+  const std::size_t grid_largest =
+      static_cast<std::size_t>(plan.block_capacity) * largest_grid_set_block_bytes(precision, features);
+  // Doubling: the bigger arrays, and one old array alive during its copy.
+  plan.grid_growth = grid_bytes(2 * plan.block_capacity, precision, features) - plan.grid + grid_largest;
   for (const BodyMemoryInput& b : bodies) {
     const long long flat = (b.particles + 31) / 32;
     long long bins = std::max<long long>(64, std::max(flat, b.bins_needed * 3 / 2 + 16));

@@ -3,10 +3,9 @@
 //
 // What one device holds (GpuEngine<T, TG>; mgsp_benchmark.cuh allocates exactly these):
 //   per grid block of capacity   hash table (2 slots of key u64 + value i32, power of two), block coordinates,
-//                                the cached indices of its 2x2x2 arena (8 x i32),
-//                                two P2G grids (4 channels x 64 nodes), the grid velocity (3 x 64), ASFLIP's
-//                                transported momentum (2 x 3 x 64) and v^n (3 x 64), F-bar's cell sums (2 x 64), the
-//                                seepage channels of saturated bodies (5 x 64), and
+//                                the cached indices of its 2x2x2 arena (8 x i32), the channel sets the scene
+//                                carries as engine/grid_channels.h declares them (two P2G grids of 4 channels x 64
+//                                nodes, the grid velocity, ASFLIP's, F-bar's and the seepage channels), and
 //                                per body the partition's per-block arrays (counts and bin offsets of two layouts,
 //                                bins per block, halo tag: 21 B)
 //   per particle slot of a body  two particle buffers (the fused G2P2G reads one and writes the other), ASFLIP's

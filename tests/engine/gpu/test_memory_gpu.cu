@@ -11,6 +11,8 @@
 #include "MnSystem/IO/particle_io.h"
 #include "engine/gpu/gpu_engine.h"
 #include "gpu_test_support.h"
+#include "../cpu/decomposition_scenes.h"
+#include "engine/grid_channels.h"
 #include "engine/memory_plan.h"
 #include "io/particle_frame.h"
 
@@ -52,6 +54,45 @@ TEST(GpuMemory, PlanIsTheAllocation) {
   GpuEngine<float> e(frame_scene(Constitutive::JFluid, Precision::Single));
   for (int i = 0; i < 10; ++i) ASSERT_TRUE(e.step().ok);
   EXPECT_EQ(e.peak_device_bytes(), e.device_bytes());
+}
+
+// The grid's channel sets are what their declarations say (engine/grid_channels.h): the engine's channel buffers
+// hold exactly capacity x grid_channel_block_bytes() for the sets the scene needs, at every precision, with ASFLIP,
+// F-bar and a saturated body, and the capacity is the plan's. A set allocated without being declared, or declared
+// without being allocated, fails this.
+template <typename T, typename TG>
+void expect_declared_grid(Precision precision) {
+  for (int feature = 0; feature < 4; ++feature) {
+    Scene s = test::small_scene(feature == 3 ? Constitutive::CoupledUP : Constitutive::FixedCorotated, precision);
+    BodySpec& b = s.bodies[0];
+    GridFeatures f;
+    if (feature == 1) {
+      b.algorithm.use_asflip = true;
+      b.algorithm.asflip_alpha = 1.0;
+      f.asflip = true;
+    }
+    if (feature == 2) {
+      b.algorithm.use_fbar = true;
+      b.algorithm.fbar_psi = 0.5;
+      f.fbar = true;
+    }
+    if (feature == 3) {
+      test::saturate(b);
+      f.pore = true;
+    }
+    GpuEngine<T, TG> e(s);
+    EXPECT_EQ(e.grid_block_capacity(), e.memory_plan().block_capacity) << "feature " << feature;
+    EXPECT_EQ(e.grid_channel_bytes(),
+              static_cast<std::size_t>(e.grid_block_capacity()) * grid_channel_block_bytes(precision, f))
+        << "feature " << feature;
+    for (int i = 0; i < 3; ++i) ASSERT_TRUE(e.step().ok) << "feature " << feature;
+  }
+}
+TEST(GpuMemory, GridChannelsAreTheirDeclarations) {
+  FBAR_REQUIRE_DEVICE();
+  expect_declared_grid<float, float>(Precision::Single);
+  expect_declared_grid<double, double>(Precision::Double);
+  expect_declared_grid<double, float>(Precision::Mixed);
 }
 
 // A device that is too small: refused in the constructor, naming what would fit, before any allocation.

@@ -65,6 +65,7 @@
 #include "physics/fem.cuh"
 #include "physics/sensors.cuh"
 #include "engine/engine_common.h"
+#include "engine/grid_channels.h"
 #include "engine/run_constants.h"
 #include "scene/scene.h"
 #include "physics/transfer.cuh"
@@ -315,6 +316,13 @@ class CpuEngine {
     TG water[64];
     TG density[64];
   };
+  // The CPU's blocks hold the channel sets grid_channels.h marks `cpu`, in TG (its velocity replaces the momentum
+  // in place; ASFLIP's transported momentum is summed into v^n's place; the seepage sums into the node values').
+  static_assert(sizeof(GridBlock) == grid_set(GridSet::Sums).channels * 64 * sizeof(TG), "GridBlock: kGridSets");
+  static_assert(sizeof(AsflipBlock) == grid_set(GridSet::OldVelocity).channels * 64 * sizeof(TG),
+                "AsflipBlock: kGridSets");
+  static_assert(sizeof(FbarBlock) == grid_set(GridSet::FbarSums).channels * 64 * sizeof(TG), "FbarBlock: kGridSets");
+  static_assert(sizeof(PoreBlock) == grid_set(GridSet::PoreValues).channels * 64 * sizeof(TG), "PoreBlock: kGridSets");
   struct Grid {
     std::unordered_map<std::uint64_t, int> index;  // packed block coordinates -> block
     std::vector<Vec3i> coords;                     // (block) block coordinates

@@ -93,9 +93,9 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     p.next_count = this->partition.layout(1 - e.cur_).count;
     p.dest = this->partition.dest();
     p.table = e.table_.view();
-    p.velocity = e.velocity_.instance();
-    p.grid_next = e.grid_[1 - e.gc_].view();
-    p.grid_this = e.grid_[e.gc_].view();
+    p.velocity = e.grid_velocity().instance();
+    p.grid_next = e.grid_sums(1 - e.gc_).view();
+    p.grid_this = e.grid_sums(e.gc_).view();
     p.quantum_next = e.quantum(1 - e.gc_);
     p.initial = initial;
     p.bound_only = e.measuring_bound_;
@@ -103,20 +103,20 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     p.aux = e.record_ || mesh ? this->aux.get() : nullptr;
     if (e.capture_next_ && this->capture.x && !mesh) p.capture = this->capture;  // a mesh's: the element pass
     p.vertex_mass = mesh ? this->mesh->vertex_mass.get() : nullptr;
-    if (e.asflip_) p.transported_next = e.transported_[1 - e.gc_].view();
+    if (e.asflip_) p.transported_next = e.transported(1 - e.gc_).view();
     p.asflip = this->asflip;
     p.asflip_params = this->asflip_params;
     if (this->asflip) {
-      p.old_velocity = e.old_velocity_.instance();
+      p.old_velocity = e.asflip_velocity().instance();
       p.particle_v_in = this->particle_v[e.cur_].get();
       p.particle_v_out = this->particle_v[1 - e.cur_].get();
     }
     p.fbar_psi = initial ? T(0) : this->fbar_psi;
     if (p.fbar_psi != T(0)) {
-      p.fbar_sums = e.fbar_sums_.view();
+      p.fbar_sums = e.fbar_sums().view();
       p.fbar_quantum = fixed_quantum<TG>(static_cast<double>(this->volume));
     }
-    if constexpr (IsPoreFluid<M>::value) p.pore = e.pore_sums_.instance();
+    if constexpr (IsPoreFluid<M>::value) p.pore = e.pore_values().instance();
     p.gravity = e.k_.gravity;
     p.material = params;
     p.mass = this->mass;
@@ -147,7 +147,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     if (e.block_count_ == 0 || this->particles == 0) return;
     if (p.fbar_psi != T(0) && pass != G2P2GPass::Interior) {  // F-bar: the cell sums first (fbar_cell_sums)
       const int blocks = e.block_count_;
-      e.fbar_sums_.clear(0, blocks, e.stream_);
+      e.fbar_sums().clear(0, blocks, e.stream_);
       FbarCellSumsParams<M, T, TG> f;
       f.in = p.in;
       f.layout = p.layout;
@@ -159,7 +159,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
       f.stats = p.stats;
       ::fbar::fbar_cell_sums<M, T, TG><<<blocks, kParticleBlockThreads, 0, e.stream_>>>(f);
       cuda::check_launch("fbar_cell_sums");
-      if (e.decomposed()) e.halo_exchange({HaloBuffer{e.fbar_sums_.data(), FbarSumBuffer<TG>::kBlockBytes, true}}, -1);
+      if (e.decomposed()) e.halo_exchange({HaloBuffer{e.fbar_sums().data(), FbarSumBuffer<TG>::kBlockBytes, true}}, -1);
     }
     int blocks = e.block_count_;
     p.order_first = -1;
@@ -232,7 +232,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
       vp.params = params;
       vp.force = m.force[1 - m.force_cur].get();
       vp.table = e.table_.view();
-      vp.grid_next = e.grid_[1 - e.gc_].view();
+      vp.grid_next = e.grid_sums(1 - e.gc_).view();
       vp.quantum_next = e.quantum(1 - e.gc_);
       vp.dt_next = &e.stats_d_->dt_next;
       vp.inv_dx = e.k_.inv_dx;
@@ -256,7 +256,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
       f.in = bins[e.cur_].instance();
       f.layout = this->partition.layout(e.cur_);
       f.table = e.table_.view();
-      f.sums = e.pore_fixed_.view();
+      f.sums = e.pore_sums().view();
       f.bound = e.pore_bound_d_.get();
       f.bounds_only = bounds_only;
       f.material = params;
@@ -296,7 +296,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     ::fbar::dest_from_positions<M, T, TG><<<cuda::grid_for(slots - first, kPartitionThreads), kPartitionThreads,
                                       0, e.stream_>>>(
         bins[which].instance(), valid, this->particles, first, slots, e.k_.inv_dx, e.slab_of(this->index), e.table_.view(),
-        this->partition.layout(1 - e.cur_).count, this->partition.dest(), e.grid_[0].view(), e.grid_[1].view(),
+        this->partition.layout(1 - e.cur_).count, this->partition.dest(), e.grid_sums(0).view(), e.grid_sums(1).view(),
         e.body_stats_d_ + this->index, blocks);
     cuda::check_launch("dest_from_positions");
   }
@@ -344,14 +344,14 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
       if (!m.on_device() || !m.forces) return;
       ::fbar::mesh_rescale_impulse<M, T, TG><<<cuda::grid_for(slots, kFemThreads), kFemThreads, 0, e.stream_>>>(
           bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, m.force[m.force_cur].get(),
-          static_cast<int>(m.mass.size()), ddt, e.k_.inv_dx, e.table_.view(), e.grid_[e.gc_].view(), e.quantum(e.gc_),
+          static_cast<int>(m.mass.size()), ddt, e.k_.inv_dx, e.table_.view(), e.grid_sums(e.gc_).view(), e.quantum(e.gc_),
           e.stats_d_);
       cuda::check_launch("mesh_rescale_impulse");
       return;
     }
     ::fbar::rescale_impulse<M, T, TG><<<cuda::grid_for(slots, kPartitionThreads), kPartitionThreads, 0, e.stream_>>>(
         bins[e.cur_].instance(), this->partition.layout(e.cur_), slots, params, this->volume, ddt, e.k_.dx, e.k_.inv_dx,
-        e.k_.d_inv, e.table_.view(), e.grid_[e.gc_].view(), e.quantum(e.gc_), e.stats_d_);
+        e.k_.d_inv, e.table_.view(), e.grid_sums(e.gc_).view(), e.quantum(e.gc_), e.stats_d_);
     cuda::check_launch("rescale_impulse");
   }
 

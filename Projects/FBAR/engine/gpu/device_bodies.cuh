@@ -204,7 +204,7 @@ struct MgspBenchmark<T, TG>::BodyBase {
   virtual double seed_states(const ParticleSeeds& seeds) = 0;
   /// pass: every block of layout(cur) (one GPU, the initial P2G), or one part of its list (the halo-first step).
   virtual void g2p2g(MgspBenchmark& e, bool initial, T dt, G2P2GPass pass = G2P2GPass::All) = 0;
-  /// Saturated bodies: the seepage channels of bins[cur] added into e.pore_fixed_ (kernels/seepage_kernels.cuh), or
+  /// Saturated bodies: the seepage channels of bins[cur] added into e.pore_sums() (kernels/seepage_kernels.cuh), or
   /// (bounds_only) their bounds raised in e.pore_bound_d_; nothing for other laws.
   virtual void seepage_sums(MgspBenchmark& e, bool bounds_only) = 0;
   /// blocks: a restart's recorded block per slot (3 ints), or nullptr to take each particle's from its position.

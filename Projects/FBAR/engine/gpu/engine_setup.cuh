@@ -267,20 +267,8 @@ void MgspBenchmark<T, TG>::allocate_device_state(const std::vector<std::vector<V
   // Capacities from the plan (options may start them smaller: tests exercise growth).
   block_capacity_ = options_.block_capacity > 0 ? options_.block_capacity : static_cast<int>(plan_.block_capacity);
   table_.allocate(block_capacity_, stream_);
-  grid_[0].allocate(block_capacity_);
-  grid_[1].allocate(block_capacity_);
-  velocity_.allocate(block_capacity_);
-  if (fbar_) fbar_sums_.allocate(block_capacity_);
-  if (pore_) {
-    pore_sums_.allocate(block_capacity_);
-    pore_fixed_.allocate(block_capacity_);
-    pore_bound_d_.allocate(kSeepageChannels);
-  }
-  if (asflip_) {
-    transported_[0].allocate(block_capacity_);
-    transported_[1].allocate(block_capacity_);
-    old_velocity_.allocate(block_capacity_);
-  }
+  channels_.allocate(block_capacity_, GridFeatures{asflip_, fbar_, pore_});
+  if (pore_) pore_bound_d_.allocate(kSeepageChannels);
   quantum_d_.allocate(2);
   mass_bound_ = 0.0;
   for (const auto& b : bodies_) mass_bound_ = std::max(mass_bound_, static_cast<double>(b->mass));
@@ -420,8 +408,8 @@ void MgspBenchmark<T, TG>::initial_p2g() {
   dp.scale = 1.0;
   compute_next_dt<<<1, 1, 0, stream_>>>(dp);
   cuda::check_launch("compute_next_dt");
-  grid_[0].clear(0, block_capacity_, stream_);
-  if (asflip_) transported_[0].clear(0, block_capacity_, stream_);
+  grid_sums(0).clear(0, block_capacity_, stream_);
+  if (asflip_) transported(0).clear(0, block_capacity_, stream_);
   for (auto& b : bodies_) {
     FBAR_CUDA_CHECK(cudaMemsetAsync(b->partition.layout(1).count, 0, sizeof(int) * block_capacity_, stream_));
     b->source_slots = b->total_bins[0] * 32;
@@ -445,10 +433,7 @@ void MgspBenchmark<T, TG>::initial_p2g() {
   launch_dt(dp);
   for (auto& b : bodies_) b->g2p2g(*this, true, T(0));
   if (decomposed()) {
-    if (asflip_)
-      halo_exchange({grid_halo(0), transported_halo(0)}, 0);
-    else
-      halo_exchange({grid_halo(0)}, 0);
+    halo_exchange(step_halo_buffers(0), 0);
     migrate_particles();
   }
   partition_after_g2p2g();

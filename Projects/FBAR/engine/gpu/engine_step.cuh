@@ -57,7 +57,7 @@ void MgspBenchmark<T, TG>::partition_after_g2p2g(bool dest_complete) {
     BodyBase& b = *bp;
     const LayoutView nl = b.partition.layout(next);
     activate_footprint<TG><<<cuda::grid_for(block_capacity_, kPartitionThreads), kPartitionThreads, 0, stream_>>>(
-        nl.count, block_capacity_, table_.view(), grid_[0].view(), grid_[1].view());
+        nl.count, block_capacity_, table_.view(), grid_sums(0).view(), grid_sums(1).view());
     cuda::check_launch("activate_footprint");
   }
   for (auto& bp : bodies_) {
@@ -150,19 +150,7 @@ void MgspBenchmark<T, TG>::grow_blocks_to(int capacity) {
     *log_ << "fbar: GPU engine: grid blocks " << block_capacity_ << " -> " << capacity << " (hash table, grids)\n";
   const int keep = std::min(block_capacity_, std::max(block_count_, stats_->block_count));
   table_.grow(capacity, stream_);
-  grid_[0].grow(capacity, keep, stream_);
-  grid_[1].grow(capacity, keep, stream_);
-  velocity_.grow(capacity, keep, stream_);
-  if (fbar_) fbar_sums_.grow(capacity, 0, stream_);  // refilled before every use
-  if (pore_) pore_sums_.grow(capacity, 0, stream_);   // likewise
-  if (pore_) pore_fixed_.grow(capacity, 0, stream_);
-  if (asflip_) {
-    transported_[0].grow(capacity, keep, stream_);
-    transported_[1].grow(capacity, keep, stream_);
-    old_velocity_.grow(capacity, keep, stream_);
-  }
-  grid_[0].clear(keep, capacity, stream_);
-  grid_[1].clear(keep, capacity, stream_);
+  channels_.grow(capacity, keep, stream_);  // each set as its lifetime says (engine/grid_channels.h)
   for (auto& b : bodies_) {
     b->partition.grow_blocks(capacity, cur_, stream_);
     // The kept layout's list again, at the new capacity (same counts: the same H and I the host holds).
@@ -316,7 +304,7 @@ void MgspBenchmark<T, TG>::begin_try(double dt) {
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::update_grid(double dt) {
   if (pore_ && block_count_ > 0) {  // the seepage sums of state n, every try (the update replaces them in place)
-    pore_fixed_.clear(0, block_count_, stream_);
+    pore_sums().clear(0, block_count_, stream_);
     // Every saturated body's bounds first (on every rank), then the sums in the quanta they set.
     FBAR_CUDA_CHECK(cudaMemsetAsync(pore_bound_d_.get(), 0, pore_bound_d_.bytes(), stream_));
     for (auto& b : bodies_) b->seepage_sums(*this, true);
@@ -324,20 +312,20 @@ void MgspBenchmark<T, TG>::update_grid(double dt) {
       dec_.device->allreduce_max(reinterpret_cast<double*>(pore_bound_d_.get()), kSeepageChannels, stream_);
     for (auto& b : bodies_) b->seepage_sums(*this, false);
     if (decomposed())
-      halo_exchange({HaloBuffer{pore_fixed_.data(), PoreSumBuffer<TG>::kBlockBytes, true}}, -1);
+      halo_exchange({HaloBuffer{pore_sums().data(), PoreSumBuffer<TG>::kBlockBytes, true}}, -1);
   }
   GridUpdateParams<TG> gp{};
   if (pore_) {
-    gp.pore = pore_sums_.instance();
-    gp.pore_sums = pore_fixed_.view();
+    gp.pore = pore_values().instance();
+    gp.pore_sums = pore_sums().view();
     gp.pore_bound = pore_bound_d_.get();
   }
-  gp.grid = grid_[gc_].view();
+  gp.grid = grid_sums(gc_).view();
   gp.quantum = quantum(gc_);
-  gp.velocity = velocity_.instance();
+  gp.velocity = grid_velocity().instance();
   if (asflip_) {
-    gp.transported = transported_[gc_].view();
-    gp.old_velocity = old_velocity_.instance();
+    gp.transported = transported(gc_).view();
+    gp.old_velocity = asflip_velocity().instance();
   }
   gp.coords = table_.view().coords;
   gp.block_count = block_count_;
@@ -432,9 +420,9 @@ void MgspBenchmark<T, TG>::launch_dt(DtParams& dp) {
 /// (in one exchange, or overlapping the interior G2P2G: options_.overlap_halo).
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::g2p2g_step(double dt) {
-  grid_[1 - gc_].clear(0, block_count_, stream_);
+  grid_sums(1 - gc_).clear(0, block_count_, stream_);
   // New blocks appear during G2P2G (its leader threads zero them in grid_); the transported sums are cleared whole.
-  if (asflip_) transported_[1 - gc_].clear(0, block_capacity_, stream_);
+  if (asflip_) transported(1 - gc_).clear(0, block_capacity_, stream_);
   FBAR_CUDA_CHECK(cudaMemsetAsync(wave_d_.get() + (1 - wave_cur_) * bodies_.size(), 0,
                                   sizeof(unsigned long long) * bodies_.size(), stream_));
   FBAR_CUDA_CHECK(cudaMemsetAsync(p2g_bound_d_.get() + (1 - bound_cur_) * bodies_.size(), 0,
@@ -637,7 +625,7 @@ bool MgspBenchmark<T, TG>::compact_grid() {
   if (count == 0) return false;
   // Scratch: the velocity buffer, which nothing reads between a commit and the next grid update (the update
   // rewrites every block before G2P2G reads one).
-  std::byte* const base = reinterpret_cast<std::byte*>(velocity_.instance().data());
+  std::byte* const base = reinterpret_cast<std::byte*>(grid_velocity().instance().data());
   std::size_t used = 0;
   const auto take = [&](std::size_t bytes) {
     std::byte* p = base + used;
@@ -660,7 +648,7 @@ bool MgspBenchmark<T, TG>::compact_grid() {
                                                   0, 63, stream_));
   std::byte* sort_temp = take(sort_bytes);
   compact_check_at_ = count + std::max(count / 8, 64);
-  if (used > velocity_.bytes()) return false;  // ~100 of its 768 bytes a block: does not happen
+  if (used > grid_velocity().bytes()) return false;  // ~100 of its 768 bytes a block: does not happen
   // 1. Which blocks stay: every layout's particle blocks and their arenas, and the halo lists.
   FBAR_CUDA_CHECK(cudaMemsetAsync(live, 0, sizeof(int) * (n + 1), stream_));
   for (auto& b : bodies_) {
@@ -708,10 +696,7 @@ bool MgspBenchmark<T, TG>::compact_grid() {
     FBAR_CUDA_CHECK(cudaMemcpyAsync(current, spare, block_bytes * kept, cudaMemcpyDeviceToDevice, stream_));
     FBAR_CUDA_CHECK(cudaMemsetAsync(current + block_bytes * kept, 0, block_bytes * (n - kept), stream_));
   };
-  static_assert(GridBuffer<TG>::kBlockBytes % sizeof(uint4) == 0 && TransportedBuffer<TG>::kBlockBytes % sizeof(uint4) == 0,
-                "grid blocks move in 16-byte words");
-  move(grid_[gc_].data(), grid_[1 - gc_].data(), GridBuffer<TG>::kBlockBytes);
-  if (asflip_) move(transported_[gc_].data(), transported_[1 - gc_].data(), TransportedBuffer<TG>::kBlockBytes);
+  channels_.each_carried(gc_, move);  // the AcrossSteps sets (grid_channels.cuh checks their 16-byte words)
   // 4. Each layout: counts at the new indices, bin offsets scanned again, each block's bins moved with it (through
   // the other layout's src, which the next partition rewrites).
   std::vector<int> total(bodies_.size(), 0);

@@ -541,7 +541,7 @@ double MgspBenchmark<T, TG>::grid_mass() const {
   using View = typename GridBuffer<TG>::View;
   std::vector<unsigned long long> host(View::kBlockWords * static_cast<std::size_t>(block_count_));
   if (!host.empty())
-    FBAR_CUDA_CHECK(cudaMemcpy(host.data(), grid_[gc_].data(), sizeof(unsigned long long) * host.size(),
+    FBAR_CUDA_CHECK(cudaMemcpy(host.data(), grid_sums(gc_).data(), sizeof(unsigned long long) * host.size(),
                                cudaMemcpyDeviceToHost));
   GridQuantum q;
   FBAR_CUDA_CHECK(cudaMemcpy(&q, quantum(gc_), sizeof(q), cudaMemcpyDeviceToHost));
@@ -571,8 +571,7 @@ std::size_t MgspBenchmark<T, TG>::particle_blocks() const {
 
 template <typename T, typename TG>
 std::size_t MgspBenchmark<T, TG>::device_bytes() const {
-  std::size_t bytes = table_.bytes() + grid_[0].bytes() + grid_[1].bytes() + velocity_.bytes() + fbar_sums_.bytes() + pore_sums_.bytes() + pore_fixed_.bytes() +
-                      transported_[0].bytes() + transported_[1].bytes() + old_velocity_.bytes() +
+  std::size_t bytes = table_.bytes() + channels_.bytes() +
                       stats_bytes_.bytes() + wave_d_.bytes() + p2g_bound_d_.bytes() + scan_temp_.bytes() +
                       sensors_.grid_samples_d.bytes() + sensors_.particle_samples_d.bytes() + sensors_.partials_d.bytes() +
                       sensors_.track_d.bytes();

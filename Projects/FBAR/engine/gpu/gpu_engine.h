@@ -221,6 +221,9 @@ class GpuEngine {
   /// and benchmarks, not every step).
   std::size_t particle_blocks() const;
   std::size_t device_bytes() const;      ///< device memory held by the engine's buffers
+  /// Device memory of the grid's channel sets (engine/grid_channels.h) and the block capacity they are sized for.
+  std::size_t grid_channel_bytes() const;
+  int grid_block_capacity() const;
 
   // Decomposed runs (GpuEngineOptions::ranks); one rank otherwise.
   int rank() const;

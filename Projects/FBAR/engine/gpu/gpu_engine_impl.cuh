@@ -279,6 +279,10 @@ std::size_t GpuEngine<T, TG>::particle_blocks() const { return impl_->particle_b
 template <typename T, typename TG>
 std::size_t GpuEngine<T, TG>::device_bytes() const { return impl_->device_bytes(); }
 template <typename T, typename TG>
+std::size_t GpuEngine<T, TG>::grid_channel_bytes() const { return impl_->grid_channel_bytes(); }
+template <typename T, typename TG>
+int GpuEngine<T, TG>::grid_block_capacity() const { return impl_->grid_block_capacity(); }
+template <typename T, typename TG>
 int GpuEngine<T, TG>::rank() const { return impl_->rank(); }
 template <typename T, typename TG>
 int GpuEngine<T, TG>::ranks() const { return impl_->ranks(); }

@@ -24,11 +24,13 @@
 #include <cmath>
 #include <cstddef>
 #include <cstring>
+#include <utility>
 
 #include "MnBase/Memory/structural_instance.h"
 #include "MnBase/Meta/placeholder.h"
 #include "MnSystem/Cuda/allocators.h"
 #include "MnSystem/Cuda/device_array.cuh"
+#include "engine/grid_channels.h"
 #include "engine/gpu/block_access.cuh"
 #include "settings.h"
 
@@ -52,16 +54,30 @@ struct GridLayout {
   using soa = decorator<structural_allocation_policy::full_allocation, structural_padding_policy::compact,
                         attrib_layout::soa>;
   using block_domain = domain<int, 4, 4, 4>;
-  /// (channel, node) velocity of one block.
-  using velocity_block_ = structural<structural_type::dense, block_domain, soa, scalar_, scalar_, scalar_>;
-  /// (channel, node) seepage channels of one block, allocated only when a body is saturated.
-  using pore_block_ = structural<structural_type::dense, block_domain, soa, scalar_, scalar_, scalar_, scalar_, scalar_>;
+  /// (channel, node) values of one block of a GridStorage::Value set with C channels.
+  template <typename Seq>
+  struct ValueBlockOf;
+  template <std::size_t... I>
+  struct ValueBlockOf<std::index_sequence<I...>> {
+    template <std::size_t>
+    using channel = scalar_;
+    using type = structural<structural_type::dense, block_domain, soa, channel<I>...>;
+  };
+  template <int C>
+  using value_block_ = typename ValueBlockOf<std::make_index_sequence<C>>::type;
+  /// (channel, node) velocity of one block (and ASFLIP's v^n: the same channels).
+  using velocity_block_ = value_block_<grid_set(GridSet::Velocity).channels>;
+  /// (channel, node) seepage node values of one block, allocated only when a body is saturated.
+  using pore_block_ = value_block_<grid_set(GridSet::PoreValues).channels>;
   using velocity_buffer_ = structural<structural_type::dynamic, dynamic_domain<int>, soa, velocity_block_>;
   using pore_buffer_ = structural<structural_type::dynamic, dynamic_domain<int>, soa, pore_block_>;
   using VelocityBuffer = structural_instance<velocity_buffer_>;
   using PoreBuffer = structural_instance<pore_buffer_>;
 
-  static_assert(velocity_block_::size == 3 * 64 * sizeof(T), "a velocity block is 3 channels x 64 nodes");
+  static_assert(velocity_block_::size == grid_set_block_bytes(grid_set(GridSet::Velocity), sizeof(T)),
+                "a velocity block: kGridSets");
+  static_assert(grid_set(GridSet::OldVelocity).channels == grid_set(GridSet::Velocity).channels,
+                "ASFLIP's v^n has the velocity's channels");
 };
 
 /// Owner of one run-time sized buffer of blocks of structural `Node` (grid or velocity).
@@ -109,6 +125,7 @@ class BlockBuffer {
       FBAR_CUDA_CHECK(cudaMemsetAsync(instance_.data() + kBlockBytes * begin, 0, kBlockBytes * (end - begin), stream));
   }
   Instance instance() const { return instance_; }
+  std::byte* data() const { return reinterpret_cast<std::byte*>(instance_.data()); }
   std::size_t bytes() const { return instance_ ? instance_.size_bytes() : 0; }
   int capacity() const { return static_cast<int>(instance_.capacity()); }
 
@@ -239,26 +256,26 @@ class FixedGridBuffer {
 
 /// The grid's P2G sums (mass, momentum x, y, z) and ASFLIP's transported momentum (x, y, z), in fixed point.
 template <typename TG>
-using GridSums = FixedGrid<TG, 4>;
+using GridSums = FixedGrid<TG, grid_set(GridSet::Sums).channels>;
 template <typename TG>
-using TransportedSums = FixedGrid<TG, 3>;
+using TransportedSums = FixedGrid<TG, grid_set(GridSet::Transported).channels>;
 template <typename TG>
-using GridBuffer = FixedGridBuffer<TG, 4>;
+using GridBuffer = FixedGridBuffer<TG, grid_set(GridSet::Sums).channels>;
 template <typename TG>
-using TransportedBuffer = FixedGridBuffer<TG, 3>;
+using TransportedBuffer = FixedGridBuffer<TG, grid_set(GridSet::Transported).channels>;
 /// F-bar's cell sums (grid_fbar_compression, grid_fbar_volume: channels 0, 1), in fixed point with the quantum
 /// fixed_quantum(V0) of the body whose sums they hold.
 template <typename TG>
-using FbarSums = FixedGrid<TG, 2>;
+using FbarSums = FixedGrid<TG, grid_set(GridSet::FbarSums).channels>;
 template <typename TG>
-using FbarSumBuffer = FixedGridBuffer<TG, 2>;
+using FbarSumBuffer = FixedGridBuffer<TG, grid_set(GridSet::FbarSums).channels>;
 /// The seepage channels' sums (grid_pore_volume .. grid_pore_density: channels 0..4, kernels/seepage_kernels.cuh)
 /// in fixed point, channel c in units of pore_quantum(B_c); the grid update writes the node values into the
 /// GridPoreBuffer that G2P and the sensors read.
 template <typename TG>
-using PoreSums = FixedGrid<TG, 5>;
+using PoreSums = FixedGrid<TG, grid_set(GridSet::PoreSums).channels>;
 template <typename TG>
-using PoreSumBuffer = FixedGridBuffer<TG, 5>;
+using PoreSumBuffer = FixedGridBuffer<TG, grid_set(GridSet::PoreSums).channels>;
 /// The quantum of a channel whose contributions per unit weight are bounded by `bound`: bound 2^-F (FixedSumFormat).
 template <typename TG>
 FBAR_HOST_DEVICE inline double fixed_quantum(double bound) {

@@ -82,7 +82,7 @@
 #include "engine/engine_common.h"
 #include "geometry/geometry.h"
 #include "engine/gpu/gpu_engine.h"
-#include "engine/gpu/grid_buffer.cuh"
+#include "engine/gpu/grid_channels.cuh"
 #include "engine/gpu/decomposition/decomposition_state.cuh"
 #include "engine/gpu/hash_table.cuh"
 #include "engine/gpu/sensor_state.cuh"
@@ -197,6 +197,8 @@ class MgspBenchmark {
   double grid_mass() const;
   std::size_t active_grid_blocks() const { return static_cast<std::size_t>(block_count_); }
   std::size_t particle_blocks() const;  ///< table blocks holding particles of some body (a device reduction)
+  std::size_t grid_channel_bytes() const { return channels_.bytes(); }
+  int grid_block_capacity() const { return block_capacity_; }
   std::size_t device_bytes() const;
   int rank() const { return dec_.host ? dec_.host->rank() : 0; }
   int ranks() const { return dec_.host ? dec_.host->size() : 1; }
@@ -365,31 +367,31 @@ class MgspBenchmark {
   void sync_new_shared_blocks(int summed_grid, const std::vector<std::vector<unsigned long long>>& sync_out,
                               const std::vector<std::vector<unsigned long long>>& sync_in);
   /// Placed bodies: halo_exchange over the shared lists, every holder's contribution added in rank order.
-  void shared_exchange(std::initializer_list<HaloBuffer> buffers, int grid, bool delta,
+  using BlockBuffers = std::vector<HaloBuffer>;
+  void shared_exchange(const BlockBuffers& buffers, int grid, bool delta,
                        cudaStream_t stream);
   /// Placed bodies: dec_.not_counted from the lists (a block shared with a lower rank counts there).
   void mark_not_counted();
   /// Sums the listed block buffers' halo blocks with the neighbours (data, bytes per block). grid >= 0: the first
-  /// buffer is grid_[grid], whose summed halo is kept for a later delta exchange; delta: add (mine + theirs) - saved.
+  /// buffer is grid_sums(grid), whose summed halo is kept for a later delta exchange; delta: add (mine + theirs) - saved.
   /// On `stream` (nullptr: the compute stream).
-  void halo_exchange(std::initializer_list<HaloBuffer> buffers, int grid, bool delta = false,
+  void halo_exchange(const BlockBuffers& buffers, int grid, bool delta = false,
                      cudaStream_t stream = nullptr);
-  using BlockBuffers = std::vector<HaloBuffer>;
   /// halo_exchange in two halves (neighbour planes only), so that one exchange can carry other messages too: the
   /// packed halo messages, then, after the exchange, the sums.
   std::vector<comm::DeviceTransport::Message> pack_halo_messages(const BlockBuffers& buffers, cudaStream_t stream);
   void add_halo_messages(const BlockBuffers& buffers, int grid, bool delta, cudaStream_t stream);
-  /// grid[g]'s and transported[g]'s fixed-point words as halo buffers.
-  HaloBuffer grid_halo(int g) const { return HaloBuffer{grid_[g].data(), GridBuffer<TG>::kBlockBytes, true}; }
-  HaloBuffer transported_halo(int g) const {
-    return HaloBuffer{transported_[g].data(), TransportedBuffer<TG>::kBlockBytes, true};
-  }
+  /// grid[g]'s fixed-point words as a halo buffer.
+  HaloBuffer grid_halo(int g) const { return HaloBuffer{grid_sums(g).data(), GridBuffer<TG>::kBlockBytes, true}; }
   /// The quanta of grid[g]'s sums (device).
   GridQuantum* quantum(int g) const { return quantum_d_.get() + g; }
-  /// The buffers a step's halo sums: grid[g] and, with ASFLIP, the transported momentum.
-  BlockBuffers step_halo_buffers(int g) {
-    BlockBuffers out{grid_halo(g)};
-    if (asflip_) out.push_back(transported_halo(g));
+  /// The buffers a step's halo sums: copy g of each halo-summed AcrossSteps channel set (grid[g] first and, with
+  /// ASFLIP, the transported momentum).
+  BlockBuffers step_halo_buffers(int g) const {
+    BlockBuffers out;
+    channels_.each_step_halo(g, [&](const GridSetDecl&, std::byte* data, std::size_t block_bytes) {
+      out.push_back(HaloBuffer{data, block_bytes, true});
+    });
     return out;
   }
   /// Step 3 of a decomposed rank: G2P2G of the halo particle blocks, then of the others on the compute stream while
@@ -443,18 +445,21 @@ class MgspBenchmark {
   cudaStream_t copy_stream_ = nullptr;  ///< frame downloads
   cudaEvent_t events_[6] = {};  ///< step phases (kernel timing): grid | dt + G2P2G | halo | migration | partition
   BlockHashTable table_;
-  GridBuffer<TG> grid_[2];
-  GridVelocityBuffer<TG> velocity_;
-  FbarSumBuffer<TG> fbar_sums_;          ///< F-bar cell sums, allocated only when a body uses F-bar
-  /// Seepage channels, allocated only when a body is saturated (CoupledUP): summed from the particles at the start of
-  /// every try (seepage_sums), then the grid update's h_i, r_i and p_i in place (kernels/seepage_kernels.cuh).
-  GridPoreBuffer<TG> pore_sums_;
-  PoreSumBuffer<TG> pore_fixed_;                  ///< the seepage sums in fixed point (the grid update reads them)
+  /// The grid's channel sets (engine/grid_channels.h, grid_channels.cuh): P2G sums (double-buffered: grid_sums(gc_)
+  /// is the committed step's), velocity, ASFLIP's transported momentum (double-buffered like the sums) and v^n,
+  /// F-bar's cell sums, the seepage channels of saturated bodies (summed from the particles at the start of every
+  /// try into pore_sums(), then the grid update's h_i, r_i and p_i in pore_values(): kernels/seepage_kernels.cuh).
+  GridChannels<TG> channels_;
+  GridBuffer<TG>& grid_sums(int g) { return channels_.template get<GridSet::Sums>(g); }
+  const GridBuffer<TG>& grid_sums(int g) const { return channels_.template get<GridSet::Sums>(g); }
+  GridVelocityBuffer<TG>& grid_velocity() { return channels_.template get<GridSet::Velocity>(); }
+  FbarSumBuffer<TG>& fbar_sums() { return channels_.template get<GridSet::FbarSums>(); }
+  GridPoreBuffer<TG>& pore_values() { return channels_.template get<GridSet::PoreValues>(); }
+  PoreSumBuffer<TG>& pore_sums() { return channels_.template get<GridSet::PoreSums>(); }
+  TransportedBuffer<TG>& transported(int g) { return channels_.template get<GridSet::Transported>(g); }
+  const TransportedBuffer<TG>& transported(int g) const { return channels_.template get<GridSet::Transported>(g); }
+  GridVelocityBuffer<TG>& asflip_velocity() { return channels_.template get<GridSet::OldVelocity>(); }
   cuda::DeviceArray<unsigned long long> pore_bound_d_;  ///< (channel) bits of B_c (kernels/seepage_kernels.cuh)
-  /// ASFLIP, allocated only when a body uses it: transported momentum of each P2G (double-buffered like grid_) and
-  /// v^n from the grid update.
-  TransportedBuffer<TG> transported_[2];
-  GridVelocityBuffer<TG> old_velocity_;
   bool asflip_ = false;
   bool fbar_ = false;
   bool pore_ = false;  ///< some body is saturated (CoupledUP): the grid carries the seepage channels
@@ -471,7 +476,7 @@ class MgspBenchmark {
   /// (2, body) bits of the fixed-point P2G momentum bound: the one in use / the one measured by this try.
   cuda::DeviceArray<unsigned long long> p2g_bound_d_;
   int bound_cur_ = 0;
-  /// (grid) the quanta of grid_[g] and transported_[g] (compute_next_dt writes those of the grid a P2G sums into).
+  /// (grid) the quanta of grid_sums(g) and transported(g) (compute_next_dt writes those of the grid a P2G sums into).
   cuda::DeviceArray<GridQuantum> quantum_d_;
   double mass_bound_ = 0.0;  ///< [kg] the largest particle (vertex) mass of any body: the mass quantum's scale
   bool measuring_bound_ = false;  ///< the initial P2G's first pass (G2P2GParams::bound_only)

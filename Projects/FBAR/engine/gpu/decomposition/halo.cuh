@@ -9,10 +9,7 @@ namespace fbar {
 template <typename T, typename TG>
 void MgspBenchmark<T, TG>::g2p2g_and_halo(T dt) {
   auto sums = [&](cudaStream_t s) {
-    if (asflip_)
-      halo_exchange({grid_halo(1 - gc_), transported_halo(1 - gc_)}, 1 - gc_, false, s);
-    else
-      halo_exchange({grid_halo(1 - gc_)}, 1 - gc_, false, s);
+    halo_exchange(step_halo_buffers(1 - gc_), 1 - gc_, false, s);
   };
   if (!options_.overlap_halo) {
     for (auto& b : bodies_) b->g2p2g(*this, false, dt);
@@ -21,7 +18,7 @@ void MgspBenchmark<T, TG>::g2p2g_and_halo(T dt) {
     return;
   }
   // The halo particle blocks of every body first: after them no launch of this step writes a block of a shared
-  // plane (a particle block B scatters into blocks B .. B + 1 only). fbar_sums_ holds one body's cell sums at a
+  // plane (a particle block B scatters into blocks B .. B + 1 only). fbar_sums() holds one body's cell sums at a
   // time, so an F-bar body with another F-bar body after it runs its other blocks at once.
   int fbar_left = 0;
   for (const auto& b : bodies_) fbar_left += b->fbar_psi != T(0);
@@ -46,14 +43,14 @@ void MgspBenchmark<T, TG>::g2p2g_and_halo(T dt) {
 }
 
 template <typename T, typename TG>
-void MgspBenchmark<T, TG>::halo_exchange(std::initializer_list<HaloBuffer> buffers, int grid,
+void MgspBenchmark<T, TG>::halo_exchange(const BlockBuffers& buffers, int grid,
                                          bool delta, cudaStream_t stream) {
   if (!stream) stream = stream_;
   if (dec_.placed) {
     shared_exchange(buffers, grid, delta, stream);
     return;
   }
-  const BlockBuffers list(buffers);
+  const BlockBuffers& list = buffers;
   dec_.device->exchange(pack_halo_messages(list, stream), stream);
   add_halo_messages(list, grid, delta, stream);
 }
@@ -192,7 +189,7 @@ void MgspBenchmark<T, TG>::rebuild_halo(int summed_grid) {
                                     cudaMemcpyHostToDevice, stream_));
     for (;;) {
       insert_halo_blocks<TG><<<cuda::grid_for(n, kHaloThreads), kHaloThreads, 0, stream_>>>(
-          table_.view(), keys.get(), n, h.index.get(), grid_[0].view(), grid_[1].view());
+          table_.view(), keys.get(), n, h.index.get(), grid_sums(0).view(), grid_sums(1).view());
       cuda::check_launch("insert_halo_blocks");
       TableCounters c{};
       FBAR_CUDA_CHECK(cudaMemcpyAsync(&c, table_.counters(), sizeof(c), cudaMemcpyDeviceToHost, stream_));
@@ -209,7 +206,7 @@ void MgspBenchmark<T, TG>::rebuild_halo(int summed_grid) {
     const std::size_t count = static_cast<std::size_t>(n) * kScalars;
     for (int g = 0; g < 2; ++g) h.saved[g].allocate(count);  // the other grid is summed (and saved) before its use
     if (summed_grid >= 0) {
-      launch_pack_halo(reinterpret_cast<const TG*>(grid_[summed_grid].data()), kScalars, h.index.get(), n,
+      launch_pack_halo(reinterpret_cast<const TG*>(grid_sums(summed_grid).data()), kScalars, h.index.get(), n,
                        h.saved[summed_grid].get(), stream_);
     }
   }

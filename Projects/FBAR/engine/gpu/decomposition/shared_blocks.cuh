@@ -25,7 +25,7 @@ bool MgspBenchmark<T, TG>::index_shared_lists(const std::vector<bool>& changed) 
     FBAR_CUDA_CHECK(cudaMemcpyAsync(keys[q].get(), peer.keys.data(), sizeof(Key) * peer.keys.size(),
                                     cudaMemcpyHostToDevice, stream_));
     insert_halo_blocks<TG><<<cuda::grid_for(count, kHaloThreads), kHaloThreads, 0, stream_>>>(
-        table_.view(), keys[q].get(), count, peer.index.get(), grid_[0].view(), grid_[1].view());
+        table_.view(), keys[q].get(), count, peer.index.get(), grid_sums(0).view(), grid_sums(1).view());
     cuda::check_launch("insert_halo_blocks");
     peer.blocks.resize(peer.keys.size());
     FBAR_CUDA_CHECK(cudaMemcpyAsync(peer.blocks.data(), peer.index.get(), sizeof(int) * peer.blocks.size(),
@@ -76,7 +76,7 @@ void MgspBenchmark<T, TG>::sync_new_shared_blocks(int summed_grid,
   using Key = unsigned long long;
   const int r = rank(), n = ranks();
   constexpr int kScalars = static_cast<int>(GridBuffer<TG>::kBlockBytes / sizeof(TG));
-  TG* grid = reinterpret_cast<TG*>(grid_[summed_grid].data());
+  TG* grid = reinterpret_cast<TG*>(grid_sums(summed_grid).data());
   std::unordered_map<Key, int> where;
   for (int q = 0; q < n; ++q)
     for (std::size_t k = 0; k < dec_.shared[q].keys.size(); ++k) where[dec_.shared[q].keys[k]] = dec_.shared[q].blocks[k];
@@ -195,7 +195,7 @@ void MgspBenchmark<T, TG>::rebuild_shared(int summed_grid, const std::vector<uns
 }
 
 template <typename T, typename TG>
-void MgspBenchmark<T, TG>::shared_exchange(std::initializer_list<HaloBuffer> buffers, int grid,
+void MgspBenchmark<T, TG>::shared_exchange(const BlockBuffers& buffers, int grid,
                                            bool delta, cudaStream_t stream) {
   const int r = rank(), n = ranks();
   const int held = static_cast<int>(dec_.union_blocks.size());
