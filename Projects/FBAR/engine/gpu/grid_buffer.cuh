@@ -263,7 +263,7 @@ template <typename TG>
 using GridBuffer = FixedGridBuffer<TG, grid_set(GridSet::Sums).channels>;
 template <typename TG>
 using TransportedBuffer = FixedGridBuffer<TG, grid_set(GridSet::Transported).channels>;
-/// F-bar's cell sums (grid_fbar_compression, grid_fbar_volume: channels 0, 1), in fixed point with the quantum
+/// F-bar's cell sums (channels 0, 1: volume x compression and volume, kGridSets), in fixed point with the quantum
 /// fixed_quantum(V0) of the body whose sums they hold.
 template <typename TG>
 using FbarSums = FixedGrid<TG, grid_set(GridSet::FbarSums).channels>;
@@ -292,6 +292,14 @@ FBAR_HOST_DEVICE inline double pore_quantum(unsigned long long bound_bits) {
 /// Channels of GridSums (mass, momentum) and of TransportedSums (momentum).
 inline constexpr int kSumMass = 0;
 inline constexpr int kSumMomentum = 1;  ///< x; y, z follow
+// The kernels' channel indices above are kGridSets' channel order (engine/grid_channels.h).
+static_assert(kSumMass == 0 && kSumMomentum + 3 == grid_set(GridSet::Sums).channels, "P2G sums: kGridSets");
+static_assert(decltype(grid_velocity_x)::value == 0 && decltype(grid_velocity_z)::value + 1 ==
+                  static_cast<unsigned>(grid_set(GridSet::Velocity).channels), "velocity: kGridSets");
+static_assert(decltype(grid_pore_volume)::value == 0 &&
+                  decltype(grid_pore_density)::value + 1 == static_cast<unsigned>(grid_set(GridSet::PoreValues).channels) &&
+                  grid_set(GridSet::PoreSums).channels == grid_set(GridSet::PoreValues).channels,
+              "seepage channels: kGridSets");
 template <typename T>
 using GridVelocityBuffer = BlockBuffer<typename GridLayout<T>::velocity_block_>;
 template <typename T>
