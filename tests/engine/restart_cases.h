@@ -131,6 +131,18 @@ inline void saturate_second_body(Scene& scene) {
   scene.grid_sensors.push_back(water);
 }
 
+/// The nodal F-bar variant (ClaymoreUW's JBar, fbar_nodal.cuh): the water fused, the Drucker-Prager block split, both
+/// writing JBar in their frames (the checkpoint carries 1 - JBar after each law's state).
+inline void nodal_fbar_bodies(Scene& scene) {
+  for (BodySpec& b : scene.bodies) {
+    b.algorithm.use_fbar = true;
+    b.algorithm.fbar_psi = b.material.law == Constitutive::JFluid ? 0.9 : 0.8;
+    b.algorithm.fbar_scheme = FbarScheme::Nodal;
+    b.algorithm.fbar_fused_kernel = b.material.law == Constitutive::JFluid;
+    b.output_attribs.push_back("JBar");
+  }
+}
+
 /// The mesh variant: an elastic tetrahedral block (FEM body) placed on rank 1, its frames and a .vtk beside them.
 inline void add_placed_mesh(Scene& scene) {
   MeshEntrySpec& m = test::add_elastic_mesh(

@@ -302,6 +302,14 @@ TEST(Restart, SaturatedSoilContinuesBitForBit) {
   expect_frame_restart(2, saturate, "_saturated");
 }
 
+// Nodal F-bar (FBAR_scheme "nodal"): each particle's 1 - JBar rides in the checkpoint after its law's state, so the
+// restarted run's frames (JBar among the columns) and sensors are the full run's bytes, on one rank and on two.
+TEST(Restart, NodalFbarContinuesBitForBit) {
+  const auto nodal = restart::nodal_fbar_bodies;
+  expect_frame_restart(1, nodal, "_nodal");
+  expect_frame_restart(2, nodal, "_nodal");
+}
+
 // A mesh (FEM body) placed on rank 1 continues bit for bit from its rank's checkpoint: the rank without it holds its
 // elements and no vertex (the run's sensor rows over the mesh's vertices, and every other body's frames, are the
 // full run's bytes), on one rank and on two.

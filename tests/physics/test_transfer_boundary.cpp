@@ -649,24 +649,44 @@ TEST(FacilityBoundary, RampsFollowTheFacilityStations) {
     }
 }
 
-// The USGS gate: closed for 1 s (x s^0.5) after time[0], then two doors slide apart from the box's z-centre at
-// 1 m/s (x s^0.5) for 1 s (x s^0.5), then it is gone.
-TEST(FacilityBoundary, UsgsGateOpensFromTheCentre) {
-  const double s = 0.25, ts = std::sqrt(s);
-  Scene scene = facility_scene(BoundaryObject::USGS_GATE, Contact::Separable, {4.0 * s, 0.0, 3.0 * s},
-                               {4.2 * s, 2.0 * s, 5.0 * s}, s);
-  scene.boundaries[0].time = {0.5, std::numeric_limits<double>::infinity()};
-  const RunConstants<double> k(scene, "test");
-  auto blocked = [&](double z, double t) {  // a node in the gate is held (Separable, moving into the low-x face)
-    return after_boundaries(k, Vec3d{{4.05 * s, 0.5 * s, z * s}}, Vec3d{{1.0, 0.0, 0.0}}, t)[0] != 1.0;
-  };
-  EXPECT_FALSE(blocked(4.0, 0.4));               // before time[0]
-  EXPECT_TRUE(blocked(4.0, 0.5 + 0.9 * ts));     // closed
-  EXPECT_TRUE(blocked(3.3, 0.5 + 0.9 * ts));
-  EXPECT_FALSE(blocked(4.0, 0.5 + 1.5 * ts));    // 0.5 m (x s) open on each side of the centre
-  EXPECT_FALSE(blocked(3.6, 0.5 + 1.5 * ts));
-  EXPECT_TRUE(blocked(3.3, 0.5 + 1.5 * ts));
-  EXPECT_FALSE(blocked(3.3, 0.5 + 2.1 * ts));    // gone
+// The USGS gate against ClaymoreUW's rule, transcribed from mgmpm_kernels.cuh:2193-2225 (Separable, Froude scale 1,
+// flume origin 0): a node with x >= 4.7 m or above the plate y = -tan 60 (x - 4.7) is in the gate; before 1 s every
+// such node, from 1 s to 2 s those with z <= 4 - (t - 1) or z >= 4 + (t - 1), lose a velocity component into the
+// plate's normal (-cos 30, -sin 30, 0); from 2 s nothing.
+Vec3d claymore_usgs_gate(const Vec3d& x, Vec3d v, double t) {
+  const double gate_y = -1.73205080757 * (x[0] - 4.7);
+  if (!(x[0] >= 4.7 || x[1] >= gate_y) || t >= 2.0) return v;
+  if (t >= 1.0 && x[2] > 4.0 - (t - 1.0) && x[2] < 4.0 + (t - 1.0)) return v;
+  const Vec3d n{{-0.866025403784, -0.5, 0.0}};
+  const double vn = dot(n, v);
+  return vn < 0.0 ? v - n * vn : v;
+}
+
+// fbar's gate gives ClaymoreUW's velocities on every node above the flume bed (y >= 0) of a 3 m x 2.5 m x 3 m block
+// around it, at times before, during and after the doors open; at Froude scale s it is the same gate with lengths
+// x s and times x s^0.5 (ClaymoreUW's doors open at s m/s instead: the user guide's differences list).
+TEST(FacilityBoundary, UsgsGateIsClaymoresSlantedPlateWithOpeningDoors) {
+  const std::vector<Vec3d> probes = {Vec3d{{1.0, 0.2, 0.0}}, Vec3d{{-0.3, 0.8, 0.4}}, Vec3d{{0.6, -0.9, -0.2}},
+                                     Vec3d{{-1.0, 0.0, 0.0}}};
+  for (const double s : {1.0, 0.25}) {
+    const double ts = std::sqrt(s);
+    Scene scene = facility_scene(BoundaryObject::USGS_GATE, Contact::Separable, {0.0, 0.0, 0.0}, {10.0, 10.0, 10.0}, s);
+    const RunConstants<double> k(scene, "test");
+    int held = 0, free = 0;
+    for (const double t : {0.0, 0.6, 0.99, 1.2, 1.55, 1.9, 2.0, 2.4})
+      for (double x = 3.5125; x < 6.5; x += 0.125)
+        for (double y = 0.0125; y < 2.5; y += 0.125)
+          for (double z = 2.5125; z < 5.5; z += 0.125)
+            for (const Vec3d& v : probes) {
+              const Vec3d want = claymore_usgs_gate(Vec3d{{x, y, z}}, v, t);
+              const Vec3d got = after_boundaries(k, Vec3d{{x * s, y * s, z * s}}, v * ts, t * ts) * (1.0 / ts);
+              for (int a = 0; a < 3; ++a)
+                ASSERT_NEAR(got[a], want[a], 1e-9) << "s " << s << " t " << t << " node " << x << " " << y << " " << z;
+              (want == v ? free : held) += 1;
+            }
+    EXPECT_GT(held, 1000);  // the comparison saw both sides of the plate and of the doors
+    EXPECT_GT(free, 1000);
+  }
 }
 
 // The Waseda (Tokyo) harbour: an apron 0.255 m high from 4.45 m behind domain_start; a WASIRF pump drives its box.

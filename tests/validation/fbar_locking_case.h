@@ -62,7 +62,8 @@ struct LockingResult {
 /// mesh: the block as an FEM mesh (FixedCorotated tetrahedra on cubes of dx / 2, Kuhn's six each), psi its F-bar
 /// elements' ratio (use_FBAR, FBAR_ratio; physics/fem.cuh), instead of particles with F-bar's psi.
 template <class Engine = CpuEngine<double>>
-LockingResult run_block(double nu, double psi, double dx, int periods_wanted, bool mesh = false) {
+LockingResult run_block(double nu, double psi, double dx, int periods_wanted, bool mesh = false,
+                        FbarScheme scheme = FbarScheme::Cell, bool fused = false) {
   validation::Stopwatch clock;
   const double x0 = 0.1, y0 = dx + validation::wall_inset(validation::WallFit::LastWallNodePlane, dx);
   const double z0 = y0, thickness = 2 * dx;
@@ -79,6 +80,8 @@ LockingResult run_block(double nu, double psi, double dx, int periods_wanted, bo
     BodySpec block = validation::fixed_corotated_body(kRho, kE, nu);
     block.algorithm.use_fbar = psi != 0.0;
     block.algorithm.fbar_psi = psi;
+    block.algorithm.fbar_scheme = scheme;
+    block.algorithm.fbar_fused_kernel = fused;
     validation::add_box(block, r3(x0, y0, z0), r3(kH, kH, thickness));
     scene.bodies.push_back(block);
   }

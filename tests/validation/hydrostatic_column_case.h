@@ -144,7 +144,8 @@ inline void print_column(const ColumnResult& result, Start start, validation::Wa
 // The column, its bed and side faces placed against the Walls box as `fit` says. T, TG: particle and grid scalar
 // types (<float, float> single, <double, double> double, <double, float> mixed).
 template <typename T, typename TG = T, class Engine = CpuEngine<T, TG>>
-ColumnResult run_column(double dx, Start start, double t_end, validation::WallFit fit, double fbar_psi = 0.0) {
+ColumnResult run_column(double dx, Start start, double t_end, validation::WallFit fit, double fbar_psi = 0.0,
+                        FbarScheme scheme = FbarScheme::Cell, bool fused = false) {
   validation::Stopwatch clock;
   const double w = 2 * dx;
   const double x0 = dx + validation::wall_inset(fit, dx), y0 = x0, z0 = x0;
@@ -155,6 +156,8 @@ ColumnResult run_column(double dx, Start start, double t_end, validation::WallFi
   BodySpec column = validation::jfluid_body(kRho, kK, kGamma, 0.0);
   column.algorithm.use_fbar = fbar_psi != 0.0;
   column.algorithm.fbar_psi = fbar_psi;
+  column.algorithm.fbar_scheme = scheme;
+  column.algorithm.fbar_fused_kernel = fused;
   if (start == Start::Hydrostatic) column.initial_state = InitialState::Hydrostatic;
   validation::add_box(column, r3(x0, y0, z0), r3(w, kH, w));
   scene.bodies.push_back(column);

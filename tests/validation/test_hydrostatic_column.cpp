@@ -161,3 +161,29 @@ TEST(HydrostaticColumn, PrecisionChartSingleMixedDouble) {
 
 }  // namespace
 }  // namespace fbar
+
+namespace fbar {
+namespace {
+using namespace hydrostatic_case;
+// ClaymoreUW's nodal F-bar on the stress-free column (psi 1, both variants): the base pressure keeps cb-geo's
+// accuracy and the profile fits better than without F-bar, but the row alternation inside cells stays: the
+// nodes' average spans two cells and does not tie a cell's two rows to one J (the cell scheme removes it, above).
+// Measured (dx 0.01, double, 2026-12-04): base error -0.040 % fused, -0.369 % split; profile RMS 0.0181 and
+// 0.0164 rho0 g H (0.042 without F-bar); checkerboard 0.0258 and 0.0261 (0.020 without). Tolerances: cb-geo's
+// 4.85 %, the profile RMS below 0.6 of the plain run's, and the checkerboard above half the plain run's (the mode
+// is not removed; if it were, this documents the wrong scheme).
+TEST(HydrostaticColumn, NodalFbarKeepsTheBasePressureNotTheRowMode) {
+  const ColumnResult plain = run_column<double>(0.01, Start::StressFree, 0.6, validation::WallFit::LastWallNodePlane);
+  ASSERT_TRUE(plain.ok);
+  for (const bool fused : {true, false}) {
+    SCOPED_TRACE(fused ? "fused" : "split");
+    const ColumnResult r = run_column<double>(0.01, Start::StressFree, 0.6, validation::WallFit::LastWallNodePlane, 1.0,
+                                              FbarScheme::Nodal, fused);
+    ASSERT_TRUE(r.ok);
+    EXPECT_LE(std::fabs(r.base_fit_error()), 0.0485);
+    EXPECT_LT(r.profile_rms, 0.6 * plain.profile_rms);
+    EXPECT_GT(r.checkerboard, 0.5 * plain.checkerboard);
+  }
+}
+}  // namespace
+}  // namespace fbar

@@ -39,13 +39,21 @@ inline Scene make_scene(const std::string& name, double millions, Precision prec
   body.material.ppc = 8;
   body.material.cfl = 0.5;
   body.material.rho = 1000;
+  // nodal_dam_break / nodal_split_dam_break / nodal_block: fbar_dam_break and fbar_block with ClaymoreUW's nodal
+  // F-bar (FBAR_scheme "nodal"; fused, split, split).
+  const bool nodal = name == "nodal_dam_break" || name == "nodal_split_dam_break" || name == "nodal_block";
+  if (nodal) {
+    body.algorithm.fbar_scheme = FbarScheme::Nodal;
+    body.algorithm.fbar_fused_kernel = name == "nodal_dam_break";
+  }
   if (tank_box || name == "dam_break" || name == "fbar_dam_break" || name == "asflip_dam_break" ||
-      name == "picflip_dam_break" || name == "flip_dam_break") {
+      name == "picflip_dam_break" || name == "flip_dam_break" || name == "nodal_dam_break" ||
+      name == "nodal_split_dam_break") {
     body.material.law = Constitutive::JFluid;
     body.material.bulk_modulus = 2e6;
     body.material.gamma = 7.1;
     body.material.viscosity = 1e-3;
-    if (name == "fbar_dam_break") body.algorithm.fbar_psi = 1.0;
+    if (name == "fbar_dam_break" || nodal) body.algorithm.fbar_psi = 1.0;
   } else {
     // falling_block: FixedCorotated; neo_block, sand_block, clay_block: the same block in NeoHookean,
     // DruckerPrager (phi 30 deg, volume correction) and NACC (phi 30 deg, consolidated: logJp0 = -0.3);
@@ -60,7 +68,7 @@ inline Scene make_scene(const std::string& name, double millions, Precision prec
                         : name == "vonmises_block" ? Constitutive::VonMises
                                                : Constitutive::FixedCorotated;
     if (body.material.law == Constitutive::VonMises) body.material.tensile_yield_strength = 1e5;
-    if (name == "fbar_block") body.algorithm.fbar_psi = 1.0;
+    if (name == "fbar_block" || nodal) body.algorithm.fbar_psi = 1.0;
     body.material.youngs_modulus = 1e7;
     body.material.poisson_ratio = 0.3;
     body.material.friction_angle = 30.0;

@@ -12,10 +12,12 @@
 //   fbar_benchmark [--sizes=1,4,16,64] [--precisions=single,double,mixed]
 //                  [--scenes=dam_break,falling_block,neo_block,sand_block,saturated_block,clay_block,hencky_block,
 //                            vonmises_block,fbar_block,
-//                            fbar_dam_break,asflip_dam_break,asflip_block,picflip_dam_break,flip_dam_break]
+//                            fbar_dam_break,asflip_dam_break,asflip_block,picflip_dam_break,flip_dam_break,
+//                            nodal_dam_break,nodal_split_dam_break,nodal_block]
 // fbar_block and fbar_dam_break: falling_block and dam_break with F-bar (FBAR_psi 1); asflip_dam_break and
 // asflip_block with ASFLIP (alpha 0.9, beta 0 / 0.2); picflip_dam_break (alpha 0.95) and flip_dam_break (alpha 1):
-// the cost of each scheme.
+// the cost of each scheme; nodal_dam_break (fused), nodal_split_dam_break and nodal_block (split): fbar_dam_break
+// and fbar_block with ClaymoreUW's nodal F-bar.
 //                  [--steps=100] [--warmup=20] [--csv=benchmark.csv] [--frames=0] [--frame-dir=DIR]
 #include <cuda_runtime.h>
 

@@ -91,11 +91,13 @@ std::string algorithm_line(const AlgorithmSpec& a) {
   // The scheme that runs (transfer.cuh): beta > 0 is ASFLIP, alpha = 1 without beta FLIP, 0 < alpha < 1 the blend.
   const bool beta = a.asflip_beta_min != 0.0 || a.asflip_beta_max != 0.0;
   std::string s = !asflip ? "APIC" : beta ? "ASFLIP" : a.asflip_alpha == 1.0 ? "FLIP" : "PIC-FLIP";
-  if (fbar) s += " + F-bar";
+  if (fbar) s += a.fbar_nodal() ? (a.fbar_fused_kernel ? " + nodal F-bar (fused)" : " + nodal F-bar (split)")
+                                : " + F-bar";
   if (a.use_fem) s += " + FEM";
   return s + " (use_ASFLIP " + yes_no(a.use_asflip) + ", ASFLIP_alpha " + num(a.asflip_alpha) + ", ASFLIP_beta " +
          num(a.asflip_beta_min) + ".." + num(a.asflip_beta_max) + ", use_FBAR " + yes_no(a.use_fbar) + ", FBAR_psi " +
-         num(a.fbar_psi) + ", FBAR_fused_kernel " + yes_no(a.fbar_fused_kernel) + ", use_FEM " + yes_no(a.use_fem) + ")";
+         num(a.fbar_psi) + ", FBAR_fused_kernel " + yes_no(a.fbar_fused_kernel) +
+         ", FBAR_scheme " + (a.fbar_scheme == FbarScheme::Nodal ? "nodal" : "cell") + ", use_FEM " + yes_no(a.use_fem) + ")";
 }
 
 std::string geometry_line(const GeometrySpec& g) {

@@ -308,6 +308,7 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     in.stored_scalars = facts.stored_scalars;
     in.asflip = body.algorithm.asflip_active();
     in.fbar = body.algorithm.fbar_blend() != 0.0;
+    in.fbar_nodal = body.algorithm.fbar_nodal() && !mesh;
     in.pore = material_has_pore_fluid(body.material.law);
     in.record = record || mesh;
     in.mesh_bytes = s.gpu_mesh_bytes;
@@ -326,11 +327,12 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
                           particle_record_bytes(facts.stored_scalars, particle_scalar_bytes(sim.precision))) +
                      count.blocks.size() * (sizeof(BlockCount) + 8 * 16));
     add_host_output_bytes(summary, checkpoint_kept, checkpoint_transient, sim, body, count.particles, in.bins_needed * 32,
-                          facts.stored_scalars, frame_columns, frame_attrs, options.frame_host_bytes, mesh != nullptr);
+                          facts.stored_scalars + (in.fbar_nodal ? 1 : 0), frame_columns, frame_attrs, options.frame_host_bytes, mesh != nullptr);
 
     // CPU engine: x, v, their next copies (4 x 3), C and its next copy (2 x 9), mass, volume (2), state twice, in
     // the particle scalar type, plus order / block index / key scratch (16 bytes).
-    const std::size_t state_scalars = static_cast<std::size_t>(facts.stored_scalars - 3);
+    const std::size_t state_scalars =
+        static_cast<std::size_t>(facts.stored_scalars - 3) + (body.algorithm.fbar_nodal() ? 1 : 0);  // + 1 - JBar
     cpu_particle_bytes += static_cast<std::size_t>(count.particles) *
                           ((12 + 18 + 2 + 2 * state_scalars) * particle_scalar_bytes(sim.precision) + 16);
   }

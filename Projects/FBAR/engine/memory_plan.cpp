@@ -108,6 +108,7 @@ DeviceMemoryPlan plan_device_memory(Precision precision, long long footprint_blo
     const std::size_t record = particle_record_bytes(b.stored_scalars, t);
     std::size_t particle = 2 * slots * record;
     if (b.asflip) particle += 2 * slots * 3 * t;
+    if (b.fbar_nodal) particle += 2 * slots * t;  // nodal F-bar's 1 - JBar beside both bin buffers
     if (b.record) particle += slots * 12 * t;  // v and C (kAuxScalars), one copy
     if (b.checkpoints) particle += slots * 8;  // the ID and block of each slot's last P2G (a checkpoint's grouping)
     plan.particles_bytes += particle;

@@ -46,7 +46,8 @@ struct BodyMemoryInput {
   long long bins_needed = 0;     ///< sum over particle blocks of ceil(count / 32) at start
   int stored_scalars = 0;        ///< per particle in a bin: position (3) + the material's state
   bool asflip = false;           ///< PIC-FLIP / ASFLIP (particle velocities, transported grid momentum)
-  bool fbar = false;             ///< F-bar (cell sums)
+  bool fbar = false;             ///< F-bar (cell or node sums)
+  bool fbar_nodal = false;       ///< nodal F-bar: 1 - JBar per slot beside both bin buffers
   bool pore = false;             ///< saturated (CoupledUP): the grid's seepage channels
   int frame_columns = -1;        ///< float attributes of its output frame, -1: no frames on the device
   bool record = false;           ///< v and C per particle slot (12 scalars: a particle sensor reads velocities)

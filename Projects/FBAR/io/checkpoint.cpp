@@ -592,9 +592,11 @@ void check_matches(const Checkpoint& c, const Scene& scene) {
     visit_material(law, [&](auto m) {
       scalars = static_cast<int>(sizeof(material_state_t<decltype(m), double>) / sizeof(double));
     });
-    if (body.state_scalars != scalars)
+    const bool nodal = scene.bodies[b].algorithm.fbar_nodal();  // 1 - JBar follows the law's scalars
+    if (body.state_scalars != scalars + (nodal ? 1 : 0))
       throw std::invalid_argument(where + ": the checkpoint stores " + std::to_string(body.state_scalars) +
-                                  " state scalars per particle, " + body.law + " has " + std::to_string(scalars));
+                                  " state scalars per particle, " + body.law + " has " + std::to_string(scalars) +
+                                  (nodal ? " and the nodal F-bar (FBAR_scheme \"nodal\") 1 more" : ""));
   }
 }
 

@@ -18,7 +18,7 @@
 //   checkpoint_step[s]_dev[d].h5    written when a run stops at step s (SIGINT / SIGTERM, or a failure)
 // Layout: root attributes (format, precision, engine, reason, rank, ranks, time, ...), per-body groups /body[b]
 // with attributes (law, state_scalars, particles, global_particles, max_wave_speed) and datasets ID (int64),
-// Position (N x 3), Velocity (N x 3), C (N x 9), Mass (N), Volume (N), State (N x state_scalars), on the GPU
+// Position (N x 3), Velocity (N x 3), C (N x 9), Mass (N), Volume (N), State (N x state_scalars: the law's state, then 1 - JBar with the nodal F-bar), on the GPU
 // engine (attribute p2g_blocks = 1) P2GID (M) and P2GBlock (M x 3), and /csv with the sensor files' names and
 // lengths. Each file is written to <name>.part and renamed when complete.
 #pragma once

@@ -34,6 +34,7 @@ struct FrameSource {
   std::function<T(std::size_t)> mass;            ///< [kg] of particle p
   std::function<T(std::size_t)> volume0;         ///< [m^3] reference volume of particle p
   std::function<std::vector<T>()> J;             ///< [-]
+  std::function<std::vector<T>()> jbar;          ///< [-] the J the stress sees (nodal F-bar's JBar); empty: J
   std::function<std::vector<Mat3<T>>()> F;       ///< [-] (materials that store F)
   std::function<std::vector<Mat3<T>>()> sigma;   ///< [Pa] Cauchy stress
   std::function<std::vector<T>()> logJp;         ///< [-] plastic state (materials with kOutputs.log_jp)
@@ -42,7 +43,7 @@ struct FrameSource {
 
 /// Which inputs a list of attributes reads.
 struct FrameNeeds {
-  bool J = false, F = false, sigma = false, logJp = false, velocity = false, pore_pressure = false;
+  bool J = false, jbar = false, F = false, sigma = false, logJp = false, velocity = false, pore_pressure = false;
 };
 
 
@@ -52,6 +53,7 @@ inline FrameNeeds frame_needs(const std::vector<FrameAttributeSpec>& attributes)
   for (const auto& a : attributes) switch (a.column.quantity) {
       case FrameQuantity::Volume:
       case FrameQuantity::J: n.J = true; break;
+      case FrameQuantity::JBar: n.jbar = true; break;
       case FrameQuantity::LogJp: n.logJp = true; break;
       case FrameQuantity::PorePressure: n.pore_pressure = true; break;
       case FrameQuantity::DefGrad:
@@ -95,9 +97,10 @@ io::ParticleFrame build_frame(const BodySpec& spec, int body, const FrameSource<
   }
   const std::vector<FrameAttributeSpec> attributes = frame_attributes(spec, body, engine);
   const FrameNeeds needs = frame_needs(attributes);
-  std::vector<T> J, logJp, pore;
+  std::vector<T> J, jbar, logJp, pore;
   std::vector<Mat3<T>> F, sigma;
   if (needs.J) J = src.J();
+  if (needs.jbar) jbar = src.jbar ? src.jbar() : src.J();
   if (needs.F) F = src.F();
   if (needs.sigma) sigma = src.sigma();
   if (needs.logJp) logJp = src.logJp();
@@ -117,6 +120,7 @@ io::ParticleFrame build_frame(const BodySpec& spec, int body, const FrameSource<
       in.mass = src.mass(p);
       in.volume0 = src.volume0(p);
       if (needs.J) in.J = J[p];
+      if (needs.jbar) in.jbar = jbar[p];
       if (needs.logJp) in.logJp = logJp[p];
       if (needs.pore_pressure) in.pore_pressure = pore[p];
       if (needs.F) in.F = F[p];

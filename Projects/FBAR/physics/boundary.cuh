@@ -32,6 +32,10 @@
 //   Plane     the line from (lo_x, lo_y) to (hi_x, hi_y), infinite in z, for lo_x <= x < hi_x: nodes below it (and,
 //             when it slopes, up to kBedLayerCells cells above it) are projected with its normal
 //             (-dy, dx) / |(dx, dy)| (pointing up for a line drawn left to right).
+//   HalfSpace keeps the material on the left of the line from (lo_x, lo_y) to (hi_x, hi_y), extended without end
+//             in x and y, for lo_z <= z <= hi_z: nodes on the line or right of it are projected with its normal
+//             (-dy, dx) / |(dx, dy)| (no band: a plate or a gate, not a bed). Not a scene object: facility pieces
+//             (the USGS gate's slanted plate and doors) are built from it.
 //   Velocity  every node inside [lo, hi] takes the boundary's velocity (contact and friction do not apply).
 //   Bathymetry  keeps the material above the bed y_s(x): the piecewise-linear profile through its `bathymetry`
 //             points (flat beyond the first and last), over all z; nodes at or below it (and, within a cell of a
@@ -61,7 +65,7 @@
 
 namespace fbar {
 
-enum class BoundaryShape : int { Walls, Box, Sphere, Cylinder, Floor, Plane, Velocity, Bathymetry, Piston, Pump };
+enum class BoundaryShape : int { Walls, Box, Sphere, Cylinder, Floor, Plane, HalfSpace, Velocity, Bathymetry, Piston, Pump };
 
 /// The points of every Bathymetry boundary of a run, one table (a boundary holds its first point and count).
 template <typename T>
@@ -298,6 +302,17 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
       if (side > (ey != T(0) ? b.layer : T(0)) + snap) return v;  // above the line (and its band, kBedLayerCells)
       return project_moving(b, v, n);
     }
+    case BoundaryShape::HalfSpace: {
+      if (x_node[2] < b.lo[2] - snap || x_node[2] > b.hi[2] + snap) return v;
+      const T ex = b.hi[0] - b.lo[0], ey = b.hi[1] - b.lo[1];
+      const T length = sqrt(ex * ex + ey * ey);
+      Vec3<T> n = Vec3<T>::zero();
+      n[0] = -ey / length;
+      n[1] = ex / length;
+      const T side = (x_node[0] - b.lo[0]) * n[0] + (x_node[1] - b.lo[1]) * n[1];
+      if (side > snap) return v;  // the material's side
+      return project_moving(b, v, n);
+    }
     case BoundaryShape::Velocity:
       return inside_box() ? b.velocity : v;
     case BoundaryShape::Piston: {
@@ -393,6 +408,7 @@ inline bool make_boundary_params(const BoundarySpec& spec, double dx, const std:
     case BoundaryObject::Cylinder: out.shape = BoundaryShape::Cylinder; break;
     case BoundaryObject::Floor: out.shape = BoundaryShape::Floor; break;
     case BoundaryObject::Plane: out.shape = BoundaryShape::Plane; break;
+    case BoundaryObject::HalfSpace: out.shape = BoundaryShape::HalfSpace; break;
     case BoundaryObject::Velocity: out.shape = BoundaryShape::Velocity; break;
     case BoundaryObject::Bathymetry: out.shape = BoundaryShape::Bathymetry; break;
     case BoundaryObject::Piston: out.shape = BoundaryShape::Piston; break;
@@ -416,6 +432,13 @@ inline bool make_boundary_params(const BoundarySpec& spec, double dx, const std:
     has_box = spec.domain_end[0] > spec.domain_start[0];  // a line in x, y (it may descend)
     if (!has_box) {
       error = "a Plane needs domain_end[0] > domain_start[0]";
+      return false;
+    }
+  } else if (spec.object == BoundaryObject::HalfSpace) {
+    has_box = spec.domain_end[2] >= spec.domain_start[2] &&
+              (spec.domain_end[0] != spec.domain_start[0] || spec.domain_end[1] != spec.domain_start[1]);
+    if (!has_box) {
+      error = "a HalfSpace needs two distinct points in x, y and domain_end[2] >= domain_start[2]";
       return false;
     }
   } else if (spec.object != BoundaryObject::Walls && !has_box) {

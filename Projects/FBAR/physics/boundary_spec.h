@@ -13,6 +13,7 @@ namespace fbar {
 
 enum class BoundaryObject {
   Walls, Box, Sphere, Cylinder, Plane, Floor, Bathymetry, Velocity, Piston, Pump,
+  HalfSpace,  ///< not a scene object: a piece of a facility object (scene/facilities.h expand_boundary)
   OSU_LWF_RAMP, OSU_LWF_PADDLE, OSU_TWB_RAMP, OSU_TWB_PADDLE, USGS_RAMP, USGS_GATE, WASIRF_PUMP, TOKYO_HARBOR
 };
 enum class Contact { Sticky, Slip, Separable };

@@ -59,9 +59,10 @@ inline bool resolve_frame_attribute(const std::string& name, FrameAttributeSpec&
   if (name.rfind("Position_", 0) == 0) return set(FrameQuantity::Position, "m", name.back() - 'X');
   if (name == "Velocity_Magnitude") return set(FrameQuantity::VelocityMagnitude, "m/s");
   if (name.rfind("Velocity_", 0) == 0) return set(FrameQuantity::Velocity, "m/s", name.back() - 'X');
-  // JBar: both engines' F-bar pulls the particle's J toward its cell's mean every step (transfer.cuh), so the J
-  // they store is ClaymoreUW's JBar (without F-bar, J itself).
-  if (name == "J" || name == "JBar") return set(FrameQuantity::J, "");
+  // JBar: the volume ratio the stress sees, nodal F-bar's JBar (physics/fbar_nodal.cuh); the cell scheme pulls the
+  // particle's own J toward its cell's mean (transfer.cuh), and without nodal F-bar JBar is J.
+  if (name == "J") return set(FrameQuantity::J, "");
+  if (name == "JBar") return set(FrameQuantity::JBar, "");
   if (name == "logJp") return set(FrameQuantity::LogJp, "");
   if (name == "PorePressure") return set(FrameQuantity::PorePressure, "Pa");
   if (name == "Pressure") return set(FrameQuantity::Pressure, "Pa");

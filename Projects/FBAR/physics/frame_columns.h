@@ -5,13 +5,14 @@
 #include "MnBase/Math/svd.h"
 #include "MnBase/Math/vec.h"
 #include "MnBase/Meta/config.h"
+#include "physics/fbar_nodal.cuh"
 #include "physics/materials/material_common.cuh"
 
 namespace fbar {
 
 /// What one output attribute is, resolved once from its name (both engines; the GPU evaluates it in a kernel).
 enum class FrameQuantity : int {
-  Id, Mass, Volume, Position, Velocity, VelocityMagnitude, J, LogJp, DefGrad, Pressure, VonMises, Stress,
+  Id, Mass, Volume, Position, Velocity, VelocityMagnitude, J, JBar, LogJp, DefGrad, Pressure, VonMises, Stress,
   StressPK1, StressPK2, StrainSmall, VonMisesStrain, PorePressure
 };
 
@@ -66,6 +67,7 @@ struct FrameInputs {
   T mass;          ///< [kg]
   T volume0;       ///< [m^3]
   T J;             ///< [-]
+  T jbar;          ///< [-] the J the stress sees: nodal F-bar's JBar, else J
   T logJp;         ///< [-]
   Mat3<T> F;       ///< [-]
   Mat3<T> sigma;   ///< [Pa] Cauchy stress
@@ -80,24 +82,28 @@ FBAR_HOST_DEVICE constexpr bool frame_quantity_reads_stress(FrameQuantity q) {
 
 /// The inputs of frame_value() for one particle of material M (frames, particle sensors, trackers; both engines):
 /// the stored state's J, F (identity for a material without F) and logJp, and its Cauchy stress when `sigma` (rate
-/// terms read C).
+/// terms read C). nodal: the body runs nodal F-bar and the particle's 1 - JBar is `one_minus_jbar`: JBar is that,
+/// and the stress is the one its P2G uses (fbar_stress_state).
 template <typename M, typename T>
 FBAR_HOST_DEVICE inline FrameInputs<T> particle_frame_inputs(const Vec3<T>& x, const Vec3<T>& v, const Mat3<T>& C,
                                                              const typename M::template State<T>& s,
                                                              const typename M::template Params<T>& material, T mass,
-                                                             T volume, bool sigma) {
+                                                             T volume, bool sigma, bool nodal = false,
+                                                             T one_minus_jbar = T(0)) {
   FrameInputs<T> in{};
   in.x = x;
   in.v = v;
   in.mass = mass;
   in.volume0 = volume;
   in.J = M::volume_ratio(s);
+  in.jbar = nodal ? T(1) - one_minus_jbar : in.J;
   in.logJp = T(0);
   in.F = Mat3<T>::identity();
   if constexpr (M::kOutputs.deformation_gradient) in.F = s.F;
   if constexpr (M::kOutputs.log_jp) in.logJp = s.logJp;
   if constexpr (M::kOutputs.pore_pressure) in.pore_pressure = s.pore_pressure;
-  if (sigma) in.sigma = cauchy_stress(M::kirchhoff_stress(material, s, C));
+  if (sigma)
+    in.sigma = cauchy_stress(M::kirchhoff_stress(material, nodal ? fbar_stress_state<M>(material, s, one_minus_jbar) : s, C));
   return in;
 }
 
@@ -111,6 +117,7 @@ FBAR_HOST_DEVICE inline T frame_value(const FrameColumn& c, const FrameInputs<T>
     case FrameQuantity::Velocity: return in.v[c.row];
     case FrameQuantity::VelocityMagnitude: return norm(in.v);
     case FrameQuantity::J: return in.J;
+    case FrameQuantity::JBar: return in.jbar;
     case FrameQuantity::LogJp: return in.logJp;
     case FrameQuantity::PorePressure: return in.pore_pressure;
     case FrameQuantity::DefGrad:

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace fbar {
 
@@ -47,25 +48,41 @@ std::vector<BoundarySpec> expand_boundary(const BoundarySpec& spec, const Simula
       return {g};
     }
     case BoundaryObject::USGS_GATE: {
-      // The USGS flume's head gate: the box [lo, hi] split at its z-centre into two doors. Closed from time[0] for
-      // 1 s (x s^0.5), then each door slides away from the centre at 1 m/s (x s^0.5) for 1 s (x s^0.5), then gone.
-      const double t0 = spec.time[0], t_open = t0 + 1.0 * time_scale, t_gone = t0 + 2.0 * time_scale;
-      const double zc = 0.5 * (lo[2] + hi[2]), speed = 1.0 * time_scale;
-      // Closed: one box (two boxes would meet at a seam where a node sees the seam as its nearest face).
-      BoundarySpec closed = spec;
-      closed.object = BoundaryObject::Box;
-      closed.velocity = {0.0, 0.0, 0.0};
-      closed.time = {t0, std::min(t_open, spec.time[1])};
-      std::vector<BoundarySpec> doors{closed};
+      // The USGS flume's head gate as ClaymoreUW builds it (mgmpm_kernels.cuh:2193-2225): a plate through the
+      // flume's bed at x = 4.7 m (x s) from domain_start, leaning back 60 degrees from the bed over the material
+      // (its normal (-cos 30, -sin 30, 0) points upstream), closed over every z until 1 s (x s^0.5) of simulation
+      // time; then two doors open from z = 4 m (x s) from domain_start, sliding apart 1 m (x s) each until 2 s
+      // (x s^0.5), when the gate is gone. Only inside the entry's time window.
+      constexpr double kCos30 = 0.86602540378443864676, kSin30 = 0.5;
+      const double t_open = 1.0 * time_scale, t_gone = 2.0 * time_scale;
+      const double speed = 1.0 * s / (t_gone - t_open);  // 1 m (x s) in 1 s (x s^0.5)
+      const double base_x = lo[0] + 4.7 * s, base_y = lo[1], zc = lo[2] + 4.0 * s;
+      double reach = 0.0;  // every z of the grid: the domain's largest extent beyond each side
+      for (const double d : sim.domain) reach = std::max(reach, std::abs(d));
+      reach += std::abs(lo[2]) + 4.0 * s;
+      BoundarySpec plate = spec;
+      plate.object = BoundaryObject::HalfSpace;
+      plate.velocity = {0.0, 0.0, 0.0};
+      // The line from the base up the plate: its left (upstream, under the plate) holds the material.
+      plate.domain_start = {base_x, base_y, zc - reach};
+      plate.domain_end = {base_x - kSin30 * s, base_y + kCos30 * s, zc + reach};
+      const double before_open = std::nextafter(t_open, -std::numeric_limits<double>::infinity());
+      const double before_gone = std::nextafter(t_gone, -std::numeric_limits<double>::infinity());
+      std::vector<BoundarySpec> pieces;
+      BoundarySpec closed = plate;
+      closed.time = {spec.time[0], std::min(before_open, spec.time[1])};
+      if (closed.time[1] >= closed.time[0]) pieces.push_back(closed);
       for (int side = 0; side < 2; ++side) {
-        BoundarySpec d = closed;
-        if (side == 0) d.domain_end[2] = zc;
-        else d.domain_start[2] = zc;
-        d.time = {t_open, std::min(t_gone, spec.time[1])};
+        BoundarySpec d = plate;
+        d.time = {std::max(t_open, spec.time[0]), std::min(before_gone, spec.time[1])};
+        if (d.time[1] < d.time[0]) continue;
+        const double opened = speed * (d.time[0] - t_open);  // each door's travel when it starts acting
+        if (side == 0) d.domain_end[2] = zc - opened;
+        else d.domain_start[2] = zc + opened;
         d.velocity = {0.0, 0.0, side == 0 ? -speed : speed};
-        if (d.time[1] > d.time[0]) doors.push_back(d);
+        pieces.push_back(d);
       }
-      return doors;
+      return pieces;
     }
     default:
       return {spec};

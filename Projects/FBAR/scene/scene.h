@@ -57,6 +57,10 @@ struct SimulationSpec {
   std::uint64_t seed = 0;               ///< seed for jittered particle sampling
 };
 
+/// F-bar's volume average (bodies[].algorithm.FBAR_scheme): Cell, fbar's per grid cell (physics/transfer.cuh); Nodal,
+/// ClaymoreUW's JBar per particle through the nodes (physics/fbar_nodal.cuh).
+enum class FbarScheme { Cell, Nodal };
+
 struct AlgorithmSpec {
   std::string type = "particles";
   bool use_asflip = true;
@@ -66,6 +70,7 @@ struct AlgorithmSpec {
   bool use_fbar = true;
   double fbar_psi = 0.0;
   bool fbar_fused_kernel = false;
+  FbarScheme fbar_scheme = FbarScheme::Cell;
   bool use_fem = false;
 
   /// The transfer is PIC-FLIP / ASFLIP (transfer.cuh): use_ASFLIP with some alpha or beta non-zero. All zero is
@@ -75,6 +80,8 @@ struct AlgorithmSpec {
   }
   /// F-bar's blend psi when use_FBAR is on, else 0 (0: off, no cell sums).
   double fbar_blend() const { return use_fbar ? fbar_psi : 0.0; }
+  /// F-bar runs ClaymoreUW's nodal scheme (and the body carries JBar).
+  bool fbar_nodal() const { return fbar_blend() != 0.0 && fbar_scheme == FbarScheme::Nodal; }
 };
 
 /// Bathymetry: water above a bed profile inside the box [offset, offset + span]; OsuLwf / OsuTwb: the same above a

@@ -102,6 +102,7 @@ AlgorithmSpec parse_algorithm(ObjectReader* o) {
   if (auto* x = o->get("use_FBAR")) a.use_fbar = read_bool(*x, o->sub("use_FBAR"));
   if (auto* x = o->get("FBAR_psi")) a.fbar_psi = read_number(*x, o->sub("FBAR_psi"), kUnit, "-");
   if (auto* x = o->get("FBAR_fused_kernel")) a.fbar_fused_kernel = read_bool(*x, o->sub("FBAR_fused_kernel"));
+  if (auto* x = o->get("FBAR_scheme")) a.fbar_scheme = read_enum(*x, o->sub("FBAR_scheme"), kFbarSchemes);
   if (auto* x = o->get("use_FEM")) a.use_fem = read_bool(*x, o->sub("use_FEM"));
   return a;
 }

@@ -293,6 +293,10 @@ inline const std::vector<EnumName<BoundaryObject>> kBoundaryObjects = {
     {BoundaryObject::WASIRF_PUMP, {"WASIRF_PUMP", "UW WASIRF Pump"}},
     {BoundaryObject::TOKYO_HARBOR, {"TOKYO_HARBOR", "WU TWB Harbor", "Waseda Harbor"}},
 };
+inline const std::vector<EnumName<FbarScheme>> kFbarSchemes = {
+    {FbarScheme::Cell, {"cell"}},
+    {FbarScheme::Nodal, {"nodal", "ClaymoreUW"}},
+};
 inline const std::vector<EnumName<Contact>> kContacts = {
     {Contact::Sticky, {"Sticky", "Stick", "Rigid", "No-Slip", "Fixed", "Fix"}},
     {Contact::Slip, {"Slip", "Roller"}},
@@ -368,7 +372,7 @@ inline Keys material_keys() {
 }
 inline const Keys kMaterialKeys = material_keys();
 inline const Keys kAlgorithmKeys = {"type",     "ppc",      "CFL",           "use_ASFLIP",        "ASFLIP_alpha",
-                             "ASFLIP_beta_min", "ASFLIP_beta_max", "use_FBAR", "FBAR_psi", "FBAR_fused_kernel",
+                             "ASFLIP_beta_min", "ASFLIP_beta_max", "use_FBAR", "FBAR_psi", "FBAR_fused_kernel", "FBAR_scheme",
                              "use_FEM"};
 inline const Keys kGeometryKeys = {"object",   "operation", "span",           "offset",         "radius",
                             "axis",     "rotate",    "fulcrum",        "array",          "spacing",

@@ -82,6 +82,7 @@ const char* to_string(BoundaryObject o) {
     case BoundaryObject::Velocity: return "Velocity";
     case BoundaryObject::Piston: return "Piston";
     case BoundaryObject::Pump: return "Pump";
+    case BoundaryObject::HalfSpace: return "HalfSpace";
     case BoundaryObject::OSU_LWF_RAMP: return "OSU_LWF_RAMP";
     case BoundaryObject::OSU_LWF_PADDLE: return "OSU_LWF_PADDLE";
     case BoundaryObject::OSU_TWB_RAMP: return "OSU_TWB_RAMP";
@@ -326,6 +327,7 @@ class SceneWriter {
     boolean("use_FBAR", a.use_fbar);
     num("FBAR_psi", a.fbar_psi);
     boolean("FBAR_fused_kernel", a.fbar_fused_kernel);
+    str("FBAR_scheme", a.fbar_scheme == FbarScheme::Nodal ? "nodal" : "cell");
     boolean("use_FEM", a.use_fem);
     w_.EndObject();
   }
@@ -551,7 +553,7 @@ bool operator==(const AlgorithmSpec& a, const AlgorithmSpec& b) {
   return a.type == b.type && a.use_asflip == b.use_asflip && a.asflip_alpha == b.asflip_alpha &&
          a.asflip_beta_min == b.asflip_beta_min && a.asflip_beta_max == b.asflip_beta_max &&
          a.use_fbar == b.use_fbar && a.fbar_psi == b.fbar_psi && a.fbar_fused_kernel == b.fbar_fused_kernel &&
-         a.use_fem == b.use_fem;
+         a.fbar_scheme == b.fbar_scheme && a.use_fem == b.use_fem;
 }
 bool operator==(const GeometrySpec& a, const GeometrySpec& b) {
   return a.object == b.object && a.operation == b.operation && a.span == b.span && a.offset == b.offset &&

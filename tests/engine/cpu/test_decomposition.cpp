@@ -179,6 +179,17 @@ void expect_same_run(const Scene& scene, int steps, bool expect_migration, bool 
 
 TEST(Decomposition, DamBreakCrossesTheCuts) { expect_same_run(dam_break(false), 120, true); }
 TEST(Decomposition, DamBreakWithAsflipAndFbar) { expect_same_run(dam_break(true), 80, true); }
+// ClaymoreUW's nodal F-bar, fused and split: the JBar sums cross the cuts like the cell sums, and each particle's
+// JBar migrates with it.
+TEST(Decomposition, DamBreakWithNodalFbar) {
+  for (const bool fused : {true, false}) {
+    SCOPED_TRACE(fused ? "fused" : "split");
+    Scene scene = dam_break(true);
+    scene.bodies[0].algorithm.fbar_scheme = FbarScheme::Nodal;
+    scene.bodies[0].algorithm.fbar_fused_kernel = fused;
+    expect_same_run(scene, 80, true);
+  }
+}
 TEST(Decomposition, TravellingBlockMigratesAndRebalances) { expect_same_run(travelling_block(), 80, true, true); }
 
 // A saturated soil block (CoupledUP, pore water carrying its weight at the start), thrown against the tank's far wall

@@ -290,6 +290,11 @@ TEST(GpuRestart, SaturatedSoilWritesTheSameBytes) {
   test::restart::expect_frame_restart(run_gpu, "gpu", 1, test::restart::saturate_second_body, "_saturated");
   test::restart::expect_frame_restart(run_gpu, "gpu", 2, test::restart::saturate_second_body, "_saturated");
 }
+TEST(GpuRestart, NodalFbarWritesTheSameBytes) {
+  FBAR_REQUIRE_DEVICE();
+  test::restart::expect_frame_restart(run_gpu, "gpu", 1, test::restart::nodal_fbar_bodies, "_nodal");
+  test::restart::expect_frame_restart(run_gpu, "gpu", 2, test::restart::nodal_fbar_bodies, "_nodal");
+}
 TEST(GpuRestart, MeshWritesTheSameBytes) {
   FBAR_REQUIRE_DEVICE();
   test::restart::expect_frame_restart(run_gpu, "gpu", 1, test::restart::add_placed_mesh, "_mesh");

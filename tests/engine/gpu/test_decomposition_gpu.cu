@@ -169,6 +169,16 @@ TEST(GpuDecomposition, TwoRunsGiveTheSameBitsDouble) {
 TEST(GpuDecomposition, DamBreakCrossesTheCuts) { expect_same_run(dam_break(false), 120, true); }
 
 TEST(GpuDecomposition, DamBreakWithAsflipAndFbar) { expect_same_run(dam_break(true), 120, true); }
+// ClaymoreUW's nodal F-bar, fused and split: the node sums cross the cuts, each particle's JBar migrates with it.
+TEST(GpuDecomposition, DamBreakWithNodalFbar) {
+  for (const bool fused : {true, false}) {
+    SCOPED_TRACE(fused ? "fused" : "split");
+    Scene scene = dam_break(true);
+    scene.bodies[0].algorithm.fbar_scheme = FbarScheme::Nodal;
+    scene.bodies[0].algorithm.fbar_fused_kernel = fused;
+    expect_same_run(scene, 120, true);
+  }
+}
 
 // The same runs with the halo sums after the whole G2P2G (no second stream): both orders give the one-rank result.
 TEST(GpuDecomposition, DamBreakWithoutOverlap) { expect_same_run(dam_break(true), 120, true, 1, false); }

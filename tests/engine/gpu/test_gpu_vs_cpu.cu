@@ -71,6 +71,7 @@ Tolerance tolerance(Constitutive law) {
 /// Transfer scheme of a comparison: APIC unless alpha or beta are given (PIC-FLIP, FLIP, ASFLIP).
 struct Scheme {
   double alpha = 0, beta_min = 0, beta_max = 0;
+  bool nodal = false, fused = false;  ///< F-bar's scheme (FBAR_scheme "nodal", FBAR_fused_kernel)
 };
 
 template <typename T, typename TG = T>
@@ -86,6 +87,8 @@ void compare(Constitutive law, double dt, int steps, const GpuEngineOptions& opt
   scene.bodies[0].algorithm.asflip_alpha = scheme.alpha;
   scene.bodies[0].algorithm.asflip_beta_min = scheme.beta_min;
   scene.bodies[0].algorithm.asflip_beta_max = scheme.beta_max;
+  scene.bodies[0].algorithm.fbar_scheme = scheme.nodal ? FbarScheme::Nodal : FbarScheme::Cell;
+  scene.bodies[0].algorithm.fbar_fused_kernel = scheme.fused;
   // NACC: a consolidated clay (p0 = kappa sinh(0.8 x 0.3) = 2e4 Pa, about the impact stress rho c v = 2.3e4 Pa), so
   // the impact yields part of the block and hardens it; DruckerPrager (phi 30 deg, volume correction on) yields
   // where the walls shear it.
@@ -124,8 +127,10 @@ void compare(Constitutive law, double dt, int steps, const GpuEngineOptions& opt
     plain_scene.bodies[0].algorithm.fbar_psi = 0.0;
     CpuEngine<T, TG> plain(plain_scene, positions);
     for (int s = 0; s < steps; ++s) ASSERT_TRUE(plain.step(dt).ok);
-    const double effect = test::max_diff_scalar(plain.volume_ratios(0), cpu.volume_ratios(0));
-    std::cout << "[measured] F-bar (psi " << fbar_psi << ") changes J by up to " << effect << "\n";
+    // The nodal scheme's elastic laws keep their own J: its effect is on the volume ratio the stress sees.
+    const double effect = test::max_diff_scalar(plain.volume_ratios(0), cpu.jbar_ratios(0));
+    std::cout << "[measured] F-bar (psi " << fbar_psi << (scheme.nodal ? ", nodal" : "")
+              << ") changes the stressed J by up to " << effect << "\n";
     EXPECT_GT(effect, 100 * tol.J);
   }
   if (scene.bodies[0].algorithm.use_asflip) {  // the scheme must have changed the velocities far beyond tolerance
@@ -141,7 +146,8 @@ void compare(Constitutive law, double dt, int steps, const GpuEngineOptions& opt
   const ParticleSnapshot<T> g = gpu.snapshot(0);
   const double ex = test::max_diff(g.x, cpu.positions(0));
   const double ev = test::max_diff(g.v, cpu.velocities(0));
-  const double eJ = test::max_diff_scalar(g.J, cpu.volume_ratios(0));
+  const double eJ = std::max(test::max_diff_scalar(g.J, cpu.volume_ratios(0)),
+                             test::max_diff_scalar(g.jbar, cpu.jbar_ratios(0)));  // JBar: J without nodal F-bar
   double eF = 0.0;
   if (law != Constitutive::JFluid) eF = test::max_diff(g.F, cpu.deformation_gradients(0));
   double eL = 0.0;  // plastic state: compared like J
@@ -366,6 +372,34 @@ TEST(GpuVsCpu, AsflipDruckerPragerDouble) {
 TEST(GpuVsCpu, AsflipFbarNeoHookeanDouble) {
   FBAR_REQUIRE_DEVICE();
   compare<double>(Constitutive::NeoHookean, 5e-4, 60, {}, 1.0, Scheme{0.75, 0.0, 0.1});
+}
+
+// ClaymoreUW's nodal F-bar (physics/fbar_nodal.cuh; the GPU's fbar_node_sums kernel sums the nodes with atomics,
+// the CPU in particle order), fused and split, an elastic law that keeps its own J and plastic ones stored at JBar,
+// with ASFLIP (its expansion test reads JBar): the same tolerances, JBar compared like J.
+TEST(GpuVsCpu, NodalFbarFusedJFluidDouble) {
+  FBAR_REQUIRE_DEVICE();
+  compare<double>(Constitutive::JFluid, 2e-4, 60, {}, 0.9, Scheme{0, 0, 0, true, true});
+}
+TEST(GpuVsCpu, NodalFbarSplitJFluidFloat) {
+  FBAR_REQUIRE_DEVICE();
+  compare<float>(Constitutive::JFluid, 2e-4, 60, {}, 0.9, Scheme{0, 0, 0, true, false});
+}
+TEST(GpuVsCpu, NodalFbarSplitFixedCorotatedDouble) {
+  FBAR_REQUIRE_DEVICE();
+  compare<double>(Constitutive::FixedCorotated, 5e-4, 60, {}, 1.0, Scheme{0, 0, 0, true, false});
+}
+TEST(GpuVsCpu, NodalFbarFusedDruckerPragerDouble) {
+  FBAR_REQUIRE_DEVICE();
+  compare<double>(Constitutive::DruckerPrager, 5e-4, 60, {}, 0.8, Scheme{0, 0, 0, true, true});
+}
+TEST(GpuVsCpu, NodalFbarAsflipJFluidFloat) {
+  FBAR_REQUIRE_DEVICE();
+  compare<float>(Constitutive::JFluid, 2e-4, 60, {}, 0.9, Scheme{0.9, 0.05, 0.2, true, true});
+}
+TEST(GpuVsCpu, NodalFbarSplitNaccMixed) {
+  FBAR_REQUIRE_DEVICE();
+  compare<double, float>(Constitutive::NACC, 5e-4, 60, {}, 0.8, Scheme{0, 0, 0, true, false});
 }
 
 // Mixed precision (simulation.precision "mixed": particles in double, grid and P2G arena in float, as ClaymoreUW):

@@ -264,6 +264,7 @@ void CpuEngine<T, TG>::keep_own_particles(Body& body, const std::vector<int>& ow
           body.mass[w] = body.mass[p];
           body.volume[w] = body.volume[p];
           mb.state[w] = mb.state[p];
+          if (body.fbar_nodal) body.jbar[w] = body.jbar[p];
           ++w;
         }
         body.id.resize(w);
@@ -273,6 +274,7 @@ void CpuEngine<T, TG>::keep_own_particles(Body& body, const std::vector<int>& ow
         body.mass.resize(w);
         body.volume.resize(w);
         mb.state.resize(w);
+        if (body.fbar_nodal) body.jbar.resize(w);
       },
       body.material);
   resize_scratch(body);
@@ -283,6 +285,7 @@ void CpuEngine<T, TG>::resize_scratch(Body& body) {
   body.x_next.resize(body.x.size());
   body.v_next.resize(body.x.size());
   body.C_next.resize(body.x.size());
+  if (body.fbar_nodal) body.jbar_next.resize(body.x.size());
   std::visit([](auto& mb) { mb.next_state.resize(mb.state.size()); }, body.material);
 }
 
@@ -307,7 +310,8 @@ void CpuEngine<T, TG>::migrate() {
     const std::size_t count = body.x.size();
     std::vector<int> dest(count);
     for (std::size_t p = 0; p < count; ++p) dest[p] = owner_of(body, body.x[p]);
-    // Per peer: this body's particle count, then their records (ID, x, v, C, mass, V0, material state).
+    // Per peer: this body's particle count, then their records (ID, x, v, C, mass, V0, material state, nodal
+    // F-bar's 1 - JBar).
     std::vector<std::uint64_t> per_peer(peers.size(), 0);
     for (std::size_t p = 0; p < count; ++p)
       if (dest[p] != r) ++per_peer[static_cast<std::size_t>(peer_index(dest[p]))];
@@ -324,6 +328,7 @@ void CpuEngine<T, TG>::migrate() {
             put(out, body.mass[p]);
             put(out, body.volume[p]);
             put(out, mb.state[p]);
+            if (body.fbar_nodal) put(out, body.jbar[p]);
             ++sent;
           }
         },
@@ -347,6 +352,7 @@ void CpuEngine<T, TG>::migrate() {
               body.mass.push_back(take<T>(received[i], at[i]));
               body.volume.push_back(take<T>(received[i], at[i]));
               mb.state.push_back(take<State>(received[i], at[i]));
+              if (body.fbar_nodal) body.jbar.push_back(take<T>(received[i], at[i]));
               if (owner_of(body, body.x.back()) != r)
                 throw std::runtime_error("particle " + std::to_string(body.id.back()) +
                                          " crossed a whole slab in one step (rank " + std::to_string(r) + ")");

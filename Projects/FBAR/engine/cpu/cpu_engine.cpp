@@ -115,11 +115,13 @@ CpuEngine<T, TG>::CpuEngine(const Scene& scene, const io::Checkpoint& cp, comm::
     std::visit(
         [&](auto& mb) {
           using State = typename std::decay_t<decltype(mb.state)>::value_type;
-          constexpr int S = static_cast<int>(sizeof(State) / sizeof(T));  // = c.state_scalars (check_matches)
+          constexpr int S = static_cast<int>(sizeof(State) / sizeof(T));
+          const std::size_t W = static_cast<std::size_t>(c.state_scalars);  // S (+ 1 with nodal F-bar: check_matches)
           for (std::size_t p = 0; p < n; ++p) {
             T v[S];
-            for (int i = 0; i < S; ++i) v[i] = static_cast<T>(c.state[static_cast<std::size_t>(S) * p + i]);
+            for (int i = 0; i < S; ++i) v[i] = static_cast<T>(c.state[W * p + i]);
             std::memcpy(&mb.state[p], v, sizeof(State));
+            if (body.fbar_nodal) body.jbar[p] = static_cast<T>(c.state[W * p + S]);
           }
         },
         body.material);
@@ -199,12 +201,14 @@ io::Checkpoint CpuEngine<T, TG>::checkpoint() const {
         [&](const auto& mb) {
           using State = typename std::decay_t<decltype(mb.state)>::value_type;
           constexpr int S = static_cast<int>(sizeof(State) / sizeof(T));
-          out.state_scalars = S;
-          out.state.resize(static_cast<std::size_t>(S) * n);
+          const std::size_t W = S + (body.fbar_nodal ? 1 : 0);  // nodal F-bar: 1 - JBar after the law's scalars
+          out.state_scalars = static_cast<int>(W);
+          out.state.resize(W * n);
           for (std::size_t p = 0; p < n; ++p) {
             T v[S];
             std::memcpy(v, &mb.state[p], sizeof(State));
-            for (int i = 0; i < S; ++i) out.state[static_cast<std::size_t>(S) * p + i] = static_cast<double>(v[i]);
+            for (int i = 0; i < S; ++i) out.state[W * p + i] = static_cast<double>(v[i]);
+            if (body.fbar_nodal) out.state[W * p + S] = static_cast<double>(body.jbar[p]);
           }
         },
         body.material);
@@ -261,6 +265,8 @@ void CpuEngine<T, TG>::init(const std::vector<std::vector<Vec3d>>& positions) {
                                          static_cast<T>(alg.asflip_beta_max)};
     asflip_ = asflip_ || body.asflip;
     body.fbar_psi = static_cast<T>(alg.fbar_blend());
+    body.fbar_nodal = alg.fbar_nodal();
+    body.fbar_fused = alg.fbar_fused_kernel;
     fbar_ = fbar_ || body.fbar_psi != T(0);
     body.mass.assign(n, static_cast<T>(mat.rho * volume));
     body.volume.assign(n, static_cast<T>(volume));
@@ -276,9 +282,24 @@ void CpuEngine<T, TG>::init(const std::vector<std::vector<Vec3d>>& positions) {
       body.max_wave_speed = static_cast<double>(M::wave_speed(mb.params, M::template reference_state<T>()));
       body.material = std::move(mb);
     });
+    if (body.fbar_nodal) {
+      body.jbar.resize(n);
+      body.jbar_next.resize(n);
+      init_jbar(body);
+    }
     if (spec.mesh >= 0) init_mesh(body);
   }
   max_grid_speed_ = max_speed;
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::init_jbar(Body& body) {
+  std::visit(
+      [&](const auto& mb) {
+        using M = typename std::decay_t<decltype(mb)>::material_type;
+        for (std::size_t p = 0; p < mb.state.size(); ++p) body.jbar[p] = one_minus_volume_ratio<M>(mb.state[p]);
+      },
+      body.material);
 }
 
 template <typename T, typename TG>
@@ -296,6 +317,7 @@ void CpuEngine<T, TG>::apply_hydrostatic(const std::vector<Aabb>& bounds) {
           }
         },
         body.material);
+    if (body.fbar_nodal) init_jbar(body);
   }
 }
 
@@ -314,6 +336,7 @@ void CpuEngine<T, TG>::apply_seeds(const std::vector<ParticleSeeds>& seeds) {
             if (!std::isnan(s[kSeedVelocity]))
               for (int a = 0; a < 3; ++a) body.v[p][a] = static_cast<T>(s[kSeedVelocity + a]);
             mb.state[p] = material_seeded_state<M, T>(mb.state[p], s);
+            if (body.fbar_nodal) body.jbar[p] = one_minus_volume_ratio<M>(mb.state[p]);
             max_grid_speed_ = std::max(max_grid_speed_, static_cast<double>(norm(body.v[p])));
             body.max_wave_speed = std::max(body.max_wave_speed, static_cast<double>(M::wave_speed(mb.params, mb.state[p])));
           }
@@ -350,8 +373,11 @@ typename CpuEngine<T, TG>::TryResult CpuEngine<T, TG>::try_step(double dt_in) {
   if (ranks() > 1) exchange_halo(false);
   result.max_grid_speed = update_grid(static_cast<TG>(dt_in));
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
-    if (bodies_[b].fbar_psi != T(0)) {
-      fbar_cell_sums(bodies_[b]);  // F-bar averages within one body
+    if (bodies_[b].fbar_psi != T(0)) {  // F-bar averages within one body
+      if (bodies_[b].fbar_nodal)
+        fbar_node_sums(bodies_[b], dt);
+      else
+        fbar_cell_sums(bodies_[b]);
       if (ranks() > 1) exchange_halo(true);
     }
     g2p(static_cast<int>(b), bodies_[b], dt, result);
@@ -378,6 +404,7 @@ void CpuEngine<T, TG>::commit(const TryResult& result, double dt) {
     body.v.swap(body.v_next);
     body.C.swap(body.C_next);
     std::visit([](auto& mb) { mb.state.swap(mb.next_state); }, body.material);
+    body.jbar.swap(body.jbar_next);
     body.mesh.force.swap(body.mesh.force_next);
     body.max_wave_speed = result.max_wave_speed[b];
   }

@@ -193,6 +193,7 @@ class CpuEngine {
   const std::vector<T>& masses(int body) const;              ///< [kg]
   const std::vector<T>& volumes(int body) const;             ///< [m^3] reference volume V0
   std::vector<T> volume_ratios(int body) const;              ///< [-] J
+  std::vector<T> jbar_ratios(int body) const;                ///< [-] the J the stress sees (nodal F-bar's JBar, else J)
   std::vector<Mat3T> deformation_gradients(int body) const;  ///< [-] F; throws for a law without F (JFluid)
   std::vector<T> plastic_log_volumes(int body) const;        ///< [-] logJp; throws for a law without it
   std::vector<T> pore_pressures(int body) const;             ///< [Pa] CoupledUP p; throws for a law without it
@@ -285,7 +286,10 @@ class CpuEngine {
     int home = kAllGpus;          // the rank holding the whole body (bodies[].gpu, comm/placement.h), or spread by space
     bool asflip = false;          // PIC-FLIP / ASFLIP velocity and position update (transfer.cuh)
     AsflipParams<T> asflip_params{T(0), T(0), T(0)};
-    T fbar_psi = T(0);  // F-bar: the fraction of J pulled to its cell's mean per step (transfer.cuh); 0: off
+    T fbar_psi = T(0);  // F-bar: the blend psi (FBAR_psi); 0: off
+    bool fbar_nodal = false;  // F-bar is ClaymoreUW's nodal JBar (physics/fbar_nodal.cuh), else the cell mean (transfer.cuh)
+    bool fbar_fused = false;  // nodal F-bar's fused variant (FBAR_fused_kernel), else the split one
+    std::vector<T> jbar, jbar_next;  // (slot) nodal F-bar's 1 - JBar; empty otherwise
     ParticleForce force_of;    // set_particle_forces; empty: none
     std::vector<Vec3T> force;  // (slot) [N] force_of at the start of the step being tried
     Partition partition;
@@ -301,7 +305,8 @@ class CpuEngine {
   struct AsflipBlock {
     TG old_velocity[3][64];
   };
-  // F-bar's cell sums (only when a body uses it): sum V tr C and sum V of the body in G2P, cell c at node c.
+  // F-bar's sums of one body before its G2P (only when a body uses F-bar). Cell scheme: sum V0 (1 - J) and sum V0 of
+  // the cell c at node c; nodal scheme: sum w V s and sum w V (s = 1 - JBar, V = V0 J; fbar_nodal.cuh).
   struct FbarBlock {
     TG sums[2][64];
   };
@@ -351,6 +356,8 @@ class CpuEngine {
   void p2g(Body& body, T dt);
   double update_grid(TG dt);
   void fbar_cell_sums(Body& body);
+  void fbar_node_sums(Body& body, T dt);  // nodal F-bar's sums (fused: of the stored JBar; split: advanced by C)
+  void init_jbar(Body& body);             // nodal F-bar: JBar = the particle's own J (after any initial state)
   void g2p(int body_index, Body& body, T dt, TryResult& result);
   /// A mesh body's elements at positions x: the vertex forces (into `force`), the vertex states (the V0-weighted
   /// mean F of their elements, into `states`), the largest wave speed, and the elements turned inside out (count,

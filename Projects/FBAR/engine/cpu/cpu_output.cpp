@@ -84,7 +84,7 @@ void CpuEngine<T, TG>::each_particle_input(const Body& b, bool sigma, const Acce
         for (std::size_t p = 0; p < b.x.size(); ++p)  // slot order: a fixed order on each rank
           if (accept(p))
             fn(p, particle_frame_inputs<M, T>(b.x[p], b.v[p], b.C[p], mb.state[p], mb.params, b.mass[p], b.volume[p],
-                                              sigma));
+                                              sigma, b.fbar_nodal, b.fbar_nodal ? b.jbar[p] : T(0)));
       },
       b.material);
 }
@@ -228,6 +228,15 @@ std::vector<T> CpuEngine<T, TG>::volume_ratios(int body) const {
 }
 
 template <typename T, typename TG>
+std::vector<T> CpuEngine<T, TG>::jbar_ratios(int body) const {
+  const Body& b = body_at(body);
+  if (!b.fbar_nodal) return volume_ratios(body);
+  std::vector<T> J(b.jbar.size());
+  for (std::size_t p = 0; p < J.size(); ++p) J[p] = T(1) - b.jbar[p];
+  return J;
+}
+
+template <typename T, typename TG>
 std::vector<Mat3<T>> CpuEngine<T, TG>::deformation_gradients(int body) const {
   const Body& b = body_at(body);
   std::vector<Mat3T> F;
@@ -293,7 +302,9 @@ std::vector<Mat3<T>> CpuEngine<T, TG>::cauchy_stresses(int body) const {
         using M = typename std::decay_t<decltype(mb)>::material_type;
         const int n = static_cast<int>(sigma.size());
 #pragma omp parallel for schedule(static) if (n >= kMinParallelParticles)
-        for (int p = 0; p < n; ++p) sigma[p] = cauchy_stress(M::kirchhoff_stress(mb.params, mb.state[p], b.C[p]));
+        for (int p = 0; p < n; ++p)
+          sigma[p] = cauchy_stress(M::kirchhoff_stress(
+              mb.params, b.fbar_nodal ? fbar_stress_state<M>(mb.params, mb.state[p], b.jbar[p]) : mb.state[p], b.C[p]));
       },
       b.material);
   return sigma;
@@ -457,6 +468,7 @@ io::ParticleFrame CpuEngine<T, TG>::frame(int body) const {
   src.mass = [&](std::size_t p) { return b.mass[p]; };
   src.volume0 = [&](std::size_t p) { return b.volume[p]; };
   src.J = [&] { return volume_ratios(body); };
+  src.jbar = [&] { return jbar_ratios(body); };
   src.F = [&] { return deformation_gradients(body); };
   src.sigma = [&] { return cauchy_stresses(body); };
   src.logJp = [&] { return plastic_log_volumes(body); };

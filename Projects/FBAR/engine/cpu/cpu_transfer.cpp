@@ -28,6 +28,7 @@
 #include "scene/scene_parse.h"
 #include "physics/seepage.cuh"
 #include "physics/transfer.cuh"
+#include "physics/fbar_nodal.cuh"
 #include "engine/cpu/cpu_engine_detail.h"
 
 namespace fbar {
@@ -149,7 +150,12 @@ void CpuEngine<T, TG>::p2g(Body& body, T dt) {
                 const int l1 = s.base[1] - origin[1] * kBlockSide;
                 const int l2 = s.base[2] - origin[2] * kBlockSide;
                 // A mesh vertex carries no MLS stress: its elements' force enters as an impulse (physics/fem.cuh).
-                const Mat3T tau = mesh ? Mat3T::zero() : M::kirchhoff_stress(params, state[p], body.C[p]).kirchhoff;
+                const Mat3T tau =
+                    mesh ? Mat3T::zero()
+                         : M::kirchhoff_stress(params, body.fbar_nodal ? fbar_stress_state<M>(params, state[p], body.jbar[p])
+                                                                       : state[p],
+                                               body.C[p])
+                               .kirchhoff;
                 P2GParticle<T> payload = mls_p2g_particle(body.mass[p], body.volume[p], body.v[p], body.C[p], tau, dt, d_inv);
                 if (mesh) payload.momentum += body.mesh.force[p] * dt;
                 if (!body.force.empty()) payload.momentum += body.force[p] * dt;  // set_particle_forces
@@ -363,6 +369,80 @@ void CpuEngine<T, TG>::fbar_cell_sums(Body& body) {
       body.material);
 }
 
+template <typename T, typename TG>
+void CpuEngine<T, TG>::fbar_node_sums(Body& body, T dt) {
+  const int nblocks = static_cast<int>(grid_.blocks.size());
+#pragma omp parallel for schedule(static) if (nblocks >= kMinParallelBlocks)
+  for (int gb = 0; gb < nblocks; ++gb)
+    for (auto& ch : grid_.fbar[gb].sums) std::fill(ch, ch + 64, TG(0));
+  const Partition& part = body.partition;
+  const T dx = k_.dx, inv_dx = k_.inv_dx, d_inv = k_.d_inv;
+  const bool split = !body.fbar_fused;
+  std::visit(
+      [&](auto& mb) {
+        using M = typename std::decay_t<decltype(mb)>::material_type;
+        const auto& state = mb.state;
+#pragma omp parallel if (part.largest_colour >= kMinParallelBlocks)
+        {
+          T arena_sum[2][kArenaNodes];  // (sum, node) the block's deposits: w V s, w V
+          T arena_v[3][kArenaNodes];    // split: the grid velocities around the block (each particle's C)
+          for (int colour = 0; colour < 8; ++colour) {
+            const std::vector<int>& list = part.colour_blocks[colour];
+            const int count = static_cast<int>(list.size());
+#pragma omp for schedule(dynamic, 1)
+            for (int li = 0; li < count; ++li) {
+              const int pb = list[li];
+              const std::array<int, 8>& blocks = part.grid_blocks[pb];
+              for (auto& ch : arena_sum) std::fill(ch, ch + kArenaNodes, T(0));
+              if (split)
+                for (int a = 0; a < kArenaSide; ++a)
+                  for (int b = 0; b < kArenaSide; ++b)
+                    for (int c = 0; c < kArenaSide; ++c) {
+                      const GridBlock& g = grid_.blocks[blocks[arena_neighbour(a, b, c)]];
+                      const int node = arena_node_in_block(a, b, c);
+                      for (int d = 0; d < 3; ++d) arena_v[d][arena_index(a, b, c)] = g.momentum[d][node];
+                    }
+              const Vec3i& origin = part.block_coords[pb];
+              for (int q = part.block_start[pb]; q < part.block_start[pb + 1]; ++q) {
+                const int p = part.order[q];
+                const QuadraticBspline<T> s = quadratic_bspline_inv(body.x[p], inv_dx);
+                const int l0 = s.base[0] - origin[0] * kBlockSide;
+                const int l1 = s.base[1] - origin[1] * kBlockSide;
+                const int l2 = s.base[2] - origin[2] * kBlockSide;
+                const T V = body.volume[p] * M::volume_ratio(state[p]);
+                T value = body.jbar[p];  // fused: the stored 1 - JBar
+                if (split) {  // 1 - JBar dJ: advanced by the particle's own increment over this step
+                  G2PSum<T> sum;
+                  for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3T& xixp) {
+                    const int a = arena_index(l0 + i, l1 + j, l2 + k);
+                    sum.add(w, Vec3T{{arena_v[0][a], arena_v[1][a], arena_v[2][a]}}, xixp);
+                  });
+                  value = fbar_advance_one_minus_J(value, fbar_volume_increment<M>(sum.affine(d_inv), dt));
+                }
+                for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3T&) {
+                  const int a = arena_index(l0 + i, l1 + j, l2 + k);
+                  arena_sum[0][a] += w * V * value;
+                  arena_sum[1][a] += w * V;
+                });
+              }
+              // The same colour discipline as P2G: no other block of this colour touches these grid blocks.
+              for (int a = 0; a < kArenaSide; ++a)
+                for (int b = 0; b < kArenaSide; ++b)
+                  for (int c = 0; c < kArenaSide; ++c) {
+                    const int ai = arena_index(a, b, c);
+                    if (arena_sum[1][ai] == T(0)) continue;
+                    FbarBlock& g = grid_.fbar[blocks[arena_neighbour(a, b, c)]];
+                    const int node = arena_node_in_block(a, b, c);
+                    g.sums[0][node] += static_cast<TG>(arena_sum[0][ai]);
+                    g.sums[1][node] += static_cast<TG>(arena_sum[1][ai]);
+                  }
+            }
+          }
+        }
+      },
+      body.material);
+}
+
 // ---------------------------------------------------------------------------------------------
 // G2P with failure checks
 
@@ -383,6 +463,7 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
         const auto& state = mb.state;
         auto& next_state = mb.next_state;
         const bool fbar = body.fbar_psi != T(0);
+        const bool nodal = fbar && body.fbar_nodal;
         const bool mesh = body.is_mesh();
 #pragma omp parallel if (nb >= kMinParallelBlocks)
         {
@@ -430,13 +511,15 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
               G2POldSum<T> old;
               SeepageSum<T> seep;
               T cell_compression = T(0);  // F-bar's 1 - Jbar of the particle's cell
+              T gathered = T(0);          // nodal F-bar: sum_i w_ip s_i (fbar_nodal.cuh)
               for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3T& xixp) {
                 const int a = arena_index(l0 + i, l1 + j, l2 + k);
                 sum.add(w, Vec3T{{arena_v[0][a], arena_v[1][a], arena_v[2][a]}}, xixp);
+                if (nodal) gathered += w * fbar_node_value(arena_fbar[0][a], arena_fbar[1][a], body.fbar_fused);
                 if (body.asflip) old.add(w, Vec3T{{arena_v_old[0][a], arena_v_old[1][a], arena_v_old[2][a]}});
                 if constexpr (pore) seep.add(w, xixp, arena_w[0][a], arena_w[1][a]);
               });
-              if (fbar) {
+              if (fbar && !nodal) {
                 const Vec3i cell = fbar_cell_offset(x, inv_dx, s.base);
                 const int a = arena_index(l0 + cell[0], l1 + cell[1], l2 + cell[2]);
                 cell_compression = fbar_cell_compression(arena_fbar[0][a], arena_fbar[1][a]);
@@ -444,20 +527,23 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
               Vec3T v = sum.velocity();
               const Mat3T C = sum.affine(d_inv);
               // A mesh vertex's state is its elements' (mesh_after_g2p sets it from the new positions).
-              auto s_new = mesh ? state[p]
-                                : M::advance(params, state[p],
-                                             fbar ? fbar_velocity_gradient(C, one_minus_volume_ratio<M>(state[p]),
-                                                                           cell_compression, body.fbar_psi, dt)
-                                                  : C,
-                                             dt);
+              NodalFbar<T> nf{T(0), C};
+              if (nodal) nf = nodal_fbar<M>(state[p], C, gathered, body.fbar_fused, body.fbar_psi, dt);
+              const Mat3T C_state = nodal ? nf.C_state
+                                    : fbar ? fbar_velocity_gradient(C, one_minus_volume_ratio<M>(state[p]),
+                                                                    cell_compression, body.fbar_psi, dt)
+                                           : C;
+              auto s_new = mesh ? state[p] : M::advance(params, state[p], C_state, dt);
+              if (nodal) body.jbar_next[p] = nf.s;
               if constexpr (pore)
                 s_new = M::seep(params, s_new, seep.inflow, seep.head_gradient(d_inv),
                                 seep.head + M::water_density(params) * dot(k_.gravity, x),
                                 M::pore_pressure(s_new) - M::pore_pressure(state[p]), dt);
               Vec3T x_new;
               if (body.asflip) {
-                const AsflipUpdate<T> u =
-                    asflip_update(body.asflip_params, body.v[p], v, old.v, M::volume_ratio(s_new), dt);
+                // Nodal F-bar: ASFLIP's expansion test reads JBar, as ClaymoreUW's does.
+                const AsflipUpdate<T> u = asflip_update(body.asflip_params, body.v[p], v, old.v,
+                                                        nodal ? T(1) - nf.s : M::volume_ratio(s_new), dt);
                 v = u.v;
                 x_new = x + u.move;
               } else {
@@ -480,7 +566,8 @@ void CpuEngine<T, TG>::g2p(int body_index, Body& body, T dt, TryResult& result) 
                 else if (max_abs(x_new - x) > dx)
                   failed = static_cast<int>(FailureKind::CflViolation);
                 else
-                  my_wave = std::max(my_wave, M::wave_speed(params, s_new));
+                  my_wave = std::max(my_wave, M::wave_speed(params, nodal ? fbar_stress_state<M>(params, s_new, nf.s)
+                                                                          : s_new));
               }
               if (failed >= 0) {
                 ++my_count[failed];

@@ -17,7 +17,8 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
   bool stores_F() const override { return M::kOutputs.deformation_gradient; }
   bool stores_logJp() const override { return M::kOutputs.log_jp; }
   bool stores_pore_pressure() const override { return M::kOutputs.pore_pressure; }
-  int stored_scalars() const override { return Layout::kScalars; }
+  /// Scalars of a gathered record and a checkpoint's particle before v and C: position, state, nodal F-bar's 1 - JBar.
+  int stored_scalars() const override { return Layout::kScalars + (this->fbar_nodal ? 1 : 0); }
   void allocate_bins(int n) override {
     bins[0].allocate(n);
     bins[1].allocate(n);
@@ -25,10 +26,15 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
       this->particle_v[0].allocate(static_cast<std::size_t>(n) * 32 * 3);
       this->particle_v[1].allocate(static_cast<std::size_t>(n) * 32 * 3);
     }
+    if (this->fbar_nodal) {
+      this->particle_jbar[0].allocate(static_cast<std::size_t>(n) * 32);
+      this->particle_jbar[1].allocate(static_cast<std::size_t>(n) * 32);
+    }
   }
   void reallocate_bins(int which, int n) override {
     bins[which].allocate(n);
     if (this->asflip) this->particle_v[which].allocate(static_cast<std::size_t>(n) * 32 * 3);
+    if (this->fbar_nodal) this->particle_jbar[which].allocate(static_cast<std::size_t>(n) * 32);
   }
   void grow_bins_keeping(int which, int n, int keep_slots, cudaStream_t s) override {
     bins[which].grow_keeping(n, (keep_slots + 31) / 32, s);
@@ -41,10 +47,20 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
       FBAR_CUDA_CHECK(cudaStreamSynchronize(s));
       this->particle_v[which].swap(bigger);
     }
+    if (this->fbar_nodal) {
+      cuda::DeviceArray<T> bigger;
+      bigger.allocate(static_cast<std::size_t>(n) * 32);
+      if (keep_slots > 0)
+        FBAR_CUDA_CHECK(cudaMemcpyAsync(bigger.get(), this->particle_jbar[which].get(),
+                                        sizeof(T) * static_cast<std::size_t>(keep_slots), cudaMemcpyDeviceToDevice, s));
+      FBAR_CUDA_CHECK(cudaStreamSynchronize(s));
+      this->particle_jbar[which].swap(bigger);
+    }
   }
   int bins_capacity(int which) const override { return bins[which].bin_capacity(); }
   std::size_t bins_bytes() const override {
-    return bins[0].bytes() + bins[1].bytes() + this->particle_v[0].bytes() + this->particle_v[1].bytes();
+    return bins[0].bytes() + bins[1].bytes() + this->particle_v[0].bytes() + this->particle_v[1].bytes() +
+           this->particle_jbar[0].bytes() + this->particle_jbar[1].bytes();
   }
 
   void upload(const Vec3d* x, const int* ids, std::size_t n, long long first_id, cudaStream_t s) override {
@@ -55,24 +71,33 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     typename Layout::Buffer view(host.data(), bins_n);
     const auto state = material_initial_state<M, T>(this->spec.material);
     constexpr std::size_t S = Layout::kStateScalars;
+    const std::size_t W = S + (this->fbar_nodal ? 1 : 0);  // restart_state: the law's state, then 1 - JBar
+    std::vector<T> jbar(this->fbar_nodal ? n : 0);
     for (std::size_t i = 0; i < n; ++i) {
       const int id = ids ? ids[i] : static_cast<int>(first_id + static_cast<long long>(i));
       ParticleRecord<M, T> p{x[i].template cast<T>(), state, id};
       if (this->hydrostatic.active)
         p.state = material_hydrostatic_state<M, T>(params, this->hydrostatic.kirchhoff_pressure(x[i]));
-      if (!this->restart_state.empty())
-        std::memcpy(&p.state, this->restart_state.data() + S * static_cast<std::size_t>(id), sizeof(p.state));
+      const T* restart = this->restart_state.empty() ? nullptr : this->restart_state.data() + W * static_cast<std::size_t>(id);
+      if (restart) std::memcpy(&p.state, restart, sizeof(p.state));
+      if (this->fbar_nodal)  // JBar starts at the particle's own J (a restart's: its checkpoint's)
+        jbar[i] = restart && !std::isnan(restart[S]) ? restart[S] : one_minus_volume_ratio<M>(p.state);
       store_particle<M, T>(view, static_cast<int>(i), p);
     }
     std::byte* target = bins[0].instance().data() + Layout::kBinBytes * static_cast<std::size_t>(first_id / 32);
     if (bytes) FBAR_CUDA_CHECK(cudaMemcpyAsync(target, host.data(), bytes, cudaMemcpyHostToDevice, s));
+    if (this->fbar_nodal && n)
+      FBAR_CUDA_CHECK(cudaMemcpyAsync(this->particle_jbar[0].get() + first_id, jbar.data(), sizeof(T) * n,
+                                      cudaMemcpyHostToDevice, s));
     FBAR_CUDA_CHECK(cudaStreamSynchronize(s));
   }
 
   double seed_states(const ParticleSeeds& seeds) override {
     constexpr std::size_t S = Layout::kStateScalars;
+    const std::size_t W = S + (this->fbar_nodal ? 1 : 0);  // nodal F-bar: 1 - JBar, NaN: the state's own
     const auto initial = material_initial_state<M, T>(this->spec.material);
-    this->restart_state.resize(S * static_cast<std::size_t>(this->global_particles));
+    this->restart_state.assign(W * static_cast<std::size_t>(this->global_particles),
+                               std::numeric_limits<T>::quiet_NaN());
     double speed = 0.0;  // of the seeded states (the others are the body's initial state)
     for (long long id = 0; id < this->global_particles; ++id) {
       auto state = initial;
@@ -80,7 +105,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
         state = material_seeded_state<M, T>(state, seeds.at(static_cast<std::size_t>(id - seeds.first)));
         speed = std::max(speed, static_cast<double>(M::wave_speed(params, state)));
       }
-      std::memcpy(this->restart_state.data() + S * static_cast<std::size_t>(id), &state, sizeof(state));
+      std::memcpy(this->restart_state.data() + W * static_cast<std::size_t>(id), &state, sizeof(state));
     }
     return speed;
   }
@@ -116,6 +141,12 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
       p.fbar_sums = e.fbar_sums().view();
       p.fbar_quantum = fixed_quantum<TG>(static_cast<double>(this->volume));
     }
+    p.fbar_nodal = this->fbar_nodal;  // the initial P2G too: it stresses the stored JBar
+    p.fbar_fused = this->fbar_fused;
+    if (this->fbar_nodal) {
+      p.jbar_in = this->particle_jbar[e.cur_].get();
+      p.jbar_out = this->particle_jbar[1 - e.cur_].get();
+    }
     if constexpr (IsPoreFluid<M>::value) p.pore = e.pore_values().instance();
     p.gravity = e.k_.gravity;
     p.material = params;
@@ -144,23 +175,46 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     // every rank, one holding none of the body's particles too: each rank's checkpoint then has the same bytes.
     const bool capture = initial ? this->p2g_capture : p.capture.x != nullptr;
     if (!initial) this->p2g_capture = capture;
-    if (e.block_count_ == 0 || this->particles == 0) return;
-    if (p.fbar_psi != T(0) && pass != G2P2GPass::Interior) {  // F-bar: the cell sums first (fbar_cell_sums)
+    const bool empty = e.block_count_ == 0 || this->particles == 0;
+    if (p.fbar_psi != T(0) && pass != G2P2GPass::Interior) {
+      // F-bar's sums first (the nodal scheme's node sums, or the cell sums), on every rank: one that holds none of
+      // the body's particles adds zeros, since the halo exchange that follows is collective.
       const int blocks = e.block_count_;
-      e.fbar_sums().clear(0, blocks, e.stream_);
-      FbarCellSumsParams<M, T, TG> f;
-      f.in = p.in;
-      f.layout = p.layout;
-      f.table = p.table;
-      f.sums = p.fbar_sums;
-      f.quantum = p.fbar_quantum;
-      f.volume = p.volume;
-      f.inv_dx = p.inv_dx;
-      f.stats = p.stats;
-      ::fbar::fbar_cell_sums<M, T, TG><<<blocks, kParticleBlockThreads, 0, e.stream_>>>(f);
-      cuda::check_launch("fbar_cell_sums");
-      if (e.decomposed()) e.halo_exchange({HaloBuffer{e.fbar_sums().data(), FbarSumBuffer<TG>::kBlockBytes, true}}, -1);
+      if (blocks > 0) e.fbar_sums().clear(0, blocks, e.stream_);
+      if (!empty && this->fbar_nodal) {
+        FbarNodeSumsParams<M, T, TG> f;
+        f.in = p.in;
+        f.layout = p.layout;
+        f.table = p.table;
+        f.sums = p.fbar_sums;
+        f.quantum = p.fbar_quantum;
+        f.jbar = p.jbar_in;
+        f.fused = this->fbar_fused;
+        f.velocity = p.velocity;
+        f.volume = p.volume;
+        f.dt = dt;
+        f.dx = e.k_.dx;
+        f.inv_dx = e.k_.inv_dx;
+        f.d_inv = e.k_.d_inv;
+        f.stats = e.stats_d_;
+        ::fbar::fbar_node_sums<M, T, TG><<<blocks, kParticleBlockThreads, 0, e.stream_>>>(f);
+        cuda::check_launch("fbar_node_sums");
+      } else if (!empty) {
+        FbarCellSumsParams<M, T, TG> f;
+        f.in = p.in;
+        f.layout = p.layout;
+        f.table = p.table;
+        f.sums = p.fbar_sums;
+        f.quantum = p.fbar_quantum;
+        f.volume = p.volume;
+        f.inv_dx = p.inv_dx;
+        f.stats = p.stats;
+        ::fbar::fbar_cell_sums<M, T, TG><<<blocks, kParticleBlockThreads, 0, e.stream_>>>(f);
+        cuda::check_launch("fbar_cell_sums");
+      }
+      if (e.decomposed()) e.halo_exchange({e.template halo_of<GridSet::FbarSums>()}, -1);
     }
+    if (empty) return;
     int blocks = e.block_count_;
     p.order_first = -1;
     if (pass == G2P2GPass::Halo) {
@@ -278,7 +332,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
                       static_cast<T>(this->spec.velocity[2])}};
     ::fbar::capture_frame_state<M, T><<<cuda::grid_for(slots, kOutputThreads), kOutputThreads, 0, e.stream_>>>(
         bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, this->capture, v0,
-        this->initial_v.size() ? this->initial_v.get() : nullptr, params, this->measures());
+        this->initial_v.size() ? this->initial_v.get() : nullptr, params, this->measures(), jbar_now(e));
     cuda::check_launch("capture_frame_state");
   }
 
@@ -315,7 +369,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
   }
 
   std::size_t migrant_bytes(const MgspBenchmark& e) const override {
-    return ::fbar::migrant_bytes<M, T>(this->asflip, e.record_);
+    return ::fbar::migrant_bytes<M, T>(this->asflip, e.record_, this->fbar_nodal);
   }
   void pack_emigrants(MgspBenchmark& e, std::byte* lo, std::byte* hi, int capacity, int* count_lo,
                       int* count_hi) override {
@@ -324,7 +378,8 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     ::fbar::pack_emigrants<M, T><<<cuda::grid_for(listed, kHaloThreads), kHaloThreads, 0, e.stream_>>>(
         bins[1 - e.cur_].instance(), this->emigrant_slots.get(), &e.body_stats_d_[this->index].emigrant_list,
         listed, this->partition.dest(), this->asflip ? this->particle_v[1 - e.cur_].get() : nullptr,
-        e.record_ ? this->aux.get() : nullptr, lo, hi, capacity, count_lo, count_hi);
+        e.record_ ? this->aux.get() : nullptr, lo, hi, capacity, count_lo, count_hi,
+        this->fbar_nodal ? this->particle_jbar[1 - e.cur_].get() : nullptr);
     cuda::check_launch("pack_emigrants");
   }
   void unpack_immigrants(MgspBenchmark& e, int first, const std::byte* in, const int* count, int capacity) override {
@@ -332,7 +387,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     ::fbar::unpack_immigrants<M, T><<<cuda::grid_for(capacity, kHaloThreads), kHaloThreads, 0, e.stream_>>>(
         bins[1 - e.cur_].instance(), first, in, count, capacity,
         this->asflip ? this->particle_v[1 - e.cur_].get() : nullptr, e.record_ ? this->aux.get() : nullptr,
-        this->partition.layout(e.cur_).src);
+        this->partition.layout(e.cur_).src, this->fbar_nodal ? this->particle_jbar[1 - e.cur_].get() : nullptr);
     cuda::check_launch("unpack_immigrants");
   }
 
@@ -351,7 +406,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     }
     ::fbar::rescale_impulse<M, T, TG><<<cuda::grid_for(slots, kPartitionThreads), kPartitionThreads, 0, e.stream_>>>(
         bins[e.cur_].instance(), this->partition.layout(e.cur_), slots, params, this->volume, ddt, e.k_.dx, e.k_.inv_dx,
-        e.k_.d_inv, e.table_.view(), e.grid_sums(e.gc_).view(), e.quantum(e.gc_), e.stats_d_);
+        e.k_.d_inv, e.table_.view(), e.grid_sums(e.gc_).view(), e.quantum(e.gc_), e.stats_d_, jbar_now(e));
     cuda::check_launch("rescale_impulse");
   }
 
@@ -361,7 +416,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
                       static_cast<T>(this->spec.velocity[2])}};
     ::fbar::sample_particle_sensors<M, T><<<dim3(per_sensor, e.sensors_.particle.count), kSensorThreads, 0, e.stream_>>>(
         bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, aux, v0, params, this->measures(),
-        e.sensors_.particle, partials);
+        e.sensors_.particle, partials, jbar_now(e));
     cuda::check_launch("sample_particle_sensors");
   }
 
@@ -372,7 +427,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
                       static_cast<T>(this->spec.velocity[2])}};
     ::fbar::track_particles<M, T><<<cuda::grid_for(slots, kOutputThreads), kOutputThreads, 0, e.stream_>>>(
         bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, aux, v0, params, this->measures(), t,
-        values, present);
+        values, present, jbar_now(e));
     cuda::check_launch("track_particles");
   }
 
@@ -382,17 +437,27 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
     // aux was written at the storage slots of bins[cur] (the previous G2P2G's layout order).
     ::fbar::gather_by_id<M, T><<<cuda::grid_for(slots, kOutputThreads), kOutputThreads, 0, s>>>(
         bins[e.cur_].instance(), this->partition.layout(e.cur_).src, slots, e.aux_valid_ ? this->aux.get() : nullptr,
-        static_cast<int>(this->global_particles), first, count, out, held, missing);
+        static_cast<int>(this->global_particles), first, count, out, held, missing, jbar_now(e));
     cuda::check_launch("gather_by_id");
   }
 
+  /// Nodal F-bar: the particles' 1 - JBar at the storage slots of bins[cur]; nullptr otherwise.
+  const T* jbar_now(const MgspBenchmark& e) const {
+    return this->fbar_nodal ? this->particle_jbar[e.cur_].get() : nullptr;
+  }
+  T jbar_of(const T* r) const override {
+    material_state_t<M, T> s;
+    std::memcpy(&s, r + 3, sizeof(s));
+    return this->fbar_nodal ? T(1) - r[Layout::kScalars] : M::volume_ratio(s);
+  }
   void state_of(const T* r, T& J, Mat3<T>& F, Mat3<T>& sigma, T& logJp, const Mat3<T>& C) const override {
     material_state_t<M, T> s;
     std::memcpy(&s, r + 3, sizeof(s));
     J = M::volume_ratio(s);
     if constexpr (M::kOutputs.deformation_gradient) F = s.F;
     if constexpr (M::kOutputs.log_jp) logJp = s.logJp;
-    sigma = cauchy_stress(M::kirchhoff_stress(params, s, C));
+    const material_state_t<M, T> stressed = this->fbar_nodal ? fbar_stress_state<M>(params, s, r[Layout::kScalars]) : s;
+    sigma = cauchy_stress(M::kirchhoff_stress(params, stressed, C));
   }
   double pore_pressure_of(const T* r) const override {
     if constexpr (M::kOutputs.pore_pressure) {

@@ -114,6 +114,10 @@ struct MgspBenchmark<T, TG>::BodyBase {
   double rest_wave_speed = 0.0;
   HydrostaticProfile hydrostatic;  ///< bodies[].initial_state "hydrostatic": the upload's states (inactive: rest)
   T fbar_psi = T(0);  ///< F-bar blend (transfer.cuh), 0: off
+  bool fbar_nodal = false;  ///< nodal F-bar (physics/fbar_nodal.cuh), else the cell scheme
+  bool fbar_fused = false;  ///< nodal F-bar's fused variant (FBAR_fused_kernel), else the split one
+  /// Nodal F-bar only: (slot) each particle's 1 - JBar beside bins[0] / bins[1], same slots (empty otherwise).
+  cuda::DeviceArray<T> particle_jbar[2];
   bool asflip = false;  ///< PIC-FLIP / ASFLIP (transfer.cuh)
   AsflipParams<T> asflip_params{T(0), T(0), T(0)};
   /// ASFLIP only: (slot, 3) particle velocities beside bins[0] / bins[1], same slots (empty otherwise).
@@ -234,6 +238,8 @@ struct MgspBenchmark<T, TG>::BodyBase {
   /// The tracker's particles this rank holds into values / present (device, zeroed beforehand).
   virtual void track(MgspBenchmark& e, const T* aux, const TrackerSet& t, double* values, double* present) = 0;
   virtual bool stores_logJp() const = 0;
+  /// JBar of one gathered record: nodal F-bar's, else J.
+  virtual T jbar_of(const T* record) const = 0;
   /// J, F, Cauchy stress and logJp of one gathered record (F and logJp left as they are for a material without).
   virtual void state_of(const T* record, T& J, Mat3<T>& F, Mat3<T>& sigma, T& logJp, const Mat3<T>& C) const = 0;
   /// The pore pressure [Pa] of one gathered record (materials with kOutputs.pore_pressure; NaN for others).

@@ -113,6 +113,8 @@ double MgspBenchmark<T, TG>::add_body(int b, const std::vector<std::vector<Vec3d
                                        static_cast<T>(alg.asflip_beta_max)};
   asflip_ = asflip_ || body.asflip;
   body.fbar_psi = static_cast<T>(alg.fbar_blend());
+  body.fbar_nodal = alg.fbar_nodal() && spec.mesh < 0;
+  body.fbar_fused = alg.fbar_fused_kernel;
   fbar_ = fbar_ || body.fbar_psi != T(0);
   pore_ = pore_ || material_has_pore_fluid(mat.law);
   max_speed = std::max(max_speed, std::sqrt(spec.velocity[0] * spec.velocity[0] +
@@ -194,9 +196,10 @@ void MgspBenchmark<T, TG>::plan_memory() {
     BodyMemoryInput in;
     in.particles = counts_[b].particles;
     in.bins_needed = bins_needed(counts_[b]);
-    in.stored_scalars = body.stored_scalars();
+    in.stored_scalars = body.stored_scalars() - (body.fbar_nodal ? 1 : 0);  // the bins' (1 - JBar: fbar_nodal)
     in.asflip = body.asflip;
     in.fbar = body.fbar_psi != T(0);
+    in.fbar_nodal = body.fbar_nodal;
     in.pore = material_has_pore_fluid(body.spec.material.law);
     in.record = record || body.mesh;  // a mesh's vertices always record v and C
     in.checkpoints = sim.checkpoint_every > 0;

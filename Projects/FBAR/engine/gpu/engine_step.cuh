@@ -312,7 +312,7 @@ void MgspBenchmark<T, TG>::update_grid(double dt) {
       dec_.device->allreduce_max(reinterpret_cast<double*>(pore_bound_d_.get()), kSeepageChannels, stream_);
     for (auto& b : bodies_) b->seepage_sums(*this, false);
     if (decomposed())
-      halo_exchange({HaloBuffer{pore_sums().data(), PoreSumBuffer<TG>::kBlockBytes, true}}, -1);
+      halo_exchange({halo_of<GridSet::PoreSums>()}, -1);
   }
   GridUpdateParams<TG> gp{};
   if (pore_) {

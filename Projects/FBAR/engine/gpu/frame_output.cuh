@@ -107,6 +107,7 @@ ParticleSnapshot<T> MgspBenchmark<T, TG>::snapshot(int body) const {
   snap.v.resize(n);
   snap.C.resize(n);
   snap.J.resize(n);
+  snap.jbar.resize(n);
   snap.sigma.resize(n);
   if (b.stores_F()) snap.F.resize(n);
   if (b.stores_logJp()) snap.logJp.resize(n);
@@ -127,6 +128,7 @@ ParticleSnapshot<T> MgspBenchmark<T, TG>::snapshot(int body) const {
     Mat3<T> F = Mat3<T>::identity(), sigma;
     T logJp = T(0);
     b.state_of(q, snap.J[p], F, sigma, logJp, snap.C[p]);
+    snap.jbar[p] = b.jbar_of(q);
     snap.sigma[p] = sigma;
     if (b.stores_F()) snap.F[p] = F;
     if (b.stores_logJp()) snap.logJp[p] = logJp;
@@ -150,6 +152,7 @@ io::ParticleFrame MgspBenchmark<T, TG>::frame(int body) const {
       s.v[w] = s.v[p];
       s.C[w] = s.C[p];
       s.J[w] = s.J[p];
+      s.jbar[w] = s.jbar[p];
       s.sigma[w] = s.sigma[p];
       if (!s.F.empty()) s.F[w] = s.F[p];
       if (!s.logJp.empty()) s.logJp[w] = s.logJp[p];
@@ -159,6 +162,7 @@ io::ParticleFrame MgspBenchmark<T, TG>::frame(int body) const {
     for (auto* v : {&s.x, &s.v}) v->resize(w);
     for (auto* v : {&s.C, &s.sigma}) v->resize(w);
     s.J.resize(w);
+    s.jbar.resize(w);
     if (!s.F.empty()) s.F.resize(w);
     if (!s.logJp.empty()) s.logJp.resize(w);
     if (!s.pore_pressure.empty()) s.pore_pressure.resize(w);
@@ -171,6 +175,7 @@ io::ParticleFrame MgspBenchmark<T, TG>::frame(int body) const {
   src.mass = [&](std::size_t i) { return b.mass_of(i); };
   src.volume0 = [&](std::size_t i) { return b.volume_of(i); };
   src.J = [&] { return s.J; };
+  src.jbar = [&] { return s.jbar; };
   src.F = [&] {
     if (!b.stores_F()) throw std::invalid_argument("DefGrad: the body's material stores no deformation gradient");
     return s.F;

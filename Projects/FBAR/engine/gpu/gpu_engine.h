@@ -41,6 +41,7 @@ struct ParticleSnapshot {
   std::vector<Vec3<T>> v;   ///< [m/s] G2P velocity of the last step (zero unless velocities are recorded)
   std::vector<Mat3<T>> C;   ///< [1/s] APIC affine matrix of the last step (idem)
   std::vector<T> J;         ///< [-] volume ratio of the stored state
+  std::vector<T> jbar;      ///< [-] the volume ratio the stress sees: nodal F-bar's JBar, else J
   std::vector<Mat3<T>> F;   ///< [-] deformation gradient (materials that store F; empty otherwise)
   std::vector<T> logJp;     ///< [-] plastic state (materials that store logJp; empty otherwise)
   std::vector<T> pore_pressure;  ///< [Pa] saturated materials (CoupledUP; empty otherwise)

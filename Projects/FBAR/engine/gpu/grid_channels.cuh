@@ -26,6 +26,8 @@ struct GridSetBuffer {
                 "a GPU buffer's block is the size kGridSets declares (memory_plan.cpp sizes it from there)");
   static_assert(kLifetime != GridLifetime::AcrossSteps || type::kBlockBytes % 16 == 0,
                 "the compaction moves AcrossSteps blocks in 16-byte words");
+  static_assert(kLifetime != GridLifetime::AcrossSteps || grid_set(S).copies == 2,
+                "an AcrossSteps set is committed in one copy while the step sums the other");
 };
 
 template <typename TG>
@@ -51,17 +53,17 @@ class GridChannels {
   /// committed sums; the other copy is free until the next P2G clears it).
   template <typename Move>
   void each_carried(int current, Move&& move) {
-    each([&](const GridSetDecl& d, auto& buffer, int copy) {
-      if (d.lifetime != GridLifetime::AcrossSteps || copy != current) return;
-      move(buffer.data(), buffer_of(d.id, 1 - current), buffer.kBlockBytes);
+    each_slot(*this, [&](const GridSetDecl& d, auto& slot) {
+      if (d.lifetime != GridLifetime::AcrossSteps) return;
+      move(slot.copy[current].data(), slot.copy[1 - current].data(), slot.copy[current].kBlockBytes);
     });
   }
   /// f(decl, data, block_bytes) for copy `copy` of each halo-summed AcrossSteps set: what a step's halo sums.
   template <typename F>
   void each_step_halo(int copy, F&& f) const {
-    const_cast<GridChannels*>(this)->each([&](const GridSetDecl& d, auto& buffer, int c) {
-      if (d.halo_summed && d.lifetime == GridLifetime::AcrossSteps && c == copy)
-        f(d, buffer.data(), buffer.kBlockBytes);
+    each_slot(*this, [&](const GridSetDecl& d, const auto& slot) {
+      if (d.halo_summed && d.lifetime == GridLifetime::AcrossSteps)
+        f(d, slot.copy[copy].data(), slot.copy[copy].kBlockBytes);
     });
   }
   template <GridSet S>
@@ -72,12 +74,12 @@ class GridChannels {
   const Buffer<S>& get(int copy = 0) const {
     return std::get<static_cast<int>(S)>(slots_).copy[copy];
   }
-  /// Whether the scene carries set s.
-  bool has(GridSet s) const { return features_.has(grid_set(s).need); }
   /// Device bytes of every set.
   std::size_t bytes() const {
     std::size_t total = 0;
-    const_cast<GridChannels*>(this)->each([&](const GridSetDecl&, auto& buffer, int) { total += buffer.bytes(); });
+    each_slot(*this, [&](const GridSetDecl&, const auto& slot) {
+      for (const auto& buffer : slot.copy) total += buffer.bytes();
+    });
     return total;
   }
 
@@ -94,26 +96,24 @@ class GridChannels {
     using type = std::tuple<Slot<static_cast<GridSet>(I)>...>;
   };
 
+  /// f(decl, slot) for every set the scene carries, in kGridSets order (self: *this, const or not).
+  template <typename Self, typename F>
+  static void each_slot(Self& self, F&& f) {
+    each_slot_impl(self, f, std::make_index_sequence<kGridSetCount>{});
+  }
+  template <typename Self, typename F, std::size_t... I>
+  static void each_slot_impl(Self& self, F& f, std::index_sequence<I...>) {
+    const auto visit = [&](const GridSetDecl& d, auto& slot) {
+      if (self.features_.has(d.need)) f(d, slot);
+    };
+    (visit(grid_set(static_cast<GridSet>(I)), std::get<I>(self.slots_)), ...);
+  }
   /// f(decl, buffer, copy) for every copy of every set the scene carries, in kGridSets order.
   template <typename F>
   void each(F&& f) {
-    each_impl(f, std::make_index_sequence<kGridSetCount>{});
-  }
-  template <typename F, std::size_t... I>
-  void each_impl(F& f, std::index_sequence<I...>) {
-    (visit<static_cast<GridSet>(I)>(f), ...);
-  }
-  template <GridSet S, typename F>
-  void visit(F& f) {
-    if (!features_.has(grid_set(S).need)) return;
-    for (int c = 0; c < grid_set(S).copies; ++c) f(grid_set(S), get<S>(c), c);
-  }
-  std::byte* buffer_of(GridSet s, int copy) {
-    std::byte* out = nullptr;
-    each([&](const GridSetDecl& d, auto& buffer, int c) {
-      if (d.id == s && c == copy) out = buffer.data();
+    each_slot(*this, [&](const GridSetDecl& d, auto& slot) {
+      for (int c = 0; c < d.copies; ++c) f(d, slot.copy[c], c);
     });
-    return out;
   }
 
   typename SlotsOf<std::make_index_sequence<kGridSetCount>>::type slots_;

@@ -381,8 +381,14 @@ class MgspBenchmark {
   /// packed halo messages, then, after the exchange, the sums.
   std::vector<comm::DeviceTransport::Message> pack_halo_messages(const BlockBuffers& buffers, cudaStream_t stream);
   void add_halo_messages(const BlockBuffers& buffers, int grid, bool delta, cudaStream_t stream);
+  /// Copy `copy` of grid channel set S as a halo buffer (a fixed-point set's words are summed as integers).
+  template <GridSet S>
+  HaloBuffer halo_of(int copy = 0) const {
+    const auto& buffer = channels_.template get<S>(copy);
+    return HaloBuffer{buffer.data(), buffer.kBlockBytes, grid_set(S).storage == GridStorage::FixedSum};
+  }
   /// grid[g]'s fixed-point words as a halo buffer.
-  HaloBuffer grid_halo(int g) const { return HaloBuffer{grid_sums(g).data(), GridBuffer<TG>::kBlockBytes, true}; }
+  HaloBuffer grid_halo(int g) const { return halo_of<GridSet::Sums>(g); }
   /// The quanta of grid[g]'s sums (device).
   GridQuantum* quantum(int g) const { return quantum_d_.get() + g; }
   /// The buffers a step's halo sums: copy g of each halo-summed AcrossSteps channel set (grid[g] first and, with

@@ -51,6 +51,8 @@ struct FixedCorotated {
   /// Scalars a particle stores: position (3) + F (9). Mass and volume are per body.
   static constexpr int kStoredScalars = 12;
   static constexpr MaterialOutputs kOutputs{true, false};
+  /// Nodal F-bar (physics/fbar_nodal.cuh): the particle keeps its own volume; only the stress sees JBar.
+  static constexpr bool kFbarKeepsOwnVolume = true;
 
   /// Lame parameters from Young's modulus and Poisson's ratio (material_common.cuh), host only.
   template <typename T>

@@ -50,6 +50,8 @@ struct Hencky {
   static constexpr int kStoredScalars = 12;
   /// Outputs besides the common ones (J, stress, pressure): DefGrad_*, no logJp.
   static constexpr MaterialOutputs kOutputs{true, false};
+  /// Nodal F-bar (physics/fbar_nodal.cuh): the particle keeps its own volume; only the stress sees JBar.
+  static constexpr bool kFbarKeepsOwnVolume = true;
 
   /// Lame parameters from Young's modulus and Poisson's ratio (material_common.cuh), host only.
   template <typename T>

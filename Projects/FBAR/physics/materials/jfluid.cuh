@@ -73,6 +73,8 @@ struct JFluid {
   /// Scalars a particle stores: position (3) + 1 - J (1). Mass and volume are per body.
   static constexpr int kStoredScalars = 4;
   static constexpr MaterialOutputs kOutputs{false, false};
+  /// Nodal F-bar (physics/fbar_nodal.cuh): the particle keeps its own volume; only the stress sees JBar.
+  static constexpr bool kFbarKeepsOwnVolume = true;
 
   /// Parameters from the resolved scene (host only).
   template <typename T>

@@ -31,6 +31,8 @@ struct NeoHookean {
   using State = FixedCorotatedState<T>;
   static constexpr int kStoredScalars = 12;  ///< position (3) + F (9)
   static constexpr MaterialOutputs kOutputs{true, false};
+  /// Nodal F-bar (physics/fbar_nodal.cuh): the particle keeps its own volume; only the stress sees JBar.
+  static constexpr bool kFbarKeepsOwnVolume = true;
 
   template <typename T>
   static Params<T> make_params(const MaterialSpec& m) {

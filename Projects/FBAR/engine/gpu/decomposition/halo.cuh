@@ -50,9 +50,8 @@ void MgspBenchmark<T, TG>::halo_exchange(const BlockBuffers& buffers, int grid,
     shared_exchange(buffers, grid, delta, stream);
     return;
   }
-  const BlockBuffers& list = buffers;
-  dec_.device->exchange(pack_halo_messages(list, stream), stream);
-  add_halo_messages(list, grid, delta, stream);
+  dec_.device->exchange(pack_halo_messages(buffers, stream), stream);
+  add_halo_messages(buffers, grid, delta, stream);
 }
 
 template <typename T, typename TG>

@@ -63,6 +63,7 @@
 #include "settings.h"
 #include "physics/seepage.cuh"
 #include "physics/transfer.cuh"
+#include "physics/fbar_nodal.cuh"
 
 namespace fbar {
 
@@ -125,13 +126,15 @@ struct ParticleMeasures {
 template <typename M, typename T>
 __device__ __noinline__ void capture_particle(const FrameCapture<T>& cap, int id, const Vec3<T>& x, const Vec3<T>& v,
                                               const Mat3<T>& C, const material_state_t<M, T>& s,
-                                              const material_params_t<M, T>& material, T mass, T volume) {
+                                              const material_params_t<M, T>& material, T mass, T volume,
+                                              bool nodal = false, T one_minus_jbar = T(0)) {
   if (cap.id_bits) {
     if (id < 0) return;
     id = cap.id_offset[id >> 5] + __popc(cap.id_bits[id >> 5] & ((1u << (id & 31)) - 1u));
   }
   if (id < 0 || id >= cap.particles) return;
-  const FrameInputs<T> in = particle_frame_inputs<M, T>(x, v, C, s, material, mass, volume, cap.sigma);
+  const FrameInputs<T> in =
+      particle_frame_inputs<M, T>(x, v, C, s, material, mass, volume, cap.sigma, nodal, one_minus_jbar);
   const std::size_t i = static_cast<std::size_t>(id);
   cap.x[3 * i + 0] = x[0];
   cap.x[3 * i + 1] = x[1];
@@ -173,6 +176,12 @@ struct G2P2GParams {
   FbarSums<TG> fbar_sums;    ///< F-bar cell sums of this body (fbar_cell_sums), when fbar_psi > 0
   double fbar_quantum;       ///< [m^3] their quantum
   T fbar_psi;                ///< [-] F-bar: the fraction of J pulled to its cell's mean per step, 0: off (transfer.cuh)
+  /// Nodal F-bar (physics/fbar_nodal.cuh): fbar_sums holds this body's node sums (fbar_node_sums) instead of cell
+  /// sums; the particles' 1 - JBar beside the bins (jbar_in at the storage slot, jbar_out at the layout slot).
+  bool fbar_nodal = false;
+  bool fbar_fused = false;
+  const T* jbar_in = nullptr;
+  T* jbar_out = nullptr;
   /// Saturated bodies (IsPoreFluid): the grid's h_i and r_i after the grid update (seepage_sums, then
   /// update_grid_velocity_query_max), read by G2P's seepage (physics/seepage.cuh); gravity for the head's datum.
   typename GridLayout<TG>::PoreBuffer pore;
@@ -521,6 +530,7 @@ struct LaneParticle {
   Vec3<T> v, x_new;
   Mat3<T> C;
   material_state_t<M, T> state;
+  T jbar = T(0);  ///< nodal F-bar: 1 - JBar after the step
   int failed = -1;
   int emigrant = -1;  ///< 0 / 1: the lower / upper neighbour owns the particle's next block
   bool has_key = false;
@@ -545,6 +555,7 @@ FBAR_DEVICE FBAR_FORCE_INLINE void g2p_particle(const G2P2GParams<M, T, TG>& p, 
     }
     out.x_new = in.x;
     out.state = in.state;
+    if (p.fbar_nodal) out.jbar = p.jbar_in[src];
     return;
   }
   const QuadraticBspline<T> s = quadratic_bspline_inv(in.x, p.inv_dx);
@@ -570,6 +581,20 @@ FBAR_DEVICE FBAR_FORCE_INLINE void g2p_particle(const G2P2GParams<M, T, TG>& p, 
   if (!(kMayAsflip && p.asflip)) out.x_new = advect(in.x, out.v, p.dt);
   if constexpr (kMesh) {
     out.state = in.state;  // a vertex's state is its elements' (the element pass sets it from the new positions)
+  } else if (p.fbar_nodal) {  // nodal F-bar: the nodes' 1 - JBar gathered, blended (physics/fbar_nodal.cuh)
+    T gathered = T(0);
+    const double q = p.fbar_quantum;
+    for_each_stencil_node_unrolled(s, p.dx, [&](int i, int j, int k, T w, const Vec3<T>&) {
+      const int a = c0 + i, b = c1 + j, c = c2 + k;
+      const int nb = arena.blocks[arena_neighbour(a, b, c)];
+      if (nb < 0) return;  // counted as an internal error when the arena was set up
+      const int node = arena_node_in_block(a, b, c);
+      gathered += w * fbar_node_value(static_cast<T>(p.fbar_sums.units(nb, 0, node) * q),
+                                      static_cast<T>(p.fbar_sums.units(nb, 1, node) * q), p.fbar_fused);
+    });
+    const NodalFbar<T> nf = nodal_fbar<M>(in.state, out.C, gathered, p.fbar_fused, p.fbar_psi, p.dt);
+    out.state = M::advance(p.material, in.state, nf.C_state, p.dt);
+    out.jbar = nf.s;
   } else if (p.fbar_psi != T(0)) {  // F-bar: J is pulled toward its cell's mean, then advanced (transfer.cuh)
     const Vec3i cell = fbar_cell_offset(in.x, p.inv_dx, s.base);
     const int a = c0 + cell[0], b = c1 + cell[1], c = c2 + cell[2];
@@ -611,8 +636,9 @@ FBAR_DEVICE FBAR_FORCE_INLINE void g2p_particle(const G2P2GParams<M, T, TG>& p, 
                           static_cast<T>(block_val(p.old_velocity, grid_velocity_z, nb, node))}});
     });
     const T* vp = p.particle_v_in + static_cast<std::size_t>(src) * 3;
+    // Nodal F-bar: the expansion test reads JBar, as ClaymoreUW's does.
     const AsflipUpdate<T> u = asflip_update(p.asflip_params, Vec3<T>{{vp[0], vp[1], vp[2]}}, out.v, old.v,
-                                            M::volume_ratio(out.state), p.dt);
+                                            p.fbar_nodal ? T(1) - out.jbar : M::volume_ratio(out.state), p.dt);
     out.v = u.v;
     out.x_new = in.x + u.move;
   }
@@ -636,6 +662,7 @@ FBAR_DEVICE FBAR_FORCE_INLINE void store_particle_outputs(const G2P2GParams<M, T
                                                           const LaneParticle<M, T>& s) {
   ParticleRecord<M, T> out{s.x_new, s.state, id};
   store_particle<M, T>(p.out, slot, out);
+  if (p.fbar_nodal) p.jbar_out[slot] = s.jbar;
   if (kMayAsflip && p.asflip) {
     T* vp = p.particle_v_out + static_cast<std::size_t>(slot) * 3;
     vp[0] = s.v[0];
@@ -651,7 +678,9 @@ FBAR_DEVICE FBAR_FORCE_INLINE void store_particle_outputs(const G2P2GParams<M, T
       for (int c = 0; c < 3; ++c) a[3 + 3 * r + c] = s.C(r, c);
   }
   if constexpr (kCapture)
-    if (p.capture.x) capture_particle<M, T>(p.capture, id, s.x_new, s.v, s.C, s.state, p.material, p.mass, p.volume);
+    if (p.capture.x)
+      capture_particle<M, T>(p.capture, id, s.x_new, s.v, s.C, s.state, p.material, p.mass, p.volume, p.fbar_nodal,
+                             s.jbar);
 }
 
 /// P2G of one particle that passed its checks: wave speed, stress, the MLS payload with the next step's impulse
@@ -668,15 +697,17 @@ FBAR_DEVICE FBAR_FORCE_INLINE void p2g_particle(const G2P2GParams<M, T, TG>& p, 
     s.failed = kFailCfl;  // left the arena (rounding at exactly one cell): same meaning, never written
     return;
   }
+  // Nodal F-bar: the state dilated to JBar is the one stressed (physics/fbar_nodal.cuh).
+  const material_state_t<M, T> stressed = p.fbar_nodal ? fbar_stress_state<M>(p.material, s.state, s.jbar) : s.state;
   // The wave speed, or the key that orders states by it (evaluated once per block: reduce_block_maxima).
   if constexpr (material_detail::has_wave_speed_order<M>::value)
-    wave_max = fmax(wave_max, static_cast<double>(M::wave_speed_order(p.material, s.state)));
+    wave_max = fmax(wave_max, static_cast<double>(M::wave_speed_order(p.material, stressed)));
   else
-    wave_max = fmax(wave_max, static_cast<double>(M::wave_speed(p.material, s.state)));
+    wave_max = fmax(wave_max, static_cast<double>(M::wave_speed(p.material, stressed)));
   // A mesh vertex: its own mass and no MLS stress (physics/fem.cuh).
   const bool mesh = kMayMesh && p.vertex_mass != nullptr;
   const T mass = mesh ? p.vertex_mass[id] : p.mass;
-  const Mat3<T> tau = mesh ? Mat3<T>::zero() : M::kirchhoff_stress(p.material, s.state, s.C).kirchhoff;
+  const Mat3<T> tau = mesh ? Mat3<T>::zero() : M::kirchhoff_stress(p.material, stressed, s.C).kirchhoff;
   const T dt_next = arena.dt_next;
   const P2GParticle<T> payload = mls_p2g_particle(mass, p.volume, s.v, s.C, tau, dt_next, p.d_inv);
   // ASFLIP: the momentum the particle carries, without the stress impulse (v^n of the next step).
@@ -932,49 +963,6 @@ void launch_g2p2g(const G2P2GParams<M, T, TG>& p, int blocks, std::size_t arena,
     g2p2g_capped<M, T, TG, kTransport, kCapture, kMesh><<<blocks, kG2P2GThreads<TG>, arena, s>>>(p);
   else
     g2p2g<M, T, TG, kTransport, kCapture, kMesh><<<blocks, kG2P2GThreads<TG>, arena, s>>>(p);
-}
-
-/// F-bar's cell sums of one body (transfer.cuh): per particle, V0 (1 - J) and V0 of the state at the start of the
-/// step added to the particle's cell, cell c stored at node c. Launched per body between the grid update and its
-/// G2P2G, into a zeroed buffer; one CUDA block per particle block, like g2p2g.
-template <typename M, typename T, typename TG>
-struct FbarCellSumsParams {
-  typename ParticleLayout<M, T>::Buffer in;  ///< particles of this step (storage order)
-  LayoutView layout;                         ///< this step's layout
-  BlockHashTableView table;
-  FbarSums<TG> sums;                         ///< target (zeroed on blocks [0, block count))
-  double quantum;                            ///< [m^3] their quantum (fixed_quantum of V0)
-  T volume;                                  ///< [m^3] reference volume per particle
-  T inv_dx;                                  ///< [1/m]
-  StepStats* stats;
-};
-
-template <typename M, typename T, typename TG>
-__global__ void __launch_bounds__(kParticleBlockThreads) fbar_cell_sums(FbarCellSumsParams<M, T, TG> p) {
-  __shared__ int arena_blocks[8];
-  const int block = blockIdx.x;
-  const int count = p.layout.count[block];
-  if (count == 0) return;
-  const Vec3i origin = p.table.block_coords(block);
-  g2p2g_detail::find_arena_blocks(p.table, block, origin, arena_blocks, p.stats);
-  __syncthreads();
-  const int first_slot = p.layout.bin_offset[block] * 32;
-  for (int t = threadIdx.x; t < ((count + 31) / 32) * 32; t += blockDim.x) {
-    const int src = p.layout.src[first_slot + t];
-    if (src < 0) continue;
-    const ParticleRecord<M, T> in = load_particle<M, T>(p.in, src);
-    const QuadraticBspline<T> s = quadratic_bspline_inv(in.x, p.inv_dx);
-    const int c0 = min(max(s.base[0] - 4 * origin[0], 0), 5), c1 = min(max(s.base[1] - 4 * origin[1], 0), 5),
-              c2 = min(max(s.base[2] - 4 * origin[2], 0), 5);
-    const Vec3i cell = fbar_cell_offset(in.x, p.inv_dx, s.base);
-    const int a = c0 + cell[0], b = c1 + cell[1], c = c2 + cell[2];
-    const int nb = arena_blocks[g2p2g_detail::arena_neighbour(a, b, c)];
-    if (nb < 0) continue;  // counted by find_arena_blocks
-    const int node = g2p2g_detail::arena_node_in_block(a, b, c);
-    const double per_unit = 1.0 / p.quantum;
-    p.sums.add(nb, 0, node, static_cast<double>(p.volume * one_minus_volume_ratio<M>(in.state)) * per_unit);
-    p.sums.add(nb, 1, node, static_cast<double>(p.volume) * per_unit);
-  }
 }
 
 }  // namespace fbar

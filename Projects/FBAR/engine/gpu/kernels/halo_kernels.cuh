@@ -217,8 +217,8 @@ __global__ void __launch_bounds__(kHaloThreads)
 /// Bytes of one migrating particle's record: its stored scalars and ID, then 3 ASFLIP velocity scalars, then the
 /// recorded v and C (each when present).
 template <typename M, typename T>
-constexpr std::size_t migrant_bytes(bool asflip, bool aux) {
-  return sizeof(ParticleRecord<M, T>) + sizeof(T) * ((asflip ? 3 : 0) + (aux ? kAuxScalars : 0));
+constexpr std::size_t migrant_bytes(bool asflip, bool aux, bool jbar = false) {
+  return sizeof(ParticleRecord<M, T>) + sizeof(T) * ((asflip ? 3 : 0) + (aux ? kAuxScalars : 0) + (jbar ? 1 : 0));
 }
 
 /// The layout of one side's migration message, the same on every rank: a header of one int per body (that body's
@@ -244,7 +244,7 @@ template <typename M, typename T>
 __global__ void __launch_bounds__(kHaloThreads)
     pack_emigrants(typename ParticleLayout<M, T>::Buffer bins, const int* list, const int* listed, int list_capacity,
                    const ParticleDest* dest, const T* particle_v, const T* aux, std::byte* out_lo, std::byte* out_hi,
-                   int capacity, int* count_lo, int* count_hi) {
+                   int capacity, int* count_lo, int* count_hi, const T* jbar) {
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
   if (i >= list_capacity || i >= *listed) return;
   const int slot = list[i];
@@ -252,7 +252,7 @@ __global__ void __launch_bounds__(kHaloThreads)
   if (d.block != kEmigrant) return;
   const int k = atomicAdd(d.rank == 0 ? count_lo : count_hi, 1);
   if (k >= capacity) return;
-  const std::size_t bytes = migrant_bytes<M, T>(particle_v != nullptr, aux != nullptr);
+  const std::size_t bytes = migrant_bytes<M, T>(particle_v != nullptr, aux != nullptr, jbar != nullptr);
   std::byte* o = (d.rank == 0 ? out_lo : out_hi) + bytes * static_cast<std::size_t>(k);
   const ParticleRecord<M, T> p = load_particle<M, T>(bins, slot);
   memcpy(o, &p, sizeof(p));
@@ -261,7 +261,11 @@ __global__ void __launch_bounds__(kHaloThreads)
     memcpy(o, particle_v + 3 * static_cast<std::size_t>(slot), 3 * sizeof(T));
     o += 3 * sizeof(T);
   }
-  if (aux) memcpy(o, aux + kAuxScalars * static_cast<std::size_t>(slot), kAuxScalars * sizeof(T));
+  if (aux) {
+    memcpy(o, aux + kAuxScalars * static_cast<std::size_t>(slot), kAuxScalars * sizeof(T));
+    o += kAuxScalars * sizeof(T);
+  }
+  if (jbar) memcpy(o, jbar + slot, sizeof(T));
 }
 
 /// Writes the n = min(*count, capacity) received records to slots first .. first + n - 1 of `bins` (and of
@@ -270,7 +274,7 @@ __global__ void __launch_bounds__(kHaloThreads)
 template <typename M, typename T>
 __global__ void __launch_bounds__(kHaloThreads)
     unpack_immigrants(typename ParticleLayout<M, T>::Buffer bins, int first, const std::byte* in, const int* count,
-                      int capacity, T* particle_v, T* aux, int* valid) {
+                      int capacity, T* particle_v, T* aux, int* valid, T* jbar) {
   const int k = blockIdx.x * blockDim.x + threadIdx.x;
   if (k >= capacity) return;
   const int slot = first + k;
@@ -278,7 +282,7 @@ __global__ void __launch_bounds__(kHaloThreads)
     valid[slot] = -1;
     return;
   }
-  const std::size_t bytes = migrant_bytes<M, T>(particle_v != nullptr, aux != nullptr);
+  const std::size_t bytes = migrant_bytes<M, T>(particle_v != nullptr, aux != nullptr, jbar != nullptr);
   const std::byte* r = in + bytes * static_cast<std::size_t>(k);
   ParticleRecord<M, T> p;
   memcpy(&p, r, sizeof(p));
@@ -288,7 +292,11 @@ __global__ void __launch_bounds__(kHaloThreads)
     memcpy(particle_v + 3 * static_cast<std::size_t>(slot), r, 3 * sizeof(T));
     r += 3 * sizeof(T);
   }
-  if (aux) memcpy(aux + kAuxScalars * static_cast<std::size_t>(slot), r, kAuxScalars * sizeof(T));
+  if (aux) {
+    memcpy(aux + kAuxScalars * static_cast<std::size_t>(slot), r, kAuxScalars * sizeof(T));
+    r += kAuxScalars * sizeof(T);
+  }
+  if (jbar) memcpy(jbar + slot, r, sizeof(T));
   valid[slot] = slot;
 }
 

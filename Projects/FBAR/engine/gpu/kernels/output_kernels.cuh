@@ -13,16 +13,18 @@ namespace fbar {
 inline constexpr int kOutputThreads = 256;
 
 /// The particles with IDs first .. first + count - 1 (every ID: first 0, count `particles`) in ID order:
-/// out[(id - first) * (S + kAuxScalars) + ...] = x (3), state (S - 3), then v (3) and C (9) when aux != nullptr
+/// out[(id - first) * (S + kAuxScalars) + ...] = x (3), state, then 1 - JBar when jbar != nullptr (nodal F-bar: S
+/// counts it), then v (3) and C (9) when aux != nullptr
 /// (else 0), and held[id - first] = id when held != nullptr (which IDs a rank holds). One thread per slot of the
 /// current layout; particles are read through src (storage order); an ID outside 0 .. particles - 1 counts in
 /// `missing`.
 template <typename M, typename T>
 __global__ void __launch_bounds__(kOutputThreads)
     gather_by_id(typename ParticleLayout<M, T>::Buffer bins, const int* src, int slots, const T* aux, int particles,
-                 int first, int count, T* out, int* held, int* missing) {
-  constexpr int S = ParticleLayout<M, T>::kScalars;
-  constexpr int W = S + kAuxScalars;
+                 int first, int count, T* out, int* held, int* missing, const T* jbar) {
+  constexpr int kStored = ParticleLayout<M, T>::kScalars;
+  const int S = kStored + (jbar ? 1 : 0);
+  const int W = S + kAuxScalars;
   const int slot = blockIdx.x * blockDim.x + threadIdx.x;
   if (slot >= slots) return;
   const int s = src[slot];
@@ -39,6 +41,7 @@ __global__ void __launch_bounds__(kOutputThreads)
   o[1] = p.x[1];
   o[2] = p.x[2];
   memcpy(o + 3, &p.state, sizeof(p.state));
+  if (jbar) o[kStored] = jbar[s];
   for (int i = 0; i < kAuxScalars; ++i) o[S + i] = aux ? aux[static_cast<std::size_t>(s) * kAuxScalars + i] : T(0);
 }
 
@@ -76,7 +79,8 @@ __global__ void p2g_blocks_by_id(const int* record, int slots, int particles, in
 template <typename M, typename T>
 __global__ void __launch_bounds__(kOutputThreads)
     capture_frame_state(typename ParticleLayout<M, T>::Buffer bins, const int* src, int slots, FrameCapture<T> capture,
-                        Vec3<T> velocity, const T* v_by_id, material_params_t<M, T> material, ParticleMeasures<T> measures) {
+                        Vec3<T> velocity, const T* v_by_id, material_params_t<M, T> material, ParticleMeasures<T> measures,
+                        const T* jbar) {
   const int slot = blockIdx.x * blockDim.x + threadIdx.x;
   if (slot >= slots) return;
   const int s = src[slot];
@@ -88,7 +92,7 @@ __global__ void __launch_bounds__(kOutputThreads)
     v = Vec3<T>{{q[0], q[1], q[2]}};
   }
   capture_particle<M, T>(capture, p.id, p.x, v, Mat3<T>::zero(), p.state, material, measures.mass_of(p.id),
-                         measures.volume_of(p.id));
+                         measures.volume_of(p.id), jbar != nullptr, jbar ? jbar[s] : T(0));
 }
 
 /// Particle sensors (physics/sensors.cuh) of one body: blockIdx.y = sensor, a grid-stride loop over the slots of the
@@ -98,7 +102,7 @@ template <typename M, typename T>
 __global__ void __launch_bounds__(kSensorThreads)
     sample_particle_sensors(typename ParticleLayout<M, T>::Buffer bins, const int* src, int slots, const T* aux,
                             Vec3<T> v0, material_params_t<M, T> material, ParticleMeasures<T> measures, ParticleSensorSet<T> sensors,
-                            SensorAccum* partials) {
+                            SensorAccum* partials, const T* jbar) {
   const ParticleSensorParams<T>& g = sensors.s[blockIdx.y];
   const bool sigma = frame_quantity_reads_stress(g.column.quantity);
   SensorAccum a;
@@ -116,7 +120,8 @@ __global__ void __launch_bounds__(kSensorThreads)
         for (int j = 0; j < 3; ++j) C(i, j) = r[3 + 3 * i + j];
     }
     const FrameInputs<T> in = particle_frame_inputs<M, T>(p.x, v, C, p.state, material, measures.mass_of(p.id),
-                                                              measures.volume_of(p.id), sigma);
+                                                          measures.volume_of(p.id), sigma, jbar != nullptr,
+                                                          jbar ? jbar[s] : T(0));
     a.add(static_cast<double>(frame_value(g.column, in)));
   }
   a = block_reduce_sensor(a);
@@ -128,7 +133,8 @@ __global__ void __launch_bounds__(kSensorThreads)
 template <typename M, typename T>
 __global__ void __launch_bounds__(kOutputThreads)
     track_particles(typename ParticleLayout<M, T>::Buffer bins, const int* src, int slots, const T* aux, Vec3<T> v0,
-                    material_params_t<M, T> material, ParticleMeasures<T> measures, TrackerSet t, double* values, double* present) {
+                    material_params_t<M, T> material, ParticleMeasures<T> measures, TrackerSet t, double* values, double* present,
+                    const T* jbar) {
   const int slot = blockIdx.x * blockDim.x + threadIdx.x;
   if (slot >= slots) return;
   const int s = src[slot];
@@ -145,7 +151,8 @@ __global__ void __launch_bounds__(kOutputThreads)
       for (int b = 0; b < 3; ++b) C(a, b) = r[3 + 3 * a + b];
   }
   const FrameInputs<T> in = particle_frame_inputs<M, T>(p.x, v, C, p.state, material, measures.mass_of(p.id),
-                                                              measures.volume_of(p.id), true);
+                                                        measures.volume_of(p.id), true, jbar != nullptr,
+                                                        jbar ? jbar[s] : T(0));
   for (int a = 0; a < t.attribs; ++a) values[i * t.attribs + a] = static_cast<double>(frame_value(t.column[a], in));
   present[i] = 1.0;
 }

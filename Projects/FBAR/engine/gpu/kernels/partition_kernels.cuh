@@ -252,13 +252,16 @@ template <typename M, typename T, typename TG>
 __global__ void __launch_bounds__(kPartitionThreads)
     rescale_impulse(typename ParticleLayout<M, T>::Buffer bins, LayoutView layout, int slots,
                     material_params_t<M, T> material, T volume, T ddt, T dx, T inv_dx, T d_inv,
-                    BlockHashTableView table, GridSums<TG> grid, const GridQuantum* quantum, StepStats* stats) {
+                    BlockHashTableView table, GridSums<TG> grid, const GridQuantum* quantum, StepStats* stats,
+                    const T* jbar) {
   const int slot = blockIdx.x * blockDim.x + threadIdx.x;
   if (slot >= slots) return;
   const int src = layout.src[slot];
   if (src < 0) return;
   const ParticleRecord<M, T> p = load_particle<M, T>(bins, src);
-  const StressResult<T> stress = M::kirchhoff_stress(material, p.state, Mat3<T>::zero());
+  // Nodal F-bar (jbar: 1 - JBar by storage slot): the state its P2G stressed (physics/fbar_nodal.cuh).
+  const StressResult<T> stress =
+      M::kirchhoff_stress(material, jbar ? fbar_stress_state<M>(material, p.state, jbar[src]) : p.state, Mat3<T>::zero());
   const P2GParticle<T> payload =
       mls_p2g_particle(T(0), volume, Vec3<T>::zero(), Mat3<T>::zero(), stress.kirchhoff, ddt, d_inv);
   const QuadraticBspline<T> s = quadratic_bspline_inv(p.x, inv_dx);
