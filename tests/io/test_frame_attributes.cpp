@@ -77,6 +77,30 @@ TEST(FrameAttributes, PrincipalValuesOfARotatedState) {
   EXPECT_NEAR(value("VonMisesStrain", in), std::sqrt(28.0 / 36.0), 1e-14);
 }
 
+// JBar and J of one JFluid particle (1 - J = 0.01): without nodal F-bar JBar is J; with it, JBar is the particle's
+// 1 - JBar (0.02 here) and the stress is the one at JBar: p = (K / gamma)(JBar^-gamma - 1), ClaymoreUW's JBarFluid.
+TEST(FrameAttributes, JBarIsTheVolumeRatioTheStressSees) {
+  MaterialSpec m;
+  m.law = Constitutive::JFluid;
+  m.rho = 1000.0;
+  m.bulk_modulus = 2e7;
+  m.gamma = 7.0;
+  const auto params = JFluid::make_params<double>(m);
+  const JFluid::State<double> state{0.01};
+  const Vec3d x{{0.0, 0.0, 0.0}};
+  const FrameInputs<double> plain =
+      particle_frame_inputs<JFluid, double>(x, x, Mat3d::zero(), state, params, 1.0, 1.0, true);
+  EXPECT_DOUBLE_EQ(value("J", plain), 0.99);
+  EXPECT_DOUBLE_EQ(value("JBar", plain), 0.99);
+  const FrameInputs<double> nodal =
+      particle_frame_inputs<JFluid, double>(x, x, Mat3d::zero(), state, params, 1.0, 1.0, true, true, 0.02);
+  EXPECT_DOUBLE_EQ(value("J", nodal), 0.99);
+  EXPECT_DOUBLE_EQ(value("JBar", nodal), 0.98);
+  EXPECT_DOUBLE_EQ(value("DefGrad_Determinant_FBAR", nodal), 0.98);
+  EXPECT_NEAR(value("Pressure", nodal), 2e7 / 7.0 * (std::pow(0.98, -7.0) - 1.0), 1e-6);
+  EXPECT_NEAR(value("Pressure", plain), 2e7 / 7.0 * (std::pow(0.99, -7.0) - 1.0), 1e-6);
+}
+
 TEST(FrameAttributes, NamesUnitsAndWhatIsNotKept) {
   FrameAttributeSpec a;
   ASSERT_TRUE(resolve_frame_attribute("StressPK1_Invariant3", a));
@@ -86,9 +110,10 @@ TEST(FrameAttributes, NamesUnitsAndWhatIsNotKept) {
   ASSERT_TRUE(resolve_frame_attribute("StrainSmall_2", a));
   EXPECT_EQ(a.unit, "");
   EXPECT_EQ(a.column.row, kTensorPrincipal);
-  // JBar is the J that F-bar integrates (the stored J); PorePressure is the saturated laws' pore pressure.
+  // JBar is the volume ratio the stress sees (nodal F-bar's JBar, else J: frame_columns.h); PorePressure is the
+  // saturated laws' pore pressure.
   ASSERT_TRUE(resolve_frame_attribute("JBar", a));
-  EXPECT_EQ(a.column.quantity, FrameQuantity::J);
+  EXPECT_EQ(a.column.quantity, FrameQuantity::JBar);
   EXPECT_EQ(a.name, "JBar");
   ASSERT_TRUE(resolve_frame_attribute("PorePressure", a));
   EXPECT_EQ(a.column.quantity, FrameQuantity::PorePressure);
