@@ -103,9 +103,13 @@ LawThroughput law_throughput(Constitutive law) {
 /// kGpuRateRecord), single, double and mixed.
 constexpr double kAsflipStep[3] = {1.93, 1.91, 1.81};
 constexpr double kFbarStep[3] = {1.20, 1.14, 1.21};
+/// A step with the nodal F-bar (fused) against one with the cell F-bar, single precision, 16M particles
+/// (docs/benchmarks/2026-12-04-h200-nodal-fbar-cost.md: 6.052 / 1.855 ms); the other precisions were not measured.
+constexpr double kNodalFbarStep = 3.26;
 
 /// A body's particle-steps per second on the GPU (law_throughput with the scheme's factors) and what it comes from.
-double body_throughput(Constitutive law_name, Precision precision, bool asflip, bool fbar, std::string& basis) {
+double body_throughput(Constitutive law_name, Precision precision, bool asflip, bool fbar, bool nodal,
+                       std::string& basis) {
   const LawThroughput law = law_throughput(law_name);
   const int p = precision == Precision::Single ? 0 : precision == Precision::Double ? 1 : 2;
   double rate = p == 0 ? law.single : p == 1 ? law.dbl : law.mixed;
@@ -120,6 +124,11 @@ double body_throughput(Constitutive law_name, Precision precision, bool asflip, 
     rate /= kFbarStep[p];
     std::snprintf(factor, sizeof(factor), ", F-bar x %.3g", kFbarStep[p]);
     basis += factor;
+    if (nodal) {
+      rate /= kNodalFbarStep;
+      std::snprintf(factor, sizeof(factor), ", nodal x %.3g", kNodalFbarStep);
+      basis += factor;
+    }
   }
   return rate;
 }
@@ -286,6 +295,10 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
         bytes += 6 * t;
         s.gpu_bytes_detail += " + " + std::to_string(6 * t) + " B ASFLIP velocities";
       }
+      if (body.algorithm.fbar_nodal() && !mesh) {
+        bytes += 2 * t;
+        s.gpu_bytes_detail += " + " + std::to_string(2 * t) + " B nodal F-bar's JBar";
+      }
       if (record || mesh) {  // a mesh's vertices always record them
         bytes += 12 * t;
         s.gpu_bytes_detail += " + " + std::to_string(12 * t) + " B recorded v and C";
@@ -296,7 +309,8 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
         s.gpu_bytes_detail += " + " + std::to_string(frame) + " B frame (" + std::to_string(frame_columns) + " columns)";
       }
       s.gpu_bytes_per_particle = bytes;
-      s.throughput = body_throughput(m.law, sim.precision, asflip_body, fbar_body, s.throughput_basis);
+      s.throughput = body_throughput(m.law, sim.precision, asflip_body, fbar_body, body.algorithm.fbar_nodal(),
+                                     s.throughput_basis);
       s.gpu_ms_per_step = 1e3 * static_cast<double>(count.particles) / s.throughput;
       summary.gpu_ms_per_step += s.gpu_ms_per_step;
     }
