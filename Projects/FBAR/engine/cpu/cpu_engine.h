@@ -357,6 +357,9 @@ class CpuEngine {
   double update_grid(TG dt);
   void fbar_cell_sums(Body& body);
   void fbar_node_sums(Body& body, T dt);  // nodal F-bar's sums (fused: of the stored JBar; split: advanced by C)
+  void clear_fbar_sums();                 // F-bar's sums zeroed on every block (before a body's pass)
+  /// Adds a particle block's arena of F-bar sums (the two sums by arena node) into the grid blocks it overlaps.
+  void add_fbar_arena(const std::array<int, 8>& blocks, const T* sums, const T* volumes);
   void init_jbar(Body& body);             // nodal F-bar: JBar = the particle's own J (after any initial state)
   void g2p(int body_index, Body& body, T dt, TryResult& result);
   /// A mesh body's elements at positions x: the vertex forces (into `force`), the vertex states (the V0-weighted

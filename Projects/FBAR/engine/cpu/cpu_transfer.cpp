@@ -317,11 +317,30 @@ double CpuEngine<T, TG>::update_grid(TG dt) {
 // F-bar: the body's cell sums of V0 (1 - J) and V0 at the start of the step (transfer.cuh, fbar_velocity_gradient)
 
 template <typename T, typename TG>
-void CpuEngine<T, TG>::fbar_cell_sums(Body& body) {
+void CpuEngine<T, TG>::clear_fbar_sums() {
   const int nblocks = static_cast<int>(grid_.blocks.size());
 #pragma omp parallel for schedule(static) if (nblocks >= kMinParallelBlocks)
   for (int gb = 0; gb < nblocks; ++gb)
     for (auto& ch : grid_.fbar[gb].sums) std::fill(ch, ch + 64, TG(0));
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::add_fbar_arena(const std::array<int, 8>& blocks, const T* sums, const T* volumes) {
+  for (int a = 0; a < kArenaSide; ++a)
+    for (int b = 0; b < kArenaSide; ++b)
+      for (int c = 0; c < kArenaSide; ++c) {
+        const int ai = arena_index(a, b, c);
+        if (volumes[ai] == T(0)) continue;  // no particle's volume reached the node
+        FbarBlock& g = grid_.fbar[blocks[arena_neighbour(a, b, c)]];
+        const int node = arena_node_in_block(a, b, c);
+        g.sums[0][node] += static_cast<TG>(sums[ai]);
+        g.sums[1][node] += static_cast<TG>(volumes[ai]);
+      }
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::fbar_cell_sums(Body& body) {
+  clear_fbar_sums();
   const Partition& part = body.partition;
   const T inv_dx = k_.inv_dx;
   std::visit(
@@ -351,17 +370,8 @@ void CpuEngine<T, TG>::fbar_cell_sums(Body& body) {
                 arena_sum[0][a] += V0 * one_minus_volume_ratio<M>(state[p]);
                 arena_sum[1][a] += V0;
               }
-              // The same colour discipline as P2G: no other block of this colour touches these grid blocks.
-              for (int a = 0; a < kArenaSide; ++a)
-                for (int b = 0; b < kArenaSide; ++b)
-                  for (int c = 0; c < kArenaSide; ++c) {
-                    const int ai = arena_index(a, b, c);
-                    if (arena_sum[1][ai] == T(0)) continue;
-                    FbarBlock& g = grid_.fbar[blocks[arena_neighbour(a, b, c)]];
-                    const int node = arena_node_in_block(a, b, c);
-                    g.sums[0][node] += static_cast<TG>(arena_sum[0][ai]);
-                    g.sums[1][node] += static_cast<TG>(arena_sum[1][ai]);
-                  }
+              add_fbar_arena(blocks, arena_sum[0], arena_sum[1]);  // the colour discipline of P2G: no other block of this colour
+                                                  // touches these grid blocks
             }
           }
         }
@@ -371,10 +381,7 @@ void CpuEngine<T, TG>::fbar_cell_sums(Body& body) {
 
 template <typename T, typename TG>
 void CpuEngine<T, TG>::fbar_node_sums(Body& body, T dt) {
-  const int nblocks = static_cast<int>(grid_.blocks.size());
-#pragma omp parallel for schedule(static) if (nblocks >= kMinParallelBlocks)
-  for (int gb = 0; gb < nblocks; ++gb)
-    for (auto& ch : grid_.fbar[gb].sums) std::fill(ch, ch + 64, TG(0));
+  clear_fbar_sums();
   const Partition& part = body.partition;
   const T dx = k_.dx, inv_dx = k_.inv_dx, d_inv = k_.d_inv;
   const bool split = !body.fbar_fused;
@@ -425,17 +432,8 @@ void CpuEngine<T, TG>::fbar_node_sums(Body& body, T dt) {
                   arena_sum[1][a] += w * V;
                 });
               }
-              // The same colour discipline as P2G: no other block of this colour touches these grid blocks.
-              for (int a = 0; a < kArenaSide; ++a)
-                for (int b = 0; b < kArenaSide; ++b)
-                  for (int c = 0; c < kArenaSide; ++c) {
-                    const int ai = arena_index(a, b, c);
-                    if (arena_sum[1][ai] == T(0)) continue;
-                    FbarBlock& g = grid_.fbar[blocks[arena_neighbour(a, b, c)]];
-                    const int node = arena_node_in_block(a, b, c);
-                    g.sums[0][node] += static_cast<TG>(arena_sum[0][ai]);
-                    g.sums[1][node] += static_cast<TG>(arena_sum[1][ai]);
-                  }
+              add_fbar_arena(blocks, arena_sum[0], arena_sum[1]);  // the colour discipline of P2G: no other block of this colour
+                                                  // touches these grid blocks
             }
           }
         }
