@@ -59,7 +59,7 @@ TEST(GridChannels, MemoryPlanSizesTheDeclaredSets) {
 TEST(GridChannels, CheckListsTheSetsABodySumsInto) {
   EXPECT_EQ(grid_channels_of_body(GridFeatures{}, GridFeatures{}), "mass, momentum (4)");
   EXPECT_EQ(grid_channels_of_body(GridFeatures{false, true, false}, GridFeatures{true, true, false}),
-            "mass, momentum (4) + transported momentum (3: every body sums it when one needs it) + F-bar cell sums (2)");
+            "mass, momentum (4) + transported momentum (3: every body sums it when one needs it) + F-bar / node volume sums (2)");
   EXPECT_EQ(grid_channels_of_body(GridFeatures{false, false, true}, GridFeatures{false, true, true}),
             "mass, momentum (4) + seepage channels (5)");
 }

@@ -130,6 +130,18 @@ TEST(SensorReduction, NodeValuesAndDirections) {
   EXPECT_DOUBLE_EQ(grid_sensor_value(s, node), 5.0);  // (v* - v) / dt along +x
   s = make_grid_sensor_params<double>(grid_sensor_spec("Mass", SensorOperation::Sum, {0, 0, 0}, {1, 1, 1}));
   EXPECT_DOUBLE_EQ(grid_sensor_value(s, node), 2.0);
+  // Volume and JBar: the node's sum w V and the volume-weighted mean of JBar (from sum w V (1 - JBar)); a node
+  // without volume is not read.
+  GridNodeSample<double> held = node;
+  held.volume = 4e-3;
+  held.volume_jbar = 1e-4;  // mean 1 - JBar = 0.025
+  s = make_grid_sensor_params<double>(grid_sensor_spec("Volume", SensorOperation::Sum, {0, 0, 0}, {1, 1, 1}));
+  EXPECT_DOUBLE_EQ(grid_sensor_value(s, held), 4e-3);
+  EXPECT_TRUE(grid_sensor_reads(s, held));
+  EXPECT_FALSE(grid_sensor_reads(s, node));
+  s = make_grid_sensor_params<double>(grid_sensor_spec("JBar", SensorOperation::Average, {0, 0, 0}, {1, 1, 1}));
+  EXPECT_NEAR(grid_sensor_value(s, held), 0.975, 1e-15);
+  EXPECT_FALSE(grid_sensor_reads(s, node));
   // The box includes its faces.
   EXPECT_TRUE(sensor_box_contains(s.lo, s.hi, Vec3d{{1.0, 0.0, 0.5}}));
   EXPECT_FALSE(sensor_box_contains(s.lo, s.hi, Vec3d{{1.0 + 1e-12, 0.0, 0.5}}));
@@ -211,6 +223,45 @@ TEST(GridSensors, MovingBlockMomentumAndMass) {
   }
 }
 
+/// Grid sensors Volume and JBar on a collapsing water column (compressible: J departs from 1 by ~1e-3), read
+/// before each step against the particles of the same state: the nodes' Volume sums to the particles' volume
+/// sum_p V0 J_p (partition of unity), and every node's JBar, a convex combination of its particles' JBar, lies
+/// within their least and largest. Cell F-bar (JBar is J) and nodal F-bar (the stored JBar). (2 ranks: the run loop's
+/// test below.)
+TEST(GridSensors, VolumeSumsTheParticlesVolumeAndJBarIsTheirMean) {
+  for (const FbarScheme scheme : {FbarScheme::Cell, FbarScheme::Nodal}) {
+    Scene scene = test::dam_break(false);
+    scene.bodies[0].algorithm.fbar_psi = 0.5;
+    scene.bodies[0].algorithm.fbar_scheme = scheme;
+    CpuEngine<double> engine(scene);
+    engine.set_log(nullptr);
+    const Real3 lo{0, 0, 0}, hi{0.64, 0.4, 0.2};
+    engine.set_grid_sensors({grid_sensor_spec("Volume", SensorOperation::Sum, lo, hi),
+                             grid_sensor_spec("JBar", SensorOperation::Min, lo, hi),
+                             grid_sensor_spec("JBar", SensorOperation::Max, lo, hi),
+                             grid_sensor_spec("Volume", SensorOperation::Count, lo, hi),
+                             grid_sensor_spec("Mass", SensorOperation::Count, lo, hi)});
+    engine.set_particle_sensors({particle_sensor_spec("Volume", SensorOperation::Sum, lo, hi),
+                                 particle_sensor_spec("JBar", SensorOperation::Min, lo, hi),
+                                 particle_sensor_spec("JBar", SensorOperation::Max, lo, hi)});
+    double spread = 0.0;
+    for (int step = 0; step < 40; ++step) {
+      engine.sample_particles(0);
+      engine.set_grid_sample(0);
+      ASSERT_TRUE(engine.step(2e-4).ok);
+      const std::vector<SensorAccum> g = engine.grid_samples(1), p = engine.particle_samples(1);
+      const double volume = sensor_result(SensorOperation::Sum, p[0]);
+      const double jmin = sensor_result(SensorOperation::Min, p[1]), jmax = sensor_result(SensorOperation::Max, p[2]);
+      EXPECT_NEAR(sensor_result(SensorOperation::Sum, g[0]), volume, 1e-12 * volume) << "step " << step;
+      EXPECT_GE(sensor_result(SensorOperation::Min, g[1]), jmin - 1e-14) << "step " << step;
+      EXPECT_LE(sensor_result(SensorOperation::Max, g[2]), jmax + 1e-14) << "step " << step;
+      EXPECT_EQ(sensor_result(SensorOperation::Count, g[3]), sensor_result(SensorOperation::Count, g[4]));
+      spread = std::max(spread, jmax - jmin);
+    }
+    EXPECT_GT(spread, 1e-4) << "the column compresses: JBar is not 1 everywhere";
+  }
+}
+
 /// A still water block (8 ppc: particle rows at dx/4 and 3dx/4 of each cell): a gauge (Position_Y, Max) over it
 /// reads the top row, surface - dx/4, exactly; Count the particles in its column; a moving block's Velocity_X
 /// Average its speed and Mass Sum its mass.
@@ -281,7 +332,11 @@ std::filesystem::path run_dam_break_with_sensors(int ranks) {
   force.output_frequency = 200.0;
   GridSensorSpec mass = grid_sensor_spec("Mass", SensorOperation::Sum, {0, 0, 0}, {0.64, 0.4, 0.2});
   mass.output_frequency = 120.0;
-  scene.grid_sensors = {force, mass};
+  GridSensorSpec volume = grid_sensor_spec("Volume", SensorOperation::Sum, {0, 0, 0}, {0.64, 0.4, 0.2});
+  volume.output_frequency = 120.0;
+  GridSensorSpec jbar = grid_sensor_spec("JBar", SensorOperation::Average, {0, 0, 0}, {0.64, 0.4, 0.2});
+  jbar.output_frequency = 120.0;
+  scene.grid_sensors = {force, mass, volume, jbar};
   // A wave gauge in the column's middle (water surface: 0.24 m at the start, falling) and the particles' count.
   ParticleSensorSpec gauge = particle_sensor_spec("Position_Y", SensorOperation::Max, {0.1, 0, 0}, {0.2, 0.4, 0.2});
   gauge.output_frequency = 100.0;
@@ -392,6 +447,20 @@ TEST(GridSensors, RunLoopWritesExactSampleTimesAndRanksAgree) {
     EXPECT_NEAR(f2.rows[k][1], f1.rows[k][1], 1e-9 * (1.0 + std::fabs(f1.rows[k][1])));
   }
   for (std::size_t k = 0; k < m1.rows.size(); ++k) EXPECT_NEAR(m2.rows[k][1], m1.rows[k][1], 1e-12);
+  // Volume and JBar: the water's volume within its compression (J = 1 - O(1e-3)), JBar near 1; 2 ranks the same.
+  const Csv v1 = read_csv(one / "gridTarget[2]_dev[0].csv"), v2 = read_csv(two / "gridTarget[2]_dev[0].csv");
+  const Csv j1 = read_csv(one / "gridTarget[3]_dev[0].csv"), j2 = read_csv(two / "gridTarget[3]_dev[0].csv");
+  EXPECT_EQ(v1.header, "Time [s],Volume [m^3]");
+  EXPECT_EQ(j1.header, "Time [s],JBar [-]");
+  ASSERT_EQ(v1.rows.size(), 8u);
+  ASSERT_EQ(v2.rows.size(), 8u);
+  ASSERT_EQ(j2.rows.size(), j1.rows.size());
+  for (std::size_t k = 0; k < v1.rows.size(); ++k) {
+    EXPECT_NEAR(v1.rows[k][1], 0.3 * 0.2 * 0.12, 1e-2 * 0.3 * 0.2 * 0.12) << "sample " << k;
+    EXPECT_NEAR(v2.rows[k][1], v1.rows[k][1], 1e-12 * v1.rows[k][1]) << "sample " << k;
+    EXPECT_NEAR(j1.rows[k][1], 1.0, 1e-2) << "sample " << k;
+    EXPECT_NEAR(j2.rows[k][1], j1.rows[k][1], 1e-12) << "sample " << k;
+  }
   // Particle sensors: 100 Hz over 0.06 s = 6 samples of the state at t = k / 100 (the initial state first).
   const Csv g1 = read_csv(one / "particleTarget[0]_model[0]_dev[0].csv"), g2 = read_csv(two / "particleTarget[0]_model[0]_dev[0].csv");
   const Csv c1 = read_csv(one / "particleTarget[1]_model[0]_dev[0].csv"), c2 = read_csv(two / "particleTarget[1]_model[0]_dev[0].csv");

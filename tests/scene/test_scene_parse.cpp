@@ -591,6 +591,41 @@ TEST(SceneParse, TargetAttribsChooseTheParticleSensorsAttribute) {
             std::string::npos);
 }
 
+// grid-fields (fbar's): defaults (Mass, Velocity, Force at the frame rate), Froude scaling of the box and the rate,
+// a round trip through the scene writer, and the errors naming the path.
+TEST(SceneParse, GridFields) {
+  const Scene s = parse(scene_with(body(), R"("grid-fields": [
+      {"domain_start": [0.5, 0, 0], "domain_end": [0.6, 1, 1]},
+      {"attributes": ["Volume", "J Bar", "BoundaryForce"], "output_frequency": 200, "blocks": true,
+       "domain_start": [0, 0, 0], "domain_end": [1, 1, 1], "name": "tank", "toggle": false}])"));
+  ASSERT_EQ(s.grid_fields.size(), 2u);
+  EXPECT_EQ(s.grid_fields[0].attributes, (std::vector<std::string>{"Mass", "Velocity", "Force"}));
+  EXPECT_EQ(s.grid_fields[0].output_frequency, s.simulation.fps);
+  EXPECT_FALSE(s.grid_fields[0].blocks);
+  EXPECT_EQ(s.grid_fields[1].attributes, (std::vector<std::string>{"Volume", "JBar", "BoundaryForce"}));
+  EXPECT_EQ(s.grid_fields[1].output_frequency, 200.0);
+  EXPECT_TRUE(s.grid_fields[1].blocks);
+  EXPECT_FALSE(s.grid_fields[1].toggle);
+  EXPECT_EQ(s.grid_fields[1].name, "tank");
+  const Scene again = parse_scene_string(write_scene_json(s), ParseOptions{});
+  EXPECT_TRUE(again.grid_fields == s.grid_fields) << write_scene_json(s);
+  // Froude scaling (s = 4): the box x 4, the rate x 1/2.
+  const Scene scaled = parse(R"({"simulation": {"domain": [1, 1, 1], "default_dx": 0.05, "froude_scaling": 4},
+      "bodies": [)" + body() + R"(], "grid-fields": [{"output_frequency": 100, "domain_start": [0.1, 0, 0],
+      "domain_end": [0.2, 1, 1]}]})");
+  EXPECT_EQ(scaled.grid_fields[0].domain_end[0], 0.8);
+  EXPECT_EQ(scaled.grid_fields[0].output_frequency, 50.0);
+  const auto field = [](const std::string& keys) {
+    return scene_with(body(), R"("grid-fields": [{)" + keys + R"(, "domain_start": [0, 0, 0], "domain_end": [1, 1, 1]}])");
+  };
+  EXPECT_EQ(error_of(field(R"("attributes": [])")).rfind("grid-fields[0].attributes: got []; expected a non-empty array", 0), 0u);
+  EXPECT_EQ(error_of(field(R"("attributes": ["Pressure"])")).rfind("grid-fields[0].attributes[0]: got \"Pressure\"", 0), 0u);
+  EXPECT_EQ(error_of(field(R"("attributes": ["Mass", "Mass"])")).rfind("grid-fields[0].attributes[1]", 0), 0u);
+  EXPECT_EQ(error_of(field(R"("output_frequency": 0)")).rfind("grid-fields[0].output_frequency: got 0", 0), 0u);
+  EXPECT_EQ(error_of(field(R"("attributes": ["PorePressure"])")).rfind("grid-fields[0].attributes[0]: got \"PorePressure\"", 0), 0u);
+  EXPECT_EQ(error_of(field(R"("bloks": true)")).rfind("grid-fields[0].bloks", 0), 0u);
+}
+
 TEST(SceneParse, ReleasePolicyRejectsWhatTheEngineCannotRun) {
   struct Case {
     std::string json;
@@ -598,9 +633,6 @@ TEST(SceneParse, ReleasePolicyRejectsWhatTheEngineCannotRun) {
   };
   const std::vector<Case> cases = {
       {scene_with(body(R"({})", R"("algorithm": {"use_FEM": true})")), "bodies[0].algorithm.use_FEM"},
-      {scene_with(body(), R"("grid-sensors": [{"attribute": "Volume", "domain_start": [0,0,0],
-                                              "domain_end": [1,1,1]}])"),
-       "grid-sensors[0].attribute"},
   };
   for (const Case& c : cases) {
     const std::string e = error_of(c.json);
@@ -616,6 +648,10 @@ TEST(SceneParse, ReleasePolicyRejectsWhatTheEngineCannotRun) {
   EXPECT_EQ(e.rfind("bodies[0].output_attribs[0]: got", 0), 0u) << e;
   EXPECT_NE(e.find("for JFluid (a JFluid body has no such quantity in its state)"), std::string::npos) << e;
   EXPECT_NO_THROW(parse(logjp, false)) << logjp;
+  // Volume and JBar grid sensors run (the F-bar sums hold the nodes' volume on their sample steps).
+  EXPECT_NO_THROW(parse(scene_with(body(), R"("grid-sensors": [{"attribute": "Volume", "domain_start": [0,0,0],
+                                              "domain_end": [1,1,1]}, {"attribute": "J Bar", "direction": "N/A",
+                                              "domain_start": [0,0,0], "domain_end": [1,1,1]}])")));
   // ASFLIP and F-bar switched on with zero ratios are APIC, which this release runs.
   EXPECT_NO_THROW(parse(scene_with(body(R"({})", R"("algorithm": {"use_ASFLIP": true, "use_FBAR": true})"))));
   EXPECT_NO_THROW(parse(scene_with(body(R"({"constitutive": "FixedCorotated"})"),

@@ -185,6 +185,7 @@ StabilityResult run_block(const BlockSetup& setup) {
   validation::set_scheme(block, setup.scheme);
   block.algorithm.use_fbar = setup.fbar_psi != 0.0;
   block.algorithm.fbar_psi = setup.fbar_psi;
+  block.algorithm.fbar_scheme = FbarScheme::Cell;  // the cell scheme's stability (the nodal one: test_fbar_locking.cpp)
   validation::add_box(block, r3(x0 + edge, y0 + drop, z0), r3(edge, edge, dx));
   scene.bodies.push_back(block);
   scene.boundaries.push_back(validation::wall_box(Contact::Separable, r3(x0, y0, z0),

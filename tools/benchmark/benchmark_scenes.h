@@ -54,6 +54,7 @@ inline Scene make_scene(const std::string& name, double millions, Precision prec
     body.material.gamma = 7.1;
     body.material.viscosity = 1e-3;
     if (name == "fbar_dam_break" || nodal) body.algorithm.fbar_psi = 1.0;
+    if (name == "fbar_dam_break") body.algorithm.fbar_scheme = FbarScheme::Cell;
   } else {
     // falling_block: FixedCorotated; neo_block, sand_block, clay_block: the same block in NeoHookean,
     // DruckerPrager (phi 30 deg, volume correction) and NACC (phi 30 deg, consolidated: logJp0 = -0.3);
@@ -69,6 +70,7 @@ inline Scene make_scene(const std::string& name, double millions, Precision prec
                                                : Constitutive::FixedCorotated;
     if (body.material.law == Constitutive::VonMises) body.material.tensile_yield_strength = 1e5;
     if (name == "fbar_block" || nodal) body.algorithm.fbar_psi = 1.0;
+    if (name == "fbar_block") body.algorithm.fbar_scheme = FbarScheme::Cell;
     body.material.youngs_modulus = 1e7;
     body.material.poisson_ratio = 0.3;
     body.material.friction_angle = 30.0;

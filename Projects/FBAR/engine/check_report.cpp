@@ -11,6 +11,7 @@
 
 #include "MnSystem/IO/frame_size.h"
 #include "engine/memory_plan.h"
+#include "io/grid_field_recorder.h"
 #include "io/particle_frame.h"
 #include "scene/scene_parse.h"
 
@@ -168,6 +169,15 @@ void print_boundaries_and_sensors(std::ostream& os, const Scene& scene) {
        << (g.direction_sign > 0 ? " (positive part)" : g.direction_sign < 0 ? " (negative part)" : "") << " at "
        << num(g.output_frequency) << " Hz in " << vec(g.domain_start) << " .. " << vec(g.domain_end) << " m"
        << (g.toggle ? " -> gridTarget[" + std::to_string(i) + "]_dev[0].csv" : " (off)") << "\n";
+  }
+  for (std::size_t i = 0; i < scene.grid_fields.size(); ++i) {
+    const GridFieldSpec& f = scene.grid_fields[i];
+    std::string attributes;
+    for (const std::string& a : f.attributes) attributes += (attributes.empty() ? "" : ", ") + a;
+    os << "grid-fields[" << i << "]  " << (f.name.empty() ? "" : "\"" + f.name + "\": ") << attributes
+       << (f.blocks ? " per grid block" : " per node") << " at " << num(f.output_frequency) << " Hz in "
+       << vec(f.domain_start) << " .. " << vec(f.domain_end) << " m"
+       << (f.toggle ? " -> " + grid_field_file_name(i, 0, scene.simulation.save_suffix) + ", ..." : " (off)") << "\n";
   }
   for (std::size_t i = 0; i < scene.particle_sensors.size(); ++i) {
     const ParticleSensorSpec& p = scene.particle_sensors[i];

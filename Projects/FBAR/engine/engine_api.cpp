@@ -243,8 +243,8 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
 
   int max_gpu = -1;
   bool several_ranks = false;  // a body spread ("all") or placed beyond GPU 0: the run is decomposed
-  for (const BodySpec& b : scene.bodies) {
-    max_gpu = std::max(max_gpu, std::max(b.gpu, 0));  // "all": GPU 0's estimate
+  for (const BodySpec& b : scene.bodies) {  // "all": GPU 0's estimate
+    max_gpu = std::max(max_gpu, std::max(b.gpu, 0));
     several_ranks = several_ranks || b.gpu != 0;
   }
   // Every body's particle blocks (their 2x2x2 footprints are the grid blocks, per GPU and for the CPU engine).
@@ -254,7 +254,6 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
   bool asflip = false, fbar = false, pore = false;  // some body uses ASFLIP / F-bar / pore water: grid channels
   std::size_t checkpoint_kept = 0;                  // every body's part of a checkpoint until it is written
   std::size_t checkpoint_transient = 0;             // the largest body's gather while a checkpoint is taken
-
   // v and C kept for particle sensors, trackers or checkpoints (on the steps landing on their times)
   const bool record = sensors_read_velocity(scene) || sim.checkpoint_every > 0;
   for (std::size_t i = 0; i < scene.bodies.size(); ++i) {
@@ -352,12 +351,14 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
   }
 
   summary.gpu_ms_per_step += kGpuStepOverheadMs + kGpuBodyOverheadMs * static_cast<double>(summary.bodies.size());
-  // The grid channel sets each body's P2G sums into (grid_channels.h).
-  const GridFeatures scene_grid{asflip, fbar, pore};
+  // The grid channel sets each body's P2G sums into (grid_channels.h); a Volume or JBar grid sensor or field has
+  // every body sum its volume into the F-bar sums on the steps it samples.
+  const bool node_volume = scene_reads_node_volume(scene);
+  const GridFeatures scene_grid{asflip, fbar, pore, node_volume};
   for (std::size_t i = 0; i < summary.bodies.size(); ++i) {
     const BodySpec& body = scene.bodies[i];
     const GridFeatures own{body.algorithm.asflip_active(), body.algorithm.fbar_blend() != 0.0,
-                           material_has_pore_fluid(body.material.law)};
+                           material_has_pore_fluid(body.material.law), node_volume};
     summary.bodies[i].grid_channels = grid_channels_of_body(own, scene_grid);
   }
 
@@ -377,8 +378,9 @@ SceneSummary summarize_scene(const Scene& scene, const SummaryOptions& options) 
     std::vector<const SampleCount*> on_gpu;
     for (std::size_t i = 0; i < counts.size(); ++i)
       if (std::max(scene.bodies[i].gpu, 0) == g) on_gpu.push_back(&counts[i]);
-    summary.gpu_plans.push_back(plan_device_memory(sim.precision, footprint_blocks(on_gpu), gpu_inputs[g]));
-    summary.gpu_plans.back().small += sensor_device_bytes(scene);
+    summary.gpu_plans.push_back(
+        plan_device_memory(sim.precision, footprint_blocks(on_gpu), gpu_inputs[g], node_volume));
+    summary.gpu_plans.back().small += sensor_device_bytes(scene) + grid_field_device_bytes(scene);
     summary.gpu_bytes[g] = summary.gpu_plans.back().total();
   }
   return summary;

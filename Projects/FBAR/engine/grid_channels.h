@@ -37,7 +37,7 @@ enum class GridStorage {
 enum class GridNeed {
   Always,
   Asflip,  ///< some body uses PIC-FLIP / ASFLIP
-  Fbar,    ///< some body uses F-bar
+  Fbar,    ///< some body uses F-bar, or a grid sensor reads Volume or JBar (node_volume)
   Pore,    ///< some body is saturated (CoupledUP)
 };
 
@@ -59,8 +59,9 @@ struct GridFeatures {
   bool asflip = false;
   bool fbar = false;
   bool pore = false;
+  bool node_volume = false;  ///< a grid sensor reads Volume or JBar (the F-bar sums hold the nodes' volume then)
   constexpr bool has(GridNeed n) const {
-    return n == GridNeed::Always || (n == GridNeed::Asflip && asflip) || (n == GridNeed::Fbar && fbar) ||
+    return n == GridNeed::Always || (n == GridNeed::Asflip && asflip) || (n == GridNeed::Fbar && (fbar || node_volume)) ||
            (n == GridNeed::Pore && pore);
   }
 };
@@ -99,7 +100,7 @@ inline constexpr GridSetDecl kGridSets[kGridSetCount] = {
      {{"transported momentum x", "kg m/s"}, {"transported momentum y", "kg m/s"}, {"transported momentum z", "kg m/s"}}},
     {GridSet::OldVelocity, "ASFLIP v^n", GridStorage::Value, 1, GridNeed::Asflip, GridLifetime::WithinStep, false,
      false, false, true, 3, {{"v^n x", "m/s"}, {"v^n y", "m/s"}, {"v^n z", "m/s"}}},
-    {GridSet::FbarSums, "F-bar cell sums", GridStorage::FixedSum, 1, GridNeed::Fbar, GridLifetime::PerPass, true, true,
+    {GridSet::FbarSums, "F-bar / node volume sums", GridStorage::FixedSum, 1, GridNeed::Fbar, GridLifetime::PerPass, true, true,
      false, true, 2, {{"volume x compression", "m^3"}, {"volume", "m^3"}}},
     {GridSet::PoreValues, "seepage node values", GridStorage::Value, 1, GridNeed::Pore, GridLifetime::PerPass,
      false, false, false, true, 5,
@@ -154,7 +155,7 @@ constexpr int cpu_grid_channels(GridFeatures features) {
   return channels;
 }
 /// --check's "grid channels" of one body: the sets its particles sum into, with their channel counts ("mass,
-/// momentum (4) + F-bar cell sums (2)"). `body` holds what this body uses; `scene` what any body does (a set needed
+/// momentum (4) + F-bar / node volume sums (2)"). `body` holds what this body uses; `scene` what any body does (a set needed
 /// by any body is summed by every body: the transported momentum).
 std::string grid_channels_of_body(GridFeatures body, GridFeatures scene);
 

@@ -81,12 +81,13 @@ long long DeviceMemoryPlan::total_particles() const {
 }
 
 DeviceMemoryPlan plan_device_memory(Precision precision, long long footprint_blocks,
-                                    const std::vector<BodyMemoryInput>& bodies) {
+                                    const std::vector<BodyMemoryInput>& bodies, bool node_volume) {
   DeviceMemoryPlan plan;
   plan.precision = precision;
   plan.footprint_blocks = footprint_blocks;
   plan.block_capacity = std::max<long long>(1024, 2 * footprint_blocks);
   GridFeatures features;
+  features.node_volume = node_volume;
   for (const BodyMemoryInput& b : bodies) {
     features.asflip = features.asflip || b.asflip;
     features.fbar = features.fbar || b.fbar;

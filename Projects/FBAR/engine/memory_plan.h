@@ -114,9 +114,10 @@ std::size_t mesh_device_bytes(Precision precision, std::size_t elements, std::si
 /// Grid blocks covered by the 2x2x2 footprints (blocks B .. B + 1 per axis) of every particle block of `counts`.
 long long footprint_blocks(const std::vector<const SampleCount*>& counts);
 
-/// Grid-block and bin capacities and the bytes of every buffer (see the file comment).
+/// Grid-block and bin capacities and the bytes of every buffer (see the file comment). node_volume: a grid sensor
+/// reads Volume or JBar (the grid carries the F-bar sums for it).
 DeviceMemoryPlan plan_device_memory(Precision precision, long long footprint_blocks,
-                                    const std::vector<BodyMemoryInput>& bodies);
+                                    const std::vector<BodyMemoryInput>& bodies, bool node_volume = false);
 
 /// Empty when the plan fits `free_bytes` (with the context reserve already taken out of free_bytes by the caller,
 /// or not: `free_bytes` is what cudaMemGetInfo reports before the engine allocates); otherwise a message that says

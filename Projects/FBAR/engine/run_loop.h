@@ -17,6 +17,10 @@
 //   void set_grid_sample(int slot)              the next step starts at a sample time: its grid update writes
 //                                               every sensor's reduction into `slot` (-1: no sample)
 //   std::vector<SensorAccum> grid_samples(n)    this rank's values of slots [0, n)
+//   void set_grid_fields(specs)                 the grid fields (io/grid_field_recorder.h) a sampling step records
+//   void set_grid_field_sample(unsigned mask)   the next step starts at a sample time of the fields in `mask`: its
+//                                               grid update records their nodes (0: none)
+//   GridFieldSample grid_field_sample(int i)    this rank's nodes of field i's last sample, with its step's dt
 //   void set_particle_sensors(specs)            the particle sensors sample_particles() evaluates
 //   void keep_particle_inputs(bool)             the next step's end state will be sampled (the GPU then records
 //                                               each particle's v and C in that step; the CPU needs nothing)
@@ -60,6 +64,7 @@
 #include "engine/stop_request.h"
 #include "io/checkpoint.h"
 #include "io/frame_series.h"
+#include "io/grid_field_recorder.h"
 #include "io/sensor_recorder.h"
 #include "scene/scene.h"
 
@@ -118,6 +123,9 @@ FBAR_ENGINE_NEEDS(HasParticleSensors,
                   (engine_ref<E>().set_particle_sensors(std::declval<std::vector<ParticleSensorSpec>&>()),
                    engine_ref<E>().keep_particle_inputs(true), engine_ref<E>().sample_particles(0),
                    std::vector<SensorAccum>(engine_ref<E>().particle_samples(1))))
+FBAR_ENGINE_NEEDS(HasGridFields, (engine_ref<E>().set_grid_fields(std::declval<std::vector<GridFieldSpec>&>()),
+                                  engine_ref<E>().set_grid_field_sample(0u),
+                                  GridFieldSample(engine_ref<E>().grid_field_sample(0))))
 FBAR_ENGINE_NEEDS(HasTrackers, (engine_ref<E>().set_tracker(0, std::declval<const TrackerSet&>()),
                                 engine_ref<E>().track(0, std::declval<std::vector<double>&>(),
                                                       std::declval<std::vector<double>&>())))
@@ -139,6 +147,8 @@ constexpr bool check_run_engine() {
   static_assert(HasParticleSensors<E>::value,
                 "run loop engine: needs set_particle_sensors(specs), keep_particle_inputs(bool), sample_particles(int), "
                 "particle_samples(int)");
+  static_assert(HasGridFields<E>::value,
+                "run loop engine: needs set_grid_fields(specs), set_grid_field_sample(unsigned), grid_field_sample(int)");
   static_assert(HasTrackers<E>::value, "run loop engine: needs set_tracker(int, TrackerSet), track(int, values, present)");
   static_assert(HasCheckpoints<E>::value,
                 "run loop engine: needs checkpoint(), checkpoint_ready(), keep_checkpoint_inputs(bool), "
@@ -174,11 +184,14 @@ class RunLoop {
         series_(make_series()),
         writer_(1),
         sensors_(scene, transport_, t0_, t_end_, resume),
+        fields_(scene, transport_, t0_, t_end_, resume),
         trackers_(scene, transport_, resume),
         save_dir_(sim_.save_path) {
     engine_.set_grid_sensors(sensors_.grid_sensors());
     engine_.set_grid_sample(-1);
     engine_.set_particle_sensors(sensors_.particle_sensors());
+    engine_.set_grid_fields(fields_.fields());
+    engine_.set_grid_field_sample(0);
     for (const BodyTracker& t : trackers_.trackers()) engine_.set_tracker(t.body, t.set);
   }
 
@@ -281,6 +294,8 @@ class RunLoop {
     const double step_target = head_for(start, target);
     const int slot = sensors_.grid_slot_for(start);
     engine_.set_grid_sample(slot);
+    const unsigned fields = fields_.due_mask(start);  // the grid fields sampling at this step's start
+    engine_.set_grid_field_sample(fields);
     // The step that may land on a particle sample time keeps what the particle sensors read (the last two steps
     // before it: the CPU engine may split what remains in two).
     engine_.keep_particle_inputs(
@@ -301,6 +316,15 @@ class RunLoop {
       return false;
     }
     if (slot >= 0) sensors_.grid_taken(start);
+    if (fields != 0) {  // a collective: every rank has the same mask
+      for (std::size_t i = 0; i < fields_.fields().size(); ++i)
+        if (fields >> i & 1u) {
+          GridFieldSample s = engine_.grid_field_sample(static_cast<int>(i));
+          fields_.record(i, start, s.dt, std::move(s.nodes), writer_);
+        }
+      fields_.taken(start);
+      engine_.set_grid_field_sample(0);
+    }
     sample_particles_at(engine_.time());
     if (sim_.info_rate > 0 && !options_.quiet && engine_.steps() - steps_logged_ >= sim_.info_rate &&
         engine_.time() < target) {  // the same decision on every rank
@@ -316,6 +340,7 @@ class RunLoop {
   void end_frame(int frame) {
     engine_.set_frame_capture(false);
     engine_.set_grid_sample(-1);
+    engine_.set_grid_field_sample(0);
     engine_.keep_checkpoint_inputs(false);
     write_frame(frame);
     flush_sensors();
@@ -474,8 +499,9 @@ class RunLoop {
   /// Where a step starting at `start` heads: the next sample time, or the frame time `target` (a sample time within
   /// the tolerance of it counts as the frame time).
   double head_for(double start, double target) const {
-    const double sample = sensors_.next_time_after(start);
-    return sample < target - sensors_.tolerance() ? sample : target;
+    const double sensor = sensors_.next_time_after(start), field = fields_.next_time_after(start);
+    if (sensor < target - sensors_.tolerance() && sensor <= field) return sensor;
+    return field < target - fields_.tolerance() ? field : target;
   }
 
   /// A collective: every rank calls it at the same points, rank 0 prints.
@@ -549,6 +575,7 @@ class RunLoop {
   /// slow the disk (the GPU engine downloads into one pinned buffer per body; the CPU engine builds its frame here).
   io::AsyncWriter writer_;
   SensorRecorder sensors_;
+  GridFieldRecorder fields_;
   TrackerRecorder trackers_;
   const std::filesystem::path save_dir_;
   RunResult result_;

@@ -20,6 +20,11 @@
 //                          the momentum change the boundary projections cause divided by dt (zero at nodes no
 //                          boundary touches); gravity included. Along a wall's normal at its held nodes it equals Force.
 //   Acceleration   [m/s^2] (v* - v) / dt: that force per unit node mass.
+// The material's volume at the node (every body's particles, on the steps a sensor samples; ClaymoreUW's grid channels
+// 7 and 8, mgmpm_kernels.cuh retrieve_selected_grid_cells):
+//   Volume         [m^3]   sum_p w_ip V_p, V_p = V0_p J_p the particle's volume
+//   JBar           [-]     the node's JBar: sum_p w_ip V_p JBar_p / sum_p w_ip V_p, the volume-weighted mean of its
+//                          particles' JBar (nodal F-bar's stored JBar; J for the other bodies, as the JBar attribute)
 // The pore water of saturated (CoupledUP) bodies, at nodes that carry some (other nodes add nothing to these):
 //   MassWater      [kg]    sum_p w_ip n rhow V0_p (ClaymoreUW's masw)
 //   PorePressure   [Pa]    the node's pore pressure p_i (volume-weighted mean of its particles'; 0 at drained nodes)
@@ -36,7 +41,14 @@
 
 namespace fbar {
 
-enum class GridSensorQuantity : int { Force, Acceleration, Momentum, Velocity, Mass, BoundaryForce, MassWater, PorePressure };
+enum class GridSensorQuantity : int {
+  Force, Acceleration, Momentum, Velocity, Mass, BoundaryForce, MassWater, PorePressure, Volume, JBar
+};
+
+/// Whether a sensor reads the nodes' volume sums (engines sum them on the steps such a sensor samples).
+FBAR_HOST_DEVICE inline bool grid_sensor_reads_volume(GridSensorQuantity q) {
+  return q == GridSensorQuantity::Volume || q == GridSensorQuantity::JBar;
+}
 
 /// One grid sensor as the grid update sees it (trivially copyable; built by make_grid_sensor_params).
 template <typename T>
@@ -194,6 +206,8 @@ struct GridNodeSample {
   T dt;            ///< [s]
   T water_mass = T(0);     ///< [kg] pore water at the node (0: none, the pore sensors skip the node)
   T pore_pressure = T(0);  ///< [Pa] the node's pore pressure
+  T volume = T(0);         ///< [m^3] sum_p w_ip V_p (summed only when a Volume or JBar sensor samples)
+  T volume_jbar = T(0);    ///< [m^3] sum_p w_ip V_p (1 - JBar_p)
 };
 
 /// What a node (mass m > 0 inside the sensor's box) contributes.
@@ -208,14 +222,18 @@ FBAR_HOST_DEVICE inline T grid_sensor_value(const GridSensorParams<T>& s, const 
     case GridSensorQuantity::Mass: return n.m;
     case GridSensorQuantity::MassWater: return n.water_mass;
     case GridSensorQuantity::PorePressure: return n.pore_pressure;
+    case GridSensorQuantity::Volume: return n.volume;
+    case GridSensorQuantity::JBar: return T(1) - n.volume_jbar / n.volume;
   }
   return T(0);
 }
 
-/// Whether sensor s reads a node (mass > 0): every node, but the pore sensors only nodes that carry pore water.
+/// Whether sensor s reads a node (mass > 0): every node, but the pore sensors only nodes that carry pore water and
+/// the volume sensors only nodes with volume (a node of mass has some).
 template <typename T>
 FBAR_HOST_DEVICE inline bool grid_sensor_reads(const GridSensorParams<T>& s, const GridNodeSample<T>& n) {
   const bool pore = s.quantity == GridSensorQuantity::MassWater || s.quantity == GridSensorQuantity::PorePressure;
+  if (grid_sensor_reads_volume(s.quantity)) return n.volume > T(0);
   return !pore || n.water_mass > T(0);
 }
 

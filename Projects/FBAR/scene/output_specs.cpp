@@ -12,6 +12,57 @@
 
 namespace fbar {
 
+bool grid_field_reads_volume(const GridFieldSpec& spec) {
+  for (const std::string& a : spec.attributes)
+    if (a == "Volume" || a == "JBar") return true;
+  return false;
+}
+
+template <typename T>
+GridFieldParams<T> make_grid_field_params(const GridFieldSpec& spec, double dx) {
+  GridFieldParams<T> p;
+  const double snap = dx / 128.0;
+  for (int a = 0; a < 3; ++a) {
+    double lo = spec.domain_start[a], hi = spec.domain_end[a];
+    if (spec.blocks) {  // the whole blocks the box touches: nodes 4 b .. 4 b + 3
+      lo = std::floor(lo / (4.0 * dx)) * 4.0 * dx;
+      hi = (std::floor(hi / (4.0 * dx)) * 4.0 + 3.0) * dx;
+    }
+    p.lo[a] = static_cast<T>(lo - snap);
+    p.hi[a] = static_cast<T>(hi + snap);
+  }
+  p.volume = grid_field_reads_volume(spec);
+  return p;
+}
+template GridFieldParams<float> make_grid_field_params<float>(const GridFieldSpec&, double);
+template GridFieldParams<double> make_grid_field_params<double>(const GridFieldSpec&, double);
+
+std::size_t grid_field_device_bytes(const Scene& scene) {
+  const double dx = scene.simulation.dx;
+  std::size_t bytes = 0;
+  for (const GridFieldSpec& f : scene.grid_fields) {
+    if (!f.toggle) continue;
+    const GridFieldParams<double> p = make_grid_field_params<double>(f, dx);
+    double nodes = 1.0;
+    for (int a = 0; a < 3; ++a) nodes *= std::max(0.0, std::floor((p.hi[a] - p.lo[a]) / dx) + 1.0);
+    bytes += static_cast<std::size_t>(nodes) * sizeof(GridFieldNode) + sizeof(int);
+  }
+  return bytes;
+}
+
+bool scene_reads_node_volume(const Scene& scene) {
+  if (grid_sensors_read_volume(scene.grid_sensors)) return true;
+  for (const GridFieldSpec& f : scene.grid_fields)
+    if (f.toggle && grid_field_reads_volume(f)) return true;
+  return false;
+}
+
+bool grid_sensors_read_volume(const std::vector<GridSensorSpec>& sensors) {
+  for (const GridSensorSpec& g : sensors)
+    if (g.toggle && (g.attribute == "Volume" || g.attribute == "JBar")) return true;
+  return false;
+}
+
 /// `spec.output_attribs` resolved in order (canonical names; an alias and its name count once). Throws
 /// std::invalid_argument naming bodies[body].output_attribs for a name no engine produces.
 std::vector<FrameAttributeSpec> frame_attributes(const BodySpec& spec, int body, const std::string& engine) {
@@ -42,7 +93,8 @@ GridSensorQuantity quantity_of(const std::string& attribute) {
   if (attribute == "Mass") return GridSensorQuantity::Mass;
   if (attribute == "MassWater") return GridSensorQuantity::MassWater;
   if (attribute == "PorePressure") return GridSensorQuantity::PorePressure;
-  // Volume and JBar are refused before a run (scene_support.cpp): the grid holds no volume channel.
+  if (attribute == "Volume") return GridSensorQuantity::Volume;
+  if (attribute == "JBar") return GridSensorQuantity::JBar;
   throw std::invalid_argument("grid sensor attribute \"" + attribute + "\" has no grid quantity in this release");
 }
 
@@ -56,6 +108,8 @@ const char* unit_of(GridSensorQuantity q) {
     case GridSensorQuantity::Mass: return "kg";
     case GridSensorQuantity::MassWater: return "kg";
     case GridSensorQuantity::PorePressure: return "Pa";
+    case GridSensorQuantity::Volume: return "m^3";
+    case GridSensorQuantity::JBar: return "-";
   }
   return "-";
 }

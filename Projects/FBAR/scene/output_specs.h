@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "physics/frame_attributes.h"
+#include "physics/grid_fields.h"
 #include "physics/sensors.cuh"
 #include "scene/attributes.h"
 #include "scene/scene.h"
@@ -27,6 +28,22 @@ GridSensorParams<T> make_grid_sensor_params(const GridSensorSpec& spec, double d
 /// The kernel parameters of particle sensor `spec` (its attribute as a frame column; box in T).
 template <typename T>
 ParticleSensorParams<T> make_particle_sensor_params(const ParticleSensorSpec& spec);
+
+/// The engines' box of grid field `spec` (widened by dx / 128 as a grid sensor's; a `blocks` field's box grown to
+/// the whole grid blocks it touches, so that a block's point sums all its nodes).
+template <typename T>
+GridFieldParams<T> make_grid_field_params(const GridFieldSpec& spec, double dx);
+/// Whether grid field `spec` reads Volume or JBar.
+bool grid_field_reads_volume(const GridFieldSpec& spec);
+/// Device memory the GPU engine keeps for the scene's grid fields [bytes]: per enabled field, one record per node its
+/// box can hold (physics/grid_fields.h GridFieldNode).
+std::size_t grid_field_device_bytes(const Scene& scene);
+
+/// Whether an enabled grid sensor reads Volume or JBar: the engines then sum every body's volume onto the nodes on
+/// the steps such a sensor samples (in the grid's F-bar sums, grid_channels.h).
+bool grid_sensors_read_volume(const std::vector<GridSensorSpec>& sensors);
+/// The same for the scene's enabled grid sensors and grid fields together (the grid carries the F-bar sums for them).
+bool scene_reads_node_volume(const Scene& scene);
 
 /// Whether an enabled particle sensor or a tracker of the scene reads velocities (particle_sensor_reads_velocity):
 /// the GPU engine then keeps v and C per particle on the steps that land on their times (its memory plan counts

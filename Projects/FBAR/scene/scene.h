@@ -70,7 +70,7 @@ struct AlgorithmSpec {
   bool use_fbar = true;
   double fbar_psi = 0.0;
   bool fbar_fused_kernel = false;
-  FbarScheme fbar_scheme = FbarScheme::Cell;
+  FbarScheme fbar_scheme = FbarScheme::Nodal;  // ClaymoreUW's; "cell" is fbar's own choice
   bool use_fem = false;
 
   /// The transfer is PIC-FLIP / ASFLIP (transfer.cuh): use_ASFLIP with some alpha or beta non-zero. All zero is
@@ -172,6 +172,21 @@ struct ParticleSensorSpec {
   Real3 domain_end{0.0, 0.0, 0.0};
 };
 
+/// One entry of the top-level "grid-fields" array (fbar's): the grid's node values inside a box, written at a
+/// frequency as frame files ParaView opens as a time series (io/grid_field_recorder.h), from the same P2G state the
+/// grid sensors read; or one point per grid block with its nodes' sums (`blocks`).
+struct GridFieldSpec {
+  std::string name;                     ///< label (files are named by the field's index)
+  bool toggle = true;                   ///< false: switched off (no files)
+  Real3 domain_start{0.0, 0.0, 0.0};    ///< [m] box, both ends included
+  Real3 domain_end{0.0, 0.0, 0.0};
+  double output_frequency = 0.0;        ///< [Hz]; 0: the frame rate (simulation.fps)
+  /// Canonical names (kGridFieldAttributes: Mass, Velocity, Momentum, Force, BoundaryForce, Volume, JBar, MassWater,
+  /// PorePressure); empty: Mass, Velocity, Force.
+  std::vector<std::string> attributes;
+  bool blocks = false;                  ///< one point per grid block (its nodes' sums) instead of one per node
+};
+
 /// One entry of the top-level "meshes" array (ClaymoreUW's FEM bodies, its keys and meanings: read_scene_input.h),
 /// read and checked at parse, its mesh included (geometry/tet_mesh.h). The parser appends one body per entry to
 /// Scene::bodies (BodySpec::mesh), which the CPU engine runs (physics/fem.cuh).
@@ -216,6 +231,7 @@ struct Scene {
   std::vector<BoundarySpec> boundaries;
   std::vector<GridSensorSpec> grid_sensors;
   std::vector<ParticleSensorSpec> particle_sensors;
+  std::vector<GridFieldSpec> grid_fields;  ///< the top-level "grid-fields" array (fbar's)
   std::vector<MeshEntrySpec> meshes;    ///< the top-level "meshes" array (FEM bodies; each also a body)
   /// HydroUQ's wrapper keys (Application, EventClassification, type, subtype, in that order; absent ones omitted):
   /// metadata that ClaymoreUW prints and fbar records (the scene writer, hence run.json); nothing reads them.

@@ -7,7 +7,7 @@
 //                                sensor domains; a File geometry's scaling_factor (its linear size)
 //   time              x s^0.5    simulation.time, default_dt (when given), boundary time windows
 //   velocity          x s^0.5    body and mesh initial velocity, boundary velocity
-//   frequency         x s^-0.5   fps, sensor output_frequency, motion-file output_frequency
+//   frequency         x s^-0.5   fps, sensor and grid-field output_frequency, motion-file output_frequency
 //                                (frames is unchanged, so the simulated duration frames / fps scales as s^0.5)
 //   mass              x s^3      (no scene key: particle mass follows from rho and the scaled particle volume)
 //   stress, modulus   x c        bulk_modulus, youngs_modulus (meshes' too), VonMises strengths (froude_power 1): c = s by
@@ -140,6 +140,11 @@ void apply_froude_scaling(Scene& scene) {
     scale3(p.domain_start, length);
     scale3(p.domain_end, length);
     p.output_frequency *= frequency;
+  }
+  for (GridFieldSpec& f : scene.grid_fields) {
+    scale3(f.domain_start, length);
+    scale3(f.domain_end, length);
+    f.output_frequency *= frequency;
   }
 }
 

@@ -603,6 +603,13 @@ Scene parse_document(const rj::Document& doc, Context& ctx) {
       scene.particle_sensors.push_back(std::move(sensor));
     }
   }
+  if (auto* a = optional_array(root, {"grid-fields"}, path, "an array of grid-field objects"))
+    for (rj::SizeType i = 0; i < a->Size(); ++i) {
+      GridFieldSpec f = parse_grid_field((*a)[i], index_path(path, i), ctx);
+      if (f.attributes.empty()) f.attributes = {"Mass", "Velocity", "Force"};
+      if (f.output_frequency == 0.0) f.output_frequency = scene.simulation.fps;  // Froude-scaled below as fps is
+      scene.grid_fields.push_back(std::move(f));
+    }
   warn_claymoreuw_sensor_frequencies(scene.grid_sensors, "grid-sensors", ctx);
   warn_claymoreuw_sensor_frequencies(scene.particle_sensors, "particle-sensors", ctx);
   // FEM meshes: each entry's mesh files are read and checked now (a bad mesh is named by --check), and each becomes

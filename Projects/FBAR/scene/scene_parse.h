@@ -100,6 +100,7 @@ bool operator==(const BodySpec& a, const BodySpec& b);
 bool operator==(const BoundarySpec& a, const BoundarySpec& b);
 bool operator==(const GridSensorSpec& a, const GridSensorSpec& b);
 bool operator==(const ParticleSensorSpec& a, const ParticleSensorSpec& b);
+bool operator==(const GridFieldSpec& a, const GridFieldSpec& b);
 bool operator==(const Scene& a, const Scene& b);
 inline bool operator!=(const Scene& a, const Scene& b) { return !(a == b); }
 

@@ -327,6 +327,11 @@ inline const std::vector<EnumName<std::string>> kGridSensorAttributes = {
     // the pore water of CoupledUP bodies (seepage channels)
     {"MassWater", {"MassWater", "masw"}},       {"PorePressure", {"PorePressure", "pore_pressure"}},
 };
+inline const std::vector<EnumName<std::string>> kGridFieldAttributes = {
+    {"Mass", {"Mass"}},       {"Velocity", {"Velocity"}}, {"Momentum", {"Momentum"}}, {"Force", {"Force"}},
+    {"BoundaryForce", {"BoundaryForce"}}, {"Volume", {"Volume"}}, {"JBar", {"JBar", "J Bar"}},
+    {"MassWater", {"MassWater", "masw"}}, {"PorePressure", {"PorePressure", "pore_pressure"}},
+};
 inline const std::vector<const char*> kSaveSuffixes = {".bgeo", ".geo", ".csv", ".h5"};
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -335,7 +340,7 @@ inline const std::vector<const char*> kSaveSuffixes = {".bgeo", ".geo", ".csv", 
 
 using Keys = std::vector<std::string_view>;
 inline const Keys kTopKeys = {"simulation", "bodies",           "models",  "boundaries", "grid-boundaries",
-                       "grid-sensors", "particle-sensors", "targets", "meshes",
+                       "grid-sensors", "particle-sensors", "targets", "meshes", "grid-fields",
                        "Application",  "EventClassification", "type", "subtype"};
 /// HydroUQ's wrapper keys at the top level: metadata (Scene::wrapper), in this order.
 inline const char* const kWrapperKeys[] = {"Application", "EventClassification", "type", "subtype"};
@@ -388,6 +393,8 @@ inline const Keys kBoundaryKeys = {"object",   "contact",  "domain_start",   "do
                             "type",     "name"};
 inline const Keys kGridSensorKeys = {"attribute",   "operation",  "direction", "output_frequency", "output_freq",
                               "domain_start", "domain_end", "type",      "name",             "toggle"};
+inline const Keys kGridFieldKeys = {"attributes", "output_frequency", "output_freq", "domain_start", "domain_end",
+                                     "blocks", "name", "toggle"};
 inline const Keys kParticleSensorKeys = {"attribute",    "operation",  "output_frequency", "output_freq",
                                   "domain_start", "domain_end", "type",             "name", "toggle", "direction"};
 
@@ -661,5 +668,6 @@ BoundarySpec parse_boundary(const rj::Value& v, const std::string& path, const C
 GridSensorSpec parse_grid_sensor(const rj::Value& v, const std::string& path, const Context& ctx);
 ParticleSensorSpec parse_particle_sensor(const rj::Value& v, const std::string& path, const Context& ctx,
                                          bool& attribute_given);
+GridFieldSpec parse_grid_field(const rj::Value& v, const std::string& path, const Context& ctx);
 
 }  // namespace fbar::scene_json

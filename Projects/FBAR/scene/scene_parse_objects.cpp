@@ -184,6 +184,31 @@ GridSensorSpec parse_grid_sensor(const rj::Value& v, const std::string& path, co
   return s;
 }
 
+GridFieldSpec parse_grid_field(const rj::Value& v, const std::string& path, const Context& ctx) {
+  GridFieldSpec f;
+  ObjectReader o(v, path, kGridFieldKeys, ctx, "grid-fields[]");
+  if (const rj::Value* a = o.get("attributes")) {
+    const std::string ap = o.sub("attributes");
+    if (!a->IsArray() || a->Empty())
+      throw SceneError(ap, json_text(*a), "a non-empty array of grid attributes (Mass, Velocity, Momentum, Force, "
+                                          "BoundaryForce, Volume, JBar, MassWater, PorePressure)");
+    for (rj::SizeType i = 0; i < a->Size(); ++i) {
+      const std::string name = read_enum((*a)[i], index_path(ap, i), kGridFieldAttributes);
+      if (std::find(f.attributes.begin(), f.attributes.end(), name) != f.attributes.end())
+        throw SceneError(index_path(ap, i), json_text((*a)[i]), "an attribute not listed before (each once)");
+      f.attributes.push_back(name);
+    }
+  }
+  if (auto x = o.get_any({"output_frequency", "output_freq"}))
+    f.output_frequency = read_number(*x.value, x.path, kPositive, "Hz");
+  std::tie(f.domain_start, f.domain_end) = read_region(o, false, &ctx);
+  if (auto* x = o.get("blocks")) f.blocks = read_bool(*x, o.sub("blocks"));
+  if (auto* x = o.get("name")) f.name = read_string(*x, o.sub("name"));
+  if (auto* x = o.get("toggle")) f.toggle = read_bool(*x, o.sub("toggle"));
+  o.finish();
+  return f;
+}
+
 ParticleSensorSpec parse_particle_sensor(const rj::Value& v, const std::string& path, const Context& ctx,
                                          bool& attribute_given) {
   ParticleSensorSpec s;

@@ -124,10 +124,6 @@ void check_supported(const Scene& scene) {
     const GridSensorSpec& g = scene.grid_sensors[i];
     if (!g.toggle) continue;
     ++enabled;
-    if (g.attribute == "Volume" || g.attribute == "JBar")
-      refuse(idx("grid-sensors", i) + ".attribute", q(g.attribute),
-             "one of Force, BoundaryForce, Acceleration, Momentum, Velocity, Mass (the grid stores no volume)",
-             "grid-sensor attribute " + g.attribute);
     if (g.attribute == "MassWater" || g.attribute == "PorePressure") {
       bool saturated = false;  // only saturated (CoupledUP) bodies carry pore water to the grid
       for (const BodySpec& b : scene.bodies) saturated = saturated || material_has_pore_fluid(b.material.law);
@@ -137,6 +133,22 @@ void check_supported(const Scene& scene) {
                              " is the pore water of CoupledUP bodies, and the scene has none");
     }
   }
+  int fields = 0;
+  for (std::size_t i = 0; i < scene.grid_fields.size(); ++i) {
+    const GridFieldSpec& f = scene.grid_fields[i];
+    if (!f.toggle) continue;
+    ++fields;
+    bool saturated = false;
+    for (const BodySpec& b : scene.bodies) saturated = saturated || material_has_pore_fluid(b.material.law);
+    for (std::size_t k = 0; k < f.attributes.size(); ++k)
+      if (!saturated && (f.attributes[k] == "MassWater" || f.attributes[k] == "PorePressure"))
+        throw SceneError(idx("grid-fields", i) + "." + idx("attributes", k), q(f.attributes[k]),
+                         "a grid attribute the scene has: " + f.attributes[k] +
+                             " is the pore water of CoupledUP bodies, and the scene has none");
+  }
+  if (fields > GridFieldSet<double>::kMax)
+    throw SceneError("grid-fields", std::to_string(fields) + " enabled fields",
+                     "at most " + std::to_string(GridFieldSet<double>::kMax) + " (switch some off with toggle: false)");
   if (enabled > GridSensorSet<double>::kMax)
     throw SceneError("grid-sensors", std::to_string(enabled) + " enabled sensors",
                      "at most " + std::to_string(GridSensorSet<double>::kMax) + " (switch some off with toggle: false)");

@@ -204,6 +204,12 @@ class SceneWriter {
     w_.StartArray();
     for (const auto& p : s.particle_sensors) particle_sensor(p);
     w_.EndArray();
+    if (!s.grid_fields.empty()) {
+      key("grid-fields");
+      w_.StartArray();
+      for (const auto& f : s.grid_fields) grid_field(f);
+      w_.EndArray();
+    }
     if (!s.meshes.empty()) {  // what this release reads of them: the files (resolved) and the offset
       key("meshes");
       w_.StartArray();
@@ -392,6 +398,21 @@ class SceneWriter {
       boolean("use_custom_bathymetry", b.use_custom_bathymetry);
       points("bathymetry", b.bathymetry);
     }
+    w_.EndObject();
+  }
+
+  void grid_field(const GridFieldSpec& f) {
+    w_.StartObject();
+    if (!f.name.empty()) str("name", f.name);
+    if (!f.toggle) boolean("toggle", false);
+    key("attributes");
+    w_.StartArray();
+    for (const std::string& a : f.attributes) w_.String(a.c_str());
+    w_.EndArray();
+    num("output_frequency", f.output_frequency);
+    reals("domain_start", f.domain_start);
+    reals("domain_end", f.domain_end);
+    if (f.blocks) boolean("blocks", true);
     w_.EndObject();
   }
 
@@ -585,6 +606,10 @@ bool operator==(const GridSensorSpec& a, const GridSensorSpec& b) {
          a.direction_sign == b.direction_sign && a.output_frequency == b.output_frequency &&
          a.domain_start == b.domain_start && a.domain_end == b.domain_end;
 }
+bool operator==(const GridFieldSpec& a, const GridFieldSpec& b) {
+  return a.name == b.name && a.toggle == b.toggle && a.domain_start == b.domain_start && a.domain_end == b.domain_end &&
+         a.output_frequency == b.output_frequency && a.attributes == b.attributes && a.blocks == b.blocks;
+}
 bool operator==(const ParticleSensorSpec& a, const ParticleSensorSpec& b) {
   return a.name == b.name && a.toggle == b.toggle && a.attribute == b.attribute && a.operation == b.operation &&
          a.output_frequency == b.output_frequency && a.domain_start == b.domain_start && a.domain_end == b.domain_end;
@@ -601,7 +626,8 @@ bool operator==(const MeshEntrySpec& a, const MeshEntrySpec& b) {
 }
 bool operator==(const Scene& a, const Scene& b) {
   return a.simulation == b.simulation && a.bodies == b.bodies && a.boundaries == b.boundaries &&
-         a.grid_sensors == b.grid_sensors && a.particle_sensors == b.particle_sensors && a.meshes == b.meshes &&
+         a.grid_sensors == b.grid_sensors && a.particle_sensors == b.particle_sensors &&
+         a.grid_fields == b.grid_fields && a.meshes == b.meshes &&
          a.wrapper == b.wrapper;
 }
 

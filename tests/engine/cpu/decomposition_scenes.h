@@ -25,6 +25,7 @@ inline Scene dam_break(bool schemes) {
     water.algorithm.asflip_beta_max = 0.2;
     water.algorithm.use_fbar = true;
     water.algorithm.fbar_psi = 1.0;
+    water.algorithm.fbar_scheme = FbarScheme::Cell;
   }
   scene.bodies.push_back(water);
   BoundarySpec walls;

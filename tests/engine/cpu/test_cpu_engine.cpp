@@ -63,6 +63,7 @@ TEST_P(FreeFall, MatchesSymplecticEulerExactly) {
   a.asflip_beta_max = c.beta_max;
   a.use_fbar = true;
   a.fbar_psi = c.psi;
+  a.fbar_scheme = FbarScheme::Cell;
   scene.bodies[0].material.logJp0 = c.law == Constitutive::NACC ? -0.1 : 0.0;  // a clay with strength
   CpuEngine<double> engine(scene);
   const std::vector<Vec3d> x0 = engine.positions(0);
@@ -300,6 +301,7 @@ TEST(CheckReport, NamesTheTransferScheme) {
     a.asflip_alpha = c.alpha;
     a.asflip_beta_max = c.beta_max;
     a.fbar_psi = c.psi;
+    a.fbar_scheme = FbarScheme::Cell;
     std::ostringstream os;
     print_scene_report(os, scene, summarize_scene(scene));
     EXPECT_NE(os.str().find(std::string(" ") + c.expected + "use_ASFLIP"), std::string::npos) << c.expected << "\n"
@@ -333,6 +335,7 @@ TEST(Summary, MemoryEstimatesCountTheSchemes) {
   Scene fbar = scene;
   fbar.bodies[1].algorithm.use_fbar = true;
   fbar.bodies[1].algorithm.fbar_psi = 1.0;
+  fbar.bodies[1].algorithm.fbar_scheme = FbarScheme::Cell;
   const SceneSummary with_fbar = summarize_scene(fbar);
   Scene off = scene;  // ratios given but the switches off: plain APIC, same memory
   off.bodies[0].algorithm.use_asflip = false;

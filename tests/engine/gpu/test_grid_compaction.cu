@@ -39,8 +39,10 @@ Scene crossing_blocks(Precision precision, bool schemes) {
     water.algorithm.asflip_beta_max = 0.2;
     water.algorithm.use_fbar = true;
     water.algorithm.fbar_psi = 1.0;
+    water.algorithm.fbar_scheme = FbarScheme::Cell;
     solid.algorithm.use_fbar = true;
     solid.algorithm.fbar_psi = 0.5;
+    solid.algorithm.fbar_scheme = FbarScheme::Cell;
   }
   scene.bodies.push_back(solid);
   return scene;

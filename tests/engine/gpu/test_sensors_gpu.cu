@@ -4,7 +4,10 @@
 
 #include <cuda_runtime.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <tuple>
 #include <memory>
 #include <string>
 #include <thread>
@@ -22,7 +25,8 @@ namespace fbar {
 namespace {
 
 /// The dam break's load cells: floor force (Y-), the right half's x momentum, all mass, the largest x velocity,
-/// the average speed along y, the count of nodes with mass.
+/// the average speed along y, the count of nodes with mass, the volume on the nodes of the left half and the mean
+/// and least JBar of all nodes.
 std::vector<GridSensorSpec> dam_break_sensors() {
   const auto make = test::grid_sensor_spec;
   const Real3 all_lo{0, 0, 0}, all_hi{0.64, 0.4, 0.2};
@@ -31,7 +35,10 @@ std::vector<GridSensorSpec> dam_break_sensors() {
           make("Mass", SensorOperation::Sum, all_lo, all_hi, {1, 0, 0}, 0),
           make("Velocity", SensorOperation::Max, all_lo, all_hi, {1, 0, 0}, 0),
           make("Velocity", SensorOperation::Average, all_lo, all_hi, {0, 1, 0}, 0),
-          make("Mass", SensorOperation::Count, all_lo, all_hi, {1, 0, 0}, 0)};
+          make("Mass", SensorOperation::Count, all_lo, all_hi, {1, 0, 0}, 0),
+          make("Volume", SensorOperation::Sum, all_lo, {0.3, 0.4, 0.2}, {1, 0, 0}, 0),
+          make("JBar", SensorOperation::Average, all_lo, all_hi, {1, 0, 0}, 0),
+          make("JBar", SensorOperation::Min, all_lo, all_hi, {1, 0, 0}, 0)};
 }
 
 constexpr int kSteps = 60;
@@ -113,6 +120,27 @@ TEST(GpuGridSensors, MatchTheCpuEngine) {
   EXPECT_GT(c.back()[0], 0.0);  // the floor carries the water
 }
 
+// Volume and JBar of a body with ClaymoreUW's nodal F-bar (the stored JBar, fused and split): the CPU engine's
+// values sample by sample.
+TEST(GpuGridSensors, VolumeAndJBarOfNodalFbarMatchTheCpuEngine) {
+  FBAR_REQUIRE_DEVICE();
+  for (const bool fused : {true, false}) {
+    Scene scene = test::dam_break(false);
+    scene.bodies[0].algorithm.fbar_psi = 0.5;
+    scene.bodies[0].algorithm.fbar_scheme = FbarScheme::Nodal;
+    scene.bodies[0].algorithm.fbar_fused_kernel = fused;
+    const std::vector<GridSensorSpec> sensors = dam_break_sensors();
+    CpuEngine<double> cpu(scene);
+    cpu.set_log(nullptr);
+    GpuEngine<double> gpu(scene);
+    gpu.set_log(nullptr);
+    const Series c = sample_every_step(cpu, nullptr, sensors);
+    const Series g = sample_every_step(gpu, nullptr, sensors);
+    expect_series_near(c, g, 1e-9, fused ? "nodal fused, GPU vs CPU" : "nodal split, GPU vs CPU");
+    EXPECT_LT(c.back()[8], 1.0 - 1e-5) << "the water compresses: some node's JBar is below 1";
+  }
+}
+
 /// `ranks` GPU ranks as threads, each running sample(engine, host) on its engine; returns every rank's series (every
 /// rank must complete). nccl: rank r on GPU r through NCCL (FBAR_REQUIRE_GPUS); otherwise all on device 0 (peer copies).
 template <class Sample>
@@ -172,6 +200,95 @@ TEST(GpuGridSensors, RanksSumToOneRank) {
 TEST(GpuGridSensors, NcclRanksSumToOneRank) {
   FBAR_REQUIRE_GPUS(2);
   expect_grid_sums_as_one_rank({2}, true);
+}
+
+/// A grid field's nodes every step (ordered by index), as the run loop's recorder orders them.
+template <class Engine>
+std::vector<std::vector<GridFieldNode>> field_every_step(Engine& engine, comm::Transport* host, const GridFieldSpec& f) {
+  std::vector<std::vector<GridFieldNode>> out;
+  engine.set_grid_fields({f});
+  for (int s = 0; s < kSteps; ++s) {
+    engine.set_grid_field_sample(1u);
+    const StepReport r = engine.step(kDt);
+    if (!r.ok) throw std::runtime_error(r.message());
+    GridFieldSample g = engine.grid_field_sample(0);
+    if (g.dt != kDt) throw std::runtime_error("grid field: the sample's dt is not the step's");
+    if (host && host->size() > 1) {  // every rank's nodes
+      comm::Bytes mine(g.nodes.size() * sizeof(GridFieldNode));
+      if (!g.nodes.empty()) std::memcpy(mine.data(), g.nodes.data(), mine.size());
+      g.nodes.clear();
+      for (const comm::Bytes& b : host->allgather(mine)) {
+        const std::size_t at = g.nodes.size(), n = b.size() / sizeof(GridFieldNode);
+        g.nodes.resize(at + n);
+        if (n) std::memcpy(g.nodes.data() + at, b.data(), n * sizeof(GridFieldNode));
+      }
+    }
+    std::sort(g.nodes.begin(), g.nodes.end(), [](const GridFieldNode& a, const GridFieldNode& b) {
+      return std::tie(a.index[0], a.index[1], a.index[2]) < std::tie(b.index[0], b.index[1], b.index[2]);
+    });
+    out.push_back(std::move(g.nodes));
+  }
+  return out;
+}
+
+// Grid fields (physics/grid_fields.h): the GPU records the CPU engine's nodes step by step (the same nodes; values to
+// 1e-9 of their range in double), and 2 ranks record one rank's nodes bit for bit (order-free sums).
+TEST(GpuGridFields, MatchTheCpuEngineAndRanksRecordOneRanksNodes) {
+  FBAR_REQUIRE_DEVICE();
+  const Scene scene = test::dam_break(false);
+  GridFieldSpec f;
+  f.domain_start = {0.2, 0.0, 0.0};
+  f.domain_end = {0.64, 0.4, 0.2};
+  f.attributes = {"Mass", "Momentum", "BoundaryForce", "Volume", "JBar"};
+  CpuEngine<double> cpu(scene);
+  cpu.set_log(nullptr);
+  GpuEngine<double> gpu(scene);
+  gpu.set_log(nullptr);
+  const auto c = field_every_step(cpu, nullptr, f);
+  const auto g = field_every_step(gpu, nullptr, f);
+  ASSERT_EQ(c.size(), g.size());
+  for (std::size_t s = 0; s < c.size(); ++s) {
+    ASSERT_EQ(c[s].size(), g[s].size()) << "step " << s + 1;
+    ASSERT_GT(c[s].size(), 0u);
+    for (std::size_t i = 0; i < c[s].size(); ++i) {
+      const GridFieldNode &a = c[s][i], &b = g[s][i];
+      ASSERT_TRUE(a.index[0] == b.index[0] && a.index[1] == b.index[1] && a.index[2] == b.index[2]) << "step " << s + 1;
+      EXPECT_NEAR(a.m, b.m, 1e-9 * (1.0 + a.m));
+      for (int d = 0; d < 3; ++d) {
+        EXPECT_NEAR(a.p[d], b.p[d], 1e-9 * (1.0 + std::fabs(a.p[d])));
+        EXPECT_NEAR(a.boundary[d], b.boundary[d], 1e-6 * (1.0 + std::fabs(a.boundary[d])));
+      }
+      EXPECT_NEAR(a.volume, b.volume, 1e-9 * a.volume);
+      EXPECT_NEAR(a.volume_jbar, b.volume_jbar, 1e-9 * a.volume + 1e-20);
+    }
+  }
+  std::vector<std::vector<std::vector<GridFieldNode>>> ranks(2);
+  std::vector<std::unique_ptr<comm::Transport>> hosts = comm::make_thread_transports(2);
+  std::vector<std::string> errors(2);
+  std::vector<std::thread> threads;
+  for (int r = 0; r < 2; ++r)
+    threads.emplace_back([&, r] {
+      try {
+        std::unique_ptr<comm::DeviceTransport> device = comm::make_thread_device_transport(*hosts[r]);
+        GpuEngineOptions options;
+        options.ranks = hosts[r].get();
+        options.device_ranks = device.get();
+        GpuEngine<double> engine(scene, options);
+        engine.set_log(nullptr);
+        ranks[r] = field_every_step(engine, hosts[r].get(), f);
+      } catch (const std::exception& e) {
+        errors[r] = e.what();
+        hosts[r]->abort(2);
+      }
+    });
+  for (auto& t : threads) t.join();
+  for (int r = 0; r < 2; ++r) ASSERT_EQ(errors[r], "") << "rank " << r;
+  ASSERT_EQ(ranks[0].size(), g.size());
+  for (std::size_t s = 0; s < g.size(); ++s) {
+    ASSERT_EQ(ranks[0][s].size(), g[s].size()) << "step " << s + 1;
+    EXPECT_EQ(std::memcmp(ranks[0][s].data(), g[s].data(), g[s].size() * sizeof(GridFieldNode)), 0)
+        << "step " << s + 1 << ": 2 ranks record one rank's nodes bit for bit";
+  }
 }
 
 // ClaymoreUW-placed load cells (against each wall of a hydrostatic tank, from outside; decomposition_scenes.h

@@ -371,6 +371,13 @@ typename CpuEngine<T, TG>::TryResult CpuEngine<T, TG>::try_step(double dt_in) {
     p2g(body, dt);
   }
   if (ranks() > 1) exchange_halo(false);
+  if ((node_volume_ && grid_sample_slot_ >= 0) || grid_fields_.reads_volume()) {
+    // a Volume or JBar sensor or field samples: every body's volume on the nodes
+    grid_.fbar.resize(grid_.blocks.size());
+    clear_fbar_sums();
+    for (Body& body : bodies_) fbar_node_sums(body, dt, true);
+    if (ranks() > 1) exchange_halo(true);
+  }
   result.max_grid_speed = update_grid(static_cast<TG>(dt_in));
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     if (bodies_[b].fbar_psi != T(0)) {  // F-bar averages within one body

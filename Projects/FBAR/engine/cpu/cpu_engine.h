@@ -63,6 +63,7 @@
 #include "physics/boundary.cuh"
 #include "physics/constitutive_models.cuh"
 #include "physics/fem.cuh"
+#include "physics/grid_fields.h"
 #include "physics/sensors.cuh"
 #include "engine/engine_common.h"
 #include "engine/grid_channels.h"
@@ -153,6 +154,12 @@ class CpuEngine {
   void set_grid_sample(int slot) { grid_sample_slot_ = slot; }
   /// This rank's values of slots [0, slots), slot-major (values[slot * sensors + i]).
   std::vector<SensorAccum> grid_samples(int slots) const;
+  /// Grid fields (physics/grid_fields.h; at most GridFieldSet::kMax), in this order: the next steps' grid updates
+  /// record the nodes this rank owns inside the boxes of the fields in `mask` (bit i: field i; 0: none), which
+  /// grid_field_sample(i) then returns with the step's dt. A retried step records its successful try.
+  void set_grid_fields(const std::vector<GridFieldSpec>& fields);
+  void set_grid_field_sample(unsigned mask) { grid_fields_.mask = mask; }
+  GridFieldSample grid_field_sample(int field) const;
   /// Particle sensors (at most ParticleSensorSet::kMax): sample_particles(slot) reduces this rank's particles of
   /// every body in each sensor's box (frame_value() of the sensor's attribute) into `slot`; particle_samples(n)
   /// returns slots [0, n) as values[(slot * bodies + body) * sensors + i]. keep_particle_inputs: nothing to keep
@@ -306,7 +313,9 @@ class CpuEngine {
     TG old_velocity[3][64];
   };
   // F-bar's sums of one body before its G2P (only when a body uses F-bar). Cell scheme: sum V0 (1 - J) and sum V0 of
-  // the cell c at node c; nodal scheme: sum w V s and sum w V (s = 1 - JBar, V = V0 J; fbar_nodal.cuh).
+  // the cell c at node c; nodal scheme: sum w V s and sum w V (s = 1 - JBar, V = V0 J; fbar_nodal.cuh). On a step
+  // a Volume or JBar grid sensor samples, before the grid update: every body's sum w V s and sum w V (s = 1 - JBar
+  // of the JBar attribute: nodal F-bar's stored one, else 1 - J).
   struct FbarBlock {
     TG sums[2][64];
   };
@@ -356,7 +365,9 @@ class CpuEngine {
   void p2g(Body& body, T dt);
   double update_grid(TG dt);
   void fbar_cell_sums(Body& body);
-  void fbar_node_sums(Body& body, T dt);  // nodal F-bar's sums (fused: of the stored JBar; split: advanced by C)
+  // Nodal F-bar's sums (fused: of the stored JBar; split: advanced by C), after clearing; volume_sensor: a volume
+  // sensor's sums (the stored JBar, or J), added to what the grid holds.
+  void fbar_node_sums(Body& body, T dt, bool volume_sensor = false);
   void clear_fbar_sums();                 // F-bar's sums zeroed on every block (before a body's pass)
   /// Adds a particle block's arena of F-bar sums (the two sums by arena node) into the grid blocks it overlaps.
   void add_fbar_arena(const std::array<int, 8>& blocks, const T* sums, const T* volumes);
@@ -433,10 +444,13 @@ class CpuEngine {
   bool partition_valid_ = false;
   bool asflip_ = false;  // some body uses ASFLIP: the grid update keeps v^n
   bool fbar_ = false;    // some body uses F-bar: the grid has cell sums
+  bool node_volume_ = false;  // a grid sensor reads Volume or JBar: the grid has the F-bar sums for it
   bool pore_ = false;    // some body is saturated (CoupledUP): the grid has seepage channels
   GridSensorSet<TG> grid_sensors_;         // evaluated by update_grid when grid_sample_slot_ >= 0
   int grid_sample_slot_ = -1;
   std::vector<SensorAccum> grid_samples_;  // (slot, sensor)
+  GridFieldSet<TG> grid_fields_;           // recorded by update_grid for the fields in grid_fields_.mask
+  std::vector<GridFieldSample> field_samples_;  // (field) the last recorded sample
   ParticleSensorSet<T> particle_sensors_;
   std::vector<TrackerSet> trackers_;  // (body)
   std::vector<SensorAccum> particle_samples_;  // (slot, body, sensor)

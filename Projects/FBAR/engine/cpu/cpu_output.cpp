@@ -54,7 +54,28 @@ void CpuEngine<T, TG>::set_grid_sensors(const std::vector<GridSensorSpec>& senso
   grid_sensors_ = GridSensorSet<TG>{};
   for (const GridSensorSpec& spec : sensors)
     grid_sensors_.s[grid_sensors_.count++] = make_grid_sensor_params<TG>(spec, static_cast<double>(k_.dx));
+  node_volume_ = false;
+  for (int i = 0; i < grid_sensors_.count; ++i)
+    node_volume_ = node_volume_ || grid_sensor_reads_volume(grid_sensors_.s[i].quantity);
   grid_samples_.clear();
+}
+
+template <typename T, typename TG>
+void CpuEngine<T, TG>::set_grid_fields(const std::vector<GridFieldSpec>& fields) {
+  if (fields.size() > static_cast<std::size_t>(GridFieldSet<TG>::kMax))
+    throw std::invalid_argument("grid-fields: " + std::to_string(fields.size()) + " enabled fields; at most " +
+                                std::to_string(GridFieldSet<TG>::kMax) + " per run");
+  grid_fields_ = GridFieldSet<TG>{};
+  for (const GridFieldSpec& spec : fields)
+    grid_fields_.f[grid_fields_.count++] = make_grid_field_params<TG>(spec, static_cast<double>(k_.dx));
+  field_samples_.assign(fields.size(), GridFieldSample{});
+}
+
+template <typename T, typename TG>
+GridFieldSample CpuEngine<T, TG>::grid_field_sample(int field) const {
+  if (field < 0 || field >= static_cast<int>(field_samples_.size()))
+    throw std::logic_error("CpuEngine::grid_field_sample: no grid field " + std::to_string(field));
+  return field_samples_[static_cast<std::size_t>(field)];
 }
 
 template <typename T, typename TG>

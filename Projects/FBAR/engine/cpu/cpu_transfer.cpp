@@ -102,7 +102,7 @@ void CpuEngine<T, TG>::build_partition() {
   }
   grid_.blocks.resize(grid_.coords.size());
   if (asflip_) grid_.asflip.resize(grid_.coords.size());
-  if (fbar_) grid_.fbar.resize(grid_.coords.size());
+  if (fbar_ || node_volume_) grid_.fbar.resize(grid_.coords.size());
   if (pore_) grid_.pore.resize(grid_.coords.size());
   partition_valid_ = true;
 }
@@ -242,6 +242,10 @@ double CpuEngine<T, TG>::update_grid(TG dt) {
   // Grid sensors: each block's reduction apart, merged in block order below (independent of the thread count).
   const int sensors = grid_sample_slot_ >= 0 ? grid_sensors_.count : 0;
   std::vector<SensorAccum> block_sensors(static_cast<std::size_t>(nblocks) * sensors);
+  // Grid fields: each block's nodes apart (field, node), concatenated in block order below.
+  const bool fields = grid_fields_.mask != 0;
+  const bool volume = (sensors > 0 && node_volume_) || grid_fields_.reads_volume();
+  std::vector<std::vector<std::pair<int, GridFieldNode>>> block_fields(fields ? nblocks : 0);
   TG max_speed_sq = TG(0);
   const TG full_volume = kg_.dx * kg_.dx * kg_.dx;  // a node's volume when material surrounds it (seepage)
   const auto holds = [&](const Vec3G& x) {  // some active boundary acts on the node (seepage: never drained)
@@ -288,8 +292,18 @@ double CpuEngine<T, TG>::update_grid(TG dt) {
               w.head[node] = n.head;
               w.inflow[node] = n.inflow;
             }
+            if (volume) {
+              sample.volume = grid_.fbar[gb].sums[1][node];
+              sample.volume_jbar = grid_.fbar[gb].sums[0][node];
+            }
             if (sensors > 0 && owned)
               accumulate_grid_sensors(grid_sensors_, x_node, sample, &block_sensors[static_cast<std::size_t>(gb) * sensors]);
+            if (fields && owned) {
+              const int index[3] = {c[0] * kBlockSide + i, c[1] * kBlockSide + j, c[2] * kBlockSide + k};
+              for (int f = 0; f < grid_fields_.count; ++f)
+                if ((grid_fields_.mask >> f & 1u) && grid_field_contains(grid_fields_.f[f], x_node))
+                  block_fields[gb].emplace_back(f, grid_field_node(index, sample));
+            }
           }
           g.momentum[0][node] = v[0];
           g.momentum[1][node] = v[1];
@@ -306,6 +320,12 @@ double CpuEngine<T, TG>::update_grid(TG dt) {
       for (int gb = 0; gb < nblocks; ++gb) total.merge(block_sensors[static_cast<std::size_t>(gb) * sensors + i]);
       grid_samples_[first + i] = total;
     }
+  }
+  if (fields) {  // each field's nodes in block order (the recorder orders them by node index)
+    for (int f = 0; f < grid_fields_.count; ++f)
+      if (grid_fields_.mask >> f & 1u) field_samples_[static_cast<std::size_t>(f)] = GridFieldSample{static_cast<double>(dt), {}};
+    for (const auto& list : block_fields)
+      for (const auto& [f, node] : list) field_samples_[static_cast<std::size_t>(f)].nodes.push_back(node);
   }
   grid_mass_ = 0.0;
   for (double m : block_mass) grid_mass_ += m;
@@ -380,11 +400,12 @@ void CpuEngine<T, TG>::fbar_cell_sums(Body& body) {
 }
 
 template <typename T, typename TG>
-void CpuEngine<T, TG>::fbar_node_sums(Body& body, T dt) {
-  clear_fbar_sums();
+void CpuEngine<T, TG>::fbar_node_sums(Body& body, T dt, bool volume_sensor) {
+  if (!volume_sensor) clear_fbar_sums();
   const Partition& part = body.partition;
   const T dx = k_.dx, inv_dx = k_.inv_dx, d_inv = k_.d_inv;
-  const bool split = !body.fbar_fused;
+  const bool split = !volume_sensor && !body.fbar_fused;
+  const bool own_j = volume_sensor && !body.fbar_nodal;  // a volume sensor reads J of a body without nodal F-bar
   std::visit(
       [&](auto& mb) {
         using M = typename std::decay_t<decltype(mb)>::material_type;
@@ -417,7 +438,7 @@ void CpuEngine<T, TG>::fbar_node_sums(Body& body, T dt) {
                 const int l1 = s.base[1] - origin[1] * kBlockSide;
                 const int l2 = s.base[2] - origin[2] * kBlockSide;
                 const T V = body.volume[p] * M::volume_ratio(state[p]);
-                T value = body.jbar[p];  // fused: the stored 1 - JBar
+                T value = own_j ? one_minus_volume_ratio<M>(state[p]) : body.jbar[p];  // fused: the stored 1 - JBar
                 if (split) {  // 1 - JBar dJ: advanced by the particle's own increment over this step
                   G2PSum<T> sum;
                   for_each_stencil_node(s, dx, [&](int i, int j, int k, T w, const Vec3T& xixp) {

@@ -182,23 +182,7 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
       const int blocks = e.block_count_;
       if (blocks > 0) e.fbar_sums().clear(0, blocks, e.stream_);
       if (!empty && this->fbar_nodal) {
-        FbarNodeSumsParams<M, T, TG> f;
-        f.in = p.in;
-        f.layout = p.layout;
-        f.table = p.table;
-        f.sums = p.fbar_sums;
-        f.quantum = p.fbar_quantum;
-        f.jbar = p.jbar_in;
-        f.fused = this->fbar_fused;
-        f.velocity = p.velocity;
-        f.volume = p.volume;
-        f.dt = dt;
-        f.dx = e.k_.dx;
-        f.inv_dx = e.k_.inv_dx;
-        f.d_inv = e.k_.d_inv;
-        f.stats = e.stats_d_;
-        ::fbar::fbar_node_sums<M, T, TG><<<blocks, kParticleBlockThreads, 0, e.stream_>>>(f);
-        cuda::check_launch("fbar_node_sums");
+        launch_node_sums(e, this->fbar_fused ? FbarNodeValue::Stored : FbarNodeValue::Advanced, p.fbar_quantum, dt);
       } else if (!empty) {
         FbarCellSumsParams<M, T, TG> f;
         f.in = p.in;
@@ -239,6 +223,35 @@ struct MgspBenchmark<T, TG>::Body final : BodyBase {
       ::fbar::launch_g2p2g<M, T, TG, false>(p, blocks, arena, e.stream_);
     cuda::check_launch("g2p2g");
     if (mesh && pass == G2P2GPass::All && !e.measuring_bound_) mesh_pass(e);
+  }
+
+  /// Node sums of this body's particles (layout(cur)) added into e.fbar_sums() in units of `quantum`
+  /// (kernels/fbar_kernels.cuh): nodal F-bar's, or a volume sensor's.
+  void launch_node_sums(MgspBenchmark& e, FbarNodeValue value, double quantum, T dt) {
+    const int blocks = e.block_count_;
+    if (blocks == 0 || this->particles == 0) return;
+    FbarNodeSumsParams<M, T, TG> f;
+    f.in = bins[e.cur_].instance();
+    f.layout = this->partition.layout(e.cur_);
+    f.table = e.table_.view();
+    f.sums = e.fbar_sums().view();
+    f.quantum = quantum;
+    f.jbar = this->fbar_nodal ? this->particle_jbar[e.cur_].get() : nullptr;
+    f.value = value;
+    f.velocity = e.grid_velocity().instance();
+    f.volume = this->volume;
+    f.vertex_volume = this->is_mesh() ? this->mesh->vertex_volume.get() : nullptr;
+    f.dt = dt;
+    f.dx = e.k_.dx;
+    f.inv_dx = e.k_.inv_dx;
+    f.d_inv = e.k_.d_inv;
+    f.stats = e.stats_d_;
+    ::fbar::fbar_node_sums<M, T, TG><<<blocks, kParticleBlockThreads, 0, e.stream_>>>(f);
+    cuda::check_launch("fbar_node_sums");
+  }
+
+  void node_volume_sums(MgspBenchmark& e, double quantum) override {
+    launch_node_sums(e, this->fbar_nodal ? FbarNodeValue::Stored : FbarNodeValue::OwnJ, quantum, T(0));
   }
 
   /// The G2P2G of a mesh's vertices (kMesh; instantiated for the element laws only).

@@ -211,6 +211,9 @@ struct MgspBenchmark<T, TG>::BodyBase {
   /// Saturated bodies: the seepage channels of bins[cur] added into e.pore_sums() (kernels/seepage_kernels.cuh), or
   /// (bounds_only) their bounds raised in e.pore_bound_d_; nothing for other laws.
   virtual void seepage_sums(MgspBenchmark& e, bool bounds_only) = 0;
+  /// A Volume or JBar grid sensor's sample: this body's w V (1 - JBar) and w V of bins[cur] added into
+  /// e.fbar_sums() in units of `quantum` (kernels/fbar_kernels.cuh fbar_node_sums).
+  virtual void node_volume_sums(MgspBenchmark& e, double quantum) = 0;
   /// blocks: a restart's recorded block per slot (3 ints), or nullptr to take each particle's from its position.
   virtual void dest_from_positions(MgspBenchmark& e, int bins_which, const int* valid, int first, int slots,
                                    const int* blocks = nullptr) = 0;

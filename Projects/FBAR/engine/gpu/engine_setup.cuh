@@ -214,8 +214,8 @@ void MgspBenchmark<T, TG>::plan_memory() {
     }
     inputs.push_back(in);
   }
-  plan_ = plan_device_memory(kPrecision, footprint_blocks(all), inputs);
-  plan_.small += sensor_device_bytes(scene_);
+  plan_ = plan_device_memory(kPrecision, footprint_blocks(all), inputs, scene_reads_node_volume(scene_));
+  plan_.small += sensor_device_bytes(scene_) + grid_field_device_bytes(scene_);
   if (plan_.block_capacity > DeviceLimits::kMaxBlocks)
     throw std::invalid_argument("GpuEngine: " + std::to_string(plan_.block_capacity) + " grid blocks of capacity; at most " +
                                 std::to_string(DeviceLimits::kMaxBlocks) + " per device (docs/user_guide.md \"Limits\")");

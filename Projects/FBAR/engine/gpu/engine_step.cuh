@@ -342,30 +342,51 @@ void MgspBenchmark<T, TG>::update_grid(double dt) {
                                         kGridUpdateThreads, 0, stream_>>>(gp);
     cuda::check_launch("update_grid_velocity_query_max");
   }
-  if (sensors_.grid_sample_slot >= 0 && sensors_.grid.count > 0) {  // a sample step (each try overwrites the slot)
+  const bool sensors = sensors_.grid_sample_slot >= 0 && sensors_.grid.count > 0;  // a sample step
+  if (!sensors && sensors_.fields.mask == 0) return;
+  GridSensorSampleParams<TG> sp{};
+  if ((sensors && sensors_.grid_reads_volume) || sensors_.fields.reads_volume()) {
+    // every body's volume on the nodes, from the state the P2G sums hold
+    if (block_count_ > 0) fbar_sums().clear(0, block_count_, stream_);
+    for (auto& b : bodies_) b->node_volume_sums(*this, sensors_.volume_quantum);
+    if (decomposed()) halo_exchange({halo_of<GridSet::FbarSums>()}, -1);
+    sp.volume = fbar_sums().view();
+    sp.volume_quantum = sensors_.volume_quantum;
+  }
+  sp.grid = gp.grid;
+  sp.quantum = gp.quantum;
+  sp.velocity = gp.velocity;
+  sp.pore = gp.pore;
+  sp.coords = gp.coords;
+  sp.block_count = block_count_;
+  sp.dt = gp.dt;
+  sp.dx = gp.dx;
+  sp.gravity = gp.gravity;
+  sp.slab = dec_.slab;
+  sp.not_counted = dec_.placed ? dec_.not_counted.get() : nullptr;
+  const long long nodes = static_cast<long long>(block_count_) * 64;
+  const int per_sensor = static_cast<int>(
+      std::clamp<long long>((nodes + kSensorThreads - 1) / kSensorThreads, 1, kSensorBlocks));
+  if (sensors) {  // each try overwrites the slot
     SensorAccum* out = sensors_.grid_samples_d.get() + static_cast<std::size_t>(sensors_.grid_sample_slot) * sensors_.grid.count;
-    GridSensorSampleParams<TG> sp{};
-    sp.grid = gp.grid;
-    sp.quantum = gp.quantum;
-    sp.velocity = gp.velocity;
-    sp.pore = gp.pore;
-    sp.coords = gp.coords;
-    sp.block_count = block_count_;
-    sp.dt = gp.dt;
-    sp.dx = gp.dx;
-    sp.gravity = gp.gravity;
-    sp.slab = dec_.slab;
-    sp.not_counted = dec_.placed ? dec_.not_counted.get() : nullptr;
     sp.sensors = sensors_.grid;
     sp.partials = sensors_.partials_d.get();
-    const long long nodes = static_cast<long long>(block_count_) * 64;
-    const int per_sensor = static_cast<int>(
-        std::clamp<long long>((nodes + kSensorThreads - 1) / kSensorThreads, 1, kSensorBlocks));
     sample_grid_sensors<TG><<<dim3(per_sensor, sensors_.grid.count), kSensorThreads, 0, stream_>>>(sp);
     cuda::check_launch("sample_grid_sensors");
     merge_sensor_partials<<<1, GridSensorSet<TG>::kMax, 0, stream_>>>(sp.partials, per_sensor, sensors_.grid.count,
                                                                       out);
     cuda::check_launch("merge_sensor_partials");
+  }
+  if (sensors_.fields.mask != 0) {  // each try records again
+    FBAR_CUDA_CHECK(cudaMemsetAsync(sensors_.field_count_d.get(), 0, sensors_.field_count_d.bytes(), stream_));
+    sensors_.field_dt = dt;
+    for (int f = 0; f < sensors_.fields.count; ++f) {
+      if (!(sensors_.fields.mask >> f & 1u)) continue;
+      cuda::DeviceArray<GridFieldNode>& out = sensors_.field_nodes[static_cast<std::size_t>(f)];
+      collect_grid_field<TG><<<per_sensor, kSensorThreads, 0, stream_>>>(
+          sp, sensors_.fields.f[f], out.get(), static_cast<int>(out.size()), sensors_.field_count_d.get() + f);
+      cuda::check_launch("collect_grid_field");
+    }
   }
 }
 

@@ -24,6 +24,7 @@
 #include "engine/gpu/gpu_architectures.h"
 #include "engine/memory_plan.h"
 #include "io/checkpoint.h"
+#include "physics/grid_fields.h"
 #include "physics/sensors.cuh"
 #include "scene/scene.h"
 
@@ -189,6 +190,11 @@ class GpuEngine {
   void set_grid_sensors(const std::vector<GridSensorSpec>& sensors);
   void set_grid_sample(int slot);
   std::vector<SensorAccum> grid_samples(int slots) const;
+  /// Grid fields (as CpuEngine): the fields a sampling step records; the mask of the next steps' fields (0: none);
+  /// this rank's nodes of a field's last sample (one download).
+  void set_grid_fields(const std::vector<GridFieldSpec>& fields);
+  void set_grid_field_sample(unsigned mask);
+  GridFieldSample grid_field_sample(int field);
   /// Particle sensors (as CpuEngine): keep_particle_inputs(true) for the steps that may land on a sample time makes
   /// them record v and C when a sensor reads them; sample_particles(slot) reduces the current state.
   void set_particle_sensors(const std::vector<ParticleSensorSpec>& sensors);
@@ -261,6 +267,8 @@ class GpuEngine {
        checkpoint_inputs_ = false;
   int grid_sample_ = -1;
   std::vector<GridSensorSpec> grid_sensors_;
+  unsigned grid_field_mask_ = 0;
+  std::vector<GridFieldSpec> grid_fields_;
   std::vector<ParticleSensorSpec> particle_sensors_;
   std::vector<std::pair<int, TrackerSet>> trackers_;
   KernelTimes earlier_times_;          ///< of the engines before the last rebalance

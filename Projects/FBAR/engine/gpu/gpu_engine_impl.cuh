@@ -198,6 +198,21 @@ void GpuEngine<T, TG>::set_grid_sample(int slot) {
 }
 template <typename T, typename TG>
 std::vector<SensorAccum> GpuEngine<T, TG>::grid_samples(int slots) const { return impl_->grid_samples(slots); }
+
+template <typename T, typename TG>
+void GpuEngine<T, TG>::set_grid_fields(const std::vector<GridFieldSpec>& fields) {
+  grid_fields_ = fields;
+  impl_->set_grid_fields(fields);
+}
+
+template <typename T, typename TG>
+void GpuEngine<T, TG>::set_grid_field_sample(unsigned mask) {
+  grid_field_mask_ = mask;
+  impl_->set_grid_field_sample(mask);
+}
+
+template <typename T, typename TG>
+GridFieldSample GpuEngine<T, TG>::grid_field_sample(int field) { return impl_->grid_field_sample(field); }
 template <typename T, typename TG>
 void GpuEngine<T, TG>::set_particle_sensors(const std::vector<ParticleSensorSpec>& sensors) {
   particle_sensors_ = sensors;
@@ -351,6 +366,8 @@ void GpuEngine<T, TG>::replay_settings() {
   impl_->set_record_velocities(record_velocities_);
   impl_->set_kernel_timing(timing_);
   if (!grid_sensors_.empty()) impl_->set_grid_sensors(grid_sensors_);
+  if (!grid_fields_.empty()) impl_->set_grid_fields(grid_fields_);
+  impl_->set_grid_field_sample(grid_field_mask_);
   if (!particle_sensors_.empty()) impl_->set_particle_sensors(particle_sensors_);
   for (const auto& [body, set] : trackers_) impl_->set_tracker(body, set);
   impl_->set_grid_sample(grid_sample_);

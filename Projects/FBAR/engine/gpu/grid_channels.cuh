@@ -41,6 +41,17 @@ class GridChannels {
     features_ = features;
     each([&](const GridSetDecl&, auto& buffer, int) { buffer.allocate(capacity); });
   }
+  /// Allocates, at `capacity` blocks (zeroed), the sets `more` needs that the scene did not carry yet (a grid sensor
+  /// set after the start that reads the nodes' volume); the sets already carried are left as they are.
+  void add(GridFeatures more, int capacity) {
+    const GridFeatures before = features_;
+    features_ = GridFeatures{before.asflip || more.asflip, before.fbar || more.fbar, before.pore || more.pore,
+                             before.node_volume || more.node_volume};
+    each_slot(*this, [&](const GridSetDecl& d, auto& slot) {
+      if (before.has(d.need)) return;
+      for (auto& buffer : slot.copy) buffer.allocate(capacity);
+    });
+  }
   /// New capacity: AcrossSteps and WithinStep sets keep blocks [0, keep) (a growth may come inside a step), PerPass
   /// sets are refilled before their next use; the AcrossSteps sums are zero beyond `keep`.
   void grow(int capacity, int keep, cudaStream_t stream) {

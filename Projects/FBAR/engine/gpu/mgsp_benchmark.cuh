@@ -155,6 +155,13 @@ class MgspBenchmark {
   void set_grid_sensors(const std::vector<GridSensorSpec>& sensors);
   void set_grid_sample(int slot);
   std::vector<SensorAccum> grid_samples(int slots) const;
+  /// Grid fields (physics/grid_fields.h): recorded after the grid update of a step whose mask has them
+  /// (set_grid_field_sample), into one device buffer per field; grid_field_sample() downloads one (synchronously).
+  void set_grid_fields(const std::vector<GridFieldSpec>& fields);
+  void set_grid_field_sample(unsigned mask) { sensors_.fields.mask = mask; }
+  GridFieldSample grid_field_sample(int field);
+  /// The F-bar sums allocated for the nodes' volume (Volume and JBar sensors and fields) and their quantum.
+  void ensure_node_volume();
   /// Particle sensors: sample_particles() reduces the current state (v and C from the step that landed here, which
   /// keep_particle_inputs(true) made record them, when a sensor reads them) into a device slot.
   void set_particle_sensors(const std::vector<ParticleSensorSpec>& sensors);

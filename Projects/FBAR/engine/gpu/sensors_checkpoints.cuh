@@ -15,7 +15,61 @@ void MgspBenchmark<T, TG>::set_grid_sensors(const std::vector<GridSensorSpec>& s
   for (const GridSensorSpec& spec : sensors)
     sensors_.grid.s[sensors_.grid.count++] = make_grid_sensor_params<TG>(spec, static_cast<double>(k_.dx));
   sensors_.grid_sample_slot = -1;
+  sensors_.grid_reads_volume = false;
+  for (int i = 0; i < sensors_.grid.count; ++i)
+    sensors_.grid_reads_volume = sensors_.grid_reads_volume || grid_sensor_reads_volume(sensors_.grid.s[i].quantity);
+  if (sensors_.grid_reads_volume) ensure_node_volume();
   if (sensors_.grid.count > 0) ensure_sensor_partials();
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::ensure_node_volume() {
+  channels_.add(GridFeatures{false, false, false, true}, block_capacity_);  // the F-bar sums, on the sample steps
+  double most = 0.0;
+  for (const auto& b : bodies_) most = std::max(most, static_cast<double>(b->volume));
+  if (decomposed()) most = dec_.host->max(most);  // every rank sums in the same quantum
+  sensors_.volume_quantum = fixed_quantum<TG>(most);
+}
+
+template <typename T, typename TG>
+void MgspBenchmark<T, TG>::set_grid_fields(const std::vector<GridFieldSpec>& fields) {
+  if (fields.size() > static_cast<std::size_t>(GridFieldSet<TG>::kMax))
+    throw std::invalid_argument("grid-fields: " + std::to_string(fields.size()) + " enabled fields; at most " +
+                                std::to_string(GridFieldSet<TG>::kMax) + " per run");
+  sensors_.fields = GridFieldSet<TG>{};
+  for (auto& a : sensors_.field_nodes) a.allocate(0);
+  bool volume = false;
+  for (std::size_t i = 0; i < fields.size(); ++i) {
+    const GridFieldParams<TG> f = make_grid_field_params<TG>(fields[i], static_cast<double>(k_.dx));
+    sensors_.fields.f[sensors_.fields.count++] = f;
+    volume = volume || f.volume;
+    double nodes = 1.0;  // the box's nodes: every record it can hold
+    for (int a = 0; a < 3; ++a)
+      nodes *= std::max(0.0, std::floor((static_cast<double>(f.hi[a]) - static_cast<double>(f.lo[a])) / k_.dx) + 1.0);
+    sensors_.field_nodes[i].allocate(std::max<std::size_t>(1, static_cast<std::size_t>(nodes)));
+  }
+  sensors_.field_count_d.allocate(std::max<std::size_t>(1, fields.size()));
+  if (volume) ensure_node_volume();
+}
+
+template <typename T, typename TG>
+GridFieldSample MgspBenchmark<T, TG>::grid_field_sample(int field) {
+  if (field < 0 || field >= sensors_.fields.count)
+    throw std::logic_error("GpuEngine::grid_field_sample: no grid field " + std::to_string(field));
+  int count = 0;
+  FBAR_CUDA_CHECK(cudaMemcpyAsync(&count, sensors_.field_count_d.get() + field, sizeof(int), cudaMemcpyDeviceToHost,
+                                  stream_));
+  FBAR_CUDA_CHECK(cudaStreamSynchronize(stream_));
+  const cuda::DeviceArray<GridFieldNode>& nodes = sensors_.field_nodes[static_cast<std::size_t>(field)];
+  if (count > static_cast<int>(nodes.size()))
+    throw std::logic_error("GpuEngine: grid field " + std::to_string(field) + " recorded " + std::to_string(count) +
+                           " nodes in a box of " + std::to_string(nodes.size()));
+  GridFieldSample s;
+  s.dt = sensors_.field_dt;
+  s.nodes.resize(static_cast<std::size_t>(count));
+  if (count > 0)
+    FBAR_CUDA_CHECK(cudaMemcpy(s.nodes.data(), nodes.get(), sizeof(GridFieldNode) * count, cudaMemcpyDeviceToHost));
+  return s;
 }
 
 template <typename T, typename TG>

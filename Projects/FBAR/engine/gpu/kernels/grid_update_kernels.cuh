@@ -8,6 +8,7 @@
 #include "engine/gpu/grid_buffer.cuh"
 #include "physics/grid_update.cuh"
 #include "physics/seepage.cuh"
+#include "physics/grid_fields.h"
 #include "physics/sensors.cuh"
 #include "engine/gpu/hash_table.cuh"
 #include "engine/gpu/kernels/kernel_common.cuh"
@@ -138,6 +139,10 @@ struct GridSensorSampleParams {
   const GridQuantum* quantum;                       ///< their quanta
   typename GridLayout<T>::VelocityBuffer velocity;  ///< node velocities after the boundary projections
   typename GridLayout<T>::PoreBuffer pore;  ///< saturated bodies: water mass and p_i after the grid update (or null)
+  /// A Volume or JBar sensor: every body's sum w V (1 - JBar) and sum w V (channels 0, 1) in units of volume_quantum
+  /// (words null: no sensor reads them).
+  FbarSums<T> volume{};
+  double volume_quantum = 0.0;
   const int* coords;
   int block_count;
   T dt;
@@ -178,6 +183,43 @@ FBAR_DEVICE inline SensorAccum block_reduce_sensor(SensorAccum a) {
   return a;
 }
 
+/// Node (block, node) as the sensors and fields read it: false when this rank does not count it, it has no mass, or
+/// its block misses the box [lo, hi]; otherwise its position and sample.
+template <typename T>
+FBAR_DEVICE inline bool grid_node_sample(const GridSensorSampleParams<T>& p, const GridQuantum& q, int block, int node,
+                                         const Vec3<T>& lo, const Vec3<T>& hi, Vec3<T>& x_node, int (&index)[3],
+                                         GridNodeSample<T>& sample) {
+  const int c0 = p.coords[3 * block], c1 = p.coords[3 * block + 1], c2 = p.coords[3 * block + 2];
+  if (p.not_counted ? p.not_counted[block] != 0 : !p.slab.owns(c0, c1, c2)) return false;
+  const int c[3] = {c0, c1, c2};
+  bool overlaps = true;
+  for (int d = 0; d < 3; ++d)
+    overlaps = overlaps && static_cast<T>(c[d] * 4 + 3) * p.dx >= lo[d] && static_cast<T>(c[d] * 4) * p.dx <= hi[d];
+  if (!overlaps) return false;
+  const T m = sum_mass(p.grid, q, block, node);
+  if (!(m > T(0))) return false;
+  const int i = node / 16, j = (node / 4) % 4, k = node % 4;
+  index[0] = c0 * 4 + i;
+  index[1] = c1 * 4 + j;
+  index[2] = c2 * 4 + k;
+  x_node = Vec3<T>{{static_cast<T>(index[0]) * p.dx, static_cast<T>(index[1]) * p.dx, static_cast<T>(index[2]) * p.dx}};
+  if (!sensor_box_contains(lo, hi, x_node)) return false;
+  const Vec3<T> momentum = sum_momentum(p.grid, q, block, node);
+  const Vec3<T> v_free = grid_node_velocity(m, momentum, p.gravity, p.dt);
+  const Vec3<T> v{{block_val(p.velocity, grid_velocity_x, block, node), block_val(p.velocity, grid_velocity_y, block, node),
+                   block_val(p.velocity, grid_velocity_z, block, node)}};
+  sample = GridNodeSample<T>{m, momentum, v_free, v, p.dt};
+  if (p.pore) {
+    sample.water_mass = block_val(p.pore, grid_pore_water, block, node);
+    sample.pore_pressure = block_val(p.pore, grid_pore_density, block, node);
+  }
+  if (p.volume.words) {
+    sample.volume = static_cast<T>(p.volume.units(block, 1, node) * p.volume_quantum);
+    sample.volume_jbar = static_cast<T>(p.volume.units(block, 0, node) * p.volume_quantum);
+  }
+  return true;
+}
+
 /// blockIdx.y = sensor; a grid-stride loop over the nodes (blocks whose extent misses the sensor's box are skipped
 /// before any node is read), one partial per CUDA block. Fixed order: the sums are reproducible bit for bit.
 template <typename T>
@@ -188,34 +230,35 @@ __global__ void __launch_bounds__(kSensorThreads) sample_grid_sensors(GridSensor
   const long long nodes = static_cast<long long>(p.block_count) * 64;
   for (long long idx = static_cast<long long>(blockIdx.x) * blockDim.x + threadIdx.x; idx < nodes;
        idx += static_cast<long long>(gridDim.x) * blockDim.x) {
-    const int block = static_cast<int>(idx / 64), node = static_cast<int>(idx % 64);
-    const int c0 = p.coords[3 * block], c1 = p.coords[3 * block + 1], c2 = p.coords[3 * block + 2];
-    if (p.not_counted ? p.not_counted[block] != 0 : !p.slab.owns(c0, c1, c2)) continue;
-    const int c[3] = {c0, c1, c2};
-    bool overlaps = true;
-    for (int d = 0; d < 3; ++d)
-      overlaps = overlaps && static_cast<T>(c[d] * 4 + 3) * p.dx >= g.lo[d] && static_cast<T>(c[d] * 4) * p.dx <= g.hi[d];
-    if (!overlaps) continue;
-    const T m = sum_mass(p.grid, q, block, node);
-    if (!(m > T(0))) continue;
-    const int i = node / 16, j = (node / 4) % 4, k = node % 4;
-    const Vec3<T> x_node{{static_cast<T>(c0 * 4 + i) * p.dx, static_cast<T>(c1 * 4 + j) * p.dx,
-                          static_cast<T>(c2 * 4 + k) * p.dx}};
-    if (!sensor_box_contains(g.lo, g.hi, x_node)) continue;
-    const Vec3<T> momentum = sum_momentum(p.grid, q, block, node);
-    const Vec3<T> v_free = grid_node_velocity(m, momentum, p.gravity, p.dt);
-    const Vec3<T> v{{block_val(p.velocity, grid_velocity_x, block, node), block_val(p.velocity, grid_velocity_y, block, node),
-                     block_val(p.velocity, grid_velocity_z, block, node)}};
-    GridNodeSample<T> sample{m, momentum, v_free, v, p.dt};
-    if (p.pore) {
-      sample.water_mass = block_val(p.pore, grid_pore_water, block, node);
-      sample.pore_pressure = block_val(p.pore, grid_pore_density, block, node);
-    }
+    Vec3<T> x_node;
+    int index[3];
+    GridNodeSample<T> sample;
+    if (!grid_node_sample(p, q, static_cast<int>(idx / 64), static_cast<int>(idx % 64), g.lo, g.hi, x_node, index, sample))
+      continue;
     if (!grid_sensor_reads(g, sample)) continue;  // the CPU engine's rule (accumulate_grid_sensors)
     a.add(static_cast<double>(grid_sensor_value(g, sample)));
   }
   a = block_reduce_sensor(a);
   if (threadIdx.x == 0) p.partials[static_cast<std::size_t>(blockIdx.y) * gridDim.x + blockIdx.x] = a;
+}
+
+/// One grid field's nodes (physics/grid_fields.h): every node this rank counts inside the box, in any order (the
+/// recorder orders them by index); *count ends as their number (at most `capacity`, the box's node count).
+template <typename T>
+__global__ void __launch_bounds__(kSensorThreads)
+    collect_grid_field(GridSensorSampleParams<T> p, GridFieldParams<T> f, GridFieldNode* out, int capacity, int* count) {
+  const GridQuantum q = *p.quantum;
+  const long long nodes = static_cast<long long>(p.block_count) * 64;
+  for (long long idx = static_cast<long long>(blockIdx.x) * blockDim.x + threadIdx.x; idx < nodes;
+       idx += static_cast<long long>(gridDim.x) * blockDim.x) {
+    Vec3<T> x_node;
+    int index[3];
+    GridNodeSample<T> sample;
+    if (!grid_node_sample(p, q, static_cast<int>(idx / 64), static_cast<int>(idx % 64), f.lo, f.hi, x_node, index, sample))
+      continue;
+    const int at = atomicAdd(count, 1);
+    if (at < capacity) out[at] = grid_field_node(index, sample);
+  }
 }
 
 /// out[sensor] = the sensor's partials merged in CUDA-block order (one thread per sensor: at most kSensorBlocks).
