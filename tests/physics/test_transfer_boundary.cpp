@@ -447,6 +447,56 @@ TEST(Boundary, MovingBoundaryTranslatesAndActsOnRelativeVelocity) {
   EXPECT_EQ(apply_boundary(boundary_at(b, 0.0), Vec3d{{0.1, 0.5, 0.5}}, kV), (Vec3d{{0.0, 0.0, -2.0}}));
 }
 
+// A turning boundary (angular_velocity about rotation_center): its shape at t_begin's orientation turned by
+// |omega| (t - t_begin); a Sticky node inside takes the surface's velocity omega x r (+ v_b), a node inside the
+// unturned box but outside the turned one is left alone, Slip removes the normal part of the velocity relative to
+// the turning surface, and the centre translates with the boundary.
+TEST(Boundary, TurningBoxActsWhereItIsWithItsSurfaceVelocity) {
+  BoundarySpec spec;
+  spec.object = BoundaryObject::Box;
+  spec.contact = Contact::Sticky;
+  spec.domain_start = {0.4, 0.4, 0.4};
+  spec.domain_end = {0.6, 0.6, 0.6};
+  spec.angular_velocity = {0.0, 0.0, 2.0};  // rad/s about z
+  spec.rotation_center = {0.5, 0.5, 0.5};
+  spec.time = {1.0, 10.0};
+  BoundaryParams<double> b{};
+  std::string error;
+  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.01).dx, unit_sim(0.01).domain, b, error)) << error;
+  const double t = 1.0 + std::acos(-1.0) / 8.0;  // 45 degrees after t_begin
+  const BoundaryParams<double> at = boundary_at(b, t);
+  EXPECT_NEAR(at.rotation.m[0][0], std::sqrt(0.5), 1e-15);
+  EXPECT_NEAR(at.rotation.m[1][0], std::sqrt(0.5), 1e-15);  // x turns towards y
+  const Vec3d corner{{0.63, 0.5, 0.5}};  // beyond the unturned +x face, inside the turned box (its corner)
+  const Vec3d omega_r{{0.0, 2.0 * 0.13, 0.0}};
+  const Vec3d v = apply_boundary(at, corner, kV);
+  for (int a = 0; a < 3; ++a) EXPECT_NEAR(v[a], omega_r[a], 1e-12) << a;
+  const Vec3d cut{{0.595, 0.595, 0.5}};  // inside the unturned box, outside the turned one
+  EXPECT_EQ(apply_boundary(at, cut, kV), kV);
+  // At t_begin it has not turned: the same node is outside.
+  EXPECT_EQ(apply_boundary(boundary_at(b, 1.0), corner, kV), kV);
+  // Slip on the turned +x face (normal n = (1, 1, 0) / sqrt 2): a node at rest just inside it, off the diagonal
+  // (box-frame offset (0.099, 0.05) from the centre), where the surface moves into the material at
+  // (omega x r) . n = -2 x 0.05 m/s, is pushed along n with the surface and keeps its (zero) tangential velocity.
+  spec.contact = Contact::Slip;
+  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.01).dx, unit_sim(0.01).domain, b, error)) << error;
+  const double c45 = std::sqrt(0.5);
+  const Vec3d n{{c45, c45, 0.0}}, tangent{{-c45, c45, 0.0}};
+  const Vec3d face = Vec3d{{0.5, 0.5, 0.5}} + n * 0.099 + tangent * 0.05;
+  const Vec3d w = apply_boundary(boundary_at(b, t), face, Vec3d::zero());
+  EXPECT_NEAR(dot(w, n), -0.1, 1e-12);
+  EXPECT_NEAR(dot(w, tangent), 0.0, 1e-12);
+  EXPECT_NEAR(w[2], 0.0, 1e-12);
+  // Translating as well: the centre moves with the boundary.
+  spec.velocity = {0.1, 0.0, 0.0};
+  ASSERT_TRUE(make_boundary_params(spec, unit_sim(0.01).dx, unit_sim(0.01).domain, b, error)) << error;
+  EXPECT_NEAR(boundary_at(b, 3.0).pivot[0], 0.7, 1e-15);
+  // A pump does not turn.
+  spec.object = BoundaryObject::Pump;
+  EXPECT_FALSE(make_boundary_params(spec, unit_sim(0.01).dx, unit_sim(0.01).domain, b, error));
+  EXPECT_NE(error.find("does not turn"), std::string::npos) << error;
+}
+
 // Motion files (physics/motion_path.h): rows time, displacement, velocity; linear between rows, held outside them;
 // Froude scaling by s: times and velocities x sqrt(s), displacements x s; the scene's rate must match the rows.
 TEST(MotionPath, InterpolatesHoldsScalesAndChecks) {

@@ -626,6 +626,30 @@ TEST(SceneParse, GridFields) {
   EXPECT_EQ(error_of(field(R"("bloks": true)")).rfind("grid-fields[0].bloks", 0), 0u);
 }
 
+// A boundary's rotation (fbar's angular_velocity, rotation_center): the centre defaults to the box's, both survive
+// the scene writer, Froude scaling scales them as a frequency and a length, and a pump does not turn.
+TEST(SceneParse, BoundaryRotation) {
+  const Scene s = parse(scene_with(body(), R"("boundaries": [{"object": "Box", "contact": "Slip",
+      "domain_start": [0.2, 0.2, 0.2], "domain_end": [0.4, 0.6, 0.4], "angular_velocity": [0, 0, 3]},
+      {"object": "Cylinder", "domain_start": [0.6, 0, 0.6], "domain_end": [0.8, 0.5, 0.8],
+       "angular_velocity": [0, 1, 0], "rotation_center": [0.7, 0, 0.7]}])"));
+  ASSERT_EQ(s.boundaries.size(), 2u);
+  EXPECT_EQ(s.boundaries[0].angular_velocity, (Real3{0.0, 0.0, 3.0}));
+  EXPECT_EQ(s.boundaries[0].rotation_center, (Real3{0.30000000000000004, 0.4, 0.30000000000000004}));
+  EXPECT_EQ(s.boundaries[1].rotation_center, (Real3{0.7, 0.0, 0.7}));
+  const Scene again = parse_scene_string(write_scene_json(s), ParseOptions{});
+  EXPECT_TRUE(again.boundaries == s.boundaries) << write_scene_json(s);
+  const Scene scaled = parse(R"({"simulation": {"domain": [1, 1, 1], "default_dx": 0.05, "froude_scaling": 4},
+      "bodies": [)" + body() + R"(], "boundaries": [{"object": "Box", "domain_start": [0.1, 0.1, 0.1],
+      "domain_end": [0.2, 0.2, 0.2], "angular_velocity": [0, 0, 2], "rotation_center": [0.1, 0.1, 0.1]}]})");
+  EXPECT_EQ(scaled.boundaries[0].angular_velocity[2], 1.0);
+  EXPECT_EQ(scaled.boundaries[0].rotation_center[0], 0.4);
+  EXPECT_EQ(error_of(scene_with(body(), R"("boundaries": [{"object": "Pump", "velocity": [1, 0, 0],
+      "domain_start": [0, 0, 0], "domain_end": [1, 1, 1], "angular_velocity": [0, 1, 0]}])"))
+                .rfind("boundaries[0].angular_velocity: got [0,1,0]", 0),
+            0u);
+}
+
 TEST(SceneParse, ReleasePolicyRejectsWhatTheEngineCannotRun) {
   struct Case {
     std::string json;

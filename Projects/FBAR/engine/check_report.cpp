@@ -158,6 +158,8 @@ void print_boundaries_and_sensors(std::ostream& os, const Scene& scene) {
     row(os, "friction", "static " + num(b.friction_static) + ", dynamic " + num(b.friction_dynamic));
     if (b.file.empty()) row(os, "velocity", vec(b.velocity) + " m/s");
     else row(os, "motion file", b.file + " sampled at " + num(b.output_frequency) + " Hz");
+    if (b.angular_velocity != Real3{0.0, 0.0, 0.0})
+      row(os, "rotation", vec(b.angular_velocity) + " rad/s about " + vec(b.rotation_center) + " m (at time[0])");
     if (b.array != Int3{1, 1, 1}) row(os, "array", ivec(b.array) + " spaced " + vec(b.spacing) + " m");
     if (!b.bathymetry.empty()) row(os, "bathymetry", std::to_string(b.bathymetry.size()) + " points");
   }

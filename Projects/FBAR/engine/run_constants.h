@@ -104,7 +104,9 @@ struct RunConstants {
     m.at(t - b.t_begin, d, v);
     b.lo[0] += static_cast<T>(d);
     b.hi[0] += static_cast<T>(d);
+    b.pivot[0] += static_cast<T>(d);
     b.velocity = Vec3<T>{{static_cast<T>(v), T(0), T(0)}};
+    if (b.rotates) b.rotation = rotation_of(b.omega, t - b.t_begin);
     return b;
   }
 

@@ -49,7 +49,10 @@
 // Facility objects (OSU flume and basin, USGS flume, WASIRF, Waseda harbour) are built from these shapes on the host
 // (scene/facilities.h expand_boundary); nothing facility-specific reaches this file.
 // A moving boundary (velocity v_b != 0) translates by v_b (t - t_begin): boundary_at() gives it at time t; one with a
-// motion file (physics/motion_path.h) by the file's displacement along x, with the file's velocity.
+// motion file (physics/motion_path.h) by the file's displacement along x, with the file's velocity. One with an
+// angular velocity omega also turns, by |omega| (t - t_begin) about omega's axis through its rotation centre (which
+// translates with it): the surface's velocity at a node is v_b + omega x (x - centre), the contact and friction act
+// on the velocity relative to it, and a Velocity box gives its nodes that velocity (apply_boundary).
 // `array` [nx, ny, nz] with `spacing` repeats a boundary nx x ny x nz times (boundary_array()).
 #pragma once
 
@@ -92,7 +95,31 @@ struct BoundaryParams {
   double t_end;        ///< [s]
   int profile_first;   ///< Bathymetry: its first point in BoundaryProfiles
   int profile_count;   ///< Bathymetry: its number of points (>= 2)
+  bool rotates;        ///< it turns: omega != 0
+  Vec3<T> omega;       ///< [rad/s] angular velocity
+  Vec3<T> pivot;       ///< [m] the point it turns about (at t_begin; boundary_at moves it with the boundary)
+  Mat3<T> rotation;    ///< the rotation since t_begin (boundary_at sets it; the identity at t_begin)
 };
+
+/// The rotation by angle |omega| t about omega's axis (Rodrigues), in double, converted to T.
+template <typename T>
+FBAR_HOST_DEVICE inline Mat3<T> rotation_of(const Vec3<T>& omega, double t) {
+  using std::cos;
+  using std::sin;
+  using std::sqrt;
+  const double w[3] = {static_cast<double>(omega[0]), static_cast<double>(omega[1]), static_cast<double>(omega[2])};
+  const double rate = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+  Mat3<T> r{};
+  for (int i = 0; i < 3; ++i) r.m[i][i] = T(1);
+  if (!(rate > 0.0) || t <= 0.0) return r;
+  const double k[3] = {w[0] / rate, w[1] / rate, w[2] / rate}, angle = rate * t;
+  const double c = cos(angle), s = sin(angle);
+  const double K[3][3] = {{0.0, -k[2], k[1]}, {k[2], 0.0, -k[0]}, {-k[1], k[0], 0.0}};
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)  // R = I + sin K + (1 - cos) K^2, K^2 = k k^T - I
+      r.m[i][j] = static_cast<T>((i == j ? c : 0.0) + s * K[i][j] + (1.0 - c) * k[i] * k[j]);
+  return r;
+}
 
 /// The boundary at time t [s]: translated by velocity (t - t_begin) (itself when it does not move).
 template <typename T>
@@ -105,7 +132,9 @@ FBAR_HOST_DEVICE inline BoundaryParams<T> boundary_at(const BoundaryParams<T>& b
       const T shift = static_cast<T>(static_cast<double>(b.velocity[a]) * since);
       m.lo[a] += shift;
       m.hi[a] += shift;
+      m.pivot[a] += shift;
     }
+  if (b.rotates) m.rotation = rotation_of(b.omega, since);
   return m;
 }
 
@@ -140,6 +169,17 @@ FBAR_HOST_DEVICE inline Vec3<T> project_contact(const BoundaryParams<T>& b, cons
 template <typename T>
 FBAR_HOST_DEVICE inline Vec3<T> project_moving(const BoundaryParams<T>& b, const Vec3<T>& v, const Vec3<T>& n) {
   return project_contact(b, v - b.velocity, n) + b.velocity;
+}
+
+/// The unit normal, in the x-y plane, to the left of the line from (lo_x, lo_y) to (hi_x, hi_y) (Plane, HalfSpace).
+template <typename T>
+FBAR_HOST_DEVICE inline Vec3<T> line_normal(const BoundaryParams<T>& b) {
+  const T ex = b.hi[0] - b.lo[0], ey = b.hi[1] - b.lo[1];
+  const T length = sqrt(ex * ex + ey * ey);
+  Vec3<T> n = Vec3<T>::zero();
+  n[0] = -ey / length;
+  n[1] = ex / length;
+  return n;
 }
 
 /// Walls: the domain's faces (or the box's): nodes on a face keep out of it; nodes within the layer behind it are
@@ -239,10 +279,11 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_bathymetry(const BoundaryParams<T>& b, con
   return project_moving(b, v, n);
 }
 
-/// The velocity of the grid node at x_node [m] after this boundary (assumed active; give boundary_at(b, t)).
+/// The velocity of the grid node at x_node [m] after this boundary at rest in its own frame (apply_boundary turns
+/// a rotating one into it).
 template <typename T>
-FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const Vec3<T>& x_node, Vec3<T> v,
-                                               const BoundaryProfiles<T>* profiles = nullptr) {
+FBAR_HOST_DEVICE inline Vec3<T> apply_boundary_unrotated(const BoundaryParams<T>& b, const Vec3<T>& x_node, Vec3<T> v,
+                                                         const BoundaryProfiles<T>* profiles) {
   using std::fabs;
   using std::sqrt;
   // A node within dx / 128 of a face, a bed or a line lies on it, whatever the round-off of its position and of the
@@ -293,22 +334,15 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
     }
     case BoundaryShape::Plane: {
       if (x_node[0] < b.lo[0] - snap || x_node[0] >= b.hi[0] - snap) return v;
-      const T ex = b.hi[0] - b.lo[0], ey = b.hi[1] - b.lo[1];
-      const T length = sqrt(ex * ex + ey * ey);
-      Vec3<T> n = Vec3<T>::zero();
-      n[0] = -ey / length;
-      n[1] = ex / length;
+      const Vec3<T> n = line_normal(b);
       const T side = (x_node[0] - b.lo[0]) * n[0] + (x_node[1] - b.lo[1]) * n[1];
-      if (side > (ey != T(0) ? b.layer : T(0)) + snap) return v;  // above the line (and its band, kBedLayerCells)
+      const bool sloped = b.hi[1] != b.lo[1];
+      if (side > (sloped ? b.layer : T(0)) + snap) return v;  // above the line (and its band, kBedLayerCells)
       return project_moving(b, v, n);
     }
     case BoundaryShape::HalfSpace: {
       if (x_node[2] < b.lo[2] - snap || x_node[2] > b.hi[2] + snap) return v;
-      const T ex = b.hi[0] - b.lo[0], ey = b.hi[1] - b.lo[1];
-      const T length = sqrt(ex * ex + ey * ey);
-      Vec3<T> n = Vec3<T>::zero();
-      n[0] = -ey / length;
-      n[1] = ex / length;
+      const Vec3<T> n = line_normal(b);
       const T side = (x_node[0] - b.lo[0]) * n[0] + (x_node[1] - b.lo[1]) * n[1];
       if (side > snap) return v;  // the material's side
       return project_moving(b, v, n);
@@ -334,6 +368,26 @@ FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const
       return apply_bathymetry(b, x_node, v, snap, profiles);
   }
   return v;
+}
+
+/// The velocity of the grid node at x_node [m] after this boundary (assumed active; give boundary_at(b, t)). A
+/// boundary that turns is its shape at t_begin's orientation, turned by `rotation` about `pivot`: the node is taken
+/// into that frame, the contact acts there on the velocity relative to the surface's, v_b + omega x (x - pivot), and
+/// the result is turned back.
+template <typename T>
+FBAR_HOST_DEVICE inline Vec3<T> apply_boundary(const BoundaryParams<T>& b, const Vec3<T>& x_node, Vec3<T> v,
+                                               const BoundaryProfiles<T>* profiles = nullptr) {
+  if (!b.rotates) return apply_boundary_unrotated(b, x_node, v, profiles);
+  const Vec3<T> r = x_node - b.pivot;
+  const Vec3<T> surface = b.velocity + cross(b.omega, r);
+  const Mat3<T> back = transpose(b.rotation);
+  BoundaryParams<T> still = b;
+  still.velocity = Vec3<T>::zero();
+  const Vec3<T> relative = back * (v - surface);
+  const Vec3<T> out = apply_boundary_unrotated(still, b.pivot + back * r, relative, profiles);
+  bool untouched = true;  // a node the boundary does not act on keeps its velocity exactly (no round trip)
+  for (int a = 0; a < 3; ++a) untouched = untouched && out[a] == relative[a];
+  return untouched ? v : b.rotation * out + surface;
 }
 
 /// Grid nodes up to this many cells above a sloped bed (Bathymetry segments and Plane lines that are not
@@ -388,6 +442,7 @@ inline std::vector<BoundaryParams<T>> boundary_array(const BoundaryParams<T>& b,
           const T shift = static_cast<T>(n[a] * spec.spacing[a]);
           c.lo[a] += shift;
           c.hi[a] += shift;
+          c.pivot[a] += shift;  // each copy turns about its own centre
         }
         out.push_back(c);
       }
@@ -459,6 +514,16 @@ inline bool make_boundary_params(const BoundarySpec& spec, double dx, const std:
   out.friction_dynamic = static_cast<T>(spec.friction_dynamic);
   out.t_begin = spec.time[0];
   out.t_end = spec.time[1];
+  out.rotates = spec.angular_velocity != std::array<double, 3>{0.0, 0.0, 0.0};
+  for (int a = 0; a < 3; ++a) {
+    out.omega[a] = static_cast<T>(spec.angular_velocity[a]);
+    out.pivot[a] = static_cast<T>(spec.rotation_center[a]);
+  }
+  out.rotation = rotation_of(out.omega, 0.0);
+  if (out.rotates && out.shape == BoundaryShape::Pump) {
+    error = "a Pump drives a flow and does not turn (angular_velocity must be 0)";
+    return false;
+  }
   return true;
 }
 

@@ -27,6 +27,10 @@ struct BoundarySpec {
   double friction_static = 0.0;
   double friction_dynamic = 0.0;
   std::array<double, 3> velocity{0.0, 0.0, 0.0};        ///< [m/s]
+  /// [rad/s] fbar's: the boundary turns at this angular velocity about rotation_center (which moves with it), from
+  /// time[0]; 0: it does not turn
+  std::array<double, 3> angular_velocity{0.0, 0.0, 0.0};
+  std::array<double, 3> rotation_center{0.0, 0.0, 0.0};  ///< [m] at time[0] (the parser's default: the box's centre)
   std::string file;
   double output_frequency = 0.0;        ///< [Hz]
   std::array<int, 3> array{1, 1, 1};

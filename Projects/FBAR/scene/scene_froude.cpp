@@ -124,6 +124,8 @@ void apply_froude_scaling(Scene& scene) {
     scale3(b.domain_end, length);
     scale3(b.spacing, length);
     scale3(b.velocity, velocity);
+    scale3(b.rotation_center, length);
+    scale3(b.angular_velocity, frequency);
     for (double& t : b.time) t *= time;
     b.output_frequency *= frequency;
     for (auto& p : b.bathymetry) {

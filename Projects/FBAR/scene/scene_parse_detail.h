@@ -390,7 +390,7 @@ inline const Keys kGeometryKeys = {"object",   "operation", "span",           "o
 inline const Keys kBoundaryKeys = {"object",   "contact",  "domain_start",   "domain_end",  "time",
                             "friction_static", "friction_dynamic", "velocity", "file", "output_frequency",
                             "output_freq", "array", "spacing",        "bathymetry",  "use_custom_bathymetry",
-                            "type",     "name"};
+                            "type",     "name", "angular_velocity", "rotation_center"};
 inline const Keys kGridSensorKeys = {"attribute",   "operation",  "direction", "output_frequency", "output_freq",
                               "domain_start", "domain_end", "type",      "name",             "toggle"};
 inline const Keys kGridFieldKeys = {"attributes", "output_frequency", "output_freq", "domain_start", "domain_end",

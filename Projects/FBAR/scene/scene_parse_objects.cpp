@@ -106,6 +106,14 @@ BoundarySpec parse_boundary(const rj::Value& v, const std::string& path, const C
     if (!f) o.missing("output_frequency", "the sampling rate of the motion file, a number > 0", "Hz");
     b.output_frequency = read_number(*f.value, f.path, kPositive, "Hz");
   }
+  // fbar's rotation: about rotation_center (default: the box's centre), at angular_velocity from time[0].
+  for (int a = 0; a < 3; ++a) b.rotation_center[a] = 0.5 * (b.domain_start[a] + b.domain_end[a]);
+  if (auto* x = o.get("angular_velocity")) b.angular_velocity = read_real3(*x, o.sub("angular_velocity"), kAny, "rad/s");
+  if (auto* x = o.get("rotation_center")) b.rotation_center = read_real3(*x, o.sub("rotation_center"), kAny, "m");
+  if (b.angular_velocity != Real3{0.0, 0.0, 0.0} &&
+      (b.object == BoundaryObject::Pump || b.object == BoundaryObject::WASIRF_PUMP))
+    throw SceneError(o.sub("angular_velocity"), json_text(*o.get("angular_velocity")),
+                     "[0, 0, 0]: a pump drives a flow and does not turn", "rad/s");
   if (auto* x = o.get("array")) b.array = read_int3(*x, o.sub("array"), at_least(1));
   if (auto* x = o.get("spacing")) b.spacing = read_real3(*x, o.sub("spacing"), kAny, "m");
 

@@ -390,6 +390,10 @@ class SceneWriter {
       str("file", b.file);
       num("output_frequency", b.output_frequency);
     }
+    if (b.angular_velocity != Real3{0.0, 0.0, 0.0}) {  // fbar's rotation
+      reals("angular_velocity", b.angular_velocity);
+      reals("rotation_center", b.rotation_center);
+    }
     ints("array", b.array);
     reals("spacing", b.spacing);
     const bool has_bathymetry = b.object == BoundaryObject::Bathymetry || b.object == BoundaryObject::OSU_LWF_RAMP ||
@@ -598,7 +602,9 @@ bool operator==(const BoundarySpec& a, const BoundarySpec& b) {
          a.domain_end == b.domain_end && a.time == b.time && a.friction_static == b.friction_static &&
          a.friction_dynamic == b.friction_dynamic && a.velocity == b.velocity && a.file == b.file &&
          a.output_frequency == b.output_frequency && a.array == b.array && a.spacing == b.spacing &&
-         a.bathymetry == b.bathymetry && a.use_custom_bathymetry == b.use_custom_bathymetry;
+         a.bathymetry == b.bathymetry && a.use_custom_bathymetry == b.use_custom_bathymetry &&
+         a.angular_velocity == b.angular_velocity &&
+         (a.angular_velocity == Real3{0.0, 0.0, 0.0} || a.rotation_center == b.rotation_center);  // a centre acts when it turns
 }
 bool operator==(const GridSensorSpec& a, const GridSensorSpec& b) {
   return a.name == b.name && a.toggle == b.toggle && a.attribute == b.attribute && a.operation == b.operation &&

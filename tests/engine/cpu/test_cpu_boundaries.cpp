@@ -21,6 +21,46 @@ namespace {
 using test::box_body;
 using test::empty_scene;
 using test::r3;
+// A Sticky Box turning at omega = 1 rad/s about z through the centre of the elastic block it holds (the box 2 dx
+// wider than the block on every side, no gravity): the block turns with it as a rigid body. After 0.5 s every
+// particle has turned by 0.5 rad about the centre (each particle's angle within 1 %) and kept its distance from the
+// axis (0.5 % of the block's half-width), and the block's angular momentum about z is I omega (2 %).
+TEST(Boundary, TurningStickyBoxTurnsTheBlockItHolds) {
+  Scene scene = empty_scene(r3(1, 1, 1), 0.04, r3(0, 0, 0));
+  BodySpec block = box_body(Constitutive::FixedCorotated, r3(0.38, 0.38, 0.38), r3(0.24, 0.24, 0.24));
+  block.material.youngs_modulus = 1e5;
+  scene.bodies.push_back(block);
+  BoundarySpec box;
+  box.object = BoundaryObject::Box;
+  box.contact = Contact::Sticky;
+  box.domain_start = {0.30, 0.30, 0.30};
+  box.domain_end = {0.70, 0.70, 0.70};
+  box.angular_velocity = {0.0, 0.0, 1.0};
+  box.rotation_center = {0.5, 0.5, 0.5};
+  scene.boundaries.push_back(box);
+  CpuEngine<double> engine(scene);
+  engine.set_log(nullptr);
+  const std::vector<Vec3d> x0 = engine.positions(0);
+  ASSERT_TRUE(engine.advance_to(0.5).ok);
+  const std::vector<Vec3d> x1 = engine.positions(0);
+  double worst_angle = 0.0, worst_radius = 0.0, lz = 0.0, inertia = 0.0;
+  for (std::size_t i = 0; i < x0.size(); ++i) {
+    const double a0 = std::atan2(x0[i][1] - 0.5, x0[i][0] - 0.5), a1 = std::atan2(x1[i][1] - 0.5, x1[i][0] - 0.5);
+    const double r0 = std::hypot(x0[i][0] - 0.5, x0[i][1] - 0.5), r1 = std::hypot(x1[i][0] - 0.5, x1[i][1] - 0.5);
+    worst_angle = std::max(worst_angle, std::fabs(std::remainder(a1 - a0, 2.0 * std::acos(-1.0)) - 0.5));
+    worst_radius = std::max(worst_radius, std::fabs(r1 - r0));
+    const double m = engine.masses(0)[i];
+    const Vec3d& v = engine.velocities(0)[i];
+    lz += m * ((x1[i][0] - 0.5) * v[1] - (x1[i][1] - 0.5) * v[0]);
+    inertia += m * r1 * r1;
+  }
+  std::printf("[measured] turning sticky box: worst angle error %.2e rad of 0.5, worst radius change %.2e m, "
+              "L_z / (I omega) %.4f\n", worst_angle, worst_radius, lz / inertia);
+  EXPECT_LT(worst_angle, 0.005);
+  EXPECT_LT(worst_radius, 0.005 * 0.12);
+  EXPECT_NEAR(lz / inertia, 1.0, 0.02);
+}
+
 // A Box obstacle under a falling block: no particle enters it. Its top face is y = 0.3 (a node plane); a particle's
 // stencil reaches the obstacle's nodes only below y = 0.3 + 1.5 dx, so the lowest particle must get below that
 // (contact happened) and stay above 0.3 (nothing entered), checked after every step. The block is elastic
